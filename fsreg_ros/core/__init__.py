@@ -1,0 +1,1 @@
+"""The pure-Python core of fsreg: no ROS import anywhere below this package."""

@@ -1,0 +1,101 @@
+"""Reference resolution (RR): which entity does a heard description refer to?
+
+SPEC section 3.  The description's properties are checked in utterance order
+against every candidate still in play.  Each time a property is affirmed for a
+candidate it is encoded into that candidate's WM (rule 2), even if the candidate
+is ruled out by a later property.  A description that resolves to exactly one
+entity is then encoded, whole and in utterance order, for its referent (rule 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Optional, Sequence
+
+from .consultant import ConsultantPort, KnowledgeError
+
+RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
+
+
+class ResolutionError(ValueError):
+    """The description cannot be resolved at all (unknown property, no domain)."""
+
+
+@dataclass
+class Resolution:
+    """Result of resolving one description (the ``/rr/result`` fields)."""
+
+    status: str
+    domain: Optional[str]
+    description: list[str]
+    candidates: list[str] = field(default_factory=list)
+
+    @property
+    def resolved(self) -> Optional[str]:
+        return self.candidates[0] if self.status == RESOLVED else None
+
+    def to_json(self) -> dict:
+        return {
+            "status": self.status,
+            "resolved": self.resolved,
+            "candidates": list(self.candidates),
+            "description": list(self.description),
+            "domain": self.domain,
+        }
+
+
+async def choose_domain(
+    description: Sequence[str], ports: Mapping[str, ConsultantPort], domain: Optional[str] = None
+) -> str:
+    """The domain to resolve in: the given one, else the only domain whose preference
+    order contains every property of the description."""
+    if domain is not None:
+        if domain not in ports:
+            raise ResolutionError(f"unknown domain '{domain}' (known: {', '.join(sorted(ports))})")
+        preference = set(await ports[domain].preference())
+        missing = [p for p in description if p not in preference]
+        if missing:
+            raise ResolutionError(f"domain '{domain}' knows no property {', '.join(repr(p) for p in missing)}")
+        return domain
+    known: set[str] = set()
+    fitting = []
+    for name, port in ports.items():
+        preference = set(await port.preference())
+        known |= preference
+        if all(p in preference for p in description):
+            fitting.append(name)
+    unknown = [p for p in description if p not in known]
+    if unknown:
+        raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}")
+    if len(fitting) != 1:
+        which = "no domain" if not fitting else f"several domains ({', '.join(sorted(fitting))})"
+        raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; name it with 'domain'")
+    return fitting[0]
+
+
+async def resolve(
+    description: Sequence[str],
+    ports: Mapping[str, ConsultantPort],
+    *,
+    domain: Optional[str] = None,
+    time: float = 0.0,
+    turn: Optional[int] = None,
+) -> Resolution:
+    """Resolve a heard description (SPEC section 3), encoding as rules 1 and 2 say."""
+    description = list(description)
+    if not description:
+        raise ResolutionError("the description is empty")
+    domain = await choose_domain(description, ports, domain)
+    port = ports[domain]
+    candidates = await port.entities()
+    for prop in description:
+        if not candidates:
+            break
+        try:
+            candidates = await port.affirm(prop, candidates, "rr", time, turn)
+        except KnowledgeError as err:  # raced with an LTM change; report, never guess
+            raise ResolutionError(str(err)) from err
+    if len(candidates) == 1:
+        await port.encode(candidates[0], description, "speaker", time, turn)
+        return Resolution(RESOLVED, domain, description, candidates)
+    return Resolution(AMBIGUOUS if candidates else NO_MATCH, domain, description, candidates)
