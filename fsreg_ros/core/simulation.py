@@ -1,0 +1,161 @@
+"""Play a scenario's dialogue on a simulated clock (SPEC sections 2 and 6).
+
+The simulator wires the core together exactly as the ROS graph does: one
+:class:`Consultant` per domain, a :class:`WMManager` applying each domain's
+forgetting policy, reference resolution for human turns and REG plus realisation
+for robot turns.  Before each dialogue event at time T, every decay tick due at or
+before T is applied (SPEC section 2, "a tick at time T is applied before any
+dialogue event stamped T").
+
+The records built here (:func:`human_record`, :func:`robot_record`) are also what
+the ROS ``dialogue_player`` emits, so ``fsreg-graph --json`` and ``fsreg-sim
+--json`` can be compared byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Optional
+
+from .consultant import LocalPort, run_sync
+from .forgetting import ForgettingPolicy, WMManager
+from .generation import generate
+from .memory import WMEvent
+from .realisation import Lexicon, ParseResult
+from .resolution import resolve
+from .scenario import Scenario, Turn
+
+
+@dataclass
+class Options:
+    """What a user can change from the command line.
+
+    ``memory`` overrides every domain's ``memory:`` settings key by key (SPEC §5).
+    ``algorithm`` None means: SD-PIA, or DIST-PIA for a domain whose policy is none.
+    """
+
+    memory: dict[str, Any] = field(default_factory=dict)
+    algorithm: Optional[str] = None
+    wm_order: str = "lru-first"
+
+
+def algorithm_for(policy: ForgettingPolicy, algorithm: Optional[str]) -> str:
+    """Policy ``none`` implies DIST-PIA unless an algorithm is named explicitly."""
+    if algorithm:
+        return algorithm
+    return "sd-pia" if policy.retains else "dist-pia"
+
+
+def effective_policies(scenario: Scenario, options: Options) -> dict[str, ForgettingPolicy]:
+    return {d: scenario.policy_for(d, options.memory or None) for d in scenario.domains}
+
+
+def human_record(turn: Turn, resolution: Mapping[str, Any], parsed: Optional[ParseResult]) -> dict:
+    """One human turn's output record (SPEC section 6)."""
+    record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "human"}
+    if turn.target is not None:
+        record["target"] = turn.target
+    if parsed is not None:
+        record["text"] = turn.text
+        record["unknown_words"] = list(parsed.unknown_words)
+    for key in ("description", "status", "resolved", "candidates", "domain"):
+        record[key] = resolution.get(key)
+    if "error" in resolution:
+        record["error"] = resolution["error"]
+    return record
+
+
+def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
+    """One robot turn's output record (SPEC section 6)."""
+    record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "robot", "target": turn.target}
+    if turn.context is not None:
+        record["context"] = list(turn.context)
+    for key in (
+        "wm_before",
+        "description",
+        "sources",
+        "distinguishing",
+        "distractors_left",
+        "text",
+        "domain",
+        "algorithm",
+    ):
+        record[key] = expression.get(key)
+    if "error" in expression:
+        record["error"] = expression["error"]
+    return record
+
+
+class Simulation:
+    """The core's whole pipeline for one scenario, on a simulated clock."""
+
+    def __init__(self, scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None):
+        self.scenario = scenario
+        self.options = options or Options()
+        self.lexicon = lexicon or Lexicon.load()
+        self.policies = effective_policies(scenario, self.options)
+        self.events: list[WMEvent] = []
+        self.consultants = scenario.consultants(sink=self.events.append)
+        self.ports = {d: LocalPort(c) for d, c in self.consultants.items()}
+        self.manager = WMManager()
+        for domain, consultant in self.consultants.items():
+            self.manager.manage(consultant.wm, self.policies[domain], now=0.0)
+        self._properties = scenario.properties()
+
+    def run(self) -> dict:
+        """Play every turn; return the SPEC section 6 result object."""
+        turns = [self.play(turn) for turn in self.scenario.dialogue]
+        return {"scenario": self.scenario.name, "memory": self.manager.effective(), "turns": turns}
+
+    def play(self, turn: Turn) -> dict:
+        self.manager.advance(turn.time)  # ticks at or before T come first
+        if turn.speaker == "human":
+            parsed = None
+            description = list(turn.description or ())
+            if turn.text is not None:
+                parsed = self.lexicon.parse(turn.text, self._properties)
+                description = parsed.properties
+            resolution = run_sync(
+                resolve(description, self.ports, domain=turn.domain, time=turn.time, turn=turn.index)
+            )
+            return human_record(turn, resolution.to_json(), parsed)
+        domain = self.scenario.domain_of(turn.target)  # type: ignore[arg-type]
+        expression = run_sync(
+            generate(
+                turn.target,  # type: ignore[arg-type]
+                self.ports[domain],
+                algorithm_for(self.policies[domain], self.options.algorithm),
+                context=turn.context,
+                wm_order=self.options.wm_order,
+                time=turn.time,
+                turn=turn.index,
+            )
+        )
+        expression.text = self.lexicon.realise(expression.description, domain)
+        return robot_record(turn, expression.to_json())
+
+    def trace(self) -> list[dict]:
+        """Every encode/forget event so far, in the order they happened.
+
+        Lazy decay emits a queue's decay events when the queue is next touched, with
+        the tick's own time; sorting by (time, decay first, emission order) restores
+        the order of an eager buffer (ticks at T come before events stamped T).
+        """
+        for consultant in self.consultants.values():
+            consultant.wm.flush()
+        order = sorted(
+            range(len(self.events)),
+            key=lambda i: (self.events[i].time, self.events[i].cause != "decay", i),
+        )
+        return [self.events[i].to_json() for i in order]
+
+
+def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None) -> dict:
+    """Run a scenario and return the SPEC section 6 result object."""
+    return Simulation(scenario, options, lexicon).run()
+
+
+def dumps(result: Mapping[str, Any]) -> str:
+    """The canonical JSON text of a result: byte-identical for equal results."""
+    return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
