@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The main job: the paper's Table 1 dialogue through the real multi-process ROS 2 node
+# graph, once per forgetting policy, printed side by side and checked against the paper.
+# Usage: scripts/table1.sh [SCENARIO.yaml] [extra fsreg-graph options]
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$root/scripts/venv.sh"
+. "$root/scripts/rosenv.sh"
+scenario="${1:-${FSREG_SHARED_DATA:-$root/../shared/data}/table1.yaml}"
+shift || true
+exec "$root/.venv/bin/fsreg-graph" "$scenario" \
+  --compare-policies decay,displacement,none --expect "$root/config/paper_table1.yaml" "$@"

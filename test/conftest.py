@@ -1,0 +1,62 @@
+"""Test-wide setup: keep ROS 2 on this machine, in a private domain, with a temp log dir.
+
+This runs before any test module imports rclpy.  Discovery must stay on localhost
+(nothing may send traffic off this machine): it is set here when unset and the run
+stops at once if something else was chosen.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+if os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] != "LOCALHOST":
+    pytest.exit(
+        "ROS_AUTOMATIC_DISCOVERY_RANGE must be LOCALHOST for the tests "
+        f"(found {os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']!r})",
+        returncode=3,
+    )
+os.environ.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
+os.environ.setdefault("ROS_LOG_DIR", tempfile.mkdtemp(prefix="fsreg-test-roslog-"))
+assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test"))  # test helpers (rosutil, naive_wm)
+
+
+def shared_data_dir() -> Path:
+    """``../shared/data`` beside the repository, or ``$FSREG_SHARED_DATA``."""
+    return Path(os.environ.get("FSREG_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    path = shared_data_dir()
+    if not (path / "table1.yaml").is_file():
+        pytest.fail(f"shared data not found at {path} (set FSREG_SHARED_DATA)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def table1_path(shared_data: Path) -> Path:
+    return shared_data / "table1.yaml"
+
+
+@pytest.fixture(scope="session")
+def table1_text_path(shared_data: Path) -> Path:
+    return shared_data / "table1-text.yaml"
+
+
+@pytest.fixture(scope="session")
+def paper_table1() -> dict:
+    """The paper's Table 1 robot descriptions per policy (config/paper_table1.yaml)."""
+    import yaml
+
+    return yaml.safe_load((REPO / "config" / "paper_table1.yaml").read_text())["robot_descriptions"]
+
+
