@@ -1,0 +1,46 @@
+#!/usr/bin/env python3
+"""Write the JSON Schema of the scenario file format (SPEC section 5).
+
+The schema is generated from the pydantic models in ``fsreg_ros.core.scenario``,
+so it never drifts from what ``load_scenario`` accepts structurally.  (The
+meaning checks -- unknown properties, decreasing times, ... -- are beyond JSON
+Schema; ``fsreg-sim`` reports those.)  Editors can use it for completion, e.g. with
+``# yaml-language-server: $schema=scenario.schema.json`` in a scenario file.
+
+Usage:  scripts/export_schemas.py [OUTPUT]     (default: stdout)
+
+Generated files are build products: do not commit them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+try:
+    from fsreg_ros.core.scenario import scenario_json_schema
+except ImportError:  # run from a source checkout without installing
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from fsreg_ros.core.scenario import scenario_json_schema
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Write the JSON Schema of fsreg scenario files.")
+    parser.add_argument("output", nargs="?", help="file to write (default: stdout)")
+    args = parser.parse_args(argv)
+    text = json.dumps(scenario_json_schema(), indent=2, sort_keys=True) + "\n"
+    if args.output is None or args.output == "-":
+        sys.stdout.write(text)
+        return 0
+    try:
+        Path(args.output).write_text(text, encoding="utf-8")
+    except OSError as err:
+        print(f"export_schemas: cannot write {args.output}: {err.strerror or err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
