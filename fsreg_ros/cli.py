@@ -27,6 +27,7 @@ from .core.scenario import ScenarioError, load_scenario
 from .core.simulation import Options, Simulation, dumps
 
 EXIT_OK, EXIT_MISMATCH, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_FAILED = 1
 
 #: Errors that are the user's input, reported as one line with exit code 2.
 INPUT_ERRORS = (ScenarioError, PolicyError, LexiconError, KnowledgeError, ResolutionError, GenerationError, OSError)
@@ -125,21 +126,24 @@ def render_comparison(
     labels = list(results)
     robot_rows = {label: [t for t in results[label]["turns"] if t["speaker"] == "robot"] for label in labels}
     first = robot_rows[labels[0]]
-    width = max([len(label) for label in labels] + [36])
-    lines = [f"{'turn':>4}  {'target':<8}  " + "  ".join(f"{label:<{width}}" for label in labels)]
+    columns: dict[str, list[str]] = {}
     matched = checked = 0
-    for i, row in enumerate(first):
+    for label in labels:
         cells = []
-        for label in labels:
-            record = robot_rows[label][i]
+        for i, record in enumerate(robot_rows[label]):
             cell = record.get("text") or ""
             if expected and label in expected and i < len(expected[label]):
                 checked += 1
                 ok = set(expected[label][i]) == set(record.get("description") or [])
                 matched += ok
-                cell = ("ok  " if ok else "DIFF") + " " + cell
-            cells.append(f"{cell:<{width}}")
-        lines.append(f"{row['turn']:>4}  {str(row['target']):<8}  " + "  ".join(cells))
+                cell = ("ok   " if ok else "DIFF ") + cell
+            cells.append(cell)
+        columns[label] = cells
+    widths = {label: max([len(label)] + [len(c) for c in columns[label]]) for label in labels}
+    lines = [f"{'turn':>4}  {'target':<8}  " + "  ".join(f"{label:<{widths[label]}}" for label in labels).rstrip()]
+    for i, row in enumerate(first):
+        cells = "  ".join(f"{columns[label][i]:<{widths[label]}}" for label in labels)
+        lines.append(f"{row['turn']:>4}  {str(row['target']):<8}  {cells}".rstrip())
     if expected:
         lines.append("")
         lines.append(f"{matched}/{checked} robot descriptions match the expected ones")
@@ -150,9 +154,16 @@ def render_comparison(
 Runner = Callable[[argparse.Namespace, Options], tuple[dict, list[dict]]]
 
 
-def run_cli(prog: str, description: str, runner: Runner, argv: Optional[Sequence[str]] = None) -> int:
+def run_cli(
+    prog: str,
+    description: str,
+    runner: Runner,
+    argv: Optional[Sequence[str]] = None,
+    failures: tuple[type[BaseException], ...] = (),
+) -> int:
     """Shared main of ``fsreg-sim`` and ``fsreg-graph``: ``runner`` plays one scenario
-    with the given options and returns (result, trace)."""
+    with the given options and returns (result, trace).  Bad input exits 2; a run
+    that fails in one of the ``failures`` ways exits 1; both print one message."""
     args = build_parser(prog, description).parse_args(argv)
     try:
         if args.compare_policies:
@@ -170,6 +181,9 @@ def run_cli(prog: str, description: str, runner: Runner, argv: Optional[Sequence
     except INPUT_ERRORS as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except failures as err:
+        print(f"{prog}: failed: {err}", file=sys.stderr)
+        return EXIT_FAILED
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130

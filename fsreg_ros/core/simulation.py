@@ -22,7 +22,7 @@ from .consultant import LocalPort, run_sync
 from .forgetting import ForgettingPolicy, WMManager
 from .generation import generate
 from .memory import WMEvent
-from .realisation import Lexicon, ParseResult
+from .realisation import Lexicon
 from .resolution import resolve
 from .scenario import Scenario, Turn
 
@@ -51,14 +51,14 @@ def effective_policies(scenario: Scenario, options: Options) -> dict[str, Forget
     return {d: scenario.policy_for(d, options.memory or None) for d in scenario.domains}
 
 
-def human_record(turn: Turn, resolution: Mapping[str, Any], parsed: Optional[ParseResult]) -> dict:
-    """One human turn's output record (SPEC section 6)."""
+def human_record(turn: Turn, resolution: Mapping[str, Any], unknown_words: Optional[list[str]]) -> dict:
+    """One human turn's output record (SPEC section 6); ``unknown_words`` for text turns."""
     record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "human"}
     if turn.target is not None:
         record["target"] = turn.target
-    if parsed is not None:
+    if turn.text is not None:
         record["text"] = turn.text
-        record["unknown_words"] = list(parsed.unknown_words)
+        record["unknown_words"] = list(unknown_words or [])
     for key in ("description", "status", "resolved", "candidates", "domain"):
         record[key] = resolution.get(key)
     if "error" in resolution:
@@ -111,15 +111,15 @@ class Simulation:
     def play(self, turn: Turn) -> dict:
         self.manager.advance(turn.time)  # ticks at or before T come first
         if turn.speaker == "human":
-            parsed = None
+            unknown_words = None
             description = list(turn.description or ())
             if turn.text is not None:
                 parsed = self.lexicon.parse(turn.text, self._properties)
-                description = parsed.properties
+                description, unknown_words = parsed.properties, parsed.unknown_words
             resolution = run_sync(
                 resolve(description, self.ports, domain=turn.domain, time=turn.time, turn=turn.index)
             )
-            return human_record(turn, resolution.to_json(), parsed)
+            return human_record(turn, resolution.to_json(), unknown_words)
         domain = self.scenario.domain_of(turn.target)  # type: ignore[arg-type]
         expression = run_sync(
             generate(

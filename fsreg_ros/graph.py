@@ -1,0 +1,273 @@
+"""``fsreg-graph``: run a scenario through the real multi-process ROS 2 node graph.
+
+Starts every node as its own process, as ``ros2 run fsreg_ros <node>`` would (one
+``consultant`` per domain, ``wm_manager``, ``parser``, ``reference_resolution``,
+``reg`` and finally ``dialogue_player``), all on sim time driven by the player,
+waits for the player to finish, and shuts everything down.  It takes the same
+options as ``fsreg-sim`` and gives the same output (``--json`` byte-identical).
+
+Process hygiene: every child gets ``PR_SET_PDEATHSIG`` = SIGTERM (it dies with
+the runner even if the runner is SIGKILLed) and all children share one process
+group, which is sent SIGTERM (then SIGKILL after a grace period) on exit,
+Ctrl-C or a failed node.  Node output goes to log files, whose tails are shown
+when something fails.
+
+Networking is left to DDS: the runner keeps ``ROS_AUTOMATIC_DISCOVERY_RANGE``
+as the caller set it (LOCALHOST when unset) and never widens it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+from .cli import run_cli
+from .core.realisation import Lexicon
+from .core.scenario import Scenario, load_scenario
+from .core.simulation import Options, effective_policies
+
+PACKAGE = "fsreg_ros"
+#: Seconds to wait for the player on top of the dialogue's own length.
+RUN_DEADLINE = 120.0
+GRACE = 5.0
+
+
+class GraphError(RuntimeError):
+    """A node failed to start, died, or the run exceeded its deadline."""
+
+
+def ros_environment(base: Optional[dict] = None) -> dict:
+    """The environment for every node: discovery on localhost unless the caller chose
+    otherwise, a domain id and a log directory."""
+    env = dict(os.environ if base is None else base)
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    env.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
+    if "ROS_LOG_DIR" not in env:
+        env["ROS_LOG_DIR"] = tempfile.mkdtemp(prefix="fsreg-roslog-")
+    return env
+
+
+def executable(name: str) -> list[str]:
+    """The command that ``ros2 run fsreg_ros <name>`` would run.
+
+    A colcon install (on ``AMENT_PREFIX_PATH``) wins; then the console script beside
+    this Python (a venv); then ``python -m`` on the module.
+    """
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+        try:
+            candidate = Path(get_package_prefix(PACKAGE)) / "lib" / PACKAGE / name
+            if candidate.is_file() and os.access(candidate, os.X_OK):
+                return [str(candidate)]
+        except PackageNotFoundError:
+            pass
+    except ImportError:  # pragma: no cover - ament_index comes with rclpy
+        pass
+    beside = Path(sys.executable).parent / name
+    if beside.is_file():
+        return [str(beside)]
+    found = shutil.which(name)
+    if found:
+        return [found]
+    return [sys.executable, "-m", f"{PACKAGE}.nodes.{name}"]
+
+
+def _param(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(str(v) for v in value) + "]"
+    return str(value)
+
+
+@dataclass
+class NodeSpec:
+    """One node process: executable, node name and parameters."""
+
+    executable: str
+    name: str
+    parameters: dict = field(default_factory=dict)
+
+    def command(self) -> list[str]:
+        cmd = executable(self.executable) + ["--ros-args", "-r", f"__node:={self.name}"]
+        for key, value in self.parameters.items():
+            cmd += ["-p", f"{key}:={_param(value)}"]
+        return cmd
+
+
+def graph_nodes(
+    scenario: Scenario,
+    scenario_path: Path,
+    options: Options,
+    output: Path,
+    trace: Optional[Path] = None,
+    lexicon: Optional[Path] = None,
+) -> list[NodeSpec]:
+    """The node processes for one scenario run (the player last)."""
+    kb = str(scenario_path.resolve())
+    language = {"lexicon": str(lexicon.resolve())} if lexicon else {}
+    domains = list(scenario.domains)
+    manager: dict = {"use_sim_time": True, "domains": domains}
+    for domain, policy in effective_policies(scenario, options).items():
+        manager[f"{domain}.policy"] = policy.name
+        for key in ("decay_period", "capacity", "global_capacity"):
+            value = getattr(policy, key)
+            if value is not None:
+                manager[f"{domain}.{key}"] = value
+    reg: dict = {"use_sim_time": True, "domains": domains, "wm_order": options.wm_order, **language}
+    if options.algorithm:
+        reg["algorithm"] = options.algorithm
+    nodes = [
+        NodeSpec("consultant", f"consultant_{d}", {"use_sim_time": True, "domain": d, "kb": kb}) for d in domains
+    ]
+    nodes += [
+        NodeSpec("wm_manager", "wm_manager", manager),
+        NodeSpec("parser", "parser", {"use_sim_time": True, "kb": kb, **language}),
+        NodeSpec("reference_resolution", "reference_resolution", {"use_sim_time": True, "domains": domains}),
+        NodeSpec("reg", "reg", reg),
+    ]
+    player = {"scenario": kb, "output": str(output), **language}
+    if trace is not None:
+        player["trace"] = str(trace)
+    nodes.append(NodeSpec("dialogue_player", "dialogue_player", player))
+    return nodes
+
+
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    PR_SET_PDEATHSIG = 1
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+class Graph:
+    """The running node processes of one scenario run."""
+
+    def __init__(self, nodes: Sequence[NodeSpec], log_dir: Path, env: Optional[dict] = None) -> None:
+        self.nodes = list(nodes)
+        self.log_dir = log_dir
+        self.env = ros_environment(env)
+        self.procs: list[tuple[NodeSpec, subprocess.Popen]] = []
+        self.group: Optional[int] = None
+
+    def start(self) -> None:
+        for spec in self.nodes:
+            log = open(self.log_dir / f"{spec.name}.log", "wb")
+            proc = subprocess.Popen(
+                spec.command(),
+                env=self.env,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_parent,
+                process_group=0 if self.group is None else self.group,
+            )
+            log.close()
+            if self.group is None:
+                self.group = proc.pid
+            self.procs.append((spec, proc))
+
+    def wait_for(self, name: str, deadline: float) -> int:
+        """Wait for node ``name`` to exit; fail early if any other node dies first."""
+        target = next(p for s, p in self.procs if s.name == name)
+        while True:
+            code = target.poll()
+            if code is not None:
+                return code
+            for spec, proc in self.procs:
+                if proc is not target and proc.poll() is not None:
+                    raise GraphError(f"node '{spec.name}' exited with code {proc.returncode}\n{self.tail(spec.name)}")
+            if time.monotonic() > deadline:
+                raise GraphError(f"'{name}' did not finish in time\n{self.tail(name)}")
+            time.sleep(0.02)
+
+    def tail(self, name: str, lines: int = 15) -> str:
+        path = self.log_dir / f"{name}.log"
+        text = path.read_text(errors="replace").splitlines()[-lines:] if path.exists() else []
+        return "\n".join(f"  [{name}] {line}" for line in text)
+
+    def stop(self) -> None:
+        """SIGTERM the process group, then SIGKILL whatever is left after a grace period."""
+        if self.group is None:
+            return
+        alive = [p for _, p in self.procs if p.poll() is None]
+        if alive:
+            try:
+                os.killpg(self.group, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + GRACE
+        for proc in alive:
+            try:
+                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+        if any(p.poll() is None for _, p in self.procs):
+            try:
+                os.killpg(self.group, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            for _, proc in self.procs:
+                proc.wait()
+
+
+def run_graph(
+    scenario_path: Path,
+    options: Options,
+    trace: bool = False,
+    env: Optional[dict] = None,
+    lexicon: Optional[Path] = None,
+) -> tuple[dict, list[dict]]:
+    """Play a scenario through the multi-process graph; return (result, trace)."""
+    scenario = load_scenario(scenario_path, Lexicon.load(lexicon))  # bad input fails here, before any process
+    with tempfile.TemporaryDirectory(prefix="fsreg-graph-") as tmp:
+        tmp_path = Path(tmp)
+        output, trace_file = tmp_path / "result.json", (tmp_path / "trace.jsonl" if trace else None)
+        graph = Graph(graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon), tmp_path, env)
+        try:
+            graph.start()
+            deadline = time.monotonic() + RUN_DEADLINE + (scenario.dialogue[-1].time if scenario.dialogue else 0.0) / 100
+            code = graph.wait_for("dialogue_player", deadline)
+            if code != 0 or not output.exists():
+                raise GraphError(f"dialogue_player failed (exit {code})\n{graph.tail('dialogue_player')}")
+            result = json.loads(output.read_text())
+            events = []
+            if trace_file is not None and trace_file.exists():
+                events = [json.loads(line) for line in trace_file.read_text().splitlines() if line]
+            return result, events
+        finally:
+            graph.stop()
+
+
+def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
+    return run_graph(args.scenario, options, trace=bool(args.trace), lexicon=args.lexicon)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``fsreg-graph SCENARIO.yaml [options]``: the scenario through the node graph."""
+    try:
+        return run_cli(
+            "fsreg-graph",
+            "Play a scenario through the multi-process fsreg ROS 2 node graph (sim time).",
+            graph_args,
+            argv,
+            failures=(GraphError,),
+        )
+    except KeyboardInterrupt:  # children are stopped by run_graph's finally
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,229 @@
+"""``dialogue_player``: plays a scenario's dialogue through the graph, on the clock.
+
+For each turn at time T, in file order:
+
+1. call ``/wm_manager/sync`` with T: the WM Manager applies every decay tick due at
+   or before T in every domain and replies only when each consultant has acknowledged
+   (the race-free hand-off: forgetting due at T is in effect before the event);
+2. publish ``/clock`` = T (``drive_clock``), so every sim-time node agrees on the time
+   (the WM Manager's timers then find nothing left to do);
+3. publish the human turn on ``/dialogue/human`` or the robot turn on
+   ``/reg/request`` and wait for the answer with the same ``id`` on ``/rr/result`` or
+   ``/reg/expression``.  Delivery is at-least-once: with no answer after
+   ``retry_after`` seconds the same message is sent again (RR and REG answer a
+   repeated id from their cache, so nothing is encoded twice).
+
+The collected records are exactly those of ``fsreg-sim`` (see
+:mod:`fsreg_ros.core.simulation`), written as JSON to ``output`` or printed as a
+table.  Encode/forget events heard on ``/wm/events`` go to ``trace`` (JSON lines).
+"""
+
+from __future__ import annotations
+
+import json
+import time as wallclock
+from typing import Any, Optional
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.task import Future
+from diagnostic_msgs.srv import AddDiagnostics
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from ..carrier import CarrierError, MessageError, call, from_msg, to_msg
+from ..core.realisation import Lexicon, LexiconError
+from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
+from ..core.simulation import dumps, human_record, robot_record
+from .common import run_node
+
+PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
+    "/dialogue/human": (True, False),
+    "/reg/request": (True, False),
+    "/rr/result": (False, True),
+    "/reg/expression": (False, True),
+}
+
+
+class PlayerError(RuntimeError):
+    """The graph did not answer in time or answered with an error."""
+
+
+class DialoguePlayer(Node):
+    """Plays one scenario and collects the robot's and RR's answers."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("dialogue_player", **kwargs)
+        describe = ParameterDescriptor
+        self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
+        self.declare_parameter("output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)"))
+        self.declare_parameter("trace", "", describe(description="write /wm/events as JSON lines here ('' = off)"))
+        self.declare_parameter("drive_clock", True, describe(description="publish /clock at each turn's time"))
+        self.declare_parameter("turn_timeout", 30.0, describe(description="seconds to wait for one turn's answer"))
+        self.declare_parameter("retry_after", 2.0, describe(description="resend a turn unanswered for this long"))
+        self.declare_parameter("ready_timeout", 60.0, describe(description="seconds to wait for the graph to come up"))
+        self.declare_parameter("lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True))
+        path = self.get_parameter("scenario").value
+        if not path:
+            raise ValueError("parameter 'scenario' is required")
+        self.scenario: Scenario = load_scenario(path, Lexicon.load(self.get_parameter("lexicon").value or None))
+        self.run_id = f"{self.scenario.name}-{wallclock.time_ns() % 10**9}"
+        group = ReentrantCallbackGroup()
+        self._clock = self.create_publisher(Clock, "/clock", 10)
+        self._human = self.create_publisher(String, "/dialogue/human", 100)
+        self._request = self.create_publisher(String, "/reg/request", 100)
+        self._sync = self.create_client(AddDiagnostics, "/wm_manager/sync", callback_group=group)
+        self._pending: dict[str, Future] = {}
+        self.events: list[dict] = []
+        self.memory: dict[str, Any] = {}
+        self.create_subscription(String, "/rr/result", self._on_answer, 100, callback_group=group)
+        self.create_subscription(String, "/reg/expression", self._on_answer, 100, callback_group=group)
+        self.create_subscription(String, "/wm/events", self._on_event, 1000, callback_group=group)
+
+    # ------------------------------------------------------------ callbacks
+    def _on_answer(self, msg: String) -> None:
+        try:
+            data = from_msg(msg, {})
+        except MessageError as err:
+            self.get_logger().warning(f"answer: {err}")
+            return
+        future = self._pending.get(str(data.get("id")))
+        if future is not None and not future.done():
+            future.set_result(data)
+
+    def _on_event(self, msg: String) -> None:
+        try:
+            self.events.append(from_msg(msg, {"op": str}))
+        except MessageError as err:
+            self.get_logger().warning(f"/wm/events: {err}")
+
+    # -------------------------------------------------------------- waiting
+    async def sleep(self, seconds: float) -> None:
+        """Wait without blocking the executor (a one-shot wall-clock timer)."""
+        done = Future()
+        timer = self.create_timer(seconds, lambda: done.done() or done.set_result(None))
+        try:
+            await done
+        finally:
+            self.destroy_timer(timer)
+
+    async def wait_ready(self) -> None:
+        """Every pipeline topic has its peers and the WM Manager answers a sync."""
+        deadline = wallclock.monotonic() + self.get_parameter("ready_timeout").value
+        while True:
+            missing = [
+                topic
+                for topic, (sub, pub) in PIPELINE_TOPICS.items()
+                if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
+            ]
+            if not missing and self._sync.service_is_ready():
+                try:
+                    reply = await call(self._sync, {"time": 0.0}, timeout=max(1.0, deadline - wallclock.monotonic()))
+                    self.memory = reply.get("memory", {})
+                    return
+                except CarrierError as err:
+                    missing = [f"/wm_manager/sync ({err})"]
+            if wallclock.monotonic() > deadline:
+                raise PlayerError(f"graph not ready: waiting for {', '.join(missing) or '/wm_manager/sync'}")
+            await self.sleep(0.05)
+
+    async def exchange(self, publisher, message: dict) -> dict:
+        """Publish ``message`` and wait for the answer with its id, resending it every
+        ``retry_after`` seconds until ``turn_timeout``."""
+        key = str(message["id"])
+        future = Future()
+        self._pending[key] = future
+        started = wallclock.monotonic()
+        timeout = self.get_parameter("turn_timeout").value
+
+        def resend() -> None:
+            if future.done():
+                return
+            if wallclock.monotonic() - started > timeout:
+                future.set_exception(PlayerError(f"no answer to {key} within {timeout} s"))
+                return
+            publisher.publish(to_msg(message))
+
+        publisher.publish(to_msg(message))
+        timer = self.create_timer(self.get_parameter("retry_after").value, resend)
+        try:
+            return await future
+        finally:
+            self.destroy_timer(timer)
+            del self._pending[key]
+
+    # ---------------------------------------------------------------- play
+    async def play(self) -> dict:
+        """Play every turn; return the SPEC section 6 result object."""
+        await self.wait_ready()
+        records = [await self.play_turn(turn) for turn in self.scenario.dialogue]
+        return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
+
+    async def play_turn(self, turn: Turn) -> dict:
+        reply = await call(self._sync, {"time": turn.time}, timeout=self.get_parameter("turn_timeout").value)
+        self.memory = reply.get("memory", self.memory)
+        if self.get_parameter("drive_clock").value:
+            stamp = Clock()
+            stamp.clock.sec = int(turn.time)
+            stamp.clock.nanosec = int(round((turn.time - int(turn.time)) * 1e9))
+            self._clock.publish(stamp)
+        message: dict[str, Any] = {"id": f"{self.run_id}/{turn.index}", "time": turn.time, "turn": turn.index}
+        if turn.speaker == "human":
+            if turn.text is not None:
+                message["text"] = turn.text
+            else:
+                message["description"] = list(turn.description or ())
+            if turn.domain is not None:
+                message["domain"] = turn.domain
+            answer = await self.exchange(self._human, message)
+            _raise_error(answer, turn)
+            unknown = answer.get("unknown_words") if turn.text is not None else None
+            return human_record(turn, answer, unknown)
+        message["target"] = turn.target
+        if turn.context is not None:
+            message["context"] = list(turn.context)
+        answer = await self.exchange(self._request, message)
+        _raise_error(answer, turn)
+        return robot_record(turn, answer)
+
+    def trace(self) -> list[dict]:
+        """Events heard, in the order of the simulator's trace."""
+        order = sorted(range(len(self.events)), key=lambda i: (self.events[i].get("time") or 0.0, self.events[i].get("cause") != "decay", i))
+        return [self.events[i] for i in order]
+
+
+def _raise_error(answer: dict, turn: Turn) -> None:
+    if "error" in answer or answer.get("status") == "error":
+        raise PlayerError(f"turn {turn.index} (t={turn.time}): {answer.get('error')}")
+
+
+def write_outputs(player: DialoguePlayer, result: dict) -> None:
+    output = player.get_parameter("output").value
+    if output:
+        with open(output, "w", encoding="utf-8") as out:
+            out.write(dumps(result))
+    else:
+        from ..cli import render_table
+
+        print(render_table(result), end="", flush=True)
+    trace = player.get_parameter("trace").value
+    if trace:
+        with open(trace, "w", encoding="utf-8") as out:
+            for event in player.trace():
+                out.write(json.dumps(event, sort_keys=True) + "\n")
+
+
+def main(args=None) -> int:
+    return run_node(
+        DialoguePlayer,
+        args,
+        startup_errors=(ScenarioError, LexiconError, ValueError, OSError),
+        job=lambda node: node.play(),
+        on_done=write_outputs,
+        job_errors=(PlayerError, CarrierError),
+    )
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
