@@ -67,10 +67,13 @@ class Consultant:
         self.threshold = check_certainty("threshold", threshold)
         self.entities: list[str] = []
         self._certainty: dict[str, dict[str, float]] = {}
+        # The same entities as a set, for validating long entity lists in one C call.
+        self._entity_set: set[str] = set()
         self._holders: dict[str, set[str]] = {p: set() for p in self.preference}
         for entity, facts in entities.items():
             self._check_facts(entity, facts)
             self.entities.append(entity)
+            self._entity_set.add(entity)
             self._certainty[entity] = {p: float(c) for p, c in facts.items() if c > 0}
         self._rebuild_holders()
         self.wm = WMBuffer(domain, sink)
@@ -101,9 +104,11 @@ class Consultant:
     def holds(self, prop: str, entities: Iterable[str]) -> list[str]:
         """The entities (in the given order) that ``prop`` holds for.  No encoding."""
         self._require_property(prop)
-        entities = list(entities)
-        for entity in entities:
-            self._require_entity(entity)
+        if not isinstance(entities, (list, tuple)):
+            entities = list(entities)
+        if not self._entity_set.issuperset(entities):
+            for entity in entities:  # name the first unknown one
+                self._require_entity(entity)
         holders = self._holders[prop]
         return [e for e in entities if e in holders]
 
@@ -116,9 +121,7 @@ class Consultant:
         section 2, rules 2 and 3).  Returns the entities it holds for.
         """
         held = self.holds(prop, entities)
-        encode = self.wm.encode
-        for entity in held:
-            encode(entity, (prop,), cause, time, turn)
+        self.wm.encode_each(held, prop, cause, time, turn)  # Encode(e, [prop]) for each, in order
         return held
 
     def set_threshold(self, threshold: float) -> None:
@@ -141,6 +144,7 @@ class Consultant:
         old_holding = set() if new else set(self.properties_of(entity))
         if new:
             self.entities.append(entity)
+            self._entity_set.add(entity)
             self._certainty[entity] = {}
         current = self._certainty[entity]
         for prop, c in facts.items():

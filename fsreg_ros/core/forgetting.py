@@ -204,7 +204,14 @@ class DecayClock:
 
     def due(self, now: float) -> list[float]:
         """Times of the ticks at or before ``now`` not yet applied; marks them applied."""
-        elapsed = math.floor((now - self.origin + TIME_EPSILON) / self.period)
+        limit = now + TIME_EPSILON
+        elapsed = math.floor((limit - self.origin) / self.period)
+        # The rounded quotient can be one off right at the slack's edge; settle on the
+        # SPEC's own test, tick k is due iff origin + k * period <= now + 1e-9.
+        while self.origin + (elapsed + 1) * self.period <= limit:
+            elapsed += 1
+        while elapsed > 0 and self.origin + elapsed * self.period > limit:
+            elapsed -= 1
         times = [self.origin + k * self.period for k in range(self.applied + 1, elapsed + 1)]
         self.applied = max(self.applied, elapsed)
         return times

@@ -1,0 +1,227 @@
+"""Consultants: LTM with certainty thresholds, affirm/holds, run-time updates, ports."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fsreg_ros.core.consultant import (
+    AssertResult,
+    Consultant,
+    KnowledgeError,
+    LocalPort,
+    run_sync,
+)
+from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager
+
+PREF = ["light-hair", "male", "glasses", "female", "hoodie"]
+
+
+def keys(events):
+    return [(e.op, e.entity, e.property, e.cause, e.time, e.turn) for e in events]
+
+
+def make(policy="displacement", **params):
+    events: list = []
+    entities = {
+        "f1": {"light-hair": 1.0, "male": 0.9, "glasses": 0.5},
+        "f2": {"female": 1.0, "glasses": 0.49, "light-hair": 0.7},
+        "f3": {"male": 1.0, "hoodie": 0.0},
+    }
+    c = Consultant("faces", entities, PREF, sink=events.append)
+    params = params or ({"capacity": 5} if policy == "displacement" else {})
+    WMManager().manage(c.wm, ForgettingPolicy.parse(policy, **params))
+    return c, events
+
+
+# -------------------------------------------------------------------- LTM
+def test_threshold_semantics():
+    c, _ = make()
+    assert c.threshold == 0.5
+    assert c.holds("glasses", ["f1", "f2", "f3"]) == ["f1"]  # 0.5 holds, 0.49 does not
+    assert c.holds("hoodie", ["f1", "f2", "f3"]) == []  # listed with certainty 0
+    assert c.certainty("f3", "glasses") == 0.0  # not listed: 0
+    assert c.certainty("f1", "male") == 0.9
+    assert c.properties_of("f1") == ["light-hair", "male", "glasses"]  # preference order
+    assert c.properties_of("f2") == ["light-hair", "female"]
+    assert c.holders("male") == {"f1", "f3"}
+
+
+def test_holds_keeps_the_given_order_and_never_encodes():
+    c, events = make()
+    assert c.holds("male", ["f3", "f2", "f1"]) == ["f3", "f1"]
+    assert c.holds("male", ("f1",)) == ["f1"]
+    assert c.holds("male", iter(["f3"])) == ["f3"]
+    assert events == [] and c.wm.snapshot() == {}
+
+
+def test_affirm_encodes_each_holder_in_order():
+    c, events = make()
+    assert c.affirm("light-hair", ["f2", "f3", "f1"], "rr", 4.0, 2) == ["f2", "f1"]
+    assert keys(events) == [
+        ("encode", "f2", "light-hair", "rr", 4.0, 2),
+        ("encode", "f1", "light-hair", "rr", 4.0, 2),
+    ]
+    assert c.wm.snapshot() == {"f2": ["light-hair"], "f1": ["light-hair"]}
+
+
+def test_unknown_property_or_entity_is_an_error_and_changes_nothing():
+    c, events = make()
+    with pytest.raises(KnowledgeError, match="knows no property 'beard'"):
+        c.holds("beard", ["f1"])
+    with pytest.raises(KnowledgeError, match="has no entity 'f9'"):
+        c.holds("male", ["f1", "f9"])
+    with pytest.raises(KnowledgeError, match="has no entity 'f9'"):
+        c.affirm("male", ["f1", "f9"], "rr", 0.0)
+    with pytest.raises(KnowledgeError):
+        c.certainty("f9", "male")
+    with pytest.raises(KnowledgeError):
+        c.properties_of("f9")
+    with pytest.raises(KnowledgeError):
+        c.holders("beard")
+    assert events == [] and c.wm.snapshot() == {}
+    assert c.knows_property("male") and not c.knows_property("beard")
+    assert c.knows_entity("f1") and not c.knows_entity("f9")
+
+
+@pytest.mark.parametrize(
+    "entities, preference, threshold, message",
+    [
+        ({"a": {"p": 1.0}}, ["p", "p"], 0.5, "preference order lists a property twice"),
+        ({"a": {"q": 1.0}}, ["p"], 0.5, "unknown property 'q'"),
+        ({"a": {"p": 1.5}}, ["p"], 0.5, r"must be in \[0, 1\]"),
+        ({"a": {"p": -0.1}}, ["p"], 0.5, r"must be in \[0, 1\]"),
+        ({"a": {"p": True}}, ["p"], 0.5, "must be a number"),
+        ({"a": {"p": "1"}}, ["p"], 0.5, "must be a number"),
+        ({"a": {"p": math.nan}}, ["p"], 0.5, "must be a number"),
+        ({"a": {"p": 1.0}}, ["p"], 1.5, r"threshold must be in \[0, 1\]"),
+    ],
+)
+def test_constructor_validation(entities, preference, threshold, message):
+    with pytest.raises(KnowledgeError, match=message):
+        Consultant("d", entities, preference, threshold)
+
+
+def test_custom_and_changed_threshold():
+    c = Consultant("d", {"a": {"p": 0.3}, "b": {"p": 0.8}}, ["p"], threshold=0.25)
+    assert c.holds("p", ["a", "b"]) == ["a", "b"]
+    c.set_threshold(0.5)
+    assert c.holds("p", ["a", "b"]) == ["b"]
+    with pytest.raises(KnowledgeError):
+        c.set_threshold(-1)
+    assert c.threshold == 0.5
+
+
+# --------------------------------------------------------- run-time updates
+def test_assert_facts_updates_and_adds_entities():
+    c, events = make()
+    result = c.assert_facts("f3", {"glasses": 0.8}, 5.0)
+    assert result == AssertResult("f3", False, {"glasses": 0.8}, [])
+    assert c.holds("glasses", ["f1", "f2", "f3"]) == ["f1", "f3"]
+    result = c.assert_facts("f4", {"hoodie": 1, "female": 0.6}, 6.0)
+    assert result.new_entity and result.to_json() == {
+        "entity": "f4",
+        "new_entity": True,
+        "updated": {"hoodie": 1.0, "female": 0.6},
+        "retracted": [],
+    }
+    assert c.entities == ["f1", "f2", "f3", "f4"]  # a new entity joins last
+    assert c.holds("female", ["f1", "f2", "f3", "f4"]) == ["f2", "f4"]
+    assert events == []
+
+
+def test_retraction_removes_the_property_from_wm():
+    c, events = make()
+    c.wm.encode("f1", ["light-hair", "male", "glasses"], "speaker", 1.0)
+    events.clear()
+    # certainty 0 retracts male; glasses drops below the threshold; light-hair stays.
+    result = c.assert_facts("f1", {"male": 0, "glasses": 0.2, "light-hair": 0.6}, 9.0)
+    assert result.retracted == ["male", "glasses"]  # preference order
+    assert c.wm.queue("f1") == ("light-hair",)
+    assert sorted(keys(events)) == [
+        ("forget", "f1", "glasses", "retract", 9.0, None),
+        ("forget", "f1", "male", "retract", 9.0, None),
+    ]
+    assert c.properties_of("f1") == ["light-hair"]
+    assert c.certainty("f1", "male") == 0.0 and c.certainty("f1", "glasses") == 0.2
+
+
+def test_retraction_of_a_property_not_in_wm_emits_nothing():
+    c, events = make()
+    result = c.assert_facts("f2", {"female": 0.0}, 3.0)
+    assert result.retracted == ["female"]
+    assert events == []
+
+
+@pytest.mark.parametrize(
+    "entity, facts, message",
+    [
+        ("f1", {"male": 0.0, "beard": 1.0}, "unknown property 'beard'"),
+        ("f1", {"male": 0.0, "glasses": 2.0}, r"must be in \[0, 1\]"),
+        ("f1", {"male": 0.0, "glasses": None}, "must be a number"),
+        ("f1", {}, "non-empty mapping"),
+        ("f1", ["male"], "non-empty mapping"),
+        ("", {"male": 1.0}, "non-empty string"),
+        (None, {"male": 1.0}, "non-empty string"),
+        ("f9", {"hoodie": 1.0, "cape": 1.0}, "unknown property 'cape'"),
+    ],
+)
+def test_assert_facts_is_atomic(entity, facts, message):
+    c, events = make()
+    c.wm.encode("f1", ["male"], "speaker", 0.0)
+    events.clear()
+    before = (list(c.entities), {e: c.properties_of(e) for e in c.entities}, c.wm.snapshot())
+    with pytest.raises(KnowledgeError, match=message):
+        c.assert_facts(entity, facts, 1.0)
+    after = (list(c.entities), {e: c.properties_of(e) for e in c.entities}, c.wm.snapshot())
+    assert after == before
+    assert c.certainty("f1", "male") == 0.9
+    assert events == []
+
+
+# ------------------------------------------------------------------- ports
+def test_local_port_answers_and_copies():
+    c, events = make()
+    port = LocalPort(c)
+    assert port.domain == "faces"
+    entities = run_sync(port.entities())
+    entities.append("junk")
+    assert run_sync(port.entities()) == ["f1", "f2", "f3"]
+    preference = run_sync(port.preference())
+    preference.clear()
+    assert run_sync(port.preference()) == PREF
+    assert run_sync(port.holds("male", ["f1", "f2", "f3"])) == ["f1", "f3"]
+    assert run_sync(port.affirm("male", ["f1", "f2", "f3"], "rr", 1.0, 0)) == ["f1", "f3"]
+    run_sync(port.encode("f2", ["female", "glasses"], "speaker", 1.0, 0))
+    assert run_sync(port.wm("f2")) == ["female", "glasses"]
+    assert run_sync(port.wm("f1")) == ["male"]
+    assert len(events) == 4
+
+
+def test_local_port_rejects_unknown_entities():
+    c, events = make()
+    port = LocalPort(c)
+    with pytest.raises(KnowledgeError, match="no entity 'f9'"):
+        run_sync(port.wm("f9"))
+    with pytest.raises(KnowledgeError, match="no entity 'f9'"):
+        run_sync(port.encode("f9", ["male"], "speaker", 0.0, None))
+    assert events == [] and c.wm.snapshot() == {}
+
+
+def test_run_sync_refuses_a_coroutine_that_really_waits():
+    class RealIO:  # an awaitable that suspends, as a service call would
+        def __await__(self):
+            yield None
+            return 1
+
+    async def waits():
+        return await RealIO()
+
+    with pytest.raises(RuntimeError, match="awaited real I/O"):
+        run_sync(waits())
+
+    async def immediate():
+        return 42
+
+    assert run_sync(immediate()) == 42
