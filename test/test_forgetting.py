@@ -248,6 +248,16 @@ def test_decay_clock_slack_of_one_nanosecond():
     assert DecayClock(0.1).due(0.3)[-1] == 3 * 0.1
 
 
+@pytest.mark.parametrize("period, now, count", [(0.1, 567.899999999, 5679), (0.3, 9253.199999998998, 30844)])
+def test_decay_clock_uses_the_spec_test_literally(period, now, count):
+    # k * delta <= T + 1e-9 holds for k = count, although floor((T + 1e-9) / delta)
+    # rounds down to count - 1 for these values.
+    assert count * period <= now + TIME_EPSILON
+    assert math.floor((now + TIME_EPSILON) / period) == count - 1
+    ticks = DecayClock(period).due(now)
+    assert len(ticks) == count and ticks[-1] == count * period
+
+
 def test_decay_clock_restart():
     clock = DecayClock(10.0)
     assert clock.due(25.0) == [10.0, 20.0]

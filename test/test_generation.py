@@ -462,6 +462,18 @@ def test_wm_order_default_is_lru_first_and_dist_pia_ignores_wm():
     assert expression.wm_before == ["a", "b", "c"]
 
 
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_every_algorithm_reports_wm_before(algorithm):
+    # SPEC section 6: wm_before is Q[target] just before REG, whatever the algorithm
+    # (the baselines report it but do not use it).
+    c, port, events = domain(WM_ORDER_ENTITIES, WM_ORDER_PREF)
+    c.wm.encode("t", ["c", "a"], "speaker", 0.0)
+    expression = gen("t", port, algorithm)
+    assert expression.wm_before == ["c", "a"]
+    if algorithm != "sd-pia":
+        assert set(expression.sources) == {"ltm"}
+
+
 def test_phase_2_skips_properties_considered_in_phase_1():
     entities = {"t": ["q", "r"], "d1": ["q"], "d2": ["q"]}
     c, port, events = domain(entities, ["q", "r"])

@@ -175,6 +175,7 @@ async def full_brevity(
     lexicographically smallest; output in preference order.
     """
     distractors = await distractors_for(target, port, context)
+    wm_before = await port.wm(target)  # reported only (SPEC section 6); never used
     props, masks = await _rule_out_sets(target, port, distractors)
     useful = [(p, m) for p, m in zip(props, masks) if m]
     goal = 0
@@ -200,7 +201,7 @@ async def full_brevity(
             if found is not None:
                 chosen = found
                 break
-    expression = Expression(target, port.domain, "full-brevity")
+    expression = Expression(target, port.domain, "full-brevity", wm_before=list(wm_before))
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
     left = [d for i, d in enumerate(distractors) if not goal >> i & 1]
@@ -219,9 +220,10 @@ async def greedy(
     """Greedy: repeatedly the property ruling out most remaining distractors (ties to
     the more preferred), until none rules out any."""
     distractors = await distractors_for(target, port, context)
+    wm_before = await port.wm(target)  # reported only (SPEC section 6); never used
     props, masks = await _rule_out_sets(target, port, distractors)
     remaining = (1 << len(distractors)) - 1
-    expression = Expression(target, port.domain, "greedy")
+    expression = Expression(target, port.domain, "greedy", wm_before=list(wm_before))
     while remaining:
         best, best_count = -1, 0
         for i, mask in enumerate(masks):

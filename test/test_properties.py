@@ -1,0 +1,343 @@
+"""Property-based tests (hypothesis): the lazy WM buffer against the naive eager
+reference, the forgetting limits as invariants, and REG invariants on random KBs."""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
+from fsreg_ros.core.forgetting import RULES, ForgettingPolicy, WMManager
+from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate
+from fsreg_ros.core.memory import WMBuffer
+
+try:  # test/ is on sys.path (conftest, or pytest's rootdir insertion)
+    from naive_wm import NaiveClock, NaiveWM, event_key
+except ImportError:  # pragma: no cover - run from elsewhere
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from naive_wm import NaiveClock, NaiveWM, event_key
+
+#: Each test stays well under 2 s; FSREG_HYPOTHESIS_EXAMPLES=5000 for a soak run.
+FAST = settings(
+    max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "150")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+ENTITIES = ["e0", "e1", "e2", "e3"]
+PROPS = ["p0", "p1", "p2", "p3", "p4"]
+CAUSES = ["speaker", "rr", "reg-distractor"]
+
+
+# ================================================================ strategies
+@st.composite
+def policies(draw, must_have=None):
+    rules = set(draw(st.sets(st.sampled_from(RULES))))
+    if must_have:
+        rules.add(must_have)
+    return ForgettingPolicy(
+        tuple(r for r in RULES if r in rules),
+        decay_period=10.0,
+        capacity=draw(st.integers(1, 3)),
+        global_capacity=draw(st.integers(1, 6)),
+    ).validated()
+
+
+def operations(policy_strategy):
+    entity = st.sampled_from(ENTITIES)
+    prop = st.sampled_from(PROPS)
+    cause = st.sampled_from(CAUSES)
+    return st.lists(
+        st.one_of(
+            st.tuples(st.just("encode"), entity, st.lists(prop, min_size=1, max_size=3), cause),
+            st.tuples(st.just("each"), st.lists(entity, min_size=1, max_size=4), prop, cause),
+            st.tuples(st.just("tick")),
+            st.tuples(st.just("tick")),
+            st.tuples(st.just("read"), entity),
+            st.tuples(st.just("remove"), entity, prop),
+            st.tuples(st.just("policy"), policy_strategy),
+        ),
+        max_size=40,
+    )
+
+
+def naive_for(policy: ForgettingPolicy) -> NaiveWM:
+    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity)
+
+
+def run_lazy(initial: ForgettingPolicy, ops, check=None):
+    """Apply ``ops`` to a managed WMBuffer; returns (buffer, events).  Decay ticks are
+    handed to the buffer directly at time = the op's index."""
+    events: list = []
+    buffer = WMBuffer("d", events.append)
+    manager = WMManager()
+    manager.manage(buffer, initial)
+    for t, op in enumerate(ops):
+        t = float(t)
+        kind = op[0]
+        if kind == "encode":
+            buffer.encode(op[1], op[2], op[3], t, len(events))
+        elif kind == "each":
+            buffer.encode_each(op[1], op[2], op[3], t, len(events))
+        elif kind == "tick":
+            buffer.decay([t])
+        elif kind == "read":
+            buffer.queue(op[1])
+        elif kind == "remove":
+            buffer.remove(op[1], op[2], "retract", t)
+        elif kind == "policy":
+            manager.set_policy("d", op[1], t)
+        if check is not None:
+            check(buffer, manager.policies["d"])
+    return buffer, events
+
+
+# ============================================== lazy buffer == eager reference
+@FAST
+@given(initial=policies(), ops=operations(policies()))
+def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
+    events: list = []
+    buffer = WMBuffer("d", events.append)
+    manager = WMManager()
+    manager.manage(buffer, initial)
+    naive = naive_for(initial)
+    seen = 0
+    lazy_decay: list = []
+    for t, op in enumerate(ops):
+        t = float(t)
+        kind = op[0]
+        naive_before = len(naive.events)
+        if kind == "encode":
+            buffer.encode(op[1], op[2], op[3], t, t)
+            naive.encode(op[1], op[2], op[3], t, t)
+        elif kind == "each":
+            buffer.encode_each(op[1], op[2], op[3], t, t)
+            for entity in op[1]:
+                naive.encode(entity, [op[2]], op[3], t, t)
+        elif kind == "tick":
+            buffer.decay([t])
+            naive.tick(t)
+        elif kind == "read":
+            assert buffer.queue(op[1]) == tuple(naive.queue(op[1]))
+            assert buffer.length(op[1]) == len(naive.queue(op[1]))
+        elif kind == "remove":
+            assert buffer.remove(op[1], op[2], "retract", t) == naive.remove(op[1], op[2], "retract", t)
+        elif kind == "policy":
+            policy = op[1]
+            manager.set_policy("d", policy, t)
+            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t)
+        new = [event_key(e) for e in events[seen:]]
+        seen = len(events)
+        # Decay the lazy buffer owes is materialised later, stamped with the tick's time.
+        lazy_decay += [e for e in new if e[3] == "decay"]
+        lazy_now = [e for e in new if e[3] != "decay"]
+        naive_now = [e for e in naive.events[naive_before:] if e[3] != "decay"]
+        if kind == "policy":  # trimming order across queues is not specified
+            assert Counter(lazy_now) == Counter(naive_now)
+        else:  # everything else happens in the same order
+            assert lazy_now == naive_now
+        naive_decay = Counter(e for e in naive.events if e[3] == "decay")
+        assert not Counter(lazy_decay) - naive_decay  # never a tick the eager one did not do
+    # Bring every queue up to date: same content, same decay events per tick.
+    assert buffer.snapshot() == naive.snapshot()
+    assert len(buffer) == naive.total()
+    lazy_decay += [event_key(e) for e in events[seen:]]
+    assert all(e[3] == "decay" for e in (event_key(x) for x in events[seen:]))
+    assert Counter(lazy_decay) == Counter(e for e in naive.events if e[3] == "decay")
+    assert Counter(event_key(e) for e in events) == Counter(naive.events)
+
+
+DECAY_PERIODS = st.sampled_from([0.5, 1.0, 2.5, 10.0 / 3.0, 0.1])
+
+
+@FAST
+@given(
+    period=DECAY_PERIODS,
+    displacement=st.booleans(),
+    steps=st.lists(
+        st.tuples(
+            st.sampled_from([0.0, 0.05, 0.1, 0.3, 1.0, 2.5, 7.0]),
+            st.sampled_from(ENTITIES),
+            st.lists(st.sampled_from(PROPS), min_size=1, max_size=3),
+        ),
+        max_size=30,
+    ),
+)
+def test_manager_decay_schedule_equals_naive_clock(period, displacement, steps):
+    rules = ("decay", "displacement") if displacement else ("decay",)
+    policy = ForgettingPolicy(rules, decay_period=period, capacity=2).validated()
+    events: list = []
+    buffer = WMBuffer("d", events.append)
+    manager = WMManager()
+    manager.manage(buffer, policy)
+    naive = naive_for(policy)
+    clock = NaiveClock(period)
+    now = 0.0
+    for dt, entity, props in steps:
+        now += dt
+        manager.advance(now)
+        for tick in clock.due(now):
+            naive.tick(tick)
+        buffer.encode(entity, props, "speaker", now)
+        naive.encode(entity, props, "speaker", now)
+        assert buffer.queue(entity) == tuple(naive.queue(entity))
+    now += 3 * period
+    manager.advance(now)
+    for tick in clock.due(now):
+        naive.tick(tick)
+    assert buffer.snapshot() == naive.snapshot()
+    assert Counter(event_key(e) for e in events) == Counter(naive.events)
+
+
+# ========================================================= limits as invariants
+@FAST
+@given(initial=policies("displacement"), ops=operations(policies("displacement")))
+def test_displacement_never_leaves_a_queue_above_capacity(initial, ops):
+    def check(buffer, policy):
+        assert all(len(q) <= policy.capacity for q in buffer.snapshot().values())
+
+    run_lazy(initial, ops, check)
+
+
+@FAST
+@given(initial=policies("global-capacity"), ops=operations(policies("global-capacity")))
+def test_global_capacity_is_never_exceeded(initial, ops):
+    def check(buffer, policy):
+        assert len(buffer) <= policy.global_capacity
+        assert sum(len(q) for q in buffer.snapshot().values()) <= policy.global_capacity
+
+    run_lazy(initial, ops, check)
+
+
+@FAST
+@given(initial=policies(), ops=operations(policies()))
+def test_same_operations_give_the_same_events(initial, ops):
+    _, first = run_lazy(initial, ops)
+    _, second = run_lazy(initial, ops)
+    assert first == second
+
+
+# ================================================================= REG on KBs
+CERTAINTIES = st.sampled_from([0.0, 0.0, 0.3, 0.5, 0.8, 1.0])
+
+
+@st.composite
+def knowledge_bases(draw):
+    n_props = draw(st.integers(1, 6))
+    n_entities = draw(st.integers(1, 7))
+    props = [f"q{i}" for i in range(n_props)]
+    preference = draw(st.permutations(props))
+    entities = {
+        f"x{i}": {p: draw(CERTAINTIES) for p in props if draw(st.booleans())} for i in range(n_entities)
+    }
+    target = draw(st.sampled_from(sorted(entities)))
+    context = draw(st.one_of(st.none(), st.lists(st.sampled_from(sorted(entities)), unique=True)))
+    # Earlier dialogue left things in WM (not necessarily properties that hold).
+    prefill = draw(
+        st.lists(st.tuples(st.sampled_from(sorted(entities)), st.lists(st.sampled_from(props), max_size=3)), max_size=6)
+    )
+    return entities, list(preference), target, context, prefill
+
+
+def build(kb, policy=None):
+    entities, preference, _, _, _ = kb
+    events: list = []
+    c = Consultant("d", entities, preference, sink=events.append)
+    WMManager().manage(c.wm, policy or ForgettingPolicy.parse("displacement", capacity=3))
+    return c, LocalPort(c), events
+
+
+def prefilled(kb, policy=None):
+    c, port, events = build(kb, policy)
+    for entity, props in kb[4]:
+        c.wm.encode(entity, props, "speaker", 0.0)
+    events.clear()
+    return c, port, events
+
+
+def distractors_of(c, target, context):
+    pool = c.entities if context is None else [e for e in c.entities if e in set(context)]
+    return [e for e in pool if e != target]
+
+
+@FAST
+@given(kb=knowledge_bases())
+def test_sd_pia_with_empty_wm_equals_dist_pia(kb):
+    _, target, context = kb[0], kb[2], kb[3]
+    c1, port1, events1 = build(kb)
+    c2, port2, events2 = build(kb)
+    a = run_sync(generate(target, port1, "sd-pia", context=context, time=1.0))
+    b = run_sync(generate(target, port2, "dist-pia", context=context, time=1.0))
+    assert a.wm_before == [] and b.wm_before == []
+    assert (a.description, a.sources, a.distinguishing, a.distractors_left) == (
+        b.description,
+        b.sources,
+        b.distinguishing,
+        b.distractors_left,
+    )
+    assert [event_key(e) for e in events1] == [event_key(e) for e in events2]
+    assert c1.wm.snapshot() == c2.wm.snapshot()
+
+
+@FAST
+@given(kb=knowledge_bases(), wm_order=st.sampled_from(WM_ORDERS))
+def test_reg_invariants(kb, wm_order):
+    _, _, target, context, _ = kb
+    c, _, _ = build(kb)
+    holds_for_target = set(c.properties_of(target))
+    distractors = distractors_of(c, target, context)
+    # Those no property of the target can rule out: LTM cannot tell them apart.
+    twins = [d for d in distractors if holds_for_target <= set(c.properties_of(d))]
+    results = {}
+    for algorithm in ALGORITHMS:
+        c, port, events = prefilled(kb)
+        wm_before = list(c.wm.queue(target))
+        e = run_sync(generate(target, port, algorithm, context=context, wm_order=wm_order, time=2.0, turn=1))
+        results[algorithm] = e
+        # Never a property that fails for the target; no repeats; one source each.
+        assert set(e.description) <= holds_for_target
+        assert len(set(e.description)) == len(e.description) == len(e.sources)
+        # What is left is exactly what the description does not rule out, and exactly
+        # what LTM cannot rule out at all.
+        not_ruled_out = [d for d in distractors if set(e.description) <= set(c.properties_of(d))]
+        assert e.distractors_left == not_ruled_out == twins
+        assert e.distinguishing == (not twins)
+        assert e.wm_before == wm_before
+        if algorithm == "sd-pia":
+            n_wm = e.sources.count("wm")
+            assert e.sources == ["wm"] * n_wm + ["ltm"] * (len(e.sources) - n_wm)
+            assert set(e.description[:n_wm]) <= set(wm_before)
+        else:
+            assert set(e.sources) <= {"ltm"}
+        # Encodings: rule 3 only into distractors, for properties holding for both;
+        # rule 1 the description, in selection order, for the target; nothing else.
+        keys = [event_key(x) for x in events if x.op == "encode"]
+        speaker = [k[2] for k in keys if k[3] == "speaker"]
+        assert speaker == e.description and all(k[1] == target for k in keys if k[3] == "speaker")
+        for _, entity, prop, cause, _, _ in keys:
+            assert cause in ("speaker", "reg-distractor")
+            if cause == "reg-distractor":
+                assert algorithm in ("sd-pia", "dist-pia")
+                assert entity in distractors and prop in holds_for_target
+                assert prop in c.properties_of(entity)
+    # Full Brevity is a shortest set ruling out what can be ruled out.
+    shortest = len(results["full-brevity"].description)
+    assert all(shortest <= len(r.description) for r in results.values())
+    if not twins:
+        assert all(r.distinguishing for r in results.values())
+
+
+@FAST
+@given(kb=knowledge_bases(), algorithm=st.sampled_from(ALGORITHMS))
+def test_reg_is_deterministic(kb, algorithm):
+    runs = []
+    for _ in range(2):
+        c, port, events = prefilled(kb, ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=5))
+        e = run_sync(generate(kb[2], port, algorithm, context=kb[3], time=3.0))
+        runs.append((e.to_json(), [event_key(x) for x in events], c.wm.snapshot()))
+    assert runs[0] == runs[1]
