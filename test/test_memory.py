@@ -157,6 +157,28 @@ def test_queue_emptied_then_refilled_between_ticks(buf):
     assert buf.queue("f1") == ("c",)
 
 
+def test_tick_times_stay_right_across_flushes(buf):
+    buf.encode("f1", ["a", "b", "c"], "rr", 0.0)
+    buf.encode("f2", ["x"], "rr", 0.0)
+    buf.decay([10.0])
+    assert buf.snapshot() == {"f1": ["b", "c"]}  # flush: f2 emptied at 10
+    buf.decay([20.0, 30.0])
+    buf.encode("f2", ["y"], "rr", 31.0)  # f2 was empty through 20 and 30
+    buf.decay([40.0])
+    assert len(buf) == 0  # flush again
+    buf.decay([50.0])
+    buf.encode("f1", ["d"], "rr", 51.0)
+    decay = [(k[1], k[2], k[4]) for k in keys(buf.events) if k[3] == "decay"]
+    assert sorted(decay) == [
+        ("f1", "a", 10.0),
+        ("f1", "b", 20.0),
+        ("f1", "c", 30.0),
+        ("f2", "x", 10.0),
+        ("f2", "y", 40.0),
+    ]
+    assert buf.snapshot() == {"f1": ["d"]}
+
+
 def test_len_counts_after_owed_decay(buf):
     buf.encode("f1", ["a", "b"], "rr", 0.0)
     buf.encode("f2", ["c"], "rr", 0.0)

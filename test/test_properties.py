@@ -59,6 +59,7 @@ def operations(policy_strategy):
             st.tuples(st.just("tick")),
             st.tuples(st.just("tick")),
             st.tuples(st.just("read"), entity),
+            st.tuples(st.just("snapshot")),
             st.tuples(st.just("remove"), entity, prop),
             st.tuples(st.just("policy"), policy_strategy),
         ),
@@ -88,6 +89,8 @@ def run_lazy(initial: ForgettingPolicy, ops, check=None):
             buffer.decay([t])
         elif kind == "read":
             buffer.queue(op[1])
+        elif kind == "snapshot":
+            buffer.snapshot()
         elif kind == "remove":
             buffer.remove(op[1], op[2], "retract", t)
         elif kind == "policy":
@@ -125,6 +128,9 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
         elif kind == "read":
             assert buffer.queue(op[1]) == tuple(naive.queue(op[1]))
             assert buffer.length(op[1]) == len(naive.queue(op[1]))
+        elif kind == "snapshot":
+            assert buffer.snapshot() == naive.snapshot()
+            assert len(buffer) == naive.total()
         elif kind == "remove":
             assert buffer.remove(op[1], op[2], "retract", t) == naive.remove(op[1], op[2], "retract", t)
         elif kind == "policy":

@@ -120,7 +120,8 @@ class WMBuffer:
         # Lazy decay: number of ticks so far, the time of each, and per queue the
         # tick count it has been brought up to.
         self._ticks = 0
-        self._tick_times: list[float] = []
+        self._tick_times: list[float] = []  # times of ticks _tick_base, _tick_base + 1, ...
+        self._tick_base = 0
         self._synced: dict[str, int] = {}
         # Queues that may hold something (insertion-ordered set).
         self._nonempty: dict[str, None] = {}
@@ -296,6 +297,10 @@ class WMBuffer:
         """Bring every queue up to date with the decay ticks applied so far."""
         for entity in list(self._nonempty):
             self._catch_up(entity)
+        # Every non-empty queue is now up to date, and an empty one never needs a
+        # tick's time, so the times seen so far can go (bounded memory for long runs).
+        self._tick_base = self._ticks
+        self._tick_times.clear()
 
     # -------------------------------------------------------------- internals
     def _catch_up(self, entity: str) -> None:
@@ -306,7 +311,7 @@ class WMBuffer:
             q = self._queues.get(entity)
             if q:
                 for k in range(min(owed, len(q))):
-                    self._pop(entity, "decay", self._tick_times[synced + k], None)
+                    self._pop(entity, "decay", self._tick_times[synced + k - self._tick_base], None)
         elif entity not in self._synced:
             self._synced[entity] = self._ticks
 
