@@ -1,0 +1,359 @@
+"""``consultant``: one domain's LTM and WM buffer (DIARC's consultant pattern).
+
+One process per domain (give each its own node name, e.g.
+``--ros-args -r __node:=consultant_faces -p domain:=faces -p kb:=kb.yaml``).
+
+Parameters
+    ``domain`` (string, required, read-only), ``kb`` (scenario/KB YAML, required,
+    read-only), ``threshold`` (number in [0, 1]; default: the KB's threshold for the
+    domain; changeable at run time; it changes what holds, it does not touch WM).
+
+Services (JSON in ``AddDiagnostics``, see :mod:`fsreg_ros.carrier`)
+    ``/consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
+      ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory"}``
+      ``holds`` ``{"property", "entities"}`` -> ``{"holds"}`` (no encoding)
+      ``affirm`` ``{"property", "entities", "cause", "time"?, "turn"?}`` -> ``{"holds"}``
+      ``wm`` ``{"entity"}`` -> ``{"queue"}`` (LRU first; reading never refreshes)
+      ``encode`` ``{"entity", "properties", "cause", "time"?, "turn"?}`` -> ``{}``
+      ``snapshot`` -> ``{"queues"}`` (non-empty queues only)
+    ``/consultant/<domain>/manage`` -- the WM Manager's:
+      ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
+      "global_capacity"?}, "time"?}`` -> ``{"memory", "queues_changed"}``: installs the
+      policy and trims every queue at once (``none`` empties WM, cause ``reset``);
+      ``decay`` ``{"ticks": [t1, ...]}`` -> ``{"queues_changed", "policy"}``: one decay
+      tick (Algorithm 2) per time (non-decreasing), applied now; ``policy`` is the
+      installed policy's name (so the WM Manager notices a restarted consultant).
+
+Encoding causes are ``speaker``, ``rr`` and ``reg-distractor``.  ``time`` defaults to
+the node's clock, ``turn`` to null.  Every request is validated before anything
+changes; a rejected one gets ``{"error", "kind"}`` (kind ``KnowledgeError`` for an
+unknown entity or property, ``MessageError`` for a malformed request).
+
+Topics
+    out ``/wm/events`` -- every encode/forget event (SPEC section 2), one message each;
+    out ``/wm/state`` (latched) ``{"domain", "time", "queues"}`` -- at start and after
+    every request that changed WM;
+    in ``/ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
+    -- messages for other domains are ignored; out ``/ltm/assert/result``
+    ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
+    ``{"domain", "entity", "ok": false, "error", "id"?}``.
+
+Until the WM Manager configures it the consultant runs policy ``none``: it retains
+nothing (a buffer without a policy would retain everything, unmanaged).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Optional
+
+from rclpy.node import Node
+from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
+from rclpy.validate_full_topic_name import validate_full_topic_name
+from std_msgs.msg import String
+
+from ..carrier import (
+    DEFAULT_QOS,
+    EVENTS_QOS,
+    NUMBER,
+    STATE_PUB_QOS,
+    MessageError,
+    check_fields,
+    from_msg,
+    serve,
+    to_msg,
+)
+from ..core import forgetting
+from ..core.consultant import Consultant, KnowledgeError, check_certainty
+from ..core.memory import ENCODE_CAUSES, WMEvent
+from ..core.scenario import ScenarioError, load_scenario
+from ..remote import consultant_service, manage_service
+from .common import (
+    StartupError,
+    accepted,
+    descriptor,
+    error_reply,
+    now_seconds,
+    number_value,
+    rejected,
+    run_node,
+)
+
+TIME = {"time": NUMBER, "turn": (int, None)}
+POLICY_FIELDS = {"policy": str}
+POLICY_OPTIONAL = {"decay_period": (NUMBER, None), "capacity": (int, None), "global_capacity": (int, None)}
+
+
+class ConsultantNode(Node):
+    """A core :class:`Consultant` behind two JSON services and the LTM/WM topics."""
+
+    NODE_NAME = "consultant"
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(self.NODE_NAME, **kwargs)
+        self.declare_parameter("domain", "", descriptor("the domain this consultant owns (required)", read_only=True))
+        self.declare_parameter("kb", "", descriptor("scenario/KB YAML file with the domain's LTM (required)", read_only=True))
+        domain = self.get_parameter("domain").value
+        kb = self.get_parameter("kb").value
+        if not domain:
+            raise StartupError("parameter 'domain' is required (e.g. -p domain:=faces)")
+        if not kb:
+            raise StartupError("parameter 'kb' is required (a scenario/KB YAML file)")
+        try:
+            validate_full_topic_name(consultant_service(domain), is_service=True)
+        except (InvalidServiceNameException, InvalidTopicNameException):
+            raise StartupError(f"domain {domain!r} cannot be part of a ROS service name") from None
+        try:
+            scenario = load_scenario(kb)
+        except (ScenarioError, OSError) as err:
+            raise StartupError(str(err)) from None
+        spec = scenario.domains.get(domain)
+        if spec is None:
+            raise StartupError(f"{kb}: no domain '{domain}' (domains: {', '.join(scenario.domains) or 'none'})")
+        self.declare_parameter(
+            "threshold",
+            float(spec.threshold),
+            descriptor(
+                "a property holds iff its certainty >= threshold (default: the KB's)",
+                dynamic_typing=True,
+                additional_constraints="a number in [0, 1]",
+            ),
+        )
+        try:
+            threshold = self._check_threshold(self.get_parameter("threshold"))
+        except ValueError as err:
+            raise StartupError(str(err)) from None
+
+        self.domain = domain
+        self._events = self.create_publisher(String, "/wm/events", EVENTS_QOS)
+        self._state = self.create_publisher(String, "/wm/state", STATE_PUB_QOS)
+        self._assert_results = self.create_publisher(String, "/ltm/assert/result", DEFAULT_QOS)
+        self._event_count = 0
+        self._last_time = 0.0  # time of the latest change, for /wm/state
+        self.consultant = Consultant(domain, spec.entities, spec.preference, threshold, sink=self._on_event)
+        # Retain nothing until the WM Manager says otherwise.
+        self.consultant.wm.policy = forgetting.NONE
+
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._query_ops: dict[str, Callable[[dict], dict]] = {
+            "info": self._info,
+            "holds": self._holds,
+            "affirm": self._affirm,
+            "wm": self._wm,
+            "encode": self._encode,
+            "snapshot": self._snapshot,
+        }
+        self._manage_ops: dict[str, Callable[[dict], dict]] = {
+            "configure": self._configure,
+            "decay": self._decay,
+        }
+        serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops))
+        serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops))
+        self.create_subscription(String, "/ltm/assert", self._on_assert, DEFAULT_QOS)
+        self.publish_state(self.now())
+        self.get_logger().info(
+            f"consultant of '{domain}': {len(self.consultant.entities)} entities, "
+            f"{len(self.consultant.preference)} properties, threshold {threshold:g}, from {kb}"
+        )
+
+    # ----------------------------------------------------------------- helpers
+    def now(self) -> float:
+        return now_seconds(self)
+
+    def _on_event(self, event: WMEvent) -> None:
+        self._event_count += 1
+        self._events.publish(to_msg(event.to_json()))
+
+    def publish_state(self, time: float) -> None:
+        """``/wm/state``: this domain's non-empty queues, LRU first."""
+        self._state.publish(to_msg({"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot()}))
+
+    def _dispatch(self, request: dict, ops: dict[str, Callable[[dict], dict]]) -> dict:
+        op = check_fields(request, {"op": str})["op"]
+        handler = ops.get(op)
+        if handler is None:
+            raise MessageError(f"unknown op {op!r} (known: {', '.join(ops)})")
+        before = self._event_count
+        reply = handler(request)
+        if self._event_count != before:
+            self.publish_state(self._last_time)
+        return reply
+
+    def _time(self, request: dict) -> tuple[float, Optional[int]]:
+        """The request's ``time`` (default: now) and ``turn`` (default: null)."""
+        check_fields(request, {}, TIME)
+        time = float(request["time"]) if request.get("time") is not None else self.now()
+        self._last_time = time
+        return time, request.get("turn")
+
+    def _entity(self, entity: str) -> str:
+        if not self.consultant.knows_entity(entity):
+            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
+        return entity
+
+    def _property(self, prop: str) -> str:
+        if not self.consultant.knows_property(prop):
+            raise KnowledgeError(f"domain '{self.domain}' knows no property '{prop}'")
+        return prop
+
+    @staticmethod
+    def _encode_cause(cause: str) -> str:
+        if cause not in ENCODE_CAUSES:
+            raise MessageError(f"field 'cause': expected one of {', '.join(ENCODE_CAUSES)}, got {cause!r}")
+        return cause
+
+    # ------------------------------------------------------------- query ops
+    def _info(self, request: dict) -> dict:
+        c = self.consultant
+        policy = c.wm.policy or forgetting.NONE
+        return {
+            "domain": self.domain,
+            "entities": list(c.entities),
+            "preference": list(c.preference),
+            "threshold": c.threshold,
+            "policy": policy.name,
+            "memory": policy.to_json(),
+        }
+
+    def _holds(self, request: dict) -> dict:
+        check_fields(request, {"property": str, "entities": list[str]})
+        return {"holds": self.consultant.holds(request["property"], request["entities"])}
+
+    def _affirm(self, request: dict) -> dict:
+        check_fields(request, {"property": str, "entities": list[str], "cause": str})
+        self._encode_cause(request["cause"])
+        time, turn = self._time(request)
+        # Consultant.affirm validates the property and every entity before encoding.
+        return {"holds": self.consultant.affirm(request["property"], request["entities"], request["cause"], time, turn)}
+
+    def _wm(self, request: dict) -> dict:
+        check_fields(request, {"entity": str})
+        return {"queue": list(self.consultant.wm.queue(self._entity(request["entity"])))}
+
+    def _encode(self, request: dict) -> dict:
+        check_fields(request, {"entity": str, "properties": list[str], "cause": str})
+        entity = self._entity(request["entity"])
+        for prop in request["properties"]:
+            self._property(prop)
+        self._encode_cause(request["cause"])
+        time, turn = self._time(request)
+        self.consultant.wm.encode(entity, request["properties"], request["cause"], time, turn)
+        return {}
+
+    def _snapshot(self, request: dict) -> dict:
+        return {"queues": self.consultant.wm.snapshot()}
+
+    # ------------------------------------------------------------ manage ops
+    def _configure(self, request: dict) -> dict:
+        check_fields(request, {"policy": dict})
+        settings = check_fields(request["policy"], POLICY_FIELDS, POLICY_OPTIONAL)
+        decay_period = settings.get("decay_period")
+        policy = forgetting.ForgettingPolicy.parse(
+            settings["policy"],
+            decay_period=float(decay_period) if decay_period is not None else None,
+            capacity=settings.get("capacity"),
+            global_capacity=settings.get("global_capacity"),
+        )  # PolicyError (a ValueError) -> error reply, nothing installed
+        time, _ = self._time(request)
+        buffer = self.consultant.wm
+        before = buffer.snapshot()
+        buffer.policy = policy
+        forgetting.trim_all(buffer, policy, time)
+        self.get_logger().info(f"memory policy {policy.to_json()}")
+        return {"memory": policy.to_json(), "queues_changed": _changed(before, buffer.snapshot())}
+
+    def _decay(self, request: dict) -> dict:
+        check_fields(request, {"ticks": list[float]})
+        ticks = [float(t) for t in request["ticks"]]
+        if any(b < a for a, b in zip(ticks, ticks[1:])):
+            raise MessageError(f"field 'ticks': times must not decrease, got {ticks}")
+        buffer = self.consultant.wm
+        policy = (buffer.policy or forgetting.NONE).name  # lets the WM Manager notice a restart
+        if not ticks:
+            return {"queues_changed": 0, "policy": policy}
+        before = buffer.snapshot()
+        for tick in ticks:  # tick by tick, so the events go out in time order
+            buffer.decay((tick,))
+            buffer.flush()  # apply now, so the events and the state go out now
+        self._last_time = ticks[-1]
+        return {"queues_changed": _changed(before, buffer.snapshot()), "policy": policy}
+
+    # ------------------------------------------------------------- LTM topic
+    def _on_assert(self, msg: String) -> None:
+        try:
+            data = from_msg(msg, {"domain": str})
+        except MessageError as err:
+            self.get_logger().warning(f"/ltm/assert: {err}")
+            self._assert_results.publish(
+                to_msg(_with_id(msg, {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": str(err)}))
+            )
+            return
+        if data["domain"] != self.domain:
+            return  # another consultant's
+        reply: dict[str, Any] = {"domain": self.domain, "entity": data.get("entity")}
+        if "id" in data:
+            reply["id"] = data["id"]
+        try:
+            check_fields(data, {"entity": str, "properties": dict[str, float]})
+            time = self.now()
+            before = self._event_count
+            result = self.consultant.assert_facts(data["entity"], data["properties"], time)
+        except (MessageError, KnowledgeError) as err:
+            self.get_logger().warning(f"/ltm/assert: {err}")
+            reply.update(ok=False, error=str(err))
+            self._assert_results.publish(to_msg(reply))
+            return
+        reply.update(ok=True, new_entity=result.new_entity, updated=result.updated, retracted=result.retracted)
+        self._assert_results.publish(to_msg(reply))
+        self.get_logger().info(
+            f"LTM {'added' if result.new_entity else 'updated'} '{result.entity}': {result.updated}"
+            + (f", retracted {result.retracted}" if result.retracted else "")
+        )
+        if self._event_count != before:
+            self.publish_state(time)
+
+    # ------------------------------------------------------------ parameters
+    @staticmethod
+    def _check_threshold(param) -> float:
+        value = number_value(param)
+        try:
+            return check_certainty("threshold", value)
+        except KnowledgeError as err:
+            raise ValueError(str(err)) from None
+
+    def _on_set_parameters(self, params) -> Any:
+        for param in params:
+            if param.name == "threshold":
+                try:
+                    self._check_threshold(param)
+                except ValueError as err:
+                    return rejected(str(err))
+        return accepted()
+
+    def _after_set_parameters(self, params) -> None:
+        for param in params:
+            if param.name == "threshold":
+                value = self._check_threshold(param)
+                if value != self.consultant.threshold:
+                    self.consultant.set_threshold(value)
+                    self.get_logger().info(f"threshold {value:g}")
+
+
+def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:
+    """How many entities' queues differ between two snapshots."""
+    return sum(1 for e in set(before) | set(after) if before.get(e) != after.get(e))
+
+
+def _with_id(msg: String, reply: dict) -> dict:
+    found = error_reply(msg, "")
+    if "id" in found:
+        reply["id"] = found["id"]
+    return reply
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    return run_node(ConsultantNode, args)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

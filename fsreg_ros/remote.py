@@ -1,0 +1,123 @@
+"""A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
+
+RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
+call is one awaited JSON call to ``/consultant/<domain>`` (see
+:mod:`fsreg_ros.nodes.consultant` for the ops).  Await port methods only from a
+callback outside ``callback_group`` (give the port a reentrant group of its own).
+
+Errors: a request the consultant rejects because it names an unknown entity or
+property raises :class:`~fsreg_ros.core.consultant.KnowledgeError` (as the in-process
+:class:`~fsreg_ros.core.consultant.LocalPort` would); everything else (timeouts, a
+malformed reply, other rejections) raises :class:`~fsreg_ros.carrier.CarrierError`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, Optional, Sequence
+
+from rclpy.callback_groups import CallbackGroup
+
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, MessageError, check_fields
+from .core.consultant import KnowledgeError
+
+
+def consultant_service(domain: str) -> str:
+    """The query service of a domain's consultant."""
+    return f"/consultant/{domain}"
+
+
+def manage_service(domain: str) -> str:
+    """The WM Manager's service of a domain's consultant (configure, decay)."""
+    return f"/consultant/{domain}/manage"
+
+
+class RemotePort:
+    """The consultant of ``domain``, reached through its node's service."""
+
+    def __init__(
+        self,
+        node,
+        domain: str,
+        callback_group: Optional[CallbackGroup] = None,
+        timeout: float = DEFAULT_TIMEOUT,
+    ) -> None:
+        self.domain = domain
+        self.timeout = timeout
+        self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
+        self._preference: Optional[list[str]] = None
+
+    # ------------------------------------------------------------ plumbing
+    async def _call(self, payload: Mapping[str, Any], expect: Mapping[str, Any]) -> dict:
+        try:
+            reply = await self.client.call(payload, self.timeout)
+        except CarrierError as err:
+            if err.kind == "KnowledgeError":
+                raise KnowledgeError(err.error) from None
+            raise
+        try:
+            return check_fields(reply, expect)
+        except MessageError as err:
+            raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
+                               service=self.client.name) from None
+
+    async def wait_ready(self, timeout: float) -> dict:
+        """One real round trip (an ``info`` call) within ``timeout`` seconds, retrying
+        while the service is not discovered or the first call is lost; the info reply.
+        Raises :class:`CarrierError` (kind ``timeout``) when the deadline passes."""
+        reply = await self.client.wait_ready({"op": "info"}, timeout)
+        self._remember(reply)
+        return reply
+
+    def _remember(self, info: dict) -> None:
+        prefs = info.get("preference")
+        if isinstance(prefs, list):
+            self._preference = list(prefs)
+
+    # ------------------------------------------------------- ConsultantPort
+    async def info(self) -> dict:
+        """``{"domain", "entities", "preference", "threshold", "policy", "memory"}``."""
+        reply = await self._call({"op": "info"}, {"entities": list[str], "preference": list[str]})
+        self._remember(reply)
+        return reply
+
+    async def entities(self) -> list[str]:
+        # Not cached: /ltm/assert can add entities at run time.
+        return list((await self.info())["entities"])
+
+    async def preference(self) -> list[str]:
+        # Cached: a domain's preference order never changes at run time.
+        if self._preference is None:
+            await self.info()
+        return list(self._preference or [])
+
+    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
+        reply = await self._call(
+            {"op": "holds", "property": prop, "entities": list(entities)}, {"holds": list[str]}
+        )
+        return reply["holds"]
+
+    async def affirm(
+        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
+    ) -> list[str]:
+        reply = await self._call(
+            {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause,
+             "time": time, "turn": turn},
+            {"holds": list[str]},
+        )
+        return reply["holds"]
+
+    async def wm(self, entity: str) -> list[str]:
+        return (await self._call({"op": "wm", "entity": entity}, {"queue": list[str]}))["queue"]
+
+    async def encode(
+        self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
+    ) -> None:
+        await self._call(
+            {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause,
+             "time": time, "turn": turn},
+            {},
+        )
+
+    async def snapshot(self) -> dict[str, list[str]]:
+        """Every non-empty queue of the domain, LRU first."""
+        return (await self._call({"op": "snapshot"}, {"queues": dict[str, list[str]]}))["queues"]

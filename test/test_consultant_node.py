@@ -1,0 +1,436 @@
+"""The ``consultant`` node: its services, /wm/state, /wm/events and /ltm/assert."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+import signal  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+import pytest  # noqa: E402
+from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+
+from fsreg_ros.carrier import EVENTS_QOS, STATE_QOS  # noqa: E402
+from fsreg_ros.core.consultant import KnowledgeError, LocalPort  # noqa: E402
+from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
+from fsreg_ros.core.resolution import resolve  # noqa: E402
+from fsreg_ros.core.scenario import load_scenario  # noqa: E402
+from fsreg_ros.nodes.common import StartupError  # noqa: E402
+from fsreg_ros.nodes.consultant import ConsultantNode  # noqa: E402
+from fsreg_ros.remote import RemotePort  # noqa: E402
+from rosutil import DATA, KB, Graph, ros_graph  # noqa: E402
+
+pytestmark = pytest.mark.graph
+
+Q = "/consultant/faces"
+M = "/consultant/faces/manage"
+
+
+@pytest.fixture
+def graph():
+    yield from ros_graph()
+
+
+def start(graph: Graph, domain: str = "faces", **params):
+    node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", **params)
+    graph.wait_service(f"/consultant/{domain}")
+    graph.wait_service(f"/consultant/{domain}/manage")
+    return node
+
+
+def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
+    return graph.call(f"/consultant/{domain}/manage", {"op": "configure", "policy": {"policy": policy, **params}, "time": 0.0})
+
+
+def test_info_and_latched_start_state(graph: Graph):
+    start(graph)
+    info = graph.call(Q, {"op": "info"})
+    assert info == {
+        "domain": "faces",
+        "entities": ["face1", "face2", "face3"],
+        "preference": ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"],
+        "threshold": 0.5,
+        "policy": "none",
+        "memory": {"policy": "none"},
+    }
+    # A late joiner gets the start state (transient local).
+    states = graph.listen("/wm/state", STATE_QOS)
+    graph.spin_until(lambda: states, what="latched /wm/state")
+    assert states[0]["domain"] == "faces" and states[0]["queues"] == {}
+    # Unconfigured, the consultant runs policy none: nothing is retained.
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
+    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": []}
+    graph.spin_for(0.05)
+    assert events == [] and len(states) == 1
+
+
+def test_query_ops_round_trip(graph: Graph):
+    start(graph)
+    states = graph.listen("/wm/state", STATE_QOS)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    graph.spin_until(lambda: states, what="start state")
+    assert configure(graph, "displacement", capacity=3) == {
+        "memory": {"policy": "displacement", "capacity": 3},
+        "queues_changed": 0,
+    }
+    assert graph.call(Q, {"op": "info"})["policy"] == "displacement"
+
+    # holds: no encoding
+    assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face3", "face2", "face1"]}) == {
+        "holds": ["face2", "face1"]
+    }
+    # affirm: encodes for each holder, in the given order, with cause/time/turn
+    assert graph.call(
+        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0, "turn": 4}
+    ) == {"holds": ["face1", "face3"]}
+    graph.spin_until(lambda: len(events) == 2, what="affirm events")
+    assert events == [
+        {"op": "encode", "domain": "faces", "entity": e, "property": "male", "cause": "rr", "time": 2.0, "turn": 4}
+        for e in ("face1", "face3")
+    ]
+    graph.spin_until(lambda: len(states) == 2, what="state after affirm")
+    assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}}
+
+    # encode (Algorithm 1: re-encoding moves to the back); displacement at capacity 3
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],
+                   "cause": "speaker", "time": 3.0})
+    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["male", "lab-coat", "light-hair"]}
+    graph.spin_until(lambda: len(states) == 3 and len(events) == 7, what="state and events after encode")
+    assert states[-1]["queues"]["face1"] == ["male", "lab-coat", "light-hair"] and states[-1]["time"] == 3.0
+    assert [e["cause"] for e in events[2:]] == ["speaker", "speaker", "speaker", "speaker", "displacement"]
+    assert events[-1]["property"] == "glasses" and events[-1]["turn"] is None
+    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {"face1": ["male", "lab-coat", "light-hair"], "face3": ["male"]}}
+
+    # reads do not publish anything
+    n_states, n_events = len(states), len(events)
+    graph.call(Q, {"op": "wm", "entity": "face2"})
+    graph.call(Q, {"op": "holds", "property": "male", "entities": ["face1"]})
+    graph.call(Q, {"op": "snapshot"})
+    graph.spin_for(0.05)
+    assert (len(states), len(events)) == (n_states, n_events)
+
+
+def test_configure_trims_and_decay_ticks(graph: Graph):
+    start(graph)
+    states = graph.listen("/wm/state", STATE_QOS)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+
+    def new_events(n: int, what: str) -> list[dict]:
+        """Wait until ``n`` more events arrived since the last call; those events."""
+        graph.spin_until(lambda: len(events) >= seen[0] + n, what=what)
+        graph.spin_for(0.02)
+        got = events[seen[0]:]
+        seen[0] = len(events)
+        assert len(got) == n, got
+        return got
+
+    seen = [0]
+    configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    new_events(4, "encode events")
+    # two ticks at once: both applied now, with their own times, in time order
+    assert graph.call(M, {"op": "decay", "ticks": [10.0, 20.0]}) == {"queues_changed": 2, "policy": "decay+displacement"}
+    assert [(e["entity"], e["property"], e["cause"], e["time"]) for e in new_events(3, "decay events")] == [
+        ("face1", "male", "decay", 10.0),
+        ("face2", "female", "decay", 10.0),
+        ("face1", "glasses", "decay", 20.0),
+    ]
+    graph.spin_until(lambda: states.latest(time=20.0), what="state after decay")
+    assert states.latest(time=20.0)["queues"] == {"face1": ["lab-coat"]}
+    # no ticks: nothing changes, no state
+    n_states = len(states)
+    assert graph.call(M, {"op": "decay", "ticks": []})["queues_changed"] == 0
+
+    # a lower capacity trims at once
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 21.0})
+    new_events(2, "encode events")
+    assert configure(graph, "displacement", capacity=1)["queues_changed"] == 1
+    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["glasses"]}
+    assert [(e["property"], e["cause"]) for e in new_events(2, "displacement events")] == [
+        ("lab-coat", "displacement"), ("male", "displacement")
+    ]
+    # global-capacity victims: the oldest front across queues
+    configure(graph, "global-capacity", global_capacity=2)
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker", "time": 22.0})
+    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {"face2": ["female", "dark-hair"]}}
+    assert [(e["entity"], e["property"], e["cause"]) for e in new_events(3, "global-capacity events")] == [
+        ("face2", "female", "speaker"), ("face2", "dark-hair", "speaker"), ("face1", "glasses", "global-capacity")
+    ]
+    # none empties WM, cause reset
+    configure(graph, "none")
+    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {}}
+    assert {e["cause"] for e in new_events(2, "reset events")} == {"reset"}
+    graph.spin_until(lambda: states[-1]["queues"] == {}, what="empty state")
+    assert len(states) > n_states
+
+
+BAD_REQUESTS = [
+    # (service, request, error kind, text in the error)
+    (Q, "not json at all", "MessageError", "not JSON"),
+    (Q, "[1, 2]", "MessageError", "JSON object"),
+    (Q, {}, "MessageError", "missing field 'op'"),
+    (Q, {"op": 3}, "MessageError", "field 'op'"),
+    (Q, {"op": "fly"}, "MessageError", "unknown op 'fly'"),
+    (Q, {"op": "holds", "entities": ["face1"]}, "MessageError", "missing field 'property'"),
+    (Q, {"op": "holds", "property": "wings", "entities": ["face1"]}, "KnowledgeError", "no property 'wings'"),
+    (Q, {"op": "holds", "property": "male", "entities": ["face1", "face9"]}, "KnowledgeError", "no entity 'face9'"),
+    (Q, {"op": "holds", "property": "male", "entities": "face1"}, "MessageError", "list of strings"),
+    (Q, {"op": "holds", "property": "male", "entities": ["face1", 2]}, "MessageError", "field 'entities'[1]"),
+    (Q, {"op": "affirm", "property": "wings", "entities": ["face1"], "cause": "rr"}, "KnowledgeError", "wings"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1", "face9"], "cause": "rr"}, "KnowledgeError", "face9"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "decay"}, "MessageError", "field 'cause'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"]}, "MessageError", "missing field 'cause'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError", "field 'time'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError", "field 'turn'"),
+    (Q, {"op": "wm"}, "MessageError", "missing field 'entity'"),
+    (Q, {"op": "wm", "entity": "face9"}, "KnowledgeError", "no entity 'face9'"),
+    (Q, {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, "KnowledgeError", "face9"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError", "wings"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError", "field 'cause'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError", "field 'properties'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError", "field 'turn'"),
+    (Q, {"op": "configure", "policy": {"policy": "none"}}, "MessageError", "unknown op 'configure'"),
+    (M, {"op": "snapshot"}, "MessageError", "unknown op 'snapshot'"),
+    (M, {"op": "configure"}, "MessageError", "missing field 'policy'"),
+    (M, {"op": "configure", "policy": "none"}, "MessageError", "field 'policy': expected an object"),
+    (M, {"op": "configure", "policy": {"policy": "forget-all"}}, "PolicyError", "unknown forgetting rule 'forget-all'"),
+    (M, {"op": "configure", "policy": {"policy": "decay"}}, "PolicyError", "needs 'decay_period'"),
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError", "capacity must be >= 1"),
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": "2"}}, "MessageError", "field 'capacity'"),
+    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError", "decay_period must be > 0"),
+    (M, {"op": "decay", "ticks": 10}, "MessageError", "field 'ticks'"),
+    (M, {"op": "decay", "ticks": [10, "x"]}, "MessageError", "field 'ticks'[1]"),
+    (M, {"op": "decay", "ticks": [20.0, 10.0]}, "MessageError", "must not decrease"),
+]
+
+
+def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
+    start(graph)
+    configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 1.0})
+    before = graph.call(Q, {"op": "snapshot"})
+    info = graph.call(Q, {"op": "info"})
+    states = graph.listen("/wm/state", STATE_QOS)
+    graph.spin_until(lambda: states, what="latched state")
+    n_states = len(states)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    for service, request, kind, text in BAD_REQUESTS:
+        err = graph.call_error(service, request)
+        assert err.kind == kind, (request, err)
+        assert text in err.error, (request, err.error)
+        assert err.reply["error"] == err.error
+        assert graph.call(Q, {"op": "snapshot"}) == before, request
+    assert graph.call(Q, {"op": "info"}) == info
+    # A last good change: its state and events arrive after any stray ones would have.
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 5.0})
+    graph.spin_until(lambda: len(states) > n_states, what="state of the good request")
+    assert len(states) == n_states + 1 and states[-1]["time"] == 5.0
+    graph.spin_until(lambda: events, what="event of the good request")
+    assert [e["property"] for e in events] == ["female"]
+
+
+def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
+    start(graph)
+    configure(graph, "displacement", capacity=4)
+    results = graph.listen("/ltm/assert/result")
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    states = graph.listen("/wm/state", STATE_QOS)
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker", "time": 1.0})
+    graph.spin_until(lambda: len(events) == 2, what="encode events")
+
+    # a new entity joins the domain, last in entity order
+    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"})
+    graph.spin_until(lambda: results, what="assert result")
+    assert results[-1] == {
+        "domain": "faces", "entity": "face4", "id": "a1", "ok": True, "new_entity": True,
+        "updated": {"light-hair": 1.0, "female": 0.8}, "retracted": [],
+    }
+    assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face4"]
+    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1", "face4"]})["holds"] == ["face1", "face4"]
+
+    # certainty 0 retracts; a retracted property in WM is forgotten (cause retract)
+    graph.spin_until(lambda: states, what="state")
+    n_states = len(states)
+    events.clear_all()
+    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face1", "properties": {"glasses": 0, "dark-hair": 0.2}})
+    graph.spin_until(lambda: len(results) == 2, what="second result")
+    assert results[-1]["ok"] is True and results[-1]["new_entity"] is False and results[-1]["retracted"] == ["glasses"]
+    graph.spin_until(lambda: events, what="retract event")
+    assert events == [{"op": "forget", "domain": "faces", "entity": "face1", "property": "glasses", "cause": "retract",
+                       "time": events[0]["time"], "turn": None}]
+    graph.spin_until(lambda: len(states) > n_states, what="state after retraction")
+    assert states[-1]["queues"]["face1"] == ["male"]
+    assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []
+
+    # another domain's message is not ours: silence
+    graph.publish("/ltm/assert", {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
+    # bad ones: error result, no change
+    bad = [
+        ("garbage", "not JSON"),
+        ({"entity": "face1", "properties": {"male": 1}}, "missing field 'domain'"),
+        ({"domain": "faces", "properties": {"male": 1}}, "missing field 'entity'"),
+        ({"domain": "faces", "entity": "face1", "properties": {"wings": 1.0}}, "unknown property 'wings'"),
+        ({"domain": "faces", "entity": "face1", "properties": {"male": 1.5}}, "must be in [0, 1]"),
+        ({"domain": "faces", "entity": "face1", "properties": {"male": "yes"}}, "field 'properties'['male']"),
+        ({"domain": "faces", "entity": "face1", "properties": {}}, "non-empty"),
+        ({"domain": "faces", "entity": "face5", "properties": {"male": 1.0, "wings": 1.0}}, "wings"),
+    ]
+    snapshot = graph.call(Q, {"op": "snapshot"})
+    info = graph.call(Q, {"op": "info"})
+    n_events = len(events)
+    for message, text in bad:
+        count = len(results)
+        graph.publish("/ltm/assert", message)
+        graph.spin_until(lambda: len(results) > count, what=f"error result for {message}")
+        assert results[-1]["ok"] is False and text in results[-1]["error"], (message, results[-1])
+    assert all(r.get("entity") != "obj9" for r in results)
+    assert graph.call(Q, {"op": "snapshot"}) == snapshot
+    assert graph.call(Q, {"op": "info"}) == info  # face5 did not join
+    assert len(events) == n_events
+
+
+def test_threshold_parameter(graph: Graph):
+    node = start(graph)
+    holds = {"op": "holds", "property": "glasses", "entities": ["face1", "face2"]}
+    assert graph.call(Q, holds)["holds"] == ["face1", "face2"]  # face2: 0.7
+    assert node.set_parameters([Parameter("threshold", value=0.8)])[0].successful
+    assert graph.call(Q, holds)["holds"] == ["face1"]
+    assert graph.call(Q, {"op": "info"})["threshold"] == 0.8
+    for value in (1.5, -0.1, "high"):
+        result = node.set_parameters([Parameter("threshold", value=value)])[0]
+        assert not result.successful and "threshold" in result.reason
+    assert node.set_parameters([Parameter("threshold", value=1)])[0].successful  # an integer is a number
+    assert node.get_parameter("threshold").value == 1
+    assert graph.call(Q, holds)["holds"] == ["face1"]
+
+
+def test_remote_port_matches_the_local_consultant(graph: Graph):
+    start(graph)
+    configure(graph, "displacement", capacity=2)
+    group = ReentrantCallbackGroup()
+    port = RemotePort(graph.probe, "faces", group)
+    info = graph.run(port.wait_ready(5.0))
+    assert info["domain"] == "faces"
+    remote = graph.run(resolve(["male", "lab-coat"], {"faces": port}, time=3.0, turn=1))
+
+    local = load_scenario(KB).consultants()["faces"]
+    local.wm.policy = ForgettingPolicy.parse("displacement", capacity=2)
+    expected = graph.run(resolve(["male", "lab-coat"], {"faces": LocalPort(local)}, time=3.0, turn=1))
+    assert remote.to_json() == expected.to_json()
+    assert graph.call(Q, {"op": "snapshot"})["queues"] == local.wm.snapshot()
+    assert graph.run(port.wm("face1")) == list(local.wm.queue("face1"))
+    assert graph.run(port.preference()) == list(local.preference)
+    assert graph.run(port.holds("glasses", ["face3", "face2"])) == ["face2"]
+    with pytest.raises(KnowledgeError, match="no entity 'face9'"):
+        graph.run(port.wm("face9"))
+    with pytest.raises(KnowledgeError, match="wings"):
+        graph.run(port.affirm("wings", ["face1"], "rr", 4.0, None))
+
+
+def test_startup_errors(graph: Graph):
+    with pytest.raises(StartupError, match="no domain 'shoes'"):
+        graph.add(ConsultantNode, domain="shoes", kb=KB)
+    with pytest.raises(StartupError, match="must be in"):
+        graph.add(ConsultantNode, domain="faces", kb=str(DATA / "bad.yaml"))
+    with pytest.raises(StartupError, match="'domain' is required"):
+        graph.add(ConsultantNode, kb=KB)
+    with pytest.raises(StartupError, match="threshold"):
+        graph.add(ConsultantNode, domain="faces", kb=KB, threshold=2.0)
+
+
+def _consultant_process(*ros_args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "fsreg_ros.nodes.consultant", "--ros-args", *ros_args],
+        env=dict(os.environ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+@pytest.mark.slow
+def test_process_serves_and_exits_cleanly(graph: Graph):
+    """The real ``main()``: a bad domain exits 2 with one error line; a good one serves
+    another process and exits 0 on Ctrl-C."""
+    bad = _consultant_process("-p", "domain:=shoes", "-p", f"kb:={KB}")
+    good = _consultant_process("-r", "__node:=consultant_proc", "-p", "domain:=procfaces", "-p", f"kb:={DATA / 'proc.yaml'}")
+    try:
+        _, err = bad.communicate(timeout=20)
+        assert bad.returncode == 2
+        assert "no domain 'shoes'" in err and "Traceback" not in err
+        info = graph.run(RemotePort(graph.probe, "procfaces").wait_ready(15.0), timeout=20.0)
+        assert info["entities"] == ["p1", "p2"]
+        good.send_signal(signal.SIGINT)
+        _, err = good.communicate(timeout=10)
+        assert good.returncode == 0, err
+        assert "Traceback" not in err
+    finally:
+        for proc in (bad, good):
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+
+
+RUNNER_SCRIPT = r'''
+import sys
+from rclpy.node import Node
+from fsreg_ros.nodes.common import StartupError, run_node
+
+class Job(Node):
+    NODE_NAME = "job"
+    def __init__(self):
+        super().__init__("job")
+        if "--bad" in sys.argv:
+            raise StartupError("bad configuration")
+
+class Failed(RuntimeError):
+    pass
+
+async def ok(node):
+    return 42
+
+async def fails(node):
+    raise Failed("the job failed")
+
+class Flaky(Node):
+    NODE_NAME = "flaky"
+    def __init__(self):
+        super().__init__("flaky")
+        from rclpy.task import Future
+        self.done = Future()
+        self.boom = self.create_timer(0.01, self.explode)
+        self.create_timer(0.2, lambda: self.done.done() or self.done.set_result("survived"))
+    def explode(self):
+        self.boom.cancel()
+        raise RuntimeError("boom")
+
+async def survive(node):
+    return await node.done
+
+done = []
+codes = [
+    run_node(Flaky, ["x"], job=survive, on_done=lambda node, result: done.append(result)),
+    run_node(Job, ["x"], job=ok, on_done=lambda node, result: done.append(result)),
+    run_node(Job, ["x"], job=fails, job_errors=(Failed,)),
+]
+sys.argv.append("--bad")
+codes.append(run_node(Job, ["x"]))
+print(codes, done)
+'''
+
+
+def test_run_node_exit_codes():
+    proc = subprocess.run([sys.executable, "-c", RUNNER_SCRIPT], env=dict(os.environ), capture_output=True, text=True,
+                          timeout=30)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[0, 0, 1, 2] ['survived', 42]"
+    assert "a callback failed: RuntimeError: boom" in proc.stderr  # logged, and the node lived on
+    assert "the job failed" in proc.stderr and "cannot start: bad configuration" in proc.stderr
+    assert "Traceback" not in proc.stderr

@@ -1,0 +1,298 @@
+"""The ``wm_manager`` node: configuration, decay on the clock, the sync barrier and
+live parameter changes, against real consultant nodes (in-process, sim time)."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+import pytest  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+
+from fsreg_ros.carrier import EVENTS_QOS  # noqa: E402
+from fsreg_ros.nodes.common import StartupError  # noqa: E402
+from fsreg_ros.nodes.consultant import ConsultantNode  # noqa: E402
+from fsreg_ros.core.forgetting import DecayClock  # noqa: E402
+from fsreg_ros.nodes.wm_manager import WMManagerNode, due_ticks  # noqa: E402
+from rosutil import KB, Graph, ros_graph  # noqa: E402
+
+pytestmark = pytest.mark.graph
+
+SYNC = "/wm_manager/sync"
+STATUS = "/wm_manager/status"
+
+
+@pytest.fixture
+def graph():
+    yield from ros_graph()
+
+
+def consultant(graph: Graph, domain: str = "faces"):
+    return graph.add(ConsultantNode, use_sim_time=True, domain=domain, kb=KB, name=f"consultant_{domain}")
+
+
+def manager(graph: Graph, domains=("faces",), **params):
+    return graph.add(WMManagerNode, use_sim_time=True, domains=list(domains), **params)
+
+
+def encode(graph: Graph, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
+    graph.call(f"/consultant/{domain}", {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t})
+
+
+def queues(graph: Graph, domain: str = "faces") -> dict:
+    return graph.call(f"/consultant/{domain}", {"op": "snapshot"})["queues"]
+
+
+def memory(graph: Graph, domain: str = "faces") -> dict:
+    return graph.call(f"/consultant/{domain}", {"op": "info"})["memory"]
+
+
+def configured(graph: Graph) -> None:
+    graph.wait_service(STATUS)
+    graph.spin_until(lambda: all(graph.call(STATUS, {})["configured"].values()), what="consultants configured")
+
+
+def forgets(events, cause: str) -> list[tuple]:
+    return [(e["entity"], e["property"], e["time"]) for e in events if e["op"] == "forget" and e["cause"] == cause]
+
+
+def test_configures_consultants_when_they_come_up(graph: Graph):
+    manager(graph, ("faces", "objects"), policy="decay+displacement", decay_period=10.0, capacity=3,
+            service_timeout=0.5, **{"objects.policy": "displacement", "objects.capacity": 1})
+    consultant(graph, "faces")
+    graph.wait_service(SYNC)
+    # objects has no consultant yet: the barrier waits up to service_timeout, then says so
+    err = graph.call_error(SYNC, {"time": 0.0})
+    assert err.kind == "not-ready" and "objects" in err.error and "faces," not in err.error
+    consultant(graph, "objects")  # a late consultant is configured when it appears
+    reply = graph.call(SYNC, {"time": 0.0})
+    assert reply == {
+        "time": 0.0,
+        "memory": {
+            "faces": {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 3},
+            "objects": {"policy": "displacement", "capacity": 1},
+        },
+        "applied": {"faces": 0, "objects": 0},
+    }
+    assert memory(graph, "faces") == reply["memory"]["faces"]
+    assert memory(graph, "objects") == reply["memory"]["objects"]
+    status = graph.call(STATUS, {})
+    assert status["configured"] == {"faces": True, "objects": True}
+    assert status["next_tick"] == {"faces": 10.0, "objects": None}
+    assert status["domains"] == ["faces", "objects"]
+
+
+def test_sync_applies_ticks_at_k_delta(graph: Graph):
+    consultant(graph)
+    manager(graph, policy="decay", decay_period=10.0)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    configured(graph)
+    encode(graph, "face1", ["male", "glasses", "lab-coat", "light-hair"], 1.0)
+    assert graph.call(SYNC, {"time": 9.99})["applied"] == {"faces": 0}
+    assert queues(graph) == {"face1": ["male", "glasses", "lab-coat", "light-hair"]}
+    reply = graph.call(SYNC, {"time": 10.0})
+    assert reply["applied"] == {"faces": 1} and reply["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}
+    # the reply comes after the consultant applied the tick: no waiting needed
+    assert queues(graph) == {"face1": ["glasses", "lab-coat", "light-hair"]}
+    assert graph.call(SYNC, {"time": 35})["applied"] == {"faces": 2}
+    assert queues(graph) == {"face1": ["light-hair"]}
+    assert graph.call(SYNC, {"time": 35.0})["applied"] == {"faces": 0}  # idempotent
+    assert graph.call(SYNC, {"time": 12.0})["applied"] == {"faces": 0}  # the past is done
+    # the sim clock catching up finds nothing left for the timer to do
+    graph.set_time(36.0)
+    graph.spin_for(0.05)
+    graph.spin_until(lambda: len(forgets(events, "decay")) >= 3, what="decay events")
+    assert forgets(events, "decay") == [("face1", "male", 10.0), ("face1", "glasses", 20.0), ("face1", "lab-coat", 30.0)]
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 40.0}
+
+
+def test_timer_decay_follows_the_clock(graph: Graph):
+    consultant(graph)
+    manager(graph, policy="decay", decay_period=2.0)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    configured(graph)
+    encode(graph, "face1", ["male", "glasses", "lab-coat", "light-hair", "dark-hair"], 0.5)
+    encode(graph, "face2", ["female"], 0.5)
+    for t in (0.5, 1.0, 1.5, 1.9):
+        graph.set_time(t)
+    graph.spin_for(0.05)
+    assert forgets(events, "decay") == []
+    graph.set_time(2.0)  # the tick fires exactly on the clock
+    graph.spin_until(lambda: len(forgets(events, "decay")) == 2, what="tick at 2.0")
+    assert forgets(events, "decay") == [("face1", "male", 2.0), ("face2", "female", 2.0)]
+    for t in (2.5, 3.0, 3.5, 4.0):
+        graph.set_time(t)
+    graph.spin_until(lambda: len(forgets(events, "decay")) == 3, what="tick at 4.0")
+    assert forgets(events, "decay")[-1] == ("face1", "glasses", 4.0)
+    # a jump over several periods: the timer fires once, every tick is still applied
+    graph.set_time(9.0)
+    graph.spin_until(lambda: len(forgets(events, "decay")) == 5, what="ticks at 6 and 8")
+    assert forgets(events, "decay")[3:] == [("face1", "lab-coat", 6.0), ("face1", "light-hair", 8.0)]
+    assert queues(graph) == {"face1": ["dark-hair"]}
+    assert graph.call(SYNC, {"time": 9.0})["applied"] == {"faces": 0}
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
+
+
+def test_live_parameter_changes(graph: Graph):
+    consultant(graph)
+    node = manager(graph, policy="displacement", capacity=3)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    configured(graph)
+    encode(graph, "face1", ["male", "glasses", "lab-coat"], 1.0)
+    encode(graph, "face2", ["female", "dark-hair"], 1.0)
+
+    # lowering capacity trims every queue at once
+    assert node.set_parameters([Parameter("capacity", value=1)])[0].successful
+    graph.call(SYNC, {"time": 1.0})  # the barrier returns once the consultant applied it
+    assert queues(graph) == {"face1": ["lab-coat"], "face2": ["dark-hair"]}
+    graph.spin_until(lambda: len(forgets(events, "displacement")) == 3, what="displacement events")
+
+    # invalid values are rejected with a reason, and nothing changes
+    before_params = {p: node.get_parameter(p).value for p in ("policy", "capacity", "decay_period", "faces.capacity")}
+    before_memory = memory(graph)
+    for name, value, reason in [
+        ("capacity", 0, "capacity must be >= 1"),
+        ("policy", "forget-everything", "unknown forgetting rule"),
+        ("policy", "decay+decay", "twice"),
+        ("decay_period", -1.0, "decay_period must be > 0"),
+        ("decay_period", "soon", "decay_period must be a number"),
+        ("faces.capacity", -2, "faces.capacity"),
+        ("faces.policy", "sometimes", "faces.policy"),
+        ("global_capacity", 0, "global_capacity must be >= 1"),
+        ("service_timeout", 0.0, "service_timeout"),
+    ]:
+        result = node.set_parameters([Parameter(name, value=value)])[0]
+        assert not result.successful, (name, value)
+        assert reason in result.reason, (name, result.reason)
+    # all-or-nothing: one bad value in a batch rejects the batch
+    results = node.set_parameters_atomically([Parameter("capacity", value=2), Parameter("global_capacity", value=-1)])
+    assert not results.successful
+    assert {p: node.get_parameter(p).value for p in before_params} == before_params
+    graph.call(SYNC, {"time": 2.0})
+    assert memory(graph) == before_memory
+
+    # switching to decay at t = 3: the schedule counts from t = 0, next tick at 10
+    graph.set_time(3.0)
+    assert node.set_parameters([Parameter("policy", value="decay+displacement"), Parameter("decay_period", value=10)])[0].successful
+    graph.call(SYNC, {"time": 3.0})
+    assert memory(graph) == {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 1}
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
+    # a new decay_period restarts the schedule: next tick one new period after the change
+    graph.set_time(5.0)
+    assert node.set_parameters([Parameter("decay_period", value=4.0)])[0].successful
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 9.0}
+    assert graph.call(SYNC, {"time": 8.9})["applied"] == {"faces": 0}
+    assert graph.call(SYNC, {"time": 9.0})["applied"] == {"faces": 1}
+    assert queues(graph) == {}
+    graph.spin_until(lambda: len(forgets(events, "decay")) == 2, what="decay events at 9")
+    assert forgets(events, "decay") == [("face1", "lab-coat", 9.0), ("face2", "dark-hair", 9.0)]
+
+    # switching to none empties WM (cause reset) and stops the schedule
+    graph.set_time(9.5)
+    encode(graph, "face3", ["male"], 9.5)
+    assert node.set_parameters([Parameter("policy", value="none")])[0].successful
+    graph.call(SYNC, {"time": 9.5})
+    assert queues(graph) == {} and memory(graph) == {"policy": "none"}
+    graph.spin_until(lambda: forgets(events, "reset"), what="reset event")
+    assert forgets(events, "reset") == [("face3", "male", 9.5)]
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": None}
+    assert graph.call(SYNC, {"time": 30.0})["applied"] == {"faces": 0}
+
+
+def test_each_domain_keeps_its_own_pool(graph: Graph):
+    consultant(graph, "faces")
+    consultant(graph, "objects")
+    node = manager(graph, ("faces", "objects"), policy="displacement", capacity=2, global_capacity=3,
+                   **{"objects.capacity": 1, "faces.policy": "displacement+global-capacity"})
+    configured(graph)
+    assert graph.call(SYNC, {"time": 0.0})["memory"] == {
+        "faces": {"policy": "displacement+global-capacity", "capacity": 2, "global_capacity": 3},
+        "objects": {"policy": "displacement", "capacity": 1},
+    }
+    encode(graph, "face1", ["male", "glasses", "lab-coat"], 1.0)
+    encode(graph, "face2", ["female", "dark-hair"], 1.0)
+    encode(graph, "obj1", ["red", "ball"], 1.0, "objects")
+    encode(graph, "obj2", ["blue", "ball"], 1.0, "objects")
+    # faces: alpha = 2 per entity and 3 in all; objects: alpha = 1, no global limit
+    assert queues(graph, "faces") == {"face1": ["lab-coat"], "face2": ["female", "dark-hair"]}
+    assert queues(graph, "objects") == {"obj1": ["ball"], "obj2": ["ball"]}
+    # one domain's setting changes only that domain
+    assert node.set_parameters([Parameter("objects.capacity", value=0)])[0].successful  # inherit: 2
+    assert node.set_parameters([Parameter("faces.capacity", value=1)])[0].successful
+    reply = graph.call(SYNC, {"time": 2.0})
+    assert reply["memory"]["objects"] == {"policy": "displacement", "capacity": 2}
+    assert reply["memory"]["faces"]["capacity"] == 1
+    assert queues(graph, "faces") == {"face1": ["lab-coat"], "face2": ["dark-hair"]}
+    encode(graph, "obj1", ["red"], 3.0, "objects")
+    assert queues(graph, "objects") == {"obj1": ["ball", "red"], "obj2": ["ball"]}
+    # the default changes every domain that inherits it
+    assert node.set_parameters([Parameter("policy", value="none")])[0].successful
+    reply = graph.call(SYNC, {"time": 3.0})
+    assert reply["memory"]["objects"] == {"policy": "none"}
+    assert reply["memory"]["faces"]["policy"] == "displacement+global-capacity"
+    assert queues(graph, "objects") == {} and queues(graph, "faces") != {}
+
+
+def test_a_restarted_consultant_is_configured_again(graph: Graph):
+    old = consultant(graph)
+    manager(graph, policy="decay", decay_period=5.0)
+    configured(graph)
+    graph.remove(old)
+    consultant(graph)  # a fresh process would start with policy none
+    graph.wait_service("/consultant/faces/manage")
+    graph.call(SYNC, {"time": 5.0})  # the decay reply reveals the lost setting
+    graph.spin_until(lambda: memory(graph) == {"policy": "decay", "decay_period": 5.0}, what="reconfiguration")
+    assert graph.call(SYNC, {"time": 6.0})["applied"] == {"faces": 0}
+
+
+def test_bad_sync_requests(graph: Graph):
+    consultant(graph)
+    manager(graph)
+    configured(graph)
+    for request, text in [
+        ("no json", "not JSON"),
+        ({}, "missing field 'time'"),
+        ({"time": "later"}, "field 'time'"),
+        ({"time": True}, "field 'time'"),
+    ]:
+        err = graph.call_error(SYNC, request)
+        assert err.kind == "MessageError" and text in err.error
+    assert graph.call(SYNC, {"time": 1})["applied"] == {"faces": 0}
+
+
+def test_startup_errors(graph: Graph):
+    with pytest.raises(StartupError, match="'domains'"):
+        graph.add(WMManagerNode, domains=[""])
+    with pytest.raises(StartupError, match="unknown forgetting rule"):
+        graph.add(WMManagerNode, domains=["faces"], policy="amnesia")
+    with pytest.raises(StartupError, match="faces.capacity"):
+        graph.add(WMManagerNode, domains=["faces"], **{"faces.capacity": -1})
+    with pytest.raises(StartupError, match="twice"):
+        graph.add(WMManagerNode, domains=["faces", "faces"])
+    with pytest.raises(StartupError, match="service_timeout"):
+        graph.add(WMManagerNode, domains=["faces"], service_timeout=-1.0)
+    with pytest.raises(StartupError, match="service name"):
+        graph.add(WMManagerNode, domains=["two words"])
+
+
+def test_due_ticks_after_a_long_gap():
+    clock = DecayClock(2.0)
+    assert due_ticks(clock, 5.0) == ([2.0, 4.0], 2)
+    assert due_ticks(clock, 5.9) == ([], 0)
+    assert due_ticks(clock, 6.0 - 1e-10) == ([6.0], 1)  # SPEC: k * delta <= T + 1e-9
+    # a wall clock is ~1.7e9 s from the origin: count them, list only what can matter
+    times, count = due_ticks(clock, 1.7e9, limit=5)
+    assert count == 850_000_000 - 3 and times == [8.0, 10.0, 12.0, 14.0, 16.0]
+    assert clock.applied == 850_000_000 and clock.next_tick() == 1.7e9 + 2.0
+
+
+def test_wall_clock_manager(graph: Graph):
+    consultant(graph)
+    graph.add(WMManagerNode, domains=["faces"], policy="decay", decay_period=10.0)  # no sim time
+    configured(graph)
+    status = graph.call(STATUS, {})
+    assert status["time"] > 1e9  # the wall clock
+    assert status["time"] < status["next_tick"]["faces"] <= status["time"] + 10.0
+    assert graph.call(SYNC, {"time": status["time"]})["applied"] == {"faces": 0}
