@@ -68,10 +68,12 @@ async def distractors_for(
     """Every other entity of the target's domain, or of an explicit context set,
     in the domain's entity order."""
     entities = await port.entities()
-    if target not in entities:
-        raise GenerationError(f"domain '{port.domain}' has no entity '{target}'")
+    try:
+        at = entities.index(target)  # entity names are unique
+    except ValueError:
+        raise GenerationError(f"domain '{port.domain}' has no entity '{target}'") from None
     if context is None:
-        return [e for e in entities if e != target]
+        return entities[:at] + entities[at + 1 :]  # one C-level pass, not two Python ones
     unknown = [e for e in context if e not in entities]
     if unknown:
         raise GenerationError(f"context names unknown entities of domain '{port.domain}': {', '.join(unknown)}")

@@ -19,6 +19,7 @@ compare it against a naive eager implementation on random event sequences.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import islice
 from typing import TYPE_CHECKING, Callable, Iterable, Optional
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -240,8 +241,8 @@ class WMBuffer:
             elif prop in q:
                 del q[prop]
                 self._size -= 1
-            self._stamp += 1
-            q[prop] = self._stamp
+            stamp = self._stamp = self._stamp + 1
+            q[prop] = stamp
             self._size += 1
             if sink is not None:
                 sink(_event("encode", domain, entity, prop, cause, time, turn))
@@ -304,16 +305,39 @@ class WMBuffer:
 
     # -------------------------------------------------------------- internals
     def _catch_up(self, entity: str) -> None:
-        synced = self._synced.get(entity, 0)
-        owed = self._ticks - synced
-        if owed:
-            self._synced[entity] = self._ticks
-            q = self._queues.get(entity)
-            if q:
-                for k in range(min(owed, len(q))):
-                    self._pop(entity, "decay", self._tick_times[synced + k - self._tick_base], None)
-        elif entity not in self._synced:
-            self._synced[entity] = self._ticks
+        """Apply the decay ticks Q[entity] still owes: one front pop per tick, each
+        reported at its tick's own time (the eager Algorithm 2, deferred)."""
+        synced = self._synced.get(entity)
+        ticks = self._ticks
+        if synced == ticks:
+            return
+        self._synced[entity] = ticks
+        if synced is None:  # never seen: its queue is empty, nothing is owed
+            return
+        q = self._queues.get(entity)
+        if not q:
+            return
+        owed = min(ticks - synced, len(q))
+        sink = self.sink
+        if sink is None:  # no events to report: just drop the fronts
+            self._size -= owed
+            if owed == len(q):
+                q.clear()
+                self._nonempty.pop(entity, None)
+            else:
+                for _ in range(owed):
+                    del q[next(iter(q))]
+            return
+        victims = list(islice(q, owed))  # the fronts, LRU first
+        for prop in victims:
+            del q[prop]
+        self._size -= owed
+        if not q:
+            self._nonempty.pop(entity, None)
+        first = synced - self._tick_base  # each pop is reported at its tick's time
+        times = self._tick_times
+        for k, prop in enumerate(victims):
+            sink(_event("forget", self.domain, entity, prop, "decay", times[first + k], None))
 
     def _pop(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
         q = self._queues.get(entity)

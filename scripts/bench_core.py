@@ -1,0 +1,387 @@
+#!/usr/bin/env python3
+"""Benchmarks of fsreg's pure-Python core (no ROS): REG latency and decay-tick cost.
+
+1. REG latency.  A seeded random knowledge base of N entities x P properties:
+   property j has a prevalence drawn uniformly from [0.1, 0.3] and holds for each
+   entity independently with that probability (certainty 1.0, threshold 0.5), so
+   a property typically holds for 10-30 % of the domain, as colours, clothing or
+   hair do among faces.  Each trial asks for one random target (seeded) and
+   times one ``generate`` call through ``LocalPort``/``run_sync`` end to end,
+   including every rule-3 encoding for the distractors and the rule-1 encoding.
+   The robot's clock advances 1 s per trial.  Configurations:
+
+   * ``sd-pia``         policy decay+displacement (decay_period 10 s, capacity 4),
+                        after warm-up trials, so WM holds content (Phase 1 runs);
+   * ``dist-pia``       the same policy (same encodings, no Phase 1);
+   * ``dist-pia/none``  policy none: the paper's "No WM" (nothing is encoded);
+   * ``sd-pia+sink``    as sd-pia with an event sink (every encode/forget builds a
+                        WMEvent, as the ROS consultant does); largest size only.
+
+   Reported: median and p95 latency, median encodings per call, and the ratio of
+   medians 10k/1k entities (10.0 would be linear in the number of entities).
+
+2. Decay-tick cost, "mostly idle".  Q queues each start with ticks + 1 properties
+   (so the eager version really pops every queue at every tick).  Between two ticks
+   1 % of the queues are touched (one encoding each).  Lazy = ``WMBuffer`` under
+   ``WMManager`` (a tick is O(1); a queue catches up when next touched); naive =
+   ``test/naive_wm.NaiveWM`` (pops the front of every queue at every tick).  Both
+   run in the same process, one after the other, on the same touch pattern.
+   Reported: median cost of one tick, the cost of one whole cycle (tick + touches,
+   including the lazy catch-ups), and, for the lazy buffer, the final ``flush()``
+   that materialises every owed pop (what a caller pays if it then reads all of WM).
+
+Usage: ``scripts/bench_core.py [--quick] [--json FILE] [--seed N] [--trials N]``.
+No timing is asserted anywhere; the targets are printed as met / missed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import platform
+import random
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "test"))
+
+from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402
+from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager  # noqa: E402
+from fsreg_ros.core.generation import generate  # noqa: E402
+from fsreg_ros.core.memory import WMBuffer  # noqa: E402
+from naive_wm import NaiveWM  # noqa: E402
+
+PREVALENCE = (0.1, 0.3)
+WM_POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4}
+TARGET_REG_MS = 5.0  # SD-PIA, one target among 10,000 entities x 200 properties
+TARGET_DECAY_RATIO = 100.0  # naive / lazy, tick over 100k mostly idle queues
+IDLE_TOUCHED = 0.01
+
+
+# =================================================================== REG
+def random_kb(n_entities: int, n_props: int, rng: random.Random) -> tuple[dict, list]:
+    props = [f"p{j}" for j in range(n_props)]
+    facts: dict[str, dict[str, float]] = {f"e{i}": {} for i in range(n_entities)}
+    names = list(facts)
+    for prop in props:
+        prevalence = rng.uniform(*PREVALENCE)
+        for name in names:
+            if rng.random() < prevalence:
+                facts[name][prop] = 1.0
+    return facts, props
+
+
+def policy_of(name: str) -> ForgettingPolicy:
+    if name == "none":
+        return ForgettingPolicy.parse("none")
+    return ForgettingPolicy.parse(
+        WM_POLICY["policy"], decay_period=WM_POLICY["decay_period"], capacity=WM_POLICY["capacity"]
+    )
+
+
+def p95(values: list[float]) -> float:
+    if len(values) < 2:
+        return values[0]
+    return statistics.quantiles(values, n=20, method="inclusive")[18]
+
+
+def bench_reg_config(
+    facts: dict, props: list, algorithm: str, policy: str, sink: bool, trials: int, warmup: int, seed: int
+) -> dict:
+    events: list = []
+    consultant = Consultant("d", facts, props, sink=events.append if sink else None)
+    manager = WMManager()
+    manager.manage(consultant.wm, policy_of(policy))
+    port = LocalPort(consultant)
+    rng = random.Random(seed)
+    names = consultant.entities
+    clock = 0.0
+    times: list[float] = []
+    encodings: list[int] = []
+    wm_sizes: list[int] = []
+    from_wm: list[int] = []
+    distinguishing = 0
+    gc.collect()
+    for trial in range(warmup + trials):
+        target = rng.choice(names)
+        clock += 1.0
+        manager.advance(clock)
+        stamp = consultant.wm._stamp  # benchmark bookkeeping only: encodings per call
+        start = time.perf_counter()
+        expression = run_sync(generate(target, port, algorithm, time=clock, turn=trial))
+        elapsed = time.perf_counter() - start
+        events.clear()
+        if trial >= warmup:
+            times.append(elapsed * 1e3)
+            encodings.append(consultant.wm._stamp - stamp)
+            wm_sizes.append(len(expression.wm_before))
+            from_wm.append(expression.sources.count("wm"))
+            distinguishing += expression.distinguishing
+    return {
+        "median_ms": statistics.median(times),
+        "p95_ms": p95(times),
+        "mean_ms": statistics.fmean(times),
+        "encodings_median": statistics.median(encodings),
+        "wm_before_mean": statistics.fmean(wm_sizes),
+        "from_wm_mean": statistics.fmean(from_wm),
+        "distinguishing_share": distinguishing / trials,
+        "trials": trials,
+    }
+
+
+def bench_reg(sizes: list[tuple[int, int]], trials: int, warmup: int, seed: int, log) -> list[dict]:
+    rows = []
+    largest = max(sizes)
+    for n_entities, n_props in sizes:
+        t0 = time.perf_counter()
+        facts, props = random_kb(n_entities, n_props, random.Random(seed * 1_000_003 + n_entities * 7 + n_props))
+        log(f"  KB {n_entities} x {n_props} built in {time.perf_counter() - t0:.1f} s")
+        configs = [("sd-pia", "wm", False), ("dist-pia", "wm", False), ("dist-pia", "none", False)]
+        if (n_entities, n_props) == largest:
+            configs.append(("sd-pia", "wm", True))
+        for algorithm, policy, sink in configs:
+            label = algorithm + ("/none" if policy == "none" else "") + ("+sink" if sink else "")
+            result = bench_reg_config(facts, props, algorithm, policy, sink, trials, warmup, seed)
+            rows.append({"config": label, "entities": n_entities, "properties": n_props, **result})
+            log(f"  {label:<14} {n_entities:>6} x {n_props:<4} median {result['median_ms']:.3f} ms")
+    return rows
+
+
+def reg_ratios(rows: list[dict]) -> list[dict]:
+    by = {(r["config"], r["entities"], r["properties"]): r for r in rows}
+    out = []
+    for (config, n, p), row in sorted(by.items()):
+        if n == 10_000 and (config, 1_000, p) in by:
+            small = by[(config, 1_000, p)]
+            out.append(
+                {
+                    "config": config,
+                    "properties": p,
+                    "ratio_10k_1k": row["median_ms"] / small["median_ms"],
+                    "encodings_ratio_10k_1k": row["encodings_median"] / max(small["encodings_median"], 1),
+                }
+            )
+    return out
+
+
+# ================================================================= decay
+def bench_decay(n_queues: int, ticks: int, seed: int) -> dict:
+    rng = random.Random(seed + n_queues)
+    names = [f"e{i}" for i in range(n_queues)]
+    initial = [f"p{j}" for j in range(ticks + 1)]
+    extra = [f"x{j}" for j in range(8)]
+    touched = max(1, int(n_queues * IDLE_TOUCHED))
+    plan = [(rng.sample(names, touched), rng.choice(extra)) for _ in range(ticks)]
+
+    # Lazy: the real buffer under the real WM Manager (decay every 1 s from t = 0).
+    buffer = WMBuffer("d")
+    manager = WMManager()
+    manager.manage(buffer, ForgettingPolicy.parse("decay", decay_period=1.0))
+    for prop in initial:
+        buffer.encode_each(names, prop, "rr", 0.0)
+    lazy_tick, lazy_touch = [], []
+    gc.collect()
+    for k, (sample, prop) in enumerate(plan, start=1):
+        t = float(k)
+        start = time.perf_counter()
+        manager.advance(t)
+        lazy_tick.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        for name in sample:
+            buffer.encode(name, (prop,), "rr", t + 0.5)
+        lazy_touch.append(time.perf_counter() - start)
+    start = time.perf_counter()
+    buffer.flush()
+    lazy_flush = time.perf_counter() - start
+    lazy_state = buffer.snapshot()
+    del buffer, manager
+    gc.collect()
+
+    # Naive eager reference on exactly the same plan.
+    naive = NaiveWM({"decay"}, record=False)
+    for name in names:
+        naive.encode(name, initial, "rr", 0.0)
+    naive_tick, naive_touch = [], []
+    gc.collect()
+    for k, (sample, prop) in enumerate(plan, start=1):
+        t = float(k)
+        start = time.perf_counter()
+        naive.tick(t)
+        naive_tick.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        for name in sample:
+            naive.encode(name, (prop,), "rr", t + 0.5)
+        naive_touch.append(time.perf_counter() - start)
+    same = naive.snapshot() == lazy_state
+    del naive
+    gc.collect()
+
+    def us(values):
+        return statistics.median(values) * 1e6
+
+    lazy_cycle = [a + b for a, b in zip(lazy_tick, lazy_touch)]
+    naive_cycle = [a + b for a, b in zip(naive_tick, naive_touch)]
+    lazy_total = sum(lazy_cycle) + lazy_flush
+    return {
+        "queues": n_queues,
+        "ticks": ticks,
+        "touched_per_tick": touched,
+        "lazy_tick_us": us(lazy_tick),
+        "naive_tick_us": us(naive_tick),
+        "tick_ratio": statistics.median(naive_tick) / statistics.median(lazy_tick),
+        "lazy_cycle_us": us(lazy_cycle),
+        "naive_cycle_us": us(naive_cycle),
+        "cycle_ratio": statistics.median(naive_cycle) / statistics.median(lazy_cycle),
+        "lazy_final_flush_us": lazy_flush * 1e6,
+        "lazy_total_incl_flush_us": lazy_total * 1e6,
+        "naive_total_us": sum(naive_cycle) * 1e6,
+        "total_ratio_incl_flush": sum(naive_cycle) / lazy_total,
+        "same_final_state": same,
+    }
+
+
+# ================================================================ output
+def render(result: dict) -> str:
+    lines = []
+    lines.append("REG latency (ms per generate call; random KB, prevalence 0.1-0.3; "
+                 f"{result['meta']['trials']} trials, random targets)")
+    header = f"{'config':<14} {'entities':>8} {'props':>5} {'median':>9} {'p95':>9} {'enc/call':>9} {'|WM(t)|':>7} {'wm src':>6}"
+    lines.append(header)
+    lines.append("-" * len(header))
+    for r in result["reg"]:
+        lines.append(
+            f"{r['config']:<14} {r['entities']:>8} {r['properties']:>5} {r['median_ms']:>9.3f} "
+            f"{r['p95_ms']:>9.3f} {r['encodings_median']:>9.0f} {r['wm_before_mean']:>7.2f} {r['from_wm_mean']:>6.2f}"
+        )
+    if result["reg_ratios"]:
+        lines.append("")
+        lines.append("Scaling 1k -> 10k entities (ratio of medians; 10.0 = linear)")
+        for r in result["reg_ratios"]:
+            lines.append(
+                f"  {r['config']:<14} props {r['properties']:>4}: time x{r['ratio_10k_1k']:.2f}"
+                f"   encodings x{r['encodings_ratio_10k_1k']:.2f}"
+            )
+    lines.append("")
+    lines.append(f"Decay tick, mostly idle ({IDLE_TOUCHED:.0%} of queues touched between ticks; microseconds)")
+    header = (
+        f"{'queues':>8} {'ticks':>5} {'lazy tick':>10} {'naive tick':>11} {'ratio':>9} "
+        f"{'lazy cycle':>11} {'naive cycle':>12} {'ratio':>7} {'lazy flush':>11} {'total ratio':>11} {'same':>5}"
+    )
+    lines.append(header)
+    lines.append("-" * len(header))
+    for r in result["decay"]:
+        lines.append(
+            f"{r['queues']:>8} {r['ticks']:>5} {r['lazy_tick_us']:>10.2f} {r['naive_tick_us']:>11.1f} "
+            f"{r['tick_ratio']:>9.0f} {r['lazy_cycle_us']:>11.1f} {r['naive_cycle_us']:>12.1f} "
+            f"{r['cycle_ratio']:>7.1f} {r['lazy_final_flush_us']:>11.1f} {r['total_ratio_incl_flush']:>11.2f} "
+            f"{str(r['same_final_state']):>5}"
+        )
+    lines.append("")
+    lines.append("Targets")
+    for t in result["targets"]:
+        lines.append(f"  {t['name']}: {t['value']} -> {t['verdict']}")
+    return "\n".join(lines) + "\n"
+
+
+def targets(result: dict) -> list[dict]:
+    out = []
+    big = [r for r in result["reg"] if r["config"] == "sd-pia" and r["entities"] == 10_000 and r["properties"] == 200]
+    if big:
+        value = big[0]["median_ms"]
+        out.append({
+            "name": f"SD-PIA median, 10,000 x 200 (<= {TARGET_REG_MS} ms)",
+            "value": f"{value:.3f} ms",
+            "verdict": "met" if value <= TARGET_REG_MS else "MISSED",
+        })
+    else:
+        out.append({"name": "SD-PIA median, 10,000 x 200", "value": "not run", "verdict": "n/a (--quick)"})
+    ratio = [r for r in result["reg_ratios"] if r["config"] == "sd-pia" and r["properties"] == 200]
+    if ratio:
+        value = ratio[0]["ratio_10k_1k"]
+        out.append({
+            "name": "SD-PIA 1k -> 10k entities no worse than linear (ratio <= 10)",
+            "value": f"x{value:.2f}",
+            "verdict": "met" if value <= 10.0 else "MISSED",
+        })
+    else:
+        out.append({"name": "SD-PIA 1k -> 10k scaling", "value": "not run", "verdict": "n/a (--quick)"})
+    decay = [r for r in result["decay"] if r["queues"] == 100_000]
+    if decay:
+        value = decay[0]["tick_ratio"]
+        out.append({
+            "name": f"decay tick over 100k mostly idle queues, naive/lazy (>= {TARGET_DECAY_RATIO:.0f}x)",
+            "value": f"x{value:.0f}",
+            "verdict": "met" if value >= TARGET_DECAY_RATIO else "MISSED",
+        })
+    else:
+        out.append({"name": "decay tick over 100k queues", "value": "not run", "verdict": "n/a (--quick)"})
+    return out
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes, few trials: a seconds-long smoke run")
+    parser.add_argument("--json", metavar="FILE", help="also write the numbers to FILE as JSON")
+    parser.add_argument("--seed", type=int, default=2020, help="random seed (default 2020)")
+    parser.add_argument("--trials", type=int, help="timed REG trials per configuration (default 200; quick 15)")
+    parser.add_argument("--warmup", type=int, help="untimed REG trials first, to fill WM (default 30; quick 5)")
+    parser.add_argument("--ticks", type=int, help="decay ticks measured (default 10; quick 3)")
+    parser.add_argument("--skip-reg", action="store_true", help="only the decay benchmark")
+    parser.add_argument("--skip-decay", action="store_true", help="only the REG benchmark")
+    parser.add_argument("-v", "--verbose", action="store_true", help="progress on stderr")
+    args = parser.parse_args(argv)
+
+    if args.quick:
+        sizes = [(100, 20), (1_000, 20)]
+        queue_counts = [1_000, 10_000]
+        trials, warmup, ticks = args.trials or 15, args.warmup if args.warmup is not None else 5, args.ticks or 3
+    else:
+        sizes = [(n, p) for n in (100, 1_000, 10_000) for p in (20, 200)]
+        queue_counts = [1_000, 100_000]
+        trials, warmup, ticks = args.trials or 200, args.warmup if args.warmup is not None else 30, args.ticks or 10
+
+    def log(message: str) -> None:
+        if args.verbose:
+            print(message, file=sys.stderr, flush=True)
+
+    result: dict = {
+        "meta": {
+            "quick": args.quick,
+            "seed": args.seed,
+            "trials": trials,
+            "warmup": warmup,
+            "prevalence": list(PREVALENCE),
+            "wm_policy": WM_POLICY,
+            "idle_touched": IDLE_TOUCHED,
+            "python": platform.python_version(),
+            "implementation": platform.python_implementation(),
+            "machine": platform.machine(),
+        },
+        "reg": [],
+        "reg_ratios": [],
+        "decay": [],
+    }
+    if not args.skip_reg:
+        log("REG latency")
+        result["reg"] = bench_reg(sizes, trials, warmup, args.seed, log)
+        result["reg_ratios"] = reg_ratios(result["reg"])
+    if not args.skip_decay:
+        log("decay tick")
+        for n in queue_counts:
+            result["decay"].append(bench_decay(n, ticks, args.seed))
+            log(f"  {n} queues done")
+    result["targets"] = targets(result)
+    sys.stdout.write(render(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
