@@ -96,6 +96,19 @@ def _limits() -> Callable[..., None]:
     return _enforce_limits
 
 
+class _Queue(dict):
+    """Q[entity]: an insertion-ordered dict property -> stamp, front (LRU) first.
+
+    ``synced`` is the number of decay ticks this queue has been brought up to (lazy
+    decay).  Keeping it in the queue object itself, rather than in a second
+    entity-keyed table, halves the memory touched per encoding, which dominates
+    when thousands of distractors are encoded at once (rule 3).  A plain dict
+    subclass, not an OrderedDict, for the same reason.
+    """
+
+    __slots__ = ("synced",)
+
+
 class WMBuffer:
     """A domain's WM buffer: ``Q[entity]`` queues plus the encoding stamp counter.
 
@@ -112,18 +125,14 @@ class WMBuffer:
         self.domain = domain
         self.sink = sink
         self.policy: Optional["ForgettingPolicy"] = None
-        # Q[entity] as an insertion-ordered dict property -> stamp (front = first key).
-        # A plain dict, not an OrderedDict: half the memory touched per encoding,
-        # which dominates when thousands of distractors are encoded (rule 3).
-        self._queues: dict[str, dict[str, int]] = {}
+        self._queues: dict[str, _Queue] = {}
         self._stamp = 0
         self._size = 0  # properties stored, including ones still owed to lazy decay
-        # Lazy decay: number of ticks so far, the time of each, and per queue the
-        # tick count it has been brought up to.
+        # Lazy decay: number of ticks so far and the time of each (each queue keeps
+        # the tick count it has been brought up to: _Queue.synced).
         self._ticks = 0
         self._tick_times: list[float] = []  # times of ticks _tick_base, _tick_base + 1, ...
         self._tick_base = 0
-        self._synced: dict[str, int] = {}
         # Queues that may hold something (insertion-ordered set).
         self._nonempty: dict[str, None] = {}
 
@@ -186,7 +195,7 @@ class WMBuffer:
         for prop in properties:
             q = self._queues.get(entity)
             if q is None:
-                q = self._queues[entity] = {}
+                q = self._new_queue(entity)
             if prop in q:
                 del q[prop]
                 self._size -= 1
@@ -223,24 +232,24 @@ class WMBuffer:
         capacity = policy.capacity if "displacement" in rules else None  # type: ignore[union-attr]
         global_limit = policy.global_capacity if "global-capacity" in rules else None  # type: ignore[union-attr]
         queues = self._queues
-        synced = self._synced
         nonempty = self._nonempty
         sink = self.sink
         domain = self.domain
         ticks = self._ticks  # nothing below applies new ticks
         for entity in entities:
-            if synced.get(entity) != ticks:
-                self._catch_up(entity)
-            # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
             q = queues.get(entity)
             if q is None:
-                q = queues[entity] = {}
+                q = self._new_queue(entity)
                 nonempty[entity] = None
-            elif not q:
-                nonempty[entity] = None
-            elif prop in q:
-                del q[prop]
-                self._size -= 1
+            else:
+                if q.synced != ticks:
+                    self._sync(entity, q)
+                # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
+                if not q:
+                    nonempty[entity] = None
+                elif prop in q:
+                    del q[prop]
+                    self._size -= 1
             stamp = self._stamp = self._stamp + 1
             q[prop] = stamp
             self._size += 1
@@ -304,18 +313,23 @@ class WMBuffer:
         self._tick_times.clear()
 
     # -------------------------------------------------------------- internals
+    def _new_queue(self, entity: str) -> _Queue:
+        q = self._queues[entity] = _Queue()
+        q.synced = self._ticks  # ticks before a queue existed are not owed
+        return q
+
     def _catch_up(self, entity: str) -> None:
-        """Apply the decay ticks Q[entity] still owes: one front pop per tick, each
-        reported at its tick's own time (the eager Algorithm 2, deferred)."""
-        synced = self._synced.get(entity)
-        ticks = self._ticks
-        if synced == ticks:
-            return
-        self._synced[entity] = ticks
-        if synced is None:  # never seen: its queue is empty, nothing is owed
-            return
+        """Apply the decay ticks Q[entity] still owes (if any)."""
         q = self._queues.get(entity)
-        if not q:
+        if q is not None and q.synced != self._ticks:
+            self._sync(entity, q)
+
+    def _sync(self, entity: str, q: _Queue) -> None:
+        """Apply the ticks since ``q.synced``: one front pop per tick, each reported at
+        its tick's own time (the eager Algorithm 2, deferred)."""
+        synced = q.synced
+        q.synced = ticks = self._ticks
+        if not q:  # an empty queue owes nothing (and never needs a tick's time)
             return
         owed = min(ticks - synced, len(q))
         sink = self.sink
