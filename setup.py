@@ -38,7 +38,6 @@ setup(
     maintainer_email="fsreg@example.org",
     description="Forgetting-sensitive referring expression generation as a ROS 2 node graph",
     license="BSD-3-Clause",
-    tests_require=["pytest"],
     python_requires=">=3.10",
     entry_points={
         "console_scripts": [f"{name}={target}" for name, target in {**NODES, **TOOLS}.items()],

@@ -71,7 +71,7 @@ def executable(name: str) -> list[str]:
             candidate = Path(get_package_prefix(PACKAGE)) / "lib" / PACKAGE / name
             if candidate.is_file() and os.access(candidate, os.X_OK):
                 return [str(candidate)]
-        except PackageNotFoundError:
+        except (PackageNotFoundError, OSError):  # not installed by colcon / no AMENT_PREFIX_PATH
             pass
     except ImportError:  # pragma: no cover - ament_index comes with rclpy
         pass

@@ -27,12 +27,11 @@ from typing import Any, Optional
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.task import Future
-from diagnostic_msgs.srv import AddDiagnostics
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from ..carrier import CarrierError, MessageError, call, from_msg, to_msg
+from ..carrier import CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
 from ..core.realisation import Lexicon, LexiconError
 from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record
@@ -70,10 +69,10 @@ class DialoguePlayer(Node):
         self.scenario: Scenario = load_scenario(path, Lexicon.load(self.get_parameter("lexicon").value or None))
         self.run_id = f"{self.scenario.name}-{wallclock.time_ns() % 10**9}"
         group = ReentrantCallbackGroup()
-        self._clock = self.create_publisher(Clock, "/clock", 10)
+        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._human = self.create_publisher(String, "/dialogue/human", 100)
         self._request = self.create_publisher(String, "/reg/request", 100)
-        self._sync = self.create_client(AddDiagnostics, "/wm_manager/sync", callback_group=group)
+        self._sync = JsonClient(self, "/wm_manager/sync", group)
         self._pending: dict[str, Future] = {}
         self.events: list[dict] = []
         self.memory: dict[str, Any] = {}
@@ -99,34 +98,26 @@ class DialoguePlayer(Node):
             self.get_logger().warning(f"/wm/events: {err}")
 
     # -------------------------------------------------------------- waiting
-    async def sleep(self, seconds: float) -> None:
-        """Wait without blocking the executor (a one-shot wall-clock timer)."""
-        done = Future()
-        timer = self.create_timer(seconds, lambda: done.done() or done.set_result(None))
-        try:
-            await done
-        finally:
-            self.destroy_timer(timer)
+    def _missing_peers(self) -> list[str]:
+        return [
+            topic
+            for topic, (sub, pub) in PIPELINE_TOPICS.items()
+            if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
+        ]
 
     async def wait_ready(self) -> None:
-        """Every pipeline topic has its peers and the WM Manager answers a sync."""
-        deadline = wallclock.monotonic() + self.get_parameter("ready_timeout").value
-        while True:
-            missing = [
-                topic
-                for topic, (sub, pub) in PIPELINE_TOPICS.items()
-                if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
-            ]
-            if not missing and self._sync.service_is_ready():
-                try:
-                    reply = await call(self._sync, {"time": 0.0}, timeout=max(1.0, deadline - wallclock.monotonic()))
-                    self.memory = reply.get("memory", {})
-                    return
-                except CarrierError as err:
-                    missing = [f"/wm_manager/sync ({err})"]
-            if wallclock.monotonic() > deadline:
-                raise PlayerError(f"graph not ready: waiting for {', '.join(missing) or '/wm_manager/sync'}")
-            await self.sleep(0.05)
+        """Every pipeline topic has its peers and the WM Manager answers a sync (which
+        it does only once every consultant is configured)."""
+        timeout = self.get_parameter("ready_timeout").value
+        started = wallclock.monotonic()
+        if not await wait_until(self, lambda: not self._missing_peers(), timeout):
+            raise PlayerError(f"graph not ready within {timeout} s: no peers on {', '.join(self._missing_peers())}")
+        remaining = max(1.0, timeout - (wallclock.monotonic() - started))
+        try:
+            reply = await self._sync.wait_ready({"time": 0.0}, remaining)
+        except CarrierError as err:
+            raise PlayerError(f"graph not ready: {err}") from None
+        self.memory = reply.get("memory", {})
 
     async def exchange(self, publisher, message: dict) -> dict:
         """Publish ``message`` and wait for the answer with its id, resending it every
@@ -161,13 +152,13 @@ class DialoguePlayer(Node):
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
 
     async def play_turn(self, turn: Turn) -> dict:
-        reply = await call(self._sync, {"time": turn.time}, timeout=self.get_parameter("turn_timeout").value)
+        reply = await self._sync.call({"time": turn.time}, self.get_parameter("turn_timeout").value)
         self.memory = reply.get("memory", self.memory)
         if self.get_parameter("drive_clock").value:
             stamp = Clock()
             stamp.clock.sec = int(turn.time)
             stamp.clock.nanosec = int(round((turn.time - int(turn.time)) * 1e9))
-            self._clock.publish(stamp)
+            self._clock_pub.publish(stamp)
         message: dict[str, Any] = {"id": f"{self.run_id}/{turn.index}", "time": turn.time, "turn": turn.index}
         if turn.speaker == "human":
             if turn.text is not None:
