@@ -1,0 +1,177 @@
+"""The whole node graph in one process and one executor, on sim time.
+
+Every node of ``fsreg-graph`` (consultants, WM Manager, parser, RR, REG, player) is
+built with the very parameters the runner passes (``graph.graph_nodes``) and spun in
+one ``SingleThreadedExecutor``; the player drives ``/clock``.  The results must equal
+the core simulator's, record for record.
+"""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rosutil import Graph
+
+from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
+from fsreg_ros.graph import graph_nodes
+from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.nodes.dialogue_player import DialoguePlayer
+from fsreg_ros.nodes.parser import ParserNode
+from fsreg_ros.nodes.reference_resolution import ReferenceResolutionNode
+from fsreg_ros.nodes.reg import RegNode
+from fsreg_ros.nodes.wm_manager import WMManagerNode
+
+pytestmark = pytest.mark.graph
+
+NODE_CLASSES = {
+    "consultant": ConsultantNode,
+    "wm_manager": WMManagerNode,
+    "parser": ParserNode,
+    "reference_resolution": ReferenceResolutionNode,
+    "reg": RegNode,
+    "dialogue_player": DialoguePlayer,
+}
+DATA = Path(__file__).resolve().parent / "data" / "dialogues"
+
+
+def start_graph(g: Graph, scenario_path: Path, options: Options, tmp_path: Path) -> DialoguePlayer:
+    """Add every node of the runner's graph to ``g``; return the player."""
+    scenario = load_scenario(scenario_path)
+    player = None
+    for spec in graph_nodes(scenario, scenario_path, options, tmp_path / "result.json"):
+        params = dict(spec.parameters)
+        sim_time = params.pop("use_sim_time", False)
+        node = g.add(NODE_CLASSES[spec.executable], use_sim_time=sim_time, name=spec.name, **params)
+        if spec.executable == "dialogue_player":
+            player = node
+    assert player is not None
+    return player
+
+
+def play(scenario_path: Path, options: Options, tmp_path: Path) -> dict:
+    with Graph() as g:
+        player = start_graph(g, scenario_path, options, tmp_path)
+        return g.run(player.play(), timeout=60.0)
+
+
+@pytest.mark.parametrize("policy", ["decay", "displacement", "none"])
+def test_table1_through_the_graph(table1_path, paper_table1, tmp_path, policy):
+    options = Options(memory={"policy": policy})
+    result = play(table1_path, options, tmp_path)
+    robot = [t for t in result["turns"] if t["speaker"] == "robot"]
+    assert [set(t["description"]) for t in robot] == [set(d) for d in paper_table1[policy]]
+    if policy == "decay":
+        assert robot[5]["wm_before"] == ["lab-coat", "short-hair", "glasses"]
+    if policy == "displacement":
+        assert robot[5]["wm_before"] == ["short-hair", "glasses"]
+    assert dumps(result) == dumps(simulate(load_scenario(table1_path), options))
+
+
+def test_text_dialogue_goes_through_the_parser(table1_text_path, tmp_path):
+    options = Options(memory={"policy": "decay"})
+    result = play(table1_text_path, options, tmp_path)
+    assert result["turns"][8]["unknown_words"] == ["he"]
+    assert result["turns"][8]["description"] == ["dark-hair", "short-hair", "t-shirt", "male"]
+    assert dumps(result) == dumps(simulate(load_scenario(table1_text_path), options))
+
+
+def test_two_domains_each_keep_their_own_pool(tmp_path):
+    path = DATA / "two_domains.yaml"
+    result = play(path, Options(), tmp_path)
+    assert result["memory"] == {
+        "faces": {"policy": "displacement", "capacity": 1},
+        "objects": {"policy": "decay", "decay_period": 5.0},
+    }
+    assert dumps(result) == dumps(simulate(load_scenario(path), Options()))
+    robot = {t["turn"]: t for t in result["turns"] if t["speaker"] == "robot"}
+    assert robot[2]["wm_before"] == ["light-hair"]  # faces: capacity 1
+    assert robot[3]["wm_before"] == ["large", "red"]  # objects: nothing decayed by t=4
+    assert robot[5]["wm_before"] == ["red"]  # objects: one tick at t=5 popped 'large'
+    assert robot[5]["domain"] == "objects"
+
+
+def random_scenario(seed: int) -> dict:
+    """A random scenario in the SPEC section 5 schema (valid by construction)."""
+    rng = random.Random(seed)
+    props = [f"p{i}" for i in range(8)]
+    entities = {f"e{i}": sorted(rng.sample(props, rng.randint(1, 5))) for i in range(10)}
+    dialogue, t = [], 0.0
+    for _ in range(12):
+        t += rng.choice([0.0, 0.5, 1.0, 2.5, 4.0])
+        if rng.random() < 0.5:
+            target = rng.choice(list(entities))
+            desc = rng.sample(entities[target], rng.randint(1, len(entities[target])))
+            dialogue.append({"time": t, "speaker": "human", "description": desc})
+        else:
+            dialogue.append({"time": t, "speaker": "robot", "target": rng.choice(list(entities))})
+    policy = rng.choice(["decay", "displacement", "decay+displacement", "global-capacity", "decay+global-capacity"])
+    return {
+        "name": f"random-{seed}",
+        "domains": {"things": {"preference": props, "entities": entities}},
+        "memory": {"policy": policy, "decay_period": 3.0, "capacity": 2, "global_capacity": 5},
+        "dialogue": dialogue,
+    }
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_scenarios_equal_the_simulator(tmp_path, seed):
+    path = tmp_path / f"random-{seed}.yaml"
+    path.write_text(yaml.safe_dump(random_scenario(seed), sort_keys=False))
+    result = play(path, Options(), tmp_path)
+    assert dumps(result) == dumps(simulate(load_scenario(path), Options()))
+
+
+def test_live_policy_change_mid_dialogue(table1_path, tmp_path):
+    """Switch decay -> displacement after the fourth turn, in the graph and in the
+    core; the WM Manager's change takes effect at once and both agree exactly."""
+    scenario = load_scenario(table1_path)
+    options = Options(memory={"policy": "decay"})
+    switch_after = 3
+    with Graph() as g:
+        player = start_graph(g, table1_path, options, tmp_path)
+        manager = next(n for n in g.nodes if isinstance(n, WMManagerNode))
+        g.run(player.wait_ready(), timeout=30.0)
+        records = []
+        for turn in scenario.dialogue:
+            records.append(g.run(player.play_turn(turn), timeout=30.0))
+            if turn.index == switch_after:
+                from rclpy.parameter import Parameter
+
+                result = manager.set_parameters([Parameter("faces.policy", value="displacement")])
+                assert result[0].successful, result[0].reason
+        assert player.memory == {"faces": {"policy": "displacement", "capacity": 2}}
+
+    sim = Simulation(scenario, options)
+    expected = []
+    for turn in scenario.dialogue:
+        expected.append(sim.play(turn))
+        if turn.index == switch_after:
+            sim.manager.set_policy("faces", ForgettingPolicy.parse("displacement", capacity=2, decay_period=10.0), turn.time)
+    assert records == expected
+    # The switch changed behaviour: turn 11 now describes face1 as under displacement.
+    assert records[11]["wm_before"] != simulate(scenario, options)["turns"][11]["wm_before"]
+
+
+def test_invalid_live_parameter_is_rejected_and_changes_nothing(table1_path, tmp_path):
+    with Graph() as g:
+        player = start_graph(g, table1_path, Options(memory={"policy": "decay"}), tmp_path)
+        manager = next(n for n in g.nodes if isinstance(n, WMManagerNode))
+        g.run(player.wait_ready(), timeout=30.0)
+        from rclpy.parameter import Parameter
+
+        for name, value, fragment in [
+            ("faces.capacity", -1, "capacity"),
+            ("faces.policy", "forget-everything", "unknown forgetting rule"),
+            ("decay_period", 0.0, "decay_period"),
+        ]:
+            result = manager.set_parameters([Parameter(name, value=value)])
+            assert not result[0].successful
+            assert fragment in result[0].reason
+        reply = g.call("/wm_manager/status", {})
+        assert reply["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}

@@ -1,0 +1,124 @@
+"""The multi-process graph: every node its own OS process, as `ros2 run` starts them.
+
+End to end through ``fsreg-graph``, plus process hygiene: Ctrl-C, a node that dies,
+and a runner that is SIGKILLed leave no processes behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.core.simulation import Options, dumps, simulate
+from fsreg_ros.graph import Graph, GraphError, NodeSpec
+
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
+BIN = Path(sys.executable).parent
+
+
+def children_of(pid: int) -> set[int]:
+    """PIDs whose parent is ``pid`` (from /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            ppid = int(stat.rsplit(")", 1)[1].split()[1])
+            if ppid == pid:
+                found.add(int(entry.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def wait_until(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def test_fsreg_graph_json_equals_fsreg_sim(table1_path):
+    graph = subprocess.run(
+        [str(BIN / "fsreg-graph"), str(table1_path), "--policy", "decay", "--json"],
+        capture_output=True, text=True, timeout=180,
+    )
+    assert graph.returncode == 0, graph.stderr
+    expected = dumps(simulate(load_scenario(table1_path), Options(memory={"policy": "decay"})))
+    assert graph.stdout == expected
+    robot = [t for t in json.loads(graph.stdout)["turns"] if t["speaker"] == "robot"]
+    assert robot[5]["description"] == ["lab-coat", "glasses"]
+
+
+def test_fsreg_graph_bad_scenario_fails_before_starting_anything(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("domains: {faces: {preference: [a], entities: {e: [a]}}}\ndialogue:\n  - {time: 1, speaker: robot}\n")
+    proc = subprocess.run([str(BIN / "fsreg-graph"), str(bad)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "bad.yaml" in proc.stderr and "dialogue[0]" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_ctrl_c_stops_every_node(table1_path):
+    runner = subprocess.Popen(
+        [str(BIN / "fsreg-graph"), str(table1_path), "--compare-policies", "decay,displacement,none"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        wait_until(lambda: len(children_of(runner.pid)) >= 6, 30, "the node processes")
+        kids = children_of(runner.pid)
+        time.sleep(0.5)
+        runner.send_signal(signal.SIGINT)
+        assert runner.wait(timeout=30) == 130
+        wait_until(lambda: not any(alive(k) for k in kids), 10, "every node to exit")
+        assert "Traceback" not in runner.stderr.read()
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+
+
+def test_sigkilled_runner_leaves_no_orphans(table1_path):
+    runner = subprocess.Popen(
+        [str(BIN / "fsreg-graph"), str(table1_path), "--compare-policies", "decay,displacement,none"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    wait_until(lambda: len(children_of(runner.pid)) >= 6, 30, "the node processes")
+    kids = children_of(runner.pid)
+    runner.kill()
+    runner.wait(timeout=10)
+    wait_until(lambda: not any(alive(k) for k in kids), 10, "orphaned nodes to die (PR_SET_PDEATHSIG)")
+
+
+def test_a_failing_node_is_reported_and_the_rest_stopped(tmp_path, table1_path):
+    nodes = [
+        NodeSpec("wm_manager", "wm_manager", {"domains": ["faces"], "policy": "decay", "use_sim_time": True}),
+        NodeSpec("consultant", "consultant_faces", {"domain": "faces", "kb": str(tmp_path / "missing.yaml")}),
+        NodeSpec("reg", "reg", {"domains": ["faces"]}),
+    ]
+    graph = Graph(nodes, tmp_path)
+    try:
+        graph.start()
+        with pytest.raises(GraphError) as err:
+            graph.wait_for("reg", time.monotonic() + 60)
+        assert "consultant_faces" in str(err.value) and "exited with code 2" in str(err.value)
+        assert "missing.yaml" in str(err.value)  # the node's own one-line reason
+    finally:
+        graph.stop()
+    assert all(proc.poll() is not None for _, proc in graph.procs)
