@@ -57,6 +57,7 @@ def test_info_and_latched_start_state(graph: Graph):
         "threshold": 0.5,
         "policy": "none",
         "memory": {"policy": "none"},
+        "events": 0,
     }
     # A late joiner gets the start state (transient local).
     states = graph.listen("/wm/state", STATE_QOS)
@@ -95,7 +96,7 @@ def test_query_ops_round_trip(graph: Graph):
         for e in ("face1", "face3")
     ]
     graph.spin_until(lambda: len(states) == 2, what="state after affirm")
-    assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}}
+    assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2}
 
     # encode (Algorithm 1: re-encoding moves to the back); displacement at capacity 3
     graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],
@@ -105,7 +106,11 @@ def test_query_ops_round_trip(graph: Graph):
     assert states[-1]["queues"]["face1"] == ["male", "lab-coat", "light-hair"] and states[-1]["time"] == 3.0
     assert [e["cause"] for e in events[2:]] == ["speaker", "speaker", "speaker", "speaker", "displacement"]
     assert events[-1]["property"] == "glasses" and events[-1]["turn"] is None
-    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {"face1": ["male", "lab-coat", "light-hair"], "face3": ["male"]}}
+    assert graph.call(Q, {"op": "snapshot"}) == {
+        "queues": {"face1": ["male", "lab-coat", "light-hair"], "face3": ["male"]},
+        "events": 7,  # every event published so far: a trace listener waits for this many
+    }
+    assert graph.call(Q, {"op": "info"})["events"] == len(events) == states[-1]["events"]
 
     # reads do not publish anything
     n_states, n_events = len(states), len(events)
@@ -132,10 +137,11 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
 
     seen = [0]
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"], "cause": "speaker", "time": 1.0})
     graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"], "cause": "speaker", "time": 1.0})
     new_events(4, "encode events")
-    # two ticks at once: both applied now, with their own times, in time order
+    # two ticks at once: both applied now, with their own times, in time order and
+    # within a tick in entity order (face1 before face2, though face2 filled first)
     assert graph.call(M, {"op": "decay", "ticks": [10.0, 20.0]}) == {"queues_changed": 2, "policy": "decay+displacement"}
     assert [(e["entity"], e["property"], e["cause"], e["time"]) for e in new_events(3, "decay events")] == [
         ("face1", "male", "decay", 10.0),
@@ -159,13 +165,13 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     # global-capacity victims: the oldest front across queues
     configure(graph, "global-capacity", global_capacity=2)
     graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker", "time": 22.0})
-    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {"face2": ["female", "dark-hair"]}}
+    assert graph.call(Q, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
     assert [(e["entity"], e["property"], e["cause"]) for e in new_events(3, "global-capacity events")] == [
         ("face2", "female", "speaker"), ("face2", "dark-hair", "speaker"), ("face1", "glasses", "global-capacity")
     ]
     # none empties WM, cause reset
     configure(graph, "none")
-    assert graph.call(Q, {"op": "snapshot"}) == {"queues": {}}
+    assert graph.call(Q, {"op": "snapshot"})["queues"] == {}
     assert {e["cause"] for e in new_events(2, "reset events")} == {"reset"}
     graph.spin_until(lambda: states[-1]["queues"] == {}, what="empty state")
     assert len(states) > n_states

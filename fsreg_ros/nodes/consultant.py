@@ -10,12 +10,12 @@ Parameters
 
 Services (JSON in ``AddDiagnostics``, see :mod:`fsreg_ros.carrier`)
     ``/consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
-      ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory"}``
+      ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory", "events"}``
       ``holds`` ``{"property", "entities"}`` -> ``{"holds"}`` (no encoding)
       ``affirm`` ``{"property", "entities", "cause", "time"?, "turn"?}`` -> ``{"holds"}``
       ``wm`` ``{"entity"}`` -> ``{"queue"}`` (LRU first; reading never refreshes)
       ``encode`` ``{"entity", "properties", "cause", "time"?, "turn"?}`` -> ``{}``
-      ``snapshot`` -> ``{"queues"}`` (non-empty queues only)
+      ``snapshot`` -> ``{"queues", "events"}`` (non-empty queues only)
     ``/consultant/<domain>/manage`` -- the WM Manager's:
       ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
       "global_capacity"?}, "time"?}`` -> ``{"memory", "queues_changed"}``: installs the
@@ -24,6 +24,11 @@ Services (JSON in ``AddDiagnostics``, see :mod:`fsreg_ros.carrier`)
       tick (Algorithm 2) per time (non-decreasing), applied now; ``policy`` is the
       installed policy's name (so the WM Manager notices a restarted consultant).
 
+``events`` is how many ``/wm/events`` messages this consultant has published so far:
+a listener that must have every event (a trace) asks ``info`` after the last change
+and waits until it has heard that many from the domain (topics are not ordered with
+respect to service replies or to each other).
+
 Encoding causes are ``speaker``, ``rr`` and ``reg-distractor``.  ``time`` defaults to
 the node's clock, ``turn`` to null.  Every request is validated before anything
 changes; a rejected one gets ``{"error", "kind"}`` (kind ``KnowledgeError`` for an
@@ -31,8 +36,8 @@ unknown entity or property, ``MessageError`` for a malformed request).
 
 Topics
     out ``/wm/events`` -- every encode/forget event (SPEC section 2), one message each;
-    out ``/wm/state`` (latched) ``{"domain", "time", "queues"}`` -- at start and after
-    every request that changed WM;
+    out ``/wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
+    and after every request that changed WM;
     in ``/ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
     -- messages for other domains are ignored; out ``/ltm/assert/result``
     ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
@@ -166,7 +171,9 @@ class ConsultantNode(Node):
 
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
-        self._state.publish(to_msg({"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot()}))
+        self._state.publish(
+            to_msg({"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count})
+        )
 
     def _dispatch(self, request: dict, ops: dict[str, Callable[[dict], dict]]) -> dict:
         op = check_fields(request, {"op": str})["op"]
@@ -213,6 +220,7 @@ class ConsultantNode(Node):
             "threshold": c.threshold,
             "policy": policy.name,
             "memory": policy.to_json(),
+            "events": self._event_count,
         }
 
     def _holds(self, request: dict) -> dict:
@@ -241,7 +249,7 @@ class ConsultantNode(Node):
         return {}
 
     def _snapshot(self, request: dict) -> dict:
-        return {"queues": self.consultant.wm.snapshot()}
+        return {"queues": self.consultant.wm.snapshot(), "events": self._event_count}
 
     # ------------------------------------------------------------ manage ops
     def _configure(self, request: dict) -> dict:
@@ -272,9 +280,18 @@ class ConsultantNode(Node):
         if not ticks:
             return {"queues_changed": 0, "policy": policy}
         before = buffer.snapshot()
-        for tick in ticks:  # tick by tick, so the events go out in time order
+        # Apply now (the buffer is lazy), so the events and the state go out now, in a
+        # canonical order: tick by tick, and within a tick in the domain's entity order
+        # (SPEC §2 "Entity order"), not in the order the queues happened to fill.
+        rank = {entity: i for i, entity in enumerate(self.consultant.entities)}
+        pending = sorted(before, key=rank.__getitem__)  # decay never fills a queue
+        for i, tick in enumerate(ticks):
             buffer.decay((tick,))
-            buffer.flush()  # apply now, so the events and the state go out now
+            pending = [entity for entity in pending if buffer.length(entity)]  # catches up
+            if not pending:  # WM is empty: the remaining ticks pop nothing
+                buffer.decay(ticks[i + 1:])
+                break
+        buffer.flush()
         self._last_time = ticks[-1]
         return {"queues_changed": _changed(before, buffer.snapshot()), "policy": policy}
 
