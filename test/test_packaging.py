@@ -55,12 +55,24 @@ def test_every_node_is_a_console_script_with_a_main():
 
 def test_launch_file_names_declared_executables_with_their_parameters():
     tree = ast.parse((REPO / "launch" / "fsreg.launch.py").read_text())
+    constants = {
+        t.id: ast.literal_eval(n.value)
+        for n in tree.body
+        if isinstance(n, ast.Assign)
+        for t in n.targets
+        if isinstance(t, ast.Name) and isinstance(n.value, ast.Constant)
+    }
+
+    def value(node):
+        return constants[node.id] if isinstance(node, ast.Name) else ast.literal_eval(node)
+
     calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "Node"]
+    assert calls
     seen = {}
     for call in calls:
         kwargs = {k.arg: k.value for k in call.keywords}
-        assert ast.literal_eval(kwargs["package"]) == "fsreg_ros"
-        exe = ast.literal_eval(kwargs["executable"])
+        assert value(kwargs["package"]) == "fsreg_ros"
+        exe = value(kwargs["executable"])
         params = set()
         for d in ast.walk(kwargs["parameters"]):
             if isinstance(d, ast.Dict):
