@@ -175,3 +175,21 @@ def test_invalid_live_parameter_is_rejected_and_changes_nothing(table1_path, tmp
             assert fragment in result[0].reason
         reply = g.call("/wm_manager/status", {})
         assert reply["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}
+
+
+@pytest.mark.parametrize("policy", ["decay", "decay+global-capacity"])
+def test_graph_trace_equals_simulator_trace(table1_path, tmp_path, policy):
+    """Every encode/forget event heard on /wm/events, in canonical order, equals the
+    simulator's trace: the graph encodes and forgets exactly what the core does."""
+    options = Options(memory={"policy": policy, "global_capacity": 5})
+    scenario = load_scenario(table1_path)
+    with Graph() as g:
+        player = start_graph(g, table1_path, options, tmp_path)
+        player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
+        g.run(player.play(), timeout=60.0)
+        heard = player.trace()
+    sim = Simulation(scenario, options)
+    sim.run()
+    expected = sim.trace()
+    assert heard == expected
+    assert {e["cause"] for e in expected} >= {"rr", "speaker", "reg-distractor", "decay"}

@@ -136,19 +136,35 @@ class Simulation:
         return robot_record(turn, expression.to_json())
 
     def trace(self) -> list[dict]:
-        """Every encode/forget event so far, in the order they happened.
-
-        Lazy decay emits a queue's decay events when the queue is next touched, with
-        the tick's own time; sorting by (time, decay first, emission order) restores
-        the order of an eager buffer (ticks at T come before events stamped T).
-        """
+        """Every encode/forget event so far, in the order they happened."""
         for consultant in self.consultants.values():
             consultant.wm.flush()
-        order = sorted(
-            range(len(self.events)),
-            key=lambda i: (self.events[i].time, self.events[i].cause != "decay", i),
+        return trace_order(self.scenario, [e.to_json() for e in self.events])
+
+
+def trace_order(scenario: Scenario, events: list[dict]) -> list[dict]:
+    """Events in the order an eager buffer would have emitted them.
+
+    Lazy decay emits a queue's decay events when the queue is next touched, with the
+    tick's own time, and a graph delivers events from several consultants in any
+    interleaving.  Sorting by time, decay first at equal times (ticks at T come
+    before events stamped T), decay events of one tick in domain and entity order,
+    and otherwise in arrival order, gives one canonical trace for both.
+    """
+    domain_rank = {d: i for i, d in enumerate(scenario.domains)}
+    entity_rank = {e: i for spec in scenario.domains.values() for i, e in enumerate(spec.entities)}
+
+    def key(i: int) -> tuple:
+        event = events[i]
+        decay = event.get("cause") == "decay"
+        place = (
+            (domain_rank.get(event.get("domain"), len(domain_rank)), entity_rank.get(event.get("entity"), len(entity_rank)))
+            if decay
+            else (0, 0)
         )
-        return [self.events[i].to_json() for i in order]
+        return (event.get("time") or 0.0, not decay, place, i)
+
+    return [events[i] for i in sorted(range(len(events)), key=key)]
 
 
 def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None) -> dict:

@@ -34,7 +34,7 @@ from std_msgs.msg import String
 from ..carrier import CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
 from ..core.realisation import Lexicon, LexiconError
 from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
-from ..core.simulation import dumps, human_record, robot_record
+from ..core.simulation import dumps, human_record, robot_record, trace_order
 from .common import run_node
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
@@ -68,7 +68,7 @@ class DialoguePlayer(Node):
             raise ValueError("parameter 'scenario' is required")
         self.scenario: Scenario = load_scenario(path, Lexicon.load(self.get_parameter("lexicon").value or None))
         self.run_id = f"{self.scenario.name}-{wallclock.time_ns() % 10**9}"
-        group = ReentrantCallbackGroup()
+        group = self._group = ReentrantCallbackGroup()
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._human = self.create_publisher(String, "/dialogue/human", 100)
         self._request = self.create_publisher(String, "/reg/request", 100)
@@ -149,7 +149,20 @@ class DialoguePlayer(Node):
         """Play every turn; return the SPEC section 6 result object."""
         await self.wait_ready()
         records = [await self.play_turn(turn) for turn in self.scenario.dialogue]
+        if self.get_parameter("trace").value:
+            await self.drain_events()
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
+
+    async def drain_events(self) -> None:
+        """Wait until every event each consultant has published has been heard (an
+        answer can overtake the last events, which come from another process)."""
+        timeout = self.get_parameter("turn_timeout").value
+        for domain in self.scenario.domains:
+            client = JsonClient(self, f"/consultant/{domain}", self._group)
+            published = (await client.call({"op": "info"}, timeout))["events"]
+            heard = lambda: sum(1 for e in self.events if e.get("domain") == domain) >= published  # noqa: E731
+            if not await wait_until(self, heard, timeout):
+                raise PlayerError(f"heard fewer than the {published} /wm/events of '{domain}'")
 
     async def play_turn(self, turn: Turn) -> dict:
         reply = await self._sync.call({"time": turn.time}, self.get_parameter("turn_timeout").value)
@@ -179,9 +192,8 @@ class DialoguePlayer(Node):
         return robot_record(turn, answer)
 
     def trace(self) -> list[dict]:
-        """Events heard, in the order of the simulator's trace."""
-        order = sorted(range(len(self.events)), key=lambda i: (self.events[i].get("time") or 0.0, self.events[i].get("cause") != "decay", i))
-        return [self.events[i] for i in order]
+        """Events heard, in the simulator's canonical trace order."""
+        return trace_order(self.scenario, self.events)
 
 
 def _raise_error(answer: dict, turn: Turn) -> None:

@@ -1,0 +1,159 @@
+"""Parser, reference resolution and REG nodes: their contracts and their bad input.
+
+Bad input on a topic (not JSON, wrong fields, unknown entity or property) gets an
+error on the reply topic, never a crash, and never a change to WM (checked through
+the consultant's snapshot); the node keeps serving afterwards.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rosutil import Graph
+
+from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.nodes.parser import ParserNode
+from fsreg_ros.nodes.reference_resolution import ReferenceResolutionNode
+from fsreg_ros.nodes.reg import RegNode
+from fsreg_ros.nodes.wm_manager import WMManagerNode
+
+pytestmark = pytest.mark.graph
+
+
+@pytest.fixture
+def graph(table1_path: Path):
+    """Consultant (displacement, capacity 2), WM Manager, parser, RR and REG."""
+    with Graph() as g:
+        kb = str(table1_path)
+        g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=kb)
+        g.add(WMManagerNode, domains=["faces"], policy="displacement", capacity=2)
+        g.add(ParserNode, kb=kb)
+        g.add(ReferenceResolutionNode, domains=["faces"])
+        g.add(RegNode, domains=["faces"])
+        g.results = g.listen("/rr/result")
+        g.expressions = g.listen("/reg/expression")
+        g.call("/wm_manager/sync", {"time": 0.0}, timeout=15.0)
+        yield g
+
+
+def snapshot(g: Graph) -> dict:
+    return g.call("/consultant/faces", {"op": "snapshot"})["queues"]
+
+
+def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -> dict:
+    """Publish and wait for the reply on ``inbox`` with id ``key``."""
+    g.publish(topic, message)
+    g.spin_until(lambda: inbox.latest(id=key) is not None, timeout, what=f"a reply with id {key!r}")
+    return inbox.latest(id=key)
+
+
+def test_text_is_parsed_resolved_and_encoded(graph):
+    reply = ask(graph, "/dialogue/human", graph.results, {"id": "u1", "time": 1.0, "text": "the woman with glasses, says he"}, "u1")
+    assert reply["status"] == "resolved" and reply["resolved"] == "face2"
+    assert reply["description"] == ["female", "glasses"]
+    assert reply["unknown_words"] == ["says", "he"]
+    assert snapshot(graph)["face2"] == ["female", "glasses"]
+
+
+def test_ambiguous_and_no_match(graph):
+    reply = ask(graph, "/dialogue/human", graph.results, {"id": 7, "description": ["light-hair", "glasses"]}, 7)
+    assert reply["status"] == "ambiguous"
+    assert reply["resolved"] is None
+    assert reply["candidates"] == ["face1", "face6", "face10", "face11", "face13"]
+    reply = ask(graph, "/dialogue/human", graph.results, {"id": 8, "text": "the purple giraffe"}, 8)
+    assert reply["status"] == "no-match" and reply["candidates"] == []
+    assert reply["unknown_words"] == ["purple", "giraffe"]
+
+
+def test_reg_expression_fields(graph):
+    reply = ask(graph, "/reg/request", graph.expressions, {"id": "r1", "target": "face5", "time": 2.0}, "r1")
+    assert reply["description"] == ["male", "dark-hair"] and reply["sources"] == ["ltm", "ltm"]
+    assert reply["text"] == "the man with dark hair"
+    assert reply["distinguishing"] is True and reply["distractors_left"] == []
+    assert reply["wm_before"] == [] and reply["algorithm"] == "sd-pia" and reply["domain"] == "faces"
+    assert snapshot(graph)["face5"] == ["male", "dark-hair"]
+
+
+def test_repeated_id_is_answered_from_cache_without_encoding_twice(graph):
+    first = ask(graph, "/reg/request", graph.expressions, {"id": "dup", "target": "face3"}, "dup")
+    before = snapshot(graph)
+    graph.expressions.clear_all()
+    again = ask(graph, "/reg/request", graph.expressions, {"id": "dup", "target": "face3"}, "dup")
+    assert again == first
+    assert snapshot(graph) == before
+
+
+@pytest.mark.parametrize(
+    "message, fragment",
+    [
+        ("not json at all", "not JSON"),
+        ('["a", "list"]', "object"),
+        ({"time": 1.0, "text": "the man"}, "id"),
+        ({"id": "b1", "text": "the man", "description": ["male"]}, "exactly one"),
+        ({"id": "b2"}, "exactly one"),
+        ({"id": "b3", "text": 42}, "text"),
+        ({"id": "b4", "description": "male"}, "description"),
+        ({"id": "b5", "description": ["purple-hair"]}, "purple-hair"),
+        ({"id": "b6", "description": ["male"], "domain": "kitchen"}, "kitchen"),
+        ({"id": "b7", "description": [3]}, "description"),
+    ],
+)
+def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragment):
+    before = snapshot(graph)
+    graph.publish("/dialogue/human", message if isinstance(message, (dict, str)) else message)
+    key = message.get("id") if isinstance(message, dict) else None
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    error = next(r for r in graph.results if fragment in (r.get("error") or ""))
+    assert error.get("id") == key
+    if "status" in error:
+        assert error["status"] == "error"
+    assert snapshot(graph) == before
+    # still serving
+    ok = ask(graph, "/dialogue/human", graph.results, {"id": "after", "description": ["female", "hoodie"]}, "after")
+    assert ok["resolved"] == "face3"
+
+
+@pytest.mark.parametrize(
+    "message, fragment",
+    [
+        ("{broken", "not JSON"),
+        ({"target": "face1"}, "id"),
+        ({"id": "x1"}, "target"),
+        ({"id": "x2", "target": 5}, "target"),
+        ({"id": "x3", "target": "face99"}, "face99"),
+        ({"id": "x4", "target": "face1", "context": ["face2", "face77"]}, "face77"),
+        ({"id": "x5", "target": "face1", "context": "face2"}, "context"),
+    ],
+)
+def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragment):
+    before = snapshot(graph)
+    graph.publish("/reg/request", message)
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0, what=f"error {fragment!r}")
+    error = next(r for r in graph.expressions if fragment in (r.get("error") or ""))
+    assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
+    assert snapshot(graph) == before
+    ok = ask(graph, "/reg/request", graph.expressions, {"id": "fine", "target": "face2"}, "fine")
+    assert ok["description"] == ["glasses", "female"]
+
+
+def test_context_set_limits_distractors(graph):
+    reply = ask(graph, "/reg/request", graph.expressions, {"id": "c", "target": "face1", "context": ["face1", "face2", "face3"]}, "c")
+    assert reply["description"] == ["light-hair"]
+    assert reply["text"] == "the person with light hair"
+
+
+def test_reg_parameters_are_validated(graph):
+    from rclpy.parameter import Parameter
+
+    reg = next(n for n in graph.nodes if isinstance(n, RegNode))
+    bad = reg.set_parameters([Parameter("algorithm", value="telepathy")])[0]
+    assert not bad.successful and "telepathy" in bad.reason
+    bad = reg.set_parameters([Parameter("wm_order", value="random")])[0]
+    assert not bad.successful and "wm_order" in bad.reason
+    good = reg.set_parameters([Parameter("algorithm", value="full-brevity")])[0]
+    assert good.successful
+    reply = ask(graph, "/reg/request", graph.expressions, {"id": "fb", "target": "face1"}, "fb")
+    assert reply["algorithm"] == "full-brevity"
+    assert reply["description"] == ["lab-coat", "glasses"]  # shortest distinguishing set
