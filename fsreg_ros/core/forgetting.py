@@ -144,6 +144,16 @@ def check_parameter(name: str, value: object) -> None:
         raise PolicyError(f"unknown forgetting parameter '{name}'")
 
 
+def check_setting(name: str, value: object) -> None:
+    """Raise PolicyError unless ``value`` is valid for memory setting ``name``
+    (``policy`` or one of the parameters; None = unset)."""
+    if name == "policy":
+        if value is not None:
+            parse_rules(value)  # type: ignore[arg-type]
+    else:
+        check_parameter(name, value)
+
+
 # ---------------------------------------------------------------- size limits
 def displace(buffer: WMBuffer, entity: str, capacity: int, time: float, turn: Optional[int]) -> None:
     """Algorithm 3 (interference by displacement): keep |Q[entity]| <= alpha, LRU out."""

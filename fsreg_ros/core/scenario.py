@@ -40,7 +40,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError
 
 from .consultant import DEFAULT_THRESHOLD, Consultant, KnowledgeError, check_certainty
-from .forgetting import RULE_PARAMETER, RULES, ForgettingPolicy, PolicyError, check_parameter, merge_settings, parse_rules
+from .forgetting import RULE_PARAMETER, RULES, ForgettingPolicy, PolicyError, check_setting, merge_settings
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .memory import EventSink
@@ -553,10 +553,7 @@ def _memory_setting_problem(key: str, value: Any) -> Optional[str]:
     if value is None:
         return None
     try:
-        if key == "policy":
-            parse_rules(value)
-        else:
-            check_parameter(key, value)
+        check_setting(key, value)
     except PolicyError as err:
         return str(err)
     return None

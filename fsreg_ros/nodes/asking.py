@@ -23,6 +23,7 @@ from rclpy.parameter import Parameter
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
+from ..carrier import to_msg
 from ..remote import RemotePort
 
 #: How many answered request ids a node remembers for duplicate suppression.
@@ -84,3 +85,20 @@ class AskingNode(Node):
     def now(self) -> float:
         """The node's clock in seconds (sim time when ``use_sim_time`` is set)."""
         return self.get_clock().now().nanoseconds / 1e9
+
+    def request_time(self, data: dict) -> float:
+        """The request's ``time`` (the robot-clock time of the utterance), else now."""
+        time = data.get("time")
+        return float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else self.now()
+
+    async def answer_once(self, data: dict, publisher) -> None:
+        """Publish the answer to request ``data``: computed by :meth:`answer` the first
+        time its id is seen, from the cache when the id repeats."""
+        reply = self.answers.get(data["id"])
+        if reply is None:
+            reply = await self.answer(data)
+            self.answers.put(data["id"], reply)
+        publisher.publish(to_msg(reply))
+
+    async def answer(self, data: dict) -> dict:  # pragma: no cover - abstract
+        raise NotImplementedError

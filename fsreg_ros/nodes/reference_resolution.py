@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from std_msgs.msg import String
 
-from ..carrier import CarrierError, MessageError, from_msg, to_msg
+from ..carrier import CarrierError, MessageError, from_msg
 from ..core.resolution import NO_MATCH, ResolutionError, resolve
 from .asking import AskingNode
 from .common import run_node
@@ -37,16 +37,11 @@ class ReferenceResolutionNode(AskingNode):
         except MessageError as err:
             self.get_logger().warning(f"/dialogue/semantics: {err}")
             return
-        cached = self.answers.get(data["id"])
-        if cached is None:
-            cached = await self.answer(data)
-            self.answers.put(data["id"], cached)
-        self._results.publish(to_msg(cached))
+        await self.answer_once(data, self._results)
 
     async def answer(self, data: dict) -> dict:
         """The ``/rr/result`` for one utterance's semantics."""
-        time = data.get("time")
-        time = float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else self.now()
+        time = self.request_time(data)
         out = {"id": data["id"], "time": time}
         for key in ("text", "unknown_words"):
             if key in data:

@@ -22,7 +22,7 @@ from ..carrier import CarrierError, MessageError, from_msg, to_msg
 from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError, generate
 from ..core.realisation import Lexicon, LexiconError
 from .asking import AskingNode
-from .common import run_node
+from .common import error_reply, run_node
 
 AUTO = "auto"
 
@@ -75,18 +75,13 @@ class RegNode(AskingNode):
             data = from_msg(msg, {"id": (str, int), "target": str})
         except MessageError as err:
             self.get_logger().warning(f"/reg/request: {err}")
-            self._expressions.publish(to_msg({"id": _id_of(msg), "error": str(err)}))
+            self._expressions.publish(to_msg(error_reply(msg, str(err))))
             return
-        cached = self.answers.get(data["id"])
-        if cached is None:
-            cached = await self.answer(data)
-            self.answers.put(data["id"], cached)
-        self._expressions.publish(to_msg(cached))
+        await self.answer_once(data, self._expressions)
 
     async def answer(self, data: dict) -> dict:
         """The ``/reg/expression`` for one request."""
-        time = data.get("time")
-        time = float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else self.now()
+        time = self.request_time(data)
         out = {"id": data["id"], "target": data["target"], "time": time}
         try:
             context = data.get("context")
@@ -121,14 +116,6 @@ class RegNode(AskingNode):
             if target in info["entities"]:
                 return domain, info.get("policy", "none")
         raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})")
-
-
-def _id_of(msg: String) -> object:
-    """The request's id if the message is JSON with one, for error replies."""
-    try:
-        return from_msg(msg, {}).get("id")
-    except MessageError:
-        return None
 
 
 def main(args=None) -> int:

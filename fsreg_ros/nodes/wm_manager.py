@@ -58,8 +58,7 @@ from ..core.forgetting import (
     DecayClock,
     ForgettingPolicy,
     PolicyError,
-    check_parameter,
-    parse_rules,
+    check_setting,
 )
 from ..remote import manage_service
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node
@@ -410,10 +409,8 @@ def due_ticks(clock: DecayClock, t: float, limit: int = MAX_TICKS) -> tuple[list
 
 def _check_global(values: dict[str, Any]) -> None:
     try:
-        parse_rules(values["policy"])
-        check_parameter("decay_period", values["decay_period"])
-        check_parameter("capacity", values["capacity"])
-        check_parameter("global_capacity", values["global_capacity"])
+        for key in SETTINGS:
+            check_setting(key, values[key])
     except PolicyError as err:
         raise ValueError(str(err)) from None
 
@@ -424,10 +421,7 @@ def _check_own(domain: str, key: str, value: Any) -> None:
     if inherit:
         return
     try:
-        if key == "policy":
-            parse_rules(value)
-        else:
-            check_parameter(key, value)
+        check_setting(key, value)
     except PolicyError as err:
         raise ValueError(f"{domain}.{key}: {err} ({UNSET[key]!r} inherits '{key}')") from None
 
