@@ -225,3 +225,17 @@ def test_run_sync_refuses_a_coroutine_that_really_waits():
         return 42
 
     assert run_sync(immediate()) == 42
+
+
+def test_raising_the_threshold_retracts_from_wm():
+    from fsreg_ros.core.consultant import Consultant
+
+    events = []
+    c = Consultant("d", {"e1": {"a": 0.6, "b": 0.9}, "e2": {"a": 0.9}}, ["a", "b"], threshold=0.5, sink=events.append)
+    c.wm.encode("e1", ["a", "b"], "speaker", 1.0)
+    c.wm.encode("e2", ["a"], "speaker", 1.0)
+    retracted = c.set_threshold(0.7, time=2.0)
+    assert retracted == [("e1", "a")]
+    assert c.wm.queue("e1") == ("b",) and c.wm.queue("e2") == ("a",)
+    assert c.holds("a", ["e1", "e2"]) == ["e2"]
+    assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [("forget", "e1", "a", "retract", 2.0)]

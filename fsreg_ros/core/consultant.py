@@ -124,9 +124,19 @@ class Consultant:
         self.wm.encode_each(held, prop, cause, time, turn)  # Encode(e, [prop]) for each, in order
         return held
 
-    def set_threshold(self, threshold: float) -> None:
+    def set_threshold(self, threshold: float, time: float = 0.0) -> list[tuple[str, str]]:
+        """Change the domain's threshold.  A property that stops holding for an entity
+        is forgotten from its WM (cause ``retract``), as with :meth:`assert_facts`;
+        returns those (entity, property) pairs."""
         self.threshold = check_certainty("threshold", threshold)
         self._rebuild_holders()
+        retracted = []
+        for entity, queue in self.wm.snapshot().items():
+            for prop in queue:
+                if entity not in self._holders[prop]:
+                    self.wm.remove(entity, prop, "retract", time)
+                    retracted.append((entity, prop))
+        return retracted
 
     def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.

@@ -264,10 +264,11 @@ class WMManager:
         if policy.decays:
             clock = self.clocks.get(domain)
             if clock is None:
-                # First installation: the schedule counts from the time origin.
+                # Decay switched on: ticks stay on the k * delta grid from the time
+                # origin t = 0; ticks before now are not owed.
                 self.clocks[domain] = DecayClock(policy.decay_period, origin=0.0)  # type: ignore[arg-type]
-                self.clocks[domain].due(now)  # ticks before installation are not owed
-            elif old is None or not old.decays or old.decay_period != policy.decay_period:
+                self.clocks[domain].due(now)
+            elif old is not None and old.decay_period != policy.decay_period:
                 clock.restart(policy.decay_period, now)  # type: ignore[arg-type]
         else:
             self.clocks.pop(domain, None)

@@ -352,8 +352,11 @@ class ConsultantNode(Node):
             if param.name == "threshold":
                 value = self._check_threshold(param)
                 if value != self.consultant.threshold:
-                    self.consultant.set_threshold(value)
-                    self.get_logger().info(f"threshold {value:g}")
+                    now = now_seconds(self)
+                    retracted = self.consultant.set_threshold(value, now)
+                    self.get_logger().info(f"threshold {value:g}" + (f", retracted {retracted}" if retracted else ""))
+                    if retracted:
+                        self.publish_state(now)
 
 
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:

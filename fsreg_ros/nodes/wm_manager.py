@@ -255,11 +255,11 @@ class WMManagerNode(Node):
         if not policy.decays:
             dom.clock = None
         elif dom.clock is None:
-            # First decaying setting: the schedule counts from the time origin t = 0;
-            # ticks before now are not owed.
+            # Decay switched on: ticks stay on the k * delta grid from t = 0 (as the
+            # core's WMManager.set_policy); ticks before now are not owed.
             dom.clock = DecayClock(policy.decay_period, origin=0.0)  # type: ignore[arg-type]
             due_ticks(dom.clock, now)
-        elif old is None or not old.decays or old.decay_period != policy.decay_period:
+        elif old is not None and old.decay_period != policy.decay_period:
             dom.clock.restart(policy.decay_period, now)  # type: ignore[arg-type]
 
     # ----------------------------------------------------------------- decay
