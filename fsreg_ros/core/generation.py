@@ -162,6 +162,17 @@ async def _rule_out_sets(
     return props, masks
 
 
+async def _baseline_view(
+    target: str, port: ConsultantPort, context: Optional[Sequence[str]]
+) -> tuple[list[str], list[str], list[str], list[int]]:
+    """What a baseline works from: the distractors, Q[target] (reported only, SPEC
+    section 6; baselines never use WM) and each property's rule-out bitmask."""
+    distractors = await distractors_for(target, port, context)
+    wm_before = await port.wm(target)
+    props, masks = await _rule_out_sets(target, port, distractors)
+    return distractors, wm_before, props, masks
+
+
 async def full_brevity(
     target: str,
     port: ConsultantPort,
@@ -176,9 +187,7 @@ async def full_brevity(
     Among equally short sets, the one whose sorted preference ranks are
     lexicographically smallest; output in preference order.
     """
-    distractors = await distractors_for(target, port, context)
-    wm_before = await port.wm(target)  # reported only (SPEC section 6); never used
-    props, masks = await _rule_out_sets(target, port, distractors)
+    distractors, wm_before, props, masks = await _baseline_view(target, port, context)
     useful = [(p, m) for p, m in zip(props, masks) if m]
     goal = 0
     for _, mask in useful:
@@ -221,9 +230,7 @@ async def greedy(
 ) -> Expression:
     """Greedy: repeatedly the property ruling out most remaining distractors (ties to
     the more preferred), until none rules out any."""
-    distractors = await distractors_for(target, port, context)
-    wm_before = await port.wm(target)  # reported only (SPEC section 6); never used
-    props, masks = await _rule_out_sets(target, port, distractors)
+    distractors, wm_before, props, masks = await _baseline_view(target, port, context)
     remaining = (1 << len(distractors)) - 1
     expression = Expression(target, port.domain, "greedy", wm_before=list(wm_before))
     while remaining:
