@@ -255,5 +255,6 @@ def test_hot_path_events_equal_constructed_ones(buf):
     assert buf.events == [made]
     assert hash(buf.events[0]) == hash(made)
     assert repr(buf.events[0]) == repr(made)
+    assert buf.events[0].to_json()["property"] == "a"
     with pytest.raises(AttributeError):
         buf.events[0].cause = "x"  # type: ignore[misc]

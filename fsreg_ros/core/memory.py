@@ -18,9 +18,8 @@ compare it against a naive eager implementation on random event sequences.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from itertools import islice
-from typing import TYPE_CHECKING, Callable, Iterable, Optional
+from typing import TYPE_CHECKING, Callable, Iterable, NamedTuple, Optional
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .forgetting import ForgettingPolicy
@@ -30,13 +29,14 @@ ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
 FORGET_CAUSES = ("decay", "displacement", "global-capacity", "reset", "retract")
 
 
-@dataclass(frozen=True)
-class WMEvent:
-    """One encoding or forgetting in a domain's WM buffer.
+class WMEvent(NamedTuple):
+    """One encoding or forgetting in a domain's WM buffer (immutable).
 
     ``time`` is the robot-clock time the change happened at (a decay tick's own
     time, even when a lazy queue catches up later); ``turn`` is the dialogue turn
     index that caused it, or ``None`` for clock-driven and administrative changes.
+    A named tuple rather than a frozen dataclass: one is built per encoding, and a
+    tuple is about three times cheaper to build.
     """
 
     op: str  # "encode" | "forget"
@@ -48,38 +48,10 @@ class WMEvent:
     turn: Optional[int] = None
 
     def to_json(self) -> dict:
-        return {
-            "op": self.op,
-            "domain": self.domain,
-            "entity": self.entity,
-            "property": self.property,
-            "cause": self.cause,
-            "time": self.time,
-            "turn": self.turn,
-        }
+        return self._asdict()
 
 
 EventSink = Callable[[WMEvent], None]
-
-_object_new = object.__new__
-
-
-def _event(
-    op: str, domain: str, entity: str, prop: str, cause: str, time: float, turn: Optional[int]
-) -> WMEvent:
-    """Build a :class:`WMEvent` about 3x faster than the frozen dataclass ``__init__``
-    (which pays one ``object.__setattr__`` per field).  The result is an ordinary,
-    equal-comparing, hashable WMEvent; only hot paths (one event per encoding) use it."""
-    event = _object_new(WMEvent)
-    fields = event.__dict__
-    fields["op"] = op
-    fields["domain"] = domain
-    fields["entity"] = entity
-    fields["property"] = prop
-    fields["cause"] = cause
-    fields["time"] = time
-    fields["turn"] = turn
-    return event
 
 
 _enforce_limits: Optional[Callable[..., None]] = None
@@ -204,7 +176,7 @@ class WMBuffer:
             self._size += 1
             self._nonempty[entity] = None
             if self.sink is not None:
-                self.sink(_event("encode", self.domain, entity, prop, cause, time, turn))
+                self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             if self.policy is not None:
                 enforce_limits(self, entity, self.policy, time, turn)
 
@@ -254,14 +226,14 @@ class WMBuffer:
             q[prop] = stamp
             self._size += 1
             if sink is not None:
-                sink(_event("encode", domain, entity, prop, cause, time, turn))
+                sink(WMEvent("encode", domain, entity, prop, cause, time, turn))
             if capacity is not None:  # Algorithm 3, as forgetting.displace: LRU out
                 while len(q) > capacity:  # capacity >= 1, so q never empties here
                     old = next(iter(q))
                     del q[old]
                     self._size -= 1
                     if sink is not None:
-                        sink(_event("forget", domain, entity, old, "displacement", time, turn))
+                        sink(WMEvent("forget", domain, entity, old, "displacement", time, turn))
             # _size counts properties still owed to lazy decay, so it only over-states
             # the total: at or under the limit there is nothing to evict.
             if global_limit is not None and self._size > global_limit:
@@ -351,7 +323,7 @@ class WMBuffer:
         first = synced - self._tick_base  # each pop is reported at its tick's time
         times = self._tick_times
         for k, prop in enumerate(victims):
-            sink(_event("forget", self.domain, entity, prop, "decay", times[first + k], None))
+            sink(WMEvent("forget", self.domain, entity, prop, "decay", times[first + k], None))
 
     def _pop(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
         q = self._queues.get(entity)
@@ -369,4 +341,4 @@ class WMBuffer:
         self, entity: str, prop: str, cause: str, time: float, turn: Optional[int]
     ) -> None:
         if self.sink is not None:
-            self.sink(_event("forget", self.domain, entity, prop, cause, time, turn))
+            self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))
