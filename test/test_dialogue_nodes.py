@@ -138,6 +138,25 @@ def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragme
     assert ok["description"] == ["glasses", "female"]
 
 
+@pytest.mark.parametrize(
+    "message, fragment",
+    [
+        ("[1, 2", "not JSON"),
+        ({"id": "s1"}, "description"),
+        ({"id": "s2", "description": "male"}, "description"),
+        ({"description": ["male"]}, "id"),
+    ],
+)
+def test_bad_semantics_get_an_error_and_change_nothing(graph, message, fragment):
+    before = snapshot(graph)
+    graph.publish("/dialogue/semantics", message)
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    error = next(r for r in graph.results if fragment in (r.get("error") or ""))
+    assert error["status"] == "error"
+    assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
+    assert snapshot(graph) == before
+
+
 def test_context_set_limits_distractors(graph):
     reply = ask(graph, "/reg/request", graph.expressions, {"id": "c", "target": "face1", "context": ["face1", "face2", "face3"]}, "c")
     assert reply["description"] == ["light-hair"]

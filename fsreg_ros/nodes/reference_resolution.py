@@ -14,10 +14,10 @@ from __future__ import annotations
 
 from std_msgs.msg import String
 
-from ..carrier import CarrierError, MessageError, from_msg
+from ..carrier import CarrierError, MessageError, from_msg, to_msg
 from ..core.resolution import NO_MATCH, ResolutionError, resolve
 from .asking import AskingNode
-from .common import run_node
+from .common import error_reply, run_node
 
 
 class ReferenceResolutionNode(AskingNode):
@@ -36,6 +36,7 @@ class ReferenceResolutionNode(AskingNode):
             data = from_msg(msg, {"id": (str, int), "description": list})
         except MessageError as err:
             self.get_logger().warning(f"/dialogue/semantics: {err}")
+            self._results.publish(to_msg({**error_reply(msg, str(err)), "status": "error"}))
             return
         await self.answer_once(data, self._results)
 
