@@ -144,10 +144,23 @@ def render_comparison(
     for i, row in enumerate(first):
         cells = "  ".join(f"{columns[label][i]:<{widths[label]}}" for label in labels)
         lines.append(f"{row['turn']:>4}  {str(row['target']):<8}  {cells}".rstrip())
+    lines.append("")
+    for label in labels:
+        lines.append(f"{label:<{max(map(len, labels))}}  {alignment_summary(robot_rows[label])}")
     if expected:
         lines.append("")
         lines.append(f"{matched}/{checked} robot descriptions match the expected ones")
     return "\n".join(lines) + "\n", matched, checked
+
+
+def alignment_summary(robot_turns: Sequence[Mapping[str, Any]]) -> str:
+    """How much of what the robot said came from working memory (alignment), and how
+    long its descriptions were."""
+    sources = [s for t in robot_turns for s in (t.get("sources") or [])]
+    from_wm = sources.count("wm")
+    mean = len(sources) / len(robot_turns) if robot_turns else 0.0
+    share = f"{100 * from_wm / len(sources):.0f}%" if sources else "-"
+    return f"{from_wm}/{len(sources)} properties reused from WM ({share}), {mean:.2f} properties per description"
 
 
 # ---------------------------------------------------------------------- main

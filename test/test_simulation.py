@@ -109,6 +109,9 @@ def test_cli_compare_policies_with_paper_expectations(table1_path, capsys):
     assert code == 0
     assert "18/18 robot descriptions match the expected ones" in out
     assert "the person with a lab coat and glasses" in out  # decay, turn 6
+    assert "decay         8/14 properties reused from WM (57%), 2.33 properties per description" in out
+    assert "displacement  10/15 properties reused from WM (67%), 2.50 properties per description" in out
+    assert "none          0/15 properties reused from WM (0%), 2.50 properties per description" in out
 
 
 def test_cli_expect_mismatch_exits_1(table1_path, tmp_path, capsys):
