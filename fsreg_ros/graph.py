@@ -38,8 +38,10 @@ from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
 
 PACKAGE = "fsreg_ros"
-#: Seconds to wait for the player on top of the dialogue's own length.
+#: Seconds to wait for the player: start-up allowance plus an allowance per turn
+#: (the player drives /clock, so a dialogue's own seconds cost no wall time).
 RUN_DEADLINE = 120.0
+TURN_ALLOWANCE = 1.0
 GRACE = 5.0
 
 
@@ -238,7 +240,7 @@ def run_graph(
         graph = Graph(graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon), tmp_path, env)
         try:
             graph.start()
-            deadline = time.monotonic() + RUN_DEADLINE + (scenario.dialogue[-1].time if scenario.dialogue else 0.0) / 100
+            deadline = time.monotonic() + RUN_DEADLINE + TURN_ALLOWANCE * len(scenario.dialogue)
             code = graph.wait_for("dialogue_player", deadline)
             if code != 0 or not output.exists():
                 raise GraphError(f"dialogue_player failed (exit {code})\n{graph.tail('dialogue_player')}")

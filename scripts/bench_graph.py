@@ -30,19 +30,18 @@ import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-os.environ.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
-os.environ.setdefault("ROS_LOG_DIR", tempfile.mkdtemp(prefix="fsreg-bench-roslog-"))
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+
+from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
+
+os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
 from fsreg_ros.core.consultant import LocalPort, run_sync  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options, Simulation  # noqa: E402
-from fsreg_ros.graph import Graph, graph_nodes  # noqa: E402
 
 
 def percentile(values: list[float], q: float) -> float:

@@ -9,20 +9,19 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 import pytest
 
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+from fsreg_ros.graph import ros_environment  # imports no rclpy
+
+os.environ.update(ros_environment())
 if os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] != "LOCALHOST":
     pytest.exit(
         "ROS_AUTOMATIC_DISCOVERY_RANGE must be LOCALHOST for the tests "
         f"(found {os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']!r})",
         returncode=3,
     )
-os.environ.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
-os.environ.setdefault("ROS_LOG_DIR", tempfile.mkdtemp(prefix="fsreg-test-roslog-"))
 assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 REPO = Path(__file__).resolve().parents[1]

@@ -38,6 +38,7 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from fsreg_ros.carrier import DEFAULT_QOS, CarrierError, JsonClient, dumps, to_msg  # noqa: E402
+from fsreg_ros.nodes.dialogue_player import clock_message  # noqa: E402
 
 DATA = Path(__file__).resolve().parent / "data" / "graph"
 KB = str(DATA / "kb.yaml")
@@ -156,9 +157,8 @@ class Graph:
         """Publish ``/clock`` = t; spin until every (given) sim-time node reads it."""
         if self._clock_pub is None:
             self._clock_pub = self.probe.create_publisher(Clock, "/clock", 10)
-        msg = Clock()
+        msg = clock_message(t)
         ns = int(round(t * 1e9))
-        msg.clock.sec, msg.clock.nanosec = divmod(ns, 1_000_000_000)
         watch = [n for n in (nodes or self.nodes) if n.get_parameter("use_sim_time").value]
         self.spin_until(lambda: self._clock_pub.get_subscription_count() >= len(watch), 5.0, what="/clock subscribers")
         self._clock_pub.publish(msg)

@@ -4,26 +4,23 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+import signal
+import subprocess
+import sys
 
-import signal  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
+import pytest
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.parameter import Parameter
 
-import pytest  # noqa: E402
-from rclpy.callback_groups import ReentrantCallbackGroup  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-
-from fsreg_ros.carrier import EVENTS_QOS, STATE_QOS  # noqa: E402
-from fsreg_ros.core.consultant import KnowledgeError, LocalPort  # noqa: E402
-from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
-from fsreg_ros.core.resolution import resolve  # noqa: E402
-from fsreg_ros.core.scenario import load_scenario  # noqa: E402
-from fsreg_ros.nodes.common import StartupError  # noqa: E402
-from fsreg_ros.nodes.consultant import ConsultantNode  # noqa: E402
-from fsreg_ros.remote import RemotePort  # noqa: E402
-from rosutil import DATA, KB, Graph, ros_graph  # noqa: E402
+from fsreg_ros.carrier import EVENTS_QOS, STATE_QOS
+from fsreg_ros.core.consultant import KnowledgeError, LocalPort
+from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.resolution import resolve
+from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.nodes.common import StartupError
+from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.remote import RemotePort
+from rosutil import DATA, KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 

@@ -176,3 +176,14 @@ def test_reg_parameters_are_validated(graph):
     reply = ask(graph, "/reg/request", graph.expressions, {"id": "fb", "target": "face1"}, "fb")
     assert reply["algorithm"] == "full-brevity"
     assert reply["description"] == ["lab-coat", "glasses"]  # shortest distinguishing set
+
+
+@pytest.mark.parametrize(
+    "seconds, expected",
+    [(0.0, (0, 0)), (8.0, (8, 0)), (0.5, (0, 500_000_000)), (2.9999999999, (3, 0)), (86.000000001, (86, 1))],
+)
+def test_clock_message_keeps_nanoseconds_below_one_second(seconds, expected):
+    from fsreg_ros.nodes.dialogue_player import clock_message
+
+    stamp = clock_message(seconds).clock
+    assert (stamp.sec, stamp.nanosec) == expected

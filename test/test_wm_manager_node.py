@@ -3,20 +3,15 @@ live parameter changes, against real consultant nodes (in-process, sim time)."""
 
 from __future__ import annotations
 
-import os
+import pytest
+from rclpy.parameter import Parameter
 
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
-
-import pytest  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-
-from fsreg_ros.carrier import EVENTS_QOS  # noqa: E402
-from fsreg_ros.nodes.common import StartupError  # noqa: E402
-from fsreg_ros.nodes.consultant import ConsultantNode  # noqa: E402
-from fsreg_ros.core.forgetting import DecayClock  # noqa: E402
-from fsreg_ros.nodes.wm_manager import WMManagerNode, due_ticks  # noqa: E402
-from rosutil import KB, Graph, ros_graph  # noqa: E402
+from fsreg_ros.carrier import EVENTS_QOS
+from fsreg_ros.nodes.common import StartupError
+from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.core.forgetting import DecayClock
+from fsreg_ros.nodes.wm_manager import WMManagerNode, due_ticks
+from rosutil import KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 

@@ -25,6 +25,7 @@ from rclpy.node import Node
 
 from ..carrier import to_msg
 from ..remote import RemotePort
+from .common import now_seconds
 
 #: How many answered request ids a node remembers for duplicate suppression.
 ANSWER_CACHE_SIZE = 1024
@@ -82,14 +83,10 @@ class AskingNode(Node):
             await port.wait_ready(READY_TIMEOUT)
         self._ready = True
 
-    def now(self) -> float:
-        """The node's clock in seconds (sim time when ``use_sim_time`` is set)."""
-        return self.get_clock().now().nanoseconds / 1e9
-
     def request_time(self, data: dict) -> float:
         """The request's ``time`` (the robot-clock time of the utterance), else now."""
         time = data.get("time")
-        return float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else self.now()
+        return float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else now_seconds(self)
 
     async def answer_once(self, data: dict, publisher) -> None:
         """Publish the answer to request ``data``: computed by :meth:`answer` the first

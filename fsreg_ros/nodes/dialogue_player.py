@@ -31,10 +31,11 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from ..carrier import CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
+from ..carrier import EVENTS_QOS, CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
 from ..core.realisation import Lexicon, LexiconError
 from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
+from ..remote import consultant_service
 from .common import run_node
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
@@ -78,7 +79,7 @@ class DialoguePlayer(Node):
         self.memory: dict[str, Any] = {}
         self.create_subscription(String, "/rr/result", self._on_answer, 100, callback_group=group)
         self.create_subscription(String, "/reg/expression", self._on_answer, 100, callback_group=group)
-        self.create_subscription(String, "/wm/events", self._on_event, 1000, callback_group=group)
+        self.create_subscription(String, "/wm/events", self._on_event, EVENTS_QOS, callback_group=group)
 
     # ------------------------------------------------------------ callbacks
     def _on_answer(self, msg: String) -> None:
@@ -158,7 +159,7 @@ class DialoguePlayer(Node):
         answer can overtake the last events, which come from another process)."""
         timeout = self.get_parameter("turn_timeout").value
         for domain in self.scenario.domains:
-            client = JsonClient(self, f"/consultant/{domain}", self._group)
+            client = JsonClient(self, consultant_service(domain), self._group)
             published = (await client.call({"op": "info"}, timeout))["events"]
             heard = lambda: sum(1 for e in self.events if e.get("domain") == domain) >= published  # noqa: E731
             if not await wait_until(self, heard, timeout):
@@ -168,10 +169,7 @@ class DialoguePlayer(Node):
         reply = await self._sync.call({"time": turn.time}, self.get_parameter("turn_timeout").value)
         self.memory = reply.get("memory", self.memory)
         if self.get_parameter("drive_clock").value:
-            stamp = Clock()
-            stamp.clock.sec = int(turn.time)
-            stamp.clock.nanosec = int(round((turn.time - int(turn.time)) * 1e9))
-            self._clock_pub.publish(stamp)
+            self._clock_pub.publish(clock_message(turn.time))
         message: dict[str, Any] = {"id": f"{self.run_id}/{turn.index}", "time": turn.time, "turn": turn.index}
         if turn.speaker == "human":
             if turn.text is not None:
@@ -194,6 +192,13 @@ class DialoguePlayer(Node):
     def trace(self) -> list[dict]:
         """Events heard, in the simulator's canonical trace order."""
         return trace_order(self.scenario, self.events)
+
+
+def clock_message(seconds: float) -> Clock:
+    """A ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
+    stamp = Clock()
+    stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
+    return stamp
 
 
 def _raise_error(answer: dict, turn: Turn) -> None:

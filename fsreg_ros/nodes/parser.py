@@ -13,7 +13,6 @@ an error result on ``/rr/result``, the human channel's reply topic.
 
 from __future__ import annotations
 
-from typing import Optional
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
@@ -42,12 +41,12 @@ class ParserNode(Node):
         )
         self.lexicon = Lexicon.load(self.get_parameter("lexicon").value or None)
         kb = self.get_parameter("kb").value
-        self.properties: Optional[set[str]] = load_scenario(kb, self.lexicon).properties() if kb else None
+        self.properties: set[str] = set(load_scenario(kb, self.lexicon).properties() if kb else self.lexicon.properties())
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._semantics = self.create_publisher(String, "/dialogue/semantics", 100)
         self._errors = self.create_publisher(String, "/rr/result", 100)
         self.create_subscription(String, "/dialogue/human", self._on_human, 100)
-        self.get_logger().info("parser ready" + (f" for {len(self.properties)} properties" if self.properties else ""))
+        self.get_logger().info(f"parser ready for {len(self.properties)} properties")
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         for param in params:
@@ -83,8 +82,7 @@ class ParserNode(Node):
             return out
         if not isinstance(data["text"], str):
             raise MessageError("'text' must be a string")
-        properties = self.properties if self.properties is not None else self.lexicon.properties()
-        parsed = self.lexicon.parse(data["text"], properties)
+        parsed = self.lexicon.parse(data["text"], self.properties)
         out.update(description=parsed.properties, text=data["text"], unknown_words=parsed.unknown_words)
         return out
 
