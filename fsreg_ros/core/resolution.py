@@ -10,7 +10,7 @@ entity is then encoded, whole and in utterance order, for its referent (rule 1).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Optional, Sequence
+from typing import Collection, Mapping, Optional, Sequence
 
 from .consultant import ConsultantPort, KnowledgeError
 
@@ -44,6 +44,12 @@ class Resolution:
         }
 
 
+def domains_knowing(description: Sequence[str], preferences: Mapping[str, Collection[str]]) -> list[str]:
+    """The domains (in the given order) whose preference order contains every property
+    of the description: a description resolves in a domain only if exactly one fits."""
+    return [d for d, preference in preferences.items() if all(p in preference for p in description)]
+
+
 async def choose_domain(
     description: Sequence[str], ports: Mapping[str, ConsultantPort], domain: Optional[str] = None
 ) -> str:
@@ -57,13 +63,9 @@ async def choose_domain(
         if missing:
             raise ResolutionError(f"domain '{domain}' knows no property {', '.join(repr(p) for p in missing)}")
         return domain
-    known: set[str] = set()
-    fitting = []
-    for name, port in ports.items():
-        preference = set(await port.preference())
-        known |= preference
-        if all(p in preference for p in description):
-            fitting.append(name)
+    preferences = {name: set(await port.preference()) for name, port in ports.items()}
+    known = set().union(*preferences.values())
+    fitting = domains_knowing(description, preferences)
     unknown = [p for p in description if p not in known]
     if unknown:
         raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}")

@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, Validatio
 
 from .consultant import DEFAULT_THRESHOLD, Consultant, KnowledgeError, check_certainty
 from .forgetting import RULE_PARAMETER, RULES, ForgettingPolicy, PolicyError, check_setting, merge_settings
+from .resolution import domains_knowing
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .memory import EventSink
@@ -807,7 +808,7 @@ class _Checker:
             if not any(prop in spec.preference for spec in domains.values()):
                 known = "; ".join(f"domain '{d}' knows: {_names(spec.preference)}" for d, spec in domains.items())
                 raise self.fail(where(i), f"unknown property '{prop}' ({known})")
-        fitting = [d for d, spec in domains.items() if all(p in spec.preference for p in properties)]
+        fitting = domains_knowing(properties, {d: spec.preference for d, spec in domains.items()})
         if len(fitting) == 1:
             return fitting[0]
         if fitting:
