@@ -9,8 +9,10 @@ from collections import Counter
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fsreg_ros.core.decay import TickRun
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
-from fsreg_ros.core.forgetting import RULES, ForgettingPolicy, WMManager
+from fsreg_ros.core.forgetting import DISPLACEMENT, RULES, ForgettingPolicy
+from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate
 from fsreg_ros.core.memory import WMBuffer
 
@@ -30,21 +32,27 @@ FAST = settings(
     suppress_health_check=[HealthCheck.too_slow],
 )
 ENTITIES = ["e0", "e1", "e2", "e3"]
-PROPS = ["p0", "p1", "p2", "p3", "p4"]
+PROPS = ["p0", "p1", "p2", "c=red", "c=blue", "c=green"]  # c=...: one attribute (similarity)
 CAUSES = ["speaker", "rr", "reg-distractor"]
 
 
 # ================================================================ strategies
 @st.composite
 def policies(draw, must_have=None):
-    rules = set(draw(st.sets(st.sampled_from(RULES))))
-    if must_have:
+    rules = set(draw(st.sets(st.sampled_from([r for r in RULES if r not in DISPLACEMENT]))))
+    displacement = draw(st.sampled_from([None, *DISPLACEMENT]))
+    if displacement:
+        rules.add(displacement)
+    if must_have == "displacement":
+        rules.add(displacement or draw(st.sampled_from(sorted(DISPLACEMENT))))
+    elif must_have:
         rules.add(must_have)
     return ForgettingPolicy(
         tuple(r for r in RULES if r in rules),
-        decay_period=10.0,
+        decay_period=1e6,  # the manager's own ticks never fall due: the tests hand ticks over
         capacity=draw(st.integers(1, 3)),
         global_capacity=draw(st.integers(1, 6)),
+        seed=draw(st.sampled_from([None, 0, 7])),
     ).validated()
 
 
@@ -68,7 +76,7 @@ def operations(policy_strategy):
 
 
 def naive_for(policy: ForgettingPolicy) -> NaiveWM:
-    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity)
+    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity, seed=policy.seed or 0)
 
 
 def run_lazy(initial: ForgettingPolicy, ops, check=None):
@@ -86,7 +94,7 @@ def run_lazy(initial: ForgettingPolicy, ops, check=None):
         elif kind == "each":
             buffer.encode_each(op[1], op[2], op[3], t, len(events))
         elif kind == "tick":
-            buffer.decay([t])
+            buffer.decay(TickRun.single(t))
         elif kind == "read":
             buffer.queue(op[1])
         elif kind == "snapshot":
@@ -129,8 +137,8 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             for entity in op[1]:
                 naive.encode(entity, [op[2]], op[3], t, t)
         elif kind == "tick":
-            buffer.decay([t])
-            quiet.decay([t])
+            buffer.decay(TickRun.single(t))
+            quiet.decay(TickRun.single(t))
             naive.tick(t)
         elif kind == "read":
             assert buffer.queue(op[1]) == tuple(naive.queue(op[1]))
@@ -147,7 +155,7 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             policy = op[1]
             manager.set_policy("d", policy, t)
             quiet_manager.set_policy("d", policy, t)
-            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t)
+            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t, seed=policy.seed or 0)
         new = [event_key(e) for e in events[seen:]]
         seen = len(events)
         # Decay the lazy buffer owes is materialised later, stamped with the tick's time.

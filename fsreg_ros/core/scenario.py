@@ -40,7 +40,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError
 
 from .consultant import DEFAULT_THRESHOLD, Consultant, KnowledgeError, check_certainty
-from .forgetting import RULE_PARAMETER, RULES, ForgettingPolicy, PolicyError, check_setting, merge_settings
+from .forgetting import PARAMETERS, RULES, ForgettingPolicy, PolicyError, check_setting, merge_settings
 from .resolution import domains_knowing
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -50,7 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Path used for errors in command-line overrides of the ``memory:`` settings.
 COMMAND_LINE = "<command line>"
 #: The keys of a ``memory:`` block.
-MEMORY_KEYS = ("policy",) + tuple(RULE_PARAMETER.values())
+MEMORY_KEYS = ("policy",) + PARAMETERS
 #: How many entity names an "unknown entity" message lists before eliding the rest.
 MAX_LISTED = 20
 
