@@ -264,6 +264,55 @@ def test_bad_sync_requests(graph: Graph):
     assert graph.call(SYNC, {"time": 1})["applied"] == {"faces": 0}
 
 
+def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: Graph):
+    consultant(graph)
+    manager(graph, policy="decay", decay_period=10.0)
+    configured(graph)
+    encode(graph, "face1", ["male", "glasses"], 1.0)
+    for request, text in [
+        ({"time": 1e6}, "more than 86400 s ahead"),
+        ({"time": 1e308}, "out of range"),
+    ]:
+        err = graph.call_error(SYNC, request)
+        assert err.kind == "TickError" and text in err.error, err.error
+    for text in ('{"time": 1e999}', '{"time": Infinity}', '{"time": NaN}', '{"time": -1e400}'):
+        err = graph.call_error(SYNC, text)  # answered with a reason, never a raise in the node
+        assert err.kind in ("TickError", "MessageError") and err.error, text
+    assert queues(graph) == {"face1": ["male", "glasses"]}
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
+    # a big but plausible jump empties WM in O(1), and decay goes on afterwards
+    assert graph.call(SYNC, {"time": 80_000.0})["applied"] == {"faces": 8000}
+    assert queues(graph) == {}
+    graph.set_time(80_000.0)
+    encode(graph, "face1", ["male", "glasses"], 80_001.0)
+    assert graph.call(SYNC, {"time": 80_010.0})["applied"] == {"faces": 1}
+    assert queues(graph) == {"face1": ["glasses"]}
+    # backwards: nothing undone or applied again
+    assert graph.call(SYNC, {"time": 5.0})["applied"] == {"faces": 0}
+    assert queues(graph) == {"face1": ["glasses"]}
+
+
+def test_numeric_parameters_declare_their_ranges(graph: Graph):
+    node = manager(graph, ("faces",))
+    ranges = {}
+    for name in ("decay_period", "faces.decay_period", "service_timeout"):
+        (r,) = node.describe_parameter(name).floating_point_range
+        ranges[name] = (r.from_value, r.to_value)
+    for name in ("capacity", "global_capacity", "seed", "faces.capacity", "faces.seed"):
+        (r,) = node.describe_parameter(name).integer_range
+        ranges[name] = (r.from_value, r.to_value)
+    assert ranges == {
+        "decay_period": (0.01, 1e6),
+        "faces.decay_period": (0.0, 1e6),  # 0 = inherit
+        "service_timeout": (0.01, 3600.0),
+        "capacity": (1, 10_000),
+        "global_capacity": (1, 1_000_000),
+        "seed": (0, 2**31 - 1),
+        "faces.capacity": (0, 10_000),  # 0 = inherit
+        "faces.seed": (-1, 2**31 - 1),  # -1 = inherit
+    }
+
+
 def test_startup_errors(graph: Graph):
     with pytest.raises(StartupError, match="'domains'"):
         graph.add(WMManagerNode, domains=[""])

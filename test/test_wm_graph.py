@@ -1,0 +1,43 @@
+"""The WM Manager in the graph equals the simulator where the decay schedule's
+boundary test matters (issue 9): turns on tick boundaries at large times."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.core.simulation import Options, dumps, simulate
+from test_graph import play
+
+pytestmark = pytest.mark.graph
+
+PROPS = ["p0", "p1", "p2", "p3"]
+
+
+def boundary_scenario(period: float, boundary: float) -> dict:
+    """A human turn one period before ``boundary``, robot turns at ``boundary``: the tick
+    k with k * period <= boundary + 1e-9 (although floor((boundary + 1e-9) / period)
+    is k - 1) pops one property before the robot speaks."""
+    return {
+        "name": f"boundary-{period}",
+        "domains": {"things": {"preference": PROPS, "entities": {"e0": PROPS, "e1": ["p0", "p1", "p2"], "e2": ["p3"]}}},
+        "memory": {"policy": "decay", "decay_period": period},
+        "dialogue": [
+            {"time": 0.0, "speaker": "human", "description": ["p3"]},
+            {"time": round(boundary - period, 6), "speaker": "human", "description": ["p0", "p1", "p2"]},
+            {"time": boundary, "speaker": "robot", "target": "e1"},
+            {"time": boundary, "speaker": "robot", "target": "e0"},
+        ],
+    }
+
+
+@pytest.mark.parametrize("period, boundary", [(0.1, 567.899999999), (0.3, 9253.199999998998)])
+def test_tick_boundaries_at_large_times_graph_equals_simulator(tmp_path, period, boundary):
+    path = tmp_path / "boundary.yaml"
+    path.write_text(yaml.safe_dump(boundary_scenario(period, boundary), sort_keys=False))
+    expected = simulate(load_scenario(path), Options())
+    robot = [t for t in expected["turns"] if t["speaker"] == "robot"]
+    assert robot[0]["wm_before"] == ["p1", "p2"]  # the boundary tick popped p0
+    result = play(path, Options(), tmp_path)
+    assert dumps(result) == dumps(expected)
