@@ -25,6 +25,7 @@ within a tick), for a consultant that publishes every event as it happens.
 
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass
 from itertools import islice
@@ -244,27 +245,54 @@ class WMBuffer:
         with the same events in the same order: this is the hot path of rules 2 and
         3, where one affirmed property is encoded for thousands of candidates or
         distractors.  With no event sink and no limit beyond an LRU capacity, each
-        entity costs one dict assignment (plus the displaced front, if any); events
-        are only built when a sink listens, and the other limits go through
-        :meth:`_enforce`.
+        entity costs one dict assignment (plus the displaced front, if any:
+        :meth:`_encode_quiet`); events are only built when a sink listens, and every
+        other case goes through :meth:`_enforce`, Algorithm 3's one implementation.
         """
         limits = self.limits
         if not limits.retains:
             return
+        if self.sink is None and limits.victim == "lru" and not limits.similarity and limits.global_capacity is None:
+            self._encode_quiet(entities, prop, limits.capacity)
+            return
+        lfu = limits.victim == "lfu"
+        for entity in entities:
+            q = self._queues.get(entity)
+            if q is None:
+                q = self._new_queue(entity)
+            else:
+                self._catch_up(entity)
+            present = prop in q
+            if present:
+                del q[prop]
+                self._size -= 1
+            self._stamp += 1
+            q[prop] = self._stamp
+            self._size += 1
+            self._nonempty[entity] = None
+            if lfu:  # encodings since prop entered Q (or since the limits were set)
+                if q.hits is None:
+                    q.hits = {}
+                q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
+            if self.sink is not None:
+                self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
+            self._enforce(entity, q, prop, time, turn)
+
+    def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int]) -> None:
+        """:meth:`encode_each` with no events and at most an LRU capacity: per entity,
+        one dict assignment and, when the queue is full, one front deletion."""
         queues = self._queues
         nonempty = self._nonempty
         ticks = self.ticks.count  # nothing below applies new ticks
-        lfu = limits.victim == "lfu"
-        plain = self.sink is None and not lfu and limits.victim == "lru" and not limits.similarity
-        capacity = limits.capacity if plain else None
+        limit = capacity if capacity is not None else math.inf
         stamp = self._stamp
         size = self._size
         for entity in entities:
-            present = False
             q = queues.get(entity)
             if q is None:
                 q = queues[entity] = _Queue()
-                q.synced, q.hits = ticks, None
+                q.synced = ticks
+                q.hits = None
                 nonempty[entity] = None
             else:
                 if q.synced != ticks:
@@ -272,33 +300,17 @@ class WMBuffer:
                     self._sync(entity, q)
                     size = self._size
                 # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
-                if not q:
-                    nonempty[entity] = None
-                elif prop in q:
+                if prop in q:
                     del q[prop]
                     size -= 1
-                    present = True
+                elif not q:
+                    nonempty[entity] = None
             stamp += 1
             q[prop] = stamp
-            size += 1
-            if lfu:  # encodings since prop entered Q (or since the limits were set)
-                if q.hits is None:
-                    q.hits = {}
-                q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
-            if plain:
-                if capacity is not None and len(q) > capacity:  # Algorithm 3, LRU out
-                    del q[next(iter(q))]
-                    size -= 1
-                if limits.global_capacity is not None and size > limits.global_capacity:
-                    self._stamp, self._size = stamp, size
-                    self._evict_global(limits.global_capacity, time, turn)
-                    size = self._size
-                continue
-            self._stamp, self._size = stamp, size
-            if self.sink is not None:
-                self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
-            self._enforce(entity, q, prop, time, turn)
-            size = self._size
+            if len(q) > limit:  # Algorithm 3, LRU out (capacity >= 1: never prop itself)
+                del q[next(iter(q))]
+            else:
+                size += 1
         self._stamp, self._size = stamp, size
 
     def pop_front(
@@ -415,6 +427,12 @@ class WMBuffer:
             self._pop(victim, "global-capacity", time, turn)
 
     # -------------------------------------------------------------- internals
+    def _new_queue(self, entity: str) -> _Queue:
+        q = self._queues[entity] = _Queue()
+        q.synced = self.ticks.count  # ticks before a queue existed are not owed
+        q.hits = None
+        return q
+
     def _catch_up(self, entity: str) -> None:
         """Apply the decay ticks Q[entity] still owes (if any)."""
         q = self._queues.get(entity)
