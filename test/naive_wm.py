@@ -29,7 +29,7 @@ EPSILON = 1e-9
 
 
 def event_key(event) -> tuple:
-    """A WMEvent (or an equivalent object) as ``(op, entity, property, cause, time, turn)``."""
+    """Return a WMEvent (or an equivalent object) as ``(op, entity, property, cause, time, turn)``."""
     return (event.op, event.entity, event.property, event.cause, event.time, event.turn)
 
 
@@ -71,8 +71,11 @@ class NaiveWM:
         time: float = 0.0,
         seed: int = 0,
     ) -> None:
-        """Install a policy and apply it at once: ``none`` forgets everything (cause
-        ``reset``), the size limits trim every queue (turn ``None``)."""
+        """Install a policy and apply it at once.
+
+        ``none`` forgets everything (cause ``reset``), the size limits trim every
+        queue (turn ``None``).
+        """
         self.rules = set(rules)
         self.capacity = capacity
         self.global_capacity = global_capacity
@@ -122,7 +125,7 @@ class NaiveWM:
                 self._global(time, turn)
 
     def tick(self, time: float) -> None:
-        """One decay tick (Algorithm 2), eagerly: pop the front of every non-empty queue."""
+        """Apply one decay tick (Algorithm 2) eagerly: pop the front of every non-empty queue."""
         for entity, queue in self.queues.items():
             if queue:
                 self._forget(entity, 0, "decay", time, None)
@@ -185,8 +188,11 @@ class NaiveWM:
 
 
 class NaiveClock:
-    """SPEC section 2's decay schedule, literally: tick k at origin + k * period, due
-    at T iff origin + k * period <= T + 1e-9; each tick is handed out once."""
+    """SPEC section 2's decay schedule, literally.
+
+    Tick k at origin + k * period, due at T iff origin + k * period <= T + 1e-9; each
+    tick is handed out once.
+    """
 
     def __init__(self, period: float, origin: float = 0.0) -> None:
         self.period = period

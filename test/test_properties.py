@@ -363,7 +363,8 @@ def test_reg_invariants(kb, wm_order):
 def test_reg_is_deterministic(kb, algorithm):
     runs = []
     for _ in range(2):
-        c, port, events = prefilled(kb, ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=5))
+        policy = ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=5)
+        c, port, events = prefilled(kb, policy)
         e = run_sync(generate(kb[2], port, algorithm, context=kb[3], time=3.0))
         runs.append((e.to_json(), [event_key(x) for x in events], c.wm.snapshot()))
     assert runs[0] == runs[1]

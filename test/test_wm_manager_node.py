@@ -32,7 +32,8 @@ def manager(graph: Graph, domains=("faces",), **params):
 
 
 def encode(graph: Graph, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
-    graph.call(f"/consultant/{domain}", {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t})
+    request = {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t}
+    graph.call(f"/consultant/{domain}", request)
 
 
 def queues(graph: Graph, domain: str = "faces") -> dict:
@@ -98,7 +99,8 @@ def test_sync_applies_ticks_at_k_delta(graph: Graph):
     graph.set_time(36.0)
     graph.spin_for(0.05)
     graph.spin_until(lambda: len(forgets(events, "decay")) >= 3, what="decay events")
-    assert forgets(events, "decay") == [("face1", "male", 10.0), ("face1", "glasses", 20.0), ("face1", "lab-coat", 30.0)]
+    expected = [("face1", "male", 10.0), ("face1", "glasses", 20.0), ("face1", "lab-coat", 30.0)]
+    assert forgets(events, "decay") == expected
     assert graph.call(STATUS, {})["next_tick"] == {"faces": 40.0}
 
 
@@ -177,7 +179,8 @@ def test_live_parameter_changes(graph: Graph):
 
     # switching to decay at t = 3: the schedule counts from t = 0, next tick at 10
     graph.set_time(3.0)
-    assert node.set_parameters([Parameter("policy", value="decay+displacement"), Parameter("decay_period", value=10.0)])[0].successful
+    change = [Parameter("policy", value="decay+displacement"), Parameter("decay_period", value=10.0)]
+    assert node.set_parameters(change)[0].successful
     graph.call(SYNC, {"time": 3.0})
     assert memory(graph) == {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 1}
     assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}

@@ -60,8 +60,11 @@ class Consultant:
         sink: Optional[EventSink] = None,
         attributes: Optional[Mapping[str, str]] = None,
     ) -> None:
-        """``attributes`` maps a property to its attribute (for similarity interference);
-        a property named ``attribute=value`` needs no entry."""
+        """Build a domain's consultant.
+
+        ``attributes`` maps a property to its attribute (for similarity interference);
+        a property named ``attribute=value`` needs no entry.
+        """
         self.domain = domain
         self.preference: list[str] = list(preference)
         self._known = set(self.preference)

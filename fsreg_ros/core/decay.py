@@ -72,7 +72,7 @@ class TickRun:
         return cls(float(time), 1.0, 0, 1)
 
     def time(self, i: int) -> float:
-        """The time of the run's ``i``-th tick (0-based)."""
+        """Return the time of the run's ``i``-th tick (0-based)."""
         return self.origin + (self.first + i) * self.period
 
     @property
@@ -80,13 +80,13 @@ class TickRun:
         return self.time(self.count - 1)
 
     def tail(self, i: int) -> Optional["TickRun"]:
-        """The run without its first ``i`` ticks, or None if nothing is left."""
+        """Return the run without its first ``i`` ticks, or None if nothing is left."""
         if i >= self.count:
             return None
         return TickRun(self.origin, self.period, self.first + i, self.count - i)
 
     def continues(self, other: "TickRun") -> bool:
-        """True if this run starts right where ``other`` ends, on the same grid."""
+        """Tell whether this run starts right where ``other`` ends, on the same grid."""
         return (self.origin, self.period) == (other.origin, other.period) and self.first == other.first + other.count
 
     def to_json(self) -> dict:
@@ -127,7 +127,7 @@ class DecaySchedule:
     applied: int = 0
 
     def elapsed(self, now: float) -> int:
-        """How many ticks fall at or before ``now`` (the SPEC's test, in O(1))."""
+        """Count the ticks at or before ``now`` (the SPEC's test, in O(1))."""
         now = check_time("time", now)
         limit = now + TIME_EPSILON
         if limit < self.origin + self.period:
@@ -142,7 +142,7 @@ class DecaySchedule:
         return k
 
     def take(self, now: float) -> Optional[TickRun]:
-        """The ticks due at or before ``now`` not taken yet (None if none); marks them taken."""
+        """Take the ticks due at or before ``now`` not taken yet (None if none)."""
         elapsed = self.elapsed(now)
         if elapsed <= self.applied:
             return None
@@ -158,7 +158,7 @@ class DecaySchedule:
         return self.origin + (self.applied + 1) * self.period
 
     def restart(self, period: float, now: float) -> None:
-        """A new period restarts the schedule: next tick one new period after ``now``."""
+        """Restart the schedule with a new period: next tick one new period after ``now``."""
         self.period, self.origin, self.applied = period, check_time("time", now), 0
 
 
@@ -184,7 +184,7 @@ class TickLedger:
         self.count += run.count
 
     def time(self, n: int) -> float:
-        """The time of tick number ``n`` (0-based; must not have been dropped)."""
+        """Return the time of tick number ``n`` (0-based; must not have been dropped)."""
         i = bisect_right(self._starts, n) - 1
         return self._runs[i].time(n - self._starts[i])
 

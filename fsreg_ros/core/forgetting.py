@@ -119,8 +119,10 @@ class ForgettingPolicy:
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, object]) -> "ForgettingPolicy":
-        """Build and validate a policy from ``{"policy", parameter: value, ...}``
-        (a ``memory:`` block, a configure request); PolicyError if invalid."""
+        """Build and validate a policy from ``{"policy", parameter: value, ...}``.
+
+        That is a ``memory:`` block or a configure request; PolicyError if invalid.
+        """
         unknown = sorted(set(settings) - set(SETTINGS))
         if unknown:
             raise PolicyError(f"unknown memory setting '{unknown[0]}' (known: {', '.join(SETTINGS)})")
@@ -140,18 +142,18 @@ class ForgettingPolicy:
         return self
 
     def with_changes(self, **changes: object) -> "ForgettingPolicy":
-        """A validated copy with some settings changed (``policy`` is a rule string)."""
+        """Return a validated copy with some settings changed (``policy`` is a rule string)."""
         if "policy" in changes:
             changes["rules"] = parse_rules(str(changes.pop("policy")))
         return replace(self, **changes).validated()  # type: ignore[arg-type]
 
     def value(self, param: str) -> object:
-        """A parameter's effective value (its default if unset and it has one)."""
+        """Return the effective value of parameter ``param`` (its default if unset)."""
         found = getattr(self, param)
         return DEFAULTS.get(param) if found is None else found
 
     def to_json(self) -> dict:
-        """The effective setting as SPEC section 6 reports it (only what is used)."""
+        """Return the effective setting as SPEC section 6 reports it (only what is used)."""
         out: dict = {"policy": self.name}
         for rule in self.rules:
             for param in RULE_PARAMETERS[rule]:
@@ -159,13 +161,13 @@ class ForgettingPolicy:
         return out
 
     def settings(self) -> dict:
-        """Every setting that is set (what a configure request carries)."""
+        """Return every setting that is set (what a configure request carries)."""
         out: dict = {"policy": self.name}
         out.update({p: getattr(self, p) for p in PARAMETERS if getattr(self, p) is not None})
         return out
 
     def limits(self) -> Limits:
-        """The size limits this policy puts on a buffer (decay is the schedule's)."""
+        """Return the size limits this policy puts on a buffer (decay is the schedule's)."""
         if not self.rules:
             return Limits(retains=False)
         displacing = [rule for rule in self.rules if rule in DISPLACEMENT]

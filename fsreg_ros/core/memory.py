@@ -95,8 +95,11 @@ UNLIMITED = Limits()
 
 
 def attribute_of(prop: str, attributes: Mapping[str, str]) -> Optional[str]:
-    """The attribute ``prop`` belongs to: declared in ``attributes``, or the part
-    before ``=`` in an ``attribute=value`` name; None if it has none."""
+    """Return the attribute ``prop`` belongs to, or None if it has none.
+
+    It is declared in ``attributes``, or the part before ``=`` in an
+    ``attribute=value`` name.
+    """
     found = attributes.get(prop)
     if found is None and "=" in prop:
         found = prop.split("=", 1)[0]
@@ -220,7 +223,7 @@ class WMBuffer:
         time: float,
         turn: Optional[int] = None,
     ) -> None:
-        """Encode(R, P), the paper's Algorithm 1.
+        """Encode properties into Q[R]: Encode(R, P), the paper's Algorithm 1.
 
         For each p in P, in order: remove p from Q[R] if present and push it to the
         back.  Each push is one encoding event, after which the limits are enforced
@@ -279,8 +282,10 @@ class WMBuffer:
             self._enforce(entity, q, prop, time, turn)
 
     def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int]) -> None:
-        """:meth:`encode_each` with no events and at most an LRU capacity: per entity,
-        one dict assignment and, when the queue is full, one front deletion."""
+        """Run :meth:`encode_each` with no events and at most an LRU capacity.
+
+        Per entity: one dict assignment and, when the queue is full, one front deletion.
+        """
         queues = self._queues
         nonempty = self._nonempty
         ticks = self.ticks.count  # nothing below applies new ticks
@@ -374,7 +379,7 @@ class WMBuffer:
 
     # ------------------------------------------------------- trimming primitives
     def _enforce(self, entity: str, q: _Queue, prop: str, time: float, turn: Optional[int]) -> None:
-        """The limits after one encoding event of ``prop`` into Q[entity]."""
+        """Enforce the limits after one encoding event of ``prop`` into Q[entity]."""
         limits = self.limits
         if limits.similarity:
             self._interfere(entity, q, prop, time, turn)
@@ -415,8 +420,10 @@ class WMBuffer:
         return candidates[self._rng.randrange(len(candidates))]
 
     def _evict_global(self, limit: int, time: float, turn: Optional[int]) -> None:
-        """Global LRU: while the domain holds more than ``limit`` properties, forget the
-        front property with the oldest encoding stamp (possibly in the queue just encoded).
+        """Keep the domain at ``limit`` properties or fewer, globally least recent out.
+
+        While the domain holds more than ``limit`` properties, forget the front
+        property with the oldest encoding stamp (possibly in the queue just encoded).
 
         Queues are sorted by stamp, so this is the oldest property in the whole domain.
         The domain never holds more than ``limit + 1`` properties here, so the scan over
@@ -440,8 +447,10 @@ class WMBuffer:
             self._sync(entity, q)
 
     def _sync(self, entity: str, q: _Queue) -> None:
-        """Apply the ticks since ``q.synced``: one front pop per tick, each reported at
-        its tick's own time (the eager Algorithm 2, deferred)."""
+        """Apply the ticks since ``q.synced``: one front pop per tick (Algorithm 2, deferred).
+
+        Each pop is reported at its tick's own time.
+        """
         synced = q.synced
         q.synced = ticks = self.ticks.count
         if not q:  # an empty queue owes nothing (and never needs a tick's time)

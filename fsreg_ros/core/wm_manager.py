@@ -108,8 +108,11 @@ class WMManager:
         self._install_schedule(self.domains[domain], None, now)
 
     def attach(self, domain: str, incarnation: object, now: float) -> None:
-        """The domain's buffer is (again) reachable: send the ticks owed since it was
-        detached, then its policy.  ``incarnation`` identifies the buffer's owner."""
+        """Attach a domain whose buffer is (again) reachable.
+
+        Send the ticks owed since it was detached, then its policy.  ``incarnation``
+        identifies the buffer's owner (e.g. a restarted consultant's).
+        """
         state = self.domains[domain]
         self.advance_domain(domain, now)
         state.attached = state.ever_attached = True
@@ -120,12 +123,15 @@ class WMManager:
         self.port.configure(domain, state.policy, now)
 
     def detach(self, domain: str) -> None:
-        """The domain's buffer is unreachable: keep the ticks that fall due until it is back."""
+        """Detach a domain whose buffer is unreachable: keep the ticks due until it is back."""
         self.domains[domain].attached = False
 
     def set_policy(self, domain: str, policy: ForgettingPolicy, now: float) -> None:
-        """Change a domain's policy; it takes effect at once (limits trim every queue,
-        ``none`` empties the domain, a new decay period restarts the schedule)."""
+        """Change a domain's policy; it takes effect at once.
+
+        Limits trim every queue, ``none`` empties the domain, a new decay period
+        restarts the schedule.
+        """
         policy = policy.validated()
         state = self.domains[domain]
         self.advance_domain(domain, now)  # ticks due under the old schedule happen first
@@ -136,16 +142,21 @@ class WMManager:
 
     # ------------------------------------------------------------------ time
     def check_sync_time(self, t: object, now: float) -> float:
-        """A time a caller asks the manager to catch up to; TickError if it is not a
-        finite number within :data:`SYNC_AHEAD` of the manager's clock ``now``."""
+        """Return a time a caller asks the manager to catch up to, checked.
+
+        TickError if it is not a finite number within :data:`SYNC_AHEAD` of the
+        manager's clock ``now``.
+        """
         t = check_time("time", t)
         if t > now + SYNC_AHEAD:
             raise TickError(f"time {t!r} is more than {SYNC_AHEAD:g} s ahead of the WM Manager's clock ({now!r})")
         return t
 
     def advance(self, now: float) -> dict[str, int]:
-        """Apply every decay tick due at or before ``now``, in every decaying domain;
-        how many ticks fell due per domain."""
+        """Apply every decay tick due at or before ``now``, in every decaying domain.
+
+        Return how many ticks fell due per domain.
+        """
         return {domain: self.advance_domain(domain, now) for domain in self.domains}
 
     def advance_domain(self, domain: str, now: float) -> int:

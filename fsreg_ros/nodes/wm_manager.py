@@ -99,8 +99,10 @@ DESCRIPTIONS = {
 
 
 def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
-    """A memory setting's descriptor, with the core's bounds as its declared range
-    (widened to include the inherit marker for a per-domain setting)."""
+    """Return a memory setting's descriptor, with the core's bounds as its range.
+
+    A per-domain setting's range is widened to include its inherit marker.
+    """
     text = DESCRIPTIONS[key]
     if domain is not None:
         text = f"domain '{domain}' {text}; {INHERIT[key]!r} = inherit '{key}'"
@@ -132,8 +134,10 @@ class _Domain:
 
 
 class _ManagePort:
-    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph:
-    each decision becomes a request to the consultant's manage service."""
+    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph.
+
+    Each decision becomes a request to the consultant's manage service.
+    """
 
     def __init__(self, node: "WMManagerNode") -> None:
         self.node = node
