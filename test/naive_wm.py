@@ -125,7 +125,7 @@ class NaiveWM:
                 self._global(time, turn)
 
     def tick(self, time: float) -> None:
-        """Apply one decay tick (Algorithm 2) eagerly: pop the front of every non-empty queue."""
+        """Apply one decay tick of Algorithm 2 eagerly: pop the front of every non-empty queue."""
         for entity, queue in self.queues.items():
             if queue:
                 self._forget(entity, 0, "decay", time, None)
