@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from .cli import run_cli
+from .core.forgetting import PARAMETERS
 from .core.realisation import Lexicon
 from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
@@ -126,7 +127,7 @@ def graph_nodes(
     manager: dict = {"use_sim_time": True, "domains": domains}
     for domain, policy in effective_policies(scenario, options).items():
         manager[f"{domain}.policy"] = policy.name
-        for key in ("decay_period", "capacity", "global_capacity"):
+        for key in PARAMETERS:
             value = getattr(policy, key)
             if value is not None:
                 manager[f"{domain}.{key}"] = value

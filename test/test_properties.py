@@ -39,7 +39,8 @@ CAUSES = ["speaker", "rr", "reg-distractor"]
 # ================================================================ strategies
 @st.composite
 def policies(draw, must_have=None):
-    rules = set(draw(st.sets(st.sampled_from([r for r in RULES if r not in DISPLACEMENT]))))
+    # shared-capacity is a pool across domains (tested below), not a buffer limit.
+    rules = set(draw(st.sets(st.sampled_from([r for r in RULES if r not in DISPLACEMENT and r != "shared-capacity"]))))
     displacement = draw(st.sampled_from([None, *DISPLACEMENT]))
     if displacement:
         rules.add(displacement)
@@ -218,6 +219,48 @@ def test_manager_decay_schedule_equals_naive_clock(period, displacement, steps):
         naive.tick(tick)
     assert buffer.snapshot() == naive.snapshot()
     assert Counter(event_key(e) for e in events) == Counter(naive.events)
+
+
+def naive_share(pools: dict, limit: int, time: float) -> None:
+    """Trim the shared pool, literally.
+
+    While the pools hold more than ``limit``, the largest pool (first on ties) forgets
+    its globally oldest front.
+    """
+    while sum(pool.total() for pool in pools.values()) > limit:
+        pool = max(pools.values(), key=lambda p: p.total())
+        victim = min((e for e, q in pool.queues.items() if q), key=lambda e: pool.stamps[(e, pool.queues[e][0])])
+        pool._forget(victim, 0, "shared-capacity", time, None)
+
+
+@FAST
+@given(
+    limit=st.integers(1, 6),
+    steps=st.lists(
+        st.tuples(
+            st.sampled_from(["a", "b", "c"]), st.sampled_from(ENTITIES), st.lists(st.sampled_from(PROPS), min_size=1)
+        ),
+        max_size=25,
+    ),
+)
+def test_shared_capacity_equals_naive_pools(limit, steps):
+    policy = ForgettingPolicy.parse("displacement+shared-capacity", capacity=2, shared_capacity=limit)
+    events: list = []
+    buffers = {d: WMBuffer(d, events.append) for d in "abc"}
+    manager = WMManager()
+    for buffer in buffers.values():
+        manager.manage(buffer, policy)
+    naive = {d: NaiveWM({"displacement"}, 2) for d in "abc"}
+    for t, (domain, entity, props) in enumerate(steps):
+        manager.advance(float(t))  # the pool is trimmed when the manager catches up to an event
+        naive_share(naive, limit, float(t))
+        assert sum(len(b) for b in buffers.values()) <= limit
+        buffers[domain].encode(entity, props, "speaker", float(t))
+        naive[domain].encode(entity, props, "speaker", float(t))
+        assert {d: b.snapshot() for d, b in buffers.items()} == {d: n.snapshot() for d, n in naive.items()}
+    shared = Counter((e.domain, e.entity, e.property, e.time) for e in events if e.cause == "shared-capacity")
+    expected = Counter((d, e[1], e[2], e[4]) for d, n in naive.items() for e in n.events if e[3] == "shared-capacity")
+    assert shared == expected
 
 
 # ========================================================= limits as invariants

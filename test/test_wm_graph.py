@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, dumps, simulate
-from test_graph import play
+from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
+from test_graph import DATA, play
 
 pytestmark = pytest.mark.graph
 
@@ -40,4 +40,26 @@ def test_tick_boundaries_at_large_times_graph_equals_simulator(tmp_path, period,
     robot = [t for t in expected["turns"] if t["speaker"] == "robot"]
     assert robot[0]["wm_before"] == ["p1", "p2"]  # the boundary tick popped p0
     result = play(path, Options(), tmp_path)
+    assert dumps(result) == dumps(expected)
+
+
+@pytest.mark.parametrize(
+    "memory",
+    [
+        {"policy": "displacement+shared-capacity", "capacity": 2, "shared_capacity": 3},
+        {"policy": "displacement-random+similarity", "capacity": 1, "seed": 3},
+        {"policy": "decay+displacement-lfu", "decay_period": 5.0, "capacity": 2},
+    ],
+)
+def test_new_forgetting_rules_graph_equals_simulator(tmp_path, memory):
+    path = DATA / "two_domains.yaml"
+    options = Options(memory=memory)
+    sim = Simulation(load_scenario(path), options)
+    expected = sim.run()
+    assert expected["memory"]["faces"]["policy"] == memory["policy"]
+    causes = {e["cause"] for e in sim.trace()}
+    assert "displacement" in causes
+    if "shared_capacity" in memory:
+        assert "shared-capacity" in causes
+    result = play(path, options, tmp_path)
     assert dumps(result) == dumps(expected)

@@ -20,6 +20,13 @@ the one place policy names are parsed and validated):
   attribute (interference by similarity).
 * ``global-capacity``: after each encoding event, while the domain holds more than
   ``global_capacity`` properties, forget the front whose stamp is oldest (global LRU).
+* ``shared-capacity`` (``shared_capacity``): one pool shared by every domain whose
+  policy has this rule, of the smallest ``shared_capacity`` among them.  Applied by
+  the WM Manager when it catches up to a dialogue event's time (``advance`` in the
+  simulator, ``/wm_manager/sync`` in the graph; never by a timer), after the decay
+  ticks due then, so it trims what earlier events encoded: while the pool holds more,
+  the domain holding the most properties (the first in domain order on ties) forgets
+  its least recently encoded front (cause ``shared-capacity``).
 
 At most one displacement rule.  The size limits become data on the buffer
 (:meth:`ForgettingPolicy.limits`), enforced by :mod:`fsreg_ros.core.memory`.
@@ -36,7 +43,15 @@ from .memory import Limits
 
 #: Victim choice of each displacement rule.
 DISPLACEMENT = {"displacement": "lru", "displacement-lfu": "lfu", "displacement-random": "random"}
-RULES = ("decay", "displacement", "displacement-lfu", "displacement-random", "similarity", "global-capacity")
+RULES = (
+    "decay",
+    "displacement",
+    "displacement-lfu",
+    "displacement-random",
+    "similarity",
+    "global-capacity",
+    "shared-capacity",
+)
 #: The parameters each rule needs (``seed`` is optional: default 0).
 RULE_PARAMETERS: dict[str, tuple[str, ...]] = {
     "decay": ("decay_period",),
@@ -45,9 +60,10 @@ RULE_PARAMETERS: dict[str, tuple[str, ...]] = {
     "displacement-random": ("capacity", "seed"),
     "similarity": (),
     "global-capacity": ("global_capacity",),
+    "shared-capacity": ("shared_capacity",),
 }
 #: Every memory parameter, and the settings of a ``memory:`` block.
-PARAMETERS = ("decay_period", "capacity", "global_capacity", "seed")
+PARAMETERS = ("decay_period", "capacity", "global_capacity", "seed", "shared_capacity")
 SETTINGS = ("policy",) + PARAMETERS
 #: Parameters a rule may leave unset, with their default.
 DEFAULTS = {"seed": 0}
@@ -65,6 +81,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "capacity": (1, 10_000),
     "global_capacity": (1, 1_000_000),
     "seed": (0, 2**31 - 1),
+    "shared_capacity": (1, 1_000_000),
 }
 assert MAX_TIME / MIN_DECAY_PERIOD < 2**53
 
@@ -86,6 +103,7 @@ class ForgettingPolicy:
     capacity: Optional[int] = None
     global_capacity: Optional[int] = None
     seed: Optional[int] = None
+    shared_capacity: Optional[int] = None
 
     @property
     def name(self) -> str:
@@ -107,6 +125,7 @@ class ForgettingPolicy:
         capacity: Optional[int] = None,
         global_capacity: Optional[int] = None,
         seed: Optional[int] = None,
+        shared_capacity: Optional[int] = None,
     ) -> "ForgettingPolicy":
         """Build and validate a policy from its name and parameters."""
         return cls(
@@ -115,6 +134,7 @@ class ForgettingPolicy:
             capacity=capacity,
             global_capacity=global_capacity,
             seed=seed,
+            shared_capacity=shared_capacity,
         ).validated()
 
     @classmethod

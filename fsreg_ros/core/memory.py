@@ -35,7 +35,7 @@ from .decay import TickLedger, TickRun
 
 #: Causes an event can have (SPEC section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
-FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "reset", "retract")
+FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract")
 #: How displacement chooses the property it forgets from an over-full queue.
 VICTIMS = ("lru", "lfu", "random")
 
@@ -213,6 +213,10 @@ class WMBuffer:
                 self._displace(entity, q, limits.capacity, "", time, None)
         if limits.global_capacity is not None:
             self._evict_global(limits.global_capacity, time, None)
+
+    def evict_oldest(self, count: int, cause: str, time: float) -> None:
+        """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
+        self._evict_global(max(len(self) - count, 0), time, None, cause)
 
     # ---------------------------------------------------------------- writes
     def encode(
@@ -419,7 +423,7 @@ class WMBuffer:
         candidates = [p for p in q if p != newest]
         return candidates[self._rng.randrange(len(candidates))]
 
-    def _evict_global(self, limit: int, time: float, turn: Optional[int]) -> None:
+    def _evict_global(self, limit: int, time: float, turn: Optional[int], cause: str = "global-capacity") -> None:
         """Keep the domain at ``limit`` properties or fewer, globally least recent out.
 
         While the domain holds more than ``limit`` properties, forget the front
@@ -431,7 +435,7 @@ class WMBuffer:
         """
         while len(self) > limit:
             victim = min(self._nonempty, key=self.front_stamp)
-            self._pop(victim, "global-capacity", time, turn)
+            self._pop(victim, cause, time, turn)
 
     # -------------------------------------------------------------- internals
     def _new_queue(self, entity: str) -> _Queue:

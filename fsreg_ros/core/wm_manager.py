@@ -27,7 +27,7 @@ configured.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional, Protocol, Sequence
+from typing import Mapping, Optional, Protocol, Sequence
 
 from .decay import DecaySchedule, TickError, TickRun, check_time
 from .forgetting import ForgettingPolicy
@@ -46,6 +46,15 @@ class MemoryPort(Protocol):
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         """Apply decay ticks to the domain's buffer."""
+
+    def evict(self, domain: str, count: int, time: float) -> None:
+        """Forget the domain's ``count`` least recently encoded fronts (shared pool)."""
+
+    def sizes(self, domains: Sequence[str]) -> Optional[dict[str, int]]:
+        """Return how many properties each domain holds, or None if that needs I/O.
+
+        On None the caller asks the buffers and calls :meth:`WMManager.share` itself.
+        """
 
 
 def configure_buffer(buffer: WMBuffer, policy: ForgettingPolicy, time: float) -> None:
@@ -69,6 +78,12 @@ class BufferPort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.buffers[domain].decay(ticks)
+
+    def evict(self, domain: str, count: int, time: float) -> None:
+        self.buffers[domain].evict_oldest(count, "shared-capacity", time)
+
+    def sizes(self, domains: Sequence[str]) -> Optional[dict[str, int]]:
+        return {d: len(self.buffers[d]) for d in domains}
 
 
 @dataclass
@@ -153,11 +168,47 @@ class WMManager:
         return t
 
     def advance(self, now: float) -> dict[str, int]:
-        """Apply every decay tick due at or before ``now``, in every decaying domain.
+        """Catch up to a dialogue event at ``now``: decay ticks, then the shared pool.
 
-        Return how many ticks fell due per domain.
+        Apply every decay tick due at or before ``now`` in every decaying domain,
+        then trim the shared pool (if the port can tell sizes at once; otherwise the
+        caller does, with :meth:`share`).  Return how many ticks fell due per domain.
         """
-        return {domain: self.advance_domain(domain, now) for domain in self.domains}
+        applied = {domain: self.advance_domain(domain, now) for domain in self.domains}
+        sharing = self.sharing()
+        if sharing:
+            sizes = self.port.sizes(sharing)
+            if sizes is not None:
+                self.share(sizes, now)
+        return applied
+
+    def sharing(self) -> list[str]:
+        """Return the domains in the shared pool (policy ``shared-capacity``), in domain order."""
+        return [d for d, state in self.domains.items() if "shared-capacity" in state.policy.rules]
+
+    def share(self, sizes: Mapping[str, int], now: float) -> dict[str, int]:
+        """Trim the shared pool, given each member domain's size; return the evictions.
+
+        While the pool holds more than the smallest ``shared_capacity`` of its
+        members, the domain holding the most (the first in domain order on ties)
+        forgets its least recently encoded front.
+        """
+        sharing = self.sharing()
+        if not sharing:
+            return {}
+        limit = min(self.domains[d].policy.shared_capacity for d in sharing)  # type: ignore[type-var]
+        left = {d: int(sizes.get(d, 0)) for d in sharing}
+        evictions: dict[str, int] = {}
+        excess = sum(left.values()) - limit  # type: ignore[operator]
+        while excess > 0:
+            domain = max(sharing, key=left.__getitem__)
+            left[domain] -= 1
+            evictions[domain] = evictions.get(domain, 0) + 1
+            excess -= 1
+        for domain, count in evictions.items():
+            if self.domains[domain].attached:
+                self.port.evict(domain, count, now)
+        return evictions
 
     def advance_domain(self, domain: str, now: float) -> int:
         """Send the domain's ticks due at or before ``now`` not sent yet; how many."""

@@ -25,7 +25,10 @@ Services (JSON in ``AddDiagnostics``, see :mod:`fsreg_ros.carrier`)
       ``{"queues_changed", "policy"}``: decay ticks (Algorithm 2) at ``origin + k *
       period`` for k = first .. first + count - 1, applied now (at most as many as
       the longest queue holds can pop anything); ``policy`` is the installed policy's
-      name (so the WM Manager notices a restarted consultant).
+      name (so the WM Manager notices a restarted consultant);
+      ``evict`` ``{"count", "time"?}`` -> ``{"queues_changed", "size"}``: forget the
+      domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
+      ``size`` -> ``{"size"}``: how many properties WM holds.
 
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
@@ -162,6 +165,8 @@ class ConsultantNode(Node):
         self._manage_ops: dict[str, Callable[[dict], dict]] = {
             "configure": self._configure,
             "decay": self._decay,
+            "evict": self._evict,
+            "size": self._size,
         }
         serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops))
         serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops))
@@ -289,6 +294,19 @@ class ConsultantNode(Node):
         self._last_time = ticks.last
         # ``policy`` lets the WM Manager notice a restarted consultant.
         return {"queues_changed": _changed(before, buffer.snapshot()), "policy": self.policy.name}
+
+    def _evict(self, request: dict) -> dict:
+        check_fields(request, {"count": int})
+        if request["count"] < 0:
+            raise MessageError(f"field 'count': expected a whole number >= 0, got {request['count']}")
+        time, _ = self._time(request)
+        buffer = self.consultant.wm
+        before = buffer.snapshot()
+        buffer.evict_oldest(request["count"], "shared-capacity", time)
+        return {"queues_changed": _changed(before, buffer.snapshot()), "size": len(buffer)}
+
+    def _size(self, request: dict) -> dict:
+        return {"size": len(self.consultant.wm)}
 
     # ------------------------------------------------------------- LTM topic
     def _on_assert(self, msg: String) -> None:

@@ -27,12 +27,13 @@ unsetting a parameter or changing its type is refused, by rclpy's static typing)
     ``domains`` (string array, required, read-only): the consultant domains managed;
     ``policy`` (default ``none``), ``decay_period`` (10.0 s, in [0.01, 1e6]),
     ``capacity`` (2, in [1, 10000]), ``global_capacity`` (6, in [1, 1e6]),
-    ``seed`` (0, in [0, 2**31 - 1]): defaults for every domain (bounds:
+    ``seed`` (0, in [0, 2**31 - 1]), ``shared_capacity`` (12, in [1, 1e6]):
+    defaults for every domain (bounds:
     :data:`fsreg_ros.core.forgetting.BOUNDS`);
     ``<domain>.policy`` (``""`` = inherit), ``<domain>.decay_period`` (0 = inherit,
-    else in [0.01, 1e6]), ``<domain>.capacity`` and ``<domain>.global_capacity``
-    (0 = inherit), ``<domain>.seed`` (-1 = inherit): the ranges include the inherit
-    marker;
+    else in [0.01, 1e6]), ``<domain>.capacity``, ``<domain>.global_capacity``,
+    ``<domain>.shared_capacity`` (0 = inherit), ``<domain>.seed`` (-1 = inherit):
+    the ranges include the inherit marker;
     ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of each consultant call.
 
 Services (JSON in ``AddDiagnostics``):
@@ -40,7 +41,9 @@ Services (JSON in ``AddDiagnostics``):
     "applied": {domain: n_ticks}}``: the race-free hand-off of a scripted player.
     Applies every tick due at or before t in every domain (t from the request: no
     waiting on ``/clock``), waits until every consultant has acknowledged everything
-    sent to it so far, then replies.  A t that is not finite, beyond 1e12 s, or more
+    sent to it so far; then, if any domain has ``shared-capacity``, asks the pool's
+    consultants their sizes and sends the evictions the core decides (``evict``),
+    and waits for those too; then replies.  A t that is not finite, beyond 1e12 s, or more
     than a day (``core.wm_manager.SYNC_AHEAD``) ahead of the node's clock is rejected
     with a reason and changes nothing.  Before the consultants are configured it
     waits for them (up to ``service_timeout``), then replies an error.
@@ -77,9 +80,23 @@ from ..remote import manage_service
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node
 
 #: Defaults for every domain (SPEC section 5 names).
-DEFAULTS: dict[str, Any] = {"policy": "none", "decay_period": 10.0, "capacity": 2, "global_capacity": 6, "seed": 0}
+DEFAULTS: dict[str, Any] = {
+    "policy": "none",
+    "decay_period": 10.0,
+    "capacity": 2,
+    "global_capacity": 6,
+    "seed": 0,
+    "shared_capacity": 12,
+}
 #: Per-domain "inherit" markers (each inside its parameter's declared range).
-INHERIT: dict[str, Any] = {"policy": "", "decay_period": 0.0, "capacity": 0, "global_capacity": 0, "seed": -1}
+INHERIT: dict[str, Any] = {
+    "policy": "",
+    "decay_period": 0.0,
+    "capacity": 0,
+    "global_capacity": 0,
+    "seed": -1,
+    "shared_capacity": 0,
+}
 SETTINGS = tuple(DEFAULTS)
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
@@ -90,11 +107,12 @@ MAX_DELAY_NS = 10**18
 
 DESCRIPTIONS = {
     "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
-    "displacement-random, similarity, global-capacity)",
+    "displacement-random, similarity, global-capacity, shared-capacity)",
     "decay_period": "decay period delta, seconds",
     "capacity": "per-entity queue limit alpha",
     "global_capacity": "per-domain total limit",
     "seed": "seed of displacement-random",
+    "shared_capacity": "limit of the pool shared by every domain with shared-capacity",
 }
 
 
@@ -148,6 +166,12 @@ class _ManagePort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.node._send(self.node._domains[domain], {"op": "decay", "ticks": ticks.to_json()})
+
+    def evict(self, domain: str, count: int, time: float) -> None:
+        self.node._send(self.node._domains[domain], {"op": "evict", "count": count, "time": time})
+
+    def sizes(self, domains: list[str]) -> None:
+        return None  # needs service calls: the sync barrier asks, then calls manager.share
 
 
 class WMManagerNode(Node):
@@ -399,15 +423,30 @@ class WMManagerNode(Node):
         applied = {name: self._advance(name, t) for name in self._domains}
         for name in self._domains:
             self._arm(name)
-        # Wait for everything sent so far (this sync's ticks, a timer's, configures).
+        await self._settle(deadline)
+        sharing = self.manager.sharing()
+        if sharing:  # the shared pool, after the ticks (as core WMManager.advance)
+            sizes = {}
+            for name in sharing:
+                dom = self._domains[name]
+                reply = await self._await(dom, self._send(dom, {"op": "size"}), deadline)
+                sizes[name] = reply["size"]
+            self.manager.share(sizes, t)
+            await self._settle(deadline)
+        return {"time": t, "memory": self.memory(), "applied": applied}
+
+    async def _settle(self, deadline: float) -> None:
+        """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
         pending = [(dom, entry[0]) for dom in self._domains.values() for entry in list(dom.inflight)]
         for dom, future in pending:
-            remaining = max(deadline - wallclock.monotonic(), 0.05)
-            try:
-                await dom.client.result(future, remaining)
-            except CarrierError as err:
-                raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
-        return {"time": t, "memory": self.memory(), "applied": applied}
+            await self._await(dom, future, deadline)
+
+    async def _await(self, dom: _Domain, future: Future, deadline: float) -> dict:
+        remaining = max(deadline - wallclock.monotonic(), 0.05)
+        try:
+            return await dom.client.result(future, remaining)
+        except CarrierError as err:
+            raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
 
     def _status(self, request: dict) -> dict:
         return {
