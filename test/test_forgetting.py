@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from fsreg_ros.core.consultant import Consultant
 from fsreg_ros.core.forgetting import (
     BOUNDS,
     NONE,
@@ -393,3 +394,42 @@ def test_domains_are_independent_pools():
         "faces": {"policy": "decay", "decay_period": 10.0},
         "objects": {"policy": "displacement", "capacity": 1},
     }
+
+
+# ------------------------------------------------------------ new rules (issue 12)
+def test_lfu_displaces_the_least_frequently_encoded_ties_to_lru():
+    _, buffer, events = managed(ForgettingPolicy.parse("displacement-lfu", capacity=2))
+    buffer.encode("f1", ["a", "a", "b", "c"], "rr", 1.0)  # a twice, b once: c displaces b
+    assert buffer.queue("f1") == ("a", "c")
+    buffer.encode("f1", ["d"], "rr", 2.0)  # c once (LRU among the once-encoded): out
+    assert buffer.queue("f1") == ("a", "d")
+    assert forgets(events) == [("forget", "f1", "b", "displacement", 1.0, None),
+                               ("forget", "f1", "c", "displacement", 2.0, None)]
+
+
+def test_random_displacement_is_seeded_and_reproducible():
+    def run(seed):
+        _, buffer, events = managed(ForgettingPolicy.parse("displacement-random", capacity=2, seed=seed))
+        for i in range(30):
+            buffer.encode(f"f{i % 3}", [f"p{i % 7}"], "rr", float(i))
+        return keys(events)
+
+    assert run(1) == run(1)
+    assert run(1) != run(2)
+    _, buffer, _ = managed(ForgettingPolicy.parse("displacement-random", capacity=1, seed=0))
+    buffer.encode("f1", ["a", "b"], "rr", 0.0)
+    assert buffer.queue("f1") == ("b",)  # never the property just encoded
+
+
+def test_similarity_displaces_other_values_of_the_attribute():
+    _, buffer, events = managed(ForgettingPolicy.parse("similarity"))
+    buffer.encode("f1", ["colour=red", "size=big", "glasses", "colour=blue"], "speaker", 1.0)
+    assert buffer.queue("f1") == ("size=big", "glasses", "colour=blue")
+    assert forgets(events) == [("forget", "f1", "colour=red", "similarity", 1.0, None)]
+    declared = WMBuffer("faces", attributes={"light-hair": "hair", "dark-hair": "hair"})
+    WMManager().manage(declared, ForgettingPolicy.parse("similarity"))
+    declared.encode("f1", ["light-hair", "glasses", "dark-hair"], "speaker", 1.0)
+    assert declared.queue("f1") == ("glasses", "dark-hair")
+    consultant = Consultant("faces", {"f1": {"light-hair": 1.0}}, ["light-hair", "dark-hair"],
+                            attributes={"light-hair": "hair", "dark-hair": "hair"})
+    assert consultant.wm.attributes == {"light-hair": "hair", "dark-hair": "hair"}

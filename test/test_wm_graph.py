@@ -44,22 +44,19 @@ def test_tick_boundaries_at_large_times_graph_equals_simulator(tmp_path, period,
 
 
 @pytest.mark.parametrize(
-    "memory",
+    "memory, cause",
     [
-        {"policy": "displacement+shared-capacity", "capacity": 2, "shared_capacity": 3},
-        {"policy": "displacement-random+similarity", "capacity": 1, "seed": 3},
-        {"policy": "decay+displacement-lfu", "decay_period": 5.0, "capacity": 2},
+        ({"policy": "displacement+shared-capacity", "capacity": 2, "shared_capacity": 3}, "shared-capacity"),
+        ({"policy": "displacement-random+similarity", "capacity": 1, "seed": 3}, "displacement"),
+        ({"policy": "decay+displacement-lfu", "decay_period": 5.0, "capacity": 1}, "displacement"),
     ],
 )
-def test_new_forgetting_rules_graph_equals_simulator(tmp_path, memory):
+def test_new_forgetting_rules_graph_equals_simulator(tmp_path, memory, cause):
     path = DATA / "two_domains.yaml"
     options = Options(memory=memory)
     sim = Simulation(load_scenario(path), options)
     expected = sim.run()
     assert expected["memory"]["faces"]["policy"] == memory["policy"]
-    causes = {e["cause"] for e in sim.trace()}
-    assert "displacement" in causes
-    if "shared_capacity" in memory:
-        assert "shared-capacity" in causes
+    assert cause in {e["cause"] for e in sim.trace()}  # the rule did forget something
     result = play(path, options, tmp_path)
     assert dumps(result) == dumps(expected)
