@@ -253,7 +253,9 @@ def test_event_json_and_causes():
         "turn": None,
     }
     assert set(ENCODE_CAUSES) == {"speaker", "rr", "reg-distractor"}
-    assert set(FORGET_CAUSES) == {"decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"}
+    assert set(FORGET_CAUSES) == {
+        "decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"
+    }
 
 
 def test_hot_path_events_equal_constructed_ones(buf):
