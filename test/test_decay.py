@@ -107,3 +107,9 @@ def test_ledger_memory_grows_with_schedule_changes_not_ticks():
     assert len(ledger._runs) == 2 and ledger.time(5001) == 52.0
     ledger.drop_before(5000)
     assert len(ledger._runs) == 1 and ledger.time(5000) == 51.0
+
+
+def test_bounds_keep_tick_indices_exact():
+    from fsreg_ros.core.forgetting import MIN_DECAY_PERIOD
+
+    assert MAX_TIME / MIN_DECAY_PERIOD < 2**53  # k * delta computed from an exact k

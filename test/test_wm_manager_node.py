@@ -339,3 +339,23 @@ def test_wall_clock_manager(graph: Graph):
     assert status["time"] > 1e9  # the wall clock
     assert status["time"] < status["next_tick"]["faces"] <= status["time"] + 10.0
     assert graph.call(SYNC, {"time": status["time"]})["applied"] == {"faces": 0}
+
+
+def test_shared_pool_ops_of_the_consultant(graph: Graph):
+    consultant(graph)
+    manage = "/consultant/faces/manage"
+    graph.wait_service(manage)
+    graph.call(manage, {"op": "configure", "policy": {"policy": "displacement", "capacity": 3}, "time": 0.0})
+    encode(graph, "face1", ["male", "glasses"], 1.0)
+    encode(graph, "face2", ["female"], 2.0)
+    assert graph.call(manage, {"op": "size"}) == {"size": 3}
+    assert graph.call(manage, {"op": "evict", "count": 2, "time": 3.0}) == {"queues_changed": 1, "size": 1}
+    assert queues(graph) == {"face2": ["female"]}
+    for request, text in [
+        ({"op": "evict"}, "missing field 'count'"),
+        ({"op": "evict", "count": -1}, "field 'count'"),
+        ({"op": "evict", "count": "2"}, "field 'count'"),
+    ]:
+        err = graph.call_error(manage, request)
+        assert err.kind == "MessageError" and text in err.error, err.error
+    assert queues(graph) == {"face2": ["female"]}

@@ -38,7 +38,6 @@ import math
 from dataclasses import dataclass, replace
 from typing import Mapping, Optional
 
-from .decay import MAX_TIME
 from .memory import Limits
 
 #: Victim choice of each displacement rule.
@@ -83,7 +82,6 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "seed": (0, 2**31 - 1),
     "shared_capacity": (1, 1_000_000),
 }
-assert MAX_TIME / MIN_DECAY_PERIOD < 2**53
 
 
 class PolicyError(ValueError):
