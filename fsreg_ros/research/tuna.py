@@ -250,6 +250,11 @@ def evaluate(
                     scores = [score_trial(t, kbs[t.id], algorithm, order) for t in group]
                     results.append(Result(domain, condition, algorithm, order, scores))
                     continue
+                if len(group) < 2:  # nothing to hold out: learn from the trial itself
+                    order = learn_order(group)
+                    results.append(Result(domain, condition, algorithm, order, [score_trial(group[0], kbs[group[0].id],
+                                                                                              algorithm, order)], [order]))
+                    continue
                 scores, fold_orders = [], []
                 for train, test in folds(group, min(k, len(group))):
                     learned = learn_order(train)
