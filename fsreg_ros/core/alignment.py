@@ -45,6 +45,7 @@ class TurnAlignment:
     human_used: list[str]
     aligned: list[str]
     origins: dict[str, str] = field(default_factory=dict)
+    wm_size: int = 0  # properties in the domain's WM (all entities) just before the turn
 
 
 @dataclass
@@ -113,7 +114,8 @@ def turn_alignment(result: Mapping[str, Any], trace: Sequence[Mapping[str, Any]]
             if source == "wm"
         }
         aligned = [p for p in description if p in human]
-        out.append(TurnAlignment(index, target, description, list(human), aligned, origins))
+        wm_size = sum(1 for key in entered if key[0] == record.get("domain"))
+        out.append(TurnAlignment(index, target, description, list(human), aligned, origins, wm_size))
     return out
 
 
