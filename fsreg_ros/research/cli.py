@@ -102,3 +102,154 @@ def write_per_trial(path: Path, results: list) -> None:
 def eval_main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``fsreg-eval``."""
     return _run(eval_tuna, eval_parser(), argv)
+
+
+# ----------------------------------------------------------------- fsreg-sweep
+def number_list(option: str, text: str, kind: type, low: float, high: float) -> tuple:
+    """Parse a comma-separated list of numbers in [low, high] for ``option``."""
+    values = []
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            value = kind(part)
+        except ValueError:
+            raise UsageError(f"{option}: '{part}' is not a{'n integer' if kind is int else ' number'}") from None
+        if not low <= value <= high or value != value:
+            raise UsageError(f"{option}: {part} is out of range [{low}, {high}]")
+        values.append(value)
+    if not values:
+        raise UsageError(f"{option}: give at least one value")
+    return tuple(dict.fromkeys(values))
+
+
+def memory_settings(entries: Sequence[str]) -> dict:
+    """``["global_capacity=4"]`` -> ``{"global_capacity": 4}`` (numbers parsed, else text)."""
+    out: dict = {}
+    for entry in entries:
+        key, sep, value = entry.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"--memory '{entry}': expected KEY=VALUE")
+        try:
+            out[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key.strip()] = value
+    return out
+
+
+def sweep_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fsreg-sweep", description="Play generated Guess-Who games under a grid of forgetting settings."
+    )
+    parser.add_argument("--policies", default="decay,displacement,none", help="comma-separated policy strings")
+    parser.add_argument("--decay-periods", default="5,10,20", help="comma-separated seconds (delta)")
+    parser.add_argument("--capacities", default="1,2,3", help="comma-separated integers (alpha)")
+    parser.add_argument("--seeds", type=int, default=10, help="number of games (seeds --seed-base ... +N-1)")
+    parser.add_argument("--seed-base", type=int, default=0, help="first seed (default 0)")
+    parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
+    parser.add_argument("--memory", action="append", default=[], metavar="KEY=VALUE",
+                        help="extra memory setting for every non-none run (e.g. global_capacity=8)")
+    parser.add_argument("--out", type=Path, required=True, help="output directory")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    return parser
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    from .sweep import SweepConfig, run
+
+    policies = tuple(dict.fromkeys(p.strip() for p in args.policies.split(",") if p.strip()))
+    if not policies:
+        raise UsageError("--policies: give at least one policy")
+    if not 1 <= args.seeds <= 100_000:
+        raise UsageError(f"--seeds must be in [1, 100000], got {args.seeds}")
+    if not 0 <= args.seed_base <= 2**31:
+        raise UsageError(f"--seed-base must be in [0, 2^31], got {args.seed_base}")
+    if not 2 <= args.turns <= 10_000:
+        raise UsageError(f"--turns must be in [2, 10000], got {args.turns}")
+    if not 1 <= args.jobs <= 256:
+        raise UsageError(f"--jobs must be in [1, 256], got {args.jobs}")
+    config = SweepConfig(
+        policies=policies,
+        decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-3, 1e6),
+        capacities=number_list("--capacities", args.capacities, int, 1, 10_000),
+        seeds=tuple(range(args.seed_base, args.seed_base + args.seeds)),
+        turns=args.turns,
+        memory=memory_settings(args.memory),
+    )
+    rows = run(config, args.out, args.jobs, progress=not args.no_progress, plots=not args.no_plots)
+    print(f"fsreg-sweep: {len(rows)} runs written to {args.out / 'runs.csv'}")
+    for line in headline(rows):
+        print(line)
+    return 0
+
+
+def headline(rows: list) -> list[str]:
+    """Return one line per policy: mean alignment, gain over none and divergence."""
+    lines = []
+    for policy in dict.fromkeys(r["policy"] for r in rows):
+        mine = [r for r in rows if r["policy"] == policy]
+        mean = {m: sum(r[m] for r in mine) / len(mine) for m in ("alignment", "alignment_gain", "divergence",
+                                                               "mean_length", "overspecification")}
+        lines.append(
+            f"  {policy:14} alignment {mean['alignment']:.3f}  gain {mean['alignment_gain']:+.3f}  "
+            f"length {mean['mean_length']:.2f}  overspec {mean['overspecification']:.2f}  "
+            f"divergence {mean['divergence']:.3f}  ({len(mine)} runs)"
+        )
+    return lines
+
+
+def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of ``fsreg-sweep``."""
+    return _run(sweep_command, sweep_parser(), argv)
+
+
+# ------------------------------------------------------------------ fsreg-plot
+def plot_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file.")
+    parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace)")
+    parser.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
+    parser.add_argument("--result", type=Path, help="fsreg-sim --json output, for the turns' times and speakers")
+    parser.add_argument("--title", default="", help="plot title")
+    return parser
+
+
+def read_trace(path: Path) -> list[dict]:
+    """Read a JSON-lines event trace; a bad line is named by number."""
+    events = []
+    with path.open(encoding="utf-8") as lines:
+        for number, line in enumerate(lines, 1):
+            if not line.strip():
+                continue
+            try:
+                event = json.loads(line)
+            except json.JSONDecodeError as err:
+                raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
+            if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
+                raise UsageError(f"{path}:{number}: not a WM event (an object with op encode|forget)")
+            if not isinstance(event.get("time", 0), (int, float)) or isinstance(event.get("time"), bool):
+                raise UsageError(f"{path}:{number}: 'time' must be a number")
+            events.append(event)
+    return events
+
+
+def plot_command(args: argparse.Namespace) -> int:
+    from .plot import wm_timeline
+
+    events = read_trace(args.trace)
+    result = None
+    if args.result:
+        try:
+            result = json.loads(args.result.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as err:
+            raise UsageError(f"{args.result}: not JSON ({err.msg})") from None
+        if not isinstance(result, dict) or not isinstance(result.get("turns"), list):
+            raise UsageError(f"{args.result}: not an fsreg-sim --json result (no 'turns' list)")
+    segments = wm_timeline(events, args.output, result, args.title)
+    print(f"fsreg-plot: {len(segments)} WM stays from {len(events)} events drawn to {args.output}")
+    return 0
+
+
+def plot_main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of ``fsreg-plot``."""
+    return _run(plot_command, plot_parser(), argv)
