@@ -255,8 +255,11 @@ async def greedy(
     attributes: Optional[Mapping[str, str]] = None,
     **_ignored,
 ) -> Expression:
-    """Greedy: repeatedly the property ruling out most remaining distractors (ties to
-    the more preferred, skipping attributes already used), until none rules out any."""
+    """Greedy: repeatedly select the property ruling out most remaining distractors.
+
+    Ties go to the more preferred; attributes already used are skipped; it stops
+    when no property rules out any remaining distractor.
+    """
     distractors, wm_before, props, masks = await _baseline_view(target, port, context)
     remaining = (1 << len(distractors)) - 1
     expression = Expression(target, port.domain, "greedy", wm_before=list(wm_before))

@@ -21,7 +21,9 @@ class UsageError(ValueError):
     """A command-line value is unusable; the message names the option."""
 
 
-def _run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Optional[Sequence[str]]) -> int:
+def _run(
+    main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Optional[Sequence[str]]
+) -> int:
     args = parser.parse_args(argv)
     try:
         return main(args)
@@ -38,7 +40,9 @@ def parse_orders(entries: Sequence[str]) -> dict[str, list[str]]:
         domain, sep, rest = entry.partition("=")
         attributes = [a.strip() for a in rest.split(",") if a.strip()]
         if not sep or domain not in DOMAINS or not attributes:
-            raise UsageError(f"--order '{entry}': expected DOMAIN=ATTR,ATTR,... with DOMAIN one of {', '.join(DOMAINS)}")
+            raise UsageError(
+                f"--order '{entry}': expected DOMAIN=ATTR,ATTR,... with DOMAIN one of {', '.join(DOMAINS)}"
+            )
         if len(set(attributes)) != len(attributes):
             raise UsageError(f"--order '{entry}' names an attribute twice")
         orders[domain] = attributes
@@ -67,7 +71,8 @@ def eval_tuna(args: argparse.Namespace) -> int:
     algorithms = [a.strip() for a in args.algorithms.split(",") if a.strip()]
     unknown = [a for a in algorithms if a not in ALGORITHMS]
     if unknown or not algorithms:
-        raise UsageError(f"--algorithms: unknown {', '.join(unknown) or '(none given)'} (known: {', '.join(ALGORITHMS)})")
+        given = ", ".join(unknown) or "(none given)"
+        raise UsageError(f"--algorithms: unknown {given} (known: {', '.join(ALGORITHMS)})")
     if args.folds < 2:
         raise UsageError(f"--folds must be at least 2, got {args.folds}")
     orders = parse_orders(args.order)
@@ -78,7 +83,8 @@ def eval_tuna(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"results": rows}, indent=2))
         return 0
-    print(f"{'domain':10} {'cond':5} {'algorithm':13} {'n':>4} {'dice':>6} {'masi':>6} {'acc':>6} {'min':>6} {'uniq':>6}  order")
+    header = ("domain", "cond", "algorithm", "n", "dice", "masi", "acc", "min", "uniq")
+    print("{:10} {:5} {:13} {:>4} {:>6} {:>6} {:>6} {:>6} {:>6}  order".format(*header))
     for r in rows:
         print(
             f"{r['domain']:10} {r['condition']:5} {r['algorithm']:13} {r['n']:>4} {r['dice']:6.3f} {r['masi']:6.3f} "
@@ -95,8 +101,10 @@ def write_per_trial(path: Path, results: list) -> None:
                          "minimal", "unique"])
         for result in results:
             for s in result.scores:
-                writer.writerow([s.trial, s.domain, s.condition, s.algorithm, " ".join(s.order), " ".join(s.description),
-                                 " ".join(s.gold), f"{s.dice:.4f}", f"{s.masi:.4f}", int(s.minimal), int(s.unique)])
+                writer.writerow([
+                    s.trial, s.domain, s.condition, s.algorithm, " ".join(s.order), " ".join(s.description),
+                    " ".join(s.gold), f"{s.dice:.4f}", f"{s.masi:.4f}", int(s.minimal), int(s.unique),
+                ])
 
 
 def eval_main(argv: Optional[Sequence[str]] = None) -> int:
@@ -189,8 +197,8 @@ def headline(rows: list) -> list[str]:
     lines = []
     for policy in dict.fromkeys(r["policy"] for r in rows):
         mine = [r for r in rows if r["policy"] == policy]
-        mean = {m: sum(r[m] for r in mine) / len(mine) for m in ("alignment", "alignment_gain", "divergence",
-                                                               "mean_length", "overspecification")}
+        metrics = ("alignment", "alignment_gain", "divergence", "mean_length", "overspecification")
+        mean = {m: sum(r[m] for r in mine) / len(mine) for m in metrics}
         lines.append(
             f"  {policy:14} alignment {mean['alignment']:.3f}  gain {mean['alignment_gain']:+.3f}  "
             f"length {mean['mean_length']:.2f}  overspec {mean['overspecification']:.2f}  "
@@ -206,7 +214,9 @@ def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
 
 # ------------------------------------------------------------------ fsreg-plot
 def plot_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file.")
+    parser = argparse.ArgumentParser(
+        prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file."
+    )
     parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
     parser.add_argument("--result", type=Path, help="fsreg-sim --json output, for the turns' times and speakers")

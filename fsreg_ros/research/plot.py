@@ -183,7 +183,8 @@ def wm_timeline(
     ax.set_xlim(0, end_of_plot)
     ax.set_xlabel("time (s); vertical lines: human turns (blue), robot turns (orange)")
     handles = [plt.Line2D([], [], marker="o", linestyle="", color=c, label=cause) for cause, c in CAUSE_COLOURS.items()]
-    ax.legend(handles=handles, fontsize=7, loc="upper right", title="cause (> encode, x forget)", title_fontsize=7)
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              title="cause (> encode, x forget)", title_fontsize=7)
     ax.set_title(title or "Working memory over time")
     fig.tight_layout()
     fig.savefig(out, dpi=100)

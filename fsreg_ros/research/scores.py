@@ -33,5 +33,5 @@ def masi(a: Collection[str], b: Collection[str]) -> float:
 
 
 def mean(values: Collection[float]) -> float:
-    """Return the arithmetic mean (0.0 for no values)."""
+    """Return the average of the values (0.0 for none)."""
     return sum(values) / len(values) if values else 0.0

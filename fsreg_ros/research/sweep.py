@@ -249,4 +249,3 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
         files += sweep_plots(rows, curves, out)
     (out / "manifest.json").write_text(json.dumps(manifest(config, hashes, jobs, files), indent=2) + "\n")
     return rows
-

@@ -252,8 +252,8 @@ def evaluate(
                     continue
                 if len(group) < 2:  # nothing to hold out: learn from the trial itself
                     order = learn_order(group)
-                    results.append(Result(domain, condition, algorithm, order, [score_trial(group[0], kbs[group[0].id],
-                                                                                              algorithm, order)], [order]))
+                    only = score_trial(group[0], kbs[group[0].id], algorithm, order)
+                    results.append(Result(domain, condition, algorithm, order, [only], [order]))
                     continue
                 scores, fold_orders = [], []
                 for train, test in folds(group, min(k, len(group))):
