@@ -40,8 +40,11 @@ def test_bands_and_divergence_curve():
     assert mean_band([1, 1, 1]) == (1.0, 0.0)
     mean, band = mean_band([0, 1, 0, 1])
     assert mean == 0.5 and band == pytest.approx(1.96 * (1 / 3) ** 0.5 / 2)
-    curves = {("decay", 5, 1, 0): [0, 1], ("decay", 5, 1, 1): [0, 0], ("none", None, None, 0): [0, 0]}
-    assert [(j, m) for j, m, _ in divergence_curve(curves, "decay")] == [(1, 0.0), (2, 0.5)]
+    curves = {("decay", 5, 1, 0): [0, 1, 1], ("decay", 5, 1, 1): [0, 0, 1], ("none", None, None, 0): [0, 0, 0],
+              ("decay", 5, 2, 0): [0, 1, 1]}  # a copy of seed 0's game: counted once
+    assert [(j, m) for j, m, _ in divergence_curve(curves, "decay")] == [(1, 0.0), (2, 0.5), (3, 1.0)]
+    assert divergence_curve(curves, "decay")[1][2] == pytest.approx(1.96 * (0.5 / 2) ** 0.5)
+    assert [(j, m) for j, m, _ in divergence_curve(curves, "decay", window=2)] == [(2, 0.25), (3, 1.0)]
 
 
 def test_plot_command_writes_png(tmp_path, capsys):

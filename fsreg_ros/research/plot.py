@@ -2,7 +2,8 @@
 
 * :func:`sweep_plots` - each sweep metric against decay period and against
   capacity per policy, and the divergence-from-``none`` curve per policy with a
-  95 % band (mean +- 1.96 standard errors over games and settings).
+  95 % band (mean +- 1.96 standard errors over games; a game's settings are
+  averaged first, so copies of one game never narrow a band).
 * :func:`wm_timeline` - a WM timeline from an event trace: one row per entity, one
   lane per property, a bar while the property is in WM, markers coloured by the
   cause of encoding and of forgetting, the dialogue turns on the time axis.
@@ -50,14 +51,30 @@ def mean_band(values: Sequence[float]) -> tuple[float, float]:
     return mean, 1.96 * math.sqrt(var / n)
 
 
-def divergence_curve(curves: Mapping[tuple, Sequence[int]], policy: str) -> list[tuple[int, float, float]]:
-    """Return (robot turn, mean, band) of the divergence indicator for ``policy`` over games and settings."""
-    by_turn: dict[int, list[int]] = defaultdict(list)
-    for key, flags in curves.items():
-        if key[0] == policy:
-            for j, flag in enumerate(flags, 1):
-                by_turn[j].append(flag)
-    return [(j, *mean_band(by_turn[j])) for j in sorted(by_turn)]
+def per_seed_means(pairs: Sequence[tuple[Any, float]]) -> list[float]:
+    """Return one mean per seed from (seed, value) pairs, so a game's settings count once in a band."""
+    by_seed: dict[Any, list[float]] = defaultdict(list)
+    for seed, value in pairs:
+        by_seed[seed].append(value)
+    return [sum(v) / len(v) for _, v in sorted(by_seed.items())]
+
+
+def divergence_curve(
+    curves: Mapping[tuple, Sequence[int]], policy: str, window: int = 1
+) -> list[tuple[int, float, float]]:
+    """Return (robot turn, mean, band) of the divergence indicator for ``policy``.
+
+    Robot turns are grouped in blocks of ``window`` (the point is the block's last
+    turn); each game (seed) contributes its mean over its settings and the block,
+    and the band is 95 % over games.
+    """
+    by_block: dict[int, list[tuple[Any, float]]] = defaultdict(list)
+    for (name, _, _, seed), flags in curves.items():
+        if name == policy:
+            for j, flag in enumerate(flags):
+                by_block[j // window].append((seed, flag))
+    last = {b: min((b + 1) * window, max(len(f) for k, f in curves.items() if k[0] == policy)) for b in by_block}
+    return [(last[b], *mean_band(per_seed_means(by_block[b]))) for b in sorted(by_block)]
 
 
 def sweep_plots(rows: list[dict], curves: Mapping[tuple, Sequence[int]], out: Path) -> list[str]:
@@ -73,11 +90,12 @@ def sweep_plots(rows: list[dict], curves: Mapping[tuple, Sequence[int]], out: Pa
             for policy in policies:
                 mine = [r for r in rows if r["policy"] == policy]
                 if policy == "none":
-                    mean, band = mean_band([r[metric] for r in mine])
+                    mean, band = mean_band([r[metric] for r in mine])  # one row per seed
                     ax.axhline(mean, color="gray", linestyle="--", label="none")
                     continue
                 xs = sorted({r[parameter] for r in mine})
-                stats = [mean_band([r[metric] for r in mine if r[parameter] == x]) for x in xs]
+                stats = [mean_band(per_seed_means([(r["seed"], r[metric]) for r in mine if r[parameter] == x]))
+                         for x in xs]
                 ax.errorbar(xs, [m for m, _ in stats], yerr=[b for _, b in stats], marker="o", capsize=3,
                             label=policy)
             ax.set_xlabel(label)
@@ -94,11 +112,11 @@ def sweep_plots(rows: list[dict], curves: Mapping[tuple, Sequence[int]], out: Pa
     for policy in policies:
         if policy == "none":
             continue
-        curve = divergence_curve(curves, policy)
+        curve = divergence_curve(curves, policy, window=5)
         xs = [j for j, _, _ in curve]
         ax.plot(xs, [m for _, m, _ in curve], label=policy)
         ax.fill_between(xs, [m - b for _, m, b in curve], [m + b for _, m, b in curve], alpha=0.25)
-    ax.set_xlabel("robot turn")
+    ax.set_xlabel("robot turn (blocks of 5)")
     ax.set_ylabel("share of descriptions differing from none")
     ax.set_ylim(0, 1)
     ax.grid(alpha=0.3)
