@@ -107,3 +107,20 @@ def test_malformed_trial_is_named():
         parse_trial("<TRIAL", "bad.xml")
     with pytest.raises(TunaError, match="no ENTITY has TYPE"):
         parse_trial('<TRIAL DOMAIN="people" CONDITION="-LOC"><DOMAIN/></TRIAL>', "x.xml")
+
+
+def test_full_corpus_reproduces_the_reference_figures(shared_data):
+    trials = load_trials(shared_data / "tuna")
+    assert len(trials) == 780
+    orders = {
+        "furniture": ["type", "colour", "orientation", "size"],
+        "people": ["type", "hasBeard", "hasGlasses", "hairColour", "hasHair", "age", "orientation", "hasSuit",
+                   "hasTie", "hasShirt"],
+    }
+    rows = {(r["domain"], r["condition"], r["algorithm"]): r for r in (x.to_json() for x in evaluate(trials, orders))}
+    ia = rows["furniture", "-LOC", "dist-pia"]
+    assert (ia["n"], round(ia["dice"], 3), round(ia["masi"], 3), round(ia["accuracy"], 3)) == (210, 0.781, 0.579, 0.429)
+    assert round(rows["furniture", "-LOC", "full-brevity"]["dice"], 3) == 0.705
+    assert round(rows["furniture", "-LOC", "greedy"]["dice"], 3) == 0.705
+    people = rows["people", "-LOC", "dist-pia"]
+    assert (people["n"], round(people["dice"], 3)) == (180, 0.691)
