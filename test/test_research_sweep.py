@@ -77,6 +77,8 @@ def test_same_arguments_same_runs_csv_whatever_jobs(tmp_path):
         (["--policies", "forget-all"], "forget-all"),
         (["--turns", "1"], "--turns must be in [2, 10000]"),
         (["--jobs", "0"], "--jobs must be in [1, 256]"),
+        (["--human-memory", "policy=bogus"], "bogus"),
+        (["--human-memory", "decay"], "--human-memory 'decay': expected KEY=VALUE"),
     ],
 )
 def test_bad_sweep_input_is_one_line(tmp_path, capsys, extra, message):
@@ -84,3 +86,20 @@ def test_bad_sweep_input_is_one_line(tmp_path, capsys, extra, message):
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not (tmp_path / "o" / "runs.csv").exists()
+
+
+def test_human_with_its_own_wm_hears_the_robot(tmp_path):
+    game = make_game(5, 30)
+    plain = play(game, {"policy": "displacement", "capacity": 2})
+    human_wm = {"policy": "decay", "decay_period": 30}
+    played = play(game, {"policy": "displacement", "capacity": 2}, human_memory=human_wm)
+    humans = [t for t in played.result["turns"] if t["speaker"] == "human"]
+    assert all(t["status"] == "resolved" and t["resolved"] == t["target"] for t in humans)
+    assert [t["description"] for t in humans] != [t["description"] for t in plain.result["turns"]
+                                                  if t["speaker"] == "human"]
+    assert played.result == play(game, {"policy": "displacement", "capacity": 2}, human_memory=human_wm).result
+    out = tmp_path / "h"
+    assert cli.sweep_main([*SMALL, "--out", str(out), "--no-plots", "--human-memory", "policy=decay",
+                           "--human-memory", "decay_period=10"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["parameters"]["human_memory"] == {
+        "policy": "decay", "decay_period": 10}

@@ -130,13 +130,13 @@ def number_list(option: str, text: str, kind: type, low: float, high: float) -> 
     return tuple(dict.fromkeys(values))
 
 
-def memory_settings(entries: Sequence[str]) -> dict:
+def memory_settings(entries: Sequence[str], option: str = "--memory") -> dict:
     """``["global_capacity=4"]`` -> ``{"global_capacity": 4}`` (numbers parsed, else text)."""
     out: dict = {}
     for entry in entries:
         key, sep, value = entry.partition("=")
         if not sep or not key.strip():
-            raise UsageError(f"--memory '{entry}': expected KEY=VALUE")
+            raise UsageError(f"{option} '{entry}': expected KEY=VALUE")
         try:
             out[key.strip()] = json.loads(value)
         except json.JSONDecodeError:
@@ -156,6 +156,8 @@ def sweep_parser() -> argparse.ArgumentParser:
     parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
     parser.add_argument("--memory", action="append", default=[], metavar="KEY=VALUE",
                         help="extra memory setting for every non-none run (e.g. global_capacity=8)")
+    parser.add_argument("--human-memory", action="append", default=[], metavar="KEY=VALUE",
+                        help="give the human a WM of its own (e.g. policy=decay, decay_period=10)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -184,6 +186,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         seeds=tuple(range(args.seed_base, args.seed_base + args.seeds)),
         turns=args.turns,
         memory=memory_settings(args.memory),
+        human_memory=memory_settings(args.human_memory, "--human-memory") if args.human_memory else None,
     )
     rows = run(config, args.out, args.jobs, progress=not args.no_progress, plots=not args.no_plots)
     print(f"fsreg-sweep: {len(rows)} runs written to {args.out / 'runs.csv'}")

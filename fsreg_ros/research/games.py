@@ -9,6 +9,7 @@ face.  Seconds between turns are drawn per game.  :func:`play` runs the game as 
 :class:`~fsreg_ros.core.scenario.Scenario` through
 :class:`~fsreg_ros.core.simulation.Simulation`, so the robot runs the real RR and
 REG (SD-PIA, or DIST-PIA under policy ``none``) under any forgetting policy.
+Optionally the human speaks from a WM of its own (:class:`HumanSpeaker`).
 """
 
 from __future__ import annotations
@@ -16,16 +17,18 @@ from __future__ import annotations
 import hashlib
 import json
 import random
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import product
-from typing import Any, Mapping, Optional
+from typing import Any, Mapping, Optional, Sequence
 
 from ..core.alignment import AlignmentSummary, summarise
+from ..core.consultant import Consultant, LocalPort, run_sync
 from ..core.describe import describe
-from ..core.consultant import Consultant
+from ..core.forgetting import WMManager
 from ..core.realisation import Lexicon
+from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
-from ..core.simulation import Options, Simulation
+from ..core.simulation import Options, Simulation, algorithm_for
 
 DOMAIN = "faces"
 #: The board's attributes and their values (property names as in the shipped lexicon).
@@ -102,10 +105,62 @@ class Played:
     alignment: AlignmentSummary
 
 
-def play(game: Game, memory: Mapping[str, Any], lexicon: Optional[Lexicon] = None) -> Played:
-    """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``)."""
-    simulation = Simulation(scenario_of(game), Options(memory=dict(memory)), lexicon)
-    result = simulation.run()
+class HumanSpeaker:
+    """The human with a working memory of its own (paper Algorithm 4 on the human's side).
+
+    It describes with SD-PIA over its own WM (DIST-PIA under ``none``) in its own
+    preference order, and resolves the robot's descriptions (rules 1 and 2), so
+    what the robot says can shape what the human says next.
+    """
+
+    def __init__(self, game: Game, memory: Mapping[str, Any]) -> None:
+        scenario = scenario_of(game)
+        self.policy = scenario.policy_for(DOMAIN, dict(memory))
+        entities = {face: {p: 1.0 for p in props} for face, props in game.board.items()}
+        self.consultant = Consultant(DOMAIN, entities, game.human_order)
+        self.manager = WMManager()
+        self.manager.manage(self.consultant.wm, self.policy, now=0.0)
+
+    def say(self, target: str, time: float, turn: int) -> list[str]:
+        """Return the human's description of ``target`` at ``time`` (encoding it in the human's WM)."""
+        self.manager.advance(time)
+        algorithm = algorithm_for(self.policy, None)
+        return describe(target, self.consultant, algorithm, attributes=PROPERTY_ATTRIBUTE, writes=True, time=time,
+                        turn=turn).description
+
+    def hear(self, description: Sequence[str], time: float, turn: int) -> None:
+        """Resolve the robot's description in the human's WM."""
+        if description:
+            self.manager.advance(time)
+            run_sync(resolve(description, {DOMAIN: LocalPort(self.consultant)}, domain=DOMAIN, time=time, turn=turn))
+
+
+def play(
+    game: Game,
+    memory: Mapping[str, Any],
+    lexicon: Optional[Lexicon] = None,
+    human_memory: Optional[Mapping[str, Any]] = None,
+) -> Played:
+    """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``).
+
+    With ``human_memory`` the human speaks from a WM of its own (:class:`HumanSpeaker`),
+    turn by turn, instead of the game's precomputed no-WM descriptions.
+    """
+    scenario = scenario_of(game)
+    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon)
+    if human_memory is None:
+        result = simulation.run()
+    else:
+        human = HumanSpeaker(game, human_memory)
+        turns = []
+        for turn in scenario.dialogue:
+            if turn.speaker == "human":
+                turn = replace(turn, description=tuple(human.say(turn.target, turn.time, turn.index)))
+            record = simulation.play(turn)
+            if turn.speaker == "robot":
+                human.hear(record["description"] or (), turn.time, turn.index)
+            turns.append(record)
+        result = {"scenario": scenario.name, "memory": simulation.manager.effective(), "turns": turns}
     trace = simulation.trace()
     return Played(result, trace, summarise(result, trace))
 

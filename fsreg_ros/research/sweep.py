@@ -59,6 +59,7 @@ class SweepConfig:
     seeds: tuple
     turns: int
     memory: dict = field(default_factory=dict)  # extra memory settings for every non-none run
+    human_memory: Optional[dict] = None  # the human's own WM settings (None: a no-WM human)
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,8 @@ def check(config: SweepConfig) -> None:
     scenario = scenario_of(make_game(0, 2))
     for setting in settings(config):
         scenario.policy_for(DOMAIN, setting.memory(config.memory))
+    if config.human_memory is not None:
+        scenario.policy_for(DOMAIN, config.human_memory)
 
 
 def _descriptions(played) -> list:
@@ -112,11 +115,15 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
     lexicon = Lexicon.load()
     game = make_game(seed, config.turns)
     shortest = shortest_lengths(game)
-    baseline = play(game, {"policy": "none"}, lexicon)
+    baseline = play(game, {"policy": "none"}, lexicon, config.human_memory)
     base_descriptions = _descriptions(baseline)
     rows, curves = [], {}
     for setting in settings(config):
-        played = baseline if setting.policy == "none" else play(game, setting.memory(config.memory), lexicon)
+        played = (
+            baseline
+            if setting.policy == "none"
+            else play(game, setting.memory(config.memory), lexicon, config.human_memory)
+        )
         robot = [t for t in played.result["turns"] if t["speaker"] == "robot"]
         summary = played.alignment
         flags = [int(a != b) for a, b in zip(_descriptions(played), base_descriptions)]
