@@ -94,6 +94,7 @@ def test_cross_validation_reports_fold_orders(capsys):
         (["tuna", str(MINI), "--order", "kitchen=type"], "--order 'kitchen=type'"),
         (["tuna", str(MINI), "--algorithms", "sd-pia"], "--algorithms: unknown sd-pia"),
         (["tuna", str(MINI), "--folds", "1"], "--folds must be at least 2"),
+        (["tuna", str(MINI), "--order", "furniture=type,colur"], "no furniture trial has attribute colur"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(argv, message, capsys):

@@ -76,7 +76,13 @@ def eval_tuna(args: argparse.Namespace) -> int:
     if args.folds < 2:
         raise UsageError(f"--folds must be at least 2, got {args.folds}")
     orders = parse_orders(args.order)
-    results = evaluate(load_trials(args.path), orders, algorithms, args.folds)
+    trials = load_trials(args.path)
+    for domain, order in orders.items():
+        known = {a for t in trials if t.domain == domain for facts in t.entities.values() for a in facts}
+        unknown = [a for a in order if a not in known]
+        if unknown:
+            raise UsageError(f"--order {domain}: no {domain} trial has attribute {', '.join(unknown)}")
+    results = evaluate(trials, orders, algorithms, args.folds)
     if args.per_trial:
         write_per_trial(args.per_trial, results)
     rows = [r.to_json() for r in results]
