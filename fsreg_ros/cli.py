@@ -21,7 +21,7 @@ import yaml
 from .core.consultant import KnowledgeError
 from .core.forgetting import PolicyError, check_parameter, parse_rules
 from .core.generation import ALGORITHMS, WM_ORDERS, GenerationError
-from .core.realisation import Lexicon, LexiconError
+from .core.lexicon import Lexicon, LexiconError
 from .core.resolution import ResolutionError
 from .core.scenario import ScenarioError, load_scenario
 from .core.simulation import Options, Simulation, dumps

@@ -156,7 +156,7 @@ def test_table1_consultants(table1_path):
 
 
 def test_table1_text_loads_with_real_lexicon(table1_path, table1_text_path):
-    pytest.importorskip("fsreg_ros.core.realisation")
+    pytest.importorskip("fsreg_ros.core.lexicon")
     text = load_scenario(table1_text_path)  # lexicon=None: Lexicon.load()
     plain = load_scenario(table1_path)
     assert text.name == "guess-who-table1-text"
@@ -167,7 +167,7 @@ def test_table1_text_loads_with_real_lexicon(table1_path, table1_text_path):
 
 
 def test_real_lexicon_rejects_text_without_properties():
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
     lexicon = realisation.Lexicon.load()
     text = snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: 'the thing over there'}\n")
     with pytest.raises(ScenarioError) as info:
@@ -715,7 +715,7 @@ def test_text_turns_use_the_given_lexicon():
 
 
 def test_lexicon_is_not_loaded_without_text_turns(monkeypatch):
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
 
     def refuse(*args, **kwargs):
         raise AssertionError("Lexicon.load called")
@@ -725,7 +725,7 @@ def test_lexicon_is_not_loaded_without_text_turns(monkeypatch):
 
 
 def test_lexicon_that_cannot_load_is_a_scenario_error(monkeypatch):
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
 
     def missing(cls, path=None):
         raise FileNotFoundError("config file 'lexicon.yaml' not found")

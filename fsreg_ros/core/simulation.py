@@ -22,7 +22,7 @@ from .consultant import LocalPort, run_sync
 from .forgetting import ForgettingPolicy, WMManager
 from .generation import generate
 from .memory import WMEvent
-from .realisation import Lexicon
+from .lexicon import Lexicon
 from .resolution import resolve
 from .scenario import Scenario, Turn
 

@@ -32,7 +32,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ..carrier import EVENTS_QOS, CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
-from ..core.realisation import Lexicon, LexiconError
+from ..core.lexicon import Lexicon, LexiconError
 from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
 from ..remote import consultant_service
