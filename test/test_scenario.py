@@ -77,10 +77,27 @@ def snippet(base: str, extra: str = "") -> str:
     return base + textwrap.dedent(extra)
 
 
+def settle(scenario: Scenario) -> Scenario:
+    """Compute every domain's effective policy (where a missing parameter is reported)."""
+    for domain in scenario.domains:
+        scenario.policy_for(domain)
+    return scenario
+
+
 def error_of(text: str, lexicon: object = None) -> ScenarioError:
+    """The error of a scenario text: while loading, or when its effective policies are computed."""
     with pytest.raises(ScenarioError) as info:
-        parse_scenario(text, source="t.yaml", lexicon=lexicon if lexicon is not None else FakeLexicon())
+        settle(parse_scenario(text, source="t.yaml", lexicon=lexicon if lexicon is not None else FakeLexicon()))
     return info.value
+
+
+def test_missing_parameter_is_not_a_load_error_so_the_command_line_can_give_it():
+    scenario = parse_scenario(FACES + "memory: {policy: decay+global-capacity, decay_period: 5}\n", source="t.yaml")
+    policy = scenario.policy_for("faces", {"global_capacity": 3})
+    assert (policy.name, policy.decay_period, policy.global_capacity) == ("decay+global-capacity", 5.0, 3)
+    assert scenario.policy_for("faces", {"policy": "decay"}).name == "decay"
+    with pytest.raises(ScenarioError, match=r"t\.yaml:\d+: memory: .*needs 'global_capacity' \(add --global-capacity N"):
+        scenario.policy_for("faces")
 
 
 # ------------------------------------------------------------ ScenarioError
@@ -391,7 +408,7 @@ def _expectations(path: Path) -> dict[str, str]:
 def test_bad_fixture_files(path):
     expect = _expectations(path)
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
+        settle(load_scenario(path))
     err = info.value
     assert err.source == str(path)
     assert err.path == expect["path"]

@@ -90,13 +90,20 @@ def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
 class Simulation:
     """The core's whole pipeline for one scenario, on a simulated clock."""
 
-    def __init__(self, scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        options: Optional[Options] = None,
+        lexicon: Optional[Lexicon] = None,
+        trace: bool = False,
+    ):
+        """Wire the core for ``scenario``; with ``trace``, keep every WM event for :meth:`trace`."""
         self.scenario = scenario
         self.options = options or Options()
         self.lexicon = lexicon or Lexicon.load()
         self.policies = effective_policies(scenario, self.options)
-        self.events: list[WMEvent] = []
-        self.consultants = scenario.consultants(sink=self.events.append)
+        self.events: Optional[list[WMEvent]] = [] if trace else None
+        self.consultants = scenario.consultants(sink=self.events.append if self.events is not None else None)
         self.ports = {d: LocalPort(c) for d, c in self.consultants.items()}
         self.manager = WMManager()
         for domain, consultant in self.consultants.items():
@@ -136,7 +143,9 @@ class Simulation:
         return robot_record(turn, expression.to_json())
 
     def trace(self) -> list[dict]:
-        """Every encode/forget event so far, in the order they happened."""
+        """Return every encode/forget event so far, in the order they happened (needs ``trace=True``)."""
+        if self.events is None:
+            raise ValueError("this simulation keeps no trace: build it with trace=True")
         for consultant in self.consultants.values():
             consultant.wm.flush()
         return trace_order(self.scenario, [e.to_json() for e in self.events])

@@ -212,7 +212,7 @@ def write_outputs(player: DialoguePlayer, result: dict) -> None:
         with open(output, "w", encoding="utf-8") as out:
             out.write(dumps(result))
     else:
-        from ..cli import render_table
+        from ..report import render_table
 
         print(render_table(result), end="", flush=True)
     trace = player.get_parameter("trace").value

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
 from ..consultant import DEFAULT_THRESHOLD, Consultant
-from ..forgetting import RULE_PARAMETER, ForgettingPolicy, PolicyError, check_setting, merge_settings
+from ..forgetting import RULE_PARAMETER, ForgettingPolicy, PolicyError, check_setting, merge_settings, parse_rules
 from ..yaml_source import SourceError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -93,12 +93,19 @@ class Scenario:
             return merge_settings(*(layer for _, layer in layers))
         except PolicyError as err:
             # Every single value is valid, so a parameter is missing: blame the
-            # most specific layer that chose the policy.
-            path = "memory"
+            # most specific layer that chose the policy, and say how to give it.
+            path, policy = "memory", "none"
             for candidate, layer in layers:
                 if layer and layer.get("policy") is not None:
-                    path = candidate
-            raise ScenarioError(self.source, path, f"domain '{domain}': {err}", self.lines.get(path)) from None
+                    path, policy = candidate, str(layer["policy"])
+            given = {k for _, layer in layers for k, v in (layer or {}).items() if v is not None}
+            missing = [RULE_PARAMETER[r] for r in parse_rules(policy) if RULE_PARAMETER[r] not in given]
+            message = f"domain '{domain}': {err}"
+            if missing:
+                message = f"domain '{domain}': policy '{policy}' needs " + " and ".join(
+                    f"'{name}' (add --{name.replace('_', '-')} N, or {name}: in a memory block)" for name in missing
+                )
+            raise ScenarioError(self.source, path, message, self.lines.get(path)) from None
 
     def domain_of(self, entity: str) -> str:
         """Return the domain ``entity`` belongs to; ScenarioError if no domain has it."""
