@@ -106,7 +106,7 @@ def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceEr
     except OSError as err:
         raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
     if len(data) > MAX_FILE_BYTES:
-        raise error(source, "", f"too large: more than {MAX_FILE_BYTES // (1024 * 1024)} MiB")
+        raise error(source, "", f"too large: over {MAX_FILE_BYTES:,} bytes")
     nul = data.find(b"\0")
     if nul >= 0:
         raise error(source, "", f"not a text file: NUL byte at offset {nul}")
