@@ -32,7 +32,6 @@ EXIT_OK, EXIT_MISMATCH, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_FAILED = 1
 
 
-
 class UsageError(ValueError):
     """A combination of command-line options that does not make sense."""
 
@@ -193,7 +192,8 @@ def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, lis
 
 def sim_main(argv: Optional[Sequence[str]] = None) -> int:
     """``fsreg-sim SCENARIO.yaml [options]``: play a scenario with the core alone."""
-    return run_cli("fsreg-sim", "Play a scenario's dialogue through the fsreg core on a simulated clock.", simulate_args, argv)
+    description = "Play a scenario's dialogue through the fsreg core on a simulated clock."
+    return run_cli("fsreg-sim", description, simulate_args, argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -44,7 +44,7 @@ def table1_text_path() -> Path:
 
 @pytest.fixture(scope="session")
 def tuna_dir() -> Path:
-    """The TUNA corpus (not shipped: its licence), from ``$FSREG_TUNA_DIR``; the test skips with a reason without it."""
+    """Return the TUNA corpus directory (not shipped: its licence), from ``$FSREG_TUNA_DIR``."""
     if not os.environ.get("FSREG_TUNA_DIR"):
         pytest.skip("TUNA corpus not given: set FSREG_TUNA_DIR to the directory holding furniture/ and people/")
     path = Path(os.environ["FSREG_TUNA_DIR"])
@@ -55,9 +55,7 @@ def tuna_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def paper_table1() -> dict:
-    """The paper's Table 1 robot descriptions per policy (config/paper_table1.yaml)."""
+    """Return the paper's Table 1 robot descriptions per policy (config/paper_table1.yaml)."""
     import yaml
 
     return yaml.safe_load((REPO / "config" / "paper_table1.yaml").read_text())["robot_descriptions"]
-
-

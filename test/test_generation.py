@@ -23,6 +23,7 @@ from fsreg_ros.core.generation import (
 )
 from fsreg_ros.core.resolution import RESOLVED, resolve
 
+
 def keys(events):
     return [(e.op, e.entity, e.property, e.cause, e.time, e.turn) for e in events]
 

@@ -166,11 +166,12 @@ def trace_order(scenario: Scenario, events: list[dict]) -> list[dict]:
     def key(i: int) -> tuple:
         event = events[i]
         decay = event.get("cause") == "decay"
-        place = (
-            (domain_rank.get(event.get("domain"), len(domain_rank)), entity_rank.get(event.get("entity"), len(entity_rank)))
-            if decay
-            else (0, 0)
-        )
+        place = (0, 0)
+        if decay:
+            place = (
+                domain_rank.get(event.get("domain"), len(domain_rank)),
+                entity_rank.get(event.get("entity"), len(entity_rank)),
+            )
         return (event.get("time") or 0.0, not decay, place, i)
 
     return [events[i] for i in sorted(range(len(events)), key=key)]
@@ -182,5 +183,5 @@ def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Opt
 
 
 def dumps(result: Mapping[str, Any]) -> str:
-    """The canonical JSON text of a result: byte-identical for equal results."""
+    """Return the canonical JSON text of a result: byte-identical for equal results."""
     return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"

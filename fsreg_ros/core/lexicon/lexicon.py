@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from typing import Any, Collection, Iterable, Mapping, Optional, Sequence
 
 from .source import EntryBlock, LexiconSource, builtin_path, check, parse_mapping, read_lexicon
-from .words import ParseResult, PhraseTable, tokenize, variants
+from .words import ParseResult, Phrase, PhraseTable, tokenize, variants
 
 #: Used when the lexicon has no ``function_words`` (SPEC section 5's list).
 DEFAULT_FUNCTION_WORDS = (
@@ -77,12 +77,12 @@ class Entry:
         )
 
     def post_modifier(self) -> str:
-        """The text after "with": article and words ("a lab coat", "glasses")."""
+        """Return the text after "with": article and words ("a lab coat", "glasses")."""
         words = self.words or self.noun or self.name.replace("-", " ")
         return f"{self.article} {words}" if self.article else words
 
     def own_phrases(self) -> list[Phrase]:
-        """The property's name, with ``-`` also read as a space."""
+        """Return the property's name as phrases, with ``-`` also read as a space."""
         return variants(self.name)
 
     def other_phrases(self) -> list[Phrase]:
@@ -91,7 +91,7 @@ class Entry:
         return [p for text in texts if text for p in variants(text)]
 
     def positive(self) -> Optional[str]:
-        """The property this one negates: ``negates``, else X for a name ``no-X``."""
+        """Return the property this one negates: ``negates``, else X for a name ``no-X``."""
         if self.negates:
             return self.negates
         if self.name.startswith("no-") and len(self.name) > 3:
@@ -189,20 +189,23 @@ class Lexicon:
         return tuple(self._entries) if domain is None else self.domain_properties(domain)
 
     def domain_properties(self, domain: str) -> tuple[str, ...]:
-        """The properties the lexicon lists for ``domain`` (empty if none)."""
+        """Return the properties the lexicon lists for ``domain`` (empty if none)."""
         entry = self._domains.get(domain)
         return entry.properties if entry else ()
 
     def entry(self, prop: str) -> Entry:
-        """The lexical entry of ``prop`` (a default one if the lexicon lacks it)."""
+        """Return the lexical entry of ``prop`` (a default one if the lexicon lacks it)."""
         return self._entries.get(prop) or Entry(prop)
 
     def __contains__(self, prop: object) -> bool:
         return prop in self._entries
 
     def noun_for(self, domain: str) -> str:
-        """The domain's default head noun: its ``noun``, else the built-in default
-        (faces -> person, objects -> object, locations -> place), else ``default_noun``."""
+        """Return the domain's default head noun.
+
+        That is its ``noun``, else the built-in default (faces -> person,
+        objects -> object, locations -> place), else ``default_noun``.
+        """
         entry = self._domains.get(domain)
         if entry is not None and entry.noun:
             return entry.noun
@@ -239,8 +242,9 @@ class Lexicon:
     # -- parsing (SPEC section 5) --------------------------------------------------
 
     def parse(self, text: str, properties: Collection[str]) -> ParseResult:
-        """Map ``text`` to properties of ``properties`` (longest phrase first, in order
-        of appearance, first occurrence wins) and report the words not known.
+        """Map ``text`` to properties of ``properties`` and report the words not known.
+
+        Longest phrase first, in order of appearance, first occurrence wins.
 
         An unknown hyphenated word is retried as its parts ("dark-haired" -> "dark",
         "haired").  A negator before a phrase of X means the negation of X in play;
@@ -271,20 +275,20 @@ class Lexicon:
                 positive = table.match(tokens, j)
                 if positive is not None:  # "without hat" with no negation of hat in play
                     unknown.append(word)
-                    unknown.extend(tokens[j : j + positive.length])
+                    unknown.extend(tokens[j: j + positive.length])
                     i = j + positive.length
                     continue
             if word in self.function_words:
                 i += 1
             elif "-" in word:
-                tokens[i : i + 1] = word.split("-")
+                tokens[i: i + 1] = word.split("-")
             else:
                 unknown.append(word)
                 i += 1
         return ParseResult(properties=list(found), unknown_words=unknown)
 
     def _table(self, properties: Collection[str]) -> PhraseTable:
-        """The compiled phrase table for ``properties`` (cached by frozenset)."""
+        """Return the compiled phrase table for ``properties`` (cached by frozenset)."""
         key = frozenset(properties)
         table = self._tables.get(key)
         if table is None:
@@ -307,13 +311,6 @@ class Lexicon:
                 pos = self.entry(positive)
                 negated += [(ph, e.name) for ph in (*pos.own_phrases(), *pos.other_phrases())]
         return PhraseTable(phrases, negated)
-
-
-def _join(items: Sequence[str]) -> str:
-    """Join as 'A', 'A and B', 'A, B and C' (no Oxford comma)."""
-    if len(items) <= 1:
-        return "".join(items)
-    return ", ".join(items[:-1]) + " and " + items[-1]
 
 
 def _join(items: Sequence[str]) -> str:

@@ -129,7 +129,8 @@ def parse_mapping(data: Any, source: str, root: Optional[yaml.Node] = None) -> L
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise LexiconError(source, "", f"must be a mapping, not {describe_value(data)}", node_line(root) if root else None)
+        line = node_line(root) if root is not None else None
+        raise LexiconError(source, "", f"must be a mapping, not {describe_value(data)}", line)
     model = validate(LexiconFile, data, source, root, LexiconError, _known_keys)
     return LexiconSource(model, source, root)
 
@@ -171,7 +172,8 @@ def check(lexicon: "Lexicon", where: LexiconSource) -> None:
         entry = lexicon.entry(name)
         for phrase in (*entry.own_phrases(), *entry.other_phrases()):
             if set(phrase) <= glue:
-                raise where.fail(("properties", name), f"phrase '{' '.join(phrase)}' uses only the realiser's own words")
+                said = " ".join(phrase)
+                raise where.fail(("properties", name), f"phrase '{said}' uses only the realiser's own words")
     for domain, block in (where.model.domains or {}).items():
         seen: set[str] = set()
         for i, prop in enumerate((block.properties or []) if block else []):
@@ -191,8 +193,10 @@ def _check_domain_phrases(lexicon: "Lexicon", domain: str, where: LexiconSource)
             other = owner.setdefault(phrase, prop)
             if other != prop:
                 raise where.fail(
-                    ("domains", domain, "properties"), f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'"
+                    ("domains", domain, "properties"),
+                    f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'",
                 )
     noun = tuple(tokenize(lexicon.noun_for(domain)))
     if noun in owner:
-        raise where.fail(("domains", domain, "noun"), f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'")
+        message = f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'"
+        raise where.fail(("domains", domain, "noun"), message)

@@ -140,7 +140,7 @@ class Checker:
         facts: Union[list[str], dict[str, float]],
         all_properties: set[str],
     ) -> dict[str, float]:
-        """An entity's facts as {property: certainty}; list form means certainty 1."""
+        """Return an entity's facts as {property: certainty}; list form means certainty 1."""
         known = set(preference)
         # (path key, property, certainty): list items are addressed by index.
         items: list[tuple[Union[int, str], str, float]]
@@ -151,7 +151,9 @@ class Checker:
         out: dict[str, float] = {}
         for key, prop, certainty in items:
             if prop not in known:
-                where = " (it is in another domain's preference order)" if prop in all_properties else " (it is in no preference order)"
+                where = " (it is in no preference order)"
+                if prop in all_properties:
+                    where = " (it is in another domain's preference order)"
                 raise self.fail(
                     at + (key,),
                     f"unknown property '{prop}'{where}: an entity's properties must be in its domain's "
@@ -167,7 +169,7 @@ class Checker:
 
     # ----------------------------------------------------------------- memory
     def memory_block(self, at: PathLoc, block: Optional[MemoryBlock]) -> Optional[dict]:
-        """A ``memory:`` block's non-null settings, each checked by the core's rules."""
+        """Return a ``memory:`` block's non-null settings, each checked by the core's rules."""
         if block is None:
             return None
         settings = {k: v for k, v in block.model_dump(exclude_unset=True).items() if v is not None}
@@ -237,7 +239,8 @@ class Checker:
         domain = self.entity_in(at + ("target",), entry.target, None, scenario, "")
         if entry.domain is not None and entry.domain != domain:
             raise self.fail(
-                at + ("domain",), f"domain '{entry.domain}' is not the target's domain ('{entry.target}' is in '{domain}')"
+                at + ("domain",),
+                f"domain '{entry.domain}' is not the target's domain ('{entry.target}' is in '{domain}')",
             )
         for i, entity in enumerate(entry.context or ()):
             self.entity_in(at + ("context", i), entity, domain, scenario, "the target's domain")
@@ -254,7 +257,7 @@ class Checker:
         return owner
 
     def parse_text(self, at: PathLoc, text: str, scenario: Scenario) -> list[str]:
-        """The properties of a text turn, as the simulator parses them (all properties)."""
+        """Return the properties of a text turn, as the simulator parses them (all properties)."""
         if not text.strip():
             raise self.fail(at, "empty text")
         lexicon = self.get_lexicon(at)
@@ -279,11 +282,12 @@ class Checker:
         indexed: bool,
         scenario: Scenario,
     ) -> str:
-        """The domain a human description resolves in (SPEC section 3): the named
-        one, else the only domain whose preference order has every property.
+        """Return the domain a human description resolves in.
 
-        Errors about one property point at ``whole[i]`` when ``indexed`` (a
-        description list), else at ``whole`` (a text)."""
+        That is the named one, else the only domain whose preference order has
+        every property.  Errors about one property point at ``whole[i]`` when
+        ``indexed`` (a description list), else at ``whole`` (a text).
+        """
 
         def where(i: int) -> PathLoc:
             return whole + (i,) if indexed else whole
@@ -293,7 +297,8 @@ class Checker:
             preference = domains[named].preference
             for i, prop in enumerate(properties):
                 if prop not in preference:
-                    raise self.fail(where(i), f"unknown property '{prop}' (domain '{named}' knows: {names(preference)})")
+                    message = f"unknown property '{prop}' (domain '{named}' knows: {names(preference)})"
+                    raise self.fail(where(i), message)
             return named
         for i, prop in enumerate(properties):
             if not any(prop in spec.preference for spec in domains.values()):
@@ -309,7 +314,8 @@ class Checker:
                 "name one with 'domain:'",
             )
         owners = "; ".join(
-            f"'{p}': {', '.join(d for d, spec in domains.items() if p in spec.preference)}" for p in dict.fromkeys(properties)
+            f"'{p}': {', '.join(d for d, spec in domains.items() if p in spec.preference)}"
+            for p in dict.fromkeys(properties)
         )
         raise self.fail(
             whole, f"domain not determined: no domain knows every property (candidate domains per property: {owners})"

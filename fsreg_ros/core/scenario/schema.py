@@ -82,7 +82,9 @@ class DomainBlock(Strict):
     entities: dict[Name, Facts] = Field(
         default_factory=dict, description="entity -> facts, in entity order; names unique across the file"
     )
-    memory: Optional[MemoryBlock] = Field(None, description="this domain's own settings, merged over the top-level ones")
+    memory: Optional[MemoryBlock] = Field(
+        None, description="this domain's own settings, merged over the top-level ones"
+    )
 
 
 class TurnEntry(Strict):
