@@ -800,3 +800,34 @@ def test_export_schemas_script(tmp_path):
     assert json.loads(out.read_text()) == scenario_json_schema()
     to_stdout = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, check=True)
     assert json.loads(to_stdout.stdout) == scenario_json_schema()
+
+
+# ------------------------------------------------------------------ attributes
+ATTRS = """\
+domains:
+  t:
+    preference: [colour=red, size=big, male, female, glasses]
+"""
+
+
+def test_attributes_map_each_property_to_its_attribute():
+    scenario = parse_scenario(ATTRS + "    attributes: {sex: [male, female]}\n", source="t.yaml")
+    assert scenario.domains["t"].attributes == {
+        "colour=red": "colour", "size=big": "size", "male": "sex", "female": "sex",
+    }
+    assert parse_scenario(ATTRS, source="t.yaml").domains["t"].attributes == {"colour=red": "colour", "size=big": "size"}
+
+
+@pytest.mark.parametrize(
+    "block, path, fragment",
+    [
+        ("{sex: [male, hat]}", "domains.t.attributes.sex[1]", "unknown property 'hat'"),
+        ("{sex: [male], who: [male]}", "domains.t.attributes.who[0]", "property 'male' is already in attribute 'sex'"),
+        ("{hue: [colour=red]}", "domains.t.attributes.hue[0]", "belongs to attribute 'colour' by its name"),
+        ("[male]", "domains.t.attributes", "must be a mapping"),
+    ],
+)
+def test_attribute_errors(block, path, fragment):
+    err = error_of(ATTRS + f"    attributes: {block}\n")
+    assert (err.path, err.line) == (path, 4)
+    assert fragment in err.message
