@@ -1,4 +1,4 @@
-"""Referring expression generation (SPEC section 4), its encodings (SPEC section 2,
+"""Referring expression generation, its encodings (WM encoding
 rules 1, 3, 4) and the paper's Table 1 case study (scenarios/guess_who_table1.yaml)."""
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def gen(target, port, algorithm="sd-pia", **kw):
 
 # =========================================================== Table 1 (paper)
 #: Robot turns of Table 1: (target, description in selection order, sources).
-#: Sets are the paper's; order and sources follow SPEC section 4 on scenarios/guess_who_table1.yaml.
+#: Sets are the paper's; order and sources follow the generation rules on scenarios/guess_who_table1.yaml.
 TABLE1_EXPECTED = {
     "decay": [
         ("face1", ["lab-coat", "light-hair", "glasses"], ["wm", "wm", "wm"]),
@@ -214,7 +214,7 @@ def test_dale_reiter_large_white_dog():
 
 def test_dist_pia_does_not_force_the_head_noun():
     # Among object1 and object2 only, "dog" rules nothing out.  Dale & Reiter's IA
-    # would still add the type ("the black dog"); the SPEC's DIST-PIA includes a
+    # would still add the type ("the black dog"); our DIST-PIA includes a
     # property only if it rules something out, so it says just "black" and realisation
     # supplies the domain's default noun.  The type is still considered: rule 3
     # encodes it for object2.
@@ -461,7 +461,7 @@ def test_wm_order_default_is_lru_first_and_dist_pia_ignores_wm():
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_every_algorithm_reports_wm_before(algorithm):
-    # SPEC section 6: wm_before is Q[target] just before REG, whatever the algorithm
+    # The result object: wm_before is Q[target] just before REG, whatever the algorithm
     # (the baselines report it but do not use it).
     c, port, events = domain(WM_ORDER_ENTITIES, WM_ORDER_PREF)
     c.wm.encode("t", ["c", "a"], "speaker", 0.0)

@@ -1,4 +1,4 @@
-"""Lexicon, realiser and text parser (SPEC section 4 realisation, section 5 ``text:``)."""
+"""Lexicon, realiser and text parser (the robot's words and the human's ``text:`` turns)."""
 
 from __future__ import annotations
 
@@ -266,7 +266,7 @@ def test_tuna_string_descriptions_mostly_parse(lex, tuna_dir):
         assert sum(scores) / len(scores) > 0.7, domain
 
 
-# -- round trip (SPEC section 4) ------------------------------------------------------
+# -- round trip ------------------------------------------------------
 
 
 def _round_trip(lex: Lexicon, description: list[str], domain: str, props) -> None:

@@ -1,4 +1,4 @@
-"""Scenario files: loading, the data model and validation (SPEC section 5)."""
+"""Scenario files: loading, the data model and validation."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The simulator and the fsreg-sim command line (SPEC sections 2, 5 and 6)."""
+"""The simulator and the fsreg-sim command line."""
 
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
-"""Play a scenario's dialogue on a simulated clock (SPEC sections 2 and 6).
+"""Play a scenario's dialogue on a simulated clock.
 
 The simulator wires the core together exactly as the ROS graph does: one
 :class:`Consultant` per domain, a :class:`WMManager` applying each domain's
 forgetting policy, reference resolution for human turns and REG plus realisation
 for robot turns.  Before each dialogue event at time T, every decay tick due at or
-before T is applied (SPEC section 2, "a tick at time T is applied before any
+before T is applied ("a tick at time T is applied before any
 dialogue event stamped T").
 
 The records built here (:func:`human_record`, :func:`robot_record`) are also what
@@ -31,7 +31,7 @@ from .scenario import Scenario, Turn
 class Options:
     """What a user can change from the command line.
 
-    ``memory`` overrides every domain's ``memory:`` settings key by key (SPEC §5).
+    ``memory`` overrides every domain's ``memory:`` settings key by key.
     ``algorithm`` None means: SD-PIA, or DIST-PIA for a domain whose policy is none.
     """
 
@@ -52,7 +52,7 @@ def effective_policies(scenario: Scenario, options: Options) -> dict[str, Forget
 
 
 def human_record(turn: Turn, resolution: Mapping[str, Any], unknown_words: Optional[list[str]]) -> dict:
-    """One human turn's output record (SPEC section 6); ``unknown_words`` for text turns."""
+    """One human turn's output record; ``unknown_words`` for text turns."""
     record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "human"}
     if turn.target is not None:
         record["target"] = turn.target
@@ -67,7 +67,7 @@ def human_record(turn: Turn, resolution: Mapping[str, Any], unknown_words: Optio
 
 
 def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
-    """One robot turn's output record (SPEC section 6)."""
+    """One robot turn's output record."""
     record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "robot", "target": turn.target}
     if turn.context is not None:
         record["context"] = list(turn.context)
@@ -111,7 +111,7 @@ class Simulation:
         self._properties = scenario.properties()
 
     def run(self) -> dict:
-        """Play every turn; return the SPEC section 6 result object."""
+        """Play every turn; return the result object."""
         turns = [self.play(turn) for turn in self.scenario.dialogue]
         return {"scenario": self.scenario.name, "memory": self.manager.effective(), "turns": turns}
 
@@ -178,7 +178,7 @@ def trace_order(scenario: Scenario, events: list[dict]) -> list[dict]:
 
 
 def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None) -> dict:
-    """Run a scenario and return the SPEC section 6 result object."""
+    """Run a scenario and return the result object."""
     return Simulation(scenario, options, lexicon).run()
 
 

@@ -1,4 +1,4 @@
-"""The lexicon: how properties are said (realisation, SPEC section 4) and heard (the text parser, section 5).
+"""The lexicon: how properties are said (realisation) and heard (the text parser).
 
 * :mod:`.lexicon` -- :class:`Lexicon`: the realiser and the parser over one lexicon.
 * :mod:`.source` -- lexicon files: structure, reading, extending the built-in one, checks.

@@ -1,6 +1,6 @@
 """The lexicon: English realisation of descriptions and the text parser stub (one model).
 
-SPEC section 4 (realisation paragraph) and section 5 (the ``text:`` paragraph).
+Realisation of robot descriptions and parsing of the human's ``text:`` turns.
 
 * :meth:`Lexicon.realise` turns a description (a list of property names) into a
   referring expression without changing its content: the head noun comes from the
@@ -35,13 +35,13 @@ from typing import Any, Collection, Iterable, Mapping, Optional, Sequence
 from .source import EntryBlock, LexiconSource, builtin_path, check, parse_mapping, read_lexicon
 from .words import ParseResult, Phrase, PhraseTable, tokenize, variants
 
-#: Used when the lexicon has no ``function_words`` (SPEC section 5's list).
+#: Used when the lexicon has no ``function_words`` (the parser stub's list).
 DEFAULT_FUNCTION_WORDS = (
     "the", "a", "an", "with", "and", "in", "wearing", "who", "has", "is", "one", "person",
 )
 #: Used when the lexicon has no ``negators``.
 DEFAULT_NEGATORS = ("without", "no", "not")
-#: Default head nouns for domains the lexicon gives no ``noun`` (SPEC section 4).
+#: Default head nouns for domains the lexicon gives no ``noun``.
 DEFAULT_DOMAIN_NOUNS = {"faces": "person", "objects": "object", "locations": "place"}
 #: Head noun for any other domain, unless the lexicon sets ``default_noun``.
 FALLBACK_NOUN = "thing"
@@ -108,7 +108,7 @@ class Domain:
 
 
 class Lexicon:
-    """Realiser and text parser over a validated lexicon (SPEC sections 4 and 5).
+    """Realiser and text parser over a validated lexicon.
 
     Build with :meth:`load` (a YAML file; default ``config/lexicon.yaml``) or
     :meth:`from_mapping`.  Immutable after construction apart from a cache of
@@ -211,7 +211,7 @@ class Lexicon:
             return entry.noun
         return DEFAULT_DOMAIN_NOUNS.get(domain, self.default_noun)
 
-    # -- realisation (SPEC section 4) ---------------------------------------------
+    # -- realisation ---------------------------------------------
 
     def realise(self, description: Sequence[str], domain: str) -> str:
         """English for ``description`` in ``domain``; never adds or drops content.
@@ -239,7 +239,7 @@ class Lexicon:
             text += " with " + _join(post)
         return text
 
-    # -- parsing (SPEC section 5) --------------------------------------------------
+    # -- parsing --------------------------------------------------
 
     def parse(self, text: str, properties: Collection[str]) -> ParseResult:
         """Map ``text`` to properties of ``properties`` and report the words not known.

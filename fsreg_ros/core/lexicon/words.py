@@ -1,4 +1,4 @@
-"""Words and phrases: the tokenizer and the phrase tables of the text parser (SPEC section 5)."""
+"""Words and phrases: the tokenizer and the phrase tables of the text parser."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ Phrase = tuple[str, ...]
 
 @dataclass(frozen=True)
 class ParseResult:
-    """What :meth:`Lexicon.parse` heard (SPEC section 5)."""
+    """What :meth:`Lexicon.parse` heard."""
 
     properties: list[str]  # in order of appearance, no duplicates (first occurrence wins)
     unknown_words: list[str]  # words not known, in order (reported, never dropped)

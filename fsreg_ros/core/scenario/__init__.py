@@ -1,4 +1,4 @@
-"""Scenario files: load, validate and represent a scenario or KB file (SPEC section 5).
+"""Scenario files: load, validate and represent a scenario or KB file.
 
 A scenario file is YAML with ``name``, ``domains``, ``memory`` and ``dialogue``; a
 knowledge-base (KB) file for a consultant is the same format without a dialogue.

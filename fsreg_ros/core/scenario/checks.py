@@ -1,4 +1,4 @@
-"""The checks of a scenario file that need more than types (SPEC section 5); builds the Scenario.
+"""The checks of a scenario file that need more than types; builds the Scenario.
 
 Unknown properties and entities, preference orders, attributes, times, forgetting
 settings, turn shapes and domains.  The rules of forgetting settings and
@@ -26,7 +26,7 @@ MAX_LISTED = 20
 
 
 class Checker:
-    """The checks of SPEC section 5 that need more than types; builds the Scenario."""
+    """The checks of a scenario that need more than types; builds the Scenario."""
 
     def __init__(self, source: str, root: Optional[yaml.Node], lexicon: Optional["Lexicon"]) -> None:
         self.source = source

@@ -1,4 +1,4 @@
-"""Loading a scenario or KB file: YAML, then structure, then meaning (SPEC section 5).
+"""Loading a scenario or KB file: YAML, then structure, then meaning.
 
 Every problem in any stage becomes exactly one :class:`ScenarioError` naming the
 file, the path inside it (``dialogue[3].text``), the line where known, and what

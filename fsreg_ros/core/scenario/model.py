@@ -1,4 +1,4 @@
-"""The scenario data model: what a validated scenario or KB file holds (SPEC section 5).
+"""The scenario data model: what a validated scenario or KB file holds.
 
 Built by :func:`fsreg_ros.core.scenario.load_scenario`; immutable afterwards.
 """
@@ -42,7 +42,7 @@ class DomainSpec:
 
 @dataclass(frozen=True)
 class Turn:
-    """One dialogue turn, as written in the file (SPEC section 5)."""
+    """One dialogue turn, as written in the file."""
 
     index: int  # position in the dialogue list, 0-based
     time: float
@@ -68,7 +68,7 @@ class Scenario:
     lines: Mapping[str, int] = field(default_factory=dict, repr=False, compare=False)
 
     def policy_for(self, domain: str, overrides: Optional[Mapping[str, Any]] = None) -> ForgettingPolicy:
-        """Return the effective forgetting policy of ``domain`` (SPEC section 5).
+        """Return the effective forgetting policy of ``domain``.
 
         The top-level ``memory:`` block, then the domain's own block, then
         ``overrides`` (command-line options; None values are ignored), merged key by

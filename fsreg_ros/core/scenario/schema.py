@@ -1,4 +1,4 @@
-"""The structure of a scenario file as pydantic models, and its JSON Schema (SPEC section 5).
+"""The structure of a scenario file as pydantic models, and its JSON Schema.
 
 ``extra="forbid"`` and strict types (``capacity: true`` is not a number while
 ``decay_period: 10`` is).  The models check shapes only; meaning (unknown
@@ -48,7 +48,7 @@ _POLICY_PATTERN = "^(none|({rules})(\\+({rules}))*)$".format(rules="|".join(RULE
 
 
 class MemoryBlock(Strict):
-    """A ``memory:`` block: forgetting settings (SPEC sections 2 and 5)."""
+    """A ``memory:`` block: forgetting settings."""
 
     policy: Optional[str] = Field(
         None,
@@ -100,7 +100,7 @@ class TurnEntry(Strict):
 
 
 class ScenarioFile(Strict):
-    """An fsreg scenario or KB file (SPEC section 5)."""
+    """An fsreg scenario or KB file."""
 
     model_config = ConfigDict(title="fsreg scenario")
 
