@@ -150,11 +150,8 @@ def run_cli(
             results = {}
             for policy in compared_policies(args, expected):
                 results[policy], _ = runner(args, options_from_args(args, policy))
-            if args.json:
-                sys.stdout.write(dumps(results))
-                return EXIT_OK
             comparison = render_comparison(results, expected)
-            sys.stdout.write(comparison.text)
+            sys.stdout.write(dumps(results) if args.json else comparison.text)
             return EXIT_OK if expected is None or comparison.passed else EXIT_MISMATCH
         result, trace = runner(args, options_from_args(args))
         if args.trace:

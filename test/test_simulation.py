@@ -103,7 +103,13 @@ def test_cli_json_matches_library_and_is_byte_identical(table1_path, capsys):
 
 def test_cli_compare_policies_with_paper_expectations(table1_path, capsys):
     code = sim_main(
-        [str(table1_path), "--compare-policies", "decay,displacement,none", "--expect", str(REPO / "config/paper_table1.yaml")]
+        [
+            str(table1_path),
+            "--compare-policies",
+            "decay,displacement,none",
+            "--expect",
+            str(REPO / "config/paper_table1.yaml"),
+        ]
     )
     out = capsys.readouterr().out
     assert code == 0
@@ -126,8 +132,13 @@ def test_cli_trace_is_written_in_time_order(table1_path, tmp_path):
     assert sim_main([str(table1_path), "--trace", str(trace)]) == 0
     events = [json.loads(line) for line in trace.read_text().splitlines()]
     assert events[0] == {
-        "op": "encode", "domain": "faces", "entity": "face1", "property": "male",
-        "cause": "rr", "time": 8.0, "turn": 0,
+        "op": "encode",
+        "domain": "faces",
+        "entity": "face1",
+        "property": "male",
+        "cause": "rr",
+        "time": 8.0,
+        "turn": 0,
     }
     times = [e["time"] for e in events]
     assert times == sorted(times)
@@ -156,9 +167,7 @@ def test_cli_bad_options_exit_2_with_one_line(table1_path, capsys, args, fragmen
 def test_cli_bad_scenario_file_exit_2_without_traceback(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("domains:\n  faces:\n    preference: [a]\n    entities: {e1: [b]}\n")
-    proc = subprocess.run(
-        [sys.executable, "-m", "fsreg_ros.cli", str(bad)], capture_output=True, text=True, timeout=60
-    )
+    proc = subprocess.run([sys.executable, "-m", "fsreg_ros.cli", str(bad)], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert "bad.yaml" in proc.stderr and "domains.faces.entities.e1" in proc.stderr
@@ -218,8 +227,11 @@ PAPER = REPO / "config" / "paper_table1.yaml"
 def random_scenario(rng, index: int) -> tuple[str, dict]:
     """A random scenario text whose memory blocks may lack parameters, and CLI settings that complete them."""
     rules = ("decay", "displacement", "global-capacity")
-    params = {"decay": ("decay_period", "--decay-period"), "displacement": ("capacity", "--capacity"),
-              "global-capacity": ("global_capacity", "--global-capacity")}
+    params = {
+        "decay": ("decay_period", "--decay-period"),
+        "displacement": ("capacity", "--capacity"),
+        "global-capacity": ("global_capacity", "--global-capacity"),
+    }
     props = [f"p{i}" for i in range(6)]
 
     def block() -> str:
@@ -230,11 +242,11 @@ def random_scenario(rng, index: int) -> tuple[str, dict]:
 
     entities = "\n".join(f"      e{i}: [{', '.join(rng.sample(props, 3))}]" for i in range(5))
     domain_memory = f"\n    memory: {block()}" if rng.random() < 0.5 else ""
-    dialogue = "\n".join(
-        f"  - {{time: {t}.0, speaker: robot, target: e{rng.randrange(5)}}}" for t in range(1, 6)
+    dialogue = "\n".join(f"  - {{time: {t}.0, speaker: robot, target: e{rng.randrange(5)}}}" for t in range(1, 6))
+    text = (
+        f"name: random{index}\nmemory: {block()}\ndomains:\n  d:\n    preference: [{', '.join(props)}]"
+        f"{domain_memory}\n    entities:\n{entities}\ndialogue:\n{dialogue}\n"
     )
-    text = (f"name: random{index}\nmemory: {block()}\ndomains:\n  d:\n    preference: [{', '.join(props)}]"
-            f"{domain_memory}\n    entities:\n{entities}\ndialogue:\n{dialogue}\n")
     cli_rules = rng.sample(rules, rng.randint(1, 3))
     cli = {"--policy": "+".join(cli_rules)}
     cli.update({params[r][1]: str(rng.randint(1, 5)) for r in cli_rules})
@@ -256,14 +268,18 @@ def test_cli_memory_options_complete_the_files_settings(tmp_path, capsys):
         assert set(memory["policy"].split("+")) == set(cli["--policy"].split("+"))
         for option, value in cli.items():
             if option != "--policy":
-                assert memory[option[2:].replace("-", "_")] == (float(value) if option == "--decay-period" else int(value))
+                assert memory[option[2:].replace("-", "_")] == (
+                    float(value) if option == "--decay-period" else int(value)
+                )
 
 
 def test_cli_policy_with_its_parameter_overrides_a_file_missing_it(tmp_path, capsys):
     path = tmp_path / "s.yaml"
-    path.write_text("memory: {policy: decay+global-capacity, decay_period: 10}\n"
-                    "domains:\n  d:\n    preference: [a, b]\n    entities: {x: [a], y: [b]}\n"
-                    "dialogue:\n  - {time: 1.0, speaker: robot, target: x}\n")
+    path.write_text(
+        "memory: {policy: decay+global-capacity, decay_period: 10}\n"
+        "domains:\n  d:\n    preference: [a, b]\n    entities: {x: [a], y: [b]}\n"
+        "dialogue:\n  - {time: 1.0, speaker: robot, target: x}\n"
+    )
     assert sim_main([str(path), "--policy", "decay", "--global-capacity", "5", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["memory"]["d"] == {"policy": "decay", "decay_period": 10.0}
     assert sim_main([str(path)]) == 2
@@ -273,7 +289,10 @@ def test_cli_policy_with_its_parameter_overrides_a_file_missing_it(tmp_path, cap
 def test_cli_compared_policy_missing_its_parameter_names_the_option(table1_path, capsys):
     assert sim_main([str(table1_path), "--compare-policies", "decay,global-capacity"]) == 2
     err = capsys.readouterr().err
-    assert "<command line>: domain 'faces': policy 'global-capacity' needs 'global_capacity' (add --global-capacity N" in err
+    assert (
+        "<command line>: domain 'faces': policy 'global-capacity' needs 'global_capacity' (add --global-capacity N"
+        in err
+    )
     assert sim_main([str(table1_path), "--compare-policies", "decay,global-capacity", "--global-capacity", "4"]) == 0
 
 
@@ -321,13 +340,17 @@ def test_cli_table_explains_its_columns(table1_path, capsys):
 
 def test_cli_lexicon_extends_the_built_in_one(tmp_path, capsys):
     scenario = tmp_path / "s.yaml"
-    scenario.write_text("domains:\n  faces:\n    preference: [fedora, glasses, male]\n"
-                        "    entities: {a: [fedora, male], b: [glasses, male]}\n"
-                        "dialogue:\n  - {time: 1.0, speaker: human, text: the man in a trilby}\n"
-                        "  - {time: 2.0, speaker: robot, target: a}\n")
+    scenario.write_text(
+        "domains:\n  faces:\n    preference: [fedora, glasses, male]\n"
+        "    entities: {a: [fedora, male], b: [glasses, male]}\n"
+        "dialogue:\n  - {time: 1.0, speaker: human, text: the man in a trilby}\n"
+        "  - {time: 2.0, speaker: robot, target: a}\n"
+    )
     lexicon = tmp_path / "lex.yaml"
-    lexicon.write_text("properties:\n  fedora: {words: fedora, article: a, phrases: [trilby]}\n"
-                       "domains:\n  faces: {properties: [fedora]}\n")
+    lexicon.write_text(
+        "properties:\n  fedora: {words: fedora, article: a, phrases: [trilby]}\n"
+        "domains:\n  faces: {properties: [fedora]}\n"
+    )
     assert sim_main([str(scenario), "--lexicon", str(lexicon), "--json"]) == 0
     turns = json.loads(capsys.readouterr().out)["turns"]
     assert turns[0]["description"] == ["male", "fedora"] and turns[0]["resolved"] == "a"
@@ -375,3 +398,11 @@ def test_trace_is_built_only_when_asked_and_changes_nothing(table1_path):
     assert len(traced.trace()) > 100
     with pytest.raises(ValueError, match="trace=True"):
         plain.trace()
+
+
+def test_cli_expect_with_json_still_checks(table1_path, tmp_path, capsys):
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("robot_descriptions:\n  none: [[glasses]]\n")
+    assert sim_main([str(table1_path), "--expect", str(wrong), "--json"]) == 1
+    assert list(json.loads(capsys.readouterr().out)) == ["none"]
+    assert sim_main([str(table1_path), "--expect", str(PAPER), "--json"]) == 0
