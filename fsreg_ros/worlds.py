@@ -23,6 +23,8 @@ from typing import Optional
 
 import yaml
 
+from .core.forgetting import ForgettingPolicy, PolicyError
+
 DOMAIN = "things"
 
 
@@ -52,13 +54,15 @@ class WorldShape:
         for name in ("human_turns", "robot_turns"):
             if getattr(self, name) < 0:
                 raise ValueError(f"world shape: {name} must be >= 0, got {getattr(self, name)}")
-        if self.global_capacity is not None and self.global_capacity < 1:
-            raise ValueError(f"world shape: global_capacity must be >= 1, got {self.global_capacity}")
-        if not self.decay_period > 0:
-            raise ValueError(f"world shape: decay_period must be > 0, got {self.decay_period}")
         for name in ("distinguishing_share", "follow_share"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"world shape: {name} must be in [0, 1], got {getattr(self, name)}")
+        try:  # the core's own rules for policy names and parameters
+            ForgettingPolicy.parse(
+                self.policy, decay_period=self.decay_period, capacity=self.capacity, global_capacity=self.global_capacity
+            )
+        except PolicyError as err:
+            raise ValueError(f"world shape: {err}") from None
         return self
 
 

@@ -139,3 +139,12 @@ def test_bench_sim_small_world_runs_and_agrees(tmp_path):
     assert data["differences"] == [] and data["turns"] == 12
     for side in ("fsreg", "naive"):
         assert data[side]["load_s"] > 0 and data[side]["sim_s"] > 0 and data[side]["peak_rss_mb"] > 0
+
+
+@pytest.mark.parametrize(
+    "changes,message",
+    [({"policy": "forget-all"}, "unknown forgetting rule"), ({"policy": "global-capacity"}, "global_capacity")],
+)
+def test_world_shape_rejects_bad_policies(changes, message):
+    with pytest.raises(ValueError, match=message):
+        WorldShape(**changes).check()
