@@ -59,7 +59,10 @@ class WorldShape:
                 raise ValueError(f"world shape: {name} must be in [0, 1], got {getattr(self, name)}")
         try:  # the core's own rules for policy names and parameters
             ForgettingPolicy.parse(
-                self.policy, decay_period=self.decay_period, capacity=self.capacity, global_capacity=self.global_capacity
+                self.policy,
+                decay_period=self.decay_period,
+                capacity=self.capacity,
+                global_capacity=self.global_capacity,
             )
         except PolicyError as err:
             raise ValueError(f"world shape: {err}") from None
