@@ -138,7 +138,7 @@ def measure(which: str, world: str, workdir: str) -> dict:
         [sys.executable, __file__, "--child", which, world, out], capture_output=True, text=True, check=False
     )
     if proc.returncode != 0:
-        raise SystemExit(f"bench_sim: the {which} run failed:\n{proc.stderr.strip()}")
+        raise SystemExit(f"bench_sim: the {which} run failed: {proc.stderr.strip()}")
     figures = json.loads(proc.stdout.strip().splitlines()[-1])
     figures["turns"] = json.loads(Path(out).read_text(encoding="utf-8"))
     return figures
