@@ -36,18 +36,10 @@ import time
 from pathlib import Path
 from typing import Optional
 
-REPO = Path(__file__).resolve().parents[1]
-VENV_PYTHON = REPO / ".venv" / "bin" / "python"
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "test"))
+from project_python import REPO, use_project_python  # noqa: E402
 
-try:
-    import fsreg_ros  # noqa: F401
-except ImportError:  # not the project's interpreter: use the repository's venv if there is one
-    if VENV_PYTHON.exists() and not os.environ.get("FSREG_BENCH_REEXEC"):
-        os.environ["FSREG_BENCH_REEXEC"] = "1"
-        os.execv(str(VENV_PYTHON), [str(VENV_PYTHON), __file__, *sys.argv[1:]])
-    sys.exit(f"bench_sim: cannot import fsreg_ros with {sys.executable}; run scripts/venv.sh first")
+use_project_python(__file__)
+sys.path.insert(0, str(REPO / "test"))  # the naive reference
 
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
 

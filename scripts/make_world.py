@@ -10,21 +10,12 @@ Defaults: issue 11's world (10,000 entities, 40 attributes x 5 values, 100 human
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-VENV_PYTHON = REPO / ".venv" / "bin" / "python"
-sys.path.insert(0, str(REPO))
+from project_python import use_project_python  # noqa: E402
 
-try:
-    import yaml  # noqa: F401
-except ImportError:  # not the project's interpreter: use the repository's venv if there is one
-    if VENV_PYTHON.exists() and not os.environ.get("FSREG_BENCH_REEXEC"):
-        os.environ["FSREG_BENCH_REEXEC"] = "1"
-        os.execv(str(VENV_PYTHON), [str(VENV_PYTHON), __file__, *sys.argv[1:]])
-    sys.exit(f"make_world: cannot import yaml with {sys.executable}; run scripts/venv.sh first")
+use_project_python(__file__)
 
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
 
