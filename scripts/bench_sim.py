@@ -53,7 +53,19 @@ PROFILE_TOP = 25
 
 # ------------------------------------------------------------ child processes
 def peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: kilobytes
+    """Return this process's peak RSS in MB.
+
+    Linux's VmHWM, which starts afresh at exec; ``ru_maxrss`` would carry over the
+    peak of the parent that forked this process.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024  # kB
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux, bytes on macOS
 
 
 def run_fsreg(world: str) -> tuple[list[dict], float, float]:
