@@ -36,9 +36,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from project_python import REPO, use_project_python  # noqa: E402
+from venv_python import REPO, use_venv  # noqa: E402
 
-use_project_python(__file__)
+use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test"))  # the naive reference
 
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
@@ -70,7 +70,7 @@ def peak_rss_mb() -> float:
 
 def run_fsreg(world: str) -> tuple[list[dict], float, float]:
     """Load and simulate with the project's core; return (turns, load s, simulate s)."""
-    from fsreg_ros.core.realisation import Lexicon
+    from fsreg_ros.core.lexicon import Lexicon
     from fsreg_ros.core.scenario import load_scenario
     from fsreg_ros.core.simulation import simulate
 
@@ -113,7 +113,7 @@ def profile_fsreg(world: str) -> None:
     import cProfile
     import pstats
 
-    from fsreg_ros.core.realisation import Lexicon
+    from fsreg_ros.core.lexicon import Lexicon
     from fsreg_ros.core.scenario import load_scenario
     from fsreg_ros.core.simulation import simulate
 

@@ -13,9 +13,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from project_python import use_project_python  # noqa: E402
+from venv_python import use_venv  # noqa: E402
 
-use_project_python(__file__)
+use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
 

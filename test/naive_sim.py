@@ -184,7 +184,7 @@ class NaiveSimulator:
 
     def get_lexicon(self):
         if self.lexicon is None:
-            from fsreg_ros.core.realisation import Lexicon
+            from fsreg_ros.core.lexicon import Lexicon
 
             self.lexicon = Lexicon.load()
         return self.lexicon

@@ -8,7 +8,7 @@ from fsreg_ros.core.simulation import Options, Simulation
 
 
 def play(path, memory):
-    simulation = Simulation(load_scenario(path), Options(memory=memory))
+    simulation = Simulation(load_scenario(path), Options(memory=memory), trace=True)
     result = simulation.run()
     return summarise(result, simulation.trace())
 

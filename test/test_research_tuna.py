@@ -110,8 +110,8 @@ def test_malformed_trial_is_named():
         parse_trial('<TRIAL DOMAIN="people" CONDITION="-LOC"><DOMAIN/></TRIAL>', "x.xml")
 
 
-def test_full_corpus_reproduces_the_reference_figures(shared_data):
-    trials = load_trials(shared_data / "tuna")
+def test_full_corpus_reproduces_the_reference_figures(tuna_dir):
+    trials = load_trials(tuna_dir)
     assert len(trials) == 780
     orders = {
         "furniture": ["type", "colour", "orientation", "size"],

@@ -25,7 +25,7 @@ from ..core.alignment import AlignmentSummary, summarise
 from ..core.consultant import Consultant, LocalPort, run_sync
 from ..core.describe import describe
 from ..core.forgetting import WMManager
-from ..core.realisation import Lexicon
+from ..core.lexicon import Lexicon
 from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation import Options, Simulation, algorithm_for
@@ -147,7 +147,7 @@ def play(
     turn by turn, instead of the game's precomputed no-WM descriptions.
     """
     scenario = scenario_of(game)
-    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon)
+    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon, trace=True)
     if human_memory is None:
         result = simulation.run()
     else:

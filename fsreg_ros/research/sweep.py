@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
-from ..core.realisation import Lexicon
+from ..core.lexicon import Lexicon
 from .games import DOMAIN, make_game, play, scenario_of, shortest_lengths
 
 CHECKPOINTS = (10, 25, 50, 100)
