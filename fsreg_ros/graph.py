@@ -34,7 +34,7 @@ from typing import Optional, Sequence
 
 from .cli import run_cli
 from .core.forgetting import PARAMETERS
-from .core.realisation import Lexicon
+from .core.lexicon import Lexicon
 from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
 

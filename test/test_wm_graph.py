@@ -54,7 +54,7 @@ def test_tick_boundaries_at_large_times_graph_equals_simulator(tmp_path, period,
 def test_new_forgetting_rules_graph_equals_simulator(tmp_path, memory, cause):
     path = DATA / "two_domains.yaml"
     options = Options(memory=memory)
-    sim = Simulation(load_scenario(path), options)
+    sim = Simulation(load_scenario(path), options, trace=True)
     expected = sim.run()
     assert expected["memory"]["faces"]["policy"] == memory["policy"]
     assert cause in {e["cause"] for e in sim.trace()}  # the rule did forget something

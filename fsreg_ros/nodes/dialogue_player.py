@@ -32,7 +32,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ..carrier import EVENTS_QOS, CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
-from ..core.realisation import Lexicon, LexiconError
+from ..core.lexicon import Lexicon, LexiconError
 from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
 from ..remote import consultant_service
@@ -212,7 +212,7 @@ def write_outputs(player: DialoguePlayer, result: dict) -> None:
         with open(output, "w", encoding="utf-8") as out:
             out.write(dumps(result))
     else:
-        from ..cli import render_table
+        from ..report import render_table
 
         print(render_table(result), end="", flush=True)
     trace = player.get_parameter("trace").value

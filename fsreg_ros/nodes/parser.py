@@ -4,7 +4,7 @@ Subscribes ``/dialogue/human`` (``{"id", "time", "text"}`` or ``{"id", "time",
 "description": [...]}``, optional ``"domain"``) and publishes the semantics on
 ``/dialogue/semantics`` for reference resolution: ``{"id", "time",
 "description", "domain"?, "text"?, "unknown_words"?}``.  Text is mapped to
-properties with the lexicon (:mod:`fsreg_ros.core.realisation`), restricted to the
+properties with the lexicon (:mod:`fsreg_ros.core.lexicon`), restricted to the
 properties of the knowledge base given as ``kb`` (every lexicon property if
 empty).  Text with no known property is forwarded with an empty description, so
 reference resolution answers ``no-match``.  A malformed message gets a warning and
@@ -19,7 +19,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from ..carrier import MessageError, from_msg, to_msg
-from ..core.realisation import Lexicon, LexiconError
+from ..core.lexicon import Lexicon, LexiconError
 from ..core.scenario import ScenarioError, load_scenario
 from .common import error_reply, run_node
 

@@ -20,7 +20,7 @@ from std_msgs.msg import String
 
 from ..carrier import CarrierError, MessageError, from_msg, to_msg
 from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError, generate
-from ..core.realisation import Lexicon, LexiconError
+from ..core.lexicon import Lexicon, LexiconError
 from .asking import AskingNode
 from .common import error_reply, run_node
 
