@@ -60,3 +60,28 @@ def test_new_forgetting_rules_graph_equals_simulator(tmp_path, memory, cause):
     assert cause in {e["cause"] for e in sim.trace()}  # the rule did forget something
     result = play(path, options, tmp_path)
     assert dumps(result) == dumps(expected)
+
+
+def test_similarity_uses_the_declared_attributes_in_graph_and_simulator(tmp_path):
+    scenario = {
+        "name": "similarity",
+        "domains": {
+            "faces": {
+                "preference": ["light-hair", "dark-hair", "glasses", "hat"],
+                "attributes": {"hair": ["light-hair", "dark-hair"]},
+                "entities": {"f1": ["light-hair", "dark-hair", "glasses"], "f2": ["dark-hair", "hat"]},
+            }
+        },
+        "memory": {"policy": "similarity"},
+        "dialogue": [
+            {"time": 1.0, "speaker": "human", "description": ["light-hair", "glasses"]},
+            {"time": 2.0, "speaker": "human", "description": ["dark-hair", "glasses"]},
+            {"time": 3.0, "speaker": "robot", "target": "f1"},
+        ],
+    }
+    path = tmp_path / "similarity.yaml"
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+    expected = simulate(load_scenario(path), Options())
+    # dark-hair displaced light-hair (same attribute): WM holds one hair colour.
+    assert expected["turns"][2]["wm_before"] == ["dark-hair", "glasses"]  # no light-hair
+    assert dumps(play(path, Options(), tmp_path)) == dumps(expected)

@@ -147,7 +147,9 @@ class ConsultantNode(Node):
         self._assert_results = self.create_publisher(String, "/ltm/assert/result", DEFAULT_QOS)
         self._event_count = 0
         self._last_time = 0.0  # time of the latest change, for /wm/state
-        self.consultant = Consultant(domain, spec.entities, spec.preference, threshold, sink=self._on_event)
+        self.consultant = Consultant(
+            domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
+        )
         # Retain nothing until the WM Manager says otherwise.
         self.policy = NONE
         configure_buffer(self.consultant.wm, NONE, 0.0)

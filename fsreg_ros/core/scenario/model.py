@@ -140,7 +140,7 @@ class Scenario:
         receives every WM event.
         """
         return {
-            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink)
+            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink, attributes=spec.attributes)
             for name, spec in self.domains.items()
         }
 
