@@ -359,3 +359,16 @@ def test_shared_pool_ops_of_the_consultant(graph: Graph):
         err = graph.call_error(manage, request)
         assert err.kind == "MessageError" and text in err.error, err.error
     assert queues(graph) == {"face2": ["female"]}
+
+
+def test_a_silent_clock_is_logged_once(graph: Graph, monkeypatch):
+    import fsreg_ros.nodes.wm_manager as node_module
+
+    monkeypatch.setattr(node_module, "CLOCK_SILENCE_WARNING", 0.3)
+    silent = manager(graph)
+    graph.spin_until(lambda: silent.clock_silence_logged, 5.0, what="the /clock warning")
+    graph.remove(silent)
+    heard = manager(graph)
+    graph.set_time(1.0)
+    graph.spin_for(0.6)
+    assert not heard.clock_silence_logged

@@ -18,7 +18,8 @@ Time: the decay grid starts at the node's clock when it starts managing (under
 at k * delta from t = 0, as the simulator does); ticks fall at origin + k * delta,
 and a new ``decay_period`` restarts the grid at the change.  A one-shot ROS timer is
 armed for each domain's next tick.  A clock that goes backwards applies nothing
-(ticks are never undone or applied twice) and is logged once.
+(ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
+a ``/clock`` that stays silent for 5 s after start is logged once too.
 
 Parameters (all but ``domains`` changeable at run time; every numeric one has a
 declared range, so ``ros2 param describe`` shows it; a change is validated as the
@@ -58,6 +59,7 @@ from functools import partial
 from typing import Any, Optional
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rosgraph_msgs.msg import Clock as ClockMessage
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -69,6 +71,7 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
@@ -104,6 +107,9 @@ TIMEOUT_RANGE = (0.01, 3600.0)
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
+#: Under ``use_sim_time``, warn once if no ``/clock`` arrived within this many
+#: seconds of steady time after start (decay would never happen).
+CLOCK_SILENCE_WARNING = 5.0
 
 DESCRIPTIONS = {
     "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
@@ -242,6 +248,11 @@ class WMManagerNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         serve(self, "/wm_manager/sync", self._sync, self._barrier_group)
         serve(self, "/wm_manager/status", self._status)
+        self._started = wallclock.monotonic()
+        self._clock_heard = not self.get_parameter("use_sim_time").value
+        self.clock_silence_logged = False
+        if not self._clock_heard:
+            self.create_subscription(ClockMessage, "/clock", self._on_clock, qos_profile_sensor_data)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"managing (decay grid from t = {now:g}) "
@@ -394,9 +405,18 @@ class WMManagerNode(Node):
             self.get_logger().error(f"consultant '{dom.name}' not attached: {err}", throttle_duration_sec=10.0)
         self._arm(dom.name)
 
+    def _on_clock(self, msg: ClockMessage) -> None:
+        self._clock_heard = True
+
     def _supervise(self) -> None:
-        """Attach consultants that became reachable; expire unanswered calls."""
+        """Attach consultants that became reachable; expire unanswered calls; warn of a silent /clock."""
         now_wall = wallclock.monotonic()
+        if not self._clock_heard and not self.clock_silence_logged and now_wall - self._started > CLOCK_SILENCE_WARNING:
+            self.clock_silence_logged = True  # once
+            self.get_logger().warning(
+                f"use_sim_time is set but nothing has published /clock for {CLOCK_SILENCE_WARNING:g} s: "
+                "the clock stands still and no decay tick will fall due until /clock is published"
+            )
         for dom in self._domains.values():
             for future, op, deadline in list(dom.inflight):
                 if now_wall > deadline and not future.done():
