@@ -25,8 +25,8 @@ within a tick), for a consultant that publishes every event as it happens.
 
 from __future__ import annotations
 
-import math
 import random
+import sys
 from dataclasses import dataclass
 from itertools import islice
 from typing import Callable, Iterable, Mapping, NamedTuple, Optional, Sequence
@@ -293,7 +293,7 @@ class WMBuffer:
         queues = self._queues
         nonempty = self._nonempty
         ticks = self.ticks.count  # nothing below applies new ticks
-        limit = capacity if capacity is not None else math.inf
+        limit = capacity if capacity is not None else sys.maxsize
         stamp = self._stamp
         size = self._size
         for entity in entities:
