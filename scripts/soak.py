@@ -84,7 +84,7 @@ class RunResult:
 
 
 def events(scenario: Scenario, turns: int, requests: int) -> list[tuple[str, dict]]:
-    """The messages to send, human turns and REG requests alternating, cycling through the dialogue."""
+    """Return the messages to send, human turns and REG requests alternating, cycling through the dialogue."""
     human = [t for t in scenario.dialogue if t.speaker == "human"]
     robot = [t for t in scenario.dialogue if t.speaker == "robot"]
     out = []
@@ -291,7 +291,7 @@ def report(result: RunResult, title: str) -> str:
 
 
 def answer(sent: Sent) -> object:
-    """What a reply says, for comparing runs (description or resolution, or the error)."""
+    """Return what a reply says, for comparing runs (description or resolution, or the error)."""
     if not sent.replies:
         return "lost"
     data = sent.replies[0][1]

@@ -29,6 +29,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+import itertools
+
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rosutil import Graph, Timeout
@@ -48,6 +51,9 @@ LTM_ASSERT = "/ltm/assert"
 RR_RESULT = "/rr/result"
 REG_EXPRESSION = "/reg/expression"
 LTM_RESULT = "/ltm/assert/result"
+#: Every endpoint fuzzed, for Table 1's one domain.
+ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), SYNC, STATUS,
+             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
 #: Topic -> the topic its answers (and rejections) come back on.
 REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT}
 
@@ -103,7 +109,7 @@ class Outcome:
 
 
 def templates(scenario: Scenario) -> dict[str, list[Template]]:
-    """Valid messages for every endpoint, built from the scenario's names."""
+    """Return valid messages for every endpoint, built from the scenario's names."""
     domain = next(iter(scenario.domains))
     spec = scenario.domains[domain]
     entity, prop = next(iter(spec.entities)), spec.preference[0]
@@ -157,7 +163,7 @@ WRONG = {  # a value of each JSON kind, to give a field the wrong type
 
 
 def kinds(value: Any, name: str) -> set[str]:
-    """The JSON kinds a field accepts, judged from its valid value."""
+    """Return the JSON kinds a field accepts, judged from its valid value."""
     if name == "id":
         return {"int", "str"}
     if isinstance(value, bool):
@@ -270,7 +276,7 @@ def raw_inputs() -> st.SearchStrategy:
 
 
 def inputs(endpoint_templates: list[Template], fresh_ids) -> st.SearchStrategy:
-    """Inputs for one endpoint: mostly mutations of its valid messages, some raw."""
+    """Generate inputs for one endpoint: mostly mutations of its valid messages, some raw."""
     mutated = st.sampled_from(endpoint_templates).flatmap(lambda t: mutations(t, next(fresh_ids)))
     return st.one_of(mutated, mutated, mutated, raw_inputs())
 
@@ -297,7 +303,7 @@ class Fuzzer:
         self.inboxes = {topic: self.g.listen(topic) for topic in set(REPLY_TOPIC.values())}
 
     def restart(self) -> None:
-        """A callback raised (a real node process would have died): start a fresh graph."""
+        """Start a fresh graph after a callback raised (a real node process would have died)."""
         self.close()
         self.restarts += 1
         self._open()
@@ -319,7 +325,7 @@ class Fuzzer:
         return state
 
     def state_before(self) -> dict:
-        """The snapshot before an input, with something in WM so that a change to it can be seen."""
+        """Return the snapshot before an input, with something in WM so that a change to it can be seen."""
         if self.state is None:
             self.state = self.snapshot()
         domain = self.domains[0]
@@ -419,7 +425,8 @@ class Fuzzer:
                 continue
             lines.append(f"{endpoint}: {o.tried} inputs, {o.rejected} rejected, {o.accepted} accepted, "
                          f"{len(o.crashes)} crashes, {len(o.unanswered)} unanswered, "
-                         f"{len(o.accepted_invalid)} invalid accepted, {len(o.changed_by_rejected)} changed by rejected")
+                         f"{len(o.accepted_invalid)} invalid accepted, "
+                         f"{len(o.changed_by_rejected)} changed by rejected")
             lines += [f"    {f}" for f in _dedupe(o.failures())]
         return "\n".join(lines)
 
@@ -440,9 +447,8 @@ def _dedupe(lines: list[str], limit: int = 12) -> list[str]:
     return out[:limit] + ([f"... {len(out) - limit} more"] if len(out) > limit else [])
 
 
-
 def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.0) -> Graph:
-    """The runner's nodes (not the player) in one in-process graph on sim time, at TIME, synced.
+    """Start the runner's nodes (not the player) in one in-process graph on sim time, at TIME, synced.
 
     The WM Manager's deadline per consultant call is short, so a stuck call costs the
     fuzz little.
@@ -462,3 +468,20 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
     g.set_time(TIME)
     g.call(SYNC, {"time": TIME}, timeout=10.0)
     return g
+
+
+def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 10_000) -> None:
+    """Send every catalogued hostile input, then ``examples`` generated ones (fixed seed), to ``endpoint``."""
+    ids = itertools.count(first_id)
+    for template in templates(fuzzer.scenario)[endpoint]:
+        for given_input in catalogue(template, ids):
+            fuzzer.check(endpoint, given_input)
+    strategy = inputs(templates(fuzzer.scenario)[endpoint], ids)
+
+    @settings(max_examples=examples, derandomize=True, deadline=None, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(strategy)
+    def fuzz(given_input):
+        fuzzer.check(endpoint, given_input)
+
+    fuzz()

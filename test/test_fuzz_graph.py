@@ -6,39 +6,14 @@ bounded for CI (``FUZZ_EXAMPLES``); ``scripts/fuzz.py`` runs the same fuzzer lon
 
 from __future__ import annotations
 
-import itertools
-
 import pytest
-from hypothesis import HealthCheck, given, settings
 
-from fuzzgraph import CONSULTANT, HUMAN, LTM_ASSERT, MANAGE, REG_REQUEST, SEMANTICS, STATUS, SYNC, Fuzzer, inputs
-from fuzzgraph import NOT_JSON, catalogue
-from fuzzgraph import start_graph, templates
+from fuzzgraph import ENDPOINTS, NOT_JSON, Fuzzer, fuzz_endpoint, start_graph, templates
 
 from fsreg_ros.core.scenario import load_scenario
 
 pytestmark = pytest.mark.graph
 FUZZ_EXAMPLES = 20
-DOMAIN = "faces"  # Table 1's one domain
-ENDPOINTS = [CONSULTANT.format(domain=DOMAIN), MANAGE.format(domain=DOMAIN), SYNC, STATUS,
-             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
-
-
-def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 10_000) -> None:
-    """Send every catalogued hostile input, then ``examples`` generated ones (fixed seed), to ``endpoint``."""
-    ids = itertools.count(first_id)
-    for template in templates(fuzzer.scenario)[endpoint]:
-        for given_input in catalogue(template, ids):
-            fuzzer.check(endpoint, given_input)
-    strategy = inputs(templates(fuzzer.scenario)[endpoint], ids)
-
-    @settings(max_examples=examples, derandomize=True, deadline=None, database=None,
-              suppress_health_check=list(HealthCheck))
-    @given(strategy)
-    def fuzz(given_input):
-        fuzzer.check(endpoint, given_input)
-
-    fuzz()
 
 
 @pytest.fixture(scope="module")
