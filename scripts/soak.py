@@ -5,7 +5,9 @@ Starts every node of ``fsreg-graph`` as its own process (``graph.Graph``, the pl
 left out) on sim time and plays the player's part itself: for each message it
 advances ``/clock`` by ``--step`` sim seconds, calls the WM Manager's ``sync`` barrier,
 then publishes a human turn on ``/dialogue/human`` or a REG request on
-``/reg/request``, alternating, at ``--rate`` messages per wall-clock second.  The
+``/reg/request``, alternating, at ``--rate`` messages per wall-clock second, in
+order (a message waits for the previous one's reply, at most ``ORDER_WAIT`` after it
+was sent, so that two runs are comparable turn by turn).  The
 turns and targets cycle through the scenario's dialogue, each with a fresh id.
 
 Prints: lost (no reply by the end) and duplicated (more than one reply) per kind,
@@ -31,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -61,6 +64,7 @@ HUMAN, REG_REQUEST, RR_RESULT, REG_EXPRESSION, SYNC = (
 READY_TIMEOUT = 60.0
 SYNC_TIMEOUT = 2.0
 WARM_UP_RETRY = 2.0
+ORDER_WAIT = 2.0  # at most this long after sending, wait for a message's reply before the next
 DRAIN = 15.0  # wall seconds to wait for the last replies (a dead consultant call costs 10 s)
 
 
@@ -224,12 +228,14 @@ def run(args: argparse.Namespace, kill_at: Optional[int]) -> RunResult:
             driver.wait_ready(plan[:2])
             consultant = f"consultant_{next(iter(scenario.domains))}"
             period, start = 1.0 / args.rate, time.monotonic()
-            next_sample = start
+            next_sample, previous = start, None
             for i, (kind, msg) in enumerate(plan):
                 if kill_at is not None and i == kill_at:
                     restart(graph, consultant)
                 slot = start + i * period
                 driver.spin_until(lambda: False, slot)  # spin (collect replies) until this message's slot
+                if previous is not None:  # in order: a turn's WM changes land before the next request reads WM
+                    driver.spin_until(lambda: previous.replies, max(slot, previous.sent + ORDER_WAIT))
                 if time.monotonic() >= next_sample:
                     rss_sample(graph, i, rss)
                     next_sample += 1.0
@@ -238,7 +244,7 @@ def run(args: argparse.Namespace, kill_at: Optional[int]) -> RunResult:
                 if not driver.call_sync(t, SYNC_TIMEOUT):
                     sync_failures += 1
                 msg = {**msg, "time": t}
-                driver.messages[msg["id"]] = Sent(kind, i, time.monotonic())
+                previous = driver.messages[msg["id"]] = Sent(kind, i, time.monotonic())
                 driver.pubs[kind].publish(to_msg(msg))
             driver.spin_until(lambda: all(s.replies for s in driver.messages.values()), time.monotonic() + DRAIN)
             driver.spin_until(lambda: False, time.monotonic() + 0.5)  # late duplicates
@@ -284,6 +290,12 @@ def report(result: RunResult, title: str) -> str:
         lines.append(f"{kind:6} sent {len(sent)}, lost {lost}, duplicated {dup}, errors {errors}; latency ms "
                      f"p50 {percentile(ms, 50):.1f} p95 {percentile(ms, 95):.1f} p99 {percentile(ms, 99):.1f} "
                      f"max {max(ms, default=float('nan')):.1f}")
+    errors = Counter(s.replies[0][1]["error"][:120] for s in result.messages.values()
+                     if s.replies and s.replies[0][1].get("error"))
+    lines += [f"  error x{n}: {text}" for text, n in errors.most_common(5)]
+    lost = [k for k, s in result.messages.items() if not s.replies]
+    if lost:
+        lines.append(f"  lost: {', '.join(lost[:20])}")
     lines.append("RSS MB start -> end, slope MB per 1,000 requests:")
     for name, points in sorted(result.rss.items()):
         lines.append(f"  {name:22} {points[0][1]:7.1f} -> {points[-1][1]:7.1f}  {slope(points):+.3f}")

@@ -157,3 +157,15 @@ def test_every_node_process_listens_on_loopback_only(table1_path, tmp_path):
             assert all(a.port in ephemeral and a.port not in dds_ports(domain) for a in others), (spec.name, others)
     finally:
         graph.stop()
+
+
+@pytest.mark.parametrize("script", ["soak.py", "fuzz.py"])
+def test_the_scripts_refuse_a_widening_environment(script):
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
+    env.pop(ALLOW_NETWORK, None)
+    proc = subprocess.run([sys.executable, str(REPO / "scripts" / script)], env=env, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr == (f"{script}: error: ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET' would send DDS discovery off "
+                           "this machine (fsreg needs LOCALHOST); unset it, or set FSREG_ALLOW_NETWORK=1 to use "
+                           "the network deliberately (docs/deployment.md)\n")
