@@ -36,7 +36,9 @@ from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="fuzz.py", description=__doc__.split("\n\n")[0])
-    default = Path(os.environ.get("FSREG_SHARED_DATA", REPO.parent / "shared" / "data")) / "table1.yaml"
+    default = REPO / "scenarios" / "guess_who_table1.yaml"  # Table 1 (or $FSREG_SHARED_DATA/table1.yaml)
+    if not default.is_file() and os.environ.get("FSREG_SHARED_DATA"):
+        default = Path(os.environ["FSREG_SHARED_DATA"]) / "table1.yaml"
     parser.add_argument("scenario", type=Path, nargs="?", default=default, help="Table 1 scenario (domain faces)")
     parser.add_argument("--examples", type=int, default=500, help="generated inputs per endpoint (default 500)")
     parser.add_argument("--endpoint", action="append", choices=ENDPOINTS, help="only these (repeatable)")

@@ -329,7 +329,9 @@ def compare(base: RunResult, killed: RunResult) -> str:
 
 def main(argv: Optional[list[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="soak.py", description=__doc__.split("\n\n")[0])
-    default = Path(os.environ.get("FSREG_SHARED_DATA", REPO.parent / "shared" / "data")) / "table1.yaml"
+    default = REPO / "scenarios" / "guess_who_table1.yaml"  # Table 1 (or $FSREG_SHARED_DATA/table1.yaml)
+    if not default.is_file() and os.environ.get("FSREG_SHARED_DATA"):
+        default = Path(os.environ["FSREG_SHARED_DATA"]) / "table1.yaml"
     parser.add_argument("scenario", type=Path, nargs="?", default=default)
     parser.add_argument("--turns", type=int, default=1000, help="human turns (default 1000)")
     parser.add_argument("--requests", type=int, default=1000, help="REG requests (default 1000)")
