@@ -12,8 +12,8 @@ group, which is sent SIGTERM (then SIGKILL after a grace period) on exit,
 Ctrl-C or a failed node.  Node output goes to log files, whose tails are shown
 when something fails.
 
-Networking is left to DDS: the runner keeps ``ROS_AUTOMATIC_DISCOVERY_RANGE``
-as the caller set it (LOCALHOST when unset) and never widens it.
+Networking: every node gets :func:`fsreg_ros.network.ros_environment` (loopback
+only; a widening environment is refused with exit 2 unless FSREG_ALLOW_NETWORK=1).
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from .cli import run_cli
 from .core.lexicon import Lexicon
 from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
+from .network import require_loopback, ros_environment
 
 PACKAGE = "fsreg_ros"
 #: Seconds to wait for the player: start-up allowance plus an allowance per turn
@@ -47,17 +48,6 @@ GRACE = 5.0
 
 class GraphError(RuntimeError):
     """A node failed to start, died, or the run exceeded its deadline."""
-
-
-def ros_environment(base: Optional[dict] = None) -> dict:
-    """The environment for every node: discovery on localhost unless the caller chose
-    otherwise, a domain id and a log directory."""
-    env = dict(os.environ if base is None else base)
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
-    if "ROS_LOG_DIR" not in env:
-        env["ROS_LOG_DIR"] = tempfile.mkdtemp(prefix="fsreg-roslog-")
-    return env
 
 
 def executable(name: str) -> list[str]:
@@ -259,6 +249,7 @@ def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[d
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``fsreg-graph SCENARIO.yaml [options]``: the scenario through the node graph."""
+    require_loopback("fsreg-graph")  # exits 2 if the environment would take DDS off this machine
     try:
         return run_cli(
             "fsreg-graph",
