@@ -1,7 +1,7 @@
 """A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
-call is one awaited JSON call to ``/consultant/<domain>`` (see
+call is one awaited JSON call to ``consultant/<domain>`` (see
 :mod:`fsreg_ros.nodes.consultant` for the ops).  Await port methods only from a
 callback outside ``callback_group`` (give the port a reentrant group of its own).
 
@@ -9,26 +9,24 @@ Errors: a request the consultant rejects because it names an unknown entity or
 property raises :class:`~fsreg_ros.core.consultant.KnowledgeError` (as the in-process
 :class:`~fsreg_ros.core.consultant.LocalPort` would); everything else (timeouts, a
 malformed reply, other rejections) raises :class:`~fsreg_ros.carrier.CarrierError`.
+
+Failing fast: after a call times out the port counts the consultant as down, and every
+call in the next ``timeout`` seconds fails at once (kind ``unavailable``) instead of
+waiting out its own deadline, so one dead consultant does not hold every request queued
+behind it for a full timeout each.  After that pause one call probes it again.
 """
 
 from __future__ import annotations
 
+import time
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup
 
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, MessageError, check_fields
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
+from .codec import MessageError, check_fields
+from .contract import consultant_service
 from .core.consultant import KnowledgeError
-
-
-def consultant_service(domain: str) -> str:
-    """The query service of a domain's consultant."""
-    return f"/consultant/{domain}"
-
-
-def manage_service(domain: str) -> str:
-    """The WM Manager's service of a domain's consultant (configure, decay)."""
-    return f"/consultant/{domain}/manage"
 
 
 class RemotePort:
@@ -45,15 +43,24 @@ class RemotePort:
         self.timeout = timeout
         self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
         self._preference: Optional[list[str]] = None
+        self._down_until = 0.0  # monotonic time before which calls fail fast
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], expect: Mapping[str, Any]) -> dict:
+        now = time.monotonic()
+        if now < self._down_until:
+            raise CarrierError(
+                f"consultant '{self.domain}' is not answering (a call timed out {self.timeout - (self._down_until - now):.1f} s"
+                " ago); failing fast, try again later", kind="unavailable", service=self.client.name)
         try:
             reply = await self.client.call(payload, self.timeout)
         except CarrierError as err:
             if err.kind == "KnowledgeError":
                 raise KnowledgeError(err.error) from None
+            if err.kind == "timeout":
+                self._down_until = time.monotonic() + self.timeout
             raise
+        self._down_until = 0.0
         try:
             return check_fields(reply, expect)
         except MessageError as err:

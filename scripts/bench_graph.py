@@ -105,7 +105,7 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, rounds: int
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String
 
-    from fsreg_ros.carrier import from_msg, to_msg
+    from fsreg_ros.codec import from_msg, to_msg
 
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-bench-"))
     nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json") if n.name != "dialogue_player"]

@@ -10,9 +10,10 @@ import sys
 
 import pytest
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS, STATE_QOS
+from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
 from fsreg_ros.core.consultant import KnowledgeError, LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.resolution import resolve
@@ -306,11 +307,18 @@ def test_threshold_parameter(graph: Graph):
     assert node.set_parameters([Parameter("threshold", value=0.8)])[0].successful
     assert graph.call(Q, holds)["holds"] == ["face1"]
     assert graph.call(Q, {"op": "info"})["threshold"] == 0.8
-    for value in (1.5, -0.1, "high"):
+    for value in (1.5, -0.1):
         result = node.set_parameters([Parameter("threshold", value=value)])[0]
-        assert not result.successful and "threshold" in result.reason
-    assert node.set_parameters([Parameter("threshold", value=1)])[0].successful  # an integer is a number
-    assert node.get_parameter("threshold").value == 1
+        assert not result.successful and "threshold" in result.reason and "range" in result.reason
+    for value in ("high", 1):  # type changes are refused (the descriptor is statically typed)
+        result = node.set_parameters([Parameter("threshold", value=value)])[0]
+        assert not result.successful and "Wrong parameter type" in result.reason
+    result = node.set_parameters([Parameter("threshold", Parameter.Type.NOT_SET)])[0]
+    assert not result.successful and "cannot be undeclared" in result.reason
+    assert node.get_parameter("threshold").value == 0.8
+    described = node.describe_parameter("threshold")
+    assert (described.floating_point_range[0].from_value, described.floating_point_range[0].to_value) == (0.0, 1.0)
+    assert node.set_parameters([Parameter("threshold", value=1.0)])[0].successful  # the bound itself is in range
     assert graph.call(Q, holds)["holds"] == ["face1"]
 
 
@@ -344,7 +352,7 @@ def test_startup_errors(graph: Graph):
         graph.add(ConsultantNode, domain="faces", kb=str(DATA / "bad.yaml"))
     with pytest.raises(StartupError, match="'domain' is required"):
         graph.add(ConsultantNode, kb=KB)
-    with pytest.raises(StartupError, match="threshold"):
+    with pytest.raises(InvalidParameterValueException, match="threshold out of range"):
         graph.add(ConsultantNode, domain="faces", kb=KB, threshold=2.0)
 
 
@@ -407,11 +415,17 @@ class Flaky(Node):
     def __init__(self):
         super().__init__("flaky")
         from rclpy.task import Future
+        from fsreg_ros import contract
+        from fsreg_ros.carrier import publisher, subscribe
         self.done = Future()
-        self.boom = self.create_timer(0.01, self.explode)
-        self.create_timer(0.2, lambda: self.done.done() or self.done.set_result("survived"))
-    def explode(self):
+        subscribe(self, contract.REG_REQUEST, self.explode)
+        self.pub = publisher(self, contract.REG_REQUEST)
+        self.boom = self.create_timer(0.05, self.send)
+        self.create_timer(0.5, lambda: self.done.done() or self.done.set_result("survived"))
+    def send(self):
         self.boom.cancel()
+        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7"}'))
+    def explode(self, data):
         raise RuntimeError("boom")
 
 async def survive(node):
@@ -434,6 +448,7 @@ def test_run_node_exit_codes():
                           timeout=30)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[0, 0, 1, 2] ['survived', 42]"
-    assert "a callback failed: RuntimeError: boom" in proc.stderr  # logged, and the node lived on
+    # logged with the topic and request id by the subscribe wrapper, and the node lived on
+    assert "reg/request (id 'r7'): internal error: RuntimeError: boom" in proc.stderr
     assert "the job failed" in proc.stderr and "cannot start: bad configuration" in proc.stderr
     assert "Traceback" not in proc.stderr

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS
+from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.nodes.common import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.core.forgetting import DecayClock

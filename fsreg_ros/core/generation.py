@@ -24,10 +24,23 @@ from typing import Optional, Sequence
 from .consultant import ConsultantPort, KnowledgeError
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
+#: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
+AUTO = "auto"
 WM_ORDERS = ("lru-first", "mru-first", "preference")
 #: Full Brevity is exponential in the number of useful properties; beyond this many
 #: subsets it gives up with a clear error instead of running for hours.
 FULL_BREVITY_MAX_SUBSETS = 5_000_000
+
+
+def algorithm_for(retains: bool, algorithm: Optional[str] = None) -> str:
+    """Return the algorithm to run: the one named, else SD-PIA, or DIST-PIA when WM retains nothing.
+
+    Policy ``none`` keeps no WM, so SD-PIA's Phase 1 has nothing to walk and the paper's
+    "No WM" condition is DIST-PIA; ``None``, ``""`` and ``"auto"`` all mean "choose".
+    """
+    if algorithm and algorithm != AUTO:
+        return algorithm
+    return "sd-pia" if retains else "dist-pia"
 
 
 class GenerationError(ValueError):
