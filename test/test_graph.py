@@ -96,6 +96,36 @@ def test_two_domains_each_keep_their_own_pool(tmp_path):
     assert robot[5]["domain"] == "objects"
 
 
+def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(table1_path, tmp_path):
+    """Two whole graphs in one process and one executor, under /robot1 and /robot2 on the
+    same ROS_DOMAIN_ID, each replaying a different dialogue with its own clock (the
+    namespaced /clock remap): each result equals the simulator's for its own scenario."""
+    second = DATA / "two_domains.yaml"
+    options = Options(memory={"policy": "decay"})
+    with Graph(namespace="robot1") as g1:
+        g2 = Graph(namespace="robot2", context=g1.context, executor=g1.executor)
+        try:
+            (tmp_path / "r1").mkdir()
+            (tmp_path / "r2").mkdir()
+            p1 = start_graph(g1, table1_path, options, tmp_path / "r1")
+            p2 = start_graph(g2, second, Options(), tmp_path / "r2")
+            assert p1.get_fully_qualified_name() == "/robot1/dialogue_player"
+            assert p1.resolve_topic_name("/clock") == "/robot1/clock"
+            t1, t2 = g1.executor.create_task(p1.play()), g1.executor.create_task(p2.play())
+            g1.spin_until(lambda: t1.done() and t2.done(), 90.0, what="both players")
+            r1, r2 = t1.result(), t2.result()
+            # Each graph's consultants saw only their own dialogue.
+            faces1 = g1.call("consultant/faces", {"op": "info"})["entities"]
+            objects2 = g2.call("consultant/objects", {"op": "info"})["entities"]
+            assert g1.probe.count_publishers("/robot1/rr/result") == 2  # RR + parser (errors), not robot2's
+        finally:
+            g2.close()
+    assert dumps(r1) == dumps(simulate(load_scenario(table1_path), options))
+    assert dumps(r2) == dumps(simulate(load_scenario(second), Options()))
+    assert faces1 == list(load_scenario(table1_path).domains["faces"].entities)
+    assert objects2 == list(load_scenario(second).domains["objects"].entities)
+
+
 def random_scenario(seed: int) -> dict:
     """A random scenario in the SPEC section 5 schema (valid by construction)."""
     rng = random.Random(seed)
