@@ -25,8 +25,8 @@ from rosutil import DATA, KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 
-Q = "/consultant/faces"
-M = "/consultant/faces/manage"
+Q = contract.consultant_service("faces")
+M = contract.manage_service("faces")
 
 
 @pytest.fixture
@@ -36,13 +36,13 @@ def graph():
 
 def start(graph: Graph, domain: str = "faces", **params):
     node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", **params)
-    graph.wait_service(f"/consultant/{domain}")
-    graph.wait_service(f"/consultant/{domain}/manage")
+    graph.wait_service(contract.consultant_service(domain))
+    graph.wait_service(contract.manage_service(domain))
     return node
 
 
 def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
-    return graph.call(f"/consultant/{domain}/manage", {"op": "configure", "policy": {"policy": policy, **params}, "time": 0.0})
+    return graph.call(contract.manage_service(domain), {"op": "configure", "policy": {"policy": policy, **params}, "time": 0.0})
 
 
 def test_info_and_latched_start_state(graph: Graph):
@@ -58,11 +58,11 @@ def test_info_and_latched_start_state(graph: Graph):
         "events": 0,
     }
     # A late joiner gets the start state (transient local).
-    states = graph.listen("/wm/state", STATE_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched /wm/state")
     assert states[0]["domain"] == "faces" and states[0]["queues"] == {}
     # Unconfigured, the consultant runs policy none: nothing is retained.
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
     assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": []}
     graph.spin_for(0.05)
@@ -71,8 +71,8 @@ def test_info_and_latched_start_state(graph: Graph):
 
 def test_query_ops_round_trip(graph: Graph):
     start(graph)
-    states = graph.listen("/wm/state", STATE_QOS)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     graph.spin_until(lambda: states, what="start state")
     assert configure(graph, "displacement", capacity=3) == {
         "memory": {"policy": "displacement", "capacity": 3},
@@ -121,8 +121,8 @@ def test_query_ops_round_trip(graph: Graph):
 
 def test_configure_trims_and_decay_ticks(graph: Graph):
     start(graph)
-    states = graph.listen("/wm/state", STATE_QOS)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
 
     def new_events(n: int, what: str) -> list[dict]:
         """Wait until ``n`` more events arrived since the last call; those events."""
@@ -221,10 +221,10 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 1.0})
     before = graph.call(Q, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
-    states = graph.listen("/wm/state", STATE_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched state")
     n_states = len(states)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     for service, request, kind, text in BAD_REQUESTS:
         err = graph.call_error(service, request)
         assert err.kind == kind, (request, err)
@@ -243,14 +243,14 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
 def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     start(graph)
     configure(graph, "displacement", capacity=4)
-    results = graph.listen("/ltm/assert/result")
-    events = graph.listen("/wm/events", EVENTS_QOS)
-    states = graph.listen("/wm/state", STATE_QOS)
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker", "time": 1.0})
     graph.spin_until(lambda: len(events) == 2, what="encode events")
 
     # a new entity joins the domain, last in entity order
-    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"})
     graph.spin_until(lambda: results, what="assert result")
     assert results[-1] == {
         "domain": "faces", "entity": "face4", "id": "a1", "ok": True, "new_entity": True,
@@ -263,7 +263,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     graph.spin_until(lambda: states, what="state")
     n_states = len(states)
     events.clear_all()
-    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face1", "properties": {"glasses": 0, "dark-hair": 0.2}})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face1", "properties": {"glasses": 0, "dark-hair": 0.2}})
     graph.spin_until(lambda: len(results) == 2, what="second result")
     assert results[-1]["ok"] is True and results[-1]["new_entity"] is False and results[-1]["retracted"] == ["glasses"]
     graph.spin_until(lambda: events, what="retract event")
@@ -274,7 +274,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []
 
     # another domain's message is not ours: silence
-    graph.publish("/ltm/assert", {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
     # bad ones: error result, no change
     bad = [
         ("garbage", "not JSON"),
@@ -291,7 +291,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     n_events = len(events)
     for message, text in bad:
         count = len(results)
-        graph.publish("/ltm/assert", message)
+        graph.publish(contract.LTM_ASSERT.name, message)
         graph.spin_until(lambda: len(results) > count, what=f"error result for {message}")
         assert results[-1]["ok"] is False and text in results[-1]["error"], (message, results[-1])
     assert all(r.get("entity") != "obj9" for r in results)

@@ -16,6 +16,7 @@ import yaml
 
 from rosutil import Graph
 
+from fsreg_ros import contract
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
@@ -203,7 +204,7 @@ def test_invalid_live_parameter_is_rejected_and_changes_nothing(table1_path, tmp
             result = manager.set_parameters([Parameter(name, value=value)])
             assert not result[0].successful
             assert fragment in result[0].reason
-        reply = g.call("/wm_manager/status", {})
+        reply = g.call(contract.STATUS.name, {})
         assert reply["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}
 
 

@@ -93,7 +93,7 @@ def watch_clock(node, silence: float = CLOCK_SILENCE):
                 "timers and decay wait for the clock (start a player or set use_sim_time:=false)"
             )
 
-    return node.create_timer(1.0, check, clock=steady)
+    return node.create_timer(min(1.0, silence / 3), check, clock=steady)
 
 
 # ------------------------------------------------------------------ parameters
