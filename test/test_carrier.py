@@ -181,3 +181,40 @@ def test_wait_until(graph: Graph):
     assert graph.run(wait_until(graph.probe, lambda: flag["set"], 2.0)) is True
     graph.probe.destroy_timer(timer)
     assert graph.run(wait_until(graph.probe, lambda: False, 0.1)) is False
+
+
+# ------------------------------------------------------------------ error replies never throw
+@pytest.mark.parametrize(
+    "value",
+    [float("nan"), float("inf"), 10**5000, "\ud800", "x" * 100_000, object(), {"k": [float("-inf")]}, b"bytes"],
+    ids=["nan", "inf", "huge-int", "surrogate", "long", "object", "nested-inf", "bytes"],
+)
+def test_error_replies_are_json_whatever_they_carry(value):
+    import json
+
+    from fsreg_ros.codec import error_json, printable, safe_dumps
+
+    text = error_json(value, "MessageError", value if isinstance(value, (str, int)) else None, extra=value)
+    reply = json.loads(text)
+    assert reply["kind"] == "MessageError" and isinstance(reply["error"], str)
+    assert len(reply["error"]) <= 500
+    json.loads(safe_dumps({"id": 1, "v": value}))
+    printable(value).encode("utf-8")  # a logger can always write it
+
+
+def test_parse_refuses_oversized_text_before_parsing():
+    from fsreg_ros.codec import parse
+
+    with pytest.raises(MessageError, match="over the limit of 1000"):
+        parse('{"a": "' + "x" * 2000 + '"}', max_bytes=1000)
+    assert parse('{"a": "x"}', max_bytes=1000) == {"a": "x"}
+
+
+def test_a_service_answers_hostile_requests(graph: Graph):
+    server = Server(graph.context)
+    graph.executor.add_node(server)
+    graph.nodes.append(server)
+    for text in ['{"id": "\\ud800", "raise": "value"}', '{"x": 1e999}', '{"n": ' + "9" * 5000 + "}"]:
+        err = graph.call_error("/carrier/fail", text)
+        assert err.kind in ("internal", "MessageError")
+    assert graph.call("/carrier/echo", {"ok": 1}) == {"echo": {"ok": 1}}

@@ -153,3 +153,24 @@ def test_colcon_build_installs_every_executable(tmp_path):
     assert run.returncode == 2, run.stdout + run.stderr
     assert "none.yaml" in run.stdout + run.stderr
     assert "Traceback" not in run.stdout + run.stderr
+
+
+def test_the_docs_message_table_is_the_contracts():
+    from fsreg_ros import contract
+
+    text = (REPO / "docs" / "design.md").read_text()
+    section = text[text.index("## Messages"):text.index("## Forgetting without races")]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert rows == contract.message_table()
+    assert any("`wm/state`" in row and "`events`" in row for row in rows)
+
+
+def test_no_topic_or_service_literal_outside_the_contract():
+    names = [t.name for t in __import__("fsreg_ros.contract", fromlist=["TOPICS"]).TOPICS]
+    names += ["wm_manager/sync", "wm_manager/status"]
+    for path in (REPO / "fsreg_ros").rglob("*.py"):
+        if path.name == "contract.py":
+            continue
+        text = path.read_text()
+        for name in names:
+            assert f'"{name}"' not in text and f'"/{name}"' not in text, f"{path}: {name}"
