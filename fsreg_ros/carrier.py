@@ -234,15 +234,15 @@ class JsonClient:
 
     @classmethod
     def wrap(cls, node, client, timeout: float = DEFAULT_TIMEOUT) -> "JsonClient":
-        """A JsonClient over an existing ``AddDiagnostics`` client of ``node``."""
+        """Return a JsonClient over an existing ``AddDiagnostics`` client of ``node``."""
         return cls(node, client.srv_name, timeout=timeout, client=client)
 
     def ready(self) -> bool:
-        """A server is matched (not proof it answers: see :meth:`wait_ready`)."""
+        """Return True if a server is matched (not proof it answers: see :meth:`wait_ready`)."""
         return self.client.service_is_ready()
 
     def send(self, payload: Mapping[str, Any]) -> Future:
-        """Send one request now (so requests leave in call order); a Future of the reply."""
+        """Send one request now (so requests leave in call order); return a Future of the reply."""
         return self.client.call_async(SERVICE_TYPE.Request(load_namespace=dumps(payload)))
 
     async def result(self, future: Future, timeout: Optional[float] = None) -> dict:
@@ -271,12 +271,12 @@ class JsonClient:
             )
 
     def decode(self, future: Future) -> dict:
-        """The reply of a done future, or raise :class:`CarrierError`."""
+        """Return the reply of a done future, or raise :class:`CarrierError`."""
         return self.decode_response(future, self.name)
 
     @staticmethod
     def decode_response(future: Future, name: str) -> dict:
-        """The reply object of a done service future, or :class:`CarrierError`."""
+        """Return the reply object of a done service future, or raise :class:`CarrierError`."""
         if future.cancelled():
             raise CarrierError("call cancelled", kind="cancelled", service=name)
         exc = future.exception()
@@ -309,8 +309,10 @@ class JsonClient:
     async def wait_ready(
         self, payload: Mapping[str, Any], timeout: float, attempt_timeout: float = 2.0
     ) -> dict:
-        """Readiness = one real round trip (ROS-NOTES): wait for the server, then call
-        ``payload`` until one succeeds or ``timeout`` passes; returns its reply.
+        """Wait for one real round trip (readiness); return its reply.
+
+        Wait for the server, then call ``payload`` until one call succeeds or
+        ``timeout`` passes.
 
         A request sent before discovery completes can be lost, so timed-out attempts
         are retried; an error reply from the server is raised at once.
@@ -342,9 +344,11 @@ async def wait_until(
     callback_group: Optional[CallbackGroup] = None,
     period: float = 0.02,
 ) -> bool:
-    """Await (without blocking the executor) until ``predicate()`` or ``timeout`` seconds
-    (steady clock) pass; True if the predicate came true.  A steady-clock timer in
-    ``callback_group`` (not the awaiting callback's group) polls the predicate."""
+    """Await ``predicate()`` without blocking the executor; return True if it came true in time.
+
+    Gives up after ``timeout`` seconds (steady clock).  A steady-clock timer in
+    ``callback_group`` (not the awaiting callback's group) polls the predicate.
+    """
     if predicate():
         return True
     done = Future()

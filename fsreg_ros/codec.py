@@ -1,4 +1,4 @@
-"""The wire codec: one JSON object per ``std_msgs/String`` or service field (SPEC §7).
+r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (SPEC §7).
 
 Decoding (:func:`parse`, :func:`from_msg`) is bounded (a text longer than
 ``max_bytes`` is refused before it is parsed) and checks fields against a small spec
@@ -9,7 +9,7 @@ and what is wrong.  ``float`` accepts whole numbers; ``int`` never accepts
 
 Encoding (:func:`dumps`, :func:`to_msg`) refuses what is not JSON.  Error replies go
 through :func:`error_json`/:func:`safe_dumps`, which never raise: non-finite numbers,
-integers too long to print, lone surrogates (``"\\ud800"``) and unserialisable values
+integers too long to print, lone surrogates (``"\ud800"``) and unserialisable values
 become printable text, and long texts are clipped.  :func:`printable` makes any text
 safe for a ROS logger (which raises on a lone surrogate).
 
@@ -280,5 +280,3 @@ def _show(value: Any) -> str:
 def _clip(text: str, limit: int = 80) -> str:
     text = str(text)
     return text if len(text) <= limit else text[: limit - 3] + "..."
-
-

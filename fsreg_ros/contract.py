@@ -339,7 +339,8 @@ LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue m
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
                           "asserter")
 
-CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant", "reference_resolution, reg")
+CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant",
+                     "reference_resolution, reg")
 MANAGE = Service("consultant/<domain>/manage", ManageRequest, Message, "consultant", "wm_manager only")
 SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogue_player")
 STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")

@@ -65,7 +65,7 @@ def ros_environment(base: Optional[dict] = None) -> dict:
 
 
 def executable(name: str) -> list[str]:
-    """The command that ``ros2 run fsreg_ros <name>`` would run.
+    """Return the command that ``ros2 run fsreg_ros <name>`` would run.
 
     A colcon install (on ``AMENT_PREFIX_PATH``) wins; then the console script beside
     this Python (a venv); then ``python -m`` on the module.

@@ -50,8 +50,9 @@ class RemotePort:
         now = time.monotonic()
         if now < self._down_until:
             raise CarrierError(
-                f"consultant '{self.domain}' is not answering (a call timed out {self.timeout - (self._down_until - now):.1f} s"
-                " ago); failing fast, try again later", kind="unavailable", service=self.client.name)
+                f"consultant '{self.domain}' is not answering (a call timed out "
+                f"{self.timeout - (self._down_until - now):.1f} s ago); failing fast, try again later",
+                kind="unavailable", service=self.client.name)
         try:
             reply = await self.client.call(payload, self.timeout)
         except CarrierError as err:
@@ -68,9 +69,11 @@ class RemotePort:
                                service=self.client.name) from None
 
     async def wait_ready(self, timeout: float) -> dict:
-        """One real round trip (an ``info`` call) within ``timeout`` seconds, retrying
-        while the service is not discovered or the first call is lost; the info reply.
-        Raises :class:`CarrierError` (kind ``timeout``) when the deadline passes."""
+        """Make one real round trip (an ``info`` call) within ``timeout`` seconds; return the info reply.
+
+        Retries while the service is not discovered or the first call is lost; raises
+        :class:`CarrierError` (kind ``timeout``) when the deadline passes.
+        """
         reply = await self.client.wait_ready({"op": "info"}, timeout)
         self._remember(reply)
         return reply

@@ -116,7 +116,8 @@ def main(argv: list[str] | None = None) -> int:
             rclpy.try_shutdown()
     full = [(n, kb) for n, kb in samples if n >= 1024 + args.every]
     slope = (full[-1][1] - full[0][1]) * 1024 / (full[-1][0] - full[0][0]) if len(full) >= 2 else float("nan")
-    print(f"{args.requests} requests in {seconds:.1f} s; RSS {samples[0][1] / 1024:.1f} -> {samples[-1][1] / 1024:.1f} MB; "
+    print(f"{args.requests} requests in {seconds:.1f} s; "
+          f"RSS {samples[0][1] / 1024:.1f} -> {samples[-1][1] / 1024:.1f} MB; "
           f"slope after the cache filled ({full[0][0] if full else '-'}..{args.requests}): {slope:+.0f} bytes/request")
     if args.json:
         args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slope, "seconds": seconds}))

@@ -218,7 +218,7 @@ class Inbox(list):
 
 
 def ros_graph():
-    """Body of a pytest fixture: ``yield from ros_graph()``."""
+    """Yield a Graph and close it after: the body of a pytest fixture."""
     graph = Graph()
     try:
         yield graph
@@ -231,7 +231,7 @@ def as_json(obj: Any) -> str:
 
 
 async def call(client, payload: Any, timeout: Optional[float] = None, *, node=None) -> dict:
-    """Await one call (``await call(client, {"op": ...}, timeout)``): the reply, or :class:`CarrierError`.
+    """Await one JSON call and return the reply, or raise :class:`CarrierError`.
 
     Test-only: the bare-client branch busy-waits by yielding to the executor.
 

@@ -13,6 +13,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 
+from fsreg_ros import contract
 from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
 from fsreg_ros.core.consultant import KnowledgeError, LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy

@@ -183,7 +183,8 @@ def test_live_policy_change_mid_dialogue(table1_path, tmp_path):
     for turn in scenario.dialogue:
         expected.append(sim.play(turn))
         if turn.index == switch_after:
-            sim.manager.set_policy("faces", ForgettingPolicy.parse("displacement", capacity=2, decay_period=10.0), turn.time)
+            policy = ForgettingPolicy.parse("displacement", capacity=2, decay_period=10.0)
+            sim.manager.set_policy("faces", policy, turn.time)
     assert records == expected
     # The switch changed behaviour: turn 11 now describes face1 as under displacement.
     assert records[11]["wm_before"] != simulate(scenario, options)["turns"][11]["wm_before"]

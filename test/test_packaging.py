@@ -125,7 +125,8 @@ def test_colcon_build_installs_every_executable(tmp_path):
         colcon = Path(shutil.which("colcon") or "")
     assert colcon.is_file(), "colcon not installed (requirements-dev.txt)"
     src = tmp_path / "src" / "fsreg_ros"
-    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "__pycache__", "*.egg-info"))
+    ignore = shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "__pycache__", "*.egg-info")
+    shutil.copytree(REPO, src, ignore=ignore)
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     proc = subprocess.run(
         [str(colcon), "build", "--base-paths", "src", "--event-handlers", "console_direct-"],
@@ -174,3 +175,30 @@ def test_no_topic_or_service_literal_outside_the_contract():
         text = path.read_text()
         for name in names:
             assert f'"{name}"' not in text and f'"/{name}"' not in text, f"{path}: {name}"
+
+
+def test_readme_topic_pub_examples_fit_the_contract():
+    """Every ``ros2 topic pub`` line of the README publishes a valid message with a fresh id."""
+    import shlex
+
+    import yaml
+
+    from fsreg_ros import contract
+
+    topics = {"/" + t.name: t for t in contract.TOPICS}
+    ids = []
+    lines = [line for line in (REPO / "README.md").read_text().splitlines() if line.startswith("ros2 topic pub")]
+    assert lines
+    for line in lines:
+        words = shlex.split(line)
+        assert "--once" in words and "-w" in words  # waits for a subscriber, so the message is not lost
+        topic = next(w for w in words if w.startswith("/"))
+        data = yaml.safe_load(words[-1])["data"]
+        import json
+
+        message = json.loads(data)
+        schema = topics[topic].schema
+        models = getattr(schema, "__args__", None) or (schema,)
+        contract.check(models[0], message)
+        ids.append(message["id"])
+    assert len(ids) == len(set(ids))

@@ -175,4 +175,3 @@ def declare_limits(node) -> Limits:
         for name in docs
     }
     return Limits(**values)
-

@@ -82,7 +82,9 @@ class ConsultantNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(self.NODE_NAME, **kwargs)
         self.declare_parameter("domain", "", descriptor("the domain this consultant owns (required)", read_only=True))
-        self.declare_parameter("kb", "", descriptor("scenario/KB YAML file with the domain's LTM (required)", read_only=True))
+        self.declare_parameter(
+            "kb", "", descriptor("scenario/KB YAML file with the domain's LTM (required)", read_only=True)
+        )
         domain = self.get_parameter("domain").value
         kb = self.get_parameter("kb").value
         if not domain:
@@ -169,7 +171,7 @@ class ConsultantNode(Node):
         return reply
 
     def _time(self, request: dict) -> tuple[float, Optional[int]]:
-        """The request's ``time`` (default: now) and ``turn`` (default: null)."""
+        """Return the request's ``time`` (default: now) and ``turn`` (default: null)."""
         check_fields(request, {}, TIME)
         time = float(request["time"]) if request.get("time") is not None else self.now()
         self._last_time = time

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import time as wallclock
-from typing import Any, Optional
+from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -58,13 +58,17 @@ class DialoguePlayer(Node):
         super().__init__("dialogue_player", **kwargs)
         describe = ParameterDescriptor
         self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
-        self.declare_parameter("output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)"))
+        self.declare_parameter(
+            "output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)")
+        )
         self.declare_parameter("trace", "", describe(description="write wm/events as JSON lines here ('' = off)"))
         self.declare_parameter("drive_clock", True, describe(description="publish /clock at each turn's time"))
         declare_number(self, "turn_timeout", 30.0, 0.1, 3600.0, "seconds to wait for one turn's answer")
         declare_number(self, "retry_after", 2.0, 0.05, 600.0, "resend a turn unanswered for this long, s")
         declare_number(self, "ready_timeout", 60.0, 0.1, 3600.0, "seconds to wait for the graph to come up")
-        self.declare_parameter("lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True))
+        self.declare_parameter(
+            "lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True)
+        )
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' is required")
@@ -100,8 +104,11 @@ class DialoguePlayer(Node):
         ]
 
     async def wait_ready(self) -> None:
-        """Every pipeline topic has its peers and the WM Manager answers a sync (which
-        it does only once every consultant is configured)."""
+        """Wait until the graph is up.
+
+        Every pipeline topic has its peers and the WM Manager answers a sync (which
+        it does only once every consultant is configured).
+        """
         timeout = self.get_parameter("ready_timeout").value
         started = wallclock.monotonic()
         if not await wait_until(self, lambda: not self._missing_peers(), timeout):
@@ -114,8 +121,10 @@ class DialoguePlayer(Node):
         self.memory = reply.get("memory", {})
 
     async def exchange(self, publisher, message: dict) -> dict:
-        """Publish ``message`` and wait for the answer with its id, resending it every
-        ``retry_after`` seconds until ``turn_timeout``."""
+        """Publish ``message`` and return the answer with its id.
+
+        The message is resent every ``retry_after`` seconds until ``turn_timeout``.
+        """
         key = str(message["id"])
         future = Future()
         self._pending[key] = future
@@ -148,8 +157,10 @@ class DialoguePlayer(Node):
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
 
     async def drain_events(self) -> None:
-        """Wait until every event each consultant has published has been heard (an
-        answer can overtake the last events, which come from another process)."""
+        """Wait until every event each consultant has published has been heard.
+
+        An answer can overtake the last events, which come from another process.
+        """
         timeout = self.get_parameter("turn_timeout").value
         for domain in self.scenario.domains:
             client = JsonClient(self, contract.consultant_service(domain), self._group)
@@ -188,7 +199,7 @@ class DialoguePlayer(Node):
 
 
 def clock_message(seconds: float) -> Clock:
-    """A ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
+    """Return a ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
     stamp = Clock()
     stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
     return stamp

@@ -31,7 +31,8 @@ class ParserNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("parser", **kwargs)
         self.declare_parameter(
-            "kb", "", descriptor("scenario/KB YAML whose properties may be parsed ('' = all in lexicon)", read_only=True)
+            "kb", "",
+            descriptor("scenario/KB YAML whose properties may be parsed ('' = all in lexicon)", read_only=True),
         )
         self.declare_parameter(
             "lexicon", "", descriptor("lexicon YAML ('' = the package's config/lexicon.yaml)", read_only=True)
@@ -39,13 +40,16 @@ class ParserNode(Node):
         self.limits = declare_limits(self)
         self.lexicon = Lexicon.load(self.get_parameter("lexicon").value or None)
         kb = self.get_parameter("kb").value
-        self.properties: set[str] = set(load_scenario(kb, self.lexicon).properties() if kb else self.lexicon.properties())
+        known = load_scenario(kb, self.lexicon).properties() if kb else self.lexicon.properties()
+        self.properties: set[str] = set(known)
         self._semantics = publisher(self, contract.SEMANTICS)
         self._errors = publisher(self, contract.RR_RESULT)
-        subscribe(self, contract.HUMAN, self._on_human, reject=lambda rid, error: publish(self._errors, rr_error(rid, error)),
-                  max_bytes=self.limits.max_message_bytes)
+        subscribe(self, contract.HUMAN, self._on_human, reject=self._reject, max_bytes=self.limits.max_message_bytes)
         self._clock_watch = watch_clock(self)
         self.get_logger().info(f"parser ready for {len(self.properties)} properties")
+
+    def _reject(self, request_id, error: str) -> None:
+        publish(self._errors, rr_error(request_id, error))
 
     def _on_human(self, data: dict) -> None:
         publish(self._semantics, self.parse(data))

@@ -1,4 +1,4 @@
-"""``reference_resolution``: which entity did the human mean?  (SPEC section 3)
+"""``reference_resolution``: find the entity the human meant (SPEC section 3).
 
 Subscribes ``dialogue/semantics`` (from the parser) and publishes ``rr/result``
 (schemas :class:`~fsreg_ros.contract.Semantics`, :class:`~fsreg_ros.contract.RRResult`;
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from .. import contract
 from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import MessageError, printable
-from ..core.resolution import NO_MATCH, ResolutionError, resolve
+from ..codec import printable
+from ..core.resolution import NO_MATCH, resolve
 from .asking import AskingNode
 from .common import run_node
 
@@ -42,7 +42,7 @@ class ReferenceResolutionNode(AskingNode):
         await self.answer_once(data, self._results)
 
     async def answer(self, data: dict) -> dict:
-        """The ``/rr/result`` for one utterance's semantics."""
+        """Return the ``rr/result`` for one utterance's semantics."""
         time = self.request_time(data)
         out = {"id": data["id"], "time": time}
         for key in ("text", "unknown_words"):

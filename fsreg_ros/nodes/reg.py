@@ -1,7 +1,8 @@
 """``reg``: referring expression generation + realisation (SPEC section 4).
 
 Subscribes ``reg/request`` and publishes ``reg/expression`` (schemas
-:class:`~fsreg_ros.contract.RegRequest`, :class:`~fsreg_ros.contract.RegExpression`).  The core's generation coroutine asks the target's
+:class:`~fsreg_ros.contract.RegRequest`, :class:`~fsreg_ros.contract.RegExpression`).
+The core's generation coroutine asks the target's
 consultant over the graph, so REG's affirmations for distractors (rule 3) and
 the final description (rule 1) are encoded in that consultant's WM.
 
@@ -18,7 +19,7 @@ from rcl_interfaces.msg import SetParametersResult
 
 from .. import contract
 from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import MessageError, printable
+from ..codec import printable
 from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, algorithm_for, generate
 from ..core.realisation import Lexicon
 from .asking import AskingNode
@@ -31,7 +32,8 @@ class RegNode(AskingNode):
     def __init__(self, **kwargs) -> None:
         super().__init__("reg", **kwargs)
         self.declare_parameter(
-            "algorithm", AUTO, descriptor(f"{AUTO} (sd-pia, dist-pia under policy none) or one of {', '.join(ALGORITHMS)}")
+            "algorithm", AUTO,
+            descriptor(f"{AUTO} (sd-pia, dist-pia under policy none) or one of {', '.join(ALGORITHMS)}"),
         )
         self.declare_parameter("wm_order", "lru-first", descriptor(f"order SD-PIA walks WM in: {', '.join(WM_ORDERS)}"))
         self.declare_parameter("lexicon", "", descriptor("lexicon YAML ('' = package default)", read_only=True))
@@ -71,7 +73,7 @@ class RegNode(AskingNode):
         await self.answer_once(data, self._expressions)
 
     async def answer(self, data: dict) -> dict:
-        """The ``/reg/expression`` for one request."""
+        """Return the ``reg/expression`` for one request."""
         time = self.request_time(data)
         out = {"id": data["id"], "target": data["target"], "time": time}
         try:
@@ -96,7 +98,7 @@ class RegNode(AskingNode):
         return out
 
     async def _domain_of(self, target: str) -> tuple[str, str]:
-        """The domain whose consultant knows ``target``, and that domain's policy name."""
+        """Return the domain whose consultant knows ``target``, and that domain's policy name."""
         for domain, port in self.ports.items():
             info = await port.info()
             if target in info["entities"]:
