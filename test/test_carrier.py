@@ -19,7 +19,6 @@ from fsreg_ros.carrier import CarrierError, JsonClient, serve, wait_until  # noq
 from fsreg_ros.codec import NUMBER, MessageError, from_msg, to_msg  # noqa: E402
 from fsreg_ros.contract import STATE_QOS  # noqa: E402
 from fsreg_ros.nodes.common import error_reply  # noqa: E402
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 from rosutil import Graph, call, ros_graph  # noqa: E402
 
 pytestmark = pytest.mark.graph
@@ -80,10 +79,21 @@ def test_error_reply_keeps_the_id():
     assert error_reply({"id": "a"}, "bad") == {"error": "bad", "id": "a"}
 
 
-def test_state_qos_is_latched_and_reliable():
-    assert STATE_QOS.durability == DurabilityPolicy.TRANSIENT_LOCAL
-    assert STATE_QOS.reliability == ReliabilityPolicy.RELIABLE
-    assert STATE_QOS.depth == 10
+def test_a_late_reader_of_wm_state_gets_every_writers_latest_state(graph: Graph):
+    """wm/state is latched per writer (depth 1) and read with a deeper history, so a
+    reader that joins late hears the latest state of each of several consultants."""
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import publisher
+
+    writers = [publisher(graph.probe, contract.WM_STATE) for _ in range(3)]
+    for i, writer in enumerate(writers):
+        writer.publish(to_msg({"domain": f"d{i}", "time": 0.0, "queues": {}, "events": 0}))
+        writer.publish(to_msg({"domain": f"d{i}", "time": 1.0, "queues": {}, "events": 1}))
+    late = graph.listen(contract.WM_STATE.name, contract.WM_STATE.subscriber_qos)
+    graph.spin_until(lambda: len(late) >= 3, 5.0, what="three latched states")
+    graph.spin_for(0.2)
+    assert sorted((m["domain"], m["time"]) for m in late) == [("d0", 1.0), ("d1", 1.0), ("d2", 1.0)]
+    assert STATE_QOS.depth >= len(writers)
 
 
 # ------------------------------------------------------------------ services

@@ -453,3 +453,43 @@ def test_run_node_exit_codes():
     assert "reg/request (id 'r7'): internal error: RuntimeError: boom" in proc.stderr
     assert "the job failed" in proc.stderr and "cannot start: bad configuration" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+# ------------------------------------------------------------------ hostile input (issue 10 items 5, 6)
+@pytest.mark.parametrize(
+    "request_text, kind, fragment",
+    [
+        ('{"op": "affirm", "property": "male", "cause": "rr", "entities": ['
+         + ",".join(f'"e{i}"' for i in range(5000)) + "]}", "MessageError", "5000 items"),
+        ('{"op": "wm", "entity": "' + "z" * 1000 + '"}', "MessageError", "1000 characters"),
+        ('{"op": "wm", "entity": "\\ud800"}', "KnowledgeError", "no entity"),
+        ('{"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}',
+         "KnowledgeError", "wings"),
+        ('{"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": 1e999}',
+         "MessageError", "time"),
+        ('{"op": "holds", "property": "male", "entities": [' + "9" * 5000 + "]}", "MessageError", "not JSON"),
+        ('{"op": "' + "q" * 100_000 + '"}', "MessageError", "over the limit of 65536"),
+    ],
+    ids=["long-list", "long-name", "surrogate", "unknown-property", "infinite-time", "huge-int", "huge-message"],
+)
+def test_hostile_requests_are_answered_and_change_nothing(graph: Graph, request_text, kind, fragment):
+    start(graph)
+    configure(graph, "displacement", capacity=2)
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    before = graph.call(Q, {"op": "snapshot"})
+    err = graph.call_error(Q, request_text)
+    assert err.kind == kind and fragment in err.error, err.error
+    assert graph.call(Q, {"op": "snapshot"}) == before
+
+
+def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
+    start(graph)
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name)
+    big = {"domain": "faces", "entity": "x" * 300, "properties": {"male": 1.0}, "id": "a1"}
+    many = {"domain": "faces", "entity": "face9", "properties": {f"p{i}": 1.0 for i in range(1001)}, "id": "a2"}
+    graph.publish(contract.LTM_ASSERT.name, big)
+    graph.publish(contract.LTM_ASSERT.name, many)
+    graph.spin_until(lambda: results.latest(id="a1") and results.latest(id="a2"), 5.0, what="two rejections")
+    assert "300 characters" in results.latest(id="a1")["error"] and not results.latest(id="a1")["ok"]
+    assert "1001 items" in results.latest(id="a2")["error"]
+    assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3"]
