@@ -43,7 +43,8 @@ def start(graph: Graph, domain: str = "faces", **params):
 
 
 def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
-    return graph.call(contract.manage_service(domain), {"op": "configure", "policy": {"policy": policy, **params}, "time": 0.0})
+    return graph.call(contract.manage_service(domain), {"op": "configure", "policy": {"policy": policy, **params},
+                                                        "time": 0.0})
 
 
 def test_info_and_latched_start_state(graph: Graph):
@@ -87,7 +88,8 @@ def test_query_ops_round_trip(graph: Graph):
     }
     # affirm: encodes for each holder, in the given order, with cause/time/turn
     assert graph.call(
-        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0, "turn": 4}
+        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0,
+            "turn": 4}
     ) == {"holds": ["face1", "face3"]}
     graph.spin_until(lambda: len(events) == 2, what="affirm events")
     assert events == [
@@ -137,11 +139,13 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     seen = [0]
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
     graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"],
+                   "cause": "speaker", "time": 1.0})
     new_events(4, "encode events")
     # two ticks at once: both applied now, with their own times, in time order and
     # within a tick in entity order (face1 before face2, though face2 filled first)
-    assert graph.call(M, {"op": "decay", "ticks": [10.0, 20.0]}) == {"queues_changed": 2, "policy": "decay+displacement"}
+    assert graph.call(M, {"op": "decay", "ticks": [10.0, 20.0]}) == {"queues_changed": 2,
+                                                                     "policy": "decay+displacement"}
     assert [(e["entity"], e["property"], e["cause"], e["time"]) for e in new_events(3, "decay events")] == [
         ("face1", "male", "decay", 10.0),
         ("face2", "female", "decay", 10.0),
@@ -154,7 +158,8 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     assert graph.call(M, {"op": "decay", "ticks": []})["queues_changed"] == 0
 
     # a lower capacity trims at once
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 21.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+                   "time": 21.0})
     new_events(2, "encode events")
     assert configure(graph, "displacement", capacity=1)["queues_changed"] == 1
     assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["glasses"]}
@@ -163,7 +168,8 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     ]
     # global-capacity victims: the oldest front across queues
     configure(graph, "global-capacity", global_capacity=2)
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker", "time": 22.0})
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker",
+                   "time": 22.0})
     assert graph.call(Q, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
     assert [(e["entity"], e["property"], e["cause"]) for e in new_events(3, "global-capacity events")] == [
         ("face2", "female", "speaker"), ("face2", "dark-hair", "speaker"), ("face1", "glasses", "global-capacity")
@@ -192,24 +198,32 @@ BAD_REQUESTS = [
     (Q, {"op": "affirm", "property": "male", "entities": ["face1", "face9"], "cause": "rr"}, "KnowledgeError", "face9"),
     (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "decay"}, "MessageError", "field 'cause'"),
     (Q, {"op": "affirm", "property": "male", "entities": ["face1"]}, "MessageError", "missing field 'cause'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError", "field 'time'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError", "field 'turn'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError",
+     "field 'time'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError",
+     "field 'turn'"),
     (Q, {"op": "wm"}, "MessageError", "missing field 'entity'"),
     (Q, {"op": "wm", "entity": "face9"}, "KnowledgeError", "no entity 'face9'"),
     (Q, {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, "KnowledgeError", "face9"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError", "wings"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError", "field 'cause'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError", "field 'properties'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError", "field 'turn'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError",
+     "wings"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError",
+     "field 'cause'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError",
+     "field 'properties'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError",
+     "field 'turn'"),
     (Q, {"op": "configure", "policy": {"policy": "none"}}, "MessageError", "unknown op 'configure'"),
     (M, {"op": "snapshot"}, "MessageError", "unknown op 'snapshot'"),
     (M, {"op": "configure"}, "MessageError", "missing field 'policy'"),
     (M, {"op": "configure", "policy": "none"}, "MessageError", "field 'policy': expected an object"),
     (M, {"op": "configure", "policy": {"policy": "forget-all"}}, "PolicyError", "unknown forgetting rule 'forget-all'"),
     (M, {"op": "configure", "policy": {"policy": "decay"}}, "PolicyError", "needs 'decay_period'"),
-    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError", "capacity must be >= 1"),
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError",
+     "capacity must be >= 1"),
     (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": "2"}}, "MessageError", "field 'capacity'"),
-    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError", "decay_period must be > 0"),
+    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError",
+     "decay_period must be > 0"),
     (M, {"op": "decay", "ticks": 10}, "MessageError", "field 'ticks'"),
     (M, {"op": "decay", "ticks": [10, "x"]}, "MessageError", "field 'ticks'[1]"),
     (M, {"op": "decay", "ticks": [20.0, 10.0]}, "MessageError", "must not decrease"),
@@ -219,7 +233,8 @@ BAD_REQUESTS = [
 def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     start(graph)
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+                   "time": 1.0})
     before = graph.call(Q, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
@@ -247,24 +262,29 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     results = graph.listen(contract.LTM_ASSERT_RESULT.name)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker",
+                   "time": 1.0})
     graph.spin_until(lambda: len(events) == 2, what="encode events")
 
     # a new entity joins the domain, last in entity order
-    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"})
+    face4 = {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"}
+    graph.publish(contract.LTM_ASSERT.name, face4)
     graph.spin_until(lambda: results, what="assert result")
     assert results[-1] == {
         "domain": "faces", "entity": "face4", "id": "a1", "ok": True, "new_entity": True,
         "updated": {"light-hair": 1.0, "female": 0.8}, "retracted": [],
     }
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face4"]
-    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1", "face4"]})["holds"] == ["face1", "face4"]
+    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1",
+                                                                                "face4"]})["holds"] == ["face1",
+                                                                                                        "face4"]
 
     # certainty 0 retracts; a retracted property in WM is forgotten (cause retract)
     graph.spin_until(lambda: states, what="state")
     n_states = len(states)
     events.clear_all()
-    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face1", "properties": {"glasses": 0, "dark-hair": 0.2}})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face1", "properties": {"glasses": 0,
+                                                                                                  "dark-hair": 0.2}})
     graph.spin_until(lambda: len(results) == 2, what="second result")
     assert results[-1]["ok"] is True and results[-1]["new_entity"] is False and results[-1]["retracted"] == ["glasses"]
     graph.spin_until(lambda: events, what="retract event")
@@ -372,7 +392,8 @@ def test_process_serves_and_exits_cleanly(graph: Graph):
     """The real ``main()``: a bad domain exits 2 with one error line; a good one serves
     another process and exits 0 on Ctrl-C."""
     bad = _consultant_process("-p", "domain:=shoes", "-p", f"kb:={KB}")
-    good = _consultant_process("-r", "__node:=consultant_proc", "-p", "domain:=procfaces", "-p", f"kb:={DATA / 'proc.yaml'}")
+    good = _consultant_process("-r", "__node:=consultant_proc", "-p", "domain:=procfaces", "-p",
+                               f"kb:={DATA / 'proc.yaml'}")
     try:
         _, err = bad.communicate(timeout=20)
         assert bad.returncode == 2

@@ -51,7 +51,8 @@ def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -
 
 
 def test_text_is_parsed_resolved_and_encoded(graph):
-    reply = ask(graph, contract.HUMAN.name, graph.results, {"id": "u1", "time": 1.0, "text": "the woman with glasses, says he"}, "u1")
+    reply = ask(graph, contract.HUMAN.name, graph.results, {"id": "u1", "time": 1.0,
+                                                            "text": "the woman with glasses, says he"}, "u1")
     assert reply["status"] == "resolved" and reply["resolved"] == "face2"
     assert reply["description"] == ["female", "glasses"]
     assert reply["unknown_words"] == ["says", "he"]
@@ -105,7 +106,8 @@ def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragmen
     before = snapshot(graph)
     graph.publish(contract.HUMAN.name, message if isinstance(message, (dict, str)) else message)
     key = message.get("id") if isinstance(message, dict) else None
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.results if fragment in (r.get("error") or ""))
     assert error.get("id") == key
     if "status" in error:
@@ -131,7 +133,8 @@ def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragmen
 def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragment):
     before = snapshot(graph)
     graph.publish(contract.REG_REQUEST.name, message)
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0, what=f"error {fragment!r}")
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.expressions if fragment in (r.get("error") or ""))
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
     assert snapshot(graph) == before
@@ -151,7 +154,8 @@ def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragme
 def test_bad_semantics_get_an_error_and_change_nothing(graph, message, fragment):
     before = snapshot(graph)
     graph.publish(contract.SEMANTICS.name, message)
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.results if fragment in (r.get("error") or ""))
     assert error["status"] == "error"
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
@@ -159,7 +163,8 @@ def test_bad_semantics_get_an_error_and_change_nothing(graph, message, fragment)
 
 
 def test_context_set_limits_distractors(graph):
-    reply = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "c", "target": "face1", "context": ["face1", "face2", "face3"]}, "c")
+    reply = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "c", "target": "face1",
+                                                                      "context": ["face1", "face2", "face3"]}, "c")
     assert reply["description"] == ["light-hair"]
     assert reply["text"] == "the person with light hair"
 
