@@ -91,6 +91,16 @@ def _context(where: str, rid: Any) -> str:
     return f"{where} (id {printable(repr(rid), 80)})" if rid is not None else where
 
 
+async def _run(handler, text: str, max_bytes: Limit, seen: dict) -> Any:
+    """Decode ``text`` (bounded), note its request id in ``seen``, run ``handler``; return its result."""
+    payload = parse(text, max_bytes=_limit(max_bytes))
+    seen["id"] = request_id(payload)
+    result = handler(payload)
+    if inspect.isawaitable(result):
+        result = await result
+    return result
+
+
 # ----------------------------------------------------------------- serving
 Handler = Callable[[dict], Union[Mapping[str, Any], Awaitable[Mapping[str, Any]]]]
 
@@ -107,22 +117,20 @@ def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGr
     logger = node.get_logger()
 
     async def callback(request, response):
-        rid = None
+        seen: dict = {}
         try:
-            payload = parse(request.load_namespace, max_bytes=_limit(max_bytes))
-            rid = request_id(payload)
-            result = handler(payload)
-            if inspect.isawaitable(result):
-                result = await result
+            result = await _run(handler, request.load_namespace, max_bytes, seen)
             if not isinstance(result, Mapping):
                 raise TypeError(f"handler returned {type(result).__name__}, not a JSON object")
             text = dumps(result)
         except (ValueError, CarrierError) as err:
+            rid = seen.get("id")
             logger.warning(printable(f"{_context(name, rid)}: {err}"))
             response.success = False
             response.message = error_json(err, error_kind(err), rid)
             return response
         except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
+            rid = seen.get("id")
             logger.error(printable(f"{_context(name, rid)}: internal error: {type(err).__name__}: {err}"))
             response.success = False
             response.message = error_json(f"internal error: {type(err).__name__}: {err}", "internal", rid)
@@ -169,17 +177,13 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
                 logger.error(printable(f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {err}"))
 
     async def callback(msg: String) -> None:
-        rid = None
+        seen: dict = {}
         try:
-            data = parse(msg.data, max_bytes=_limit(max_bytes))
-            rid = request_id(data)
-            result = handler(data)
-            if inspect.isawaitable(result):
-                await result
+            await _run(handler, msg.data, max_bytes, seen)
         except (ValueError, CarrierError) as err:
-            refuse(rid, str(err), internal=False)
+            refuse(seen.get("id"), str(err), internal=False)
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
-            refuse(rid, f"internal error: {type(err).__name__}: {err}", internal=True)
+            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {err}", internal=True)
 
     return node.create_subscription(String, topic.name, callback, topic.subscriber_qos,
                                     callback_group=callback_group)
