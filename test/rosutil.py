@@ -7,8 +7,8 @@ test with a message when it passes), and a full teardown.
 
     with Graph() as g:
         c = g.add(ConsultantNode, domain="faces", kb=KB)
-        reply = g.call("/consultant/faces", {"op": "info"})
-        states = g.listen("/wm/state", STATE_QOS)
+        reply = g.call(contract.consultant_service("faces"), {"op": "info"})
+        states = g.listen(contract.WM_STATE.name, contract.STATE_QOS)
         g.set_time(10.0)              # publish /clock; wait until sim-time nodes read it
 """
 
