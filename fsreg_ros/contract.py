@@ -22,12 +22,13 @@ allow extra fields (a newer peer may add some) but fix the type of every named o
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, Optional, Union
+import types
+from typing import Any, Literal, Optional, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from .codec import MessageError, printable
+from .codec import MessageError, describe, printable
 
 Id = Union[str, int]
 Number = Union[int, float]
@@ -194,30 +195,97 @@ class LtmAssertResult(Message):
     id: Optional[Id] = None
 
 
-class ConsultantRequest(Stamp):
-    """``consultant/<domain>``: ``{"op": info|holds|affirm|wm|encode|snapshot, ...}``."""
+class InfoRequest(Message):
+    """``consultant/<domain>`` op ``info``: the domain's entities, preference order and memory."""
 
-    op: Literal["info", "holds", "affirm", "wm", "encode", "snapshot"]
-    property: Optional[str] = None
-    entity: Optional[str] = None
-    entities: Optional[list[str]] = None
-    properties: Optional[list[str]] = None
-    cause: Optional[str] = None
+    op: Literal["info"]
 
 
-class ConsultantReply(Message):
-    """A successful ``consultant/<domain>`` reply (the fields of the op asked)."""
+class HoldsRequest(Message):
+    """Op ``holds``: for which of ``entities`` does ``property`` hold (nothing is encoded)."""
 
-    domain: Optional[str] = None
-    entities: Optional[list[str]] = None
-    preference: Optional[list[str]] = None
-    threshold: Optional[Number] = None
-    policy: Optional[str] = None
-    memory: Optional[dict[str, Any]] = None
-    events: Optional[int] = None
-    holds: Optional[list[str]] = None
-    queue: Optional[list[str]] = None
-    queues: Optional[dict[str, list[str]]] = None
+    op: Literal["holds"]
+    property: str
+    entities: list[str]
+
+
+class AffirmRequest(Stamp):
+    """Op ``affirm``: as ``holds``, and encode ``property`` for each entity it holds for."""
+
+    op: Literal["affirm"]
+    property: str
+    entities: list[str]
+    cause: str
+
+
+class WMRequest(Message):
+    """Op ``wm``: one entity's WM queue, LRU first (reading never refreshes)."""
+
+    op: Literal["wm"]
+    entity: str
+
+
+class EncodeRequest(Stamp):
+    """Op ``encode``: encode ``properties`` for ``entity`` in WM."""
+
+    op: Literal["encode"]
+    entity: str
+    properties: list[str]
+    cause: str
+
+
+class SnapshotRequest(Message):
+    """Op ``snapshot``: every non-empty WM queue of the domain."""
+
+    op: Literal["snapshot"]
+
+
+class InfoReply(Message):
+    """Reply to ``info``."""
+
+    domain: str
+    entities: list[str]
+    preference: list[str]
+    threshold: Number
+    policy: str
+    memory: dict[str, Any]
+    events: int
+
+
+class HoldsReply(Message):
+    """Reply to ``holds`` and ``affirm``: the entities the property holds for."""
+
+    holds: list[str]
+
+
+class QueueReply(Message):
+    """Reply to ``wm``."""
+
+    queue: list[str]
+
+
+class EncodeReply(Message):
+    """Reply to ``encode``: empty."""
+
+
+class SnapshotReply(Message):
+    """Reply to ``snapshot``: non-empty queues, LRU first, and the events published so far."""
+
+    queues: dict[str, list[str]]
+    events: int
+
+
+#: The consultant's query ops: op -> (request schema, reply schema).
+CONSULTANT_OPS: dict[str, tuple[type[Message], type[Message]]] = {
+    "info": (InfoRequest, InfoReply),
+    "holds": (HoldsRequest, HoldsReply),
+    "affirm": (AffirmRequest, HoldsReply),
+    "wm": (WMRequest, QueueReply),
+    "encode": (EncodeRequest, EncodeReply),
+    "snapshot": (SnapshotRequest, SnapshotReply),
+}
+ConsultantRequest = Union[InfoRequest, HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest]
+ConsultantReply = Union[InfoReply, HoldsReply, QueueReply, SnapshotReply, EncodeReply]
 
 
 class ManageRequest(Stamp):
@@ -393,35 +461,61 @@ def check(model: type[BaseModel], data: dict) -> dict:
     try:
         model.model_validate(data)
     except ValidationError as err:
-        raise MessageError(_first_problem(err)) from None
+        raise MessageError(_first_problem(model, err)) from None
     return data
 
 
-_TYPE_WORDS = {"str": "a string", "int": "a whole number", "float": "a number", "bool": "true or false",
-               "none": "null", "list": "a list", "dict": "an object"}
+def _field_spec(annotation: Any) -> Any:
+    """Return a :func:`~fsreg_ros.codec.describe` spec for a schema field's annotation."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Union:
+        members = [a for a in args if a is not type(None)]
+        nullable = len(members) < len(args)
+        if set(members) == {int, float}:
+            members = [float]
+        specs = tuple(_field_spec(a) for a in members) + ((None,) if nullable else ())
+        return specs[0] if len(specs) == 1 else specs
+    if origin is Literal:
+        return str
+    if origin in (list, dict):
+        return origin[tuple(_field_spec(a) for a in args)] if args else origin
+    return annotation if isinstance(annotation, type) and annotation is not Any else object
+
+
+_UNION_TAGS = {"str", "int", "float", "bool", "none"}
 
 
 def _is_tag(part: Any) -> bool:
-    """Return True for a pydantic location part that names a union member, not a field."""
-    return isinstance(part, str) and (part in _TYPE_WORDS or "[" in part)
+    """Return True for a pydantic location part that names a union member, not a key."""
+    return isinstance(part, str) and (part in _UNION_TAGS or "[" in part)
 
 
-def _first_problem(err: ValidationError) -> str:
-    problems = err.errors(include_url=False)
-    first = problems[0]
-    loc = [p for p in first.get("loc", ()) if not _is_tag(p)]
+def _item_spec(spec: Any) -> Any:
+    """Return the spec of one item of a list/dict spec (or of the first such member of a union)."""
+    for member in spec if isinstance(spec, tuple) else (spec,):
+        if isinstance(member, types.GenericAlias):
+            return member.__args__[-1]
+    return object
+
+
+def _first_problem(model: type[BaseModel], err: ValidationError) -> str:
+    first = err.errors(include_url=False)[0]
+    loc = first.get("loc", ())
+    message = str(first.get("msg", "invalid")).removeprefix("Value error, ")
+    field = loc[0] if loc and isinstance(loc[0], str) and loc[0] in model.model_fields else None
+    if field is None:  # a check of the whole message (e.g. "exactly one of text and description")
+        return printable(message, 200)
     if first.get("type") == "missing":
-        return f"missing field '{loc[0]}'" if loc else "missing field"
-    if not loc:
-        return printable(str(first.get("msg", "invalid")).removeprefix("Value error, "), 200)
-    where = f"field '{loc[0]}'" + "".join(f"[{p!r}]" for p in loc[1:])
-    tags = [p.get("loc", ())[-1] for p in problems if [q for q in p.get("loc", ()) if not _is_tag(q)] == loc]
-    expected = [_TYPE_WORDS.get(str(t).split("[")[0], str(t)) for t in tags if _is_tag(t)]
-    if expected:
-        text = "expected " + " or ".join(dict.fromkeys(expected))
-    else:
-        text = str(first.get("msg", "invalid")).removeprefix("Value error, ")
-    return printable(f"{where}: {text}, got {printable(repr(first.get('input')), 60)}", 300)
+        return f"missing field '{field}'"
+    keys = [p for p in loc[1:] if not _is_tag(p)]
+    where = f"field '{field}'" + "".join(f"[{p!r}]" for p in keys)
+    spec = _field_spec(model.model_fields[field].annotation)
+    for _ in keys:
+        spec = _item_spec(spec)
+    got = printable(repr(first.get("input")), 60)
+    if first.get("type") in ("literal_error", "value_error") or spec is object:
+        return printable(f"{where}: {message}, got {got}", 300)
+    return printable(f"{where}: expected {describe(spec)}, got {got}", 300)
 
 
 # ------------------------------------------------------------------ schemas out

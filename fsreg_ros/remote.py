@@ -24,7 +24,8 @@ from typing import Any, Mapping, Optional, Sequence
 from rclpy.callback_groups import CallbackGroup
 
 from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
-from .codec import MessageError, check_fields
+from . import contract
+from .codec import MessageError
 from .contract import consultant_service
 from .core.consultant import KnowledgeError
 
@@ -46,7 +47,7 @@ class RemotePort:
         self._down_until = 0.0  # monotonic time before which calls fail fast
 
     # ------------------------------------------------------------ plumbing
-    async def _call(self, payload: Mapping[str, Any], expect: Mapping[str, Any]) -> dict:
+    async def _call(self, payload: Mapping[str, Any]) -> dict:
         now = time.monotonic()
         if now < self._down_until:
             raise CarrierError(
@@ -63,7 +64,7 @@ class RemotePort:
             raise
         self._down_until = 0.0
         try:
-            return check_fields(reply, expect)
+            return contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
                                service=self.client.name) from None
@@ -86,7 +87,7 @@ class RemotePort:
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
         """``{"domain", "entities", "preference", "threshold", "policy", "memory"}``."""
-        reply = await self._call({"op": "info"}, {"entities": list[str], "preference": list[str]})
+        reply = await self._call({"op": "info"})
         self._remember(reply)
         return reply
 
@@ -101,9 +102,7 @@ class RemotePort:
         return list(self._preference or [])
 
     async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        reply = await self._call(
-            {"op": "holds", "property": prop, "entities": list(entities)}, {"holds": list[str]}
-        )
+        reply = await self._call({"op": "holds", "property": prop, "entities": list(entities)})
         return reply["holds"]
 
     async def affirm(
@@ -112,12 +111,11 @@ class RemotePort:
         reply = await self._call(
             {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause,
              "time": time, "turn": turn},
-            {"holds": list[str]},
         )
         return reply["holds"]
 
     async def wm(self, entity: str) -> list[str]:
-        return (await self._call({"op": "wm", "entity": entity}, {"queue": list[str]}))["queue"]
+        return (await self._call({"op": "wm", "entity": entity}))["queue"]
 
     async def encode(
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
@@ -125,9 +123,8 @@ class RemotePort:
         await self._call(
             {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause,
              "time": time, "turn": turn},
-            {},
         )
 
     async def snapshot(self) -> dict[str, list[str]]:
         """Every non-empty queue of the domain, LRU first."""
-        return (await self._call({"op": "snapshot"}, {"queues": dict[str, list[str]]}))["queues"]
+        return (await self._call({"op": "snapshot"}))["queues"]

@@ -198,22 +198,22 @@ class ConsultantNode(Node):
         }
 
     def _holds(self, request: dict) -> dict:
-        check_fields(request, {"property": str, "entities": list[str]})
+        contract.check(contract.HoldsRequest, request)
         return {"holds": self.consultant.holds(request["property"], request["entities"])}
 
     def _affirm(self, request: dict) -> dict:
-        check_fields(request, {"property": str, "entities": list[str], "cause": str})
+        contract.check(contract.AffirmRequest, request)
         self._encode_cause(request["cause"])
         time, turn = self._time(request)
         # Consultant.affirm validates the property and every entity before encoding.
         return {"holds": self.consultant.affirm(request["property"], request["entities"], request["cause"], time, turn)}
 
     def _wm(self, request: dict) -> dict:
-        check_fields(request, {"entity": str})
+        contract.check(contract.WMRequest, request)
         return {"queue": self.consultant.queue(request["entity"])}
 
     def _encode(self, request: dict) -> dict:
-        check_fields(request, {"entity": str, "properties": list[str], "cause": str})
+        contract.check(contract.EncodeRequest, request)
         self._encode_cause(request["cause"])
         time, turn = self._time(request)
         self.consultant.encode(request["entity"], request["properties"], request["cause"], time, turn)
