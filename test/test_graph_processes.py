@@ -7,7 +7,6 @@ and a runner that is SIGKILLed leave no processes behind.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -97,7 +96,8 @@ def test_fsreg_graph_rejects_a_bad_namespace():
 
 def test_fsreg_graph_bad_scenario_fails_before_starting_anything(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("domains: {faces: {preference: [a], entities: {e: [a]}}}\ndialogue:\n  - {time: 1, speaker: robot}\n")
+    bad.write_text("domains: {faces: {preference: [a], entities: {e: [a]}}}\n"
+                   "dialogue:\n  - {time: 1, speaker: robot}\n")
     proc = subprocess.run([str(BIN / "fsreg-graph"), str(bad)], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "bad.yaml" in proc.stderr and "dialogue[0]" in proc.stderr
