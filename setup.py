@@ -18,6 +18,9 @@ NODES = {
 TOOLS = {
     "fsreg-sim": "fsreg_ros.cli:sim_main",
     "fsreg-graph": "fsreg_ros.graph:main",
+    "fsreg-eval": "fsreg_ros.research.cli:eval_main",
+    "fsreg-sweep": "fsreg_ros.research.cli:sweep_main",
+    "fsreg-plot": "fsreg_ros.research.cli:plot_main",
 }
 
 setup(

@@ -38,7 +38,7 @@ from typing import Optional, Sequence
 from .cli import run_cli
 from .contract import clock_remap, normalise_namespace
 from .graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
-from .core.realisation import Lexicon
+from .core.lexicon import Lexicon
 from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
 

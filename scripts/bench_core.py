@@ -50,7 +50,10 @@ from pathlib import Path
 from typing import Optional
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+from venv_python import use_venv  # noqa: E402
+
+use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test"))
 
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402

@@ -31,7 +31,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+from venv_python import use_venv  # noqa: E402
+
+use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
 
@@ -168,7 +171,7 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, rounds: int
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("scenario", nargs="?", type=Path, default=REPO.parent / "shared" / "data" / "table1.yaml")
+    parser.add_argument("scenario", nargs="?", type=Path, default=REPO / "scenarios" / "guess_who_table1.yaml")
     parser.add_argument("--rounds", type=int, default=20)
     parser.add_argument("--policy", default="displacement", help="decay ticks need a clock; displacement does not")
     parser.add_argument("--json", type=Path)

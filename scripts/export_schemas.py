@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write the JSON Schema of the scenario file format (SPEC section 5).
+"""Write the JSON Schema of the scenario file format.
 
 The schema is generated from the pydantic models in ``fsreg_ros.core.scenario``,
 so it never drifts from what ``load_scenario`` accepts structurally.  (The

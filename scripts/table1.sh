@@ -6,7 +6,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
 . "$root/scripts/rosenv.sh"
-scenario="${1:-${FSREG_SHARED_DATA:-$root/../shared/data}/table1.yaml}"
+scenario="${1:-$root/scenarios/guess_who_table1.yaml}"
 shift || true
 exec "$root/.venv/bin/fsreg-graph" "$scenario" \
   --compare-policies decay,displacement,none --expect "$root/config/paper_table1.yaml" "$@"

@@ -28,34 +28,34 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))  # test helpers (rosutil, naive_wm)
 
 
-def shared_data_dir() -> Path:
-    """``../shared/data`` beside the repository, or ``$FSREG_SHARED_DATA``."""
-    return Path(os.environ.get("FSREG_SHARED_DATA", REPO.parent / "shared" / "data"))
+#: The Guess-Who case study (Table 1 of the paper): the repository's own scenarios.
+SCENARIOS = REPO / "scenarios"
 
 
 @pytest.fixture(scope="session")
-def shared_data() -> Path:
-    path = shared_data_dir()
-    if not (path / "table1.yaml").is_file():
-        pytest.fail(f"shared data not found at {path} (set FSREG_SHARED_DATA)")
+def table1_path() -> Path:
+    return SCENARIOS / "guess_who_table1.yaml"
+
+
+@pytest.fixture(scope="session")
+def table1_text_path() -> Path:
+    return SCENARIOS / "guess_who_table1_text.yaml"
+
+
+@pytest.fixture(scope="session")
+def tuna_dir() -> Path:
+    """Return the TUNA corpus directory (not shipped: its licence), from ``$FSREG_TUNA_DIR``."""
+    if not os.environ.get("FSREG_TUNA_DIR"):
+        pytest.skip("TUNA corpus not given: set FSREG_TUNA_DIR to the directory holding furniture/ and people/")
+    path = Path(os.environ["FSREG_TUNA_DIR"])
+    if not (path / "furniture").is_dir():
+        pytest.fail(f"FSREG_TUNA_DIR={path} has no furniture/ directory")
     return path
 
 
 @pytest.fixture(scope="session")
-def table1_path(shared_data: Path) -> Path:
-    return shared_data / "table1.yaml"
-
-
-@pytest.fixture(scope="session")
-def table1_text_path(shared_data: Path) -> Path:
-    return shared_data / "table1-text.yaml"
-
-
-@pytest.fixture(scope="session")
 def paper_table1() -> dict:
-    """The paper's Table 1 robot descriptions per policy (config/paper_table1.yaml)."""
+    """Return the paper's Table 1 robot descriptions per policy (config/paper_table1.yaml)."""
     import yaml
 
     return yaml.safe_load((REPO / "config" / "paper_table1.yaml").read_text())["robot_descriptions"]
-
-

@@ -1,5 +1,5 @@
-"""Referring expression generation (SPEC section 4), its encodings (SPEC section 2,
-rules 1, 3, 4) and the paper's Table 1 case study (data/table1.yaml)."""
+"""Referring expression generation, its encodings (WM encoding
+rules 1, 3, 4) and the paper's Table 1 case study (scenarios/guess_who_table1.yaml)."""
 
 from __future__ import annotations
 
@@ -23,8 +23,6 @@ from fsreg_ros.core.generation import (
 )
 from fsreg_ros.core.resolution import RESOLVED, resolve
 
-TABLE1 = Path(__file__).resolve().parents[2] / "shared" / "data" / "table1.yaml"
-
 
 def keys(events):
     return [(e.op, e.entity, e.property, e.cause, e.time, e.turn) for e in events]
@@ -45,7 +43,7 @@ def gen(target, port, algorithm="sd-pia", **kw):
 
 # =========================================================== Table 1 (paper)
 #: Robot turns of Table 1: (target, description in selection order, sources).
-#: Sets are the paper's; order and sources follow SPEC section 4 on table1.yaml.
+#: Sets are the paper's; order and sources follow the generation rules on scenarios/guess_who_table1.yaml.
 TABLE1_EXPECTED = {
     "decay": [
         ("face1", ["lab-coat", "light-hair", "glasses"], ["wm", "wm", "wm"]),
@@ -72,7 +70,7 @@ TABLE1_EXPECTED = {
         ("face1", ["light-hair", "lab-coat", "glasses"], ["ltm"] * 3),
     ],
 }
-#: The table itself, as sets (the header of table1.yaml).
+#: The table itself, as sets (the header of scenarios/guess_who_table1.yaml).
 TABLE1_SETS = {
     "decay": [
         {"light-hair", "lab-coat", "glasses"},
@@ -106,10 +104,9 @@ TABLE1_POLICIES = {
 }
 
 
-def load_table1() -> dict:
-    if not TABLE1.is_file():
-        pytest.skip(f"Table 1 scenario not found at {TABLE1} (the shared/ directory must sit beside the repo)")
-    return yaml.safe_load(TABLE1.read_text(encoding="utf-8"))
+def load_table1(path: Path) -> dict:
+    """The Guess-Who scenario as plain data (the ``table1_path`` fixture finds it)."""
+    return yaml.safe_load(path.read_text(encoding="utf-8"))
 
 
 def table1_consultant(data: dict, sink=None) -> Consultant:
@@ -120,10 +117,10 @@ def table1_consultant(data: dict, sink=None) -> Consultant:
     return Consultant("faces", entities, faces["preference"], faces.get("threshold", 0.5), sink=sink)
 
 
-def play_table1(policy_name: str):
+def play_table1(path: Path, policy_name: str):
     """Play the dialogue; returns (human results, robot expressions, Q[face1] before the
     last robot turn, events)."""
-    data = load_table1()
+    data = load_table1(path)
     events: list = []
     c = table1_consultant(data, events.append)
     policy, algorithm = TABLE1_POLICIES[policy_name]
@@ -144,8 +141,8 @@ def play_table1(policy_name: str):
 
 
 @pytest.mark.parametrize("policy_name", ["decay", "displacement", "none"])
-def test_table1_robot_descriptions(policy_name):
-    humans, robots, _, _ = play_table1(policy_name)
+def test_table1_robot_descriptions(table1_path, policy_name):
+    humans, robots, _, _ = play_table1(table1_path, policy_name)
     expected = TABLE1_EXPECTED[policy_name]
     assert len(robots) == len(expected) == 6
     for n, (expression, (target, description, sources), table_set) in enumerate(
@@ -159,8 +156,8 @@ def test_table1_robot_descriptions(policy_name):
 
 
 @pytest.mark.parametrize("policy_name", ["decay", "displacement", "none"])
-def test_table1_every_human_turn_resolves_to_its_target(policy_name):
-    humans, _, _, _ = play_table1(policy_name)
+def test_table1_every_human_turn_resolves_to_its_target(table1_path, policy_name):
+    humans, _, _, _ = play_table1(table1_path, policy_name)
     assert len(humans) == 6
     for target, result in humans:
         assert result.status == RESOLVED and result.resolved == target
@@ -174,17 +171,17 @@ def test_table1_every_human_turn_resolves_to_its_target(policy_name):
         ("none", ()),
     ],
 )
-def test_table1_wm_of_face1_before_turn_6(policy_name, wm):
-    _, robots, wm_face1, events = play_table1(policy_name)
+def test_table1_wm_of_face1_before_turn_6(table1_path, policy_name, wm):
+    _, robots, wm_face1, events = play_table1(table1_path, policy_name)
     assert wm_face1 == wm
     assert tuple(robots[-1].wm_before) == wm
     if policy_name == "none":
         assert events == []
 
 
-def test_table1_is_deterministic():
-    first = play_table1("decay")[3]
-    second = play_table1("decay")[3]
+def test_table1_is_deterministic(table1_path):
+    first = play_table1(table1_path, "decay")[3]
+    second = play_table1(table1_path, "decay")[3]
     assert first == second and len(first) > 100
 
 
@@ -217,7 +214,7 @@ def test_dale_reiter_large_white_dog():
 
 def test_dist_pia_does_not_force_the_head_noun():
     # Among object1 and object2 only, "dog" rules nothing out.  Dale & Reiter's IA
-    # would still add the type ("the black dog"); the SPEC's DIST-PIA includes a
+    # would still add the type ("the black dog"); our DIST-PIA includes a
     # property only if it rules something out, so it says just "black" and realisation
     # supplies the domain's default noun.  The type is still considered: rule 3
     # encodes it for object2.
@@ -464,7 +461,7 @@ def test_wm_order_default_is_lru_first_and_dist_pia_ignores_wm():
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_every_algorithm_reports_wm_before(algorithm):
-    # SPEC section 6: wm_before is Q[target] just before REG, whatever the algorithm
+    # The result object: wm_before is Q[target] just before REG, whatever the algorithm
     # (the baselines report it but do not use it).
     c, port, events = domain(WM_ORDER_ENTITIES, WM_ORDER_PREF)
     c.wm.encode("t", ["c", "a"], "speaker", 0.0)

@@ -220,7 +220,7 @@ def test_graph_trace_equals_simulator_trace(table1_path, tmp_path, policy):
         player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
         g.run(player.play(), timeout=60.0)
         heard = player.trace()
-    sim = Simulation(scenario, options)
+    sim = Simulation(scenario, options, trace=True)
     sim.run()
     expected = sim.trace()
     assert heard == expected

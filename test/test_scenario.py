@@ -1,4 +1,4 @@
-"""Scenario files: loading, the data model and validation (SPEC section 5)."""
+"""Scenario files: loading, the data model and validation."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sys
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Collection, Optional
+from typing import Collection
 
 import pytest
 
@@ -77,10 +77,29 @@ def snippet(base: str, extra: str = "") -> str:
     return base + textwrap.dedent(extra)
 
 
+def settle(scenario: Scenario) -> Scenario:
+    """Compute every domain's effective policy (where a missing parameter is reported)."""
+    for domain in scenario.domains:
+        scenario.policy_for(domain)
+    return scenario
+
+
 def error_of(text: str, lexicon: object = None) -> ScenarioError:
+    """The error of a scenario text: while loading, or when its effective policies are computed."""
     with pytest.raises(ScenarioError) as info:
-        parse_scenario(text, source="t.yaml", lexicon=lexicon if lexicon is not None else FakeLexicon())
+        settle(parse_scenario(text, source="t.yaml", lexicon=lexicon if lexicon is not None else FakeLexicon()))
     return info.value
+
+
+def test_missing_parameter_is_not_a_load_error_so_the_command_line_can_give_it():
+    scenario = parse_scenario(FACES + "memory: {policy: decay+global-capacity, decay_period: 5}\n", source="t.yaml")
+    policy = scenario.policy_for("faces", {"global_capacity": 3})
+    assert (policy.name, policy.decay_period, policy.global_capacity) == ("decay+global-capacity", 5.0, 3)
+    assert scenario.policy_for("faces", {"policy": "decay"}).name == "decay"
+    with pytest.raises(
+        ScenarioError, match=r"t\.yaml:\d+: memory: .*needs 'global_capacity' \(add --global-capacity N"
+    ):
+        scenario.policy_for("faces")
 
 
 # ------------------------------------------------------------ ScenarioError
@@ -107,7 +126,13 @@ def test_error_pickles():
     import pickle
 
     err = pickle.loads(pickle.dumps(ScenarioError("a.yaml", "memory", "bad", 4)))
-    assert (err.source, err.path, err.message, err.line, str(err)) == ("a.yaml", "memory", "bad", 4, "a.yaml:4: memory: bad")
+    assert (err.source, err.path, err.message, err.line, str(err)) == (
+        "a.yaml",
+        "memory",
+        "bad",
+        4,
+        "a.yaml:4: memory: bad",
+    )
 
 
 def test_render_path():
@@ -156,7 +181,7 @@ def test_table1_consultants(table1_path):
 
 
 def test_table1_text_loads_with_real_lexicon(table1_path, table1_text_path):
-    pytest.importorskip("fsreg_ros.core.realisation")
+    pytest.importorskip("fsreg_ros.core.lexicon")
     text = load_scenario(table1_text_path)  # lexicon=None: Lexicon.load()
     plain = load_scenario(table1_path)
     assert text.name == "guess-who-table1-text"
@@ -167,7 +192,7 @@ def test_table1_text_loads_with_real_lexicon(table1_path, table1_text_path):
 
 
 def test_real_lexicon_rejects_text_without_properties():
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
     lexicon = realisation.Lexicon.load()
     text = snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: 'the thing over there'}\n")
     with pytest.raises(ScenarioError) as info:
@@ -182,7 +207,17 @@ def test_two_domain_file():
     assert list(scenario.domains) == ["faces", "objects"]
     assert scenario.domain_of("carol") == "faces"
     assert scenario.domain_of("ball1") == "objects"
-    assert scenario.properties() == {"light-hair", "dark-hair", "male", "female", "glasses", "red", "blue", "mug", "ball"}
+    assert scenario.properties() == {
+        "light-hair",
+        "dark-hair",
+        "male",
+        "female",
+        "glasses",
+        "red",
+        "blue",
+        "mug",
+        "ball",
+    }
     assert scenario.entities() == ["alice", "bob", "carol", "mug1", "mug2", "ball1"]
     assert scenario.domains["faces"].entities["carol"] == {"light-hair": 1.0, "female": 0.9, "glasses": 0.3}
     assert scenario.domains["objects"].threshold == 0.6
@@ -382,7 +417,7 @@ def _expectations(path: Path) -> dict[str, str]:
     out = {}
     for line in path.read_text().splitlines():
         if line.startswith("# expect-"):
-            key, _, value = line[len("# expect-") :].partition(":")
+            key, _, value = line[len("# expect-"):].partition(":")
             out[key] = value.strip()
     return out
 
@@ -391,7 +426,7 @@ def _expectations(path: Path) -> dict[str, str]:
 def test_bad_fixture_files(path):
     expect = _expectations(path)
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
+        settle(load_scenario(path))
     err = info.value
     assert err.source == str(path)
     assert err.path == expect["path"]
@@ -433,7 +468,13 @@ CASES = [
         9,
     ),
     # --- structure (unknown keys, types)
-    ("unknown-top-key", FACES + "colour: red\n", "colour", "unknown key 'colour' (known: name, domains, memory, dialogue)", 8),
+    (
+        "unknown-top-key",
+        FACES + "colour: red\n",
+        "colour",
+        "unknown key 'colour' (known: name, domains, memory, dialogue)",
+        8,
+    ),
     (
         "unknown-domain-key",
         FACES.replace("    preference:", "    prefs: []\n    preference:"),
@@ -456,7 +497,13 @@ CASES = [
         9,
     ),
     ("missing-domains", "name: x\n", "", "missing required key 'domains'", 1),
-    ("missing-preference", "domains:\n  faces:\n    entities: {}\n", "domains.faces", "missing required key 'preference'", 2),
+    (
+        "missing-preference",
+        "domains:\n  faces:\n    entities: {}\n",
+        "domains.faces",
+        "missing required key 'preference'",
+        2,
+    ),
     (
         "missing-time",
         snippet(FACES, "dialogue:\n- {speaker: robot, target: f1}\n"),
@@ -483,32 +530,164 @@ CASES = [
     ("turn-not-mapping", FACES + "dialogue: [hello]\n", "dialogue[0]", "must be a mapping", 8),
     ("name-not-string", "name: [a]\n" + FACES, "name", "must be a string", 1),
     ("name-empty", "name: ''\n" + FACES, "name", "must not be empty", 1),
-    ("capacity-bool", FACES + "memory: {policy: displacement, capacity: true}\n", "memory.capacity", "must be a whole number, got the boolean true", 8),
-    ("capacity-float", FACES + "memory: {policy: displacement, capacity: 2.5}\n", "memory.capacity", "must be a whole number, got 2.5", 8),
-    ("period-string", FACES + "memory: {policy: decay, decay_period: ten}\n", "memory.decay_period", "must be a number, got 'ten'", 8),
-    ("period-bool", FACES + "memory: {policy: decay, decay_period: yes}\n", "memory.decay_period", "must be a number, got the boolean true", 8),
+    (
+        "capacity-bool",
+        FACES + "memory: {policy: displacement, capacity: true}\n",
+        "memory.capacity",
+        "must be a whole number, got the boolean true",
+        8,
+    ),
+    (
+        "capacity-float",
+        FACES + "memory: {policy: displacement, capacity: 2.5}\n",
+        "memory.capacity",
+        "must be a whole number, got 2.5",
+        8,
+    ),
+    (
+        "period-string",
+        FACES + "memory: {policy: decay, decay_period: ten}\n",
+        "memory.decay_period",
+        "must be a number, got 'ten'",
+        8,
+    ),
+    (
+        "period-bool",
+        FACES + "memory: {policy: decay, decay_period: yes}\n",
+        "memory.decay_period",
+        "must be a number, got the boolean true",
+        8,
+    ),
     ("policy-not-string", FACES + "memory: {policy: 3}\n", "memory.policy", "must be a string", 8),
-    ("threshold-string", FACES.replace("    preference:", "    threshold: high\n    preference:"), "domains.faces.threshold", "must be a number", 3),
-    ("threshold-bool", FACES.replace("    preference:", "    threshold: on\n    preference:"), "domains.faces.threshold", "must be a number", 3),
-    ("time-string", snippet(FACES, "dialogue:\n- {time: soon, speaker: robot, target: f1}\n"), "dialogue[0].time", "must be a number", 9),
-    ("time-nan", snippet(FACES, "dialogue:\n- {time: .nan, speaker: robot, target: f1}\n"), "dialogue[0].time", "finite", 9),
-    ("time-inf", snippet(FACES, "dialogue:\n- {time: .inf, speaker: robot, target: f1}\n"), "dialogue[0].time", "finite", 9),
-    ("facts-scalar", FACES.replace("f2: [dark-hair, female]", "f2: 5"), "domains.faces.entities.f2", "must be a list of properties or a mapping of property to certainty", 6),
-    ("facts-item-not-string", FACES.replace("f2: [dark-hair, female]", "f2: [dark-hair, 3]"), "domains.faces.entities.f2[1]", "must be a string, got 3", 6),
-    ("facts-item-bool", FACES.replace("f2: [dark-hair, female]", "f2: [dark-hair, no]"), "domains.faces.entities.f2[1]", "quote it", 6),
-    ("certainty-string", FACES.replace("f2: [dark-hair, female]", "f2: {female: high}"), "domains.faces.entities.f2.female", "must be a number, got 'high'", 6),
-    ("certainty-bool", FACES.replace("f2: [dark-hair, female]", "f2: {female: true}"), "domains.faces.entities.f2.female", "must be a number", 6),
-    ("entity-key-not-string", FACES.replace("f2: [dark-hair, female]", "2: [dark-hair, female]"), "domains.faces.entities.2", "key must be a string, got 2", 6),
+    (
+        "threshold-string",
+        FACES.replace("    preference:", "    threshold: high\n    preference:"),
+        "domains.faces.threshold",
+        "must be a number",
+        3,
+    ),
+    (
+        "threshold-bool",
+        FACES.replace("    preference:", "    threshold: on\n    preference:"),
+        "domains.faces.threshold",
+        "must be a number",
+        3,
+    ),
+    (
+        "time-string",
+        snippet(FACES, "dialogue:\n- {time: soon, speaker: robot, target: f1}\n"),
+        "dialogue[0].time",
+        "must be a number",
+        9,
+    ),
+    (
+        "time-nan",
+        snippet(FACES, "dialogue:\n- {time: .nan, speaker: robot, target: f1}\n"),
+        "dialogue[0].time",
+        "finite",
+        9,
+    ),
+    (
+        "time-inf",
+        snippet(FACES, "dialogue:\n- {time: .inf, speaker: robot, target: f1}\n"),
+        "dialogue[0].time",
+        "finite",
+        9,
+    ),
+    (
+        "facts-scalar",
+        FACES.replace("f2: [dark-hair, female]", "f2: 5"),
+        "domains.faces.entities.f2",
+        "must be a list of properties or a mapping of property to certainty",
+        6,
+    ),
+    (
+        "facts-item-not-string",
+        FACES.replace("f2: [dark-hair, female]", "f2: [dark-hair, 3]"),
+        "domains.faces.entities.f2[1]",
+        "must be a string, got 3",
+        6,
+    ),
+    (
+        "facts-item-bool",
+        FACES.replace("f2: [dark-hair, female]", "f2: [dark-hair, no]"),
+        "domains.faces.entities.f2[1]",
+        "quote it",
+        6,
+    ),
+    (
+        "certainty-string",
+        FACES.replace("f2: [dark-hair, female]", "f2: {female: high}"),
+        "domains.faces.entities.f2.female",
+        "must be a number, got 'high'",
+        6,
+    ),
+    (
+        "certainty-bool",
+        FACES.replace("f2: [dark-hair, female]", "f2: {female: true}"),
+        "domains.faces.entities.f2.female",
+        "must be a number",
+        6,
+    ),
+    (
+        "entity-key-not-string",
+        FACES.replace("f2: [dark-hair, female]", "2: [dark-hair, female]"),
+        "domains.faces.entities.2",
+        "key must be a string, got 2",
+        6,
+    ),
     ("preference-not-list", "domains:\n  faces: {preference: male}\n", "domains.faces.preference", "must be a list", 2),
-    ("description-not-list", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: male}\n"), "dialogue[0].description", "must be a list", 9),
-    ("context-not-list", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, context: f2}\n"), "dialogue[0].context", "must be a list", 9),
-    ("target-empty", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: ''}\n"), "dialogue[0].target", "must not be empty", 9),
+    (
+        "description-not-list",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: male}\n"),
+        "dialogue[0].description",
+        "must be a list",
+        9,
+    ),
+    (
+        "context-not-list",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, context: f2}\n"),
+        "dialogue[0].context",
+        "must be a list",
+        9,
+    ),
+    (
+        "target-empty",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: ''}\n"),
+        "dialogue[0].target",
+        "must not be empty",
+        9,
+    ),
     # --- domains
     ("no-domains", "domains: {}\n", "domains", "no domains", 1),
-    ("threshold-above-1", FACES.replace("    preference:", "    threshold: 1.5\n    preference:"), "domains.faces.threshold", "threshold must be in [0, 1], got 1.5", 3),
-    ("threshold-below-0", FACES.replace("    preference:", "    threshold: -0.1\n    preference:"), "domains.faces.threshold", "threshold must be in [0, 1]", 3),
-    ("certainty-above-1", FACES.replace("f2: [dark-hair, female]", "f2: {female: 1.2}"), "domains.faces.entities.f2.female", "certainty of 'female' for 'f2' must be in [0, 1], got 1.2", 6),
-    ("certainty-below-0", FACES.replace("f2: [dark-hair, female]", "f2: {female: -0.5}"), "domains.faces.entities.f2.female", "must be in [0, 1]", 6),
+    (
+        "threshold-above-1",
+        FACES.replace("    preference:", "    threshold: 1.5\n    preference:"),
+        "domains.faces.threshold",
+        "threshold must be in [0, 1], got 1.5",
+        3,
+    ),
+    (
+        "threshold-below-0",
+        FACES.replace("    preference:", "    threshold: -0.1\n    preference:"),
+        "domains.faces.threshold",
+        "threshold must be in [0, 1]",
+        3,
+    ),
+    (
+        "certainty-above-1",
+        FACES.replace("f2: [dark-hair, female]", "f2: {female: 1.2}"),
+        "domains.faces.entities.f2.female",
+        "certainty of 'female' for 'f2' must be in [0, 1], got 1.2",
+        6,
+    ),
+    (
+        "certainty-below-0",
+        FACES.replace("f2: [dark-hair, female]", "f2: {female: -0.5}"),
+        "domains.faces.entities.f2.female",
+        "must be in [0, 1]",
+        6,
+    ),
     (
         "preference-twice",
         FACES.replace("male, female, glasses]", "male, female, male]"),
@@ -553,12 +732,48 @@ CASES = [
     ),
     # --- memory settings
     ("bad-policy", FACES + "memory: {policy: forgetful}\n", "memory.policy", "unknown forgetting rule 'forgetful'", 8),
-    ("bad-policy-part", FACES + "memory: {policy: decay+lru, decay_period: 2}\n", "memory.policy", "unknown forgetting rule 'lru'", 8),
-    ("policy-rule-twice", FACES + "memory: {policy: decay+decay, decay_period: 2}\n", "memory.policy", "names a rule twice", 8),
-    ("period-zero", FACES + "memory: {policy: decay, decay_period: 0}\n", "memory.decay_period", "decay_period must be > 0", 8),
-    ("period-negative", FACES + "memory: {policy: decay, decay_period: -1}\n", "memory.decay_period", "decay_period must be > 0", 8),
-    ("capacity-zero", FACES + "memory: {policy: displacement, capacity: 0}\n", "memory.capacity", "capacity must be >= 1", 8),
-    ("global-capacity-zero", FACES + "memory: {policy: global-capacity, global_capacity: 0}\n", "memory.global_capacity", "global_capacity must be >= 1", 8),
+    (
+        "bad-policy-part",
+        FACES + "memory: {policy: decay+lru, decay_period: 2}\n",
+        "memory.policy",
+        "unknown forgetting rule 'lru'",
+        8,
+    ),
+    (
+        "policy-rule-twice",
+        FACES + "memory: {policy: decay+decay, decay_period: 2}\n",
+        "memory.policy",
+        "names a rule twice",
+        8,
+    ),
+    (
+        "period-zero",
+        FACES + "memory: {policy: decay, decay_period: 0}\n",
+        "memory.decay_period",
+        "decay_period must be > 0",
+        8,
+    ),
+    (
+        "period-negative",
+        FACES + "memory: {policy: decay, decay_period: -1}\n",
+        "memory.decay_period",
+        "decay_period must be > 0",
+        8,
+    ),
+    (
+        "capacity-zero",
+        FACES + "memory: {policy: displacement, capacity: 0}\n",
+        "memory.capacity",
+        "capacity must be >= 1",
+        8,
+    ),
+    (
+        "global-capacity-zero",
+        FACES + "memory: {policy: global-capacity, global_capacity: 0}\n",
+        "memory.global_capacity",
+        "global_capacity must be >= 1",
+        8,
+    ),
     (
         "domain-capacity-zero",
         FACES.replace("    entities:", "    memory: {capacity: 0}\n    entities:"),
@@ -566,7 +781,13 @@ CASES = [
         "capacity must be >= 1",
         4,
     ),
-    ("decay-without-period", FACES + "memory: {policy: decay, capacity: 2}\n", "memory", "domain 'faces': policy 'decay' needs 'decay_period'", 8),
+    (
+        "decay-without-period",
+        FACES + "memory: {policy: decay, capacity: 2}\n",
+        "memory",
+        "domain 'faces': policy 'decay' needs 'decay_period'",
+        8,
+    ),
     (
         "displacement-without-capacity",
         FACES + "memory: {policy: decay+displacement, decay_period: 1}\n",
@@ -577,7 +798,8 @@ CASES = [
     ("global-without-limit", FACES + "memory: {policy: global-capacity}\n", "memory", "needs 'global_capacity'", 8),
     (
         "domain-policy-without-parameter",
-        FACES.replace("    entities:", "    memory: {policy: displacement}\n    entities:") + "memory: {policy: decay, decay_period: 1}\n",
+        FACES.replace("    entities:", "    memory: {policy: displacement}\n    entities:")
+        + "memory: {policy: decay, decay_period: 1}\n",
         "domains.faces.memory",
         "policy 'displacement' needs 'capacity'",
         4,
@@ -590,10 +812,18 @@ CASES = [
         9,
     ),
     # --- dialogue: time
-    ("negative-time", snippet(FACES, "dialogue:\n- {time: -1, speaker: robot, target: f1}\n"), "dialogue[0].time", "negative time", 9),
+    (
+        "negative-time",
+        snippet(FACES, "dialogue:\n- {time: -1, speaker: robot, target: f1}\n"),
+        "dialogue[0].time",
+        "negative time",
+        9,
+    ),
     (
         "decreasing-time",
-        snippet(FACES, "dialogue:\n- {time: 3, speaker: robot, target: f1}\n- {time: 2.5, speaker: robot, target: f2}\n"),
+        snippet(
+            FACES, "dialogue:\n- {time: 3, speaker: robot, target: f1}\n- {time: 2.5, speaker: robot, target: f2}\n"
+        ),
         "dialogue[1].time",
         "decreasing time: 2.5 is before the previous turn's 3.0",
         10,
@@ -606,15 +836,63 @@ CASES = [
         "either description or text, not both",
         9,
     ),
-    ("human-neither", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, target: f1}\n"), "dialogue[0]", "needs a description", 9),
-    ("human-context", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: [male], context: [f1]}\n"), "dialogue[0].context", "only robot turns have a context", 9),
-    ("empty-description", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: []}\n"), "dialogue[0].description", "empty description", 9),
-    ("empty-text", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: '  '}\n"), "dialogue[0].text", "empty text", 9),
-    ("robot-without-target", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot}\n"), "dialogue[0]", "a robot turn needs a target", 9),
-    ("robot-description", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, description: [male]}\n"), "dialogue[0].description", "a robot turn has no description", 9),
-    ("robot-text", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, text: hi}\n"), "dialogue[0].text", "a robot turn has no text", 9),
+    (
+        "human-neither",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, target: f1}\n"),
+        "dialogue[0]",
+        "needs a description",
+        9,
+    ),
+    (
+        "human-context",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: [male], context: [f1]}\n"),
+        "dialogue[0].context",
+        "only robot turns have a context",
+        9,
+    ),
+    (
+        "empty-description",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, description: []}\n"),
+        "dialogue[0].description",
+        "empty description",
+        9,
+    ),
+    (
+        "empty-text",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: '  '}\n"),
+        "dialogue[0].text",
+        "empty text",
+        9,
+    ),
+    (
+        "robot-without-target",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot}\n"),
+        "dialogue[0]",
+        "a robot turn needs a target",
+        9,
+    ),
+    (
+        "robot-description",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, description: [male]}\n"),
+        "dialogue[0].description",
+        "a robot turn has no description",
+        9,
+    ),
+    (
+        "robot-text",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, text: hi}\n"),
+        "dialogue[0].text",
+        "a robot turn has no text",
+        9,
+    ),
     # --- dialogue: entities
-    ("robot-unknown-target", snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f9}\n"), "dialogue[0].target", "unknown entity 'f9' (known: f1, f2, f3)", 9),
+    (
+        "robot-unknown-target",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f9}\n"),
+        "dialogue[0].target",
+        "unknown entity 'f9' (known: f1, f2, f3)",
+        9,
+    ),
     (
         "context-unknown-entity",
         snippet(FACES, "dialogue:\n- {time: 0, speaker: robot, target: f1, context: [f2, f9]}\n"),
@@ -636,7 +914,13 @@ CASES = [
         "domain 'objects' is not the target's domain",
         13,
     ),
-    ("human-unknown-target", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, target: f7, description: [male]}\n"), "dialogue[0].target", "unknown entity 'f7'", 9),
+    (
+        "human-unknown-target",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, target: f7, description: [male]}\n"),
+        "dialogue[0].target",
+        "unknown entity 'f7'",
+        9,
+    ),
     (
         "human-target-other-domain",
         snippet(TWO, "dialogue:\n- {time: 0, speaker: human, target: o1, description: [male]}\n"),
@@ -656,10 +940,17 @@ CASES = [
         "description-unknown-in-every-domain",
         snippet(TWO, "dialogue:\n- {time: 0, speaker: human, description: [wings]}\n"),
         "dialogue[0].description[0]",
-        "unknown property 'wings' (domain 'faces' knows: light-hair, dark-hair, male, female, small; domain 'objects' knows",
+        "unknown property 'wings' (domain 'faces' knows: light-hair, dark-hair, male, female, small; "
+        "domain 'objects' knows",
         13,
     ),
-    ("unknown-domain", snippet(TWO, "dialogue:\n- {time: 0, speaker: human, description: [male], domain: people}\n"), "dialogue[0].domain", "unknown domain 'people' (known: faces, objects)", 13),
+    (
+        "unknown-domain",
+        snippet(TWO, "dialogue:\n- {time: 0, speaker: human, description: [male], domain: people}\n"),
+        "dialogue[0].domain",
+        "unknown domain 'people' (known: faces, objects)",
+        13,
+    ),
     (
         "property-not-in-named-domain",
         snippet(TWO, "dialogue:\n- {time: 0, speaker: human, description: [small, male], domain: objects}\n"),
@@ -678,12 +969,31 @@ CASES = [
         "domain-not-determined-none",
         snippet(TWO, "dialogue:\n- {time: 0, speaker: human, description: [male, red]}\n"),
         "dialogue[0].description",
-        "domain not determined: no domain knows every property (candidate domains per property: 'male': faces; 'red': objects)",
+        "domain not determined: no domain knows every property "
+        "(candidate domains per property: 'male': faces; 'red': objects)",
         13,
     ),
-    ("text-without-property", snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: the tall one}\n"), "dialogue[0].text", "no known property in text 'the tall one'", 9),
-    ("text-domain-not-determined", snippet(TWO, "dialogue:\n- {time: 0, speaker: human, text: the small one}\n"), "dialogue[0].text", "domain not determined: several domains", 13),
-    ("text-not-in-named-domain", snippet(TWO, "dialogue:\n- {time: 0, speaker: human, text: the red man, domain: faces}\n"), "dialogue[0].text", "unknown property 'red' (domain 'faces' knows", 13),
+    (
+        "text-without-property",
+        snippet(FACES, "dialogue:\n- {time: 0, speaker: human, text: the tall one}\n"),
+        "dialogue[0].text",
+        "no known property in text 'the tall one'",
+        9,
+    ),
+    (
+        "text-domain-not-determined",
+        snippet(TWO, "dialogue:\n- {time: 0, speaker: human, text: the small one}\n"),
+        "dialogue[0].text",
+        "domain not determined: several domains",
+        13,
+    ),
+    (
+        "text-not-in-named-domain",
+        snippet(TWO, "dialogue:\n- {time: 0, speaker: human, text: the red man, domain: faces}\n"),
+        "dialogue[0].text",
+        "unknown property 'red' (domain 'faces' knows",
+        13,
+    ),
 ]
 
 
@@ -715,7 +1025,7 @@ def test_text_turns_use_the_given_lexicon():
 
 
 def test_lexicon_is_not_loaded_without_text_turns(monkeypatch):
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
 
     def refuse(*args, **kwargs):
         raise AssertionError("Lexicon.load called")
@@ -725,7 +1035,7 @@ def test_lexicon_is_not_loaded_without_text_turns(monkeypatch):
 
 
 def test_lexicon_that_cannot_load_is_a_scenario_error(monkeypatch):
-    realisation = pytest.importorskip("fsreg_ros.core.realisation")
+    realisation = pytest.importorskip("fsreg_ros.core.lexicon")
 
     def missing(cls, path=None):
         raise FileNotFoundError("config file 'lexicon.yaml' not found")
@@ -741,9 +1051,9 @@ def test_lexicon_that_cannot_load_is_a_scenario_error(monkeypatch):
 def _mutations(text: str):
     lines = text.splitlines(keepends=True)
     for i in range(len(lines)):
-        yield "".join(lines[:i] + lines[i + 1 :])  # drop a line
+        yield "".join(lines[:i] + lines[i + 1:])  # drop a line
         yield "".join(lines[: i + 1] + lines[i:])  # repeat a line
-        yield "".join(lines[:i]) + lines[i].replace(":", "", 1) + "".join(lines[i + 1 :])  # drop a colon
+        yield "".join(lines[:i]) + lines[i].replace(":", "", 1) + "".join(lines[i + 1:])  # drop a colon
     for cut in range(0, len(text), 13):
         yield text[:cut]  # truncate
 
@@ -783,3 +1093,40 @@ def test_export_schemas_script(tmp_path):
     assert json.loads(out.read_text()) == scenario_json_schema()
     to_stdout = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, check=True)
     assert json.loads(to_stdout.stdout) == scenario_json_schema()
+
+
+# ------------------------------------------------------------------ attributes
+ATTRS = """\
+domains:
+  t:
+    preference: [colour=red, size=big, male, female, glasses]
+"""
+
+
+def test_attributes_map_each_property_to_its_attribute():
+    scenario = parse_scenario(ATTRS + "    attributes: {sex: [male, female]}\n", source="t.yaml")
+    assert scenario.domains["t"].attributes == {
+        "colour=red": "colour",
+        "size=big": "size",
+        "male": "sex",
+        "female": "sex",
+    }
+    assert parse_scenario(ATTRS, source="t.yaml").domains["t"].attributes == {
+        "colour=red": "colour",
+        "size=big": "size",
+    }
+
+
+@pytest.mark.parametrize(
+    "block, path, fragment",
+    [
+        ("{sex: [male, hat]}", "domains.t.attributes.sex[1]", "unknown property 'hat'"),
+        ("{sex: [male], who: [male]}", "domains.t.attributes.who[0]", "property 'male' is already in attribute 'sex'"),
+        ("{hue: [colour=red]}", "domains.t.attributes.hue[0]", "belongs to attribute 'colour' by its name"),
+        ("[male]", "domains.t.attributes", "must be a mapping"),
+    ],
+)
+def test_attribute_errors(block, path, fragment):
+    err = error_of(ATTRS + f"    attributes: {block}\n")
+    assert (err.path, err.line) == (path, 4)
+    assert fragment in err.message

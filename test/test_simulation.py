@@ -1,4 +1,4 @@
-"""The simulator and the fsreg-sim command line (SPEC sections 2, 5 and 6)."""
+"""The simulator and the fsreg-sim command line."""
 
 from __future__ import annotations
 
@@ -103,7 +103,13 @@ def test_cli_json_matches_library_and_is_byte_identical(table1_path, capsys):
 
 def test_cli_compare_policies_with_paper_expectations(table1_path, capsys):
     code = sim_main(
-        [str(table1_path), "--compare-policies", "decay,displacement,none", "--expect", str(REPO / "config/paper_table1.yaml")]
+        [
+            str(table1_path),
+            "--compare-policies",
+            "decay,displacement,none",
+            "--expect",
+            str(REPO / "config/paper_table1.yaml"),
+        ]
     )
     out = capsys.readouterr().out
     assert code == 0
@@ -126,8 +132,13 @@ def test_cli_trace_is_written_in_time_order(table1_path, tmp_path):
     assert sim_main([str(table1_path), "--trace", str(trace)]) == 0
     events = [json.loads(line) for line in trace.read_text().splitlines()]
     assert events[0] == {
-        "op": "encode", "domain": "faces", "entity": "face1", "property": "male",
-        "cause": "rr", "time": 8.0, "turn": 0,
+        "op": "encode",
+        "domain": "faces",
+        "entity": "face1",
+        "property": "male",
+        "cause": "rr",
+        "time": 8.0,
+        "turn": 0,
     }
     times = [e["time"] for e in events]
     assert times == sorted(times)
@@ -156,9 +167,7 @@ def test_cli_bad_options_exit_2_with_one_line(table1_path, capsys, args, fragmen
 def test_cli_bad_scenario_file_exit_2_without_traceback(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("domains:\n  faces:\n    preference: [a]\n    entities: {e1: [b]}\n")
-    proc = subprocess.run(
-        [sys.executable, "-m", "fsreg_ros.cli", str(bad)], capture_output=True, text=True, timeout=60
-    )
+    proc = subprocess.run([sys.executable, "-m", "fsreg_ros.cli", str(bad)], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert "bad.yaml" in proc.stderr and "domains.faces.entities.e1" in proc.stderr
@@ -209,3 +218,191 @@ dialogue:
     assert o1["description"] == ["large", "red"] and o1["sources"] == ["wm", "wm"]
     assert o1["text"] == "the large red object"
     assert sim.consultants["faces"].wm.length("f1") <= 1
+
+
+# ------------------------------------------------------- the CLI does what it says
+PAPER = REPO / "config" / "paper_table1.yaml"
+
+
+def random_scenario(rng, index: int) -> tuple[str, dict]:
+    """A random scenario text whose memory blocks may lack parameters, and CLI settings that complete them."""
+    rules = ("decay", "displacement", "global-capacity")
+    params = {
+        "decay": ("decay_period", "--decay-period"),
+        "displacement": ("capacity", "--capacity"),
+        "global-capacity": ("global_capacity", "--global-capacity"),
+    }
+    props = [f"p{i}" for i in range(6)]
+
+    def block() -> str:
+        chosen = rng.sample(rules, rng.randint(1, 3))
+        items = [f"policy: {'+'.join(chosen)}"]
+        items += [f"{params[r][0]}: {rng.randint(1, 5)}" for r in chosen if rng.random() < 0.4]
+        return "{" + ", ".join(items) + "}"
+
+    entities = "\n".join(f"      e{i}: [{', '.join(rng.sample(props, 3))}]" for i in range(5))
+    domain_memory = f"\n    memory: {block()}" if rng.random() < 0.5 else ""
+    dialogue = "\n".join(f"  - {{time: {t}.0, speaker: robot, target: e{rng.randrange(5)}}}" for t in range(1, 6))
+    text = (
+        f"name: random{index}\nmemory: {block()}\ndomains:\n  d:\n    preference: [{', '.join(props)}]"
+        f"{domain_memory}\n    entities:\n{entities}\ndialogue:\n{dialogue}\n"
+    )
+    cli_rules = rng.sample(rules, rng.randint(1, 3))
+    cli = {"--policy": "+".join(cli_rules)}
+    cli.update({params[r][1]: str(rng.randint(1, 5)) for r in cli_rules})
+    return text, cli
+
+
+def test_cli_memory_options_complete_the_files_settings(tmp_path, capsys):
+    """60 random files naming rules without parameters, run with command-line settings that complete them."""
+    import random
+
+    rng = random.Random(9)
+    for index in range(60):
+        text, cli = random_scenario(rng, index)
+        path = tmp_path / f"r{index}.yaml"
+        path.write_text(text)
+        args = [str(path), "--json"] + [x for pair in cli.items() for x in pair]
+        assert sim_main(args) == 0, (text, cli, capsys.readouterr().err)
+        memory = json.loads(capsys.readouterr().out)["memory"]["d"]
+        assert set(memory["policy"].split("+")) == set(cli["--policy"].split("+"))
+        for option, value in cli.items():
+            if option != "--policy":
+                assert memory[option[2:].replace("-", "_")] == (
+                    float(value) if option == "--decay-period" else int(value)
+                )
+
+
+def test_cli_policy_with_its_parameter_overrides_a_file_missing_it(tmp_path, capsys):
+    path = tmp_path / "s.yaml"
+    path.write_text(
+        "memory: {policy: decay+global-capacity, decay_period: 10}\n"
+        "domains:\n  d:\n    preference: [a, b]\n    entities: {x: [a], y: [b]}\n"
+        "dialogue:\n  - {time: 1.0, speaker: robot, target: x}\n"
+    )
+    assert sim_main([str(path), "--policy", "decay", "--global-capacity", "5", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["memory"]["d"] == {"policy": "decay", "decay_period": 10.0}
+    assert sim_main([str(path)]) == 2
+    assert "needs 'global_capacity' (add --global-capacity N" in capsys.readouterr().err
+
+
+def test_cli_compared_policy_missing_its_parameter_names_the_option(table1_path, capsys):
+    assert sim_main([str(table1_path), "--compare-policies", "decay,global-capacity"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        "<command line>: domain 'faces': policy 'global-capacity' needs 'global_capacity' (add --global-capacity N"
+        in err
+    )
+    assert sim_main([str(table1_path), "--compare-policies", "decay,global-capacity", "--global-capacity", "4"]) == 0
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--compare-policies", "decay", "--trace", "t.jsonl"], "--trace writes the events of one run"),
+        (["--expect", str(PAPER), "--trace", "t.jsonl"], "--trace writes the events of one run"),
+        (["--compare-policies", "decay", "--policy", "none"], "--policy chooses one policy"),
+    ],
+)
+def test_cli_refuses_options_it_would_ignore(table1_path, capsys, args, fragment):
+    assert sim_main([str(table1_path), *args]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and err.count("\n") == 1
+
+
+def test_cli_expect_alone_compares_the_policies_it_lists(table1_path, capsys):
+    assert sim_main([str(table1_path), "--expect", str(PAPER)]) == 0
+    out = capsys.readouterr().out
+    assert "18/18 robot descriptions match the expected ones" in out
+    assert out.splitlines()[0].split()[-3:] == ["decay", "displacement", "none"]
+    assert "ok   = the robot's description has exactly the expected properties" in out
+    assert '"male, lab-coat, light-hair, glasses"' in out  # the human's turns are shown
+
+
+def test_cli_diff_shows_the_expected_description_and_unchecked_turns(table1_path, tmp_path, capsys):
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("robot_descriptions:\n  none: [[glasses], [dark-hair, male]]\n")
+    assert sim_main([str(table1_path), "--expect", str(wrong)]) == 1
+    out = capsys.readouterr().out
+    assert "DIFF the person with light hair, a lab coat and glasses [expected: glasses]" in out
+    assert "ok   the man with dark hair" in out
+    assert "--   the woman with glasses" in out
+    assert "1/2 robot descriptions match the expected ones" in out
+    assert "4 robot turns had no expected description: none: robot turn 3 (turn 5); none: robot turn 4 (turn 7)" in out
+
+
+def test_cli_table_explains_its_columns(table1_path, capsys):
+    assert sim_main([str(table1_path)]) == 0
+    out = capsys.readouterr().out
+    assert '"male, lab-coat, light-hair, glasses" -> face1' in out
+    assert "WM before: the target's working memory just before the robot spoke, least recently used first." in out
+
+
+def test_cli_lexicon_extends_the_built_in_one(tmp_path, capsys):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(
+        "domains:\n  faces:\n    preference: [fedora, glasses, male]\n"
+        "    entities: {a: [fedora, male], b: [glasses, male]}\n"
+        "dialogue:\n  - {time: 1.0, speaker: human, text: the man in a trilby}\n"
+        "  - {time: 2.0, speaker: robot, target: a}\n"
+    )
+    lexicon = tmp_path / "lex.yaml"
+    lexicon.write_text(
+        "properties:\n  fedora: {words: fedora, article: a, phrases: [trilby]}\n"
+        "domains:\n  faces: {properties: [fedora]}\n"
+    )
+    assert sim_main([str(scenario), "--lexicon", str(lexicon), "--json"]) == 0
+    turns = json.loads(capsys.readouterr().out)["turns"]
+    assert turns[0]["description"] == ["male", "fedora"] and turns[0]["resolved"] == "a"
+    assert turns[1]["description"] == ["fedora"]
+    assert turns[1]["text"] == "the person with a fedora"  # "person": the built-in faces noun
+
+
+@pytest.mark.parametrize("kind", ["nul", "utf8", "directory", "huge"])
+@pytest.mark.parametrize("role", ["scenario", "--expect", "--lexicon"])
+def test_cli_bad_files_are_one_line_exit_2(table1_path, tmp_path, capsys, monkeypatch, kind, role):
+    from fsreg_ros.core import yaml_source
+
+    path = tmp_path / "bad.yaml"
+    if kind == "nul":
+        path.write_bytes(b"name: x\0\n")
+    elif kind == "utf8":
+        path.write_bytes(b"name: \xff\xfe\n")
+    elif kind == "directory":
+        path.mkdir()
+    else:
+        monkeypatch.setattr(yaml_source, "MAX_FILE_BYTES", 200_000)  # above the built-in lexicon's size
+        path.write_text("#" * 200_001)
+    args = [str(path)] if role == "scenario" else [str(table1_path), role, str(path)]
+    assert sim_main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"fsreg-sim: error: {path}: ") and err.count("\n") == 1
+
+
+def test_graph_bad_file_is_one_line_exit_2(tmp_path, capsys):
+    from fsreg_ros.graph import main as graph_main
+
+    path = tmp_path / "bad.yaml"
+    path.write_bytes(b"domains: {}\0")
+    assert graph_main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"fsreg-graph: error: {path}: not a text file: NUL byte at offset 11\n"
+
+
+def test_trace_is_built_only_when_asked_and_changes_nothing(table1_path):
+    scenario = load_scenario(table1_path)
+    options = Options(memory={"policy": "decay+displacement"})
+    plain, traced = Simulation(scenario, options), Simulation(scenario, options, trace=True)
+    assert plain.events is None
+    assert dumps(plain.run()) == dumps(traced.run())
+    assert len(traced.trace()) > 100
+    with pytest.raises(ValueError, match="trace=True"):
+        plain.trace()
+
+
+def test_cli_expect_with_json_still_checks(table1_path, tmp_path, capsys):
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("robot_descriptions:\n  none: [[glasses]]\n")
+    assert sim_main([str(table1_path), "--expect", str(wrong), "--json"]) == 1
+    assert list(json.loads(capsys.readouterr().out)) == ["none"]
+    assert sim_main([str(table1_path), "--expect", str(PAPER), "--json"]) == 0

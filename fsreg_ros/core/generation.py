@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 from .consultant import ConsultantPort, KnowledgeError
 
@@ -30,6 +30,17 @@ WM_ORDERS = ("lru-first", "mru-first", "preference")
 #: Full Brevity is exponential in the number of useful properties; beyond this many
 #: subsets it gives up with a clear error instead of running for hours.
 FULL_BREVITY_MAX_SUBSETS = 5_000_000
+
+
+def attribute_of(prop: str, attributes: Optional[Mapping[str, str]] = None) -> str:
+    """Return the attribute a property belongs to.
+
+    The domain's declared mapping wins; otherwise ``colour=red`` belongs to
+    ``colour`` and a plain name such as ``glasses`` is its own attribute.
+    """
+    if attributes and prop in attributes:
+        return attributes[prop]
+    return prop.split("=", 1)[0]
 
 
 def algorithm_for(retains: bool, algorithm: Optional[str] = None) -> str:
@@ -115,18 +126,26 @@ async def sd_pia(
     use_wm: bool = True,
     time: float = 0.0,
     turn: Optional[int] = None,
+    attributes: Optional[Mapping[str, str]] = None,
 ) -> Expression:
-    """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  SPEC section 4."""
+    """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  SPEC section 4.
+
+    Once a value of an attribute is selected, other values of it are skipped
+    (a description never holds two values of one attribute).
+    """
     algorithm = "sd-pia" if use_wm else "dist-pia"
     remaining = await distractors_for(target, port, context)
     preference = await port.preference()
     wm_before = await port.wm(target)
     expression = Expression(target, port.domain, algorithm, wm_before=list(wm_before))
     considered: set[str] = set()
+    selected_attributes: set[str] = set()
 
     async def consider(prop: str, source: str) -> None:
         nonlocal remaining
         considered.add(prop)
+        if attribute_of(prop, attributes) in selected_attributes:
+            return
         if not await port.holds(prop, [target]):
             return
         # Rule 3: p is encoded for each remaining distractor it cannot rule out.
@@ -134,6 +153,7 @@ async def sd_pia(
         if len(kept) < len(remaining):
             expression.description.append(prop)
             expression.sources.append(source)
+            selected_attributes.add(attribute_of(prop, attributes))
             remaining = kept
 
     if use_wm:
@@ -193,12 +213,13 @@ async def full_brevity(
     context: Optional[Sequence[str]] = None,
     time: float = 0.0,
     turn: Optional[int] = None,
+    attributes: Optional[Mapping[str, str]] = None,
     **_ignored,
 ) -> Expression:
     """Full Brevity: a shortest set ruling out every distractor that can be ruled out.
 
-    Among equally short sets, the one whose sorted preference ranks are
-    lexicographically smallest; output in preference order.
+    Among equally short sets (never two values of one attribute), the one whose
+    sorted preference ranks are lexicographically smallest; output in preference order.
     """
     distractors, wm_before, props, masks = await _baseline_view(target, port, context)
     useful = [(p, m) for p, m in zip(props, masks) if m]
@@ -206,6 +227,7 @@ async def full_brevity(
     for _, mask in useful:
         goal |= mask
     chosen: tuple = ()
+    best_cover = 0  # when one value per attribute cannot reach the goal: the widest cover
     tried = 0
     if goal:
         for size in range(1, len(useful) + 1):
@@ -216,9 +238,13 @@ async def full_brevity(
                     raise GenerationError(
                         f"full-brevity gave up after {FULL_BREVITY_MAX_SUBSETS} subsets for '{target}'"
                     )
+                if len({attribute_of(p, attributes) for p, _ in combo}) < size:
+                    continue
                 covered = 0
                 for _, mask in combo:
                     covered |= mask
+                if covered.bit_count() > best_cover.bit_count():
+                    chosen, best_cover = combo, covered
                 if covered == goal:
                     found = combo
                     break
@@ -228,7 +254,7 @@ async def full_brevity(
     expression = Expression(target, port.domain, "full-brevity", wm_before=list(wm_before))
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
-    left = [d for i, d in enumerate(distractors) if not goal >> i & 1]
+    left = [d for i, d in enumerate(distractors) if not best_cover >> i & 1]
     return await _finish(expression, left, port, time, turn)
 
 
@@ -239,16 +265,23 @@ async def greedy(
     context: Optional[Sequence[str]] = None,
     time: float = 0.0,
     turn: Optional[int] = None,
+    attributes: Optional[Mapping[str, str]] = None,
     **_ignored,
 ) -> Expression:
-    """Greedy: repeatedly the property ruling out most remaining distractors (ties to
-    the more preferred), until none rules out any."""
+    """Greedy: repeatedly select the property ruling out most remaining distractors.
+
+    Ties go to the more preferred; attributes already used are skipped; it stops
+    when no property rules out any remaining distractor.
+    """
     distractors, wm_before, props, masks = await _baseline_view(target, port, context)
     remaining = (1 << len(distractors)) - 1
     expression = Expression(target, port.domain, "greedy", wm_before=list(wm_before))
+    used: set[str] = set()
     while remaining:
         best, best_count = -1, 0
         for i, mask in enumerate(masks):
+            if attribute_of(props[i], attributes) in used:
+                continue
             count = (mask & remaining).bit_count()
             if count > best_count:
                 best, best_count = i, count
@@ -256,6 +289,7 @@ async def greedy(
             break
         expression.description.append(props[best])
         expression.sources.append("ltm")
+        used.add(attribute_of(props[best], attributes))
         remaining &= ~masks[best]
     left = [d for i, d in enumerate(distractors) if remaining >> i & 1]
     return await _finish(expression, left, port, time, turn)
@@ -280,11 +314,12 @@ async def generate(
     wm_order: str = "lru-first",
     time: float = 0.0,
     turn: Optional[int] = None,
+    attributes: Optional[Mapping[str, str]] = None,
 ) -> Expression:
     """Run the named REG algorithm for ``target`` in ``port``'s domain."""
     if wm_order not in WM_ORDERS:
         raise GenerationError(f"unknown wm_order '{wm_order}' (known: {', '.join(WM_ORDERS)})")
-    options = dict(context=context, time=time, turn=turn)
+    options = dict(context=context, time=time, turn=turn, attributes=attributes)
     try:
         if algorithm == "sd-pia":
             return await sd_pia(target, port, wm_order=wm_order, **options)

@@ -28,7 +28,7 @@ def config_dirs() -> list[Path]:
 
 
 def config_path(name: str) -> Path:
-    """The first existing ``name`` among :func:`config_dirs`; FileNotFoundError if none."""
+    """Return the first existing ``name`` among :func:`config_dirs`; FileNotFoundError if none."""
     for directory in config_dirs():
         candidate = directory / name
         if candidate.is_file():

@@ -1,10 +1,10 @@
-"""Play a scenario's dialogue on a simulated clock (SPEC sections 2 and 6).
+"""Play a scenario's dialogue on a simulated clock.
 
 The simulator wires the core together exactly as the ROS graph does: one
 :class:`Consultant` per domain, a :class:`WMManager` applying each domain's
 forgetting policy, reference resolution for human turns and REG plus realisation
 for robot turns.  Before each dialogue event at time T, every decay tick due at or
-before T is applied (SPEC section 2, "a tick at time T is applied before any
+before T is applied ("a tick at time T is applied before any
 dialogue event stamped T").
 
 The records built here (:func:`human_record`, :func:`robot_record`) are also what
@@ -22,7 +22,7 @@ from .consultant import LocalPort, run_sync
 from .forgetting import ForgettingPolicy, WMManager
 from .generation import algorithm_for, generate
 from .memory import WMEvent
-from .realisation import Lexicon
+from .lexicon import Lexicon
 from .resolution import resolve
 from .scenario import Scenario, Turn
 
@@ -31,7 +31,7 @@ from .scenario import Scenario, Turn
 class Options:
     """What a user can change from the command line.
 
-    ``memory`` overrides every domain's ``memory:`` settings key by key (SPEC §5).
+    ``memory`` overrides every domain's ``memory:`` settings key by key.
     ``algorithm`` None means: SD-PIA, or DIST-PIA for a domain whose policy is none.
     """
 
@@ -45,7 +45,7 @@ def effective_policies(scenario: Scenario, options: Options) -> dict[str, Forget
 
 
 def human_record(turn: Turn, resolution: Mapping[str, Any], unknown_words: Optional[list[str]]) -> dict:
-    """One human turn's output record (SPEC section 6); ``unknown_words`` for text turns."""
+    """One human turn's output record; ``unknown_words`` for text turns."""
     record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "human"}
     if turn.target is not None:
         record["target"] = turn.target
@@ -60,7 +60,7 @@ def human_record(turn: Turn, resolution: Mapping[str, Any], unknown_words: Optio
 
 
 def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
-    """One robot turn's output record (SPEC section 6)."""
+    """One robot turn's output record."""
     record: dict[str, Any] = {"turn": turn.index, "time": turn.time, "speaker": "robot", "target": turn.target}
     if turn.context is not None:
         record["context"] = list(turn.context)
@@ -83,13 +83,20 @@ def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
 class Simulation:
     """The core's whole pipeline for one scenario, on a simulated clock."""
 
-    def __init__(self, scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        options: Optional[Options] = None,
+        lexicon: Optional[Lexicon] = None,
+        trace: bool = False,
+    ):
+        """Wire the core for ``scenario``; with ``trace``, keep every WM event for :meth:`trace`."""
         self.scenario = scenario
         self.options = options or Options()
         self.lexicon = lexicon or Lexicon.load()
         self.policies = effective_policies(scenario, self.options)
-        self.events: list[WMEvent] = []
-        self.consultants = scenario.consultants(sink=self.events.append)
+        self.events: Optional[list[WMEvent]] = [] if trace else None
+        self.consultants = scenario.consultants(sink=self.events.append if self.events is not None else None)
         self.ports = {d: LocalPort(c) for d, c in self.consultants.items()}
         self.manager = WMManager()
         for domain, consultant in self.consultants.items():
@@ -97,7 +104,7 @@ class Simulation:
         self._properties = scenario.properties()
 
     def run(self) -> dict:
-        """Play every turn; return the SPEC section 6 result object."""
+        """Play every turn; return the result object."""
         turns = [self.play(turn) for turn in self.scenario.dialogue]
         return {"scenario": self.scenario.name, "memory": self.manager.effective(), "turns": turns}
 
@@ -129,7 +136,9 @@ class Simulation:
         return robot_record(turn, expression.to_json())
 
     def trace(self) -> list[dict]:
-        """Every encode/forget event so far, in the order they happened."""
+        """Return every encode/forget event so far, in the order they happened (needs ``trace=True``)."""
+        if self.events is None:
+            raise ValueError("this simulation keeps no trace: build it with trace=True")
         for consultant in self.consultants.values():
             consultant.wm.flush()
         return trace_order(self.scenario, [e.to_json() for e in self.events])
@@ -150,21 +159,22 @@ def trace_order(scenario: Scenario, events: list[dict]) -> list[dict]:
     def key(i: int) -> tuple:
         event = events[i]
         decay = event.get("cause") == "decay"
-        place = (
-            (domain_rank.get(event.get("domain"), len(domain_rank)), entity_rank.get(event.get("entity"), len(entity_rank)))
-            if decay
-            else (0, 0)
-        )
+        place = (0, 0)
+        if decay:
+            place = (
+                domain_rank.get(event.get("domain"), len(domain_rank)),
+                entity_rank.get(event.get("entity"), len(entity_rank)),
+            )
         return (event.get("time") or 0.0, not decay, place, i)
 
     return [events[i] for i in sorted(range(len(events)), key=key)]
 
 
 def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Optional[Lexicon] = None) -> dict:
-    """Run a scenario and return the SPEC section 6 result object."""
+    """Run a scenario and return the result object."""
     return Simulation(scenario, options, lexicon).run()
 
 
 def dumps(result: Mapping[str, Any]) -> str:
-    """The canonical JSON text of a result: byte-identical for equal results."""
+    """Return the canonical JSON text of a result: byte-identical for equal results."""
     return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"

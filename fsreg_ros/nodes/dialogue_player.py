@@ -34,7 +34,7 @@ from rosgraph_msgs.msg import Clock
 from .. import contract
 from ..carrier import CarrierError, JsonClient, drop_timer, publisher, subscribe, wait_until
 from ..codec import to_msg
-from ..core.realisation import Lexicon
+from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
 from .common import declare_number, run_node
@@ -216,7 +216,7 @@ def write_outputs(player: DialoguePlayer, result: dict) -> None:
         with open(output, "w", encoding="utf-8") as out:
             out.write(dumps(result))
     else:
-        from ..cli import render_table
+        from ..report import render_table
 
         print(render_table(result), end="", flush=True)
     trace = player.get_parameter("trace").value

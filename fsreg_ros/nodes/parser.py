@@ -3,7 +3,7 @@
 Subscribes ``dialogue/human`` (:class:`~fsreg_ros.contract.HumanUtterance`: text or a
 property list) and publishes the semantics on ``dialogue/semantics`` for reference
 resolution (:class:`~fsreg_ros.contract.Semantics`).  Text is mapped to
-properties with the lexicon (:mod:`fsreg_ros.core.realisation`), restricted to the
+properties with the lexicon (:mod:`fsreg_ros.core.lexicon`), restricted to the
 properties of the knowledge base given as ``kb`` (every lexicon property if
 empty).  Text with no known property is forwarded with an empty description, so
 reference resolution answers ``no-match``.  A malformed message gets a warning and
@@ -18,7 +18,7 @@ from rclpy.node import Node
 
 from .. import contract
 from ..carrier import publish, publisher, subscribe
-from ..core.realisation import Lexicon
+from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
 from .asking import declare_limits
 from .common import descriptor, run_node, watch_clock

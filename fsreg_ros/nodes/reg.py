@@ -21,7 +21,7 @@ from .. import contract
 from ..carrier import CarrierError, publish, publisher, subscribe
 from ..codec import printable
 from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, algorithm_for, generate
-from ..core.realisation import Lexicon
+from ..core.lexicon import Lexicon
 from .asking import AskingNode
 from .common import descriptor, run_node
 

@@ -1,4 +1,4 @@
-"""Lexicon, realiser and text parser (SPEC section 4 realisation, section 5 ``text:``)."""
+"""Lexicon, realiser and text parser (the robot's words and the human's ``text:`` turns)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,21 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fsreg_ros.core.paths import config_path
-from fsreg_ros.core.realisation import Lexicon, LexiconError, ParseResult, tokenize
+from fsreg_ros.core.lexicon import Lexicon, LexiconError, ParseResult, tokenize
 
 REPO = Path(__file__).resolve().parents[1]
-FACES = ["light-hair", "male", "short-hair", "lab-coat", "glasses", "female", "dark-hair", "t-shirt",
-         "hoodie", "no-glasses"]
+FACES = [
+    "light-hair",
+    "male",
+    "short-hair",
+    "lab-coat",
+    "glasses",
+    "female",
+    "dark-hair",
+    "t-shirt",
+    "hoodie",
+    "no-glasses",
+]
 
 
 @pytest.fixture(scope="module")
@@ -65,8 +75,11 @@ def test_table1_text_parses_to_table1_descriptions(lex, table1_path, table1_text
     [
         ("the man in a lab coat with light hair and glasses", ["male", "lab-coat", "light-hair", "glasses"], []),
         ("the one in a hoodie, a woman without glasses", ["hoodie", "female", "no-glasses"], []),
-        ("the one with short hair, light hair, a lab coat and no glasses",
-         ["short-hair", "light-hair", "lab-coat", "no-glasses"], []),
+        (
+            "the one with short hair, light hair, a lab coat and no glasses",
+            ["short-hair", "light-hair", "lab-coat", "no-glasses"],
+            [],
+        ),
         ("dark hair, short hair, a t-shirt, and he is a man", ["dark-hair", "short-hair", "t-shirt", "male"], ["he"]),
         ("short hair, glasses and a hoodie", ["short-hair", "glasses", "hoodie"], []),
         ("the woman with glasses", ["female", "glasses"], []),
@@ -85,7 +98,11 @@ def test_empty_description_and_default_nouns(lex):
     assert lex.realise([], "locations") == "the place"
     assert lex.realise([], "kitchen-robots") == "the thing"
     assert [lex.noun_for(d) for d in ("faces", "objects", "locations", "elsewhere")] == [
-        "person", "object", "place", "thing"]
+        "person",
+        "object",
+        "place",
+        "thing",
+    ]
 
 
 def test_built_in_nouns_without_domains_section():
@@ -99,7 +116,8 @@ def test_joining_and_selection_order(lex):
     assert lex.realise(["glasses", "hoodie"], "faces") == "the person with glasses and a hoodie"
     assert lex.realise(["hoodie", "glasses"], "faces") == "the person with a hoodie and glasses"
     assert lex.realise(["t-shirt", "no-glasses", "dark-hair", "hat"], "faces") == (
-        "the person with a t-shirt, no glasses, dark hair and a hat")
+        "the person with a t-shirt, no glasses, dark hair and a hat"
+    )
 
 
 def test_head_noun_anywhere_in_description(lex):
@@ -122,7 +140,8 @@ def test_adjectives_ordered_by_lexicon_order(lex):
     assert lex.realise(["red", "large", "handle"], "objects") == "the large red object with a handle"
     assert lex.realise(["large", "red", "chair"], "objects") == "the large red chair"
     assert lex.realise(["colour=red", "orientation=left", "type=chair", "size=large"], "furniture") == (
-        "the large red left-facing chair")
+        "the large red left-facing chair"
+    )
     assert lex.realise(["hasBeard=1", "age=old", "hasGlasses=1"], "people") == "the old one with a beard and glasses"
 
 
@@ -204,7 +223,9 @@ def test_unknown_hyphenated_word_split(lex):
 def test_property_name_always_a_phrase(lex):
     assert lex.parse("the female one with dark-hair", FACES).properties == ["female", "dark-hair"]
     assert lex.parse("colour=grey, type=desk", lex.domain_properties("furniture")).properties == [
-        "colour=grey", "type=desk"]
+        "colour=grey",
+        "type=desk",
+    ]
 
 
 def test_function_words_come_from_the_lexicon():
@@ -231,7 +252,8 @@ def test_parse_against_every_lexicon_property(lex):
     everything = lex.properties()
     assert {"male", "type=person", "colour=red", "red"} <= set(everything)
     assert lex.parse("the man in a lab coat without glasses", everything) == ParseResult(
-        ["male", "lab-coat", "no-glasses"], [])
+        ["male", "lab-coat", "no-glasses"], []
+    )
     assert lex.parse("a large red chair", everything).properties == ["large", "red", "chair"]
 
 
@@ -242,19 +264,20 @@ def test_phrase_table_is_cached(lex):
 def test_tuna_people_and_furniture_phrases(lex):
     furniture = lex.domain_properties("furniture")
     assert lex.parse("red chair facing right", furniture) == ParseResult(
-        ["colour=red", "type=chair", "orientation=right"], [])
+        ["colour=red", "type=chair", "orientation=right"], []
+    )
     assert lex.parse("grey frontal table", furniture).properties == ["colour=grey", "orientation=front", "type=desk"]
     people = lex.domain_properties("people")
     assert lex.parse("man with glasses", people).properties == ["type=person", "hasGlasses=1"]
     assert lex.parse("beard, glasses, old", people).properties == ["hasBeard=1", "hasGlasses=1", "age=old"]
 
 
-def test_tuna_string_descriptions_mostly_parse(lex, shared_data):
+def test_tuna_string_descriptions_mostly_parse(lex, tuna_dir):
     """Sanity check against people: mean Dice of parsed vs. annotated attribute sets."""
     for domain in ("furniture", "people"):
         props = lex.domain_properties(domain)
         scores = []
-        for path in sorted((shared_data / "tuna" / domain).glob("*.xml")):
+        for path in sorted((tuna_dir / domain).glob("*.xml")):
             root = ET.parse(path).getroot()
             text = (root.findtext("STRING-DESCRIPTION") or "").strip()
             if root.get("CONDITION") != "-LOC" or not text:
@@ -266,7 +289,7 @@ def test_tuna_string_descriptions_mostly_parse(lex, shared_data):
         assert sum(scores) / len(scores) > 0.7, domain
 
 
-# -- round trip (SPEC section 4) ------------------------------------------------------
+# -- round trip ------------------------------------------------------
 
 
 def _round_trip(lex: Lexicon, description: list[str], domain: str, props) -> None:
@@ -300,8 +323,11 @@ _OUTSIDE_NAMES = st.from_regex(r"zq[a-z]{1,6}(-[a-z]{1,6}){0,2}", fullmatch=True
 
 
 @settings(max_examples=200, deadline=None)
-@given(known=st.lists(st.sampled_from(FACES), unique=True), extra=st.lists(_OUTSIDE_NAMES, unique=True, max_size=3),
-       data=st.data())
+@given(
+    known=st.lists(st.sampled_from(FACES), unique=True),
+    extra=st.lists(_OUTSIDE_NAMES, unique=True, max_size=3),
+    data=st.data(),
+)
 def test_round_trip_with_properties_outside_the_lexicon(lex, known, extra, data):
     description = data.draw(st.permutations(known + extra))
     _round_trip(lex, description, "faces", FACES + extra)
@@ -349,10 +375,24 @@ def test_config_dir_override(tmp_path, monkeypatch):
 
 def test_shipped_lexicon_covers_the_brief(lex):
     faces = set(lex.domain_properties("faces"))
-    assert {"light-hair", "dark-hair", "short-hair", "long-hair", "male", "female", "lab-coat", "glasses",
-            "no-glasses", "t-shirt", "hoodie", "hat", "beard"} <= faces
+    assert {
+        "light-hair",
+        "dark-hair",
+        "short-hair",
+        "long-hair",
+        "male",
+        "female",
+        "lab-coat",
+        "glasses",
+        "no-glasses",
+        "t-shirt",
+        "hoodie",
+        "hat",
+        "beard",
+    } <= faces
     assert {"red", "green", "blue", "large", "small", "chair", "table", "mug", "ball", "box"} <= set(
-        lex.domain_properties("objects"))
+        lex.domain_properties("objects")
+    )
     assert {"faces", "objects", "locations", "furniture", "people"} <= set(lex.domains)
 
 
@@ -364,28 +404,37 @@ def test_shipped_lexicon_covers_the_brief(lex):
         ({"properties": {"male": {"noun": 3}}}, "x.yaml: properties.male.noun: must be a string"),
         ({"properties": {"male": {"nuon": "man"}}}, "x.yaml: properties.male.nuon: unknown key"),
         ({"properties": {"male": "man"}}, "x.yaml: properties.male: must be a mapping"),
-        ({"properties": {"red": {"adjective": "red", "order": "1"}}}, "properties.red.order: must be an integer"),
-        ({"properties": {"red": {"adjective": "red", "order": True}}}, "properties.red.order: must be an integer"),
+        ({"properties": {"red": {"adjective": "red", "order": "1"}}}, "properties.red.order: must be a whole number"),
+        ({"properties": {"red": {"adjective": "red", "order": True}}}, "properties.red.order: must be a whole number"),
         ({"properties": {"red": {"order": 1}}}, "properties.red.order: only used with an adjective"),
-        ({"properties": {"hat": {"phrases": "cap"}}}, "properties.hat.phrases: must be a list of strings"),
+        ({"properties": {"hat": {"phrases": "cap"}}}, "properties.hat.phrases: must be a list"),
         ({"properties": {"hat": {"phrases": ["cap", False]}}}, "properties.hat.phrases[1]: must be a string"),
         ({"properties": {"hat": {"phrases": ["..."]}}}, "properties.hat.phrases[0]: '...' has no words"),
         ({"properties": {"hat": {"article": "da"}}}, "properties.hat.article: 'da' is not a function word"),
         ({"properties": {"hat": {"phrases": ["with"]}}}, "properties.hat: phrase 'with' uses only the realiser"),
         ({"properties": {"hat": {"negates": "hat"}}}, "properties.hat.negates: a property cannot negate itself"),
-        ({"properties": {1: {}}}, "x.yaml: properties: key 1 must be a string"),
+        ({"properties": {1: {}}}, "x.yaml: properties.1: key must be a string"),
         ({"negators": ["without", False]}, "x.yaml: negators[1]: must be a string"),
-        ({"function_words": "the"}, "x.yaml: function_words: must be a list of strings"),
+        ({"function_words": "the"}, "x.yaml: function_words: must be a list"),
         ({"default_noun": 7}, "x.yaml: default_noun: must be a string"),
         ({"domains": {"faces": {"properties": ["hat"]}}}, "domains.faces.properties[0]: 'hat' is not in properties"),
         ({"domains": {"faces": {"colour": "x"}}}, "domains.faces.colour: unknown key"),
         ({"domains": {"faces": ["hat"]}}, "domains.faces: must be a mapping"),
-        ({"domains": {"faces": {"properties": ["hat", "hat"]}}, "properties": {"hat": {}}},
-         "domains.faces.properties[1]: 'hat' listed twice"),
-        ({"domains": {"faces": {"properties": ["hat", "cap"]}}, "properties": {"hat": {"phrases": ["cap"]}, "cap": {}}},
-         "domains.faces.properties: phrase 'cap' belongs to both 'hat' and 'cap'"),
-        ({"domains": {"faces": {"properties": ["male"]}}, "properties": {"male": {"phrases": ["person"]}}},
-         "domains.faces.noun: default noun 'person' is also a phrase of 'male'"),
+        (
+            {"domains": {"faces": {"properties": ["hat", "hat"]}}, "properties": {"hat": {}}},
+            "domains.faces.properties[1]: 'hat' listed twice",
+        ),
+        (
+            {
+                "domains": {"faces": {"properties": ["hat", "cap"]}},
+                "properties": {"hat": {"phrases": ["cap"]}, "cap": {}},
+            },
+            "domains.faces.properties: phrase 'cap' belongs to both 'hat' and 'cap'",
+        ),
+        (
+            {"domains": {"faces": {"properties": ["male"]}}, "properties": {"male": {"phrases": ["person"]}}},
+            "domains.faces.noun: default noun 'person' is also a phrase of 'male'",
+        ),
     ],
 )
 def test_lexicon_errors_name_file_and_path(data, message):
@@ -397,15 +446,17 @@ def test_lexicon_errors_name_file_and_path(data, message):
 def test_load_errors_name_the_file(tmp_path):
     path = tmp_path / "lexicon.yaml"
     path.write_text("properties:\n  male: {noun: man}\n  male: {noun: guy}\n")
-    with pytest.raises(LexiconError, match=r"lexicon\.yaml: line 3: duplicate key 'male'"):
+    with pytest.raises(
+        LexiconError, match=r"lexicon\.yaml:3: properties\.male: duplicate key 'male' \(first at line 2\)"
+    ):
         Lexicon.load(path)
     path.write_text("properties: [unclosed\n")
-    with pytest.raises(LexiconError, match=r"lexicon\.yaml: not valid YAML"):
+    with pytest.raises(LexiconError, match=r"lexicon\.yaml:\d+: not valid YAML"):
         Lexicon.load(path)
     path.write_text("properties:\n  male:\n    noun: [man]\n")
-    with pytest.raises(LexiconError, match=r"lexicon\.yaml: properties\.male\.noun: must be a string"):
+    with pytest.raises(LexiconError, match=r"lexicon\.yaml:3: properties\.male\.noun: must be a string"):
         Lexicon.load(path)
-    with pytest.raises(LexiconError, match=r"missing\.yaml: cannot read"):
+    with pytest.raises(LexiconError, match=r"missing\.yaml: file not found"):
         Lexicon.load(tmp_path / "missing.yaml")
     path.write_text("")
     assert Lexicon.load(path).noun_for("faces") == "person"

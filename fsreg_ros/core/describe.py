@@ -1,0 +1,206 @@
+"""Generation as a library call: describe one target in one call (SPEC section 4).
+
+:func:`describe` runs a REG algorithm (SD-PIA, DIST-PIA, Full Brevity, Greedy;
+paper Algorithm 4 and its baselines) for a target in a knowledge base, with a
+per-call preference order, forced attributes (a head noun such as TUNA's
+``type``) and with or without touching working memory.  It composes rather than
+changes the consultant: a :class:`ViewPort` wraps any :class:`ConsultantPort`,
+serves the per-call preference order, hides the forced attributes from the
+algorithm and, when read-only, drops every encoding.  So an order sweep reuses
+one consultant per knowledge base.
+
+Preference orders may name attributes (``colour``) as well as properties
+(``colour=red``): :func:`expand_order` lists each attribute's values in the
+knowledge base's own order.  Properties written ``attribute=value`` belong to
+``attribute`` (:func:`fsreg_ros.core.generation.attribute_of`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional, Sequence, Union
+
+from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, run_sync
+from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, distractors_for, generate
+
+#: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
+Facts = Union[Sequence[str], Mapping[str, object]]
+
+
+def entity_properties(facts: Facts) -> list[str]:
+    """Return an entity's properties: a list as given, or ``attribute=value`` per pair."""
+    if isinstance(facts, Mapping):
+        return [f"{attribute}={value}" for attribute, value in facts.items()]
+    if isinstance(facts, (list, tuple)):
+        return [str(p) for p in facts]
+    raise GenerationError(f"an entity's facts must be a list of properties or a mapping, got {type(facts).__name__}")
+
+
+def knowledge_base(domain: str, entities: Mapping[str, Facts], preference: Sequence[str] = ()) -> Consultant:
+    """Build a consultant whose entities hold exactly the given properties (certainty 1).
+
+    ``preference`` (attributes or properties) orders the properties; the rest follow
+    in order of first appearance.
+    """
+    properties: dict[str, None] = {}
+    table = {}
+    for entity, facts in entities.items():
+        props = entity_properties(facts)
+        table[entity] = {p: 1.0 for p in props}
+        properties.update(dict.fromkeys(props))
+    known = list(properties)
+    order = expand_order(preference, known) if preference else []
+    order += [p for p in known if p not in set(order)]
+    return Consultant(domain, table, order)
+
+
+def expand_order(
+    order: Sequence[str], properties: Sequence[str], attributes: Optional[Mapping[str, str]] = None
+) -> list[str]:
+    """Return the properties in ``order``: a property stands for itself, an attribute for its values.
+
+    Values of an attribute keep their order in ``properties``; entries naming
+    nothing known are ignored, and properties the order does not name are left out
+    (the Incremental Algorithm never considers them).
+    """
+    known = set(properties)
+    by_attribute: dict[str, list[str]] = {}
+    for prop in properties:
+        by_attribute.setdefault(attribute_of(prop, attributes), []).append(prop)
+    out: dict[str, None] = {}
+    for entry in order:
+        if entry in known:
+            out[entry] = None
+        else:
+            out.update(dict.fromkeys(by_attribute.get(entry, ())))
+    return list(out)
+
+
+class ViewPort:
+    """A :class:`ConsultantPort` seen through one call's options.
+
+    It serves ``preference`` instead of the consultant's order, hides properties
+    of the ``hidden`` attributes from the preference order and from WM, and
+    forwards encodings only when ``writes`` is true.  Final (``speaker``)
+    encodings are never forwarded: :func:`describe` encodes the whole description
+    itself.
+    """
+
+    def __init__(
+        self,
+        port: ConsultantPort,
+        preference: Sequence[str],
+        *,
+        writes: bool,
+        hidden: Sequence[str] = (),
+        attributes: Optional[Mapping[str, str]] = None,
+    ) -> None:
+        self.port = port
+        self.domain = port.domain
+        self.writes = writes
+        self._hidden = set(hidden)
+        self._attributes = attributes
+        self._preference = [p for p in preference if not self._is_hidden(p)]
+
+    def _is_hidden(self, prop: str) -> bool:
+        return attribute_of(prop, self._attributes) in self._hidden
+
+    async def entities(self) -> list[str]:
+        return await self.port.entities()
+
+    async def preference(self) -> list[str]:
+        return list(self._preference)
+
+    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
+        return await self.port.holds(prop, entities)
+
+    async def affirm(
+        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
+    ) -> list[str]:
+        if self.writes:
+            return await self.port.affirm(prop, entities, cause, time, turn)
+        return await self.port.holds(prop, entities)
+
+    async def wm(self, entity: str) -> list[str]:
+        return [p for p in await self.port.wm(entity) if not self._is_hidden(p)]
+
+    async def encode(
+        self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
+    ) -> None:
+        return None
+
+
+@dataclass
+class Request:
+    """One :func:`describe` call's options (defaults: DIST-PIA, read-only)."""
+
+    algorithm: str = "dist-pia"
+    preference: Optional[Sequence[str]] = None
+    forced: Sequence[str] = ()
+    writes: bool = False
+    context: Optional[Sequence[str]] = None
+    wm_order: str = "lru-first"
+    attributes: Optional[Mapping[str, str]] = None
+    time: float = 0.0
+    turn: Optional[int] = None
+
+
+async def describe_async(target: str, port: ConsultantPort, request: Request) -> Expression:
+    """Describe ``target`` through ``port`` as ``request`` says (see :func:`describe`)."""
+    if request.algorithm not in ALGORITHMS:
+        raise GenerationError(f"unknown algorithm '{request.algorithm}' (known: {', '.join(ALGORITHMS)})")
+    full = await port.preference()
+    order = full if request.preference is None else expand_order(request.preference, full, request.attributes)
+    view = ViewPort(port, order, writes=request.writes, hidden=request.forced, attributes=request.attributes)
+    try:
+        distractors = await distractors_for(target, port, request.context)
+        head = []  # the target's values of the forced attributes, selected first
+        for attribute in request.forced:
+            values = [p for p in full if attribute_of(p, request.attributes) == attribute]
+            head += [p for p in values if await port.holds(p, [target])][:1]
+        for prop in head:
+            distractors = await view.affirm(prop, distractors, "reg-distractor", request.time, request.turn)
+    except KnowledgeError as err:
+        raise GenerationError(str(err)) from err
+    expression = await generate(
+        target,
+        view,
+        request.algorithm,
+        context=distractors,
+        wm_order=request.wm_order,
+        time=request.time,
+        turn=request.turn,
+        attributes=request.attributes,
+    )
+    expression.description = head + expression.description
+    expression.sources = ["forced"] * len(head) + expression.sources
+    if request.writes and expression.description:  # rule 1: the robot's own description
+        await port.encode(target, expression.description, "speaker", request.time, request.turn)
+    return expression
+
+
+def describe(
+    target: str,
+    kb: Union[Consultant, ConsultantPort],
+    algorithm: str = "dist-pia",
+    *,
+    preference: Optional[Sequence[str]] = None,
+    forced: Sequence[str] = (),
+    writes: bool = False,
+    context: Optional[Sequence[str]] = None,
+    wm_order: str = "lru-first",
+    attributes: Optional[Mapping[str, str]] = None,
+    time: float = 0.0,
+    turn: Optional[int] = None,
+) -> Expression:
+    """Describe ``target`` in a knowledge base in one call.
+
+    ``kb`` is a :class:`Consultant` (or a port answering at once).  ``preference``
+    lists attributes and/or properties, most preferred first (default: the
+    consultant's order); ``forced`` names attributes whose target value always
+    heads the description (TUNA's ``type``); ``writes=False`` leaves WM untouched
+    (SD-PIA still reads it).  Raises :class:`GenerationError` on bad input.
+    """
+    port = LocalPort(kb) if isinstance(kb, Consultant) else kb
+    request = Request(algorithm, preference, tuple(forced), writes, context, wm_order, attributes, time, turn)
+    return run_sync(describe_async(target, port, request))

@@ -1,0 +1,202 @@
+"""Lexicon files: their structure (pydantic), reading, extending the built-in one, and checks.
+
+The format is described at the top of ``config/lexicon.yaml``.  A lexicon file
+given by the user (``--lexicon``, the nodes' ``lexicon`` parameter) *extends* the
+built-in ``config/lexicon.yaml``: its properties replace built-in entries of the
+same name, its domains add members (and may set the noun), its function words and
+negators are added, and its ``default_noun`` replaces the built-in one.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Annotated, Any, Mapping, Optional, Union
+
+import yaml
+from pydantic import AfterValidator, Field
+
+from ..paths import config_path
+from ..validation import Strict, validate
+from ..yaml_source import PathLoc, SourceError, describe_value, find_line, node_line, read_yaml, render_path
+from .words import Phrase, tokenize
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .lexicon import Lexicon
+
+#: Words :meth:`Lexicon.realise` itself puts around the lexicon's words.
+REALISER_WORDS = frozenset({"the", "with", "and"})
+
+
+class LexiconError(SourceError):
+    """A bad lexicon: names the file and the path inside it.
+
+    For example ``lexicon.yaml:12: properties.male.noun: must be a string, got a list``.
+    """
+
+
+def _has_words(text: str) -> str:
+    if not tokenize(text):
+        raise ValueError(f"{text!r} has no words")
+    return text
+
+
+Words = Annotated[str, AfterValidator(_has_words)]
+
+
+class EntryBlock(Strict):
+    """How one property is said and heard (a ``properties:`` item)."""
+
+    noun: Optional[Words] = Field(None, description="it can head the description ('man')")
+    adjective: Optional[Words] = Field(None, description="pre-modifier ('red')")
+    order: Optional[int] = Field(None, description="adjective order, ascending left to right")
+    words: Optional[Words] = Field(None, description="post-modifier after 'with' ('lab coat')")
+    article: Optional[str] = Field(None, description="function word(s) before words ('a')")
+    phrases: Optional[list[Words]] = Field(None, description="extra ways a human may say it")
+    negates: Optional[Words] = Field(None, description="the property it is the negation of")
+
+
+class DomainEntry(Strict):
+    """A ``domains:`` item: default head noun and member properties."""
+
+    noun: Optional[Words] = None
+    properties: Optional[list[str]] = None
+
+
+class LexiconFile(Strict):
+    """A lexicon file (every key optional)."""
+
+    default_noun: Optional[Words] = None
+    function_words: Optional[list[Words]] = None
+    negators: Optional[list[Words]] = None
+    domains: Optional[dict[str, Optional[DomainEntry]]] = None
+    properties: Optional[dict[str, Optional[EntryBlock]]] = None
+
+
+_KNOWN = {
+    "file": tuple(LexiconFile.model_fields),
+    "domain": tuple(DomainEntry.model_fields),
+    "entry": tuple(EntryBlock.model_fields),
+}
+
+
+def _known_keys(loc: list) -> tuple:
+    if not loc:
+        return _KNOWN["file"]
+    return _KNOWN["domain"] if loc[0] == "domains" else _KNOWN["entry"]
+
+
+class LexiconSource:
+    """A validated lexicon file: the model, and where it came from (for messages)."""
+
+    def __init__(self, model: LexiconFile, source: str, root: Optional[yaml.Node] = None) -> None:
+        self.model = model
+        self.source = source
+        self.root = root
+
+    def fail(self, loc: PathLoc, message: str) -> LexiconError:
+        """Return the error ``message`` at ``loc`` in this file."""
+        line, _ = find_line(self.root, loc) if loc else (None, False)
+        return LexiconError(self.source, render_path(loc), message, line)
+
+    def extended_by(self, extra: "LexiconSource") -> "LexiconSource":
+        """Return this lexicon with ``extra``'s content added (see the module docstring)."""
+        base, more = self.model, extra.model
+        domains = {name: entry or DomainEntry() for name, entry in (base.domains or {}).items()}
+        for name, entry in (more.domains or {}).items():
+            old = domains.get(name, DomainEntry())
+            entry = entry or DomainEntry()
+            members = list(old.properties or [])
+            members += [p for p in entry.properties or [] if p not in members]
+            domains[name] = DomainEntry(noun=entry.noun or old.noun, properties=members)
+        merged = LexiconFile(
+            default_noun=more.default_noun or base.default_noun,
+            function_words=_union(base.function_words, more.function_words),
+            negators=_union(base.negators, more.negators),
+            domains=domains,
+            properties={**(base.properties or {}), **(more.properties or {})},
+        )
+        return LexiconSource(merged, extra.source, extra.root)
+
+
+def _union(first: Optional[list[str]], second: Optional[list[str]]) -> Optional[list[str]]:
+    if first is None or second is None:
+        return second if first is None else first
+    return list(dict.fromkeys([*first, *second]))
+
+
+def parse_mapping(data: Any, source: str, root: Optional[yaml.Node] = None) -> LexiconSource:
+    """Return the validated lexicon ``data`` (parsed YAML); errors name ``source``."""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        line = node_line(root) if root is not None else None
+        raise LexiconError(source, "", f"must be a mapping, not {describe_value(data)}", line)
+    model = validate(LexiconFile, data, source, root, LexiconError, _known_keys)
+    return LexiconSource(model, source, root)
+
+
+def read_lexicon(path: Union[str, os.PathLike]) -> LexiconSource:
+    """Return the validated lexicon file ``path``; LexiconError naming the file otherwise."""
+    root, data = read_yaml(path, LexiconError)
+    return parse_mapping(data, os.fspath(path), root)
+
+
+def builtin_path() -> str:
+    """Return the path of the built-in lexicon (``config/lexicon.yaml``)."""
+    try:
+        return str(config_path("lexicon.yaml"))
+    except FileNotFoundError as err:
+        raise LexiconError("lexicon.yaml", "", str(err)) from None
+
+
+def check(lexicon: "Lexicon", where: LexiconSource) -> None:
+    """Check what needs more than types; raise LexiconError naming ``where``'s file.
+
+    Entries: ``order`` only with an adjective, no property negating itself;
+    articles are function words; no phrase is only the realiser's own words.
+    Domains: members are listed properties, once each; within a domain each
+    phrase has one owner and the default noun none.
+    """
+    glue = set(REALISER_WORDS)
+    for name, block in (where.model.properties or {}).items():
+        block = block or EntryBlock()
+        if block.order is not None and block.adjective is None:
+            raise where.fail(("properties", name, "order"), "only used with an adjective")
+        if block.negates == name:
+            raise where.fail(("properties", name, "negates"), "a property cannot negate itself")
+        for word in tokenize(block.article or ""):
+            if word not in lexicon.function_words:
+                raise where.fail(("properties", name, "article"), f"'{word}' is not a function word")
+            glue.add(word)
+    for name in lexicon.properties():
+        entry = lexicon.entry(name)
+        for phrase in (*entry.own_phrases(), *entry.other_phrases()):
+            if set(phrase) <= glue:
+                said = " ".join(phrase)
+                raise where.fail(("properties", name), f"phrase '{said}' uses only the realiser's own words")
+    for domain, block in (where.model.domains or {}).items():
+        seen: set[str] = set()
+        for i, prop in enumerate((block.properties or []) if block else []):
+            if prop not in lexicon:
+                raise where.fail(("domains", domain, "properties", i), f"'{prop}' is not in properties")
+            if prop in seen:
+                raise where.fail(("domains", domain, "properties", i), f"'{prop}' listed twice")
+            seen.add(prop)
+        _check_domain_phrases(lexicon, domain, where)
+
+
+def _check_domain_phrases(lexicon: "Lexicon", domain: str, where: LexiconSource) -> None:
+    owner: dict[Phrase, str] = {}
+    for prop in lexicon.domain_properties(domain):
+        entry = lexicon.entry(prop)
+        for phrase in dict.fromkeys((*entry.own_phrases(), *entry.other_phrases())):
+            other = owner.setdefault(phrase, prop)
+            if other != prop:
+                raise where.fail(
+                    ("domains", domain, "properties"),
+                    f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'",
+                )
+    noun = tuple(tokenize(lexicon.noun_for(domain)))
+    if noun in owner:
+        message = f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'"
+        raise where.fail(("domains", domain, "noun"), message)

@@ -1,0 +1,272 @@
+"""Reading fsreg's YAML files (scenarios, KBs, lexicons, expected tables): one strict loader.
+
+Every file is read the same way:
+
+1. :func:`read_text` reads it as UTF-8 text; a missing file, a directory, an
+   unreadable or oversized file, a NUL byte or invalid UTF-8 is one
+   :class:`SourceError` naming the file.
+2. :func:`load_yaml` parses it with libyaml's C parser (:class:`FastLoader`) and
+   keeps the node tree, whose nodes carry their line, so a path inside the
+   document (``dialogue[3].text``) can be mapped to a line (:func:`find_line`).
+   Mapping keys may not repeat (a duplicate is an error, not "the last wins"); a
+   ``<<`` merge key may be overridden.  Only when the C parser reports an error is
+   the text parsed again by the pure-Python parser (:class:`ExactLoader`, same
+   rules), whose messages are the more precise ones.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Optional, Sequence, Union
+
+import yaml
+
+#: Files larger than this are refused before parsing (a scenario of 10,000 entities is ~2 MB).
+MAX_FILE_BYTES = 64 * 1024 * 1024
+
+PathLoc = tuple[Union[str, int], ...]
+
+
+class SourceError(ValueError):
+    """One problem with an input file: where it is and what is wrong.
+
+    ``str(err)`` is one line, ``"{source}:{line}: {path}: {message}"``, without
+    ``:{line}`` when the line is unknown and without ``{path}: `` when the problem
+    concerns the whole file (``path == ""``).
+    """
+
+    def __init__(self, source: str, path: str, message: str, line: Optional[int] = None) -> None:
+        self.source = source
+        self.path = path
+        self.message = message
+        self.line = line
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = self.source if self.line is None else f"{self.source}:{self.line}"
+        return f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
+
+    def __str__(self) -> str:
+        return self._format()
+
+    def __reduce__(self) -> tuple:
+        # Picklable (e.g. across processes) despite the custom constructor.
+        return (type(self), (self.source, self.path, self.message, self.line))
+
+
+class DuplicateKeyError(yaml.YAMLError):
+    """A mapping names the same key twice."""
+
+    def __init__(self, mapping: yaml.MappingNode, key: Any, first: yaml.Node, second: yaml.Node) -> None:
+        super().__init__(f"duplicate key {key!r}")
+        self.mapping, self.key, self.first, self.second = mapping, key, first, second
+
+
+class StrictConstruction:
+    """Construction rules shared by both loaders: no duplicate mapping keys.
+
+    ``<<`` merge keys are skipped by the check: merged values may be overridden.
+    """
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        """Return the mapping of ``node``; raise DuplicateKeyError if a key repeats."""
+        seen: dict[Any, yaml.Node] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)  # type: ignore[attr-defined]
+            try:
+                first = seen.get(key)
+            except TypeError:
+                continue  # unhashable: SafeConstructor reports it
+            if first is not None:
+                raise DuplicateKeyError(node, key, first, key_node)
+            seen[key] = key_node
+        return super().construct_mapping(node, deep=deep)  # type: ignore[misc]
+
+
+class ExactLoader(StrictConstruction, yaml.SafeLoader):
+    """The pure-Python strict loader: used to explain an error the C parser found."""
+
+
+class FastLoader(StrictConstruction, getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """The strict loader on libyaml's C parser (the pure-Python one if libyaml is missing)."""
+
+
+def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceError) -> str:
+    """Return the text of ``path``; raise ``error`` naming the file if it cannot be text."""
+    source = os.fspath(path)
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise error(source, "", "file not found") from None
+    except IsADirectoryError:
+        raise error(source, "", "is a directory, not a file") from None
+    except OSError as err:
+        raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise error(source, "", f"too large: over {MAX_FILE_BYTES:,} bytes")
+    nul = data.find(b"\0")
+    if nul >= 0:
+        raise error(source, "", f"not a text file: NUL byte at offset {nul}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise error(source, "", f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+
+
+def load_yaml(text: str, source: str, error: type[SourceError] = SourceError) -> tuple[Optional[yaml.Node], Any]:
+    """Return the single document's root node (None if empty) and its value.
+
+    Parsed with :class:`FastLoader`; on any error the text is parsed again with
+    :class:`ExactLoader` and its error becomes one ``error`` with path and line.
+    """
+    try:
+        return _load(FastLoader, text)
+    except (yaml.YAMLError, RecursionError):
+        pass
+    try:
+        result = _load(ExactLoader, text, keep=True)
+    except _Failed as failed:
+        raise _yaml_problem(failed.err, failed.root, source, error) from None
+    return result  # pragma: no cover - both parsers agree on valid YAML
+
+
+class _Failed(Exception):
+    def __init__(self, err: BaseException, root: Optional[yaml.Node]) -> None:
+        super().__init__(str(err))
+        self.err, self.root = err, root
+
+
+def _load(loader_class: type, text: str, keep: bool = False) -> tuple[Optional[yaml.Node], Any]:
+    loader = loader_class(text)
+    root: Optional[yaml.Node] = None
+    try:
+        root = loader.get_single_node()
+        return root, (loader.construct_document(root) if root is not None else None)
+    except (yaml.YAMLError, RecursionError) as err:
+        if keep:
+            raise _Failed(err, root) from None
+        raise
+    finally:
+        loader.dispose()
+
+
+def _yaml_problem(err: BaseException, root: Optional[yaml.Node], source: str, error: type[SourceError]) -> SourceError:
+    if isinstance(err, DuplicateKeyError):
+        loc = (path_to(root, err.mapping) or ()) if root is not None else ()
+        loc += (str(err.key),)
+        message = f"duplicate key '{err.key}' (first at line {node_line(err.first)})"
+        return error(source, render_path(loc), message, node_line(err.second))
+    if isinstance(err, RecursionError):
+        return error(source, "", "not valid here: YAML nested too deeply")
+    if isinstance(err, yaml.MarkedYAMLError):
+        mark = err.problem_mark or err.context_mark
+        problem = err.problem or err.context or "syntax error"
+        if err.context and err.problem:
+            started = f" started at line {err.context_mark.line + 1}" if err.context_mark else ""
+            problem += f" ({err.context}{started})"
+        return error(source, "", f"not valid YAML: {problem}", mark.line + 1 if mark else None)
+    return error(source, "", f"not valid YAML: {' '.join(str(err).split())}")
+
+
+def node_line(node: yaml.Node) -> int:
+    """Return the 1-based line where ``node`` starts."""
+    return node.start_mark.line + 1
+
+
+def find_line(root: Optional[yaml.Node], loc: PathLoc) -> tuple[Optional[int], bool]:
+    """Return the line of the node at ``loc`` and whether the whole path was found.
+
+    The line is that of the mapping key for a mapping entry; when the path is not
+    found, the line of the deepest node found.
+    """
+    node, line = root, (node_line(root) if root is not None else None)
+    for segment in loc:
+        found = None
+        if isinstance(node, yaml.MappingNode):
+            for key_node, value_node in node.value:
+                if isinstance(key_node, yaml.ScalarNode) and key_node.value == str(segment):
+                    found, line = value_node, node_line(key_node)
+                    break
+        elif isinstance(node, yaml.SequenceNode) and isinstance(segment, int) and 0 <= segment < len(node.value):
+            found = node.value[segment]
+            line = node_line(found)
+        if found is None:
+            return line, False
+        node = found
+    return line, True
+
+
+def path_to(root: yaml.Node, target: yaml.Node) -> Optional[PathLoc]:
+    """Return the path from ``root`` to the node ``target`` (by identity), or None."""
+    stack: list[tuple[yaml.Node, PathLoc]] = [(root, ())]
+    seen: set[int] = set()
+    while stack:
+        node, loc = stack.pop()
+        if node is target:
+            return loc
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            for key_node, value_node in node.value:
+                key = key_node.value if isinstance(key_node, yaml.ScalarNode) else "?"
+                stack.append((value_node, loc + (key,)))
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend((item, loc + (i,)) for i, item in enumerate(node.value))
+    return None
+
+
+def render_path(loc: Sequence[Union[str, int]]) -> str:
+    """Return ``("dialogue", 3, "description", 1)`` as ``"dialogue[3].description[1]"``."""
+    out = ""
+    for segment in loc:
+        if isinstance(segment, int) and not isinstance(segment, bool):
+            out += f"[{segment}]"
+        else:
+            out += f".{segment}" if out else str(segment)
+    return out
+
+
+def read_yaml(path: Union[str, os.PathLike], error: type[SourceError] = SourceError) -> tuple[Optional[yaml.Node], Any]:
+    """Return the root node and value of the YAML file ``path`` (see :func:`load_yaml`)."""
+    return load_yaml(read_text(path, error), os.fspath(path), error)
+
+
+def describe_value(value: Any) -> str:
+    """Return a short description of a wrong value, for messages."""
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return (
+            f"the boolean {str(value).lower()} "
+            "(YAML reads yes/no/on/off/true/false as booleans; quote it if you mean text)"
+        )
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    if isinstance(value, dict):
+        return "a mapping"
+    return f"a {type(value).__name__}"
+
+
+__all__ = [
+    "MAX_FILE_BYTES",
+    "DuplicateKeyError",
+    "ExactLoader",
+    "FastLoader",
+    "SourceError",
+    "describe_value",
+    "find_line",
+    "load_yaml",
+    "node_line",
+    "path_to",
+    "read_text",
+    "read_yaml",
+    "render_path",
+]

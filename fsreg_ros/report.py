@@ -1,0 +1,165 @@
+"""Readable reports of played scenarios: one run as a table, and several policies side by side.
+
+Used by ``fsreg-sim`` and ``fsreg-graph`` (:mod:`fsreg_ros.cli`) and by the
+``dialogue_player`` node; it reads the result objects of
+:mod:`fsreg_ros.core.simulation` and imports nothing else of the project.  Every
+figure printed is explained by a sentence printed with it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Optional, Sequence
+
+#: What the marks of a checked comparison mean.
+MARKS = (
+    "ok   = the robot's description has exactly the expected properties (their order is not compared)",
+    "DIFF = it does not; the expected properties follow in brackets",
+    "--   = no expected description was given for this turn (unchecked)",
+)
+
+
+def said(record: Mapping[str, Any]) -> str:
+    """Return what the speaker of a turn said, quoted."""
+    if record["speaker"] == "human":
+        return '"' + (record.get("text") or ", ".join(record.get("description") or [])) + '"'
+    return f'"{record.get("text")}"'
+
+
+def heard(record: Mapping[str, Any]) -> str:
+    """Return what reference resolution made of a human turn: the entity, or the status and candidates."""
+    if record.get("resolved"):
+        return str(record["resolved"])
+    return f"{record.get('status')} {record.get('candidates')}"
+
+
+def describe(record: Mapping[str, Any]) -> str:
+    """Return one turn's utterance and outcome for the table of one run."""
+    if record["speaker"] == "human":
+        return f"{said(record)} -> {heard(record)}"
+    mark = "" if record.get("distinguishing") else "  (not distinguishing)"
+    return f'{said(record)}  [{", ".join(record.get("sources") or [])}]{mark}'
+
+
+def render_table(result: Mapping[str, Any]) -> str:
+    """Return a readable table of one run, with what its columns mean."""
+    memory = "; ".join(f"{d}: {json.dumps(m, sort_keys=True)}" for d, m in result["memory"].items())
+    lines = [f"scenario {result['scenario']}  memory {memory}", ""]
+    lines.append(f"{'turn':>4}  {'time':>7}  {'speaker':<7}  {'target':<10}  {'WM before':<34}  utterance")
+    for record in result["turns"]:
+        wm = ", ".join(record.get("wm_before") or []) if record["speaker"] == "robot" else ""
+        lines.append(
+            f"{record['turn']:>4}  {record['time']:>7.2f}  {record['speaker']:<7}  "
+            f"{str(record.get('target') or ''):<10}  {wm:<34}  {describe(record)}"
+        )
+    lines += [
+        "",
+        "human turns: what was said -> the entity reference resolution found (or its status and candidates).",
+        "robot turns: the description, then where each of its properties came from (wm: the target's working "
+        "memory, ltm: long-term memory, in preference order).",
+        "WM before: the target's working memory just before the robot spoke, least recently used first.",
+    ]
+    if any(r["speaker"] == "robot" and not r.get("distinguishing") for r in result["turns"]):
+        lines.append("(not distinguishing): the description also fits other entities.")
+    return "\n".join(lines) + "\n"
+
+
+@dataclass
+class Comparison:
+    """The text of a policy comparison and how it fared against expected descriptions."""
+
+    text: str
+    matched: int = 0
+    checked: int = 0
+    #: "policy: robot turn n" for each robot turn without an expected description.
+    unchecked: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        """Whether every robot turn was checked and matched."""
+        return self.matched == self.checked and not self.unchecked
+
+
+def render_comparison(
+    results: Mapping[str, Mapping[str, Any]], expected: Optional[Mapping[str, list]] = None
+) -> Comparison:
+    """Return every turn side by side, one column per policy, checked against ``expected`` if given.
+
+    ``expected`` maps a policy to its robot descriptions in turn order (property
+    lists, compared as sets).
+    """
+    labels = list(results)
+    turns = {label: results[label]["turns"] for label in labels}
+    robot_rows = {label: [t for t in turns[label] if t["speaker"] == "robot"] for label in labels}
+    out = Comparison(text="")
+    cells: dict[str, list[str]] = {label: [] for label in labels}
+    for label in labels:
+        n = 0
+        for record in turns[label]:
+            if record["speaker"] == "human":
+                cells[label].append(f"-> {heard(record)}")
+                continue
+            cell = record.get("text") or ""
+            if expected is not None:
+                wanted = expected.get(label, [])
+                if n < len(wanted):
+                    out.checked += 1
+                    ok = set(wanted[n]) == set(record.get("description") or [])
+                    out.matched += ok
+                    cell = ("ok   " + cell) if ok else f"DIFF {cell} [expected: {', '.join(wanted[n])}]"
+                else:
+                    out.unchecked.append(f"{label}: robot turn {n + 1} (turn {record['turn']})")
+                    cell = "--   " + cell
+            cells[label].append(cell)
+            n += 1
+    first = turns[labels[0]]
+    widths = {label: max([len(label)] + [len(c) for c in cells[label]]) for label in labels}
+    said_width = max([4] + [len(said(row)) for row in first if row["speaker"] == "human"])
+    lines = [
+        f"{'turn':>4}  {'speaker':<7}  {'target':<8}  {'said':<{said_width}}  "
+        + "  ".join(f"{label:<{widths[label]}}" for label in labels).rstrip()
+    ]
+    for i, row in enumerate(first):
+        what = said(row) if row["speaker"] == "human" else ""
+        row_cells = "  ".join(f"{cells[label][i]:<{widths[label]}}" for label in labels)
+        target = str(row.get("target") or "")
+        lines.append(f"{row['turn']:>4}  {row['speaker']:<7}  {target:<8}  {what:<{said_width}}  {row_cells}".rstrip())
+    lines.append("")
+    lines.append("human turns: what the human said, and per policy the entity reference resolution found.")
+    lines.append("robot turns: per policy, what the robot said about the target.")
+    if expected is not None:
+        lines += ["", *MARKS]
+    lines += ["", *summary_lines(robot_rows)]
+    if expected is not None:
+        lines.append("")
+        lines.append(f"{out.matched}/{out.checked} robot descriptions match the expected ones")
+        if out.unchecked:
+            lines.append(f"{len(out.unchecked)} robot turns had no expected description: " + "; ".join(out.unchecked))
+    out.text = "\n".join(lines) + "\n"
+    return out
+
+
+def summary_lines(robot_rows: Mapping[str, Sequence[Mapping[str, Any]]]) -> list[str]:
+    """Return the per-policy figures of a comparison, each explained in one sentence.
+
+    For each policy: how many of the robot's properties came from working memory
+    (alignment), and how long its descriptions were.
+    """
+    width = max(map(len, robot_rows)) if robot_rows else 0
+    lines = []
+    for label, rows in robot_rows.items():
+        sources = [s for t in rows for s in (t.get("sources") or [])]
+        from_wm = sources.count("wm")
+        mean = len(sources) / len(rows) if rows else 0.0
+        share = f"{100 * from_wm / len(sources):.0f}%" if sources else "-"
+        lines.append(
+            f"{label:<{width}}  {from_wm}/{len(sources)} properties reused from WM ({share}), "
+            f"{mean:.2f} properties per description"
+        )
+    lines.append(
+        "reused from WM: of all properties the robot said, those taken from the target's working memory "
+        "(recently said or heard) rather than from long-term memory."
+    )
+    lines.append("properties per description: the mean number of properties in the robot's descriptions.")
+    return lines
