@@ -10,7 +10,7 @@ per request.  Before the fix, REG grew ~1.9 kB per request after the cache fille
 service call created a deadline timer, and rclpy's callback group kept a weak reference
 to each timer forever (see ``fsreg_ros.carrier.drop_timer``).
 
-    .venv/bin/python scripts/bench_rss.py [SCENARIO.yaml] [--requests 6000] [--every 500]
+    scripts/bench_rss.py [SCENARIO.yaml] [--requests 6000] [--every 500]
 
 Wall-clock figures belong here, not in the tests.  Runs with
 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST unless you set otherwise.
@@ -27,7 +27,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+from venv_python import use_venv  # noqa: E402
+
+use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
 
