@@ -36,21 +36,22 @@ from hypothesis import strategies as st
 
 from rosutil import Graph, Timeout
 
+from fsreg_ros import contract
 from fsreg_ros.carrier import CarrierError
 from fsreg_ros.core.scenario import Scenario, load_scenario
 
-# Every name the fuzzer uses, in one place (the contract module can supply them later).
-CONSULTANT = "/consultant/{domain}"
-MANAGE = "/consultant/{domain}/manage"
-SYNC = "/wm_manager/sync"
-STATUS = "/wm_manager/status"
-HUMAN = "/dialogue/human"
-SEMANTICS = "/dialogue/semantics"
-REG_REQUEST = "/reg/request"
-LTM_ASSERT = "/ltm/assert"
-RR_RESULT = "/rr/result"
-REG_EXPRESSION = "/reg/expression"
-LTM_RESULT = "/ltm/assert/result"
+# Every name the fuzzer uses, resolved from the contract (the graph runs un-namespaced).
+CONSULTANT = "/" + contract.CONSULTANT.name.replace("<domain>", "{domain}")
+MANAGE = "/" + contract.MANAGE.name.replace("<domain>", "{domain}")
+SYNC = "/" + contract.SYNC.name
+STATUS = "/" + contract.STATUS.name
+HUMAN = "/" + contract.HUMAN.name
+SEMANTICS = "/" + contract.SEMANTICS.name
+REG_REQUEST = "/" + contract.REG_REQUEST.name
+LTM_ASSERT = "/" + contract.LTM_ASSERT.name
+RR_RESULT = "/" + contract.RR_RESULT.name
+REG_EXPRESSION = "/" + contract.REG_EXPRESSION.name
+LTM_RESULT = "/" + contract.LTM_ASSERT_RESULT.name
 #: Every endpoint fuzzed, for Table 1's one domain.
 ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), SYNC, STATUS,
              HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]

@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS
+from fsreg_ros import contract
+from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.nodes.common import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.core.forgetting import DecayClock
@@ -15,8 +16,8 @@ from rosutil import KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 
-SYNC = "/wm_manager/sync"
-STATUS = "/wm_manager/status"
+SYNC = contract.SYNC.name
+STATUS = contract.STATUS.name
 
 
 @pytest.fixture

@@ -49,9 +49,11 @@ from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameExcept
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_topic_name import validate_topic_name
 
-from ..carrier import NUMBER, CarrierError, JsonClient, check_fields, serve, wait_until
+from .. import contract
+from ..carrier import CarrierError, JsonClient, serve, wait_until
+from ..codec import NUMBER, check_fields
 from ..core.forgetting import (
     RULE_PARAMETER,
     TIME_EPSILON,
@@ -60,7 +62,7 @@ from ..core.forgetting import (
     PolicyError,
     check_setting,
 )
-from ..remote import manage_service
+from ..contract import manage_service
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node
 
 #: Defaults for every domain (SPEC §5 names).
@@ -111,7 +113,7 @@ class WMManagerNode(Node):
             raise StartupError(f"parameter 'domains' names a domain twice: {names}")
         for name in names:
             try:
-                validate_full_topic_name(manage_service(name), is_service=True)
+                validate_topic_name(manage_service(name), is_service=True)
             except (InvalidServiceNameException, InvalidTopicNameException):
                 raise StartupError(f"domain {name!r} cannot be part of a ROS service name") from None
             if name in SETTINGS or name == "service_timeout":
@@ -161,8 +163,8 @@ class WMManagerNode(Node):
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
-        serve(self, "/wm_manager/sync", self._sync, self._barrier_group)
-        serve(self, "/wm_manager/status", self._status)
+        serve(self, contract.SYNC.name, self._sync, self._barrier_group)
+        serve(self, contract.STATUS.name, self._status)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             "managing " + ", ".join(f"{d}: {p.to_json()}" for d, p in policies.items()) + "; waiting for consultants"
