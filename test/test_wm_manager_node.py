@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS
+from fsreg_ros import contract
+from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.nodes.common import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.wm_manager import WMManagerNode
@@ -14,8 +15,8 @@ from rosutil import KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 
-SYNC = "/wm_manager/sync"
-STATUS = "/wm_manager/status"
+SYNC = contract.SYNC.name
+STATUS = contract.STATUS.name
 
 
 @pytest.fixture
@@ -359,16 +360,3 @@ def test_shared_pool_ops_of_the_consultant(graph: Graph):
         err = graph.call_error(manage, request)
         assert err.kind == "MessageError" and text in err.error, err.error
     assert queues(graph) == {"face2": ["female"]}
-
-
-def test_a_silent_clock_is_logged_once(graph: Graph, monkeypatch):
-    import fsreg_ros.nodes.wm_manager as node_module
-
-    monkeypatch.setattr(node_module, "CLOCK_SILENCE_WARNING", 0.3)
-    silent = manager(graph)
-    graph.spin_until(lambda: silent.clock_silence_logged, 5.0, what="the /clock warning")
-    graph.remove(silent)
-    heard = manager(graph)
-    graph.set_time(1.0)
-    graph.spin_for(0.6)
-    assert not heard.clock_silence_logged

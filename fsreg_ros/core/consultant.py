@@ -102,6 +102,18 @@ class Consultant:
         facts = self._certainty[entity]
         return [p for p in self.preference if facts.get(p, 0.0) >= self.threshold]
 
+    def queue(self, entity: str) -> list[str]:
+        """Return the WM queue of a known entity, LRU first (reading never refreshes)."""
+        self._require_entity(entity)
+        return list(self.wm.queue(entity))
+
+    def encode(self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]) -> None:
+        """Encode properties for a known entity in WM; KnowledgeError (nothing encoded) for unknown names."""
+        self._require_entity(entity)
+        for prop in properties:
+            self._require_property(prop)
+        self.wm.encode(entity, properties, cause, time, turn)
+
     def holders(self, prop: str) -> set[str]:
         """Every entity ``prop`` holds for (a live view: do not modify)."""
         self._require_property(prop)
@@ -263,16 +275,12 @@ class LocalPort:
         return self.consultant.affirm(prop, entities, cause, time, turn)
 
     async def wm(self, entity: str) -> list[str]:
-        if not self.consultant.knows_entity(entity):
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
-        return list(self.consultant.wm.queue(entity))
+        return self.consultant.queue(entity)
 
     async def encode(
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
     ) -> None:
-        if not self.consultant.knows_entity(entity):
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
-        self.consultant.wm.encode(entity, properties, cause, time, turn)
+        self.consultant.encode(entity, properties, cause, time, turn)
 
 
 T = TypeVar("T")

@@ -19,7 +19,7 @@ at k * delta from t = 0, as the simulator does); ticks fall at origin + k * delt
 and a new ``decay_period`` restarts the grid at the change.  A one-shot ROS timer is
 armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
-a ``/clock`` that stays silent for 5 s after start is logged once too.
+a clock that does not move is reported (``common.watch_clock``).
 
 Parameters (all but ``domains`` changeable at run time; every numeric one has a
 declared range, so ``ros2 param describe`` shows it; a change is validated as the
@@ -59,7 +59,6 @@ from functools import partial
 from typing import Any, Optional
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rosgraph_msgs.msg import Clock as ClockMessage
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -71,16 +70,17 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
 from rclpy.task import Future
-from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_topic_name import validate_topic_name
 
-from ..carrier import NUMBER, CarrierError, JsonClient, check_fields, serve, wait_until
+from .. import contract
+from ..carrier import CarrierError, JsonClient, serve, wait_until
+from ..codec import NUMBER, check_fields
+from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError, TickRun
 from ..core.forgetting import BOUNDS, ForgettingPolicy, PolicyError, check_setting
 from ..core.wm_manager import WMManager
-from ..remote import manage_service
-from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node
+from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 
 #: Defaults for every domain (SPEC section 5 names).
 DEFAULTS: dict[str, Any] = {
@@ -107,9 +107,6 @@ TIMEOUT_RANGE = (0.01, 3600.0)
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
-#: Under ``use_sim_time``, warn once if no ``/clock`` arrived within this many
-#: seconds of steady time after start (decay would never happen).
-CLOCK_SILENCE_WARNING = 5.0
 
 DESCRIPTIONS = {
     "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
@@ -202,7 +199,7 @@ class WMManagerNode(Node):
             raise StartupError(f"parameter 'domains' names a domain twice: {names}")
         for name in names:
             try:
-                validate_full_topic_name(manage_service(name), is_service=True)
+                validate_topic_name(manage_service(name), is_service=True)
             except (InvalidServiceNameException, InvalidTopicNameException):
                 raise StartupError(f"domain {name!r} cannot be part of a ROS service name") from None
             if name in SETTINGS or name == "service_timeout":
@@ -246,13 +243,9 @@ class WMManagerNode(Node):
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
-        serve(self, "/wm_manager/sync", self._sync, self._barrier_group)
-        serve(self, "/wm_manager/status", self._status)
-        self._started = wallclock.monotonic()
-        self._clock_heard = not self.get_parameter("use_sim_time").value
-        self.clock_silence_logged = False
-        if not self._clock_heard:
-            self.create_subscription(ClockMessage, "/clock", self._on_clock, qos_profile_sensor_data)
+        serve(self, contract.SYNC.name, self._sync, self._barrier_group)
+        serve(self, contract.STATUS.name, self._status)
+        self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"managing (decay grid from t = {now:g}) "
@@ -405,18 +398,9 @@ class WMManagerNode(Node):
             self.get_logger().error(f"consultant '{dom.name}' not attached: {err}", throttle_duration_sec=10.0)
         self._arm(dom.name)
 
-    def _on_clock(self, msg: ClockMessage) -> None:
-        self._clock_heard = True
-
     def _supervise(self) -> None:
-        """Attach consultants that became reachable; expire unanswered calls; warn of a silent /clock."""
+        """Attach consultants that became reachable; expire unanswered calls."""
         now_wall = wallclock.monotonic()
-        if not self._clock_heard and not self.clock_silence_logged and now_wall - self._started > CLOCK_SILENCE_WARNING:
-            self.clock_silence_logged = True  # once
-            self.get_logger().warning(
-                f"use_sim_time is set but nothing has published /clock for {CLOCK_SILENCE_WARNING:g} s: "
-                "the clock stands still and no decay tick will fall due until /clock is published"
-            )
         for dom in self._domains.values():
             for future, op, deadline in list(dom.inflight):
                 if now_wall > deadline and not future.done():

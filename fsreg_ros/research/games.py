@@ -24,11 +24,12 @@ from typing import Any, Mapping, Optional, Sequence
 from ..core.alignment import AlignmentSummary, summarise
 from ..core.consultant import Consultant, LocalPort, run_sync
 from ..core.describe import describe
+from ..core.generation import algorithm_for
 from ..core.wm_manager import WMManager
 from ..core.lexicon import Lexicon
 from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
-from ..core.simulation import Options, Simulation, algorithm_for
+from ..core.simulation import Options, Simulation
 
 DOMAIN = "faces"
 #: The board's attributes and their values (property names as in the shipped lexicon).
@@ -124,7 +125,7 @@ class HumanSpeaker:
     def say(self, target: str, time: float, turn: int) -> list[str]:
         """Return the human's description of ``target`` at ``time`` (encoding it in the human's WM)."""
         self.manager.advance(time)
-        algorithm = algorithm_for(self.policy, None)
+        algorithm = algorithm_for(self.policy.retains, None)
         return describe(target, self.consultant, algorithm, attributes=PROPERTY_ATTRIBUTE, writes=True, time=time,
                         turn=turn).description
 
