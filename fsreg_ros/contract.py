@@ -289,7 +289,7 @@ ConsultantReply = Union[InfoReply, HoldsReply, QueueReply, SnapshotReply, Encode
 
 
 class ManageRequest(Stamp):
-    """``consultant/<domain>/manage`` (the WM Manager's): ``configure`` or ``decay``."""
+    """``consultant/<domain>/manage`` (the WM Manager's): ``configure``, ``decay``, ``evict`` or ``size``."""
 
     op: str
 

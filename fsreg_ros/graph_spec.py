@@ -17,10 +17,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from .core.forgetting import PARAMETERS
+
 #: The package whose executables the nodes are.
 PACKAGE = "fsreg_ros"
 #: Memory settings the WM Manager takes per domain (SPEC §5 names).
-POLICY_KEYS = ("decay_period", "capacity", "global_capacity")
+POLICY_KEYS = PARAMETERS
 
 
 @dataclass

@@ -58,7 +58,13 @@ class Consultant:
         preference: Sequence[str],
         threshold: float = DEFAULT_THRESHOLD,
         sink: Optional[EventSink] = None,
+        attributes: Optional[Mapping[str, str]] = None,
     ) -> None:
+        """Build a domain's consultant.
+
+        ``attributes`` maps a property to its attribute (for similarity interference);
+        a property named ``attribute=value`` needs no entry.
+        """
         self.domain = domain
         self.preference: list[str] = list(preference)
         self._known = set(self.preference)
@@ -76,7 +82,7 @@ class Consultant:
             self._entity_set.add(entity)
             self._certainty[entity] = {p: float(c) for p, c in facts.items() if c > 0}
         self._rebuild_holders()
-        self.wm = WMBuffer(domain, sink)
+        self.wm = WMBuffer(domain, sink, attributes)
 
     # ----------------------------------------------------------------- LTM
     def knows_property(self, prop: str) -> bool:

@@ -19,12 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
 from .consultant import LocalPort, run_sync
-from .forgetting import ForgettingPolicy, WMManager
+from .forgetting import ForgettingPolicy
 from .generation import algorithm_for, generate
 from .memory import WMEvent
 from .lexicon import Lexicon
 from .resolution import resolve
 from .scenario import Scenario, Turn
+from .wm_manager import WMManager
 
 
 @dataclass

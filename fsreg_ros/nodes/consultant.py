@@ -19,11 +19,17 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       ``snapshot`` -> ``{"queues", "events"}`` (non-empty queues only)
     ``consultant/<domain>/manage`` -- the WM Manager's:
       ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
-      "global_capacity"?}, "time"?}`` -> ``{"memory", "queues_changed"}``: installs the
-      policy and trims every queue at once (``none`` empties WM, cause ``reset``);
-      ``decay`` ``{"ticks": [t1, ...]}`` -> ``{"queues_changed", "policy"}``: one decay
-      tick (Algorithm 2) per time (non-decreasing), applied now; ``policy`` is the
-      installed policy's name (so the WM Manager notices a restarted consultant).
+      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed"}``:
+      installs the policy and trims every queue at once (``none`` empties WM, cause
+      ``reset``);
+      ``decay`` ``{"ticks": {"origin", "period", "first", "count"}}`` ->
+      ``{"queues_changed", "policy"}``: decay ticks (Algorithm 2) at ``origin + k *
+      period`` for k = first .. first + count - 1, applied now (at most as many as
+      the longest queue holds can pop anything); ``policy`` is the installed policy's
+      name (so the WM Manager notices a restarted consultant);
+      ``evict`` ``{"count", "time"?}`` -> ``{"queues_changed", "size"}``: forget the
+      domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
+      ``size`` -> ``{"size"}``: how many properties WM holds.
 
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
@@ -62,16 +68,23 @@ from .. import contract
 from ..carrier import publish, publisher, serve, subscribe
 from ..codec import NUMBER, MessageError, check_fields, printable
 from ..contract import consultant_service, manage_service
-from ..core import forgetting
 from ..core.consultant import Consultant, KnowledgeError
+from ..core.decay import TickError, TickRun
+from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
+from ..core.wm_manager import apply_ticks, configure_buffer
 from ..core.scenario import ScenarioError, load_scenario
 from .asking import declare_limits
 from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 TIME = {"time": NUMBER, "turn": (int, None)}
 POLICY_FIELDS = {"policy": str}
-POLICY_OPTIONAL = {"decay_period": (NUMBER, None), "capacity": (int, None), "global_capacity": (int, None)}
+POLICY_OPTIONAL = {
+    "decay_period": (NUMBER, None),
+    "capacity": (int, None),
+    "global_capacity": (int, None),
+    "seed": (int, None),
+}
 
 
 class ConsultantNode(Node):
@@ -114,9 +127,12 @@ class ConsultantNode(Node):
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._event_count = 0
         self._last_time = 0.0  # time of the latest change, for /wm/state
-        self.consultant = Consultant(domain, spec.entities, spec.preference, threshold, sink=self._on_event)
+        self.consultant = Consultant(
+            domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
+        )
         # Retain nothing until the WM Manager says otherwise.
-        self.consultant.wm.policy = forgetting.NONE
+        self.policy = NONE
+        configure_buffer(self.consultant.wm, NONE, 0.0)
 
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._query_ops: dict[str, Callable[[dict], dict]] = {
@@ -130,6 +146,8 @@ class ConsultantNode(Node):
         self._manage_ops: dict[str, Callable[[dict], dict]] = {
             "configure": self._configure,
             "decay": self._decay,
+            "evict": self._evict,
+            "size": self._size,
         }
         size = self.limits.max_message_bytes
         serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops), max_bytes=size)
@@ -186,7 +204,7 @@ class ConsultantNode(Node):
     # ------------------------------------------------------------- query ops
     def _info(self, request: dict) -> dict:
         c = self.consultant
-        policy = c.wm.policy or forgetting.NONE
+        policy = self.policy
         return {
             "domain": self.domain,
             "entities": list(c.entities),
@@ -225,46 +243,43 @@ class ConsultantNode(Node):
     # ------------------------------------------------------------ manage ops
     def _configure(self, request: dict) -> dict:
         check_fields(request, {"policy": dict})
-        settings = check_fields(request["policy"], POLICY_FIELDS, POLICY_OPTIONAL)
-        decay_period = settings.get("decay_period")
-        policy = forgetting.ForgettingPolicy.parse(
-            settings["policy"],
-            decay_period=float(decay_period) if decay_period is not None else None,
-            capacity=settings.get("capacity"),
-            global_capacity=settings.get("global_capacity"),
-        )  # PolicyError (a ValueError) -> error reply, nothing installed
+        check_fields(request["policy"], POLICY_FIELDS, POLICY_OPTIONAL)
+        policy = ForgettingPolicy.from_settings(request["policy"])  # PolicyError -> error reply, nothing installed
         time, _ = self._time(request)
         buffer = self.consultant.wm
         before = buffer.snapshot()
-        buffer.policy = policy
-        forgetting.trim_all(buffer, policy, time)
+        configure_buffer(buffer, policy, time)
+        self.policy = policy
         self.get_logger().info(f"memory policy {policy.to_json()}")
         return {"memory": policy.to_json(), "queues_changed": _changed(before, buffer.snapshot())}
 
     def _decay(self, request: dict) -> dict:
-        check_fields(request, {"ticks": list[float]})
-        ticks = [float(t) for t in request["ticks"]]
-        if any(b < a for a, b in zip(ticks, ticks[1:])):
-            raise MessageError(f"field 'ticks': times must not decrease, got {ticks}")
+        check_fields(request, {"ticks": dict})
+        try:
+            ticks = TickRun.from_json(request["ticks"])
+        except TickError as err:
+            raise MessageError(f"field 'ticks': {err}") from None
         buffer = self.consultant.wm
-        policy = (buffer.policy or forgetting.NONE).name  # lets the WM Manager notice a restart
-        if not ticks:
-            return {"queues_changed": 0, "policy": policy}
         before = buffer.snapshot()
-        # Apply now (the buffer is lazy), so the events and the state go out now, in a
-        # canonical order: tick by tick, and within a tick in the domain's entity order
-        # (SPEC §2 "Entity order"), not in the order the queues happened to fill.
-        rank = {entity: i for i, entity in enumerate(self.consultant.entities)}
-        pending = sorted(before, key=rank.__getitem__)  # decay never fills a queue
-        for i, tick in enumerate(ticks):
-            buffer.decay((tick,))
-            pending = [entity for entity in pending if buffer.length(entity)]  # catches up
-            if not pending:  # WM is empty: the remaining ticks pop nothing
-                buffer.decay(ticks[i + 1:])
-                break
-        buffer.flush()
-        self._last_time = ticks[-1]
-        return {"queues_changed": _changed(before, buffer.snapshot()), "policy": policy}
+        # Applied now (the buffer is lazy otherwise), so the events and the state go
+        # out now, in the canonical order.
+        apply_ticks(buffer, ticks, self.consultant.entities)
+        self._last_time = ticks.last
+        # ``policy`` lets the WM Manager notice a restarted consultant.
+        return {"queues_changed": _changed(before, buffer.snapshot()), "policy": self.policy.name}
+
+    def _evict(self, request: dict) -> dict:
+        check_fields(request, {"count": int})
+        if request["count"] < 0:
+            raise MessageError(f"field 'count': expected a whole number >= 0, got {request['count']}")
+        time, _ = self._time(request)
+        buffer = self.consultant.wm
+        before = buffer.snapshot()
+        buffer.evict_oldest(request["count"], "shared-capacity", time)
+        return {"queues_changed": _changed(before, buffer.snapshot()), "size": len(buffer)}
+
+    def _size(self, request: dict) -> dict:
+        return {"size": len(self.consultant.wm)}
 
     # ------------------------------------------------------------- LTM topic
     def _reject_assert(self, request_id: Any, error: str) -> None:

@@ -24,8 +24,8 @@ from typing import Any, Mapping, Optional, Sequence
 from ..core.alignment import AlignmentSummary, summarise
 from ..core.consultant import Consultant, LocalPort, run_sync
 from ..core.describe import describe
-from ..core.forgetting import WMManager
 from ..core.generation import algorithm_for
+from ..core.wm_manager import WMManager
 from ..core.lexicon import Lexicon
 from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
