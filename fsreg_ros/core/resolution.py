@@ -1,7 +1,8 @@
 """Reference resolution (RR): which entity does a heard description refer to?
 
 SPEC section 3.  The description's properties are checked in utterance order
-against every candidate still in play.  Each time a property is affirmed for a
+against every candidate still in play (the consultant keeps the candidate set: one
+call per property, see :class:`~fsreg_ros.core.consultant.ConsultantPort`).  Each time a property is affirmed for a
 candidate it is encoded into that candidate's WM (rule 2), even if the candidate
 is ruled out by a later property.  A description that resolves to exactly one
 entity is then encoded, whole and in utterance order, for its referent (rule 1).
@@ -89,15 +90,17 @@ async def resolve(
         raise ResolutionError("the description is empty")
     domain = await choose_domain(description, ports, domain)
     port = ports[domain]
-    candidates = await port.entities()
-    for prop in description:
-        if not candidates:
-            break
-        try:
-            candidates = await port.affirm(prop, candidates, "rr", time, turn)
-        except KnowledgeError as err:  # raced with an LTM change; report, never guess
-            raise ResolutionError(str(err)) from err
+    try:
+        view = await port.open()  # the consultant keeps the candidate set
+        remaining = view.size
+        for prop in description:
+            if not remaining:
+                break
+            remaining = (await port.narrow(view, prop, "rr", time, turn)).size  # rule 2
+        # Rule 1 for a resolved description, in utterance order.
+        candidates = await port.close(view, description if remaining == 1 else (), time, turn)
+    except KnowledgeError as err:  # raced with an LTM change; report, never guess
+        raise ResolutionError(str(err)) from err
     if len(candidates) == 1:
-        await port.encode(candidates[0], description, "speaker", time, turn)
         return Resolution(RESOLVED, domain, description, candidates)
     return Resolution(AMBIGUOUS if candidates else NO_MATCH, domain, description, candidates)
