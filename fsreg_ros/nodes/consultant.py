@@ -11,7 +11,17 @@ Parameters
 
 Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contract`)
     ``consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
-      ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory", "events"}``
+      ``info`` ``{"entities_from"?}`` -> ``{"domain", "entities", "entity_count", "preference",
+      "threshold", "policy", "memory", "events", "version"}`` (entities from index
+      ``entities_from`` on: they are only ever appended)
+      ``open`` ``{"target"?, "context"?}`` -> ``{"session", "size", "queue", "retains", "version"}``:
+      a session holding RR's candidates (no target) or REG's distractors
+      ``narrow`` ``{"session", "property", "cause" (null: no encoding), "time"?, "turn"?}`` ->
+      ``{"target_holds", "size", "version"}``: rules 2 and 3 (one call per considered property)
+      ``rule_out`` ``{"session"}`` -> ``{"properties", "masks", "version"}`` (baselines; hex bitmasks
+      by member rank)
+      ``close`` ``{"session", "encode"?, "time"?, "turn"?}`` -> ``{"members", "version"}``: ends
+      the session; ``encode`` is rule 1 for the target, or for a session's only member
       ``holds`` ``{"property", "entities"}`` -> ``{"holds"}`` (no encoding)
       ``affirm`` ``{"property", "entities", "cause", "time"?, "turn"?}`` -> ``{"holds"}``
       ``wm`` ``{"entity"}`` -> ``{"queue"}`` (LRU first; reading never refreshes)
@@ -31,6 +41,13 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
       ``size`` -> ``{"size"}``: how many properties WM holds.
 
+Sessions (SPEC sections 3 and 4 keep their order: members are visited in entity
+order) are kept at most ``max_sessions`` at once (the least recently used is dropped)
+and for ``session_timeout`` seconds unused, so a caller that dies leaks nothing.
+``version`` (``"<incarnation>:<LTM changes>"``) changes when LTM does (``ltm/assert``,
+``threshold``) or the consultant restarts: callers cache the preference order and the
+entity list until it does.
+
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
 and waits until it has heard that many from the domain (topics are not ordered with
@@ -46,7 +63,8 @@ unknown entity or property, ``MessageError`` for a malformed request).
 Topics
     out ``wm/events`` -- every encode/forget event (SPEC section 2), one message each;
     out ``wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
-    and after every request that changed WM;
+    and at most once per request that changed WM: after the op, or, for a session, at its
+    ``close`` (``wm/events`` carries every single change);
     in ``ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
     -- messages for other domains are ignored; out ``ltm/assert/result``
     ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
@@ -58,6 +76,8 @@ nothing (a buffer without a policy would retain everything, unmanaged).
 
 from __future__ import annotations
 
+import secrets
+from time import monotonic
 from typing import Any, Callable, Optional
 
 from rclpy.node import Node
@@ -68,16 +88,22 @@ from .. import contract
 from ..carrier import publish, publisher, serve, subscribe
 from ..codec import NUMBER, MessageError, check_fields, printable
 from ..contract import consultant_service, manage_service
-from ..core.consultant import Consultant, KnowledgeError
+from ..core.consultant import CandidateSet, Consultant, KnowledgeError, close_view, open_view
 from ..core.decay import TickError, TickRun
 from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
 from ..core.wm_manager import apply_ticks, configure_buffer
 from ..core.scenario import ScenarioError, load_scenario
+from ..core.sessions import DEFAULT_CAPACITY, SessionTable
+from ..core.sessions import DEFAULT_TIMEOUT as DEFAULT_SESSION_TIMEOUT
 from .asking import declare_limits
 from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 TIME = {"time": NUMBER, "turn": (int, None)}
+#: Ops that change WM within a session: /wm/state waits for the session's close.
+SESSION_STEPS = ("open", "narrow", "rule_out")
+#: Ops whose replies carry the LTM ``version``.
+VERSIONED_OPS = ("info", "open", "narrow", "rule_out", "close")
 POLICY_FIELDS = {"policy": str}
 POLICY_OPTIONAL = {
     "decay_period": (NUMBER, None),
@@ -120,12 +146,21 @@ class ConsultantNode(Node):
             "a property holds iff its certainty >= threshold (default: the KB's)",
         )
         self.limits = declare_limits(self)
+        self.sessions: SessionTable[CandidateSet] = SessionTable(
+            declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000,
+                           "open RR/REG sessions kept at most (opening one more drops the least recently used)",
+                           integer=True, read_only=True),
+            declare_number(self, "session_timeout", DEFAULT_SESSION_TIMEOUT, 0.01, 3600.0,
+                           "a session unused this long (s, steady clock) is dropped", read_only=True),
+        )
+        self._incarnation = secrets.token_hex(4)  # so callers notice a restart
 
         self.domain = domain
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._event_count = 0
+        self._state_due = False  # WM changed since the last /wm/state
         self._last_time = 0.0  # time of the latest change, for /wm/state
         self.consultant = Consultant(
             domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
@@ -137,6 +172,10 @@ class ConsultantNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._query_ops: dict[str, Callable[[dict], dict]] = {
             "info": self._info,
+            "open": self._open,
+            "narrow": self._narrow,
+            "rule_out": self._rule_out,
+            "close": self._close,
             "holds": self._holds,
             "affirm": self._affirm,
             "wm": self._wm,
@@ -170,6 +209,7 @@ class ConsultantNode(Node):
 
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
+        self._state_due = False
         publish(
             self._state,
             {"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count},
@@ -180,12 +220,17 @@ class ConsultantNode(Node):
         handler = ops.get(op)
         if handler is None:
             raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
-        contract.check_sizes(request, self.limits, names=("entity", "property", "cause"),
-                             lists=("entities", "properties"))
+        contract.check_sizes(request, self.limits, names=("entity", "property", "cause", "target", "session"),
+                             lists=("entities", "properties", "context", "encode"))
         before = self._event_count
         reply = handler(request)
         if self._event_count != before:
+            self._state_due = True
+        # /wm/state at most once per request: a session's narrowing steps wait for its close.
+        if self._state_due and op not in SESSION_STEPS:
             self.publish_state(self._last_time)
+        if op in VERSIONED_OPS:
+            reply["version"] = f"{self._incarnation}:{self.consultant.version}"
         return reply
 
     def _time(self, request: dict) -> tuple[float, Optional[int]]:
@@ -203,17 +248,52 @@ class ConsultantNode(Node):
 
     # ------------------------------------------------------------- query ops
     def _info(self, request: dict) -> dict:
+        contract.check(contract.InfoRequest, request)
+        start = request.get("entities_from") or 0
+        if start < 0:
+            raise MessageError(f"field 'entities_from': expected a whole number >= 0, got {start}")
         c = self.consultant
         policy = self.policy
         return {
             "domain": self.domain,
-            "entities": list(c.entities),
+            "entities": c.entities[start:],
+            "entity_count": len(c.entities),
             "preference": list(c.preference),
             "threshold": c.threshold,
             "policy": policy.name,
             "memory": policy.to_json(),
             "events": self._event_count,
         }
+
+    def _open(self, request: dict) -> dict:
+        contract.check(contract.OpenRequest, request)
+        view = open_view(self.consultant, request.get("target"), request.get("context"))
+        session = self.sessions.open(view.handle, monotonic())
+        return {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains}
+
+    def _narrow(self, request: dict) -> dict:
+        contract.check(contract.NarrowRequest, request)
+        cause = request["cause"]
+        if cause is not None:
+            self._encode_cause(cause)
+        when, turn = self._time(request)
+        candidates = self.sessions.get(request["session"], monotonic())
+        # Consultant.narrow validates the property before anything changes.
+        holds = self.consultant.narrow(candidates, request["property"], cause, when, turn)
+        return {"target_holds": holds, "size": candidates.size}
+
+    def _rule_out(self, request: dict) -> dict:
+        contract.check(contract.RuleOutRequest, request)
+        props, masks = self.consultant.rule_out(self.sessions.get(request["session"], monotonic()))
+        return {"properties": props, "masks": [format(mask, "x") for mask in masks]}
+
+    def _close(self, request: dict) -> dict:
+        contract.check(contract.CloseRequest, request)
+        when, turn = self._time(request)
+        candidates = self.sessions.get(request["session"], monotonic())
+        members = close_view(self.consultant, candidates, request.get("encode") or (), when, turn)
+        self.sessions.close(request["session"], monotonic())
+        return {"members": members}
 
     def _holds(self, request: dict) -> dict:
         contract.check(contract.HoldsRequest, request)
