@@ -311,12 +311,14 @@ class HoldsReply(Message):
 
 class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] (LRU first; [] without a
-    target) and whether the domain's WM retains anything (policy not ``none``)."""
+    target), whether the domain's WM retains anything (policy not ``none``) and the
+    properties holding for the target (preference order; null without a target)."""
 
     session: str
     size: int
     queue: list[str]
     retains: bool
+    holding: Optional[list[str]] = None
 
 
 class NarrowReply(Versioned):

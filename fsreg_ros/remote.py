@@ -146,7 +146,9 @@ class RemotePort:
         if context is not None:
             payload["context"] = list(context)
         reply = await self._call(payload)
-        return View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"])
+        holding = reply.get("holding")
+        return View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
+                    frozenset(holding) if holding is not None else None)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,

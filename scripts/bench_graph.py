@@ -97,7 +97,8 @@ class CountingPort(LocalPort):
 
 
 def turns_of(scenario, count: int) -> list:
-    return [t for t in scenario.dialogue if t.description is not None][:count]
+    """The first ``count`` turns that are robot turns or human turns given as properties."""
+    return [t for t in scenario.dialogue if t.speaker == "robot" or t.description is not None][:count]
 
 
 def core_latencies(scenario, options: Options, turns: list, rounds: int) -> dict:
@@ -174,13 +175,15 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
             raise RuntimeError(answers[key]["error"])
         return (time.perf_counter() - start) * 1e3
 
-    def hop() -> float:
+    def hop(timeout: float = 10.0) -> float:
         entity = next(iter(scenario.domains[domain].entities))
         request = AddDiagnostics.Request(load_namespace=json.dumps({"op": "wm", "entity": entity}))
         start = time.perf_counter()
         future = hop_client.call_async(request)
         while not future.done():
             executor.spin_once(timeout_sec=0.001)
+            if time.perf_counter() - start > timeout:
+                raise RuntimeError("no answer to a consultant hop")
         return (time.perf_counter() - start) * 1e3
 
     try:
@@ -198,6 +201,11 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
                     (robot if rnd else []).append(ms)
             if rnd == 0:
                 ready = time.perf_counter() - started
+            print(f"    round {rnd} done", file=sys.stderr, flush=True)
+        deadline = time.monotonic() + 10.0
+        while not hop_client.service_is_ready() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+        hop(30.0)  # a first call can be slow
         for _ in range(50):
             hops.append(hop())
         return {"human": human, "robot": robot, "hop": statistics.median(hops), "ready_s": ready}

@@ -340,13 +340,16 @@ class View:
     session id over the graph); ``size`` is how many members it had when opened;
     ``queue`` is Q[target] at that moment (REG's ``wm_before``; empty without a
     target); ``retains`` whether the domain's WM retains anything (policy not
-    ``none``), which is what lets REG choose between SD-PIA and DIST-PIA.
+    ``none``), which is what lets REG choose between SD-PIA and DIST-PIA;
+    ``holding`` the properties that hold for the target (None without one), so REG
+    asks nothing about a property it would skip.
     """
 
     handle: Any
     size: int
     queue: list[str]
     retains: bool
+    holding: Optional[frozenset[str]] = None
 
 
 @dataclass(frozen=True)
@@ -437,8 +440,10 @@ class LocalPort:
 def open_view(consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]]) -> View:
     """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set)."""
     candidates = consultant.open_set(target, context)
-    queue = consultant.queue(target) if target is not None else []
-    return View(candidates, candidates.size, queue, consultant.wm.retains)
+    if target is None:
+        return View(candidates, candidates.size, [], consultant.wm.retains)
+    holding = frozenset(consultant.properties_of(target))
+    return View(candidates, candidates.size, consultant.queue(target), consultant.wm.retains, holding)
 
 
 def close_view(

@@ -113,7 +113,8 @@ class ViewPort:
 
     async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
         view = self._opened
-        return View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains)
+        return View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains,
+                    view.holding)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         return await self.port.narrow(view, prop, cause if self.writes else None, time, turn)
@@ -173,7 +174,7 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
                         break
     except KnowledgeError as err:
         raise GenerationError(str(err)) from err
-    opened = View(opened.handle, size, opened.queue, opened.retains)
+    opened = View(opened.handle, size, opened.queue, opened.retains, opened.holding)
     view = ViewPort(port, order, writes=request.writes, opened=opened, hidden=request.forced,
                     attributes=request.attributes)
     expression = await generate(

@@ -132,6 +132,8 @@ async def sd_pia(
         considered.add(prop)
         if attribute_of(prop, attributes) in selected_attributes:
             return
+        if view.holding is not None and prop not in view.holding:
+            return  # p does not hold for t (as read when the view opened): skipped, nothing asked
         # Skipped unless p holds for t; else p is encoded for each remaining
         # distractor it cannot rule out (rule 3), and those stay.
         step = await port.narrow(view, prop, "reg-distractor", time, turn)

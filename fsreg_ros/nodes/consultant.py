@@ -80,6 +80,7 @@ import secrets
 from time import monotonic
 from typing import Any, Callable, Optional
 
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
 from rclpy.validate_topic_name import validate_topic_name
@@ -104,6 +105,10 @@ TIME = {"time": NUMBER, "turn": (int, None)}
 SESSION_STEPS = ("open", "narrow", "rule_out")
 #: Ops whose replies carry the LTM ``version``.
 VERSIONED_OPS = ("info", "open", "narrow", "rule_out", "close")
+#: Default least time between two /wm/state messages, seconds.
+DEFAULT_STATE_PERIOD = 0.1
+#: Longest a due /wm/state waits for open sessions to close, seconds.
+MAX_STATE_DELAY = 1.0
 POLICY_FIELDS = {"policy": str}
 POLICY_OPTIONAL = {
     "decay_period": (NUMBER, None),
@@ -154,13 +159,19 @@ class ConsultantNode(Node):
                            "a session unused this long (s, steady clock) is dropped", read_only=True),
         )
         self._incarnation = secrets.token_hex(4)  # so callers notice a restart
+        self._state_period = declare_number(
+            self, "state_period", DEFAULT_STATE_PERIOD, 0.0, 60.0,
+            "least time between two /wm/state messages (s, steady clock); a change within it is "
+            "published at its end", read_only=True)
 
         self.domain = domain
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
-        self._event_count = 0
+        self._event_count = 0  # /wm/events messages published
+        self._listened = True  # whether /wm/events has a subscriber (checked per request)
         self._state_due = False  # WM changed since the last /wm/state
+        self._state_sent = float("-inf")  # monotonic time of the last /wm/state
         self._last_time = 0.0  # time of the latest change, for /wm/state
         self.consultant = Consultant(
             domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
@@ -193,6 +204,8 @@ class ConsultantNode(Node):
         serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops), max_bytes=size)
         subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
         self._clock_watch = watch_clock(self)
+        self._state_timer = self.create_timer(max(self._state_period, 0.02), lambda: self._publish_due(True),
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.publish_state(self.now())
         self.get_logger().info(
             f"consultant of '{domain}': {len(self.consultant.entities)} entities, "
@@ -204,12 +217,32 @@ class ConsultantNode(Node):
         return now_seconds(self)
 
     def _on_event(self, event: WMEvent) -> None:
-        self._event_count += 1
-        publish(self._events, event.to_json())
+        self._state_due = True
+        if self._listened:  # a volatile topic nobody reads: nothing to send
+            self._event_count += 1
+            publish(self._events, event.to_json())
+
+    def _check_listeners(self) -> None:
+        self._listened = self._events.get_subscription_count() > 0
+
+    def _publish_due(self, waiting: bool = False) -> None:
+        """Publish a /wm/state that is due, unless one went out less than ``state_period`` ago.
+
+        ``waiting`` (the timer): also wait while a session is open (its close publishes),
+        for at most a second (a caller that never closes must not hold the state back).
+        """
+        now = monotonic()
+        if not self._state_due or now - self._state_sent < self._state_period:
+            return
+        self.sessions.expire(now)
+        if waiting and len(self.sessions) and now - self._state_sent < MAX_STATE_DELAY:
+            return
+        self.publish_state(self._last_time)
 
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
         self._state_due = False
+        self._state_sent = monotonic()
         publish(
             self._state,
             {"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count},
@@ -222,13 +255,12 @@ class ConsultantNode(Node):
             raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
         contract.check_sizes(request, self.limits, names=("entity", "property", "cause", "target", "session"),
                              lists=("entities", "properties", "context", "encode"))
-        before = self._event_count
+        self._check_listeners()
         reply = handler(request)
-        if self._event_count != before:
-            self._state_due = True
-        # /wm/state at most once per request: a session's narrowing steps wait for its close.
-        if self._state_due and op not in SESSION_STEPS:
-            self.publish_state(self._last_time)
+        # /wm/state at most once per request (a session's steps wait for its close) and
+        # at most once per state_period (the timer sends what is left due).
+        if op not in SESSION_STEPS:
+            self._publish_due()
         if op in VERSIONED_OPS:
             reply["version"] = f"{self._incarnation}:{self.consultant.version}"
         return reply
@@ -269,7 +301,9 @@ class ConsultantNode(Node):
         contract.check(contract.OpenRequest, request)
         view = open_view(self.consultant, request.get("target"), request.get("context"))
         session = self.sessions.open(view.handle, monotonic())
-        return {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains}
+        holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
+        return {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
+                "holding": holding}
 
     def _narrow(self, request: dict) -> dict:
         contract.check(contract.NarrowRequest, request)
@@ -278,8 +312,18 @@ class ConsultantNode(Node):
             self._encode_cause(cause)
         when, turn = self._time(request)
         candidates = self.sessions.get(request["session"], monotonic())
-        # Consultant.narrow validates the property before anything changes.
-        holds = self.consultant.narrow(candidates, request["property"], cause, when, turn)
+        # Consultant.narrow validates the property before anything changes.  With nobody
+        # listening to /wm/events, rule 2 and 3 encodings take the buffer's quiet path.
+        buffer = self.consultant.wm
+        sink = buffer.sink
+        if not self._listened:
+            buffer.sink = None
+        try:
+            holds = self.consultant.narrow(candidates, request["property"], cause, when, turn)
+        finally:
+            buffer.sink = sink
+        if holds and cause is not None and candidates.members and buffer.retains:
+            self._state_due = True
         return {"target_holds": holds, "size": candidates.size}
 
     def _rule_out(self, request: dict) -> dict:
@@ -379,7 +423,7 @@ class ConsultantNode(Node):
             contract.check(contract.LtmAssert, data)
             contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
             time = self.now()
-            before = self._event_count
+            self._check_listeners()
             result = self.consultant.assert_facts(data["entity"], data["properties"], time)
         except (MessageError, KnowledgeError) as err:
             self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
@@ -392,8 +436,9 @@ class ConsultantNode(Node):
             f"LTM {'added' if result.new_entity else 'updated'} '{result.entity}': {result.updated}"
             + (f", retracted {result.retracted}" if result.retracted else "")
         ))
-        if self._event_count != before:
-            self.publish_state(time)
+        if self._state_due:
+            self._last_time = time
+            self._publish_due()
 
     # ------------------------------------------------------------ parameters
     def _after_set_parameters(self, params) -> None:
@@ -402,10 +447,12 @@ class ConsultantNode(Node):
                 value = float(param.value)  # typed and ranged by its descriptor
                 if value != self.consultant.threshold:
                     now = now_seconds(self)
+                    self._check_listeners()
                     retracted = self.consultant.set_threshold(value, now)
                     self.get_logger().info(f"threshold {value:g}" + (f", retracted {retracted}" if retracted else ""))
                     if retracted:
-                        self.publish_state(now)
+                        self._last_time = now
+                        self._publish_due()
 
 
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:
