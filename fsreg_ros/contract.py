@@ -224,8 +224,10 @@ class AffirmRequest(Stamp):
 
 
 class OpenRequest(Message):
-    """Op ``open``: open a session holding RR's candidates (no ``target``: every entity) or
-    REG's distractors (every entity but ``target``, or the ``context`` set's)."""
+    """Op ``open``: open a session holding RR's candidates or REG's distractors.
+
+    No ``target``: every entity; else every entity but ``target``, or the ``context`` set's.
+    """
 
     op: Literal["open"]
     target: Optional[str] = None
@@ -233,8 +235,10 @@ class OpenRequest(Message):
 
 
 class NarrowRequest(Stamp):
-    """Op ``narrow``: keep the session's members ``property`` holds for, encoding it for each
-    (``cause``; null: no encoding); with a target, only if it holds for the target."""
+    """Op ``narrow``: keep the session's members ``property`` holds for, encoding it for each.
+
+    ``cause`` null: no encoding.  With a target, only if it holds for the target.
+    """
 
     op: Literal["narrow"]
     session: str
@@ -250,8 +254,11 @@ class RuleOutRequest(Message):
 
 
 class CloseRequest(Stamp):
-    """Op ``close``: end a session and return its members; ``encode`` is encoded (cause
-    ``speaker``) for the target, or for the only member of a session without one."""
+    """Op ``close``: end a session and return its members.
+
+    ``encode`` is encoded (cause ``speaker``) for the target, or for the only member of
+    a session without one.
+    """
 
     op: Literal["close"]
     session: str
@@ -310,9 +317,12 @@ class HoldsReply(Message):
 
 
 class OpenReply(Versioned):
-    """Reply to ``open``: the session id, its size, Q[target] (LRU first; [] without a
-    target), whether the domain's WM retains anything (policy not ``none``) and the
-    properties holding for the target (preference order; null without a target)."""
+    """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
+
+    ``queue`` is LRU first ([] without a target); ``retains`` whether the domain's WM
+    retains anything (policy not ``none``); ``holding`` the properties holding for the
+    target (preference order; null without a target).
+    """
 
     session: str
     size: int
@@ -329,8 +339,10 @@ class NarrowReply(Versioned):
 
 
 class RuleOutReply(Versioned):
-    """Reply to ``rule_out``: properties (preference order) and, for each, the members it rules
-    out as a hexadecimal bitmask (bit k = the k-th member in entity order)."""
+    """Reply to ``rule_out``: properties (preference order) and the members each rules out.
+
+    Each mask is hexadecimal; bit k = the k-th member in entity order.
+    """
 
     properties: list[str]
     masks: list[str]

@@ -129,7 +129,7 @@ class RemotePort:
 
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
-        """``{"domain", "entities", "entity_count", "preference", "threshold", "policy", "memory", "events", "version"}``."""
+        """Return the ``info`` reply (domain, entities, preference, threshold, policy, memory, events, version)."""
         return await self._call({"op": "info"})
 
     async def knows(self, entity: str, refresh: bool = False) -> bool:
@@ -173,7 +173,7 @@ class RemotePort:
         return list((await self._call(payload))["members"])
 
     async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        """The given entities ``prop`` holds for, in the given order (no encoding)."""
+        """Return the given entities ``prop`` holds for, in the given order (no encoding)."""
         reply = await self._call({"op": "holds", "property": prop, "entities": list(entities)})
         return reply["holds"]
 

@@ -97,7 +97,7 @@ class CountingPort(LocalPort):
 
 
 def turns_of(scenario, count: int) -> list:
-    """The first ``count`` turns that are robot turns or human turns given as properties."""
+    """Return the first ``count`` turns that are robot turns or human turns given as properties."""
     return [t for t in scenario.dialogue if t.speaker == "robot" or t.description is not None][:count]
 
 
@@ -137,7 +137,8 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
     from fsreg_ros.codec import from_msg, to_msg
 
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-bench-"))
-    nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json") if n.name != "dialogue_player"]
+    nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json")
+             if n.name != "dialogue_player"]
     graph = Graph(nodes, tmp)
     started = time.perf_counter()
     graph.start()

@@ -274,4 +274,5 @@ def test_raising_the_threshold_retracts_from_wm():
     assert retracted == [("e1", "a")]
     assert c.wm.queue("e1") == ("b",) and c.wm.queue("e2") == ("a",)
     assert c.holds("a", ["e1", "e2"]) == ["e2"]
-    assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [("forget", "e1", "a", "retract", 2.0)]
+    assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [
+        ("forget", "e1", "a", "retract", 2.0)]

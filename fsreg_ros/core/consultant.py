@@ -129,7 +129,7 @@ class Consultant:
         return set(bitset.names(self._holders[prop], self.entities))
 
     def holds(self, prop: str, entities: Iterable[str]) -> list[str]:
-        """The entities (in the given order) that ``prop`` holds for.  No encoding."""
+        """Return the entities (in the given order) that ``prop`` holds for.  No encoding."""
         self._require_property(prop)
         if not isinstance(entities, (list, tuple)):
             entities = list(entities)
@@ -371,7 +371,7 @@ class ConsultantPort(Protocol):
     domain: str
 
     async def preference(self) -> list[str]:
-        """The domain's preference order, most preferred first."""
+        """Return the domain's preference order, most preferred first."""
 
     async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
         """Open a view: every entity (RR), or the target's distractors (REG); see :meth:`Consultant.open_set`."""

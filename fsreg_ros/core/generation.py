@@ -87,7 +87,7 @@ class Expression:
 
 
 def phase1_order(wm_before: Sequence[str], wm_order: str, preference: Sequence[str]) -> list[str]:
-    """The order Phase 1 walks WM in (the paper's footnote lists the alternatives)."""
+    """Return the order Phase 1 walks WM in (the paper's footnote lists the alternatives)."""
     if wm_order == "lru-first":
         return list(wm_before)
     if wm_order == "mru-first":
@@ -165,10 +165,13 @@ async def dist_pia(target: str, port: ConsultantPort, **options) -> Expression:
 async def _baseline_view(
     target: str, port: ConsultantPort, context: Optional[Sequence[str]], view: Optional[View]
 ) -> tuple[View, list[str], list[int]]:
-    """What a baseline works from: the open view (its ``queue`` is Q[target], reported
-    only, SPEC section 6; baselines never use WM) and, for each property holding for
-    the target (preference order), the bitmask of distractors it rules out (bit i =
-    the i-th distractor in entity order).  Queries only, no encoding."""
+    """Return what a baseline works from: the open view and each property's rule-out bitmask.
+
+    The view's ``queue`` is Q[target], reported only (SPEC section 6; baselines never
+    use WM); for each property holding for the target (preference order), the bitmask
+    of distractors it rules out (bit i = the i-th distractor in entity order).
+    Queries only, no encoding.
+    """
     if view is None:
         view = await port.open(target, context)
     props, masks = await port.rule_out(view)

@@ -1,4 +1,4 @@
-"""Reference resolution (RR): which entity does a heard description refer to?
+"""Reference resolution (RR): find the entity a heard description refers to.
 
 SPEC section 3.  The description's properties are checked in utterance order
 against every candidate still in play (the consultant keeps the candidate set: one
@@ -46,16 +46,21 @@ class Resolution:
 
 
 def domains_knowing(description: Sequence[str], preferences: Mapping[str, Collection[str]]) -> list[str]:
-    """The domains (in the given order) whose preference order contains every property
-    of the description: a description resolves in a domain only if exactly one fits."""
+    """Return the domains (in the given order) whose preference order contains every property.
+
+    A description resolves in a domain only if exactly one fits.
+    """
     return [d for d, preference in preferences.items() if all(p in preference for p in description)]
 
 
 async def choose_domain(
     description: Sequence[str], ports: Mapping[str, ConsultantPort], domain: Optional[str] = None
 ) -> str:
-    """The domain to resolve in: the given one, else the only domain whose preference
-    order contains every property of the description."""
+    """Return the domain to resolve in.
+
+    The given one, else the only domain whose preference order contains every property
+    of the description (the ports cache preference orders: no call per turn).
+    """
     if domain is not None:
         if domain not in ports:
             raise ResolutionError(f"unknown domain '{domain}' (known: {', '.join(sorted(ports))})")
@@ -72,7 +77,8 @@ async def choose_domain(
         raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}")
     if len(fitting) != 1:
         which = "no domain" if not fitting else f"several domains ({', '.join(sorted(fitting))})"
-        raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; name it with 'domain'")
+        raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; "
+                              "name it with 'domain'")
     return fitting[0]
 
 
