@@ -48,6 +48,8 @@ and for ``session_timeout`` seconds unused, so a caller that dies leaks nothing.
 ``threshold``) or the consultant restarts: callers cache the preference order and the
 entity list until it does.
 
+``wm/events`` is a volatile topic: while it has no subscriber nothing is sent (and
+RR's and REG's encodings take the buffer's quiet path, building no events), so
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
 and waits until it has heard that many from the domain (topics are not ordered with
