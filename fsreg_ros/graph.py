@@ -254,7 +254,7 @@ def run_graph(
 
 
 def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-    return run_graph(args.scenario, options, trace=bool(args.trace), lexicon=args.lexicon)
+    return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon)  # alignment reads the trace
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
