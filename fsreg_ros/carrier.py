@@ -1,21 +1,23 @@
-"""JSON over ROS 2: the one place that knows how fsreg puts JSON on the wire (SPEC §7).
+"""JSON over ROS 2 services and topics: serving, subscribing, calling (SPEC §7).
 
-Topics carry ``std_msgs/msg/String`` whose ``data`` is one JSON object.  Services use
-``diagnostic_msgs/srv/AddDiagnostics`` as a string-to-string carrier (common_interfaces
-has no such service): the request JSON goes in ``load_namespace``, the reply JSON in
-``message``; ``success=false`` means the reply is ``{"error": "...", "kind": "..."}``.
+The one small module for fsreg's carrier convention.  Names, QoS and schemas are in
+:mod:`fsreg_ros.contract`; the JSON codec is :mod:`fsreg_ros.codec`.
 
-Reading a message:
-    ``from_msg(msg, {"entity": str, "properties": list[str]}, optional={"time": NUMBER})``
-returns the decoded object or raises :class:`MessageError` naming the field and what is
-wrong.  A field spec is a type, a tuple of types (``None`` allows JSON ``null``), or
-``list[T]`` / ``dict[str, T]``.  ``float`` accepts whole numbers; ``int`` never accepts
-``true``/``false``; NaN and infinities are never valid JSON here.
+Services use ``diagnostic_msgs/srv/AddDiagnostics`` as a string-to-string carrier
+(common_interfaces has no such service): the request JSON goes in ``load_namespace``,
+the reply JSON in ``message``; ``success=false`` means the reply is
+``{"error": "...", "kind": "..."}``.
 
 Serving: :func:`serve` wraps a sync or async ``handler(dict) -> dict``.  A
 :class:`MessageError`, any other ``ValueError`` (e.g. the core's ``KnowledgeError``) or a
 :class:`CarrierError` from the handler becomes ``success=false`` plus a logged warning;
-anything else becomes ``kind: "internal"`` plus a logged error.  The server never dies.
+anything else becomes ``kind: "internal"`` plus a logged error naming the service and the
+request id.  Every call is answered (the reply is built by :func:`~fsreg_ros.codec.error_json`,
+which cannot fail) and the server keeps serving.
+
+Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
+object within the size limit, or whose handler raises, is rejected (``reject(id, error)``
+publishes the reply the contract has for it, if any) and logged with the topic and id.
 
 Calling: :class:`JsonClient` (one per service) sends at once (:meth:`JsonClient.send`,
 so requests leave in program order) and awaits with a deadline enforced by a
@@ -28,85 +30,25 @@ its own :class:`~rclpy.callback_groups.ReentrantCallbackGroup`.
 from __future__ import annotations
 
 import inspect
-import json
-import math
 import time
-import types
+import weakref
 from typing import Any, Awaitable, Callable, Mapping, Optional, Union
 
 from diagnostic_msgs.srv import AddDiagnostics
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 
-__all__ = [
-    "NUMBER",
-    "SERVICE_TYPE",
-    "STATE_QOS",
-    "STATE_PUB_QOS",
-    "EVENTS_QOS",
-    "DEFAULT_QOS",
-    "DEFAULT_TIMEOUT",
-    "MessageError",
-    "CarrierError",
-    "JsonClient",
-    "to_msg",
-    "from_msg",
-    "parse",
-    "check_fields",
-    "dumps",
-    "serve",
-    "call",
-    "wait_until",
-]
+from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from .contract import Topic
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
-#: Field spec for "any JSON number" (whole numbers included, booleans excluded).
-NUMBER = (int, float)
 #: Default deadline of a service call, seconds (ROS-NOTES: a first call can take ~4 s).
 DEFAULT_TIMEOUT = 10.0
 
-#: ``/wm/state`` readers: latched (transient local), reliable, depth 10 so a late
-#: joiner gets the state of up to 10 consultants (ROS-NOTES: reader depth >= domains).
-STATE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-#: ``/wm/state`` writer (one per consultant): latched, but only the latest state is
-#: kept for late joiners, so N consultants hand a late reader N messages, not 10 N.
-STATE_PUB_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-#: ``/wm/events``: reliable and volatile; a deep history because one change (a reset,
-#: a decay tick) can emit many events at once and every one of them matters.
-EVENTS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-#: Everything else: reliable, volatile, depth 10 (the rclpy default).
-DEFAULT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-FieldSpec = Union[type, tuple, types.GenericAlias, None]
-
-
-class MessageError(ValueError):
-    """A message or request that is not what it must be: not JSON, not an object, a
-    missing or wrong-typed field, an unknown op.  The text says which field and why."""
+Limit = Union[None, int, Callable[[], Optional[int]]]
 
 
 class CarrierError(RuntimeError):
@@ -134,210 +76,132 @@ class CarrierError(RuntimeError):
         super().__init__(f"{service}: {error}" if service else error)
 
 
-# ----------------------------------------------------------------- encoding
-def dumps(obj: Mapping[str, Any]) -> str:
-    """Compact JSON text of one object (NaN/Infinity refused: they are not JSON)."""
-    return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+def error_kind(err: BaseException) -> str:
+    """Return the ``kind`` an error reply carries: the exception's class name, or a CarrierError's kind."""
+    if isinstance(err, CarrierError):
+        return err.kind
+    return type(err).__name__
 
 
-def to_msg(obj: Mapping[str, Any]) -> String:
-    """A ``std_msgs/String`` carrying ``obj`` as JSON."""
-    return String(data=dumps(obj))
+def _limit(limit: Limit) -> Optional[int]:
+    return limit() if callable(limit) else limit
 
 
-def _reject_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not a JSON number")
+def _context(where: str, rid: Any) -> str:
+    return f"{where} (id {printable(repr(rid), 80)})" if rid is not None else where
 
 
-def parse(
-    text: str,
-    required: Optional[Mapping[str, FieldSpec]] = None,
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-) -> dict:
-    """Decode one JSON object from ``text`` and check its fields (see :func:`check_fields`)."""
-    if not isinstance(text, str):
-        raise MessageError(f"expected JSON text, got {type(text).__name__}")
-    try:
-        obj = json.loads(text, parse_constant=_reject_constant)
-    except (ValueError, RecursionError) as err:
-        raise MessageError(f"not JSON ({err}): {_clip(text)}") from None
-    if not isinstance(obj, dict):
-        raise MessageError(f"expected a JSON object, got {_json_kind(obj)}: {_clip(text)}")
-    return check_fields(obj, required or {}, optional)
-
-
-def from_msg(
-    msg: String,
-    required: Optional[Mapping[str, FieldSpec]] = None,
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-) -> dict:
-    """Decode a ``std_msgs/String`` carrying one JSON object; check its fields.
-
-    ``required`` maps field names to specs; a missing or wrong-typed one raises
-    :class:`MessageError`.  ``optional`` fields are checked only when present.
-    Other fields are kept unchecked.
-    """
-    return parse(getattr(msg, "data", msg), required, optional)
-
-
-def check_fields(
-    obj: Mapping[str, Any],
-    required: Mapping[str, FieldSpec],
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-) -> dict:
-    """Check the fields of an already decoded object; return it as a dict."""
-    for name, spec in required.items():
-        if name not in obj:
-            raise MessageError(f"missing field '{name}' (expected {describe(spec)})")
-        _check_value(name, obj[name], spec)
-    for name, spec in (optional or {}).items():
-        if name in obj:
-            _check_value(name, obj[name], spec)
-    return dict(obj)
-
-
-def describe(spec: FieldSpec) -> str:
-    """English for a field spec: ``list[str]`` -> ``"a list of strings"``."""
-    if spec is None or spec is type(None):
-        return "null"
-    if isinstance(spec, tuple):
-        return " or ".join(describe(s) for s in spec)
-    if isinstance(spec, types.GenericAlias):
-        origin, args = spec.__origin__, spec.__args__
-        if origin is list:
-            return f"a list of {_plural(args[0])}"
-        if origin is dict:
-            return f"an object of {_plural(args[0]).replace('strings', 'names')} to {_plural(args[1])}"
-    return {
-        str: "a string",
-        int: "a whole number",
-        float: "a number",
-        bool: "true or false",
-        list: "a list",
-        dict: "an object",
-    }.get(spec, getattr(spec, "__name__", str(spec)))
-
-
-def _plural(spec: FieldSpec) -> str:
-    if spec == NUMBER or spec is float:
-        return "numbers"
-    return {str: "strings", int: "whole numbers", bool: "booleans", dict: "objects", list: "lists"}.get(
-        spec, describe(spec)
-    )
-
-
-def _matches(value: Any, spec: FieldSpec) -> bool:
-    if spec is None or spec is type(None):
-        return value is None
-    if isinstance(spec, tuple):
-        return any(_matches(value, s) for s in spec)
-    if isinstance(spec, types.GenericAlias):
-        origin, args = spec.__origin__, spec.__args__
-        if origin is list:
-            return isinstance(value, list) and all(_matches(v, args[0]) for v in value)
-        if origin is dict:
-            return isinstance(value, dict) and all(
-                _matches(k, args[0]) and _matches(v, args[1]) for k, v in value.items()
-            )
-        raise TypeError(f"unsupported field spec {spec!r}")
-    if spec is bool:
-        return isinstance(value, bool)
-    if isinstance(value, bool):
-        return False  # JSON true/false is not a number
-    if spec is float:
-        return isinstance(value, (int, float)) and math.isfinite(value)
-    return isinstance(value, spec)
-
-
-def _check_value(name: str, value: Any, spec: FieldSpec) -> None:
-    if _matches(value, spec):
-        return
-    where = f"field '{name}'"
-    if isinstance(spec, types.GenericAlias) and spec.__origin__ is list and isinstance(value, list):
-        for i, item in enumerate(value):
-            if not _matches(item, spec.__args__[0]):
-                raise MessageError(
-                    f"{where}[{i}]: expected {describe(spec.__args__[0])}, got {_show(item)}"
-                )
-    if isinstance(spec, types.GenericAlias) and spec.__origin__ is dict and isinstance(value, dict):
-        for key, item in value.items():
-            if not _matches(item, spec.__args__[1]):
-                raise MessageError(f"{where}['{key}']: expected {describe(spec.__args__[1])}, got {_show(item)}")
-    raise MessageError(f"{where}: expected {describe(spec)}, got {_show(value)}")
-
-
-def _json_kind(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, (int, float)):
-        return "a number"
-    if isinstance(value, str):
-        return "a string"
-    if isinstance(value, list):
-        return "a list"
-    return "an object"
-
-
-def _show(value: Any) -> str:
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError):
-        text = repr(value)
-    return f"{_json_kind(value)} ({_clip(text)})"
-
-
-def _clip(text: str, limit: int = 80) -> str:
-    text = str(text)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+async def _run(handler, text: str, max_bytes: Limit, seen: dict) -> Any:
+    """Decode ``text`` (bounded), note its request id in ``seen``, run ``handler``; return its result."""
+    payload = parse(text, max_bytes=_limit(max_bytes))
+    seen["id"] = request_id(payload)
+    result = handler(payload)
+    if inspect.isawaitable(result):
+        result = await result
+    return result
 
 
 # ----------------------------------------------------------------- serving
 Handler = Callable[[dict], Union[Mapping[str, Any], Awaitable[Mapping[str, Any]]]]
 
 
-def error_kind(err: BaseException) -> str:
-    """The ``kind`` an error reply carries: the exception's class name, or for a
-    :class:`CarrierError` its own kind (e.g. ``timeout`` of a call made downstream)."""
-    if isinstance(err, CarrierError):
-        return err.kind
-    return type(err).__name__
-
-
-def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGroup] = None):
-    """Serve ``handler`` as a JSON service ``name`` on ``node``; returns the service.
+def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGroup] = None,
+          *, max_bytes: Limit = None):
+    """Serve ``handler`` as a JSON service ``name`` on ``node``; return the service.
 
     ``handler(request: dict) -> dict`` may be sync or ``async``.  Errors never escape:
-    see the module docstring.  An async handler that awaits other services must use
-    clients outside ``callback_group`` (by default the node's mutually exclusive group).
+    see the module docstring.  ``max_bytes`` (a number or a callable giving one) bounds
+    the request size.  An async handler that awaits other services must use clients
+    outside ``callback_group`` (by default the node's mutually exclusive group).
     """
     logger = node.get_logger()
 
     async def callback(request, response):
+        seen: dict = {}
         try:
-            payload = parse(request.load_namespace)
-            result = handler(payload)
-            if inspect.isawaitable(result):
-                result = await result
+            result = await _run(handler, request.load_namespace, max_bytes, seen)
             if not isinstance(result, Mapping):
                 raise TypeError(f"handler returned {type(result).__name__}, not a JSON object")
             text = dumps(result)
         except (ValueError, CarrierError) as err:
-            logger.warning(f"{name}: {err}")
+            rid = seen.get("id")
+            logger.warning(printable(f"{_context(name, rid)}: {err}"))
             response.success = False
-            response.message = dumps({"error": str(err), "kind": error_kind(err)})
+            response.message = error_json(err, error_kind(err), rid)
             return response
         except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
-            logger.error(f"{name}: internal error: {type(err).__name__}: {err}")
+            rid = seen.get("id")
+            logger.error(printable(f"{_context(name, rid)}: internal error: {type(err).__name__}: {err}"))
             response.success = False
-            response.message = dumps({"error": f"internal error: {type(err).__name__}: {err}", "kind": "internal"})
+            response.message = error_json(f"internal error: {type(err).__name__}: {err}", "internal", rid)
             return response
         response.success = True
         response.message = text
         return response
 
     return node.create_service(SERVICE_TYPE, name, callback, callback_group=callback_group)
+
+
+# ----------------------------------------------------------------- topics
+def publisher(node, topic: Topic):
+    """Return a ``std_msgs/String`` publisher of a contract topic, with its QoS."""
+    return node.create_publisher(String, topic.name, topic.qos)
+
+
+def publish(pub, obj: Mapping[str, Any]) -> None:
+    """Publish one JSON object (sanitised if it is not JSON as it stands: never raises on content)."""
+    pub.publish(String(data=safe_dumps(obj)))
+
+
+Reject = Callable[[Any, str], None]
+
+
+def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] = None,
+              callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None):
+    """Subscribe ``handler(data: dict)`` (sync or async) to a contract topic; return the subscription.
+
+    A message that is not a JSON object (within ``max_bytes``), or whose handler raises
+    a ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and
+    id and passed to ``reject(id, error)``; any other exception is logged as an error
+    and rejected as an internal error.  The node keeps serving either way.
+    """
+    logger = node.get_logger()
+
+    def refuse(rid: Any, error: str, internal: bool) -> None:
+        text = printable(f"{_context(topic.name, rid)}: {error}")
+        (logger.error if internal else logger.warning)(text)
+        if reject is not None:
+            try:
+                reject(rid, printable(error))
+            except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
+                logger.error(printable(f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {err}"))
+
+    async def callback(msg: String) -> None:
+        seen: dict = {}
+        try:
+            await _run(handler, msg.data, max_bytes, seen)
+        except (ValueError, CarrierError) as err:
+            refuse(seen.get("id"), str(err), internal=False)
+        except Exception as err:  # noqa: BLE001 - log with context, keep serving
+            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {err}", internal=True)
+
+    return node.create_subscription(String, topic.name, callback, topic.subscriber_qos,
+                                    callback_group=callback_group)
+
+
+# ----------------------------------------------------------------- timers
+def drop_timer(node, timer, group: Optional[CallbackGroup]) -> None:
+    """Cancel and destroy a short-lived timer, and forget it in its callback group.
+
+    rclpy's ``CallbackGroup.add_entity`` keeps a weak reference to every timer ever
+    created in the group and ``destroy_timer`` never removes it, so a timer per call
+    leaked ~100 bytes per call (REG's RSS grew ~1.9 kB per request).  A weak reference
+    to a live object equals a new one to the same object, so it can be discarded here.
+    """
+    timer.cancel()
+    if group is not None:
+        group.entities.discard(weakref.ref(timer))
+    node.destroy_timer(timer)
 
 
 # ----------------------------------------------------------------- calling
@@ -374,15 +238,15 @@ class JsonClient:
 
     @classmethod
     def wrap(cls, node, client, timeout: float = DEFAULT_TIMEOUT) -> "JsonClient":
-        """A JsonClient over an existing ``AddDiagnostics`` client of ``node``."""
+        """Return a JsonClient over an existing ``AddDiagnostics`` client of ``node``."""
         return cls(node, client.srv_name, timeout=timeout, client=client)
 
     def ready(self) -> bool:
-        """A server is matched (not proof it answers: see :meth:`wait_ready`)."""
+        """Return True if a server is matched (not proof it answers: see :meth:`wait_ready`)."""
         return self.client.service_is_ready()
 
     def send(self, payload: Mapping[str, Any]) -> Future:
-        """Send one request now (so requests leave in call order); a Future of the reply."""
+        """Send one request now (so requests leave in call order); return a Future of the reply."""
         return self.client.call_async(SERVICE_TYPE.Request(load_namespace=dumps(payload)))
 
     async def result(self, future: Future, timeout: Optional[float] = None) -> dict:
@@ -399,8 +263,7 @@ class JsonClient:
             except Exception as err:  # noqa: BLE001 - e.g. the context shut down
                 raise CarrierError(f"call failed: {err}", kind="cancelled", service=self.name) from None
             finally:
-                timer.cancel()
-                self.node.destroy_timer(timer)
+                drop_timer(self.node, timer, self.callback_group)
         return self.decode(future)
 
     def expire(self, future: Future, timeout: float) -> None:
@@ -412,12 +275,12 @@ class JsonClient:
             )
 
     def decode(self, future: Future) -> dict:
-        """The reply of a done future, or raise :class:`CarrierError`."""
+        """Return the reply of a done future, or raise :class:`CarrierError`."""
         return self.decode_response(future, self.name)
 
     @staticmethod
     def decode_response(future: Future, name: str) -> dict:
-        """The reply object of a done service future, or :class:`CarrierError`."""
+        """Return the reply object of a done service future, or raise :class:`CarrierError`."""
         if future.cancelled():
             raise CarrierError("call cancelled", kind="cancelled", service=name)
         exc = future.exception()
@@ -436,7 +299,7 @@ class JsonClient:
             error = body.get("error")
             kind = body.get("kind")
             raise CarrierError(
-                error if isinstance(error, str) else f"failed without a reason: {_clip(response.message)}",
+                error if isinstance(error, str) else f"failed without a reason: {printable(response.message, 80)}",
                 kind=kind if isinstance(kind, str) else "remote",
                 service=name,
                 reply=body,
@@ -450,8 +313,10 @@ class JsonClient:
     async def wait_ready(
         self, payload: Mapping[str, Any], timeout: float, attempt_timeout: float = 2.0
     ) -> dict:
-        """Readiness = one real round trip (ROS-NOTES): wait for the server, then call
-        ``payload`` until one succeeds or ``timeout`` passes; returns its reply.
+        """Wait for one real round trip (readiness); return its reply.
+
+        Wait for the server, then call ``payload`` until one call succeeds or
+        ``timeout`` passes.
 
         A request sent before discovery completes can be lost, so timed-out attempts
         are retried; an error reply from the server is raised at once.
@@ -475,36 +340,6 @@ class JsonClient:
         self.node.destroy_client(self.client)
 
 
-async def call(client, payload: Mapping[str, Any], timeout: Optional[float] = None, *, node=None) -> dict:
-    """``await call(client, {"op": ...}, timeout)``: the reply, or :class:`CarrierError`.
-
-    ``client`` is a :class:`JsonClient`, or a plain ``AddDiagnostics`` client.  For a
-    plain client pass its ``node`` so the deadline is a timer; without it the deadline
-    is only checked when something else wakes the executor (rclpy resumes pending
-    tasks on every wake-up), so a dead server can block a quiet ``spin()`` forever.
-    """
-    if isinstance(client, JsonClient):
-        return await client.call(payload, timeout)
-    timeout = DEFAULT_TIMEOUT if timeout is None else timeout
-    if node is not None:
-        return await JsonClient.wrap(node, client, timeout).call(payload, timeout)
-    future = client.call_async(SERVICE_TYPE.Request(load_namespace=dumps(payload)))
-    deadline = time.monotonic() + timeout
-    while not future.done():
-        if time.monotonic() >= deadline:
-            client.remove_pending_request(future)
-            raise CarrierError(f"no reply within {timeout:g} s", kind="timeout", service=client.srv_name)
-        await _Yield()
-    return JsonClient.decode_response(future, client.srv_name)
-
-
-class _Yield:
-    """Awaitable that gives control back to the rclpy executor once."""
-
-    def __await__(self):
-        yield
-
-
 async def wait_until(
     node,
     predicate: Callable[[], bool],
@@ -513,9 +348,11 @@ async def wait_until(
     callback_group: Optional[CallbackGroup] = None,
     period: float = 0.02,
 ) -> bool:
-    """Await (without blocking the executor) until ``predicate()`` or ``timeout`` seconds
-    (steady clock) pass; True if the predicate came true.  A steady-clock timer in
-    ``callback_group`` (not the awaiting callback's group) polls the predicate."""
+    """Await ``predicate()`` without blocking the executor; return True if it came true in time.
+
+    Gives up after ``timeout`` seconds (steady clock).  A steady-clock timer in
+    ``callback_group`` (not the awaiting callback's group) polls the predicate.
+    """
     if predicate():
         return True
     done = Future()
@@ -534,5 +371,4 @@ async def wait_until(
     try:
         return bool(await done)
     finally:
-        timer.cancel()
-        node.destroy_timer(timer)
+        drop_timer(node, timer, group)

@@ -5,6 +5,10 @@ Starts every node as its own process, as ``ros2 run fsreg_ros <node>`` would (on
 ``reg`` and finally ``dialogue_player``), all on sim time driven by the player,
 waits for the player to finish, and shuts everything down.  It takes the same
 options as ``fsreg-sim`` and gives the same output (``--json`` byte-identical).
+The nodes and their parameters come from :mod:`fsreg_ros.graph_spec` (as the launch
+file's do).  ``--namespace NS`` starts every node with ``-r __ns:=/NS`` and remaps
+``/clock`` to ``/NS/clock``, so graphs in different namespaces share a ROS domain
+without hearing each other (see :func:`fsreg_ros.contract.clock_remap`).
 
 Process hygiene: every child gets ``PR_SET_PDEATHSIG`` = SIGTERM (it dies with
 the runner even if the runner is SIGKILLed) and all children share one process
@@ -12,8 +16,8 @@ group, which is sent SIGTERM (then SIGKILL after a grace period) on exit,
 Ctrl-C or a failed node.  Node output goes to log files, whose tails are shown
 when something fails.
 
-Networking is left to DDS: the runner keeps ``ROS_AUTOMATIC_DISCOVERY_RANGE``
-as the caller set it (LOCALHOST when unset) and never widens it.
+Networking: every node gets :func:`fsreg_ros.network.ros_environment` (loopback
+only; a widening environment is refused with exit 2 unless FSREG_ALLOW_NETWORK=1).
 """
 
 from __future__ import annotations
@@ -28,16 +32,17 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Sequence
 
 from .cli import run_cli
+from .contract import clock_remap, normalise_namespace
+from .graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
 from .core.lexicon import Lexicon
 from .core.scenario import Scenario, load_scenario
 from .core.simulation import Options, effective_policies
+from .network import require_loopback, ros_environment
 
-PACKAGE = "fsreg_ros"
 #: Seconds to wait for the player: start-up allowance plus an allowance per turn
 #: (the player drives /clock, so a dialogue's own seconds cost no wall time).
 RUN_DEADLINE = 120.0
@@ -49,19 +54,8 @@ class GraphError(RuntimeError):
     """A node failed to start, died, or the run exceeded its deadline."""
 
 
-def ros_environment(base: Optional[dict] = None) -> dict:
-    """The environment for every node: discovery on localhost unless the caller chose
-    otherwise, a domain id and a log directory."""
-    env = dict(os.environ if base is None else base)
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.setdefault("ROS_DOMAIN_ID", str(20 + os.getpid() % 70))
-    if "ROS_LOG_DIR" not in env:
-        env["ROS_LOG_DIR"] = tempfile.mkdtemp(prefix="fsreg-roslog-")
-    return env
-
-
 def executable(name: str) -> list[str]:
-    """The command that ``ros2 run fsreg_ros <name>`` would run.
+    """Return the command that ``ros2 run fsreg_ros <name>`` would run.
 
     A colcon install (on ``AMENT_PREFIX_PATH``) wins; then the console script beside
     this Python (a venv); then ``python -m`` on the module.
@@ -96,19 +90,19 @@ def _param(value: object) -> str:
     return str(value)
 
 
-@dataclass
-class NodeSpec:
-    """One node process: executable, node name and parameters."""
+def command(spec: NodeSpec, namespace: str = "") -> list[str]:
+    """Return the command line of one node process, under ``namespace`` if given.
 
-    executable: str
-    name: str
-    parameters: dict = field(default_factory=dict)
-
-    def command(self) -> list[str]:
-        cmd = executable(self.executable) + ["--ros-args", "-r", f"__node:={self.name}"]
-        for key, value in self.parameters.items():
-            cmd += ["-p", f"{key}:={_param(value)}"]
-        return cmd
+    A namespaced graph also gets its own clock (``/clock`` remapped into the namespace,
+    :func:`fsreg_ros.contract.clock_remap`): two sim-time graphs on one domain would
+    otherwise each jump the other's time.
+    """
+    cmd = executable(spec.executable) + ["--ros-args", "-r", f"__node:={spec.name}"]
+    if namespace:
+        cmd += ["-r", f"__ns:={namespace}", *clock_remap(namespace)]
+    for key, value in spec.parameters.items():
+        cmd += ["-p", f"{key}:={_param(value)}"]
+    return cmd
 
 
 def graph_nodes(
@@ -119,33 +113,12 @@ def graph_nodes(
     trace: Optional[Path] = None,
     lexicon: Optional[Path] = None,
 ) -> list[NodeSpec]:
-    """The node processes for one scenario run (the player last)."""
-    kb = str(scenario_path.resolve())
-    language = {"lexicon": str(lexicon.resolve())} if lexicon else {}
-    domains = list(scenario.domains)
-    manager: dict = {"use_sim_time": True, "domains": domains}
-    for domain, policy in effective_policies(scenario, options).items():
-        manager[f"{domain}.policy"] = policy.name
-        for key in ("decay_period", "capacity", "global_capacity"):
-            value = getattr(policy, key)
-            if value is not None:
-                manager[f"{domain}.{key}"] = value
-    reg: dict = {"use_sim_time": True, "domains": domains, "wm_order": options.wm_order, **language}
-    if options.algorithm:
-        reg["algorithm"] = options.algorithm
-    nodes = [
-        NodeSpec("consultant", f"consultant_{d}", {"use_sim_time": True, "domain": d, "kb": kb}) for d in domains
-    ]
-    nodes += [
-        NodeSpec("wm_manager", "wm_manager", manager),
-        NodeSpec("parser", "parser", {"use_sim_time": True, "kb": kb, **language}),
-        NodeSpec("reference_resolution", "reference_resolution", {"use_sim_time": True, "domains": domains}),
-        NodeSpec("reg", "reg", reg),
-    ]
-    player = {"scenario": kb, "output": str(output), **language}
-    if trace is not None:
-        player["trace"] = str(trace)
-    nodes.append(NodeSpec("dialogue_player", "dialogue_player", player))
+    """Return the node processes for one scenario run (the player last), from :mod:`fsreg_ros.graph_spec`."""
+    kb = resolved(scenario_path)
+    policies = {d: policy_settings(p) for d, p in effective_policies(scenario, options).items()}
+    nodes = node_specs(kb, list(scenario.domains), policies, use_sim_time=True, algorithm=options.algorithm,
+                       wm_order=options.wm_order, lexicon=resolved(lexicon))
+    nodes.append(player_spec(kb, str(output), str(trace) if trace is not None else None, resolved(lexicon)))
     return nodes
 
 
@@ -157,8 +130,10 @@ def _die_with_parent() -> None:  # runs in the child between fork and exec
 class Graph:
     """The running node processes of one scenario run."""
 
-    def __init__(self, nodes: Sequence[NodeSpec], log_dir: Path, env: Optional[dict] = None) -> None:
+    def __init__(self, nodes: Sequence[NodeSpec], log_dir: Path, env: Optional[dict] = None,
+                 namespace: str = "") -> None:
         self.nodes = list(nodes)
+        self.namespace = normalise_namespace(namespace)
         self.log_dir = log_dir
         self.env = ros_environment(env)
         self.procs: list[tuple[NodeSpec, subprocess.Popen]] = []
@@ -168,7 +143,7 @@ class Graph:
         for spec in self.nodes:
             log = open(self.log_dir / f"{spec.name}.log", "wb")
             proc = subprocess.Popen(
-                spec.command(),
+                command(spec, self.namespace),
                 env=self.env,
                 stdin=subprocess.DEVNULL,
                 stdout=log,
@@ -231,13 +206,15 @@ def run_graph(
     trace: bool = False,
     env: Optional[dict] = None,
     lexicon: Optional[Path] = None,
+    namespace: str = "",
 ) -> tuple[dict, list[dict]]:
-    """Play a scenario through the multi-process graph; return (result, trace)."""
+    """Play a scenario through the multi-process graph (under ``namespace`` if given); return (result, trace)."""
     scenario = load_scenario(scenario_path, Lexicon.load(lexicon))  # bad input fails here, before any process
     with tempfile.TemporaryDirectory(prefix="fsreg-graph-") as tmp:
         tmp_path = Path(tmp)
         output, trace_file = tmp_path / "result.json", (tmp_path / "trace.jsonl" if trace else None)
-        graph = Graph(graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon), tmp_path, env)
+        graph = Graph(graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon), tmp_path, env,
+                      namespace)
         try:
             graph.start()
             deadline = time.monotonic() + RUN_DEADLINE + TURN_ALLOWANCE * len(scenario.dialogue)
@@ -253,18 +230,29 @@ def run_graph(
             graph.stop()
 
 
-def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-    return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon)  # alignment reads the trace
-
-
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``fsreg-graph SCENARIO.yaml [options]``: the scenario through the node graph."""
+    """Run ``fsreg-graph SCENARIO.yaml [--namespace NS] [options]``: the scenario through the node graph."""
+    require_loopback("fsreg-graph")  # exits 2 if the environment would take DDS off this machine
+    extra = argparse.ArgumentParser(add_help=False)
+    extra.add_argument("--namespace", default="")
+    known, rest = extra.parse_known_args(sys.argv[1:] if argv is None else list(argv))
+    try:
+        namespace = normalise_namespace(known.namespace)
+    except ValueError as err:
+        print(f"fsreg-graph: error: --namespace: {err}", file=sys.stderr)
+        return 2
+
+    def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
+        # The trace always: the shared CLI measures alignment from it.
+        return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon, namespace=namespace)
+
     try:
         return run_cli(
             "fsreg-graph",
-            "Play a scenario through the multi-process fsreg ROS 2 node graph (sim time).",
+            "Play a scenario through the multi-process fsreg ROS 2 node graph (sim time). "
+            "--namespace NS runs every node under the ROS namespace /NS, with its own NS/clock.",
             graph_args,
-            argv,
+            rest,
             failures=(GraphError,),
         )
     except KeyboardInterrupt:  # children are stopped by run_graph's finally

@@ -1,7 +1,7 @@
 """A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
-call is one awaited JSON call to ``/consultant/<domain>`` (see
+call is one awaited JSON call to ``consultant/<domain>`` (see
 :mod:`fsreg_ros.nodes.consultant` for the ops).  Await port methods only from a
 callback outside ``callback_group`` (give the port a reentrant group of its own).
 
@@ -9,26 +9,25 @@ Errors: a request the consultant rejects because it names an unknown entity or
 property raises :class:`~fsreg_ros.core.consultant.KnowledgeError` (as the in-process
 :class:`~fsreg_ros.core.consultant.LocalPort` would); everything else (timeouts, a
 malformed reply, other rejections) raises :class:`~fsreg_ros.carrier.CarrierError`.
+
+Failing fast: after a call times out the port counts the consultant as down, and every
+call in the next ``timeout`` seconds fails at once (kind ``unavailable``) instead of
+waiting out its own deadline, so one dead consultant does not hold every request queued
+behind it for a full timeout each.  After that pause one call probes it again.
 """
 
 from __future__ import annotations
 
+import time
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup
 
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, MessageError, check_fields
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
+from . import contract
+from .codec import MessageError
+from .contract import consultant_service
 from .core.consultant import KnowledgeError
-
-
-def consultant_service(domain: str) -> str:
-    """The query service of a domain's consultant."""
-    return f"/consultant/{domain}"
-
-
-def manage_service(domain: str) -> str:
-    """The WM Manager's service of a domain's consultant (configure, decay)."""
-    return f"/consultant/{domain}/manage"
 
 
 class RemotePort:
@@ -45,25 +44,37 @@ class RemotePort:
         self.timeout = timeout
         self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
         self._preference: Optional[list[str]] = None
+        self._down_until = 0.0  # monotonic time before which calls fail fast
 
     # ------------------------------------------------------------ plumbing
-    async def _call(self, payload: Mapping[str, Any], expect: Mapping[str, Any]) -> dict:
+    async def _call(self, payload: Mapping[str, Any]) -> dict:
+        now = time.monotonic()
+        if now < self._down_until:
+            raise CarrierError(
+                f"consultant '{self.domain}' is not answering (a call timed out "
+                f"{self.timeout - (self._down_until - now):.1f} s ago); failing fast, try again later",
+                kind="unavailable", service=self.client.name)
         try:
             reply = await self.client.call(payload, self.timeout)
         except CarrierError as err:
             if err.kind == "KnowledgeError":
                 raise KnowledgeError(err.error) from None
+            if err.kind == "timeout":
+                self._down_until = time.monotonic() + self.timeout
             raise
+        self._down_until = 0.0
         try:
-            return check_fields(reply, expect)
+            return contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
                                service=self.client.name) from None
 
     async def wait_ready(self, timeout: float) -> dict:
-        """One real round trip (an ``info`` call) within ``timeout`` seconds, retrying
-        while the service is not discovered or the first call is lost; the info reply.
-        Raises :class:`CarrierError` (kind ``timeout``) when the deadline passes."""
+        """Make one real round trip (an ``info`` call) within ``timeout`` seconds; return the info reply.
+
+        Retries while the service is not discovered or the first call is lost; raises
+        :class:`CarrierError` (kind ``timeout``) when the deadline passes.
+        """
         reply = await self.client.wait_ready({"op": "info"}, timeout)
         self._remember(reply)
         return reply
@@ -76,7 +87,7 @@ class RemotePort:
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
         """``{"domain", "entities", "preference", "threshold", "policy", "memory"}``."""
-        reply = await self._call({"op": "info"}, {"entities": list[str], "preference": list[str]})
+        reply = await self._call({"op": "info"})
         self._remember(reply)
         return reply
 
@@ -91,9 +102,7 @@ class RemotePort:
         return list(self._preference or [])
 
     async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        reply = await self._call(
-            {"op": "holds", "property": prop, "entities": list(entities)}, {"holds": list[str]}
-        )
+        reply = await self._call({"op": "holds", "property": prop, "entities": list(entities)})
         return reply["holds"]
 
     async def affirm(
@@ -102,12 +111,11 @@ class RemotePort:
         reply = await self._call(
             {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause,
              "time": time, "turn": turn},
-            {"holds": list[str]},
         )
         return reply["holds"]
 
     async def wm(self, entity: str) -> list[str]:
-        return (await self._call({"op": "wm", "entity": entity}, {"queue": list[str]}))["queue"]
+        return (await self._call({"op": "wm", "entity": entity}))["queue"]
 
     async def encode(
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
@@ -115,9 +123,8 @@ class RemotePort:
         await self._call(
             {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause,
              "time": time, "turn": turn},
-            {},
         )
 
     async def snapshot(self) -> dict[str, list[str]]:
         """Every non-empty queue of the domain, LRU first."""
-        return (await self._call({"op": "snapshot"}, {"queues": dict[str, list[str]]}))["queues"]
+        return (await self._call({"op": "snapshot"}))["queues"]

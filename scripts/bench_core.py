@@ -57,7 +57,8 @@ use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test"))
 
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402
-from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager  # noqa: E402
+from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
+from fsreg_ros.core.wm_manager import WMManager  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 from naive_wm import NaiveWM  # noqa: E402

@@ -108,7 +108,8 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, rounds: int
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String
 
-    from fsreg_ros.carrier import from_msg, to_msg
+    from fsreg_ros import contract
+    from fsreg_ros.codec import from_msg, to_msg
 
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-bench-"))
     nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json") if n.name != "dialogue_player"]
@@ -125,10 +126,10 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, rounds: int
         data = from_msg(msg, {})
         answers[str(data.get("id"))] = data
 
-    node.create_subscription(String, "/rr/result", on_answer, 100)
-    node.create_subscription(String, "/reg/expression", on_answer, 100)
-    human_pub = node.create_publisher(String, "/dialogue/human", 100)
-    reg_pub = node.create_publisher(String, "/reg/request", 100)
+    node.create_subscription(String, contract.RR_RESULT.name, on_answer, contract.RR_RESULT.qos)
+    node.create_subscription(String, contract.REG_EXPRESSION.name, on_answer, contract.REG_EXPRESSION.qos)
+    human_pub = node.create_publisher(String, contract.HUMAN.name, contract.HUMAN.qos)
+    reg_pub = node.create_publisher(String, contract.REG_REQUEST.name, contract.REG_REQUEST.qos)
 
     def exchange(publisher, message: dict, timeout: float = 30.0) -> float:
         key = str(message["id"])

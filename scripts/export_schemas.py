@@ -26,6 +26,21 @@ except ImportError:  # run from a source checkout without installing
     from fsreg_ros.core.scenario import scenario_json_schema
 
 
+def write_message_schemas(scenario_output: str | None) -> None:
+    """Write the JSON Schema of every message of :mod:`fsreg_ros.contract` beside the scenario schema.
+
+    One file per topic and per service request/reply, e.g. ``topic.rr.result.schema.json``;
+    nothing when the scenario schema goes to stdout.
+    """
+    from fsreg_ros.contract import json_schemas
+
+    if scenario_output is None or scenario_output == "-":
+        return
+    directory = Path(scenario_output).parent
+    for stem, schema in json_schemas().items():
+        (directory / f"{stem}.schema.json").write_text(json.dumps(schema, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Write the JSON Schema of fsreg scenario files.")
     parser.add_argument("output", nargs="?", help="file to write (default: stdout)")
@@ -36,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         Path(args.output).write_text(text, encoding="utf-8")
+        write_message_schemas(args.output)
     except OSError as err:
         print(f"export_schemas: cannot write {args.output}: {err.strerror or err}", file=sys.stderr)
         return 1

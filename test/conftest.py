@@ -1,8 +1,8 @@
 """Test-wide setup: keep ROS 2 on this machine, in a private domain, with a temp log dir.
 
 This runs before any test module imports rclpy.  Discovery must stay on localhost
-(nothing may send traffic off this machine): it is set here when unset and the run
-stops at once if something else was chosen.
+(nothing may send traffic off this machine) and Fast DDS is bound to loopback by
+fsreg_ros.network; an environment that would widen it stops the run at once (exit 2).
 """
 
 from __future__ import annotations
@@ -13,15 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.graph import ros_environment  # imports no rclpy
+from fsreg_ros.network import NetworkRefused, ros_environment  # imports no rclpy
 
-os.environ.update(ros_environment())
-if os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] != "LOCALHOST":
-    pytest.exit(
-        "ROS_AUTOMATIC_DISCOVERY_RANGE must be LOCALHOST for the tests "
-        f"(found {os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']!r})",
-        returncode=3,
-    )
+try:  # the tests never widen the network, whatever FSREG_ALLOW_NETWORK says
+    os.environ.update(ros_environment(allow_network=False))
+except NetworkRefused as err:
+    pytest.exit(f"fsreg tests: {err}", returncode=2)
 assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 REPO = Path(__file__).resolve().parents[1]

@@ -5,9 +5,15 @@ It follows SPEC.md section 2 as literally as possible and shares no code with
 
 * ``queues`` is a plain ``dict`` of Python lists, LRU first;
 * a decay tick pops the front of *every* non-empty queue right away (O(queues));
-* displacement and the global limit run after every single encoding event,
-  displacement first; the global victim is the non-empty queue whose front was
+* similarity, displacement and the global limit run after every single encoding
+  event, in that order; the global victim is the non-empty queue whose front was
   encoded least recently (one stamp counter per domain, so no ties);
+* displacement's victim: the front (``displacement``), the property encoded least
+  often since it entered the queue or since the policy was set, other than the one
+  just encoded, first in queue order on ties (``displacement-lfu``), or one drawn
+  with ``random.Random(seed).randrange`` among the others (``displacement-random``);
+* similarity: an encoded property's attribute (declared, or ``attribute=`` in its
+  name) forgets the entity's other properties of that attribute, front first;
 * the decay schedule is "tick k at k * delta while k * delta <= T + 1e-9".
 
 Events are recorded as plain tuples ``(op, entity, property, cause, time, turn)``;
@@ -16,22 +22,23 @@ Events are recorded as plain tuples ``(op, entity, property, cause, time, turn)`
 
 from __future__ import annotations
 
-from typing import Iterable, Optional
+import random
+from typing import Iterable, Mapping, Optional
 
 EPSILON = 1e-9
 
 
 def event_key(event) -> tuple:
-    """A WMEvent (or an equivalent object) as ``(op, entity, property, cause, time, turn)``."""
+    """Return a WMEvent (or an equivalent object) as ``(op, entity, property, cause, time, turn)``."""
     return (event.op, event.entity, event.property, event.cause, event.time, event.turn)
 
 
 class NaiveWM:
     """Eager reference implementation of one domain's WM buffer and its policy.
 
-    ``rules`` is a set of rule names (``decay``, ``displacement``,
-    ``global-capacity``); ``None`` means "unmanaged, keep everything" (like a
-    :class:`WMBuffer` without a policy) and an empty set means policy ``none``.
+    ``rules`` is a set of rule names (``decay``, ``displacement``, ...);
+    ``None`` means "unmanaged, keep everything" (like a :class:`WMBuffer` without a
+    policy) and an empty set means policy ``none``.
     """
 
     def __init__(
@@ -40,13 +47,18 @@ class NaiveWM:
         capacity: Optional[int] = None,
         global_capacity: Optional[int] = None,
         record: bool = True,
+        seed: int = 0,
+        attributes: Optional[Mapping[str, str]] = None,
     ) -> None:
         self.queues: dict[str, list[str]] = {}
         self.stamps: dict[tuple[str, str], int] = {}
+        self.counts: dict[tuple[str, str], int] = {}
         self.counter = 0
         self.rules: Optional[set[str]] = None if rules is None else set(rules)
         self.capacity = capacity
         self.global_capacity = global_capacity
+        self.rng = random.Random(seed)
+        self.attributes = dict(attributes or {})
         self.record = record
         self.events: list[tuple] = []
 
@@ -57,21 +69,26 @@ class NaiveWM:
         capacity: Optional[int] = None,
         global_capacity: Optional[int] = None,
         time: float = 0.0,
+        seed: int = 0,
     ) -> None:
-        """Install a policy and apply it at once: ``none`` forgets everything (cause
-        ``reset``), the size limits trim every queue (turn ``None``)."""
+        """Install a policy and apply it at once.
+
+        ``none`` forgets everything (cause ``reset``), the size limits trim every
+        queue (turn ``None``).
+        """
         self.rules = set(rules)
         self.capacity = capacity
         self.global_capacity = global_capacity
+        self.rng = random.Random(seed)
+        self.counts = {}
         if not self.rules:
             for entity in list(self.queues):
                 while self.queues[entity]:
                     self._forget(entity, 0, "reset", time, None)
             return
-        if "displacement" in self.rules:
+        if self._displacing():
             for entity in list(self.queues):
-                while len(self.queues[entity]) > self.capacity:
-                    self._forget(entity, 0, "displacement", time, None)
+                self._displace(entity, None, time, None)
         if "global-capacity" in self.rules:
             self._global(time, None)
 
@@ -90,18 +107,25 @@ class NaiveWM:
             queue = self.queues.setdefault(entity, [])
             if prop in queue:
                 queue.remove(prop)
+                self.counts[(entity, prop)] = self.counts.get((entity, prop), 1) + 1
+            else:
+                self.counts[(entity, prop)] = 1
             queue.append(prop)
             self.counter += 1
             self.stamps[(entity, prop)] = self.counter
             self._log("encode", entity, prop, cause, time, turn)
-            if self.rules and "displacement" in self.rules:
-                while len(queue) > self.capacity:
-                    self._forget(entity, 0, "displacement", time, turn)
+            if self.rules and "similarity" in self.rules:
+                mine = self._attribute(prop)
+                for other in list(queue):
+                    if mine is not None and other != prop and self._attribute(other) == mine:
+                        self._forget(entity, queue.index(other), "similarity", time, turn)
+            if self.rules and self._displacing():
+                self._displace(entity, prop, time, turn)
             if self.rules and "global-capacity" in self.rules:
                 self._global(time, turn)
 
     def tick(self, time: float) -> None:
-        """One decay tick (Algorithm 2), eagerly: pop the front of every non-empty queue."""
+        """Apply one decay tick of Algorithm 2 eagerly: pop the front of every non-empty queue."""
         for entity, queue in self.queues.items():
             if queue:
                 self._forget(entity, 0, "decay", time, None)
@@ -123,6 +147,29 @@ class NaiveWM:
         return sum(len(q) for q in self.queues.values())
 
     # ------------------------------------------------------------- internals
+    def _displacing(self) -> Optional[str]:
+        found = [r for r in self.rules or () if r.startswith("displacement")]
+        return found[0] if found else None
+
+    def _displace(self, entity: str, newest: Optional[str], time: float, turn: Optional[int]) -> None:
+        rule = self._displacing()
+        queue = self.queues[entity]
+        while len(queue) > self.capacity:
+            others = [i for i, p in enumerate(queue) if p != newest]
+            if rule == "displacement":
+                index = 0
+            elif rule == "displacement-lfu":
+                fewest = min(self.counts.get((entity, queue[i]), 1) for i in others)
+                index = next(i for i in others if self.counts.get((entity, queue[i]), 1) == fewest)
+            else:
+                index = others[self.rng.randrange(len(others))]
+            self._forget(entity, index, "displacement", time, turn)
+
+    def _attribute(self, prop: str) -> Optional[str]:
+        if prop in self.attributes:
+            return self.attributes[prop]
+        return prop.split("=", 1)[0] if "=" in prop else None
+
     def _global(self, time: float, turn: Optional[int]) -> None:
         while self.total() > self.global_capacity:
             victim = min(
@@ -141,8 +188,11 @@ class NaiveWM:
 
 
 class NaiveClock:
-    """SPEC section 2's decay schedule, literally: tick k at origin + k * period, due
-    at T iff origin + k * period <= T + 1e-9; each tick is handed out once."""
+    """SPEC section 2's decay schedule, literally.
+
+    Tick k at origin + k * period, due at T iff origin + k * period <= T + 1e-9; each
+    tick is handed out once.
+    """
 
     def __init__(self, period: float, origin: float = 0.0) -> None:
         self.period = period

@@ -7,8 +7,8 @@ test with a message when it passes), and a full teardown.
 
     with Graph() as g:
         c = g.add(ConsultantNode, domain="faces", kb=KB)
-        reply = g.call("/consultant/faces", {"op": "info"})
-        states = g.listen("/wm/state", STATE_QOS)
+        reply = g.call(contract.consultant_service("faces"), {"op": "info"})
+        states = g.listen(contract.WM_STATE.name, contract.STATE_QOS)
         g.set_time(10.0)              # publish /clock; wait until sim-time nodes read it
 """
 
@@ -37,7 +37,9 @@ from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import DEFAULT_QOS, CarrierError, JsonClient, dumps, to_msg  # noqa: E402
+from fsreg_ros.carrier import DEFAULT_TIMEOUT, SERVICE_TYPE, CarrierError, JsonClient  # noqa: E402
+from fsreg_ros.codec import dumps, to_msg  # noqa: E402
+from fsreg_ros.contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace  # noqa: E402
 from fsreg_ros.nodes.dialogue_player import clock_message  # noqa: E402
 
 DATA = Path(__file__).resolve().parent / "data" / "graph"
@@ -51,12 +53,22 @@ class Timeout(AssertionError):
 class Graph:
     """Nodes of one test in one context and executor, plus a probe node."""
 
-    def __init__(self) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.executor = SingleThreadedExecutor(context=self.context)
+    def __init__(self, namespace: str = "", context: Optional[rclpy.Context] = None,
+                 executor: Optional[SingleThreadedExecutor] = None) -> None:
+        """Start a context and executor, or share those of another Graph (two graphs in one process).
+
+        ``namespace`` puts every node (and the probe) under it, with ``/clock`` remapped into
+        it as the runner does (:func:`fsreg_ros.contract.clock_remap`).
+        """
+        self.owner = context is None
+        self.context = context or rclpy.Context()
+        if self.owner:
+            rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.executor = executor or SingleThreadedExecutor(context=self.context)
+        self.namespace = normalise_namespace(namespace)
+        self.remaps = (["-r", f"__ns:={self.namespace}"] + clock_remap(self.namespace)) if self.namespace else []
         self.nodes: list[Node] = []
-        self.probe = Node("probe", context=self.context)
+        self.probe = Node("probe", context=self.context, cli_args=["--ros-args", *self.remaps] if self.remaps else None)
         self.executor.add_node(self.probe)
         self.group = ReentrantCallbackGroup()
         self._clients: dict[str, JsonClient] = {}
@@ -71,8 +83,9 @@ class Graph:
         overrides = [Parameter(k, value=v) for k, v in params.items()]
         overrides.append(Parameter("use_sim_time", value=use_sim_time))
         kwargs: dict[str, Any] = {"context": self.context, "parameter_overrides": overrides}
-        if name is not None:
-            kwargs["cli_args"] = ["--ros-args", "-r", f"__node:={name}"]
+        remaps = list(self.remaps) + (["-r", f"__node:={name}"] if name is not None else [])
+        if remaps:
+            kwargs["cli_args"] = ["--ros-args", *remaps]
         node = node_cls(**kwargs)
         self.nodes.append(node)
         self.executor.add_node(node)
@@ -156,7 +169,7 @@ class Graph:
     def set_time(self, t: float, nodes: Optional[list[Node]] = None) -> None:
         """Publish ``/clock`` = t; spin until every (given) sim-time node reads it."""
         if self._clock_pub is None:
-            self._clock_pub = self.probe.create_publisher(Clock, "/clock", 10)
+            self._clock_pub = self.probe.create_publisher(Clock, CLOCK, 10)
         msg = clock_message(t)
         ns = int(round(t * 1e9))
         watch = [n for n in (nodes or self.nodes) if n.get_parameter("use_sim_time").value]
@@ -175,9 +188,11 @@ class Graph:
                 node.destroy_node()
             except Exception:  # noqa: BLE001 - best effort
                 pass
-        self.executor.shutdown(timeout_sec=1.0)
+        self.executor.remove_node(self.probe)
         self.probe.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        if self.owner:
+            self.executor.shutdown(timeout_sec=1.0)
+            rclpy.try_shutdown(context=self.context)
 
     def __enter__(self) -> "Graph":
         return self
@@ -203,7 +218,7 @@ class Inbox(list):
 
 
 def ros_graph():
-    """Body of a pytest fixture: ``yield from ros_graph()``."""
+    """Yield a Graph and close it after: the body of a pytest fixture."""
     graph = Graph()
     try:
         yield graph
@@ -213,3 +228,35 @@ def ros_graph():
 
 def as_json(obj: Any) -> str:
     return dumps(obj)
+
+
+async def call(client, payload: Any, timeout: Optional[float] = None, *, node=None) -> dict:
+    """Await one JSON call and return the reply, or raise :class:`CarrierError`.
+
+    Test-only: the bare-client branch busy-waits by yielding to the executor.
+
+    ``client`` is a :class:`JsonClient`, or a plain ``AddDiagnostics`` client.  For a
+    plain client pass its ``node`` so the deadline is a timer; without it the deadline
+    is only checked when something else wakes the executor (rclpy resumes pending
+    tasks on every wake-up), so a dead server can block a quiet ``spin()`` forever.
+    """
+    if isinstance(client, JsonClient):
+        return await client.call(payload, timeout)
+    timeout = DEFAULT_TIMEOUT if timeout is None else timeout
+    if node is not None:
+        return await JsonClient.wrap(node, client, timeout).call(payload, timeout)
+    future = client.call_async(SERVICE_TYPE.Request(load_namespace=dumps(payload)))
+    deadline = time.monotonic() + timeout
+    while not future.done():
+        if time.monotonic() >= deadline:
+            client.remove_pending_request(future)
+            raise CarrierError(f"no reply within {timeout:g} s", kind="timeout", service=client.srv_name)
+        await _Yield()
+    return JsonClient.decode_response(future, client.srv_name)
+
+
+class _Yield:
+    """Awaitable that gives control back to the rclpy executor once."""
+
+    def __await__(self):
+        yield

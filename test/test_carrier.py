@@ -15,21 +15,11 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import (  # noqa: E402
-    NUMBER,
-    STATE_QOS,
-    CarrierError,
-    JsonClient,
-    MessageError,
-    call,
-    from_msg,
-    serve,
-    to_msg,
-    wait_until,
-)
+from fsreg_ros.carrier import CarrierError, JsonClient, serve, wait_until  # noqa: E402
+from fsreg_ros.codec import NUMBER, MessageError, from_msg, to_msg  # noqa: E402
+from fsreg_ros.contract import STATE_QOS  # noqa: E402
 from fsreg_ros.nodes.common import error_reply  # noqa: E402
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
-from rosutil import Graph, ros_graph  # noqa: E402
+from rosutil import Graph, call, ros_graph  # noqa: E402
 
 pytestmark = pytest.mark.graph
 
@@ -60,7 +50,8 @@ def test_round_trip_keeps_the_object():
         ('{"turn": true}', {"turn": int}, None, "field 'turn': expected a whole number, got a boolean"),
         ('{"time": true}', {"time": NUMBER}, None, "field 'time'"),
         ('{"time": "1"}', {"time": float}, None, "field 'time': expected a number, got a string"),
-        ('{"entities": ["a", 2]}', {"entities": list[str]}, None, "field 'entities'[1]: expected a string, got a number (2)"),
+        ('{"entities": ["a", 2]}', {"entities": list[str]}, None,
+         "field 'entities'[1]: expected a string, got a number (2)"),
         ('{"entities": "a"}', {"entities": list[str]}, None, "field 'entities': expected a list of strings"),
         ('{"p": {"red": "high"}}', {"p": dict[str, float]}, None, "field 'p'['red']: expected a number"),
         ('{"turn": "x"}', {}, {"turn": (int, None)}, "field 'turn': expected a whole number or null"),
@@ -88,10 +79,21 @@ def test_error_reply_keeps_the_id():
     assert error_reply({"id": "a"}, "bad") == {"error": "bad", "id": "a"}
 
 
-def test_state_qos_is_latched_and_reliable():
-    assert STATE_QOS.durability == DurabilityPolicy.TRANSIENT_LOCAL
-    assert STATE_QOS.reliability == ReliabilityPolicy.RELIABLE
-    assert STATE_QOS.depth == 10
+def test_a_late_reader_of_wm_state_gets_every_writers_latest_state(graph: Graph):
+    """wm/state is latched per writer (depth 1) and read with a deeper history, so a
+    reader that joins late hears the latest state of each of several consultants."""
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import publisher
+
+    writers = [publisher(graph.probe, contract.WM_STATE) for _ in range(3)]
+    for i, writer in enumerate(writers):
+        writer.publish(to_msg({"domain": f"d{i}", "time": 0.0, "queues": {}, "events": 0}))
+        writer.publish(to_msg({"domain": f"d{i}", "time": 1.0, "queues": {}, "events": 1}))
+    late = graph.listen(contract.WM_STATE.name, contract.WM_STATE.subscriber_qos)
+    graph.spin_until(lambda: len(late) >= 3, 5.0, what="three latched states")
+    graph.spin_for(0.2)
+    assert sorted((m["domain"], m["time"]) for m in late) == [("d0", 1.0), ("d1", 1.0), ("d2", 1.0)]
+    assert STATE_QOS.depth >= len(writers)
 
 
 # ------------------------------------------------------------------ services
@@ -190,3 +192,40 @@ def test_wait_until(graph: Graph):
     assert graph.run(wait_until(graph.probe, lambda: flag["set"], 2.0)) is True
     graph.probe.destroy_timer(timer)
     assert graph.run(wait_until(graph.probe, lambda: False, 0.1)) is False
+
+
+# ------------------------------------------------------------------ error replies never throw
+@pytest.mark.parametrize(
+    "value",
+    [float("nan"), float("inf"), 10**5000, "\ud800", "x" * 100_000, object(), {"k": [float("-inf")]}, b"bytes"],
+    ids=["nan", "inf", "huge-int", "surrogate", "long", "object", "nested-inf", "bytes"],
+)
+def test_error_replies_are_json_whatever_they_carry(value):
+    import json
+
+    from fsreg_ros.codec import error_json, printable, safe_dumps
+
+    text = error_json(value, "MessageError", value if isinstance(value, (str, int)) else None, extra=value)
+    reply = json.loads(text)
+    assert reply["kind"] == "MessageError" and isinstance(reply["error"], str)
+    assert len(reply["error"]) <= 500
+    json.loads(safe_dumps({"id": 1, "v": value}))
+    printable(value).encode("utf-8")  # a logger can always write it
+
+
+def test_parse_refuses_oversized_text_before_parsing():
+    from fsreg_ros.codec import parse
+
+    with pytest.raises(MessageError, match="over the limit of 1000"):
+        parse('{"a": "' + "x" * 2000 + '"}', max_bytes=1000)
+    assert parse('{"a": "x"}', max_bytes=1000) == {"a": "x"}
+
+
+def test_a_service_answers_hostile_requests(graph: Graph):
+    server = Server(graph.context)
+    graph.executor.add_node(server)
+    graph.nodes.append(server)
+    for text in ['{"id": "\\ud800", "raise": "value"}', '{"x": 1e999}', '{"n": ' + "9" * 5000 + "}"]:
+        err = graph.call_error("/carrier/fail", text)
+        assert err.kind in ("internal", "MessageError")
+    assert graph.call("/carrier/echo", {"ok": 1}) == {"echo": {"ok": 1}}

@@ -13,7 +13,8 @@ from fsreg_ros.core.consultant import (
     LocalPort,
     run_sync,
 )
-from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager
+from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.wm_manager import WMManager
 
 PREF = ["light-hair", "male", "glasses", "female", "hoodie"]
 

@@ -10,9 +10,11 @@ import sys
 
 import pytest
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS, STATE_QOS
+from fsreg_ros import contract
+from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
 from fsreg_ros.core.consultant import KnowledgeError, LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.resolution import resolve
@@ -24,8 +26,8 @@ from rosutil import DATA, KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 
-Q = "/consultant/faces"
-M = "/consultant/faces/manage"
+Q = contract.consultant_service("faces")
+M = contract.manage_service("faces")
 
 
 @pytest.fixture
@@ -35,13 +37,14 @@ def graph():
 
 def start(graph: Graph, domain: str = "faces", **params):
     node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", **params)
-    graph.wait_service(f"/consultant/{domain}")
-    graph.wait_service(f"/consultant/{domain}/manage")
+    graph.wait_service(contract.consultant_service(domain))
+    graph.wait_service(contract.manage_service(domain))
     return node
 
 
 def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
-    return graph.call(f"/consultant/{domain}/manage", {"op": "configure", "policy": {"policy": policy, **params}, "time": 0.0})
+    return graph.call(contract.manage_service(domain), {"op": "configure", "policy": {"policy": policy, **params},
+                                                        "time": 0.0})
 
 
 def test_info_and_latched_start_state(graph: Graph):
@@ -57,11 +60,11 @@ def test_info_and_latched_start_state(graph: Graph):
         "events": 0,
     }
     # A late joiner gets the start state (transient local).
-    states = graph.listen("/wm/state", STATE_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched /wm/state")
     assert states[0]["domain"] == "faces" and states[0]["queues"] == {}
     # Unconfigured, the consultant runs policy none: nothing is retained.
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
     assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": []}
     graph.spin_for(0.05)
@@ -70,8 +73,8 @@ def test_info_and_latched_start_state(graph: Graph):
 
 def test_query_ops_round_trip(graph: Graph):
     start(graph)
-    states = graph.listen("/wm/state", STATE_QOS)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     graph.spin_until(lambda: states, what="start state")
     assert configure(graph, "displacement", capacity=3) == {
         "memory": {"policy": "displacement", "capacity": 3},
@@ -85,7 +88,8 @@ def test_query_ops_round_trip(graph: Graph):
     }
     # affirm: encodes for each holder, in the given order, with cause/time/turn
     assert graph.call(
-        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0, "turn": 4}
+        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0,
+            "turn": 4}
     ) == {"holds": ["face1", "face3"]}
     graph.spin_until(lambda: len(events) == 2, what="affirm events")
     assert events == [
@@ -120,8 +124,8 @@ def test_query_ops_round_trip(graph: Graph):
 
 def test_configure_trims_and_decay_ticks(graph: Graph):
     start(graph)
-    states = graph.listen("/wm/state", STATE_QOS)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
 
     def new_events(n: int, what: str) -> list[dict]:
         """Wait until ``n`` more events arrived since the last call; those events."""
@@ -135,11 +139,13 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     seen = [0]
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
     graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"],
+                   "cause": "speaker", "time": 1.0})
     new_events(4, "encode events")
     # two ticks at once: both applied now, with their own times, in time order and
     # within a tick in entity order (face1 before face2, though face2 filled first)
-    assert graph.call(M, {"op": "decay", "ticks": [10.0, 20.0]}) == {"queues_changed": 2, "policy": "decay+displacement"}
+    ticks = {"origin": 0.0, "period": 10.0, "first": 1, "count": 2}
+    assert graph.call(M, {"op": "decay", "ticks": ticks}) == {"queues_changed": 2, "policy": "decay+displacement"}
     assert [(e["entity"], e["property"], e["cause"], e["time"]) for e in new_events(3, "decay events")] == [
         ("face1", "male", "decay", 10.0),
         ("face2", "female", "decay", 10.0),
@@ -147,12 +153,11 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     ]
     graph.spin_until(lambda: states.latest(time=20.0), what="state after decay")
     assert states.latest(time=20.0)["queues"] == {"face1": ["lab-coat"]}
-    # no ticks: nothing changes, no state
     n_states = len(states)
-    assert graph.call(M, {"op": "decay", "ticks": []})["queues_changed"] == 0
 
     # a lower capacity trims at once
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 21.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+                   "time": 21.0})
     new_events(2, "encode events")
     assert configure(graph, "displacement", capacity=1)["queues_changed"] == 1
     assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["glasses"]}
@@ -161,7 +166,8 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     ]
     # global-capacity victims: the oldest front across queues
     configure(graph, "global-capacity", global_capacity=2)
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker", "time": 22.0})
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker",
+                   "time": 22.0})
     assert graph.call(Q, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
     assert [(e["entity"], e["property"], e["cause"]) for e in new_events(3, "global-capacity events")] == [
         ("face2", "female", "speaker"), ("face2", "dark-hair", "speaker"), ("face1", "glasses", "global-capacity")
@@ -190,40 +196,52 @@ BAD_REQUESTS = [
     (Q, {"op": "affirm", "property": "male", "entities": ["face1", "face9"], "cause": "rr"}, "KnowledgeError", "face9"),
     (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "decay"}, "MessageError", "field 'cause'"),
     (Q, {"op": "affirm", "property": "male", "entities": ["face1"]}, "MessageError", "missing field 'cause'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError", "field 'time'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError", "field 'turn'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError",
+     "field 'time'"),
+    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError",
+     "field 'turn'"),
     (Q, {"op": "wm"}, "MessageError", "missing field 'entity'"),
     (Q, {"op": "wm", "entity": "face9"}, "KnowledgeError", "no entity 'face9'"),
     (Q, {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, "KnowledgeError", "face9"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError", "wings"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError", "field 'cause'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError", "field 'properties'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError", "field 'turn'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError",
+     "wings"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError",
+     "field 'cause'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError",
+     "field 'properties'"),
+    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError",
+     "field 'turn'"),
     (Q, {"op": "configure", "policy": {"policy": "none"}}, "MessageError", "unknown op 'configure'"),
     (M, {"op": "snapshot"}, "MessageError", "unknown op 'snapshot'"),
     (M, {"op": "configure"}, "MessageError", "missing field 'policy'"),
     (M, {"op": "configure", "policy": "none"}, "MessageError", "field 'policy': expected an object"),
     (M, {"op": "configure", "policy": {"policy": "forget-all"}}, "PolicyError", "unknown forgetting rule 'forget-all'"),
     (M, {"op": "configure", "policy": {"policy": "decay"}}, "PolicyError", "needs 'decay_period'"),
-    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError", "capacity must be >= 1"),
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError",
+     "capacity must be >= 1"),
     (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": "2"}}, "MessageError", "field 'capacity'"),
-    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError", "decay_period must be > 0"),
+    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError",
+     "decay_period must be > 0"),
     (M, {"op": "decay", "ticks": 10}, "MessageError", "field 'ticks'"),
-    (M, {"op": "decay", "ticks": [10, "x"]}, "MessageError", "field 'ticks'[1]"),
-    (M, {"op": "decay", "ticks": [20.0, 10.0]}, "MessageError", "must not decrease"),
+    (M, {"op": "decay", "ticks": [10.0, 20.0]}, "MessageError", "field 'ticks'"),
+    (M, {"op": "decay", "ticks": {"origin": 0.0, "period": 1.0, "first": 1, "count": 0}}, "MessageError",
+     "count must be >= 1"),
+    (M, {"op": "decay", "ticks": {"origin": 1e308, "period": 1.0, "first": 1, "count": 1}}, "MessageError",
+     "out of range"),
 ]
 
 
 def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     start(graph)
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker", "time": 1.0})
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+                   "time": 1.0})
     before = graph.call(Q, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
-    states = graph.listen("/wm/state", STATE_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched state")
     n_states = len(states)
-    events = graph.listen("/wm/events", EVENTS_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     for service, request, kind, text in BAD_REQUESTS:
         err = graph.call_error(service, request)
         assert err.kind == kind, (request, err)
@@ -242,27 +260,32 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
 def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     start(graph)
     configure(graph, "displacement", capacity=4)
-    results = graph.listen("/ltm/assert/result")
-    events = graph.listen("/wm/events", EVENTS_QOS)
-    states = graph.listen("/wm/state", STATE_QOS)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker", "time": 1.0})
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker",
+                   "time": 1.0})
     graph.spin_until(lambda: len(events) == 2, what="encode events")
 
     # a new entity joins the domain, last in entity order
-    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"})
+    face4 = {"domain": "faces", "entity": "face4", "properties": {"light-hair": 1, "female": 0.8}, "id": "a1"}
+    graph.publish(contract.LTM_ASSERT.name, face4)
     graph.spin_until(lambda: results, what="assert result")
     assert results[-1] == {
         "domain": "faces", "entity": "face4", "id": "a1", "ok": True, "new_entity": True,
         "updated": {"light-hair": 1.0, "female": 0.8}, "retracted": [],
     }
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face4"]
-    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1", "face4"]})["holds"] == ["face1", "face4"]
+    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1",
+                                                                                "face4"]})["holds"] == ["face1",
+                                                                                                        "face4"]
 
     # certainty 0 retracts; a retracted property in WM is forgotten (cause retract)
     graph.spin_until(lambda: states, what="state")
     n_states = len(states)
     events.clear_all()
-    graph.publish("/ltm/assert", {"domain": "faces", "entity": "face1", "properties": {"glasses": 0, "dark-hair": 0.2}})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face1", "properties": {"glasses": 0,
+                                                                                                  "dark-hair": 0.2}})
     graph.spin_until(lambda: len(results) == 2, what="second result")
     assert results[-1]["ok"] is True and results[-1]["new_entity"] is False and results[-1]["retracted"] == ["glasses"]
     graph.spin_until(lambda: events, what="retract event")
@@ -273,7 +296,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []
 
     # another domain's message is not ours: silence
-    graph.publish("/ltm/assert", {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
     # bad ones: error result, no change
     bad = [
         ("garbage", "not JSON"),
@@ -290,7 +313,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     n_events = len(events)
     for message, text in bad:
         count = len(results)
-        graph.publish("/ltm/assert", message)
+        graph.publish(contract.LTM_ASSERT.name, message)
         graph.spin_until(lambda: len(results) > count, what=f"error result for {message}")
         assert results[-1]["ok"] is False and text in results[-1]["error"], (message, results[-1])
     assert all(r.get("entity") != "obj9" for r in results)
@@ -306,11 +329,18 @@ def test_threshold_parameter(graph: Graph):
     assert node.set_parameters([Parameter("threshold", value=0.8)])[0].successful
     assert graph.call(Q, holds)["holds"] == ["face1"]
     assert graph.call(Q, {"op": "info"})["threshold"] == 0.8
-    for value in (1.5, -0.1, "high"):
+    for value in (1.5, -0.1):
         result = node.set_parameters([Parameter("threshold", value=value)])[0]
-        assert not result.successful and "threshold" in result.reason
-    assert node.set_parameters([Parameter("threshold", value=1)])[0].successful  # an integer is a number
-    assert node.get_parameter("threshold").value == 1
+        assert not result.successful and "threshold" in result.reason and "range" in result.reason
+    for value in ("high", 1):  # type changes are refused (the descriptor is statically typed)
+        result = node.set_parameters([Parameter("threshold", value=value)])[0]
+        assert not result.successful and "Wrong parameter type" in result.reason
+    result = node.set_parameters([Parameter("threshold", Parameter.Type.NOT_SET)])[0]
+    assert not result.successful and "cannot be undeclared" in result.reason
+    assert node.get_parameter("threshold").value == 0.8
+    described = node.describe_parameter("threshold")
+    assert (described.floating_point_range[0].from_value, described.floating_point_range[0].to_value) == (0.0, 1.0)
+    assert node.set_parameters([Parameter("threshold", value=1.0)])[0].successful  # the bound itself is in range
     assert graph.call(Q, holds)["holds"] == ["face1"]
 
 
@@ -344,7 +374,7 @@ def test_startup_errors(graph: Graph):
         graph.add(ConsultantNode, domain="faces", kb=str(DATA / "bad.yaml"))
     with pytest.raises(StartupError, match="'domain' is required"):
         graph.add(ConsultantNode, kb=KB)
-    with pytest.raises(StartupError, match="threshold"):
+    with pytest.raises(InvalidParameterValueException, match="threshold out of range"):
         graph.add(ConsultantNode, domain="faces", kb=KB, threshold=2.0)
 
 
@@ -363,7 +393,8 @@ def test_process_serves_and_exits_cleanly(graph: Graph):
     """The real ``main()``: a bad domain exits 2 with one error line; a good one serves
     another process and exits 0 on Ctrl-C."""
     bad = _consultant_process("-p", "domain:=shoes", "-p", f"kb:={KB}")
-    good = _consultant_process("-r", "__node:=consultant_proc", "-p", "domain:=procfaces", "-p", f"kb:={DATA / 'proc.yaml'}")
+    good = _consultant_process("-r", "__node:=consultant_proc", "-p", "domain:=procfaces", "-p",
+                               f"kb:={DATA / 'proc.yaml'}")
     try:
         _, err = bad.communicate(timeout=20)
         assert bad.returncode == 2
@@ -407,11 +438,17 @@ class Flaky(Node):
     def __init__(self):
         super().__init__("flaky")
         from rclpy.task import Future
+        from fsreg_ros import contract
+        from fsreg_ros.carrier import publisher, subscribe
         self.done = Future()
-        self.boom = self.create_timer(0.01, self.explode)
-        self.create_timer(0.2, lambda: self.done.done() or self.done.set_result("survived"))
-    def explode(self):
+        subscribe(self, contract.REG_REQUEST, self.explode)
+        self.pub = publisher(self, contract.REG_REQUEST)
+        self.boom = self.create_timer(0.05, self.send)
+        self.create_timer(0.5, lambda: self.done.done() or self.done.set_result("survived"))
+    def send(self):
         self.boom.cancel()
+        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7"}'))
+    def explode(self, data):
         raise RuntimeError("boom")
 
 async def survive(node):
@@ -434,6 +471,47 @@ def test_run_node_exit_codes():
                           timeout=30)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[0, 0, 1, 2] ['survived', 42]"
-    assert "a callback failed: RuntimeError: boom" in proc.stderr  # logged, and the node lived on
+    # logged with the topic and request id by the subscribe wrapper, and the node lived on
+    assert "reg/request (id 'r7'): internal error: RuntimeError: boom" in proc.stderr
     assert "the job failed" in proc.stderr and "cannot start: bad configuration" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+# ------------------------------------------------------------------ hostile input (issue 10 items 5, 6)
+@pytest.mark.parametrize(
+    "request_text, kind, fragment",
+    [
+        ('{"op": "affirm", "property": "male", "cause": "rr", "entities": ['
+         + ",".join(f'"e{i}"' for i in range(5000)) + "]}", "MessageError", "5000 items"),
+        ('{"op": "wm", "entity": "' + "z" * 1000 + '"}', "MessageError", "1000 characters"),
+        ('{"op": "wm", "entity": "\\ud800"}', "KnowledgeError", "no entity"),
+        ('{"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}',
+         "KnowledgeError", "wings"),
+        ('{"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": 1e999}',
+         "MessageError", "time"),
+        ('{"op": "holds", "property": "male", "entities": [' + "9" * 5000 + "]}", "MessageError", "not JSON"),
+        ('{"op": "' + "q" * 100_000 + '"}', "MessageError", "over the limit of 65536"),
+    ],
+    ids=["long-list", "long-name", "surrogate", "unknown-property", "infinite-time", "huge-int", "huge-message"],
+)
+def test_hostile_requests_are_answered_and_change_nothing(graph: Graph, request_text, kind, fragment):
+    start(graph)
+    configure(graph, "displacement", capacity=2)
+    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    before = graph.call(Q, {"op": "snapshot"})
+    err = graph.call_error(Q, request_text)
+    assert err.kind == kind and fragment in err.error, err.error
+    assert graph.call(Q, {"op": "snapshot"}) == before
+
+
+def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
+    start(graph)
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name)
+    big = {"domain": "faces", "entity": "x" * 300, "properties": {"male": 1.0}, "id": "a1"}
+    many = {"domain": "faces", "entity": "face9", "properties": {f"p{i}": 1.0 for i in range(1001)}, "id": "a2"}
+    graph.publish(contract.LTM_ASSERT.name, big)
+    graph.publish(contract.LTM_ASSERT.name, many)
+    graph.spin_until(lambda: results.latest(id="a1") and results.latest(id="a2"), 5.0, what="two rejections")
+    assert "300 characters" in results.latest(id="a1")["error"] and not results.latest(id="a1")["ok"]
+    assert "1001 items" in results.latest(id="a2")["error"]
+    assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3"]

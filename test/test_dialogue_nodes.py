@@ -13,6 +13,7 @@ import pytest
 
 from rosutil import Graph
 
+from fsreg_ros import contract
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.parser import ParserNode
 from fsreg_ros.nodes.reference_resolution import ReferenceResolutionNode
@@ -32,14 +33,14 @@ def graph(table1_path: Path):
         g.add(ParserNode, kb=kb)
         g.add(ReferenceResolutionNode, domains=["faces"])
         g.add(RegNode, domains=["faces"])
-        g.results = g.listen("/rr/result")
-        g.expressions = g.listen("/reg/expression")
-        g.call("/wm_manager/sync", {"time": 0.0}, timeout=15.0)
+        g.results = g.listen(contract.RR_RESULT.name)
+        g.expressions = g.listen(contract.REG_EXPRESSION.name)
+        g.call(contract.SYNC.name, {"time": 0.0}, timeout=15.0)
         yield g
 
 
 def snapshot(g: Graph) -> dict:
-    return g.call("/consultant/faces", {"op": "snapshot"})["queues"]
+    return g.call(contract.consultant_service("faces"), {"op": "snapshot"})["queues"]
 
 
 def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -> dict:
@@ -50,7 +51,8 @@ def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -
 
 
 def test_text_is_parsed_resolved_and_encoded(graph):
-    reply = ask(graph, "/dialogue/human", graph.results, {"id": "u1", "time": 1.0, "text": "the woman with glasses, says he"}, "u1")
+    reply = ask(graph, contract.HUMAN.name, graph.results, {"id": "u1", "time": 1.0,
+                                                            "text": "the woman with glasses, says he"}, "u1")
     assert reply["status"] == "resolved" and reply["resolved"] == "face2"
     assert reply["description"] == ["female", "glasses"]
     assert reply["unknown_words"] == ["says", "he"]
@@ -58,17 +60,17 @@ def test_text_is_parsed_resolved_and_encoded(graph):
 
 
 def test_ambiguous_and_no_match(graph):
-    reply = ask(graph, "/dialogue/human", graph.results, {"id": 7, "description": ["light-hair", "glasses"]}, 7)
+    reply = ask(graph, contract.HUMAN.name, graph.results, {"id": 7, "description": ["light-hair", "glasses"]}, 7)
     assert reply["status"] == "ambiguous"
     assert reply["resolved"] is None
     assert reply["candidates"] == ["face1", "face6", "face10", "face11", "face13"]
-    reply = ask(graph, "/dialogue/human", graph.results, {"id": 8, "text": "the purple giraffe"}, 8)
+    reply = ask(graph, contract.HUMAN.name, graph.results, {"id": 8, "text": "the purple giraffe"}, 8)
     assert reply["status"] == "no-match" and reply["candidates"] == []
     assert reply["unknown_words"] == ["purple", "giraffe"]
 
 
 def test_reg_expression_fields(graph):
-    reply = ask(graph, "/reg/request", graph.expressions, {"id": "r1", "target": "face5", "time": 2.0}, "r1")
+    reply = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "r1", "target": "face5", "time": 2.0}, "r1")
     assert reply["description"] == ["male", "dark-hair"] and reply["sources"] == ["ltm", "ltm"]
     assert reply["text"] == "the man with dark hair"
     assert reply["distinguishing"] is True and reply["distractors_left"] == []
@@ -77,10 +79,10 @@ def test_reg_expression_fields(graph):
 
 
 def test_repeated_id_is_answered_from_cache_without_encoding_twice(graph):
-    first = ask(graph, "/reg/request", graph.expressions, {"id": "dup", "target": "face3"}, "dup")
+    first = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "dup", "target": "face3"}, "dup")
     before = snapshot(graph)
     graph.expressions.clear_all()
-    again = ask(graph, "/reg/request", graph.expressions, {"id": "dup", "target": "face3"}, "dup")
+    again = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "dup", "target": "face3"}, "dup")
     assert again == first
     assert snapshot(graph) == before
 
@@ -102,16 +104,17 @@ def test_repeated_id_is_answered_from_cache_without_encoding_twice(graph):
 )
 def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragment):
     before = snapshot(graph)
-    graph.publish("/dialogue/human", message if isinstance(message, (dict, str)) else message)
+    graph.publish(contract.HUMAN.name, message if isinstance(message, (dict, str)) else message)
     key = message.get("id") if isinstance(message, dict) else None
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.results if fragment in (r.get("error") or ""))
     assert error.get("id") == key
     if "status" in error:
         assert error["status"] == "error"
     assert snapshot(graph) == before
     # still serving
-    ok = ask(graph, "/dialogue/human", graph.results, {"id": "after", "description": ["female", "hoodie"]}, "after")
+    ok = ask(graph, contract.HUMAN.name, graph.results, {"id": "after", "description": ["female", "hoodie"]}, "after")
     assert ok["resolved"] == "face3"
 
 
@@ -129,12 +132,13 @@ def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragmen
 )
 def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragment):
     before = snapshot(graph)
-    graph.publish("/reg/request", message)
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0, what=f"error {fragment!r}")
+    graph.publish(contract.REG_REQUEST.name, message)
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.expressions if fragment in (r.get("error") or ""))
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
     assert snapshot(graph) == before
-    ok = ask(graph, "/reg/request", graph.expressions, {"id": "fine", "target": "face2"}, "fine")
+    ok = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "fine", "target": "face2"}, "fine")
     assert ok["description"] == ["glasses", "female"]
 
 
@@ -149,8 +153,9 @@ def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragme
 )
 def test_bad_semantics_get_an_error_and_change_nothing(graph, message, fragment):
     before = snapshot(graph)
-    graph.publish("/dialogue/semantics", message)
-    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0, what=f"error {fragment!r}")
+    graph.publish(contract.SEMANTICS.name, message)
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0,
+                     what=f"error {fragment!r}")
     error = next(r for r in graph.results if fragment in (r.get("error") or ""))
     assert error["status"] == "error"
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
@@ -158,7 +163,8 @@ def test_bad_semantics_get_an_error_and_change_nothing(graph, message, fragment)
 
 
 def test_context_set_limits_distractors(graph):
-    reply = ask(graph, "/reg/request", graph.expressions, {"id": "c", "target": "face1", "context": ["face1", "face2", "face3"]}, "c")
+    reply = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "c", "target": "face1",
+                                                                      "context": ["face1", "face2", "face3"]}, "c")
     assert reply["description"] == ["light-hair"]
     assert reply["text"] == "the person with light hair"
 
@@ -173,7 +179,7 @@ def test_reg_parameters_are_validated(graph):
     assert not bad.successful and "wm_order" in bad.reason
     good = reg.set_parameters([Parameter("algorithm", value="full-brevity")])[0]
     assert good.successful
-    reply = ask(graph, "/reg/request", graph.expressions, {"id": "fb", "target": "face1"}, "fb")
+    reply = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "fb", "target": "face1"}, "fb")
     assert reply["algorithm"] == "full-brevity"
     assert reply["description"] == ["lab-coat", "glasses"]  # shortest distinguishing set
 
@@ -187,3 +193,119 @@ def test_clock_message_keeps_nanoseconds_below_one_second(seconds, expected):
 
     stamp = clock_message(seconds).clock
     assert (stamp.sec, stamp.nanosec) == expected
+
+
+# ------------------------------------------------------------------ request ids (issue 10 item 2)
+def test_a_reused_id_for_another_request_is_an_error_never_the_other_answer(graph):
+    first = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": 1, "target": "face1"}, 1)
+    assert first["target"] == "face1" and "error" not in first
+    before = snapshot(graph)
+    graph.expressions.clear_all()
+    other = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": 1, "target": "face2"}, 1)
+    assert other["kind"] == "IdConflict" and "already used for a different request" in other["error"]
+    assert "description" not in other
+    assert snapshot(graph) == before  # nothing ran
+    graph.expressions.clear_all()
+    again = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": 1, "target": "face1"}, 1)
+    assert again == first  # the cache kept the first answer
+    # the same for RR, where the id 1 and the string "1" are different ids
+    rr = ask(graph, contract.HUMAN.name, graph.results, {"id": 1, "description": ["female", "hoodie"]}, 1)
+    assert rr["resolved"] == "face3"
+    graph.results.clear_all()
+    clash = ask(graph, contract.HUMAN.name, graph.results, {"id": 1, "description": ["male"]}, 1)
+    assert clash["status"] == "error" and clash["kind"] == "IdConflict"
+    fresh = ask(graph, contract.HUMAN.name, graph.results, {"id": "1", "description": ["female", "hoodie"]}, "1")
+    assert fresh["resolved"] == "face3"
+
+
+def test_a_failed_answer_is_not_cached_and_a_retry_runs_again(table1_path):
+    """REG with no consultant: the request fails (not ready); once the consultant is up,
+    the same id is executed for real instead of getting the cached failure."""
+    with Graph() as g:
+        g.add(RegNode, domains=["faces"], ready_timeout=0.3, service_timeout=0.3)
+        inbox = g.listen(contract.REG_EXPRESSION.name)
+        failed = ask(g, contract.REG_REQUEST.name, inbox, {"id": "r", "target": "face5"}, "r")
+        assert "not ready" in failed["error"]
+        g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=str(table1_path))
+        g.add(WMManagerNode, domains=["faces"], policy="displacement", capacity=2)
+        g.call(contract.SYNC.name, {"time": 0.0}, timeout=15.0)
+        inbox.clear_all()
+        ok = ask(g, contract.REG_REQUEST.name, inbox, {"id": "r", "target": "face5"}, "r")
+        assert ok["description"] == ["male", "dark-hair"]
+
+
+def test_a_dead_consultant_fails_fast_for_the_requests_queued_behind(graph):
+    import time
+
+    reg = next(n for n in graph.nodes if isinstance(n, RegNode))
+    ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "warm", "target": "face2"}, "warm")
+    for port in reg.ports.values():
+        port.timeout = 0.5
+    graph.remove(next(n for n in graph.nodes if isinstance(n, ConsultantNode)))
+    started = time.monotonic()
+    for i in range(4):
+        graph.publish(contract.REG_REQUEST.name, {"id": f"q{i}", "target": "face1"})
+    graph.spin_until(lambda: all(graph.expressions.latest(id=f"q{i}") for i in range(4)), 10.0, what="4 answers")
+    elapsed = time.monotonic() - started
+    errors = [graph.expressions.latest(id=f"q{i}")["error"] for i in range(4)]
+    assert "no reply within 0.5 s" in errors[0]
+    assert all("failing fast" in e for e in errors[1:]), errors
+    assert elapsed < 1.5  # one timeout, not four
+
+
+# ------------------------------------------------------------------ hostile input (issue 10 items 5, 6)
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ('{"id": "h1", "target": "\\ud800"}', "no consultant knows entity"),  # a lone surrogate
+        ('{"id": "h2", "target": "face1", "time": 1e999}', "time"),  # not a finite number
+        ('{"id": ' + "9" * 5000 + ', "target": "face1"}', "not JSON"),  # an integer too long to read
+        ('{"id": "h4", "target": "' + "x" * 300 + '"}', "over the limit of 256"),
+        ('{"id": "h5", "target": "face1", "context": [' + ",".join(['"face2"'] * 1001) + "]}", "1001 items"),
+        ('{"id": "h6", "target": "' + "y" * 70000 + '"}', "over the limit of 65536"),
+    ],
+)
+def test_hostile_reg_requests_are_answered_and_change_nothing(graph, text, fragment):
+    before = snapshot(graph)
+    graph.publish(contract.REG_REQUEST.name, text)
+    graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.expressions), 10.0,
+                     what=f"error {fragment!r}")
+    assert snapshot(graph) == before
+    ok = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "fine", "target": "face2"}, "fine")
+    assert ok["description"] == ["glasses", "female"]
+
+
+def test_answer_cache_is_bounded_in_bytes():
+    from fsreg_ros.nodes.asking import AnswerCache
+
+    cache = AnswerCache(max_entries=1000, max_bytes=10_000)
+    for i in range(100):
+        cache.put({"id": i}, "x" * 500)
+    assert cache.bytes <= 10_000 and len(cache) == 10_000 // (500 + len("int:99") + AnswerCache.OVERHEAD)
+    assert cache.get({"id": 99}) == ("x" * 500, False) and cache.get({"id": 0}) == (None, False)
+    assert cache.get({"id": 99, "target": "other"}) == (None, True)
+    cache.put({"id": "big"}, "y" * 20_000)  # larger than the whole budget: not kept
+    assert cache.get({"id": "big"}) == (None, False) and cache.bytes <= 10_000
+
+
+def test_reference_resolution_without_domains_exits_2_in_one_line():
+    import os
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "fsreg_ros.nodes.reference_resolution"], env=dict(os.environ),
+                          capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2
+    assert "cannot start: parameter 'domains' must name at least one consultant domain" in proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_sim_time_node_without_clock_warns_once_naming_the_topic(capfd):
+    from fsreg_ros.nodes.common import watch_clock
+
+    with Graph(namespace="quiet") as g:
+        node = g.add(ParserNode, use_sim_time=True, name="quiet_parser")
+        watch_clock(node, silence=0.3)
+        g.spin_for(1.6)
+    err = capfd.readouterr().err
+    assert err.count("nothing has moved /quiet/clock for 0.3 s") == 1

@@ -1,12 +1,32 @@
-"""The test environment keeps ROS 2 traffic on this machine."""
+"""The environment check every node runs: DDS discovery must stay on this machine."""
 
-import os
+import pytest
 
-
-def test_discovery_range_is_localhost():
-    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+from fsreg_ros.nodes.common import check_discovery_range
 
 
-def test_domain_id_and_log_dir_are_set():
-    assert 0 <= int(os.environ["ROS_DOMAIN_ID"]) <= 232
-    assert os.path.isdir(os.environ["ROS_LOG_DIR"]) or not os.path.exists(os.environ["ROS_LOG_DIR"])
+class Recorder:
+    """A stand-in logger that keeps its warnings."""
+
+    def __init__(self) -> None:
+        self.warnings: list[str] = []
+
+    def warning(self, text: str) -> None:
+        self.warnings.append(text)
+
+
+@pytest.mark.parametrize("value", [None, "", "SUBNET", "SYSTEM_DEFAULT", "localhost"])
+def test_a_wider_or_unset_discovery_range_is_warned_about(monkeypatch, value):
+    if value is None:
+        monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    else:
+        monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", value)
+    logger = Recorder()
+    assert check_discovery_range(logger) is False
+    assert len(logger.warnings) == 1 and "ROS_AUTOMATIC_DISCOVERY_RANGE" in logger.warnings[0]
+
+
+def test_localhost_is_accepted_silently(monkeypatch):
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    logger = Recorder()
+    assert check_discovery_range(logger) is True and logger.warnings == []

@@ -6,17 +6,18 @@ import math
 
 import pytest
 
+from fsreg_ros.core.consultant import Consultant
 from fsreg_ros.core.forgetting import (
+    BOUNDS,
     NONE,
-    TIME_EPSILON,
-    DecayClock,
     ForgettingPolicy,
     PolicyError,
-    WMManager,
+    check_parameter,
     merge_settings,
     parse_rules,
 )
 from fsreg_ros.core.memory import WMBuffer
+from fsreg_ros.core.wm_manager import WMManager
 
 
 def keys(events):
@@ -91,11 +92,38 @@ def test_unused_parameters_are_kept_but_not_reported():
         ("global-capacity", {"global_capacity": False}, "global_capacity must be a whole number"),
         # Parameters are validated even when the policy does not use them.
         ("none", {"capacity": 0}, "capacity must be >= 1"),
+        # Bounds (BOUNDS): CPU below, float exactness and ROS Duration above.
+        ("decay", {"decay_period": 0.001}, "decay_period must be >= 0.01 seconds"),
+        ("decay", {"decay_period": 1e300}, "decay_period must be <= 1e[+]06 seconds"),
+        ("displacement", {"capacity": 10_001}, "capacity must be <= 10000"),
+        ("global-capacity", {"global_capacity": 10**6 + 1}, "global_capacity must be <= 1e[+]06"),
+        ("displacement-random", {"capacity": 1, "seed": -1}, "seed must be >= 0"),
+        ("displacement+displacement-lfu", {"capacity": 1}, "choose one displacement rule"),
     ],
 )
 def test_parse_errors(policy, params, message):
     with pytest.raises(PolicyError, match=message):
         ForgettingPolicy.parse(policy, **params)
+
+
+def test_bounds_are_inclusive_and_shared():
+    for name, (low, high) in BOUNDS.items():
+        check_parameter(name, low)
+        check_parameter(name, high)
+    with pytest.raises(PolicyError, match="unknown forgetting parameter 'speed'"):
+        check_parameter("speed", 1)
+
+
+def test_new_rules_report_their_parameters():
+    p = ForgettingPolicy.parse("displacement-random+similarity", capacity=2)
+    assert p.to_json() == {"policy": "displacement-random+similarity", "capacity": 2, "seed": 0}
+    assert p.limits().victim == "random" and p.limits().similarity and p.limits().seed == 0
+    lfu = ForgettingPolicy.parse("displacement-lfu", capacity=3, seed=5)
+    assert lfu.to_json() == {"policy": "displacement-lfu", "capacity": 3}
+    assert lfu.settings() == {"policy": "displacement-lfu", "capacity": 3, "seed": 5}
+    assert ForgettingPolicy.from_settings(lfu.settings()) == lfu
+    with pytest.raises(PolicyError, match="unknown memory setting 'speed'"):
+        ForgettingPolicy.from_settings({"policy": "none", "speed": 1})
 
 
 def test_policy_error_is_a_value_error():
@@ -220,53 +248,6 @@ def test_decay_plus_displacement():
     ]
 
 
-# ------------------------------------------------------------ decay clock
-def test_decay_clock_is_idempotent():
-    clock = DecayClock(10.0)
-    assert clock.due(9.99) == []
-    assert clock.due(10.0) == [10.0]
-    assert clock.due(10.0) == []
-    assert clock.due(15.0) == []
-    assert clock.next_tick() == 20.0
-    assert clock.due(35.0) == [20.0, 30.0]
-    assert clock.due(20.0) == []  # asking about the past never re-applies
-
-
-def test_decay_clock_jump_over_many_periods_yields_every_tick():
-    clock = DecayClock(2.5)
-    ticks = clock.due(1000.0)
-    assert len(ticks) == 400
-    assert ticks[0] == 2.5 and ticks[-1] == 1000.0
-    assert ticks == [k * 2.5 for k in range(1, 401)]
-
-
-def test_decay_clock_slack_of_one_nanosecond():
-    assert DecayClock(10.0).due(10.0 - 0.5 * TIME_EPSILON) == [10.0]
-    assert DecayClock(10.0).due(10.0 - 10 * TIME_EPSILON) == []
-    # 3 * 0.1 = 0.30000000000000004 > 0.3, but within the slack: three ticks at t = 0.3.
-    assert len(DecayClock(0.1).due(0.3)) == 3
-    assert DecayClock(0.1).due(0.3)[-1] == 3 * 0.1
-
-
-@pytest.mark.parametrize("period, now, count", [(0.1, 567.899999999, 5679), (0.3, 9253.199999998998, 30844)])
-def test_decay_clock_uses_the_spec_test_literally(period, now, count):
-    # k * delta <= T + 1e-9 holds for k = count, although floor((T + 1e-9) / delta)
-    # rounds down to count - 1 for these values.
-    assert count * period <= now + TIME_EPSILON
-    assert math.floor((now + TIME_EPSILON) / period) == count - 1
-    ticks = DecayClock(period).due(now)
-    assert len(ticks) == count and ticks[-1] == count * period
-
-
-def test_decay_clock_restart():
-    clock = DecayClock(10.0)
-    assert clock.due(25.0) == [10.0, 20.0]
-    clock.restart(4.0, 25.0)
-    assert clock.next_tick() == 29.0
-    assert clock.due(28.9) == []
-    assert clock.due(37.0) == [29.0, 33.0, 37.0]
-
-
 # -------------------------------------------------------------- WM Manager
 def test_manager_applies_decay_ticks_at_k_delta_from_zero():
     manager, buffer, events = managed(ForgettingPolicy.parse("decay", decay_period=10.0))
@@ -366,7 +347,7 @@ def test_switching_to_global_capacity_trims_globally_oldest():
         ("forget", "f1", "a", "global-capacity", 3.0, None),
         ("forget", "f1", "b", "global-capacity", 3.0, None),
     ]
-    assert manager.clocks == {}
+    assert manager.domains["faces"].schedule is None
 
 
 def test_switching_to_none_resets_and_stops_retaining():
@@ -413,3 +394,42 @@ def test_domains_are_independent_pools():
         "faces": {"policy": "decay", "decay_period": 10.0},
         "objects": {"policy": "displacement", "capacity": 1},
     }
+
+
+# ------------------------------------------------------------ new rules (issue 12)
+def test_lfu_displaces_the_least_frequently_encoded_ties_to_lru():
+    _, buffer, events = managed(ForgettingPolicy.parse("displacement-lfu", capacity=2))
+    buffer.encode("f1", ["a", "a", "b", "c"], "rr", 1.0)  # a twice, b once: c displaces b
+    assert buffer.queue("f1") == ("a", "c")
+    buffer.encode("f1", ["d"], "rr", 2.0)  # c once (LRU among the once-encoded): out
+    assert buffer.queue("f1") == ("a", "d")
+    assert forgets(events) == [("forget", "f1", "b", "displacement", 1.0, None),
+                               ("forget", "f1", "c", "displacement", 2.0, None)]
+
+
+def test_random_displacement_is_seeded_and_reproducible():
+    def run(seed):
+        _, buffer, events = managed(ForgettingPolicy.parse("displacement-random", capacity=2, seed=seed))
+        for i in range(30):
+            buffer.encode(f"f{i % 3}", [f"p{i % 7}"], "rr", float(i))
+        return keys(events)
+
+    assert run(1) == run(1)
+    assert run(1) != run(2)
+    _, buffer, _ = managed(ForgettingPolicy.parse("displacement-random", capacity=1, seed=0))
+    buffer.encode("f1", ["a", "b"], "rr", 0.0)
+    assert buffer.queue("f1") == ("b",)  # never the property just encoded
+
+
+def test_similarity_displaces_other_values_of_the_attribute():
+    _, buffer, events = managed(ForgettingPolicy.parse("similarity"))
+    buffer.encode("f1", ["colour=red", "size=big", "glasses", "colour=blue"], "speaker", 1.0)
+    assert buffer.queue("f1") == ("size=big", "glasses", "colour=blue")
+    assert forgets(events) == [("forget", "f1", "colour=red", "similarity", 1.0, None)]
+    declared = WMBuffer("faces", attributes={"light-hair": "hair", "dark-hair": "hair"})
+    WMManager().manage(declared, ForgettingPolicy.parse("similarity"))
+    declared.encode("f1", ["light-hair", "glasses", "dark-hair"], "speaker", 1.0)
+    assert declared.queue("f1") == ("glasses", "dark-hair")
+    consultant = Consultant("faces", {"f1": {"light-hair": 1.0}}, ["light-hair", "dark-hair"],
+                            attributes={"light-hair": "hair", "dark-hair": "hair"})
+    assert consultant.wm.attributes == {"light-hair": "hair", "dark-hair": "hair"}

@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
-from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager
+from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import (
     ALGORITHMS,
     Expression,

@@ -16,6 +16,7 @@ import yaml
 
 from rosutil import Graph
 
+from fsreg_ros import contract
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
@@ -96,6 +97,36 @@ def test_two_domains_each_keep_their_own_pool(tmp_path):
     assert robot[5]["domain"] == "objects"
 
 
+def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(table1_path, tmp_path):
+    """Two whole graphs in one process and one executor, under /robot1 and /robot2 on the
+    same ROS_DOMAIN_ID, each replaying a different dialogue with its own clock (the
+    namespaced /clock remap): each result equals the simulator's for its own scenario."""
+    second = DATA / "two_domains.yaml"
+    options = Options(memory={"policy": "decay"})
+    with Graph(namespace="robot1") as g1:
+        g2 = Graph(namespace="robot2", context=g1.context, executor=g1.executor)
+        try:
+            (tmp_path / "r1").mkdir()
+            (tmp_path / "r2").mkdir()
+            p1 = start_graph(g1, table1_path, options, tmp_path / "r1")
+            p2 = start_graph(g2, second, Options(), tmp_path / "r2")
+            assert p1.get_fully_qualified_name() == "/robot1/dialogue_player"
+            assert p1.resolve_topic_name("/clock") == "/robot1/clock"
+            t1, t2 = g1.executor.create_task(p1.play()), g1.executor.create_task(p2.play())
+            g1.spin_until(lambda: t1.done() and t2.done(), 90.0, what="both players")
+            r1, r2 = t1.result(), t2.result()
+            # Each graph's consultants saw only their own dialogue.
+            faces1 = g1.call("consultant/faces", {"op": "info"})["entities"]
+            objects2 = g2.call("consultant/objects", {"op": "info"})["entities"]
+            assert g1.probe.count_publishers("/robot1/rr/result") == 2  # RR + parser (errors), not robot2's
+        finally:
+            g2.close()
+    assert dumps(r1) == dumps(simulate(load_scenario(table1_path), options))
+    assert dumps(r2) == dumps(simulate(load_scenario(second), Options()))
+    assert faces1 == list(load_scenario(table1_path).domains["faces"].entities)
+    assert objects2 == list(load_scenario(second).domains["objects"].entities)
+
+
 def random_scenario(seed: int) -> dict:
     """A random scenario in the SPEC section 5 schema (valid by construction)."""
     rng = random.Random(seed)
@@ -152,7 +183,8 @@ def test_live_policy_change_mid_dialogue(table1_path, tmp_path):
     for turn in scenario.dialogue:
         expected.append(sim.play(turn))
         if turn.index == switch_after:
-            sim.manager.set_policy("faces", ForgettingPolicy.parse("displacement", capacity=2, decay_period=10.0), turn.time)
+            policy = ForgettingPolicy.parse("displacement", capacity=2, decay_period=10.0)
+            sim.manager.set_policy("faces", policy, turn.time)
     assert records == expected
     # The switch changed behaviour: turn 11 now describes face1 as under displacement.
     assert records[11]["wm_before"] != simulate(scenario, options)["turns"][11]["wm_before"]
@@ -173,7 +205,7 @@ def test_invalid_live_parameter_is_rejected_and_changes_nothing(table1_path, tmp
             result = manager.set_parameters([Parameter(name, value=value)])
             assert not result[0].successful
             assert fragment in result[0].reason
-        reply = g.call("/wm_manager/status", {})
+        reply = g.call(contract.STATUS.name, {})
         assert reply["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}
 
 

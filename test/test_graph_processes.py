@@ -7,7 +7,6 @@ and a runner that is SIGKILLed leave no processes behind.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -82,9 +81,38 @@ def test_fsreg_graph_comparison_json_and_traces_equal_fsreg_sim(table1_path, tmp
         assert (tmp_path / "graph" / name).read_bytes() == (tmp_path / "sim" / name).read_bytes()
 
 
+def test_two_namespaced_fsreg_graphs_run_side_by_side_on_one_domain(table1_path):
+    """``fsreg-graph --namespace`` twice at once, same ROS_DOMAIN_ID, different policies:
+    each run's nodes (and clock) live under their own namespace, and each output equals
+    the simulator's for its own policy."""
+    runs = {
+        ns: subprocess.Popen(
+            [str(BIN / "fsreg-graph"), str(table1_path), "--policy", policy, "--json", "--namespace", ns],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        for ns, policy in (("robot1", "decay"), ("robot2", "displacement"))
+    }
+    outputs = {}
+    for ns, proc in runs.items():
+        out, err = proc.communicate(timeout=240)
+        assert proc.returncode == 0, err
+        outputs[ns] = out
+    scenario = load_scenario(table1_path)
+    assert outputs["robot1"] == dumps(simulate(scenario, Options(memory={"policy": "decay"})))
+    assert outputs["robot2"] == dumps(simulate(scenario, Options(memory={"policy": "displacement"})))
+    assert outputs["robot1"] != outputs["robot2"]
+
+
+def test_fsreg_graph_rejects_a_bad_namespace():
+    proc = subprocess.run([str(BIN / "fsreg-graph"), "x.yaml", "--namespace", "9lives"], capture_output=True,
+                          text=True, timeout=30)
+    assert proc.returncode == 2 and "--namespace" in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_fsreg_graph_bad_scenario_fails_before_starting_anything(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("domains: {faces: {preference: [a], entities: {e: [a]}}}\ndialogue:\n  - {time: 1, speaker: robot}\n")
+    bad.write_text("domains: {faces: {preference: [a], entities: {e: [a]}}}\n"
+                   "dialogue:\n  - {time: 1, speaker: robot}\n")
     proc = subprocess.run([str(BIN / "fsreg-graph"), str(bad)], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "bad.yaml" in proc.stderr and "dialogue[0]" in proc.stderr

@@ -5,7 +5,13 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core.memory import ENCODE_CAUSES, FORGET_CAUSES, WMBuffer, WMEvent
+from fsreg_ros.core.decay import TickRun
+from fsreg_ros.core.memory import ENCODE_CAUSES, FORGET_CAUSES, UNLIMITED, WMBuffer, WMEvent
+
+
+def ticks(*times: float) -> TickRun:
+    """Consecutive ticks on the 10 s grid, e.g. ticks(20.0, 30.0)."""
+    return TickRun(0.0, 10.0, int(times[0] // 10), len(times))
 
 
 def keys(events):
@@ -53,7 +59,8 @@ def test_encode_each_is_encode_per_entity_in_order():
     ev2: list = []
     policy = ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=4)
     b1, b2 = WMBuffer("d", ev1.append), WMBuffer("d", ev2.append)
-    b1.policy = b2.policy = policy
+    b1.set_limits(policy.limits(), 0.0)
+    b2.set_limits(policy.limits(), 0.0)
     for prop in ["p", "q", "r", "p"]:
         b1.encode_each(["x", "y", "z"], prop, "rr", 1.0, 2)
         for entity in ["x", "y", "z"]:
@@ -91,7 +98,7 @@ def test_reads_never_refresh_recency(buf):
         assert buf.queue("f1") == ("a", "b", "c")
         assert buf.length("f1") == 3
         buf.snapshot()
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     assert buf.queue("f1") == ("b", "c")  # "a" is still the LRU one despite the reads
     assert [e.op for e in buf.events].count("encode") == 3
 
@@ -102,7 +109,7 @@ def test_decay_tick_pops_the_front_of_every_nonempty_queue(buf):
     buf.encode("f2", ["c"], "rr", 0.0)
     buf.encode("f3", ["d", "e", "f"], "rr", 0.0)
     buf.events.clear()
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     assert buf.snapshot() == {"f1": ["b"], "f3": ["e", "f"]}
     assert sorted(keys(buf.events)) == sorted(
         [
@@ -115,7 +122,7 @@ def test_decay_tick_pops_the_front_of_every_nonempty_queue(buf):
 
 def test_more_ticks_than_properties_empty_the_queue(buf):
     buf.encode("f1", ["a", "b"], "rr", 0.0)
-    buf.decay([10.0, 20.0, 30.0, 40.0])
+    buf.decay(ticks(10.0, 20.0, 30.0, 40.0))
     assert buf.queue("f1") == ()
     assert len(buf) == 0
     assert keys(buf.events)[2:] == [
@@ -126,8 +133,8 @@ def test_more_ticks_than_properties_empty_the_queue(buf):
 
 def test_lazy_decay_events_carry_the_tick_times(buf):
     buf.encode("f1", ["a", "b", "c"], "rr", 0.0)
-    buf.decay([10.0])
-    buf.decay([20.0])
+    buf.decay(ticks(10.0))
+    buf.decay(ticks(20.0))
     # Nothing touched f1 until now; its catch-up reports each tick's own time.
     buf.encode("f1", ["d"], "speaker", 25.0, 4)
     assert keys(buf.events)[3:] == [
@@ -140,33 +147,33 @@ def test_lazy_decay_events_carry_the_tick_times(buf):
 
 def test_tick_before_a_queue_exists_does_not_touch_it_later(buf):
     buf.encode("f1", ["a"], "rr", 0.0)
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     buf.encode("f2", ["x", "y"], "rr", 11.0)  # f2 was empty at the tick
     buf.encode("f1", ["b"], "rr", 12.0)  # f1's "a" went at 10, "b" is new
     assert buf.snapshot() == {"f2": ["x", "y"], "f1": ["b"]}
-    buf.decay([20.0])
+    buf.decay(ticks(20.0))
     assert buf.snapshot() == {"f2": ["y"]}
 
 
 def test_queue_emptied_then_refilled_between_ticks(buf):
     buf.encode("f1", ["a"], "rr", 0.0)
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     assert buf.queue("f1") == ()
     buf.encode("f1", ["b", "c"], "rr", 12.0)
-    buf.decay([20.0])
+    buf.decay(ticks(20.0))
     assert buf.queue("f1") == ("c",)
 
 
 def test_tick_times_stay_right_across_flushes(buf):
     buf.encode("f1", ["a", "b", "c"], "rr", 0.0)
     buf.encode("f2", ["x"], "rr", 0.0)
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     assert buf.snapshot() == {"f1": ["b", "c"]}  # flush: f2 emptied at 10
-    buf.decay([20.0, 30.0])
+    buf.decay(ticks(20.0, 30.0))
     buf.encode("f2", ["y"], "rr", 31.0)  # f2 was empty through 20 and 30
-    buf.decay([40.0])
+    buf.decay(ticks(40.0))
     assert len(buf) == 0  # flush again
-    buf.decay([50.0])
+    buf.decay(ticks(50.0))
     buf.encode("f1", ["d"], "rr", 51.0)
     decay = [(k[1], k[2], k[4]) for k in keys(buf.events) if k[3] == "decay"]
     assert sorted(decay) == [
@@ -182,7 +189,7 @@ def test_tick_times_stay_right_across_flushes(buf):
 def test_len_counts_after_owed_decay(buf):
     buf.encode("f1", ["a", "b"], "rr", 0.0)
     buf.encode("f2", ["c"], "rr", 0.0)
-    buf.decay([10.0])
+    buf.decay(ticks(10.0))
     assert len(buf) == 1
     assert buf.nonempty_entities() == ["f1"]
 
@@ -210,7 +217,7 @@ def test_pop_front_remove_and_clear(buf):
 
 
 def test_policy_none_stores_nothing_and_emits_nothing(buf):
-    buf.policy = ForgettingPolicy.parse("none")
+    buf.set_limits(ForgettingPolicy.parse("none").limits(), 0.0)
     assert not buf.retains
     buf.encode("f1", ["a", "b"], "speaker", 0.0)
     buf.encode_each(["f1", "f2"], "a", "rr", 0.0)
@@ -220,17 +227,17 @@ def test_policy_none_stores_nothing_and_emits_nothing(buf):
 
 
 def test_unmanaged_buffer_keeps_everything(buf):
-    assert buf.policy is None and buf.retains
+    assert buf.limits == UNLIMITED and buf.retains
     buf.encode("f1", [f"p{i}" for i in range(50)], "rr", 0.0)
     assert buf.length("f1") == 50
 
 
 def test_no_sink_is_fine():
     buffer = WMBuffer("d")
-    buffer.policy = ForgettingPolicy.parse("displacement", capacity=1)
+    buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=1).limits(), 0.0)
     buffer.encode("x", ["a", "b"], "rr", 0.0)
     buffer.encode_each(["x", "y"], "c", "rr", 0.0)
-    buffer.decay([1.0])
+    buffer.decay(TickRun.single(1.0))
     assert buffer.snapshot() == {}
 
 
@@ -246,7 +253,9 @@ def test_event_json_and_causes():
         "turn": None,
     }
     assert set(ENCODE_CAUSES) == {"speaker", "rr", "reg-distractor"}
-    assert set(FORGET_CAUSES) == {"decay", "displacement", "global-capacity", "reset", "retract"}
+    assert set(FORGET_CAUSES) == {
+        "decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"
+    }
 
 
 def test_hot_path_events_equal_constructed_ones(buf):

@@ -1,5 +1,5 @@
 """Packaging: the core is ROS-free, colcon installs every node where `ros2 run` looks,
-and the launch file names only real executables with their parameters."""
+and the launch file builds the graph of :mod:`fsreg_ros.graph_spec`."""
 
 from __future__ import annotations
 
@@ -53,38 +53,58 @@ def test_every_node_is_a_console_script_with_a_main():
         assert callable(getattr(mod, func))
 
 
-def test_launch_file_names_declared_executables_with_their_parameters():
-    tree = ast.parse((REPO / "launch" / "fsreg.launch.py").read_text())
-    constants = {
-        t.id: ast.literal_eval(n.value)
-        for n in tree.body
-        if isinstance(n, ast.Assign)
-        for t in n.targets
-        if isinstance(t, ast.Name) and isinstance(n.value, ast.Constant)
+class _Recorded:
+    """Stand-in for a launch / launch_ros class: records its arguments."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
+
+
+class _Config(_Recorded):
+    def perform(self, context) -> str:
+        return context[self.args[0]]
+
+
+def _launch_nodes(monkeypatch, given: dict) -> list:
+    """Run launch/fsreg.launch.py with stand-ins for launch/launch_ros; return its Node objects."""
+    import types
+
+    modules = {
+        "launch": types.SimpleNamespace(LaunchDescription=lambda entities: entities),
+        "launch.actions": types.SimpleNamespace(DeclareLaunchArgument=_Recorded, OpaqueFunction=_Recorded),
+        "launch.substitutions": types.SimpleNamespace(LaunchConfiguration=_Config),
+        "launch_ros": types.SimpleNamespace(),
+        "launch_ros.actions": types.SimpleNamespace(Node=_Recorded),
     }
+    for name, module in modules.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    namespace: dict = {}
+    exec(compile((REPO / "launch" / "fsreg.launch.py").read_text(), "fsreg.launch.py", "exec"), namespace)
+    entities = namespace["generate_launch_description"]()
+    context = {a.args[0]: a.kwargs["default_value"] for a in entities if isinstance(a, _Recorded) and a.args}
+    context.update(given)
+    opaque = [e for e in entities if isinstance(e, _Recorded) and "function" in e.kwargs]
+    assert len(opaque) == 1
+    return opaque[0].kwargs["function"](context)
 
-    def value(node):
-        return constants[node.id] if isinstance(node, ast.Name) else ast.literal_eval(node)
 
-    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "Node"]
-    assert calls
-    seen = {}
-    for call in calls:
-        kwargs = {k.arg: k.value for k in call.keywords}
-        assert value(kwargs["package"]) == "fsreg_ros"
-        exe = value(kwargs["executable"])
-        params = set()
-        for d in ast.walk(kwargs["parameters"]):
-            if isinstance(d, ast.Dict):
-                params |= {ast.literal_eval(k) for k in d.keys if k is not None}
-        seen[exe] = params
-    assert set(seen) == {"consultant", "wm_manager", "parser", "reference_resolution", "reg"}
-    assert set(seen) <= set(setup_entry_points())
-    assert {"domain", "kb"} <= seen["consultant"]
-    assert {"domains", "policy", "decay_period", "capacity", "global_capacity"} <= seen["wm_manager"]
-    assert {"domains", "algorithm", "wm_order"} <= seen["reg"]
-    assert {"domains"} <= seen["reference_resolution"]
-    assert {"kb"} <= seen["parser"]
+def test_launch_file_builds_the_graph_spec(monkeypatch):
+    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.graph_spec import node_specs, policy_settings
+
+    given = {"kb": "/tmp/kb.yaml", "domains": "faces, objects", "policy": "displacement", "capacity": "3",
+             "namespace": "robot1", "use_sim_time": "true"}
+    nodes = _launch_nodes(monkeypatch, given)
+    policy = policy_settings(ForgettingPolicy.parse("displacement", decay_period=10.0, capacity=3, global_capacity=6))
+    expected = node_specs("/tmp/kb.yaml", ["faces", "objects"], {"faces": policy, "objects": policy},
+                          use_sim_time=True, algorithm="auto", wm_order="lru-first")
+    got = [(n.kwargs["executable"], n.kwargs["name"], n.kwargs["parameters"]) for n in nodes]
+    assert got == [(s.executable, s.name, [s.parameters]) for s in expected]
+    assert {n.kwargs["package"] for n in nodes} == {"fsreg_ros"}
+    assert {n.kwargs["executable"] for n in nodes} <= set(setup_entry_points())
+    assert {n.kwargs["namespace"] for n in nodes} == {"/robot1"}
+    assert all(n.kwargs["remappings"] == [("/clock", "/robot1/clock")] for n in nodes)
+    assert got[2][2][0]["faces.policy"] == "displacement" and got[2][2][0]["faces.capacity"] == 3
 
 
 def test_params_files_name_real_nodes():
@@ -105,7 +125,8 @@ def test_colcon_build_installs_every_executable(tmp_path):
         colcon = Path(shutil.which("colcon") or "")
     assert colcon.is_file(), "colcon not installed (requirements-dev.txt)"
     src = tmp_path / "src" / "fsreg_ros"
-    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "__pycache__", "*.egg-info"))
+    ignore = shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "__pycache__", "*.egg-info")
+    shutil.copytree(REPO, src, ignore=ignore)
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     proc = subprocess.run(
         [str(colcon), "build", "--base-paths", "src", "--event-handlers", "console_direct-"],
@@ -133,3 +154,51 @@ def test_colcon_build_installs_every_executable(tmp_path):
     assert run.returncode == 2, run.stdout + run.stderr
     assert "none.yaml" in run.stdout + run.stderr
     assert "Traceback" not in run.stdout + run.stderr
+
+
+def test_the_docs_message_table_is_the_contracts():
+    from fsreg_ros import contract
+
+    text = (REPO / "docs" / "design.md").read_text()
+    section = text[text.index("## Messages"):text.index("## Forgetting without races")]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert rows == contract.message_table()
+    assert any("`wm/state`" in row and "`events`" in row for row in rows)
+
+
+def test_no_topic_or_service_literal_outside_the_contract():
+    names = [t.name for t in __import__("fsreg_ros.contract", fromlist=["TOPICS"]).TOPICS]
+    names += ["wm_manager/sync", "wm_manager/status"]
+    for path in (REPO / "fsreg_ros").rglob("*.py"):
+        if path.name == "contract.py":
+            continue
+        text = path.read_text()
+        for name in names:
+            assert f'"{name}"' not in text and f'"/{name}"' not in text, f"{path}: {name}"
+
+
+def test_readme_topic_pub_examples_fit_the_contract():
+    """Every ``ros2 topic pub`` line of the README publishes a valid message with a fresh id."""
+    import shlex
+
+    import yaml
+
+    from fsreg_ros import contract
+
+    topics = {"/" + t.name: t for t in contract.TOPICS}
+    ids = []
+    lines = [line for line in (REPO / "README.md").read_text().splitlines() if line.startswith("ros2 topic pub")]
+    assert lines
+    for line in lines:
+        words = shlex.split(line)
+        assert "--once" in words and "-w" in words  # waits for a subscriber, so the message is not lost
+        topic = next(w for w in words if w.startswith("/"))
+        data = yaml.safe_load(words[-1])["data"]
+        import json
+
+        message = json.loads(data)
+        schema = topics[topic].schema
+        models = getattr(schema, "__args__", None) or (schema,)
+        contract.check(models[0], message)
+        ids.append(message["id"])
+    assert len(ids) == len(set(ids))

@@ -9,8 +9,10 @@ from collections import Counter
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fsreg_ros.core.decay import TickRun
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
-from fsreg_ros.core.forgetting import RULES, ForgettingPolicy, WMManager
+from fsreg_ros.core.forgetting import DISPLACEMENT, RULES, ForgettingPolicy
+from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate
 from fsreg_ros.core.memory import WMBuffer
 
@@ -30,21 +32,28 @@ FAST = settings(
     suppress_health_check=[HealthCheck.too_slow],
 )
 ENTITIES = ["e0", "e1", "e2", "e3"]
-PROPS = ["p0", "p1", "p2", "p3", "p4"]
+PROPS = ["p0", "p1", "p2", "c=red", "c=blue", "c=green"]  # c=...: one attribute (similarity)
 CAUSES = ["speaker", "rr", "reg-distractor"]
 
 
 # ================================================================ strategies
 @st.composite
 def policies(draw, must_have=None):
-    rules = set(draw(st.sets(st.sampled_from(RULES))))
-    if must_have:
+    # shared-capacity is a pool across domains (tested below), not a buffer limit.
+    rules = set(draw(st.sets(st.sampled_from([r for r in RULES if r not in DISPLACEMENT and r != "shared-capacity"]))))
+    displacement = draw(st.sampled_from([None, *DISPLACEMENT]))
+    if displacement:
+        rules.add(displacement)
+    if must_have == "displacement":
+        rules.add(displacement or draw(st.sampled_from(sorted(DISPLACEMENT))))
+    elif must_have:
         rules.add(must_have)
     return ForgettingPolicy(
         tuple(r for r in RULES if r in rules),
-        decay_period=10.0,
+        decay_period=1e6,  # the manager's own ticks never fall due: the tests hand ticks over
         capacity=draw(st.integers(1, 3)),
         global_capacity=draw(st.integers(1, 6)),
+        seed=draw(st.sampled_from([None, 0, 7])),
     ).validated()
 
 
@@ -68,7 +77,7 @@ def operations(policy_strategy):
 
 
 def naive_for(policy: ForgettingPolicy) -> NaiveWM:
-    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity)
+    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity, seed=policy.seed or 0)
 
 
 def run_lazy(initial: ForgettingPolicy, ops, check=None):
@@ -86,7 +95,7 @@ def run_lazy(initial: ForgettingPolicy, ops, check=None):
         elif kind == "each":
             buffer.encode_each(op[1], op[2], op[3], t, len(events))
         elif kind == "tick":
-            buffer.decay([t])
+            buffer.decay(TickRun.single(t))
         elif kind == "read":
             buffer.queue(op[1])
         elif kind == "snapshot":
@@ -129,8 +138,8 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             for entity in op[1]:
                 naive.encode(entity, [op[2]], op[3], t, t)
         elif kind == "tick":
-            buffer.decay([t])
-            quiet.decay([t])
+            buffer.decay(TickRun.single(t))
+            quiet.decay(TickRun.single(t))
             naive.tick(t)
         elif kind == "read":
             assert buffer.queue(op[1]) == tuple(naive.queue(op[1]))
@@ -147,7 +156,7 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             policy = op[1]
             manager.set_policy("d", policy, t)
             quiet_manager.set_policy("d", policy, t)
-            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t)
+            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t, seed=policy.seed or 0)
         new = [event_key(e) for e in events[seen:]]
         seen = len(events)
         # Decay the lazy buffer owes is materialised later, stamped with the tick's time.
@@ -210,6 +219,48 @@ def test_manager_decay_schedule_equals_naive_clock(period, displacement, steps):
         naive.tick(tick)
     assert buffer.snapshot() == naive.snapshot()
     assert Counter(event_key(e) for e in events) == Counter(naive.events)
+
+
+def naive_share(pools: dict, limit: int, time: float) -> None:
+    """Trim the shared pool, literally.
+
+    While the pools hold more than ``limit``, the largest pool (first on ties) forgets
+    its globally oldest front.
+    """
+    while sum(pool.total() for pool in pools.values()) > limit:
+        pool = max(pools.values(), key=lambda p: p.total())
+        victim = min((e for e, q in pool.queues.items() if q), key=lambda e: pool.stamps[(e, pool.queues[e][0])])
+        pool._forget(victim, 0, "shared-capacity", time, None)
+
+
+@FAST
+@given(
+    limit=st.integers(1, 6),
+    steps=st.lists(
+        st.tuples(
+            st.sampled_from(["a", "b", "c"]), st.sampled_from(ENTITIES), st.lists(st.sampled_from(PROPS), min_size=1)
+        ),
+        max_size=25,
+    ),
+)
+def test_shared_capacity_equals_naive_pools(limit, steps):
+    policy = ForgettingPolicy.parse("displacement+shared-capacity", capacity=2, shared_capacity=limit)
+    events: list = []
+    buffers = {d: WMBuffer(d, events.append) for d in "abc"}
+    manager = WMManager()
+    for buffer in buffers.values():
+        manager.manage(buffer, policy)
+    naive = {d: NaiveWM({"displacement"}, 2) for d in "abc"}
+    for t, (domain, entity, props) in enumerate(steps):
+        manager.advance(float(t))  # the pool is trimmed when the manager catches up to an event
+        naive_share(naive, limit, float(t))
+        assert sum(len(b) for b in buffers.values()) <= limit
+        buffers[domain].encode(entity, props, "speaker", float(t))
+        naive[domain].encode(entity, props, "speaker", float(t))
+        assert {d: b.snapshot() for d, b in buffers.items()} == {d: n.snapshot() for d, n in naive.items()}
+    shared = Counter((e.domain, e.entity, e.property, e.time) for e in events if e.cause == "shared-capacity")
+    expected = Counter((d, e[1], e[2], e[4]) for d, n in naive.items() for e in n.events if e[3] == "shared-capacity")
+    assert shared == expected
 
 
 # ========================================================= limits as invariants
@@ -355,7 +406,8 @@ def test_reg_invariants(kb, wm_order):
 def test_reg_is_deterministic(kb, algorithm):
     runs = []
     for _ in range(2):
-        c, port, events = prefilled(kb, ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=5))
+        policy = ForgettingPolicy.parse("displacement+global-capacity", capacity=2, global_capacity=5)
+        c, port, events = prefilled(kb, policy)
         e = run_sync(generate(kb[2], port, algorithm, context=kb[3], time=3.0))
         runs.append((e.to_json(), [event_key(x) for x in events], c.wm.snapshot()))
     assert runs[0] == runs[1]

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
-from fsreg_ros.core.forgetting import ForgettingPolicy, WMManager
+from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.resolution import (
     AMBIGUOUS,
     NO_MATCH,

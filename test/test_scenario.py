@@ -486,7 +486,7 @@ CASES = [
         "unknown-memory-key",
         FACES + "memory: {policy: decay, period: 3}\n",
         "memory.period",
-        "unknown key 'period' (known: policy, decay_period, capacity, global_capacity)",
+        "unknown key 'period' (known: policy, decay_period, capacity, global_capacity, seed, shared_capacity)",
         8,
     ),
     (

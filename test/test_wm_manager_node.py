@@ -6,17 +6,17 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from fsreg_ros.carrier import EVENTS_QOS
+from fsreg_ros import contract
+from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.nodes.common import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
-from fsreg_ros.core.forgetting import DecayClock
-from fsreg_ros.nodes.wm_manager import WMManagerNode, due_ticks
+from fsreg_ros.nodes.wm_manager import WMManagerNode
 from rosutil import KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
 
-SYNC = "/wm_manager/sync"
-STATUS = "/wm_manager/status"
+SYNC = contract.SYNC.name
+STATUS = contract.STATUS.name
 
 
 @pytest.fixture
@@ -33,7 +33,8 @@ def manager(graph: Graph, domains=("faces",), **params):
 
 
 def encode(graph: Graph, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
-    graph.call(f"/consultant/{domain}", {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t})
+    request = {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t}
+    graph.call(f"/consultant/{domain}", request)
 
 
 def queues(graph: Graph, domain: str = "faces") -> dict:
@@ -99,7 +100,8 @@ def test_sync_applies_ticks_at_k_delta(graph: Graph):
     graph.set_time(36.0)
     graph.spin_for(0.05)
     graph.spin_until(lambda: len(forgets(events, "decay")) >= 3, what="decay events")
-    assert forgets(events, "decay") == [("face1", "male", 10.0), ("face1", "glasses", 20.0), ("face1", "lab-coat", 30.0)]
+    expected = [("face1", "male", 10.0), ("face1", "glasses", 20.0), ("face1", "lab-coat", 30.0)]
+    assert forgets(events, "decay") == expected
     assert graph.call(STATUS, {})["next_tick"] == {"faces": 40.0}
 
 
@@ -148,15 +150,23 @@ def test_live_parameter_changes(graph: Graph):
     before_params = {p: node.get_parameter(p).value for p in ("policy", "capacity", "decay_period", "faces.capacity")}
     before_memory = memory(graph)
     for name, value, reason in [
-        ("capacity", 0, "capacity must be >= 1"),
+        ("capacity", 0, "capacity out of range"),
+        ("capacity", 10_001, "capacity out of range"),
         ("policy", "forget-everything", "unknown forgetting rule"),
         ("policy", "decay+decay", "twice"),
-        ("decay_period", -1.0, "decay_period must be > 0"),
-        ("decay_period", "soon", "decay_period must be a number"),
-        ("faces.capacity", -2, "faces.capacity"),
+        ("policy", "displacement+displacement-lfu", "choose one displacement rule"),
+        ("decay_period", -1.0, "decay_period out of range"),
+        ("decay_period", 1e300, "decay_period out of range"),
+        ("decay_period", 1e-6, "decay_period out of range"),
+        ("decay_period", "soon", "Wrong parameter type"),  # refused by rclpy (static typing)
+        ("decay_period", 10, "Wrong parameter type"),
+        ("decay_period", None, "cannot be undeclared"),  # NOT_SET: refused by rclpy
+        ("faces.capacity", -2, "faces.capacity out of range"),
+        ("faces.decay_period", 0.001, "faces.decay_period: decay_period must be >= 0.01"),
         ("faces.policy", "sometimes", "faces.policy"),
-        ("global_capacity", 0, "global_capacity must be >= 1"),
-        ("service_timeout", 0.0, "service_timeout"),
+        ("global_capacity", 0, "global_capacity out of range"),
+        ("seed", -1, "seed out of range"),
+        ("service_timeout", 0.0, "service_timeout out of range"),
     ]:
         result = node.set_parameters([Parameter(name, value=value)])[0]
         assert not result.successful, (name, value)
@@ -170,7 +180,8 @@ def test_live_parameter_changes(graph: Graph):
 
     # switching to decay at t = 3: the schedule counts from t = 0, next tick at 10
     graph.set_time(3.0)
-    assert node.set_parameters([Parameter("policy", value="decay+displacement"), Parameter("decay_period", value=10)])[0].successful
+    change = [Parameter("policy", value="decay+displacement"), Parameter("decay_period", value=10.0)]
+    assert node.set_parameters(change)[0].successful
     graph.call(SYNC, {"time": 3.0})
     assert memory(graph) == {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 1}
     assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
@@ -257,6 +268,55 @@ def test_bad_sync_requests(graph: Graph):
     assert graph.call(SYNC, {"time": 1})["applied"] == {"faces": 0}
 
 
+def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: Graph):
+    consultant(graph)
+    manager(graph, policy="decay", decay_period=10.0)
+    configured(graph)
+    encode(graph, "face1", ["male", "glasses"], 1.0)
+    for request, text in [
+        ({"time": 1e6}, "more than 86400 s ahead"),
+        ({"time": 1e308}, "out of range"),
+    ]:
+        err = graph.call_error(SYNC, request)
+        assert err.kind == "TickError" and text in err.error, err.error
+    for text in ('{"time": 1e999}', '{"time": Infinity}', '{"time": NaN}', '{"time": -1e400}'):
+        err = graph.call_error(SYNC, text)  # answered with a reason, never a raise in the node
+        assert err.kind in ("TickError", "MessageError") and err.error, text
+    assert queues(graph) == {"face1": ["male", "glasses"]}
+    assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
+    # a big but plausible jump empties WM in O(1), and decay goes on afterwards
+    assert graph.call(SYNC, {"time": 80_000.0})["applied"] == {"faces": 8000}
+    assert queues(graph) == {}
+    graph.set_time(80_000.0)
+    encode(graph, "face1", ["male", "glasses"], 80_001.0)
+    assert graph.call(SYNC, {"time": 80_010.0})["applied"] == {"faces": 1}
+    assert queues(graph) == {"face1": ["glasses"]}
+    # backwards: nothing undone or applied again
+    assert graph.call(SYNC, {"time": 5.0})["applied"] == {"faces": 0}
+    assert queues(graph) == {"face1": ["glasses"]}
+
+
+def test_numeric_parameters_declare_their_ranges(graph: Graph):
+    node = manager(graph, ("faces",))
+    ranges = {}
+    for name in ("decay_period", "faces.decay_period", "service_timeout"):
+        (r,) = node.describe_parameter(name).floating_point_range
+        ranges[name] = (r.from_value, r.to_value)
+    for name in ("capacity", "global_capacity", "seed", "faces.capacity", "faces.seed"):
+        (r,) = node.describe_parameter(name).integer_range
+        ranges[name] = (r.from_value, r.to_value)
+    assert ranges == {
+        "decay_period": (0.01, 1e6),
+        "faces.decay_period": (0.0, 1e6),  # 0 = inherit
+        "service_timeout": (0.01, 3600.0),
+        "capacity": (1, 10_000),
+        "global_capacity": (1, 1_000_000),
+        "seed": (0, 2**31 - 1),
+        "faces.capacity": (0, 10_000),  # 0 = inherit
+        "faces.seed": (-1, 2**31 - 1),  # -1 = inherit
+    }
+
+
 def test_startup_errors(graph: Graph):
     with pytest.raises(StartupError, match="'domains'"):
         graph.add(WMManagerNode, domains=[""])
@@ -272,17 +332,6 @@ def test_startup_errors(graph: Graph):
         graph.add(WMManagerNode, domains=["two words"])
 
 
-def test_due_ticks_after_a_long_gap():
-    clock = DecayClock(2.0)
-    assert due_ticks(clock, 5.0) == ([2.0, 4.0], 2)
-    assert due_ticks(clock, 5.9) == ([], 0)
-    assert due_ticks(clock, 6.0 - 1e-10) == ([6.0], 1)  # SPEC: k * delta <= T + 1e-9
-    # a wall clock is ~1.7e9 s from the origin: count them, list only what can matter
-    times, count = due_ticks(clock, 1.7e9, limit=5)
-    assert count == 850_000_000 - 3 and times == [8.0, 10.0, 12.0, 14.0, 16.0]
-    assert clock.applied == 850_000_000 and clock.next_tick() == 1.7e9 + 2.0
-
-
 def test_wall_clock_manager(graph: Graph):
     consultant(graph)
     graph.add(WMManagerNode, domains=["faces"], policy="decay", decay_period=10.0)  # no sim time
@@ -291,3 +340,23 @@ def test_wall_clock_manager(graph: Graph):
     assert status["time"] > 1e9  # the wall clock
     assert status["time"] < status["next_tick"]["faces"] <= status["time"] + 10.0
     assert graph.call(SYNC, {"time": status["time"]})["applied"] == {"faces": 0}
+
+
+def test_shared_pool_ops_of_the_consultant(graph: Graph):
+    consultant(graph)
+    manage = "/consultant/faces/manage"
+    graph.wait_service(manage)
+    graph.call(manage, {"op": "configure", "policy": {"policy": "displacement", "capacity": 3}, "time": 0.0})
+    encode(graph, "face1", ["male", "glasses"], 1.0)
+    encode(graph, "face2", ["female"], 2.0)
+    assert graph.call(manage, {"op": "size"}) == {"size": 3}
+    assert graph.call(manage, {"op": "evict", "count": 2, "time": 3.0}) == {"queues_changed": 1, "size": 1}
+    assert queues(graph) == {"face2": ["female"]}
+    for request, text in [
+        ({"op": "evict"}, "missing field 'count'"),
+        ({"op": "evict", "count": -1}, "field 'count'"),
+        ({"op": "evict", "count": "2"}, "field 'count'"),
+    ]:
+        err = graph.call_error(manage, request)
+        assert err.kind == "MessageError" and text in err.error, err.error
+    assert queues(graph) == {"face2": ["female"]}

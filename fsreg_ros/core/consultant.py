@@ -58,7 +58,13 @@ class Consultant:
         preference: Sequence[str],
         threshold: float = DEFAULT_THRESHOLD,
         sink: Optional[EventSink] = None,
+        attributes: Optional[Mapping[str, str]] = None,
     ) -> None:
+        """Build a domain's consultant.
+
+        ``attributes`` maps a property to its attribute (for similarity interference);
+        a property named ``attribute=value`` needs no entry.
+        """
         self.domain = domain
         self.preference: list[str] = list(preference)
         self._known = set(self.preference)
@@ -76,7 +82,7 @@ class Consultant:
             self._entity_set.add(entity)
             self._certainty[entity] = {p: float(c) for p, c in facts.items() if c > 0}
         self._rebuild_holders()
-        self.wm = WMBuffer(domain, sink)
+        self.wm = WMBuffer(domain, sink, attributes)
 
     # ----------------------------------------------------------------- LTM
     def knows_property(self, prop: str) -> bool:
@@ -95,6 +101,18 @@ class Consultant:
         self._require_entity(entity)
         facts = self._certainty[entity]
         return [p for p in self.preference if facts.get(p, 0.0) >= self.threshold]
+
+    def queue(self, entity: str) -> list[str]:
+        """Return the WM queue of a known entity, LRU first (reading never refreshes)."""
+        self._require_entity(entity)
+        return list(self.wm.queue(entity))
+
+    def encode(self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]) -> None:
+        """Encode properties for a known entity in WM; KnowledgeError (nothing encoded) for unknown names."""
+        self._require_entity(entity)
+        for prop in properties:
+            self._require_property(prop)
+        self.wm.encode(entity, properties, cause, time, turn)
 
     def holders(self, prop: str) -> set[str]:
         """Every entity ``prop`` holds for (a live view: do not modify)."""
@@ -257,16 +275,12 @@ class LocalPort:
         return self.consultant.affirm(prop, entities, cause, time, turn)
 
     async def wm(self, entity: str) -> list[str]:
-        if not self.consultant.knows_entity(entity):
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
-        return list(self.consultant.wm.queue(entity))
+        return self.consultant.queue(entity)
 
     async def encode(
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
     ) -> None:
-        if not self.consultant.knows_entity(entity):
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
-        self.consultant.wm.encode(entity, properties, cause, time, turn)
+        self.consultant.encode(entity, properties, cause, time, turn)
 
 
 T = TypeVar("T")

@@ -1,38 +1,87 @@
-"""Forgetting: the WM Manager's policies (paper Algorithms 2 and 3).
+"""Forgetting policies: the rules of the WM Manager (paper Algorithms 2 and 3, and more).
 
-Where is decay?  Here: :class:`DecayClock` says how many decay ticks are due at a
-time (Algorithm 2's schedule), and :meth:`WMManager.advance` applies them to every
-domain whose policy has ``decay``.  Where is displacement?  Here too:
-:func:`displace` (Algorithm 3, LRU) and :func:`evict_global` (the global limit) run
-through :func:`enforce_limits` after every single encoding event.
-
-A policy is ``none`` or one or more rules joined by ``+``:
+A policy is ``none`` or one or more rules joined by ``+`` (:func:`parse_rules` is
+the one place policy names are parsed and validated):
 
 * ``decay`` (delta = ``decay_period``): every delta seconds of the robot's clock,
-  counted from t = 0, pop the front of every non-empty queue.
+  counted from the WM Manager's start, pop the front of every non-empty queue
+  (Algorithm 2; the schedule is :mod:`fsreg_ros.core.decay`).
 * ``displacement`` (alpha = ``capacity``): after each encoding event, while
-  ``len(Q[R]) > alpha`` pop the front of ``Q[R]``.
+  ``len(Q[R]) > alpha`` forget the front of ``Q[R]`` (Algorithm 3, LRU).
+* ``displacement-lfu`` (``capacity``): as ``displacement``, but forget the property
+  of ``Q[R]`` encoded least often since it entered the queue (not the one just
+  encoded; ties to the least recently encoded).
+* ``displacement-random`` (``capacity``, ``seed``): as ``displacement``, but forget
+  a random property of ``Q[R]`` other than the one just encoded, drawn from a
+  generator seeded with ``seed`` (default 0) whenever the policy is installed, so
+  runs are reproducible and the graph draws what the simulator draws.
+* ``similarity``: encoding a property of an attribute (``colour=red``, or declared
+  in the domain's ``attributes``) forgets the entity's other properties of that
+  attribute (interference by similarity).
 * ``global-capacity``: after each encoding event, while the domain holds more than
-  ``global_capacity`` properties, pop the front whose stamp is oldest (global LRU).
+  ``global_capacity`` properties, forget the front whose stamp is oldest (global LRU).
+* ``shared-capacity`` (``shared_capacity``): one pool shared by every domain whose
+  policy has this rule, of the smallest ``shared_capacity`` among them.  Applied by
+  the WM Manager when it catches up to a dialogue event's time (``advance`` in the
+  simulator, ``/wm_manager/sync`` in the graph; never by a timer), after the decay
+  ticks due then, so it trims what earlier events encoded: while the pool holds more,
+  the domain holding the most properties (the first in domain order on ties) forgets
+  its least recently encoded front (cause ``shared-capacity``).
+
+At most one displacement rule.  The size limits become data on the buffer
+(:meth:`ForgettingPolicy.limits`), enforced by :mod:`fsreg_ros.core.memory`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Mapping, Optional
 
-from .memory import WMBuffer
+from .memory import Limits
 
-RULES = ("decay", "displacement", "global-capacity")
-#: The parameter each rule needs.
-RULE_PARAMETER = {
-    "decay": "decay_period",
-    "displacement": "capacity",
-    "global-capacity": "global_capacity",
+#: Victim choice of each displacement rule.
+DISPLACEMENT = {"displacement": "lru", "displacement-lfu": "lfu", "displacement-random": "random"}
+RULES = (
+    "decay",
+    "displacement",
+    "displacement-lfu",
+    "displacement-random",
+    "similarity",
+    "global-capacity",
+    "shared-capacity",
+)
+#: The parameters each rule needs (``seed`` is optional: default 0).
+RULE_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "decay": ("decay_period",),
+    "displacement": ("capacity",),
+    "displacement-lfu": ("capacity",),
+    "displacement-random": ("capacity", "seed"),
+    "similarity": (),
+    "global-capacity": ("global_capacity",),
+    "shared-capacity": ("shared_capacity",),
 }
-#: Slack when comparing tick times with event times (SPEC section 2).
-TIME_EPSILON = 1e-9
+#: Every memory parameter, and the settings of a ``memory:`` block.
+PARAMETERS = ("decay_period", "capacity", "global_capacity", "seed", "shared_capacity")
+SETTINGS = ("policy",) + PARAMETERS
+#: Parameters a rule may leave unset, with their default.
+DEFAULTS = {"seed": 0}
+
+#: Bounds of ``decay_period``, seconds.  Below 0.01 s a live graph would spend its
+#: CPU on decay (a timer and a consultant call per tick, at 100 Hz and more); above
+#: 1e6 s (11.6 days) decay never happens in practice, and with the clock bounded by
+#: ``decay.MAX_TIME`` (1e12 s) the tick index k = t / delta stays below 2**53, so
+#: ``origin + k * delta`` is exact in k and every time fits a ROS Duration.
+MIN_DECAY_PERIOD = 0.01
+MAX_DECAY_PERIOD = 1e6
+#: Bounds of the whole-number parameters (per-queue, per-domain, seed).
+BOUNDS: dict[str, tuple[float, float]] = {
+    "decay_period": (MIN_DECAY_PERIOD, MAX_DECAY_PERIOD),
+    "capacity": (1, 10_000),
+    "global_capacity": (1, 1_000_000),
+    "seed": (0, 2**31 - 1),
+    "shared_capacity": (1, 1_000_000),
+}
 
 
 class PolicyError(ValueError):
@@ -51,6 +100,8 @@ class ForgettingPolicy:
     decay_period: Optional[float] = None
     capacity: Optional[int] = None
     global_capacity: Optional[int] = None
+    seed: Optional[int] = None
+    shared_capacity: Optional[int] = None
 
     @property
     def name(self) -> str:
@@ -71,6 +122,8 @@ class ForgettingPolicy:
         decay_period: Optional[float] = None,
         capacity: Optional[int] = None,
         global_capacity: Optional[int] = None,
+        seed: Optional[int] = None,
+        shared_capacity: Optional[int] = None,
     ) -> "ForgettingPolicy":
         """Build and validate a policy from its name and parameters."""
         return cls(
@@ -78,31 +131,72 @@ class ForgettingPolicy:
             decay_period=decay_period,
             capacity=capacity,
             global_capacity=global_capacity,
+            seed=seed,
+            shared_capacity=shared_capacity,
         ).validated()
+
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, object]) -> "ForgettingPolicy":
+        """Build and validate a policy from ``{"policy", parameter: value, ...}``.
+
+        That is a ``memory:`` block or a configure request; PolicyError if invalid.
+        """
+        unknown = sorted(set(settings) - set(SETTINGS))
+        if unknown:
+            raise PolicyError(f"unknown memory setting '{unknown[0]}' (known: {', '.join(SETTINGS)})")
+        values = {k: settings.get(k) for k in PARAMETERS}
+        if isinstance(values["decay_period"], int) and not isinstance(values["decay_period"], bool):
+            values["decay_period"] = float(values["decay_period"])
+        return cls.parse(str(settings.get("policy", "none")), **values)  # type: ignore[arg-type]
 
     def validated(self) -> "ForgettingPolicy":
         """Return self if every parameter is valid and present where needed."""
-        for name in RULE_PARAMETER.values():
+        for name in PARAMETERS:
             check_parameter(name, getattr(self, name))
         for rule in self.rules:
-            param = RULE_PARAMETER[rule]
-            if getattr(self, param) is None:
-                raise PolicyError(f"policy '{self.name}' needs '{param}' ({rule}) but it is not set")
+            for param in RULE_PARAMETERS[rule]:
+                if getattr(self, param) is None and param not in DEFAULTS:
+                    raise PolicyError(f"policy '{self.name}' needs '{param}' ({rule}) but it is not set")
         return self
 
     def with_changes(self, **changes: object) -> "ForgettingPolicy":
-        """A validated copy with some settings changed (``policy`` is a rule string)."""
+        """Return a validated copy with some settings changed (``policy`` is a rule string)."""
         if "policy" in changes:
             changes["rules"] = parse_rules(str(changes.pop("policy")))
         return replace(self, **changes).validated()  # type: ignore[arg-type]
 
+    def value(self, param: str) -> object:
+        """Return the effective value of parameter ``param`` (its default if unset)."""
+        found = getattr(self, param)
+        return DEFAULTS.get(param) if found is None else found
+
     def to_json(self) -> dict:
-        """The effective setting as SPEC section 6 reports it (only what is used)."""
+        """Return the effective setting as SPEC section 6 reports it (only what is used)."""
         out: dict = {"policy": self.name}
         for rule in self.rules:
-            param = RULE_PARAMETER[rule]
-            out[param] = getattr(self, param)
+            for param in RULE_PARAMETERS[rule]:
+                out[param] = self.value(param)
         return out
+
+    def settings(self) -> dict:
+        """Return every setting that is set (what a configure request carries)."""
+        out: dict = {"policy": self.name}
+        out.update({p: getattr(self, p) for p in PARAMETERS if getattr(self, p) is not None})
+        return out
+
+    def limits(self) -> Limits:
+        """Return the size limits this policy puts on a buffer (decay is the schedule's)."""
+        if not self.rules:
+            return Limits(retains=False)
+        displacing = [rule for rule in self.rules if rule in DISPLACEMENT]
+        return Limits(
+            retains=True,
+            capacity=self.capacity if displacing else None,
+            victim=DISPLACEMENT[displacing[0]] if displacing else "lru",
+            similarity="similarity" in self.rules,
+            global_capacity=self.global_capacity if "global-capacity" in self.rules else None,
+            seed=int(self.value("seed")),  # type: ignore[call-overload]
+        )
 
 
 NONE = ForgettingPolicy()
@@ -122,166 +216,53 @@ def parse_rules(policy: str) -> tuple[str, ...]:
             raise PolicyError(f"unknown forgetting rule '{rule}' in policy '{policy}' (known: {allowed}, joined by +)")
     if len(set(rules)) != len(rules):
         raise PolicyError(f"policy '{policy}' names a rule twice")
+    displacing = [rule for rule in rules if rule in DISPLACEMENT]
+    if len(displacing) > 1:
+        raise PolicyError(f"policy '{policy}' combines {' and '.join(displacing)}: choose one displacement rule")
     # Canonical order, so "displacement+decay" and "decay+displacement" are one policy.
     return tuple(rule for rule in RULES if rule in rules)
 
 
 def check_parameter(name: str, value: object) -> None:
-    """Raise PolicyError unless ``value`` is acceptable for parameter ``name`` (None = unset)."""
+    """Raise PolicyError unless ``value`` is acceptable for parameter ``name`` (None = unset).
+
+    The bounds are :data:`BOUNDS`, shared by scenario files, the command line and the
+    ``wm_manager`` node's parameter descriptors.
+    """
     if value is None:
         return
+    if name not in BOUNDS:
+        raise PolicyError(f"unknown forgetting parameter '{name}'")
     if name == "decay_period":
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise PolicyError(f"decay_period must be a number of seconds, got {value!r}")
         if value <= 0:
-            raise PolicyError(f"decay_period must be > 0 seconds, got {value!r}")
-    elif name in ("capacity", "global_capacity"):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise PolicyError(f"{name} must be a whole number, got {value!r}")
-        if value < 1:
-            raise PolicyError(f"{name} must be >= 1, got {value!r}")
-    else:
-        raise PolicyError(f"unknown forgetting parameter '{name}'")
+            raise PolicyError(f"decay_period must be > 0 seconds (at least {MIN_DECAY_PERIOD:g}), got {value!r}")
+        _check_bounds(name, value, " seconds")
+        return
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise PolicyError(f"{name} must be a whole number, got {value!r}")
+    _check_bounds(name, value, "")
+
+
+def _check_bounds(name: str, value: float, unit: str) -> None:
+    low, high = BOUNDS[name]
+    if value < low:
+        raise PolicyError(f"{name} must be >= {low:g}{unit}, got {value!r}")
+    if value > high:
+        raise PolicyError(f"{name} must be <= {high:g}{unit}, got {value!r}")
 
 
 def check_setting(name: str, value: object) -> None:
-    """Raise PolicyError unless ``value`` is valid for memory setting ``name``
-    (``policy`` or one of the parameters; None = unset)."""
+    """Raise PolicyError unless ``value`` is valid for memory setting ``name``.
+
+    ``name`` is ``policy`` or one of the parameters; None means unset.
+    """
     if name == "policy":
         if value is not None:
             parse_rules(value)  # type: ignore[arg-type]
     else:
         check_parameter(name, value)
-
-
-# ---------------------------------------------------------------- size limits
-def displace(buffer: WMBuffer, entity: str, capacity: int, time: float, turn: Optional[int]) -> None:
-    """Algorithm 3 (interference by displacement): keep |Q[entity]| <= alpha, LRU out."""
-    while buffer.length(entity) > capacity:
-        buffer.pop_front(entity, "displacement", time, turn)
-
-
-def evict_global(buffer: WMBuffer, limit: int, time: float, turn: Optional[int]) -> None:
-    """Global LRU: while the domain holds more than ``limit`` properties, forget the
-    front property with the oldest encoding stamp (possibly in the queue just encoded).
-
-    Queues are sorted by stamp, so this is the oldest property in the whole domain.
-    The domain never holds more than ``limit + 1`` properties here, so the scan over
-    non-empty queues costs O(limit), independent of the number of entities.
-    """
-    while len(buffer) > limit:
-        victim = min(buffer.nonempty_entities(), key=buffer.front_stamp)
-        buffer.pop_front(victim, "global-capacity", time, turn)
-
-
-def enforce_limits(
-    buffer: WMBuffer, entity: str, policy: ForgettingPolicy, time: float, turn: Optional[int]
-) -> None:
-    """Run after each encoding event: displacement first, then the global limit."""
-    if "displacement" in policy.rules:
-        displace(buffer, entity, policy.capacity, time, turn)  # type: ignore[arg-type]
-    if "global-capacity" in policy.rules:
-        evict_global(buffer, policy.global_capacity, time, turn)  # type: ignore[arg-type]
-
-
-def trim_all(buffer: WMBuffer, policy: ForgettingPolicy, time: float) -> None:
-    """Apply a (new) policy's limits to every queue at once (SPEC section 7)."""
-    if not policy.retains:
-        buffer.clear("reset", time)
-        return
-    if "displacement" in policy.rules:
-        for entity in buffer.nonempty_entities():
-            displace(buffer, entity, policy.capacity, time, None)  # type: ignore[arg-type]
-    if "global-capacity" in policy.rules:
-        evict_global(buffer, policy.global_capacity, time, None)  # type: ignore[arg-type]
-
-
-# ---------------------------------------------------------------------- decay
-@dataclass
-class DecayClock:
-    """Algorithm 2's schedule: ticks at ``origin + k * period`` for k = 1, 2, ...
-
-    One clock per domain, shared by the whole buffer (SPEC section 8), not one timer
-    per queue.  :meth:`due` is idempotent: it derives the number of elapsed periods
-    from the clock and subtracts those already applied, so a timer that fires late,
-    or once for several periods, and a barrier that asks again, never apply a tick
-    twice or miss one.
-    """
-
-    period: float
-    origin: float = 0.0
-    applied: int = 0
-
-    def due(self, now: float) -> list[float]:
-        """Times of the ticks at or before ``now`` not yet applied; marks them applied."""
-        limit = now + TIME_EPSILON
-        elapsed = math.floor((limit - self.origin) / self.period)
-        # The rounded quotient can be one off right at the slack's edge; settle on the
-        # SPEC's own test, tick k is due iff origin + k * period <= now + 1e-9.
-        while self.origin + (elapsed + 1) * self.period <= limit:
-            elapsed += 1
-        while elapsed > 0 and self.origin + elapsed * self.period > limit:
-            elapsed -= 1
-        times = [self.origin + k * self.period for k in range(self.applied + 1, elapsed + 1)]
-        self.applied = max(self.applied, elapsed)
-        return times
-
-    def next_tick(self) -> float:
-        return self.origin + (self.applied + 1) * self.period
-
-    def restart(self, period: float, now: float) -> None:
-        """A new period restarts the schedule: next tick one new period after ``now``."""
-        self.period, self.origin, self.applied = period, now, 0
-
-
-@dataclass
-class WMManager:
-    """The WM Manager: the one place that decides what each domain forgets.
-
-    It owns each domain's policy and decay clock, installs the size limits into the
-    domain's buffer (enforced after every encoding event), and applies decay ticks
-    when the robot's clock advances.  In the ROS graph the ``wm_manager`` node wraps
-    the same logic, with the buffers living in the consultant processes.
-    """
-
-    buffers: dict[str, WMBuffer] = field(default_factory=dict)
-    policies: dict[str, ForgettingPolicy] = field(default_factory=dict)
-    clocks: dict[str, DecayClock] = field(default_factory=dict)
-
-    def manage(self, buffer: WMBuffer, policy: ForgettingPolicy, now: float = 0.0) -> None:
-        """Take a domain's buffer under management with its initial policy."""
-        self.buffers[buffer.domain] = buffer
-        self.set_policy(buffer.domain, policy, now)
-
-    def set_policy(self, domain: str, policy: ForgettingPolicy, now: float) -> None:
-        """Change a domain's policy; it takes effect at once (limits trim every queue,
-        ``none`` empties the domain, a new decay period restarts the schedule)."""
-        policy = policy.validated()
-        old = self.policies.get(domain)
-        buffer = self.buffers[domain]
-        self.policies[domain] = policy
-        buffer.policy = policy
-        if policy.decays:
-            clock = self.clocks.get(domain)
-            if clock is None:
-                # Decay switched on: ticks stay on the k * delta grid from the time
-                # origin t = 0; ticks before now are not owed.
-                self.clocks[domain] = DecayClock(policy.decay_period, origin=0.0)  # type: ignore[arg-type]
-                self.clocks[domain].due(now)
-            elif old is not None and old.decay_period != policy.decay_period:
-                clock.restart(policy.decay_period, now)  # type: ignore[arg-type]
-        else:
-            self.clocks.pop(domain, None)
-        trim_all(buffer, policy, now)
-
-    def advance(self, now: float) -> None:
-        """Apply every decay tick due at or before ``now``, in every decaying domain."""
-        for domain, clock in self.clocks.items():
-            self.buffers[domain].decay(clock.due(now))
-
-    def effective(self) -> dict[str, dict]:
-        """Each domain's effective setting, keyed by domain (SPEC section 6 ``memory``)."""
-        return {d: self.policies[d].to_json() for d in sorted(self.policies)}
 
 
 def merge_settings(*layers: Optional[Mapping[str, object]]) -> ForgettingPolicy:
@@ -294,16 +275,4 @@ def merge_settings(*layers: Optional[Mapping[str, object]]) -> ForgettingPolicy:
     for layer in layers:
         if layer:
             merged.update({k: v for k, v in layer.items() if v is not None})
-    return ForgettingPolicy.parse(
-        str(merged.get("policy", "none")),
-        decay_period=_maybe_float(merged.get("decay_period")),
-        capacity=merged.get("capacity"),  # type: ignore[arg-type]
-        global_capacity=merged.get("global_capacity"),  # type: ignore[arg-type]
-    )
-
-
-def _maybe_float(value: object) -> object:
-    if isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    return value
-
+    return ForgettingPolicy.from_settings(merged)

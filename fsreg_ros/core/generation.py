@@ -24,6 +24,8 @@ from typing import Mapping, Optional, Sequence
 from .consultant import ConsultantPort, KnowledgeError
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
+#: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
+AUTO = "auto"
 WM_ORDERS = ("lru-first", "mru-first", "preference")
 #: Full Brevity is exponential in the number of useful properties; beyond this many
 #: subsets it gives up with a clear error instead of running for hours.
@@ -39,6 +41,17 @@ def attribute_of(prop: str, attributes: Optional[Mapping[str, str]] = None) -> s
     if attributes and prop in attributes:
         return attributes[prop]
     return prop.split("=", 1)[0]
+
+
+def algorithm_for(retains: bool, algorithm: Optional[str] = None) -> str:
+    """Return the algorithm to run: the one named, else SD-PIA, or DIST-PIA when WM retains nothing.
+
+    Policy ``none`` keeps no WM, so SD-PIA's Phase 1 has nothing to walk and the paper's
+    "No WM" condition is DIST-PIA; ``None``, ``""`` and ``"auto"`` all mean "choose".
+    """
+    if algorithm and algorithm != AUTO:
+        return algorithm
+    return "sd-pia" if retains else "dist-pia"
 
 
 class GenerationError(ValueError):

@@ -1,32 +1,43 @@
 """Working memory: one buffer of per-entity property queues per domain.
 
 This module is the *mechanism* of working memory (WM): queues, the Encode
-operation of the paper's Algorithm 1, and the primitive "pop the front" that
-every forgetting rule uses. *What* is forgotten, and when, is decided in
-:mod:`fsreg_ros.core.forgetting` (the WM Manager's policies).
+operation of the paper's Algorithm 1, and the trimming primitives every forgetting
+rule uses (pop the front, displace out of one queue, evict the globally least
+recently encoded front).  *What* is forgotten, and when, is decided by the WM
+Manager (:mod:`fsreg_ros.core.wm_manager`, with the policies of
+:mod:`fsreg_ros.core.forgetting`): it sets the buffer's :class:`Limits` (data), and
+the buffer enforces them after every single encoding event.  This module imports
+neither of those (dependencies run one way).
 
 Queue order is LRU at the front and MRU at the back.  Reading a queue never
 refreshes recency; only encoding does.
 
 Decay (Algorithm 2) pops the front of every non-empty queue once per tick.  Done
 eagerly that costs O(number of queues) per tick.  This buffer applies ticks
-lazily instead: a tick only increments a counter, and each queue catches up
-(pops one front per missed tick) the next time it is touched.  Because nothing
-else touches a queue in between, the result is exactly the eager one; the tests
-compare it against a naive eager implementation on random event sequences.
+lazily instead: a tick only enters a :class:`~fsreg_ros.core.decay.TickLedger`, and
+each queue catches up (pops one front per missed tick, at most its length) the
+next time it is touched.  Because nothing else touches a queue in between, the
+result is exactly the eager one; the tests compare it against a naive eager
+implementation on random event sequences.  :meth:`WMBuffer.decay_now` applies
+ticks eagerly instead, in the canonical event order (tick by tick, entity order
+within a tick), for a consultant that publishes every event as it happens.
 """
 
 from __future__ import annotations
 
+import random
+import sys
+from dataclasses import dataclass
 from itertools import islice
-from typing import TYPE_CHECKING, Callable, Iterable, NamedTuple, Optional
+from typing import Callable, Iterable, Mapping, NamedTuple, Optional, Sequence
 
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .forgetting import ForgettingPolicy
+from .decay import TickLedger, TickRun
 
 #: Causes an event can have (SPEC section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
-FORGET_CAUSES = ("decay", "displacement", "global-capacity", "reset", "retract")
+FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract")
+#: How displacement chooses the property it forgets from an over-full queue.
+VICTIMS = ("lru", "lfu", "random")
 
 
 class WMEvent(NamedTuple):
@@ -54,18 +65,45 @@ class WMEvent(NamedTuple):
 EventSink = Callable[[WMEvent], None]
 
 
-_enforce_limits: Optional[Callable[..., None]] = None
+@dataclass(frozen=True)
+class Limits:
+    """What a buffer may hold, enforced after every encoding event (set by the WM Manager).
+
+    * ``retains``: False forgets everything and encodes nothing (policy ``none``);
+    * ``capacity``: at most this many properties per queue (Algorithm 3); the victim
+      is the queue's front (``lru``), its least frequently encoded property other
+      than the one just encoded (``lfu``, ties to the LRU one), or a random such
+      property (``random``, drawn from ``random.Random(seed)``, created anew each
+      time the limits are set);
+    * ``similarity``: encoding a property of an attribute forgets the entity's other
+      properties of that attribute (interference by similarity);
+    * ``global_capacity``: at most this many properties in the domain; the victim is
+      the front encoded least recently in the whole domain.
+
+    Order after one encoding event: similarity, then capacity, then the global limit.
+    """
+
+    retains: bool = True
+    capacity: Optional[int] = None
+    victim: str = "lru"
+    similarity: bool = False
+    global_capacity: Optional[int] = None
+    seed: int = 0
 
 
-def _limits() -> Callable[..., None]:
-    """:func:`forgetting.enforce_limits`, imported once (forgetting imports memory, so a
-    module-level import would be circular; a function-level one costs ~1 us per call)."""
-    global _enforce_limits
-    if _enforce_limits is None:
-        from .forgetting import enforce_limits
+UNLIMITED = Limits()
 
-        _enforce_limits = enforce_limits
-    return _enforce_limits
+
+def attribute_of(prop: str, attributes: Mapping[str, str]) -> Optional[str]:
+    """Return the attribute ``prop`` belongs to, or None if it has none.
+
+    It is declared in ``attributes``, or the part before ``=`` in an
+    ``attribute=value`` name.
+    """
+    found = attributes.get(prop)
+    if found is None and "=" in prop:
+        found = prop.split("=", 1)[0]
+    return found
 
 
 class _Queue(dict):
@@ -75,10 +113,11 @@ class _Queue(dict):
     decay).  Keeping it in the queue object itself, rather than in a second
     entity-keyed table, halves the memory touched per encoding, which dominates
     when thousands of distractors are encoded at once (rule 3).  A plain dict
-    subclass, not an OrderedDict, for the same reason.
+    subclass, not an OrderedDict, for the same reason.  ``hits`` counts encodings per
+    property for LFU displacement (only kept while LFU is in force).
     """
 
-    __slots__ = ("synced",)
+    __slots__ = ("synced", "hits")
 
 
 class WMBuffer:
@@ -86,25 +125,28 @@ class WMBuffer:
 
     Every single push gets the next value of one counter (its *stamp*), so within a
     queue stamps increase from front to back and across the domain there are no
-    ties; ``global-capacity`` uses this to find the least recently encoded front.
+    ties; the global limit uses this to find the least recently encoded front.
 
-    ``policy`` is installed by the WM Manager.  The buffer calls
-    :func:`forgetting.enforce_limits` after every encoding event so that the
-    size limits of Algorithm 3 (and the global limit) hold at all times.
+    ``limits`` are installed by the WM Manager (:meth:`set_limits`); a buffer never
+    configured keeps everything (:data:`UNLIMITED`).  ``attributes`` maps property
+    -> attribute for similarity interference.
     """
 
-    def __init__(self, domain: str, sink: Optional[EventSink] = None) -> None:
+    def __init__(
+        self, domain: str, sink: Optional[EventSink] = None, attributes: Optional[Mapping[str, str]] = None
+    ) -> None:
         self.domain = domain
         self.sink = sink
-        self.policy: Optional["ForgettingPolicy"] = None
+        self.attributes: dict[str, str] = dict(attributes or {})
+        self.limits = UNLIMITED
+        self._rng = random.Random(0)
+        self._victim: Callable[[_Queue, str], str] = self._lru_victim
         self._queues: dict[str, _Queue] = {}
         self._stamp = 0
         self._size = 0  # properties stored, including ones still owed to lazy decay
-        # Lazy decay: number of ticks so far and the time of each (each queue keeps
-        # the tick count it has been brought up to: _Queue.synced).
-        self._ticks = 0
-        self._tick_times: list[float] = []  # times of ticks _tick_base, _tick_base + 1, ...
-        self._tick_base = 0
+        # Lazy decay: every tick so far (each queue keeps the tick count it has been
+        # brought up to: _Queue.synced).
+        self.ticks = TickLedger()
         # Queues that may hold something (insertion-ordered set).
         self._nonempty: dict[str, None] = {}
 
@@ -112,7 +154,7 @@ class WMBuffer:
     @property
     def retains(self) -> bool:
         """False under policy ``none``: nothing is ever retained."""
-        return self.policy is None or self.policy.retains
+        return self.limits.retains
 
     def queue(self, entity: str) -> tuple[str, ...]:
         """Q[entity], LRU first.  Does not refresh recency."""
@@ -145,6 +187,37 @@ class WMBuffer:
         self.flush()
         return list(self._nonempty)
 
+    # ---------------------------------------------------------------- limits
+    def set_limits(self, limits: Limits, time: float) -> None:
+        """Install new limits and apply them to every queue at once (SPEC section 7).
+
+        Not retaining forgets everything (cause ``reset``); a capacity trims every
+        queue; a global limit trims the domain.  Similarity applies from the next
+        encoding on.  Queues are trimmed in the order they were created.
+        """
+        if limits.victim not in VICTIMS:
+            raise ValueError(f"unknown displacement victim {limits.victim!r} (known: {', '.join(VICTIMS)})")
+        self.limits = limits
+        self._rng = random.Random(limits.seed)
+        self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
+        for q in self._queues.values():
+            q.hits = None
+        if not limits.retains:
+            for entity in self.nonempty_entities():
+                while self._pop(entity, "reset", time, None) is not None:
+                    pass
+            return
+        if limits.capacity is not None:
+            self.flush()
+            for entity, q in self._queues.items():  # in the order the queues were created
+                self._displace(entity, q, limits.capacity, "", time, None)
+        if limits.global_capacity is not None:
+            self._evict_global(limits.global_capacity, time, None)
+
+    def evict_oldest(self, count: int, cause: str, time: float) -> None:
+        """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
+        self._evict_global(max(len(self) - count, 0), time, None, cause)
+
     # ---------------------------------------------------------------- writes
     def encode(
         self,
@@ -154,31 +227,16 @@ class WMBuffer:
         time: float,
         turn: Optional[int] = None,
     ) -> None:
-        """Encode(R, P), the paper's Algorithm 1.
+        """Encode properties into Q[R]: Encode(R, P), the paper's Algorithm 1.
 
         For each p in P, in order: remove p from Q[R] if present and push it to the
-        back.  Each push is one encoding event, after which the WM Manager's size
-        limits are enforced (Algorithm 3 and the global limit).
+        back.  Each push is one encoding event, after which the limits are enforced
+        (:meth:`_enforce`: similarity, Algorithm 3, the global limit).
         """
         if not self.retains:
             return
-        enforce_limits = _limits()
-        self._catch_up(entity)
         for prop in properties:
-            q = self._queues.get(entity)
-            if q is None:
-                q = self._new_queue(entity)
-            if prop in q:
-                del q[prop]
-                self._size -= 1
-            self._stamp += 1
-            q[prop] = self._stamp
-            self._size += 1
-            self._nonempty[entity] = None
-            if self.sink is not None:
-                self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
-            if self.policy is not None:
-                enforce_limits(self, entity, self.policy, time, turn)
+            self.encode_each((entity,), prop, cause, time, turn)
 
     def encode_each(
         self,
@@ -191,55 +249,78 @@ class WMBuffer:
         """Encode(e, [prop]) (Algorithm 1) for each entity e, in the given order.
 
         Exactly equivalent to ``for e in entities: self.encode(e, (prop,), ...)``,
-        with the same events in the same order, but cheaper per entity: this is the
-        hot path of rules 2 and 3, where one affirmed property is encoded for
-        thousands of candidates or distractors.  The size limits are the same as
-        :func:`forgetting.enforce_limits` applies: displacement (Algorithm 3, LRU
-        out of Q[e]) first, then the global limit (global LRU) after each event.
+        with the same events in the same order: this is the hot path of rules 2 and
+        3, where one affirmed property is encoded for thousands of candidates or
+        distractors.  With no event sink and no limit beyond an LRU capacity, each
+        entity costs one dict assignment (plus the displaced front, if any:
+        :meth:`_encode_quiet`); events are only built when a sink listens, and every
+        other case goes through :meth:`_enforce`, Algorithm 3's one implementation.
         """
-        if not self.retains:
+        limits = self.limits
+        if not limits.retains:
             return
-        policy = self.policy
-        rules = policy.rules if policy is not None else ()
-        capacity = policy.capacity if "displacement" in rules else None  # type: ignore[union-attr]
-        global_limit = policy.global_capacity if "global-capacity" in rules else None  # type: ignore[union-attr]
+        if self.sink is None and limits.victim == "lru" and not limits.similarity and limits.global_capacity is None:
+            self._encode_quiet(entities, prop, limits.capacity)
+            return
+        lfu = limits.victim == "lfu"
+        for entity in entities:
+            q = self._queues.get(entity)
+            if q is None:
+                q = self._new_queue(entity)
+            else:
+                self._catch_up(entity)
+            present = prop in q
+            if present:
+                del q[prop]
+                self._size -= 1
+            self._stamp += 1
+            q[prop] = self._stamp
+            self._size += 1
+            self._nonempty[entity] = None
+            if lfu:  # encodings since prop entered Q (or since the limits were set)
+                if q.hits is None:
+                    q.hits = {}
+                q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
+            if self.sink is not None:
+                self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
+            self._enforce(entity, q, prop, time, turn)
+
+    def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int]) -> None:
+        """Run :meth:`encode_each` with no events and at most an LRU capacity.
+
+        Per entity: one dict assignment and, when the queue is full, one front deletion.
+        """
         queues = self._queues
         nonempty = self._nonempty
-        sink = self.sink
-        domain = self.domain
-        ticks = self._ticks  # nothing below applies new ticks
+        ticks = self.ticks.count  # nothing below applies new ticks
+        limit = capacity if capacity is not None else sys.maxsize
+        stamp = self._stamp
+        size = self._size
         for entity in entities:
             q = queues.get(entity)
             if q is None:
-                q = self._new_queue(entity)
+                q = queues[entity] = _Queue()
+                q.synced = ticks
+                q.hits = None
                 nonempty[entity] = None
             else:
                 if q.synced != ticks:
+                    self._size = size
                     self._sync(entity, q)
+                    size = self._size
                 # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
-                if not q:
-                    nonempty[entity] = None
-                elif prop in q:
+                if prop in q:
                     del q[prop]
-                    self._size -= 1
-            stamp = self._stamp = self._stamp + 1
+                    size -= 1
+                elif not q:
+                    nonempty[entity] = None
+            stamp += 1
             q[prop] = stamp
-            self._size += 1
-            if sink is not None:
-                sink(WMEvent("encode", domain, entity, prop, cause, time, turn))
-            if capacity is not None:  # Algorithm 3, as forgetting.displace: LRU out
-                while len(q) > capacity:  # capacity >= 1, so q never empties here
-                    old = next(iter(q))
-                    del q[old]
-                    self._size -= 1
-                    if sink is not None:
-                        sink(WMEvent("forget", domain, entity, old, "displacement", time, turn))
-            # _size counts properties still owed to lazy decay, so it only over-states
-            # the total: at or under the limit there is nothing to evict.
-            if global_limit is not None and self._size > global_limit:
-                from .forgetting import evict_global
-
-                evict_global(self, global_limit, time, turn)
+            if len(q) > limit:  # Algorithm 3, LRU out (capacity >= 1: never prop itself)
+                del q[next(iter(q))]
+            else:
+                size += 1
+        self._stamp, self._size = stamp, size
 
     def pop_front(
         self, entity: str, cause: str, time: float, turn: Optional[int] = None
@@ -256,21 +337,38 @@ class WMBuffer:
         q = self._queues.get(entity)
         if not q or prop not in q:
             return False
-        del q[prop]
-        self._size -= 1
-        if not q:
-            self._nonempty.pop(entity, None)
-        self._emit_forget(entity, prop, cause, time, turn)
+        self._forget(entity, q, prop, cause, time, turn)
         return True
 
-    def decay(self, tick_times: Iterable[float]) -> None:
-        """Apply decay ticks (Algorithm 2) at the given times, lazily: O(1) each."""
-        for t in tick_times:
-            self._ticks += 1
-            self._tick_times.append(t)
+    def decay(self, ticks: TickRun) -> None:
+        """Apply decay ticks (Algorithm 2) lazily: O(1) however many."""
+        self.ticks.add(ticks)
+
+    def decay_now(self, ticks: TickRun, entity_order: Sequence[str]) -> None:
+        """Apply decay ticks (Algorithm 2) at once, in the canonical event order.
+
+        Tick by tick, and within a tick in ``entity_order`` (the domain's entity
+        order, SPEC section 2), not in the order the queues happened to fill.  Costs
+        O(properties held), however many ticks: after as many ticks as the longest
+        queue holds, WM is empty and the remaining ticks pop nothing.
+        """
+        self.flush()
+        rank = {entity: i for i, entity in enumerate(entity_order)}
+        pending = sorted(self._nonempty, key=lambda e: rank.get(e, len(rank)))
+        self.ticks.add(ticks)
+        for entity in pending:
+            self._queues[entity].synced = self.ticks.count
+        i = 0
+        while pending and i < ticks.count:
+            time = ticks.time(i)
+            for entity in pending:
+                self._pop(entity, "decay", time, None)
+            pending = [entity for entity in pending if self._queues[entity]]
+            i += 1
+        self.ticks.drop_before(self.ticks.count)
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
-        """Forget everything (e.g. when the policy becomes ``none``)."""
+        """Forget everything (e.g. a reset)."""
         for entity in self.nonempty_entities():
             while self._pop(entity, cause, time, turn) is not None:
                 pass
@@ -280,27 +378,85 @@ class WMBuffer:
         for entity in list(self._nonempty):
             self._catch_up(entity)
         # Every non-empty queue is now up to date, and an empty one never needs a
-        # tick's time, so the times seen so far can go (bounded memory for long runs).
-        self._tick_base = self._ticks
-        self._tick_times.clear()
+        # tick's time, so older runs can go (bounded memory for long runs).
+        self.ticks.drop_before(self.ticks.count)
+
+    # ------------------------------------------------------- trimming primitives
+    def _enforce(self, entity: str, q: _Queue, prop: str, time: float, turn: Optional[int]) -> None:
+        """Enforce the limits after one encoding event of ``prop`` into Q[entity]."""
+        limits = self.limits
+        if limits.similarity:
+            self._interfere(entity, q, prop, time, turn)
+        if limits.capacity is not None and len(q) > limits.capacity:
+            self._displace(entity, q, limits.capacity, prop, time, turn)
+        if limits.global_capacity is not None and self._size > limits.global_capacity:
+            self._evict_global(limits.global_capacity, time, turn)
+
+    def _interfere(self, entity: str, q: _Queue, prop: str, time: float, turn: Optional[int]) -> None:
+        """Similarity: forget Q[entity]'s other properties of ``prop``'s attribute, LRU first."""
+        attribute = attribute_of(prop, self.attributes)
+        if attribute is None:
+            return
+        for other in [p for p in q if p != prop and attribute_of(p, self.attributes) == attribute]:
+            self._forget(entity, q, other, "similarity", time, turn)
+
+    def _displace(self, entity: str, q: _Queue, capacity: int, newest: str, time: float, turn: Optional[int]) -> None:
+        """Algorithm 3 (interference by displacement): keep |Q[entity]| <= capacity.
+
+        ``newest`` (the property just encoded, or "" when trimming) is never the LFU
+        or random victim; the LRU victim is the front (capacity >= 1, so never it).
+        """
+        while len(q) > capacity:
+            self._forget(entity, q, self._victim(q, newest), "displacement", time, turn)
+
+    @staticmethod
+    def _lru_victim(q: _Queue, newest: str) -> str:
+        return next(iter(q))
+
+    @staticmethod
+    def _lfu_victim(q: _Queue, newest: str) -> str:
+        hits = q.hits or {}
+        # min keeps the first of equals: ties go to the least recently encoded.
+        return min((p for p in q if p != newest), key=lambda p: hits.get(p, 1))
+
+    def _random_victim(self, q: _Queue, newest: str) -> str:
+        candidates = [p for p in q if p != newest]
+        return candidates[self._rng.randrange(len(candidates))]
+
+    def _evict_global(self, limit: int, time: float, turn: Optional[int], cause: str = "global-capacity") -> None:
+        """Keep the domain at ``limit`` properties or fewer, globally least recent out.
+
+        While the domain holds more than ``limit`` properties, forget the front
+        property with the oldest encoding stamp (possibly in the queue just encoded).
+
+        Queues are sorted by stamp, so this is the oldest property in the whole domain.
+        The domain never holds more than ``limit + 1`` properties here, so the scan over
+        non-empty queues costs O(limit), independent of the number of entities.
+        """
+        while len(self) > limit:
+            victim = min(self._nonempty, key=self.front_stamp)
+            self._pop(victim, cause, time, turn)
 
     # -------------------------------------------------------------- internals
     def _new_queue(self, entity: str) -> _Queue:
         q = self._queues[entity] = _Queue()
-        q.synced = self._ticks  # ticks before a queue existed are not owed
+        q.synced = self.ticks.count  # ticks before a queue existed are not owed
+        q.hits = None
         return q
 
     def _catch_up(self, entity: str) -> None:
         """Apply the decay ticks Q[entity] still owes (if any)."""
         q = self._queues.get(entity)
-        if q is not None and q.synced != self._ticks:
+        if q is not None and q.synced != self.ticks.count:
             self._sync(entity, q)
 
     def _sync(self, entity: str, q: _Queue) -> None:
-        """Apply the ticks since ``q.synced``: one front pop per tick, each reported at
-        its tick's own time (the eager Algorithm 2, deferred)."""
+        """Apply the ticks since ``q.synced``: one front pop per tick (Algorithm 2, deferred).
+
+        Each pop is reported at its tick's own time.
+        """
         synced = q.synced
-        q.synced = ticks = self._ticks
+        q.synced = ticks = self.ticks.count
         if not q:  # an empty queue owes nothing (and never needs a tick's time)
             return
         owed = min(ticks - synced, len(q))
@@ -320,25 +476,21 @@ class WMBuffer:
         self._size -= owed
         if not q:
             self._nonempty.pop(entity, None)
-        first = synced - self._tick_base  # each pop is reported at its tick's time
-        times = self._tick_times
-        for k, prop in enumerate(victims):
-            sink(WMEvent("forget", self.domain, entity, prop, "decay", times[first + k], None))
+        for k, prop in enumerate(victims):  # each pop is reported at its tick's time
+            sink(WMEvent("forget", self.domain, entity, prop, "decay", self.ticks.time(synced + k), None))
 
     def _pop(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
         q = self._queues.get(entity)
         if not q:
             return None
         prop = next(iter(q))
+        self._forget(entity, q, prop, cause, time, turn)
+        return prop
+
+    def _forget(self, entity: str, q: _Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         del q[prop]
         self._size -= 1
         if not q:
             self._nonempty.pop(entity, None)
-        self._emit_forget(entity, prop, cause, time, turn)
-        return prop
-
-    def _emit_forget(
-        self, entity: str, prop: str, cause: str, time: float, turn: Optional[int]
-    ) -> None:
         if self.sink is not None:
             self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))

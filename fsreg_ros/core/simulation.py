@@ -19,12 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
 from .consultant import LocalPort, run_sync
-from .forgetting import ForgettingPolicy, WMManager
-from .generation import generate
+from .forgetting import ForgettingPolicy
+from .generation import algorithm_for, generate
 from .memory import WMEvent
 from .lexicon import Lexicon
 from .resolution import resolve
 from .scenario import Scenario, Turn
+from .wm_manager import WMManager
 
 
 @dataclass
@@ -38,13 +39,6 @@ class Options:
     memory: dict[str, Any] = field(default_factory=dict)
     algorithm: Optional[str] = None
     wm_order: str = "lru-first"
-
-
-def algorithm_for(policy: ForgettingPolicy, algorithm: Optional[str]) -> str:
-    """Policy ``none`` implies DIST-PIA unless an algorithm is named explicitly."""
-    if algorithm:
-        return algorithm
-    return "sd-pia" if policy.retains else "dist-pia"
 
 
 def effective_policies(scenario: Scenario, options: Options) -> dict[str, ForgettingPolicy]:
@@ -132,7 +126,7 @@ class Simulation:
             generate(
                 turn.target,  # type: ignore[arg-type]
                 self.ports[domain],
-                algorithm_for(self.policies[domain], self.options.algorithm),
+                algorithm_for(self.policies[domain].retains, self.options.algorithm),
                 context=turn.context,
                 wm_order=self.options.wm_order,
                 time=turn.time,

@@ -1,22 +1,27 @@
-"""What every fsreg node shares: the main runner, parameter helpers, error replies.
+"""What every fsreg node shares: the main runner, parameter helpers, the clock watchdog.
 
 ``main()`` of each node is ``return run_node(NodeClass, args, ...)``:
 
-* ``rclpy.init(args)`` (so ``--ros-args --params-file F -p x:=y`` work as usual);
+* ``rclpy.init(args)`` (so ``--ros-args --params-file F -p x:=y -r __ns:=/robot1`` work as usual);
 * a warning if ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is not ``LOCALHOST`` (the project's
   scripts set it; a node does not refuse to run on a real robot network);
-* the node is built; a startup problem (:class:`StartupError`, a bad parameter, or
-  one of ``startup_errors``) is logged as one error line and the process exits 2,
-  without a traceback;
-* a ``SingleThreadedExecutor`` spins it (every node's handlers are async-correct:
-  clients live in their own reentrant groups, nothing spins inside a callback); an
-  exception escaping a callback is logged as an error and the node keeps running;
+* the node is built; any problem while building it (a missing or out-of-range
+  parameter, an unreadable file, ...) is logged as one error line and the process
+  exits 2, without a traceback;
+* a ``SingleThreadedExecutor`` spins it.  Callbacks do not fail the process because the
+  wrappers that install them (:func:`fsreg_ros.carrier.serve`, :func:`~fsreg_ros.carrier.subscribe`)
+  log each failure with its topic or service and request id and answer it; spinning
+  itself swallows nothing;
 * Ctrl-C / SIGTERM (``KeyboardInterrupt``, ``ExternalShutdownException``) end it
   cleanly with exit code 0; the node is destroyed and rclpy shut down.
 
 A node with a ``job`` (the dialogue player) runs ``job(node)`` as a task and exits
 when it is done: ``on_done(node, result)`` then exit 0, or exit 1 after logging a
 ``job_errors`` failure in one line.
+
+Numeric parameters are declared with :func:`declare_number`: statically typed (a type
+change or NOT_SET is refused by rclpy) with a ``floating_point_range`` /
+``integer_range`` that ``ros2 param describe`` shows and rclpy enforces.
 """
 
 from __future__ import annotations
@@ -24,17 +29,21 @@ from __future__ import annotations
 import os
 import sys
 import traceback
-from typing import Any, Awaitable, Callable, Iterable, Optional, Sequence
+from typing import Any, Awaitable, Callable, Optional
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterException
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.parameter import Parameter
 
-from ..carrier import MessageError, parse
+from ..codec import id_of, printable
+from ..contract import CLOCK
 
 #: Exit codes.
 EXIT_OK, EXIT_FAILED, EXIT_STARTUP = 0, 1, 2
+#: Seconds without ``/clock`` after which a sim-time node warns (once).
+CLOCK_SILENCE = 5.0
 
 
 class StartupError(Exception):
@@ -43,7 +52,7 @@ class StartupError(Exception):
 
 # ------------------------------------------------------------------ environment
 def check_discovery_range(logger) -> bool:
-    """Warn unless DDS discovery is limited to this machine; True when it is."""
+    """Warn unless DDS discovery is limited to this machine; return True when it is."""
     value = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
     if value != "LOCALHOST":
         logger.warning(
@@ -55,25 +64,75 @@ def check_discovery_range(logger) -> bool:
 
 
 def now_seconds(node) -> float:
-    """The node's clock in seconds (sim time when ``use_sim_time`` is set)."""
+    """Return the node's clock in seconds (sim time when ``use_sim_time`` is set)."""
     return node.get_clock().now().nanoseconds / 1e9
 
 
+def watch_clock(node, silence: float = CLOCK_SILENCE):
+    """Warn once if a sim-time node's clock has not moved for ``silence`` seconds; return the timer.
+
+    The warning names the clock topic as this node resolves it (``/clock``, or the
+    namespaced clock a remapping gave it).  It re-arms when the clock moves again.
+    Nothing is watched on the wall clock.
+    """
+    state = {"last": None, "since": None, "warned": False}
+    steady = Clock(clock_type=ClockType.STEADY_TIME)
+    topic = node.resolve_topic_name(CLOCK)
+
+    def check() -> None:
+        if not node.get_parameter("use_sim_time").value:
+            return
+        now = node.get_clock().now().nanoseconds
+        wall = steady.now().nanoseconds / 1e9
+        if now != state["last"]:
+            state.update(last=now, since=wall, warned=False)
+        elif not state["warned"] and wall - state["since"] >= silence:
+            state["warned"] = True
+            node.get_logger().warning(
+                f"use_sim_time is true but nothing has moved {topic} for {silence:g} s: "
+                "timers and decay wait for the clock (start a player or set use_sim_time:=false)"
+            )
+
+    return node.create_timer(min(1.0, silence / 3), check, clock=steady)
+
+
 # ------------------------------------------------------------------ parameters
-def descriptor(
+def descriptor(description: str, *, read_only: bool = False, dynamic_typing: bool = False) -> ParameterDescriptor:
+    """Return a ParameterDescriptor for a non-numeric parameter (numbers: :func:`declare_number`)."""
+    return ParameterDescriptor(description=description, read_only=read_only, dynamic_typing=dynamic_typing)
+
+
+def declare_number(
+    node,
+    name: str,
+    default: float,
+    low: float,
+    high: float,
     description: str,
     *,
+    integer: bool = False,
     read_only: bool = False,
-    dynamic_typing: bool = False,
-    additional_constraints: str = "",
-) -> ParameterDescriptor:
-    """A ParameterDescriptor with the fields fsreg uses."""
-    return ParameterDescriptor(
-        description=description,
-        read_only=read_only,
-        dynamic_typing=dynamic_typing,
-        additional_constraints=additional_constraints,
+) -> Any:
+    """Declare a numeric parameter with a range in its descriptor; return its value.
+
+    The type is static (rclpy refuses a type change or NOT_SET); a whole number given
+    for a DOUBLE parameter on the command line or in a params file (``-p x:=10``) is
+    taken as that number.  A value outside ``[low, high]`` is refused by rclpy, at start
+    as a start-up error and later as a failed SetParameters with the range as reason.
+    """
+    kind = Parameter.Type.INTEGER if integer else Parameter.Type.DOUBLE
+    desc = ParameterDescriptor(
+        description=f"{description} [{low:g}, {high:g}]", read_only=read_only, type=kind.value
     )
+    if integer:
+        desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=0)]
+    else:
+        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+        overrides = getattr(node, "_parameter_overrides", {})
+        given = overrides.get(name)
+        if given is not None and given.type_ == Parameter.Type.INTEGER:
+            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+    return node.declare_parameter(name, int(default) if integer else float(default), desc).value
 
 
 def accepted() -> SetParametersResult:
@@ -84,61 +143,20 @@ def rejected(reason: str) -> SetParametersResult:
     return SetParametersResult(successful=False, reason=reason)
 
 
-def number_value(param, *, name: Optional[str] = None) -> float:
-    """The value of an INTEGER or DOUBLE parameter as float; ValueError otherwise.
-
-    Number parameters are declared with ``dynamic_typing`` so ``-p x:=10`` and a YAML
-    ``x: 10`` work as well as ``10.0``; this is where the type is enforced instead.
-    """
-    value = param.value
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"'{name or param.name}' must be a number, got {value!r}")
-    return float(value)
-
-
-def would_be(node, params: Iterable, names: Sequence[str]) -> dict[str, Any]:
-    """Values of ``names`` as they would be after setting ``params`` (current otherwise)."""
-    values = {name: node.get_parameter(name).value for name in names}
-    for param in params:
-        if param.name in values:
-            values[param.name] = param.value
-    return values
-
-
 # ------------------------------------------------------------------ replies
 def error_reply(source: Any, error: str) -> dict:
-    """``{"error": error}`` plus the ``id`` of ``source`` (a String message, JSON text or
-    a dict) when it has one, so a requester can match the error to its request."""
-    reply: dict[str, Any] = {"error": error}
-    data = source
-    if not isinstance(data, dict):
-        try:
-            data = parse(getattr(source, "data", source))
-        except MessageError:
-            data = {}
-    if "id" in data:
-        reply["id"] = data["id"]
+    """Return ``{"error": error}`` plus the usable ``id`` of ``source`` (a String, JSON text or a dict).
+
+    The id lets a requester match the error to its request.
+    """
+    reply: dict[str, Any] = {"error": printable(error)}
+    rid = source.get("id") if isinstance(source, dict) else id_of(source)
+    if rid is not None:
+        reply["id"] = rid
     return reply
 
 
 # ------------------------------------------------------------------ runner
-def spin(executor, logger, until: Optional[Callable[[], bool]] = None) -> None:
-    """``executor.spin()`` that survives a failing callback.
-
-    rclpy re-raises an exception escaping a callback (or an async callback's task)
-    out of ``spin_once``, which would end the process.  A node must never crash on
-    one bad message: log the error and keep serving.  Shutdown still ends the loop.
-    """
-    while executor.context.ok() and not (until is not None and until()):
-        try:
-            executor.spin_once()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            raise
-        except Exception as err:  # noqa: BLE001 - see above
-            logger.error(f"a callback failed: {type(err).__name__}: {err}")
-            logger.debug("".join(traceback.format_exception(err)))
-
-
 def _node_name(node_cls) -> str:
     return getattr(node_cls, "NODE_NAME", None) or node_cls.__name__
 
@@ -147,17 +165,16 @@ def run_node(
     node_cls: Callable[..., Any],
     args: Optional[list[str]] = None,
     *,
-    startup_errors: tuple[type[BaseException], ...] = (),
     job: Optional[Callable[[Any], Awaitable[Any]]] = None,
     on_done: Optional[Callable[[Any, Any], None]] = None,
     job_errors: tuple[type[BaseException], ...] = (),
 ) -> int:
-    """Run one node until Ctrl-C / shutdown (or until its ``job`` is done); exit code."""
+    """Run one node until Ctrl-C / shutdown (or until its ``job`` is done); return the exit code."""
     logger = rclpy.logging.get_logger(_node_name(node_cls))
     try:
         rclpy.init(args=args)
     except Exception as err:  # noqa: BLE001 - e.g. a bad --ros-args or params file
-        print(f"{_node_name(node_cls)}: cannot initialise ROS: {err}", file=sys.stderr)
+        print(printable(f"{_node_name(node_cls)}: cannot initialise ROS: {err}"), file=sys.stderr)
         return EXIT_STARTUP
     check_discovery_range(logger)
     node = None
@@ -166,14 +183,18 @@ def run_node(
     try:
         try:
             node = node_cls()
-        except (StartupError, ParameterException, *startup_errors) as err:
-            logger.error(f"cannot start: {err}")
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as err:  # noqa: BLE001 - any start-up problem: one line, exit 2
+            text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            logger.error(printable(f"cannot start: {text}"))
+            logger.debug(printable("".join(traceback.format_exception(err)), 20000))
             return EXIT_STARTUP
         logger = node.get_logger()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         if job is None:
-            spin(executor, logger)
+            executor.spin()
         else:
             # The executor re-raises a failed task's exception from spin; catch it inside.
             async def guarded() -> tuple[bool, Any]:
@@ -184,21 +205,26 @@ def run_node(
 
             task = executor.create_task(guarded())
             task.add_done_callback(lambda _: executor.wake())
-            spin(executor, logger, until=task.done)
+            while executor.context.ok() and not task.done():
+                executor.spin_once()
             if not task.done():  # shut down before the job finished
                 return EXIT_OK
             ok, result = task.result()
             if not ok:
                 if isinstance(result, job_errors):
-                    logger.error(str(result))
+                    logger.error(printable(result))
                 else:  # report, without dumping a traceback on users (debug level has it)
-                    logger.error(f"failed: {type(result).__name__}: {result}")
-                    logger.debug("".join(traceback.format_exception(result)))
+                    logger.error(printable(f"failed: {type(result).__name__}: {result}"))
+                    logger.debug(printable("".join(traceback.format_exception(result)), 20000))
                 return EXIT_FAILED
             if on_done is not None:
                 on_done(node, result)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = EXIT_OK
+    except Exception as err:  # noqa: BLE001 - a callback outside the wrappers failed: stop, in one line
+        logger.error(printable(f"stopped by a failing callback: {type(err).__name__}: {err}"))
+        logger.debug(printable("".join(traceback.format_exception(err)), 20000))
+        code = EXIT_FAILED
     finally:
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)

@@ -6,28 +6,37 @@ One process per domain (give each its own node name, e.g.
 Parameters
     ``domain`` (string, required, read-only), ``kb`` (scenario/KB YAML, required,
     read-only), ``threshold`` (number in [0, 1]; default: the KB's threshold for the
-    domain; changeable at run time; it changes what holds, it does not touch WM).
+    domain; changeable at run time; it changes what holds, it does not touch WM), and
+    the size limits ``max_message_bytes``, ``max_name_chars``, ``max_list_items``.
 
-Services (JSON in ``AddDiagnostics``, see :mod:`fsreg_ros.carrier`)
-    ``/consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
+Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contract`)
+    ``consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
       ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory", "events"}``
       ``holds`` ``{"property", "entities"}`` -> ``{"holds"}`` (no encoding)
       ``affirm`` ``{"property", "entities", "cause", "time"?, "turn"?}`` -> ``{"holds"}``
       ``wm`` ``{"entity"}`` -> ``{"queue"}`` (LRU first; reading never refreshes)
       ``encode`` ``{"entity", "properties", "cause", "time"?, "turn"?}`` -> ``{}``
       ``snapshot`` -> ``{"queues", "events"}`` (non-empty queues only)
-    ``/consultant/<domain>/manage`` -- the WM Manager's:
+    ``consultant/<domain>/manage`` -- the WM Manager's:
       ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
-      "global_capacity"?}, "time"?}`` -> ``{"memory", "queues_changed"}``: installs the
-      policy and trims every queue at once (``none`` empties WM, cause ``reset``);
-      ``decay`` ``{"ticks": [t1, ...]}`` -> ``{"queues_changed", "policy"}``: one decay
-      tick (Algorithm 2) per time (non-decreasing), applied now; ``policy`` is the
-      installed policy's name (so the WM Manager notices a restarted consultant).
+      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed"}``:
+      installs the policy and trims every queue at once (``none`` empties WM, cause
+      ``reset``);
+      ``decay`` ``{"ticks": {"origin", "period", "first", "count"}}`` ->
+      ``{"queues_changed", "policy"}``: decay ticks (Algorithm 2) at ``origin + k *
+      period`` for k = first .. first + count - 1, applied now (at most as many as
+      the longest queue holds can pop anything); ``policy`` is the installed policy's
+      name (so the WM Manager notices a restarted consultant);
+      ``evict`` ``{"count", "time"?}`` -> ``{"queues_changed", "size"}``: forget the
+      domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
+      ``size`` -> ``{"size"}``: how many properties WM holds.
 
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
 and waits until it has heard that many from the domain (topics are not ordered with
-respect to service replies or to each other).
+respect to service replies or to each other).  Unknown entities and properties are
+refused by the core :class:`~fsreg_ros.core.consultant.Consultant`; the node only
+translates its ``KnowledgeError`` into the error reply.
 
 Encoding causes are ``speaker``, ``rr`` and ``reg-distractor``.  ``time`` defaults to
 the node's clock, ``turn`` to null.  Every request is validated before anything
@@ -35,11 +44,11 @@ changes; a rejected one gets ``{"error", "kind"}`` (kind ``KnowledgeError`` for 
 unknown entity or property, ``MessageError`` for a malformed request).
 
 Topics
-    out ``/wm/events`` -- every encode/forget event (SPEC section 2), one message each;
-    out ``/wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
+    out ``wm/events`` -- every encode/forget event (SPEC section 2), one message each;
+    out ``wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
     and after every request that changed WM;
-    in ``/ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
-    -- messages for other domains are ignored; out ``/ltm/assert/result``
+    in ``ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
+    -- messages for other domains are ignored; out ``ltm/assert/result``
     ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
     ``{"domain", "entity", "ok": false, "error", "id"?}``.
 
@@ -53,39 +62,29 @@ from typing import Any, Callable, Optional
 
 from rclpy.node import Node
 from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
-from rclpy.validate_full_topic_name import validate_full_topic_name
-from std_msgs.msg import String
+from rclpy.validate_topic_name import validate_topic_name
 
-from ..carrier import (
-    DEFAULT_QOS,
-    EVENTS_QOS,
-    NUMBER,
-    STATE_PUB_QOS,
-    MessageError,
-    check_fields,
-    from_msg,
-    serve,
-    to_msg,
-)
-from ..core import forgetting
-from ..core.consultant import Consultant, KnowledgeError, check_certainty
+from .. import contract
+from ..carrier import publish, publisher, serve, subscribe
+from ..codec import NUMBER, MessageError, check_fields, printable
+from ..contract import consultant_service, manage_service
+from ..core.consultant import Consultant, KnowledgeError
+from ..core.decay import TickError, TickRun
+from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
+from ..core.wm_manager import apply_ticks, configure_buffer
 from ..core.scenario import ScenarioError, load_scenario
-from ..remote import consultant_service, manage_service
-from .common import (
-    StartupError,
-    accepted,
-    descriptor,
-    error_reply,
-    now_seconds,
-    number_value,
-    rejected,
-    run_node,
-)
+from .asking import declare_limits
+from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 TIME = {"time": NUMBER, "turn": (int, None)}
 POLICY_FIELDS = {"policy": str}
-POLICY_OPTIONAL = {"decay_period": (NUMBER, None), "capacity": (int, None), "global_capacity": (int, None)}
+POLICY_OPTIONAL = {
+    "decay_period": (NUMBER, None),
+    "capacity": (int, None),
+    "global_capacity": (int, None),
+    "seed": (int, None),
+}
 
 
 class ConsultantNode(Node):
@@ -96,7 +95,9 @@ class ConsultantNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(self.NODE_NAME, **kwargs)
         self.declare_parameter("domain", "", descriptor("the domain this consultant owns (required)", read_only=True))
-        self.declare_parameter("kb", "", descriptor("scenario/KB YAML file with the domain's LTM (required)", read_only=True))
+        self.declare_parameter(
+            "kb", "", descriptor("scenario/KB YAML file with the domain's LTM (required)", read_only=True)
+        )
         domain = self.get_parameter("domain").value
         kb = self.get_parameter("kb").value
         if not domain:
@@ -104,7 +105,7 @@ class ConsultantNode(Node):
         if not kb:
             raise StartupError("parameter 'kb' is required (a scenario/KB YAML file)")
         try:
-            validate_full_topic_name(consultant_service(domain), is_service=True)
+            validate_topic_name(consultant_service(domain), is_service=True)
         except (InvalidServiceNameException, InvalidTopicNameException):
             raise StartupError(f"domain {domain!r} cannot be part of a ROS service name") from None
         try:
@@ -114,31 +115,25 @@ class ConsultantNode(Node):
         spec = scenario.domains.get(domain)
         if spec is None:
             raise StartupError(f"{kb}: no domain '{domain}' (domains: {', '.join(scenario.domains) or 'none'})")
-        self.declare_parameter(
-            "threshold",
-            float(spec.threshold),
-            descriptor(
-                "a property holds iff its certainty >= threshold (default: the KB's)",
-                dynamic_typing=True,
-                additional_constraints="a number in [0, 1]",
-            ),
+        threshold = declare_number(
+            self, "threshold", float(spec.threshold), 0.0, 1.0,
+            "a property holds iff its certainty >= threshold (default: the KB's)",
         )
-        try:
-            threshold = self._check_threshold(self.get_parameter("threshold"))
-        except ValueError as err:
-            raise StartupError(str(err)) from None
+        self.limits = declare_limits(self)
 
         self.domain = domain
-        self._events = self.create_publisher(String, "/wm/events", EVENTS_QOS)
-        self._state = self.create_publisher(String, "/wm/state", STATE_PUB_QOS)
-        self._assert_results = self.create_publisher(String, "/ltm/assert/result", DEFAULT_QOS)
+        self._events = publisher(self, contract.WM_EVENTS)
+        self._state = publisher(self, contract.WM_STATE)
+        self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._event_count = 0
         self._last_time = 0.0  # time of the latest change, for /wm/state
-        self.consultant = Consultant(domain, spec.entities, spec.preference, threshold, sink=self._on_event)
+        self.consultant = Consultant(
+            domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
+        )
         # Retain nothing until the WM Manager says otherwise.
-        self.consultant.wm.policy = forgetting.NONE
+        self.policy = NONE
+        configure_buffer(self.consultant.wm, NONE, 0.0)
 
-        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._query_ops: dict[str, Callable[[dict], dict]] = {
             "info": self._info,
@@ -151,10 +146,14 @@ class ConsultantNode(Node):
         self._manage_ops: dict[str, Callable[[dict], dict]] = {
             "configure": self._configure,
             "decay": self._decay,
+            "evict": self._evict,
+            "size": self._size,
         }
-        serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops))
-        serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops))
-        self.create_subscription(String, "/ltm/assert", self._on_assert, DEFAULT_QOS)
+        size = self.limits.max_message_bytes
+        serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops), max_bytes=size)
+        serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops), max_bytes=size)
+        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
+        self._clock_watch = watch_clock(self)
         self.publish_state(self.now())
         self.get_logger().info(
             f"consultant of '{domain}': {len(self.consultant.entities)} entities, "
@@ -167,19 +166,22 @@ class ConsultantNode(Node):
 
     def _on_event(self, event: WMEvent) -> None:
         self._event_count += 1
-        self._events.publish(to_msg(event.to_json()))
+        publish(self._events, event.to_json())
 
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
-        self._state.publish(
-            to_msg({"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count})
+        publish(
+            self._state,
+            {"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count},
         )
 
     def _dispatch(self, request: dict, ops: dict[str, Callable[[dict], dict]]) -> dict:
         op = check_fields(request, {"op": str})["op"]
         handler = ops.get(op)
         if handler is None:
-            raise MessageError(f"unknown op {op!r} (known: {', '.join(ops)})")
+            raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
+        contract.check_sizes(request, self.limits, names=("entity", "property", "cause"),
+                             lists=("entities", "properties"))
         before = self._event_count
         reply = handler(request)
         if self._event_count != before:
@@ -187,21 +189,11 @@ class ConsultantNode(Node):
         return reply
 
     def _time(self, request: dict) -> tuple[float, Optional[int]]:
-        """The request's ``time`` (default: now) and ``turn`` (default: null)."""
+        """Return the request's ``time`` (default: now) and ``turn`` (default: null)."""
         check_fields(request, {}, TIME)
         time = float(request["time"]) if request.get("time") is not None else self.now()
         self._last_time = time
         return time, request.get("turn")
-
-    def _entity(self, entity: str) -> str:
-        if not self.consultant.knows_entity(entity):
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
-        return entity
-
-    def _property(self, prop: str) -> str:
-        if not self.consultant.knows_property(prop):
-            raise KnowledgeError(f"domain '{self.domain}' knows no property '{prop}'")
-        return prop
 
     @staticmethod
     def _encode_cause(cause: str) -> str:
@@ -212,7 +204,7 @@ class ConsultantNode(Node):
     # ------------------------------------------------------------- query ops
     def _info(self, request: dict) -> dict:
         c = self.consultant
-        policy = c.wm.policy or forgetting.NONE
+        policy = self.policy
         return {
             "domain": self.domain,
             "entities": list(c.entities),
@@ -224,28 +216,25 @@ class ConsultantNode(Node):
         }
 
     def _holds(self, request: dict) -> dict:
-        check_fields(request, {"property": str, "entities": list[str]})
+        contract.check(contract.HoldsRequest, request)
         return {"holds": self.consultant.holds(request["property"], request["entities"])}
 
     def _affirm(self, request: dict) -> dict:
-        check_fields(request, {"property": str, "entities": list[str], "cause": str})
+        contract.check(contract.AffirmRequest, request)
         self._encode_cause(request["cause"])
         time, turn = self._time(request)
         # Consultant.affirm validates the property and every entity before encoding.
         return {"holds": self.consultant.affirm(request["property"], request["entities"], request["cause"], time, turn)}
 
     def _wm(self, request: dict) -> dict:
-        check_fields(request, {"entity": str})
-        return {"queue": list(self.consultant.wm.queue(self._entity(request["entity"])))}
+        contract.check(contract.WMRequest, request)
+        return {"queue": self.consultant.queue(request["entity"])}
 
     def _encode(self, request: dict) -> dict:
-        check_fields(request, {"entity": str, "properties": list[str], "cause": str})
-        entity = self._entity(request["entity"])
-        for prop in request["properties"]:
-            self._property(prop)
+        contract.check(contract.EncodeRequest, request)
         self._encode_cause(request["cause"])
         time, turn = self._time(request)
-        self.consultant.wm.encode(entity, request["properties"], request["cause"], time, turn)
+        self.consultant.encode(request["entity"], request["properties"], request["cause"], time, turn)
         return {}
 
     def _snapshot(self, request: dict) -> dict:
@@ -254,103 +243,83 @@ class ConsultantNode(Node):
     # ------------------------------------------------------------ manage ops
     def _configure(self, request: dict) -> dict:
         check_fields(request, {"policy": dict})
-        settings = check_fields(request["policy"], POLICY_FIELDS, POLICY_OPTIONAL)
-        decay_period = settings.get("decay_period")
-        policy = forgetting.ForgettingPolicy.parse(
-            settings["policy"],
-            decay_period=float(decay_period) if decay_period is not None else None,
-            capacity=settings.get("capacity"),
-            global_capacity=settings.get("global_capacity"),
-        )  # PolicyError (a ValueError) -> error reply, nothing installed
+        check_fields(request["policy"], POLICY_FIELDS, POLICY_OPTIONAL)
+        policy = ForgettingPolicy.from_settings(request["policy"])  # PolicyError -> error reply, nothing installed
         time, _ = self._time(request)
         buffer = self.consultant.wm
         before = buffer.snapshot()
-        buffer.policy = policy
-        forgetting.trim_all(buffer, policy, time)
+        configure_buffer(buffer, policy, time)
+        self.policy = policy
         self.get_logger().info(f"memory policy {policy.to_json()}")
         return {"memory": policy.to_json(), "queues_changed": _changed(before, buffer.snapshot())}
 
     def _decay(self, request: dict) -> dict:
-        check_fields(request, {"ticks": list[float]})
-        ticks = [float(t) for t in request["ticks"]]
-        if any(b < a for a, b in zip(ticks, ticks[1:])):
-            raise MessageError(f"field 'ticks': times must not decrease, got {ticks}")
+        check_fields(request, {"ticks": dict})
+        try:
+            ticks = TickRun.from_json(request["ticks"])
+        except TickError as err:
+            raise MessageError(f"field 'ticks': {err}") from None
         buffer = self.consultant.wm
-        policy = (buffer.policy or forgetting.NONE).name  # lets the WM Manager notice a restart
-        if not ticks:
-            return {"queues_changed": 0, "policy": policy}
         before = buffer.snapshot()
-        # Apply now (the buffer is lazy), so the events and the state go out now, in a
-        # canonical order: tick by tick, and within a tick in the domain's entity order
-        # (SPEC §2 "Entity order"), not in the order the queues happened to fill.
-        rank = {entity: i for i, entity in enumerate(self.consultant.entities)}
-        pending = sorted(before, key=rank.__getitem__)  # decay never fills a queue
-        for i, tick in enumerate(ticks):
-            buffer.decay((tick,))
-            pending = [entity for entity in pending if buffer.length(entity)]  # catches up
-            if not pending:  # WM is empty: the remaining ticks pop nothing
-                buffer.decay(ticks[i + 1:])
-                break
-        buffer.flush()
-        self._last_time = ticks[-1]
-        return {"queues_changed": _changed(before, buffer.snapshot()), "policy": policy}
+        # Applied now (the buffer is lazy otherwise), so the events and the state go
+        # out now, in the canonical order.
+        apply_ticks(buffer, ticks, self.consultant.entities)
+        self._last_time = ticks.last
+        # ``policy`` lets the WM Manager notice a restarted consultant.
+        return {"queues_changed": _changed(before, buffer.snapshot()), "policy": self.policy.name}
+
+    def _evict(self, request: dict) -> dict:
+        check_fields(request, {"count": int})
+        if request["count"] < 0:
+            raise MessageError(f"field 'count': expected a whole number >= 0, got {request['count']}")
+        time, _ = self._time(request)
+        buffer = self.consultant.wm
+        before = buffer.snapshot()
+        buffer.evict_oldest(request["count"], "shared-capacity", time)
+        return {"queues_changed": _changed(before, buffer.snapshot()), "size": len(buffer)}
+
+    def _size(self, request: dict) -> dict:
+        return {"size": len(self.consultant.wm)}
 
     # ------------------------------------------------------------- LTM topic
-    def _on_assert(self, msg: String) -> None:
-        try:
-            data = from_msg(msg, {"domain": str})
-        except MessageError as err:
-            self.get_logger().warning(f"/ltm/assert: {err}")
-            self._assert_results.publish(
-                to_msg(_with_id(msg, {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": str(err)}))
-            )
-            return
+    def _reject_assert(self, request_id: Any, error: str) -> None:
+        reply = {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": error}
+        if request_id is not None:
+            reply["id"] = request_id
+        publish(self._assert_results, reply)
+
+    def _on_assert(self, data: dict) -> None:
+        check_fields(data, {"domain": str})
         if data["domain"] != self.domain:
             return  # another consultant's
         reply: dict[str, Any] = {"domain": self.domain, "entity": data.get("entity")}
         if "id" in data:
             reply["id"] = data["id"]
         try:
-            check_fields(data, {"entity": str, "properties": dict[str, float]})
+            contract.check(contract.LtmAssert, data)
+            contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
             time = self.now()
             before = self._event_count
             result = self.consultant.assert_facts(data["entity"], data["properties"], time)
         except (MessageError, KnowledgeError) as err:
-            self.get_logger().warning(f"/ltm/assert: {err}")
-            reply.update(ok=False, error=str(err))
-            self._assert_results.publish(to_msg(reply))
+            self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
+            reply.update(ok=False, error=printable(err))
+            publish(self._assert_results, reply)
             return
         reply.update(ok=True, new_entity=result.new_entity, updated=result.updated, retracted=result.retracted)
-        self._assert_results.publish(to_msg(reply))
-        self.get_logger().info(
+        publish(self._assert_results, reply)
+        self.get_logger().info(printable(
             f"LTM {'added' if result.new_entity else 'updated'} '{result.entity}': {result.updated}"
             + (f", retracted {result.retracted}" if result.retracted else "")
-        )
+        ))
         if self._event_count != before:
             self.publish_state(time)
 
     # ------------------------------------------------------------ parameters
-    @staticmethod
-    def _check_threshold(param) -> float:
-        value = number_value(param)
-        try:
-            return check_certainty("threshold", value)
-        except KnowledgeError as err:
-            raise ValueError(str(err)) from None
-
-    def _on_set_parameters(self, params) -> Any:
-        for param in params:
-            if param.name == "threshold":
-                try:
-                    self._check_threshold(param)
-                except ValueError as err:
-                    return rejected(str(err))
-        return accepted()
-
     def _after_set_parameters(self, params) -> None:
         for param in params:
             if param.name == "threshold":
-                value = self._check_threshold(param)
+                value = float(param.value)  # typed and ranged by its descriptor
                 if value != self.consultant.threshold:
                     now = now_seconds(self)
                     retracted = self.consultant.set_threshold(value, now)
@@ -362,13 +331,6 @@ class ConsultantNode(Node):
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:
     """How many entities' queues differ between two snapshots."""
     return sum(1 for e in set(before) | set(after) if before.get(e) != after.get(e))
-
-
-def _with_id(msg: String, reply: dict) -> dict:
-    found = error_reply(msg, "")
-    if "id" in found:
-        reply["id"] = found["id"]
-    return reply
 
 
 def main(args: Optional[list[str]] = None) -> int:

@@ -2,47 +2,48 @@
 
 For each turn at time T, in file order:
 
-1. call ``/wm_manager/sync`` with T: the WM Manager applies every decay tick due at
+1. call ``wm_manager/sync`` with T: the WM Manager applies every decay tick due at
    or before T in every domain and replies only when each consultant has acknowledged
    (the race-free hand-off: forgetting due at T is in effect before the event);
-2. publish ``/clock`` = T (``drive_clock``), so every sim-time node agrees on the time
+2. publish ``/clock`` = T (``drive_clock``; a namespaced graph remaps it, see
+   :func:`fsreg_ros.contract.clock_remap`), so every sim-time node agrees on the time
    (the WM Manager's timers then find nothing left to do);
-3. publish the human turn on ``/dialogue/human`` or the robot turn on
-   ``/reg/request`` and wait for the answer with the same ``id`` on ``/rr/result`` or
-   ``/reg/expression``.  Delivery is at-least-once: with no answer after
+3. publish the human turn on ``dialogue/human`` or the robot turn on
+   ``reg/request`` and wait for the answer with the same ``id`` on ``rr/result`` or
+   ``reg/expression``.  Delivery is at-least-once: with no answer after
    ``retry_after`` seconds the same message is sent again (RR and REG answer a
    repeated id from their cache, so nothing is encoded twice).
 
 The collected records are exactly those of ``fsreg-sim`` (see
 :mod:`fsreg_ros.core.simulation`), written as JSON to ``output`` or printed as a
-table.  Encode/forget events heard on ``/wm/events`` go to ``trace`` (JSON lines).
+table.  Encode/forget events heard on ``wm/events`` go to ``trace`` (JSON lines).
 """
 
 from __future__ import annotations
 
 import json
 import time as wallclock
-from typing import Any, Optional
+from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.task import Future
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
 
-from ..carrier import EVENTS_QOS, CarrierError, JsonClient, MessageError, from_msg, to_msg, wait_until
-from ..core.lexicon import Lexicon, LexiconError
-from ..core.scenario import Scenario, ScenarioError, Turn, load_scenario
+from .. import contract
+from ..carrier import CarrierError, JsonClient, drop_timer, publisher, subscribe, wait_until
+from ..codec import to_msg
+from ..core.lexicon import Lexicon
+from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
-from ..remote import consultant_service
-from .common import run_node
+from .common import declare_number, run_node
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
-    "/dialogue/human": (True, False),
-    "/reg/request": (True, False),
-    "/rr/result": (False, True),
-    "/reg/expression": (False, True),
+    contract.HUMAN.name: (True, False),
+    contract.REG_REQUEST.name: (True, False),
+    contract.RR_RESULT.name: (False, True),
+    contract.REG_EXPRESSION.name: (False, True),
 }
 
 
@@ -57,46 +58,42 @@ class DialoguePlayer(Node):
         super().__init__("dialogue_player", **kwargs)
         describe = ParameterDescriptor
         self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
-        self.declare_parameter("output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)"))
-        self.declare_parameter("trace", "", describe(description="write /wm/events as JSON lines here ('' = off)"))
+        self.declare_parameter(
+            "output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)")
+        )
+        self.declare_parameter("trace", "", describe(description="write wm/events as JSON lines here ('' = off)"))
         self.declare_parameter("drive_clock", True, describe(description="publish /clock at each turn's time"))
-        self.declare_parameter("turn_timeout", 30.0, describe(description="seconds to wait for one turn's answer"))
-        self.declare_parameter("retry_after", 2.0, describe(description="resend a turn unanswered for this long"))
-        self.declare_parameter("ready_timeout", 60.0, describe(description="seconds to wait for the graph to come up"))
-        self.declare_parameter("lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True))
+        declare_number(self, "turn_timeout", 30.0, 0.1, 3600.0, "seconds to wait for one turn's answer")
+        declare_number(self, "retry_after", 2.0, 0.05, 600.0, "resend a turn unanswered for this long, s")
+        declare_number(self, "ready_timeout", 60.0, 0.1, 3600.0, "seconds to wait for the graph to come up")
+        self.declare_parameter(
+            "lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True)
+        )
         path = self.get_parameter("scenario").value
         if not path:
             raise ValueError("parameter 'scenario' is required")
         self.scenario: Scenario = load_scenario(path, Lexicon.load(self.get_parameter("lexicon").value or None))
         self.run_id = f"{self.scenario.name}-{wallclock.time_ns() % 10**9}"
         group = self._group = ReentrantCallbackGroup()
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
-        self._human = self.create_publisher(String, "/dialogue/human", 100)
-        self._request = self.create_publisher(String, "/reg/request", 100)
-        self._sync = JsonClient(self, "/wm_manager/sync", group)
+        self._clock_pub = self.create_publisher(Clock, contract.CLOCK, 10)
+        self._human = publisher(self, contract.HUMAN)
+        self._request = publisher(self, contract.REG_REQUEST)
+        self._sync = JsonClient(self, contract.SYNC.name, group)
         self._pending: dict[str, Future] = {}
         self.events: list[dict] = []
         self.memory: dict[str, Any] = {}
-        self.create_subscription(String, "/rr/result", self._on_answer, 100, callback_group=group)
-        self.create_subscription(String, "/reg/expression", self._on_answer, 100, callback_group=group)
-        self.create_subscription(String, "/wm/events", self._on_event, EVENTS_QOS, callback_group=group)
+        subscribe(self, contract.RR_RESULT, self._on_answer, callback_group=group)
+        subscribe(self, contract.REG_EXPRESSION, self._on_answer, callback_group=group)
+        subscribe(self, contract.WM_EVENTS, self._on_event, callback_group=group)
 
     # ------------------------------------------------------------ callbacks
-    def _on_answer(self, msg: String) -> None:
-        try:
-            data = from_msg(msg, {})
-        except MessageError as err:
-            self.get_logger().warning(f"answer: {err}")
-            return
+    def _on_answer(self, data: dict) -> None:
         future = self._pending.get(str(data.get("id")))
         if future is not None and not future.done():
             future.set_result(data)
 
-    def _on_event(self, msg: String) -> None:
-        try:
-            self.events.append(from_msg(msg, {"op": str}))
-        except MessageError as err:
-            self.get_logger().warning(f"/wm/events: {err}")
+    def _on_event(self, data: dict) -> None:
+        self.events.append(contract.check(contract.WMEventMessage, data))
 
     # -------------------------------------------------------------- waiting
     def _missing_peers(self) -> list[str]:
@@ -107,8 +104,11 @@ class DialoguePlayer(Node):
         ]
 
     async def wait_ready(self) -> None:
-        """Every pipeline topic has its peers and the WM Manager answers a sync (which
-        it does only once every consultant is configured)."""
+        """Wait until the graph is up.
+
+        Every pipeline topic has its peers and the WM Manager answers a sync (which
+        it does only once every consultant is configured).
+        """
         timeout = self.get_parameter("ready_timeout").value
         started = wallclock.monotonic()
         if not await wait_until(self, lambda: not self._missing_peers(), timeout):
@@ -121,8 +121,10 @@ class DialoguePlayer(Node):
         self.memory = reply.get("memory", {})
 
     async def exchange(self, publisher, message: dict) -> dict:
-        """Publish ``message`` and wait for the answer with its id, resending it every
-        ``retry_after`` seconds until ``turn_timeout``."""
+        """Publish ``message`` and return the answer with its id.
+
+        The message is resent every ``retry_after`` seconds until ``turn_timeout``.
+        """
         key = str(message["id"])
         future = Future()
         self._pending[key] = future
@@ -142,7 +144,7 @@ class DialoguePlayer(Node):
         try:
             return await future
         finally:
-            self.destroy_timer(timer)
+            drop_timer(self, timer, self.default_callback_group)
             del self._pending[key]
 
     # ---------------------------------------------------------------- play
@@ -155,11 +157,13 @@ class DialoguePlayer(Node):
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
 
     async def drain_events(self) -> None:
-        """Wait until every event each consultant has published has been heard (an
-        answer can overtake the last events, which come from another process)."""
+        """Wait until every event each consultant has published has been heard.
+
+        An answer can overtake the last events, which come from another process.
+        """
         timeout = self.get_parameter("turn_timeout").value
         for domain in self.scenario.domains:
-            client = JsonClient(self, consultant_service(domain), self._group)
+            client = JsonClient(self, contract.consultant_service(domain), self._group)
             published = (await client.call({"op": "info"}, timeout))["events"]
             heard = lambda: sum(1 for e in self.events if e.get("domain") == domain) >= published  # noqa: E731
             if not await wait_until(self, heard, timeout):
@@ -195,7 +199,7 @@ class DialoguePlayer(Node):
 
 
 def clock_message(seconds: float) -> Clock:
-    """A ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
+    """Return a ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
     stamp = Clock()
     stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
     return stamp
@@ -226,7 +230,6 @@ def main(args=None) -> int:
     return run_node(
         DialoguePlayer,
         args,
-        startup_errors=(ScenarioError, LexiconError, ValueError, OSError),
         job=lambda node: node.play(),
         on_done=write_outputs,
         job_errors=(PlayerError, CarrierError),

@@ -1,30 +1,29 @@
 """``reg``: referring expression generation + realisation (SPEC section 4).
 
-Subscribes ``/reg/request`` ``{"id", "target", "context"?, "time"?, "turn"?}`` and
-publishes ``/reg/expression`` ``{"id", "target", "description", "sources",
-"distinguishing", "distractors_left", "text", "wm_before", "domain",
-"algorithm", "time"}``.  The core's generation coroutine asks the target's
+Subscribes ``reg/request`` and publishes ``reg/expression`` (schemas
+:class:`~fsreg_ros.contract.RegRequest`, :class:`~fsreg_ros.contract.RegExpression`).
+The core's generation coroutine asks the target's
 consultant over the graph, so REG's affirmations for distractors (rule 3) and
 the final description (rule 1) are encoded in that consultant's WM.
 
 Parameters: ``algorithm`` (``auto`` = SD-PIA, or DIST-PIA for a domain whose
 policy is ``none``; or one of sd-pia, dist-pia, full-brevity, greedy),
-``wm_order`` (lru-first, mru-first, preference), ``lexicon`` (path, '' = default).
-Bad requests get ``{"id", "error"}`` on ``/reg/expression`` and a logged warning.
+``wm_order`` (lru-first, mru-first, preference), ``lexicon`` (path, '' = default), and
+the limits and timeouts of :class:`~fsreg_ros.nodes.asking.AskingNode`.  Bad requests
+get ``{"id", "error"}`` on ``reg/expression`` and a logged warning.
 """
 
 from __future__ import annotations
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from std_msgs.msg import String
+from rcl_interfaces.msg import SetParametersResult
 
-from ..carrier import CarrierError, MessageError, from_msg, to_msg
-from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError, generate
-from ..core.lexicon import Lexicon, LexiconError
+from .. import contract
+from ..carrier import CarrierError, publish, publisher, subscribe
+from ..codec import printable
+from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, algorithm_for, generate
+from ..core.lexicon import Lexicon
 from .asking import AskingNode
-from .common import error_reply, run_node
-
-AUTO = "auto"
+from .common import descriptor, run_node
 
 
 class RegNode(AskingNode):
@@ -33,23 +32,19 @@ class RegNode(AskingNode):
     def __init__(self, **kwargs) -> None:
         super().__init__("reg", **kwargs)
         self.declare_parameter(
-            "algorithm",
-            AUTO,
-            ParameterDescriptor(description=f"{AUTO} (sd-pia, dist-pia under policy none) or one of {', '.join(ALGORITHMS)}"),
+            "algorithm", AUTO,
+            descriptor(f"{AUTO} (sd-pia, dist-pia under policy none) or one of {', '.join(ALGORITHMS)}"),
         )
-        self.declare_parameter(
-            "wm_order", "lru-first", ParameterDescriptor(description=f"order SD-PIA walks WM in: {', '.join(WM_ORDERS)}")
-        )
-        self.declare_parameter(
-            "lexicon", "", ParameterDescriptor(description="lexicon YAML ('' = package default)", read_only=True)
-        )
+        self.declare_parameter("wm_order", "lru-first", descriptor(f"order SD-PIA walks WM in: {', '.join(WM_ORDERS)}"))
+        self.declare_parameter("lexicon", "", descriptor("lexicon YAML ('' = package default)", read_only=True))
         problem = self._check(self.get_parameter("algorithm").value, self.get_parameter("wm_order").value)
         if problem:
             raise ValueError(problem)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.lexicon = Lexicon.load(self.get_parameter("lexicon").value or None)
-        self._expressions = self.create_publisher(String, "/reg/expression", 100)
-        self.create_subscription(String, "/reg/request", self._on_request, 100, callback_group=self.request_group)
+        self._expressions = publisher(self, contract.REG_EXPRESSION)
+        subscribe(self, contract.REG_REQUEST, self._on_request, reject=self._reject,
+                  callback_group=self.request_group, max_bytes=self.limits.max_message_bytes)
         self.get_logger().info(f"REG over domains {sorted(self.ports)}")
 
     @staticmethod
@@ -63,46 +58,39 @@ class RegNode(AskingNode):
     def _on_set_parameters(self, params) -> SetParametersResult:
         values = {"algorithm": self.get_parameter("algorithm").value, "wm_order": self.get_parameter("wm_order").value}
         for param in params:
-            if param.name == "lexicon":
-                return SetParametersResult(successful=False, reason="'lexicon' is read-only; restart the node")
             if param.name in values:
                 values[param.name] = param.value
         problem = self._check(values["algorithm"], values["wm_order"])
         return SetParametersResult(successful=not problem, reason=problem)
 
-    async def _on_request(self, msg: String) -> None:
-        try:
-            data = from_msg(msg, {"id": (str, int), "target": str})
-        except MessageError as err:
-            self.get_logger().warning(f"/reg/request: {err}")
-            self._expressions.publish(to_msg(error_reply(msg, str(err))))
-            return
+    def _reject(self, request_id, error: str) -> None:
+        reply = {"error": error} if request_id is None else {"id": request_id, "error": error}
+        publish(self._expressions, reply)
+
+    async def _on_request(self, data: dict) -> None:
+        contract.check(contract.RegRequest, data)
+        contract.check_sizes(data, self.limits, names=("target",), lists=("context",))
         await self.answer_once(data, self._expressions)
 
     async def answer(self, data: dict) -> dict:
-        """The ``/reg/expression`` for one request."""
+        """Return the ``reg/expression`` for one request."""
         time = self.request_time(data)
         out = {"id": data["id"], "target": data["target"], "time": time}
         try:
-            context = data.get("context")
-            if context is not None and (not isinstance(context, list) or not all(isinstance(e, str) for e in context)):
-                raise MessageError("'context' must be a list of entity names")
             await self.ensure_ready()
             domain, policy = await self._domain_of(data["target"])
-            algorithm = self.get_parameter("algorithm").value
-            if algorithm == AUTO:
-                algorithm = "dist-pia" if policy == "none" else "sd-pia"
+            algorithm = algorithm_for(policy != "none", self.get_parameter("algorithm").value)
             expression = await generate(
                 data["target"],
                 self.ports[domain],
                 algorithm,
-                context=context,
+                context=data.get("context"),
                 wm_order=self.get_parameter("wm_order").value,
                 time=time,
                 turn=data.get("turn"),
             )
-        except (MessageError, GenerationError, CarrierError) as err:
-            self.get_logger().warning(f"request {data['id']!r}: {err}")
+        except (ValueError, CarrierError) as err:  # GenerationError, KnowledgeError, MessageError
+            self.get_logger().warning(printable(f"{contract.REG_REQUEST.name} (id {data['id']!r}): {err}"))
             out["error"] = str(err)
             return out
         expression.text = self.lexicon.realise(expression.description, domain)
@@ -110,7 +98,7 @@ class RegNode(AskingNode):
         return out
 
     async def _domain_of(self, target: str) -> tuple[str, str]:
-        """The domain whose consultant knows ``target``, and that domain's policy name."""
+        """Return the domain whose consultant knows ``target``, and that domain's policy name."""
         for domain, port in self.ports.items():
             info = await port.info()
             if target in info["entities"]:
@@ -119,7 +107,7 @@ class RegNode(AskingNode):
 
 
 def main(args=None) -> int:
-    return run_node(RegNode, args, startup_errors=(LexiconError, ValueError))
+    return run_node(RegNode, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,92 +1,180 @@
-"""``wm_manager``: the one place that decides what each domain forgets (SPEC §2, §7).
+"""``wm_manager``: the ROS wrapper of the core WM Manager (SPEC sections 2 and 7).
 
-The buffers live in the consultant processes; this node owns every domain's
-forgetting policy and decay schedule and drives the consultants through their
-``/consultant/<domain>/manage`` services:
+The buffers live in the consultant processes; what each domain forgets, and when,
+is decided by the core :class:`~fsreg_ros.core.wm_manager.WMManager` (policies,
+decay schedules, the ticks owed to a consultant that was away).  This node only
+supplies its clock, timers, parameters and service transport: the manager's port
+sends each decision to ``/consultant/<domain>/manage``:
 
-* ``configure`` installs a domain's policy; the consultant trims every queue at once
-  (displacement / global-capacity limits, ``none`` empties WM).  Sent when the
-  consultant first answers and after every accepted parameter change.
-* ``decay`` applies decay ticks.  Each decaying domain has a core
-  :class:`~fsreg_ros.core.forgetting.DecayClock` (ticks at k * delta from t = 0; a new
-  ``decay_period`` restarts it: next tick one new period after the change) and a
-  one-shot ROS timer armed for the next tick (so it follows ``/clock`` under
-  ``use_sim_time``).  Timer and barrier run the same idempotent catch-up,
-  ``ticks = clock.due(now)`` (:func:`due_ticks`), so a tick is never applied twice or skipped, however
-  late a timer fires or however far ``/clock`` jumps.
+* ``configure`` installs a domain's policy (the consultant trims every queue at
+  once).  Sent when the consultant first answers (``attach``), after every accepted
+  parameter change, and again when a decay reply shows a consultant that lost its
+  policy (restarted), preceded by the ticks owed while it was away.
+* ``decay`` sends a run of ticks ``{"origin", "period", "first", "count"}``: a few
+  numbers however many ticks, so a clock far ahead costs what one tick costs.
 
-Parameters (all but ``domains`` changeable at run time; a change is validated as the
-effective policy of every domain and rejected with a reason if any is invalid):
+Time: the decay grid starts at the node's clock when it starts managing (under
+``use_sim_time`` that is 0 until the first ``/clock``, so a scripted replay ticks
+at k * delta from t = 0, as the simulator does); ticks fall at origin + k * delta,
+and a new ``decay_period`` restarts the grid at the change.  A one-shot ROS timer is
+armed for each domain's next tick.  A clock that goes backwards applies nothing
+(ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
+a clock that does not move is reported (``common.watch_clock``).
+
+Parameters (all but ``domains`` changeable at run time; every numeric one has a
+declared range, so ``ros2 param describe`` shows it; a change is validated as the
+effective policy of every domain and rejected with a reason if any is invalid;
+unsetting a parameter or changing its type is refused, by rclpy's static typing):
     ``domains`` (string array, required, read-only): the consultant domains managed;
-    ``policy`` (default ``none``), ``decay_period`` (10.0 s), ``capacity`` (2),
-    ``global_capacity`` (6): defaults for every domain;
-    ``<domain>.policy`` (``""`` = inherit), ``<domain>.decay_period`` (0 = inherit),
-    ``<domain>.capacity`` (0 = inherit), ``<domain>.global_capacity`` (0 = inherit);
-    ``service_timeout`` (10.0 s): deadline of each consultant call.
+    ``policy`` (default ``none``), ``decay_period`` (10.0 s, in [0.01, 1e6]),
+    ``capacity`` (2, in [1, 10000]), ``global_capacity`` (6, in [1, 1e6]),
+    ``seed`` (0, in [0, 2**31 - 1]), ``shared_capacity`` (12, in [1, 1e6]):
+    defaults for every domain (bounds:
+    :data:`fsreg_ros.core.forgetting.BOUNDS`);
+    ``<domain>.policy`` (``""`` = inherit), ``<domain>.decay_period`` (0 = inherit,
+    else in [0.01, 1e6]), ``<domain>.capacity``, ``<domain>.global_capacity``,
+    ``<domain>.shared_capacity`` (0 = inherit), ``<domain>.seed`` (-1 = inherit):
+    the ranges include the inherit marker;
+    ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of each consultant call.
 
 Services (JSON in ``AddDiagnostics``):
     ``/wm_manager/sync`` ``{"time": t}`` -> ``{"time", "memory": {domain: policy},
     "applied": {domain: n_ticks}}``: the race-free hand-off of a scripted player.
     Applies every tick due at or before t in every domain (t from the request: no
     waiting on ``/clock``), waits until every consultant has acknowledged everything
-    sent to it so far, then replies.  Before the consultants are configured it waits
-    for them (up to ``service_timeout``), then replies an error.
+    sent to it so far; then, if any domain has ``shared-capacity``, asks the pool's
+    consultants their sizes and sends the evictions the core decides (``evict``),
+    and waits for those too; then replies.  A t that is not finite, beyond 1e12 s, or more
+    than a day (``core.wm_manager.SYNC_AHEAD``) ahead of the node's clock is rejected
+    with a reason and changes nothing.  Before the consultants are configured it
+    waits for them (up to ``service_timeout``), then replies an error.
     ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "next_tick"}``.
 """
 
 from __future__ import annotations
 
-import math
 import time as wallclock
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Optional
 
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException, ParameterUninitializedException
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    InvalidServiceNameException,
+    InvalidTopicNameException,
+    ParameterUninitializedException,
+)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_topic_name import validate_topic_name
 
-from ..carrier import NUMBER, CarrierError, JsonClient, check_fields, serve, wait_until
-from ..core.forgetting import (
-    RULE_PARAMETER,
-    TIME_EPSILON,
-    DecayClock,
-    ForgettingPolicy,
-    PolicyError,
-    check_setting,
-)
-from ..remote import manage_service
-from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node
+from .. import contract
+from ..carrier import CarrierError, JsonClient, serve, wait_until
+from ..codec import NUMBER, check_fields
+from ..contract import manage_service
+from ..core.decay import TIME_EPSILON, TickError, TickRun
+from ..core.forgetting import BOUNDS, ForgettingPolicy, PolicyError, check_setting
+from ..core.wm_manager import WMManager
+from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 
-#: Defaults for every domain (SPEC §5 names).
-DEFAULTS: dict[str, Any] = {"policy": "none", "decay_period": 10.0, "capacity": 2, "global_capacity": 6}
-#: Per-domain "inherit" markers.
-UNSET: dict[str, Any] = {"policy": "", "decay_period": 0.0, "capacity": 0, "global_capacity": 0}
+#: Defaults for every domain (SPEC section 5 names).
+DEFAULTS: dict[str, Any] = {
+    "policy": "none",
+    "decay_period": 10.0,
+    "capacity": 2,
+    "global_capacity": 6,
+    "seed": 0,
+    "shared_capacity": 12,
+}
+#: Per-domain "inherit" markers (each inside its parameter's declared range).
+INHERIT: dict[str, Any] = {
+    "policy": "",
+    "decay_period": 0.0,
+    "capacity": 0,
+    "global_capacity": 0,
+    "seed": -1,
+    "shared_capacity": 0,
+}
 SETTINGS = tuple(DEFAULTS)
+#: Range of ``service_timeout``, seconds.
+TIMEOUT_RANGE = (0.01, 3600.0)
 #: How often unconfigured consultants are looked for and stale calls expired (s).
 SUPERVISE_PERIOD = 0.25
-#: Most tick times sent in one decay request (see :func:`due_ticks`).
-MAX_TICKS = 10_000
+#: Longest one-shot timer delay, ns (rcl timers take an int64 period).
+MAX_DELAY_NS = 10**18
+
+DESCRIPTIONS = {
+    "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
+    "displacement-random, similarity, global-capacity, shared-capacity)",
+    "decay_period": "decay period delta, seconds",
+    "capacity": "per-entity queue limit alpha",
+    "global_capacity": "per-domain total limit",
+    "seed": "seed of displacement-random",
+    "shared_capacity": "limit of the pool shared by every domain with shared-capacity",
+}
+
+
+def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
+    """Return a memory setting's descriptor, with the core's bounds as its range.
+
+    A per-domain setting's range is widened to include its inherit marker.
+    """
+    text = DESCRIPTIONS[key]
+    if domain is not None:
+        text = f"domain '{domain}' {text}; {INHERIT[key]!r} = inherit '{key}'"
+    out = ParameterDescriptor(description=text)
+    if key == "policy":
+        return out
+    low, high = BOUNDS[key]
+    if domain is not None:
+        low = INHERIT[key]
+    if key == "decay_period":
+        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+        if domain is not None:
+            out.additional_constraints = f"0 (inherit) or in [{BOUNDS[key][0]:g}, {high:g}]"
+    else:
+        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+    return out
 
 
 @dataclass
 class _Domain:
-    """The WM Manager's view of one domain's pool."""
+    """The transport state of one domain's consultant."""
 
     name: str
     client: JsonClient
-    policy: ForgettingPolicy
-    clock: Optional[DecayClock] = None
     timer: Any = None
-    contacted: bool = False  # a configure has been sent
-    configured: bool = False  # ... and acknowledged
+    configured: bool = False  # a configure has been acknowledged
     configuring: Optional[Future] = None
     inflight: list = field(default_factory=list)  # [(future, op, deadline)]
+
+
+class _ManagePort:
+    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph.
+
+    Each decision becomes a request to the consultant's manage service.
+    """
+
+    def __init__(self, node: "WMManagerNode") -> None:
+        self.node = node
+
+    def configure(self, domain: str, policy: ForgettingPolicy, time: float) -> None:
+        dom = self.node._domains[domain]
+        dom.configuring = self.node._send(dom, {"op": "configure", "policy": policy.settings(), "time": time})
+
+    def decay(self, domain: str, ticks: TickRun) -> None:
+        self.node._send(self.node._domains[domain], {"op": "decay", "ticks": ticks.to_json()})
+
+    def evict(self, domain: str, count: int, time: float) -> None:
+        self.node._send(self.node._domains[domain], {"op": "evict", "count": count, "time": time})
+
+    def sizes(self, domains: list[str]) -> None:
+        return None  # needs service calls: the sync barrier asks, then calls manager.share
 
 
 class WMManagerNode(Node):
@@ -111,36 +199,28 @@ class WMManagerNode(Node):
             raise StartupError(f"parameter 'domains' names a domain twice: {names}")
         for name in names:
             try:
-                validate_full_topic_name(manage_service(name), is_service=True)
+                validate_topic_name(manage_service(name), is_service=True)
             except (InvalidServiceNameException, InvalidTopicNameException):
                 raise StartupError(f"domain {name!r} cannot be part of a ROS service name") from None
             if name in SETTINGS or name == "service_timeout":
                 raise StartupError(f"domain {name!r} clashes with a parameter name")
 
-        self.declare_parameter("policy", DEFAULTS["policy"], descriptor(
-            "default forgetting policy: none, or decay / displacement / global-capacity joined by +"))
-        self.declare_parameter("decay_period", DEFAULTS["decay_period"], descriptor(
-            "default decay period delta, seconds (> 0)", dynamic_typing=True))
-        self.declare_parameter("capacity", DEFAULTS["capacity"], descriptor(
-            "default per-entity queue limit alpha (>= 1)"))
-        self.declare_parameter("global_capacity", DEFAULTS["global_capacity"], descriptor(
-            "default per-domain total limit (>= 1)"))
-        for name in names:
-            self.declare_parameter(f"{name}.policy", UNSET["policy"], descriptor(
-                f"domain '{name}' policy; '' = inherit 'policy'"))
-            self.declare_parameter(f"{name}.decay_period", UNSET["decay_period"], descriptor(
-                f"domain '{name}' decay period, s; 0 = inherit 'decay_period'", dynamic_typing=True))
-            self.declare_parameter(f"{name}.capacity", UNSET["capacity"], descriptor(
-                f"domain '{name}' queue limit; 0 = inherit 'capacity'"))
-            self.declare_parameter(f"{name}.global_capacity", UNSET["global_capacity"], descriptor(
-                f"domain '{name}' total limit; 0 = inherit 'global_capacity'"))
-        self.declare_parameter("service_timeout", 10.0, descriptor(
-            "deadline of each consultant call, and of sync's wait for configuration, s", dynamic_typing=True))
-
         self._names = names
         self._param_names = list(SETTINGS) + [f"{d}.{k}" for d in names for k in SETTINGS] + ["service_timeout"]
+        timeout = ParameterDescriptor(
+            description="deadline of each consultant call, and of sync's wait for configuration, s",
+            floating_point_range=[FloatingPointRange(from_value=TIMEOUT_RANGE[0], to_value=TIMEOUT_RANGE[1], step=0.0)],
+        )
         try:
-            policies = self._validate(self._values())
+            for key in SETTINGS:
+                self.declare_parameter(key, DEFAULTS[key], setting_descriptor(key))
+            for name in names:
+                for key in SETTINGS:
+                    self.declare_parameter(f"{name}.{key}", INHERIT[key], setting_descriptor(key, name))
+            self.declare_parameter("service_timeout", 10.0, timeout)
+            policies = self._effective(self._values())
+        except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+            raise StartupError(" ".join(str(err).split())) from None
         except ValueError as err:
             raise StartupError(str(err)) from None
 
@@ -151,21 +231,26 @@ class WMManagerNode(Node):
         self._client_group = ReentrantCallbackGroup()
         self._barrier_group = MutuallyExclusiveCallbackGroup()
         now = self.now()
+        self._latest = now
+        self._warned_backwards = False
         self._domains: dict[str, _Domain] = {}
+        self.manager = WMManager(_ManagePort(self), origin=now)
         for name in names:
-            dom = _Domain(name, JsonClient(self, manage_service(name), self._client_group), policies[name])
-            self._domains[name] = dom
-            self._install_clock(dom, None, now)
-            dom.timer = self.create_timer(1.0, partial(self._on_decay_timer, name), autostart=False)
-            self._arm(dom)
+            self._domains[name] = _Domain(name, JsonClient(self, manage_service(name), self._client_group))
+            self.manager.manage_domain(name, policies[name], now)
+            self._domains[name].timer = self.create_timer(1.0, partial(self._on_decay_timer, name), autostart=False)
+            self._arm(name)
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
-        serve(self, "/wm_manager/sync", self._sync, self._barrier_group)
-        serve(self, "/wm_manager/status", self._status)
+        serve(self, contract.SYNC.name, self._sync, self._barrier_group)
+        serve(self, contract.STATUS.name, self._status)
+        self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            "managing " + ", ".join(f"{d}: {p.to_json()}" for d, p in policies.items()) + "; waiting for consultants"
+            f"managing (decay grid from t = {now:g}) "
+            + ", ".join(f"{d}: {p.to_json()}" for d, p in policies.items())
+            + "; waiting for consultants"
         )
         self._supervise()
 
@@ -177,34 +262,41 @@ class WMManagerNode(Node):
     def timeout(self) -> float:
         return float(self.get_parameter("service_timeout").value)
 
+    def _advance(self, name: str, t: float) -> int:
+        """Send the domain's ticks due at or before ``t`` (the core decides); how many."""
+        if t < self._latest - TIME_EPSILON and not self._warned_backwards:
+            self._warned_backwards = True
+            self.get_logger().warning(
+                f"the clock went backwards ({t:g} s after {self._latest:g} s): no decay tick is undone or applied "
+                "again (logged once)"
+            )
+        self._latest = max(self._latest, t)
+        return self.manager.advance_domain(name, t)
+
     # ------------------------------------------------------------ parameters
     def _values(self) -> dict[str, Any]:
         return {name: self.get_parameter(name).value for name in self._param_names}
 
-    def _validate(self, values: dict[str, Any]) -> dict[str, ForgettingPolicy]:
-        """Check every managed parameter; the effective policies, or ValueError."""
-        timeout = values["service_timeout"]
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-            raise ValueError(f"service_timeout must be a number of seconds > 0, got {timeout!r}")
-        return self._effective(values)
-
     def _effective(self, values: dict[str, Any]) -> dict[str, ForgettingPolicy]:
         """Every domain's effective policy from parameter values; ValueError if invalid."""
-        _check_global(values)
+        try:
+            for key in SETTINGS:
+                check_setting(key, values[key])
+        except PolicyError as err:
+            raise ValueError(str(err)) from None
         policies = {}
         for d in self._names:
             merged = {}
             for key in SETTINGS:
                 own = values[f"{d}.{key}"]
-                _check_own(d, key, own)
-                merged[key] = values[key] if own == UNSET[key] else own
+                if own != INHERIT[key]:
+                    try:
+                        check_setting(key, own)
+                    except PolicyError as err:
+                        raise ValueError(f"{d}.{key}: {err} ({INHERIT[key]!r} inherits '{key}')") from None
+                merged[key] = values[key] if own == INHERIT[key] else own
             try:
-                policies[d] = ForgettingPolicy.parse(
-                    merged["policy"],
-                    decay_period=float(merged["decay_period"]),
-                    capacity=merged["capacity"],
-                    global_capacity=merged["global_capacity"],
-                )
+                policies[d] = ForgettingPolicy.from_settings(merged)
             except PolicyError as err:
                 raise ValueError(f"domain '{d}': {err}") from None
         return policies
@@ -213,80 +305,53 @@ class WMManagerNode(Node):
         values = self._values()
         touched = False
         for param in params:
-            if param.name in values:
-                values[param.name] = param.value
-                touched = True
+            if param.name not in values:
+                continue
+            values[param.name] = param.value
+            touched = True
         if not touched:
             return accepted()
         try:
-            self._validate(values)
+            self._effective(values)
         except ValueError as err:
             self.get_logger().warning(f"rejected parameter change: {err}")
             return rejected(str(err))
         return accepted()
 
     def _after_set_parameters(self, params: list[Parameter]) -> None:
-        if not any(p.name in self._param_names for p in params):
+        if not any(p.name in self._param_names and p.name != "service_timeout" for p in params):
             return
-        policies = self._effective(self._values())
-        now = self.now()
-        for name, policy in policies.items():
-            dom = self._domains[name]
-            if policy.to_json() != dom.policy.to_json():
-                self.set_policy(name, policy, now)
-            else:  # only a setting its rules do not use changed: nothing to do now
-                dom.policy = policy
-
-    # ---------------------------------------------------------------- policy
-    def set_policy(self, name: str, policy: ForgettingPolicy, now: float) -> None:
-        """Change a domain's policy; in effect at once (as core ``WMManager.set_policy``)."""
-        dom = self._domains[name]
-        self._catch_up(dom, now)  # ticks due under the old schedule happen first
-        old, dom.policy = dom.policy, policy
-        self._install_clock(dom, old, now)
-        self._arm(dom)
-        self.get_logger().info(f"domain '{name}': memory {policy.to_json()}")
-        if dom.contacted:
-            self._configure(dom, now)
-
-    @staticmethod
-    def _install_clock(dom: _Domain, old: Optional[ForgettingPolicy], now: float) -> None:
-        policy = dom.policy
-        if not policy.decays:
-            dom.clock = None
-        elif dom.clock is None:
-            # Decay switched on: ticks stay on the k * delta grid from t = 0 (as the
-            # core's WMManager.set_policy); ticks before now are not owed.
-            dom.clock = DecayClock(policy.decay_period, origin=0.0)  # type: ignore[arg-type]
-            due_ticks(dom.clock, now)
-        elif old is not None and old.decay_period != policy.decay_period:
-            dom.clock.restart(policy.decay_period, now)  # type: ignore[arg-type]
+        try:
+            policies = self._effective(self._values())
+            now = self.now()
+            for name, policy in policies.items():
+                if policy.to_json() != self.manager.domains[name].policy.to_json():
+                    self._advance(name, now)
+                    self.manager.set_policy(name, policy, now)
+                    self._arm(name)
+                    self.get_logger().info(f"domain '{name}': memory {policy.to_json()}")
+        except (ValueError, TickError) as err:  # validated above: only a clock fault gets here
+            self.get_logger().error(f"parameter change not applied: {err}")
 
     # ----------------------------------------------------------------- decay
-    def _arm(self, dom: _Domain) -> None:
+    def _arm(self, name: str) -> None:
         """(Re)arm the domain's one-shot timer for its next tick (ROS clock)."""
-        if dom.clock is None:
+        dom = self._domains[name]
+        next_tick = self.manager.next_tick(name)
+        if next_tick is None:
             dom.timer.cancel()
             return
         now_ns = self.get_clock().now().nanoseconds
-        delay_ns = max(int(round(dom.clock.next_tick() * 1e9)) - now_ns, 1)
+        delay_ns = min(max(int(round(next_tick * 1e9)) - now_ns, 1), MAX_DELAY_NS)
         dom.timer.timer_period_ns = delay_ns
         dom.timer.reset()
 
     def _on_decay_timer(self, name: str) -> None:
-        dom = self._domains[name]
-        self._catch_up(dom, self.now())
-        self._arm(dom)
-
-    def _catch_up(self, dom: _Domain, t: float) -> int:
-        """Send every tick due at or before ``t`` not sent yet; how many."""
-        if dom.clock is None:
-            return 0
-        ticks, count = due_ticks(dom.clock, t)
-        if ticks and dom.contacted:
-            # Before the first configure the consultant runs policy none: nothing to decay.
-            self._send(dom, {"op": "decay", "ticks": ticks})
-        return count
+        try:
+            self._advance(name, self.now())
+        except TickError as err:
+            self.get_logger().error(f"decay of '{name}' not applied: {err}", throttle_duration_sec=10.0)
+        self._arm(name)
 
     # ------------------------------------------------------------ consultants
     def _send(self, dom: _Domain, payload: dict) -> Future:
@@ -295,15 +360,6 @@ class WMManagerNode(Node):
         dom.inflight.append(entry)
         future.add_done_callback(partial(self._on_reply, dom, entry))
         return future
-
-    def _configure(self, dom: _Domain, now: float) -> None:
-        policy = dom.policy
-        settings = {"policy": policy.name}
-        for param in RULE_PARAMETER.values():
-            if getattr(policy, param) is not None:
-                settings[param] = getattr(policy, param)
-        dom.contacted = True
-        dom.configuring = self._send(dom, {"op": "configure", "policy": settings, "time": now})
 
     def _on_reply(self, dom: _Domain, entry: tuple, future: Future) -> None:
         if entry in dom.inflight:
@@ -314,37 +370,43 @@ class WMManagerNode(Node):
         except CarrierError as err:
             self.get_logger().error(f"consultant '{dom.name}' failed '{op}': {err}")
             if op == "configure" and future is dom.configuring:
-                # Start over: configure again when the consultant answers.
-                dom.contacted = dom.configured = False
+                # Start over: attach again when the consultant answers.
+                self.manager.detach(dom.name)
+                dom.configured = False
                 dom.configuring = None
             return
-        if op == "decay" and dom.configured and dom.configuring is None and reply.get("policy") != dom.policy.name:
-            # The consultant lost its setting (e.g. it was restarted): configure it again.
+        policy = self.manager.domains[dom.name].policy
+        if op == "decay" and dom.configured and dom.configuring is None and reply.get("policy") != policy.name:
+            # The consultant lost its setting (it was restarted): attach it again.
             self.get_logger().warning(
-                f"consultant '{dom.name}' runs policy {reply.get('policy')!r}, not '{dom.policy.name}': reconfiguring"
+                f"consultant '{dom.name}' runs policy {reply.get('policy')!r}, not '{policy.name}': reconfiguring"
             )
             dom.configured = False
-            self._configure(dom, self.now())
+            self.manager.detach(dom.name)
+            self._attach(dom)
             return
         if op == "configure" and future is dom.configuring:
             if not dom.configured:
-                self.get_logger().info(f"consultant '{dom.name}' configured: {dom.policy.to_json()}")
+                self.get_logger().info(f"consultant '{dom.name}' configured: {policy.to_json()}")
             dom.configured = True
             dom.configuring = None
 
+    def _attach(self, dom: _Domain) -> None:
+        try:
+            self.manager.attach(dom.name, None, self.now())
+        except TickError as err:
+            self.get_logger().error(f"consultant '{dom.name}' not attached: {err}", throttle_duration_sec=10.0)
+        self._arm(dom.name)
+
     def _supervise(self) -> None:
-        """Configure consultants that became reachable; expire unanswered calls."""
+        """Attach consultants that became reachable; expire unanswered calls."""
         now_wall = wallclock.monotonic()
         for dom in self._domains.values():
             for future, op, deadline in list(dom.inflight):
                 if now_wall > deadline and not future.done():
                     dom.client.expire(future, self.timeout)
-            if not dom.contacted and dom.client.ready():
-                now = self.now()
-                if dom.clock is not None:
-                    due_ticks(dom.clock, now)  # ticks before the first configure are not owed (WM was empty)
-                    self._arm(dom)
-                self._configure(dom, now)
+            if not self.manager.domains[dom.name].attached and dom.client.ready():
+                self._attach(dom)
 
     def _all_configured(self) -> bool:
         return all(dom.configured for dom in self._domains.values())
@@ -352,7 +414,7 @@ class WMManagerNode(Node):
     # --------------------------------------------------------------- services
     async def _sync(self, request: dict) -> dict:
         check_fields(request, {"time": NUMBER})
-        t = float(request["time"])
+        t = self.manager.check_sync_time(request["time"], self.now())  # TickError -> error reply
         timeout = self.timeout
         deadline = wallclock.monotonic() + timeout
         if not await wait_until(self, self._all_configured, timeout, callback_group=self._client_group):
@@ -362,18 +424,33 @@ class WMManagerNode(Node):
                 f"(is {', '.join(manage_service(d) for d in missing)} up?)",
                 kind="not-ready",
             )
-        applied = {name: self._catch_up(dom, t) for name, dom in self._domains.items()}
-        for dom in self._domains.values():
-            self._arm(dom)
-        # Wait for everything sent so far (this sync's ticks, a timer's, configures).
+        applied = {name: self._advance(name, t) for name in self._domains}
+        for name in self._domains:
+            self._arm(name)
+        await self._settle(deadline)
+        sharing = self.manager.sharing()
+        if sharing:  # the shared pool, after the ticks (as core WMManager.advance)
+            sizes = {}
+            for name in sharing:
+                dom = self._domains[name]
+                reply = await self._await(dom, self._send(dom, {"op": "size"}), deadline)
+                sizes[name] = reply["size"]
+            self.manager.share(sizes, t)
+            await self._settle(deadline)
+        return {"time": t, "memory": self.memory(), "applied": applied}
+
+    async def _settle(self, deadline: float) -> None:
+        """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
         pending = [(dom, entry[0]) for dom in self._domains.values() for entry in list(dom.inflight)]
         for dom, future in pending:
-            remaining = max(deadline - wallclock.monotonic(), 0.05)
-            try:
-                await dom.client.result(future, remaining)
-            except CarrierError as err:
-                raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
-        return {"time": t, "memory": self.memory(), "applied": applied}
+            await self._await(dom, future, deadline)
+
+    async def _await(self, dom: _Domain, future: Future, deadline: float) -> dict:
+        remaining = max(deadline - wallclock.monotonic(), 0.05)
+        try:
+            return await dom.client.result(future, remaining)
+        except CarrierError as err:
+            raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
 
     def _status(self, request: dict) -> dict:
         return {
@@ -381,49 +458,12 @@ class WMManagerNode(Node):
             "domains": list(self._names),
             "memory": self.memory(),
             "configured": {d: dom.configured for d, dom in self._domains.items()},
-            "next_tick": {d: (dom.clock.next_tick() if dom.clock else None) for d, dom in self._domains.items()},
+            "next_tick": {d: self.manager.next_tick(d) for d in self._domains},
         }
 
     def memory(self) -> dict[str, dict]:
-        """Each domain's effective setting (SPEC §6 ``memory``), sorted by domain."""
-        return {d: self._domains[d].policy.to_json() for d in sorted(self._domains)}
-
-
-def due_ticks(clock: DecayClock, t: float, limit: int = MAX_TICKS) -> tuple[list[float], int]:
-    """``DecayClock.due(t)`` without building a list of every tick after a long gap.
-
-    Returns the times of the first ``limit`` ticks due at or before ``t`` and not yet
-    applied, and how many were due; all of them are marked applied.  Sending only the
-    first ``limit`` is exact: a queue holds distinct properties of the domain, so after
-    as many ticks as the domain has properties every queue is empty, and nothing can
-    be encoded between the ticks of one catch-up.  (A wall clock starts ~1.7e9 s after
-    the origin: without this, the first catch-up would list every tick since 1970.)
-    """
-    elapsed = math.floor((t - clock.origin + TIME_EPSILON) / clock.period)
-    count = max(elapsed - clock.applied, 0)
-    first = clock.applied + 1
-    times = [clock.origin + k * clock.period for k in range(first, first + min(count, limit))]
-    clock.applied = max(clock.applied, elapsed)
-    return times, count
-
-
-def _check_global(values: dict[str, Any]) -> None:
-    try:
-        for key in SETTINGS:
-            check_setting(key, values[key])
-    except PolicyError as err:
-        raise ValueError(str(err)) from None
-
-
-def _check_own(domain: str, key: str, value: Any) -> None:
-    """A per-domain value: its 'inherit' marker, or a valid setting."""
-    inherit = value == "" if key == "policy" else (not isinstance(value, bool) and value == 0)
-    if inherit:
-        return
-    try:
-        check_setting(key, value)
-    except PolicyError as err:
-        raise ValueError(f"{domain}.{key}: {err} ({UNSET[key]!r} inherits '{key}')") from None
+        """Each domain's effective setting (SPEC section 6 ``memory``), sorted by domain."""
+        return self.manager.effective()
 
 
 def main(args: Optional[list[str]] = None) -> int:

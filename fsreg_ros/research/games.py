@@ -24,11 +24,12 @@ from typing import Any, Mapping, Optional, Sequence
 from ..core.alignment import AlignmentSummary, summarise
 from ..core.consultant import Consultant, LocalPort, run_sync
 from ..core.describe import describe
-from ..core.forgetting import WMManager
+from ..core.generation import algorithm_for
+from ..core.wm_manager import WMManager
 from ..core.lexicon import Lexicon
 from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
-from ..core.simulation import Options, Simulation, algorithm_for
+from ..core.simulation import Options, Simulation
 
 DOMAIN = "faces"
 #: The board's attributes and their values (property names as in the shipped lexicon).
@@ -88,7 +89,8 @@ def make_game(seed: int, turns: int, gap_range: tuple = (2.0, 12.0)) -> Game:
 def scenario_of(game: Game) -> Scenario:
     """Return the game as a scenario (one domain ``faces``, the robot's preference order)."""
     entities = {face: {p: 1.0 for p in props} for face, props in game.board.items()}
-    domain = DomainSpec(DOMAIN, ROBOT_ORDER, entities)
+    # The board's attributes let attribute-similarity interference (rule ``similarity``) act.
+    domain = DomainSpec(DOMAIN, ROBOT_ORDER, entities, attributes=dict(PROPERTY_ATTRIBUTE))
     dialogue = tuple(
         Turn(i, time, speaker, target=target, description=said, domain=DOMAIN if speaker == "human" else None)
         for i, (speaker, time, target, said) in enumerate(game.turns)
@@ -124,7 +126,7 @@ class HumanSpeaker:
     def say(self, target: str, time: float, turn: int) -> list[str]:
         """Return the human's description of ``target`` at ``time`` (encoding it in the human's WM)."""
         self.manager.advance(time)
-        algorithm = algorithm_for(self.policy, None)
+        algorithm = algorithm_for(self.policy.retains, None)
         return describe(target, self.consultant, algorithm, attributes=PROPERTY_ATTRIBUTE, writes=True, time=time,
                         turn=turn).description
 

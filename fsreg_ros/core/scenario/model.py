@@ -9,7 +9,16 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
 from ..consultant import DEFAULT_THRESHOLD, Consultant
-from ..forgetting import RULE_PARAMETER, ForgettingPolicy, PolicyError, check_setting, merge_settings, parse_rules
+from ..forgetting import (
+    DEFAULTS,
+    PARAMETERS,
+    RULE_PARAMETERS,
+    ForgettingPolicy,
+    PolicyError,
+    check_setting,
+    merge_settings,
+    parse_rules,
+)
 from ..yaml_source import SourceError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -18,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Path used for errors in command-line overrides of the ``memory:`` settings.
 COMMAND_LINE = "<command line>"
 #: The keys of a ``memory:`` block.
-MEMORY_KEYS = ("policy",) + tuple(RULE_PARAMETER.values())
+MEMORY_KEYS = ("policy",) + PARAMETERS
 
 
 class ScenarioError(SourceError):
@@ -99,7 +108,9 @@ class Scenario:
                 if layer and layer.get("policy") is not None:
                     path, policy = candidate, str(layer["policy"])
             given = {k for _, layer in layers for k, v in (layer or {}).items() if v is not None}
-            missing = [RULE_PARAMETER[r] for r in parse_rules(policy) if RULE_PARAMETER[r] not in given]
+            missing = [
+                p for r in parse_rules(policy) for p in RULE_PARAMETERS[r] if p not in given and p not in DEFAULTS
+            ]
             message = f"domain '{domain}': {err}"
             if missing:
                 message = f"domain '{domain}': policy '{policy}' needs " + " and ".join(
@@ -129,7 +140,7 @@ class Scenario:
         receives every WM event.
         """
         return {
-            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink)
+            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink, attributes=spec.attributes)
             for name, spec in self.domains.items()
         }
 

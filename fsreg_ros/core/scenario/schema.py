@@ -64,6 +64,12 @@ class MemoryBlock(Strict):
     global_capacity: Optional[int] = Field(
         None, description="global-capacity: per-domain total limit, >= 1", json_schema_extra={"minimum": 1}
     )
+    seed: Optional[int] = Field(
+        None, description="displacement-random: random seed (default 0), >= 0", json_schema_extra={"minimum": 0}
+    )
+    shared_capacity: Optional[int] = Field(
+        None, description="shared-capacity: limit of the pool shared by domains, >= 1", json_schema_extra={"minimum": 1}
+    )
 
 
 class DomainBlock(Strict):

@@ -1,0 +1,131 @@
+#!/usr/bin/env python3
+"""REG's resident memory over many requests: it must stay flat once its answer cache is full.
+
+Starts a consultant, the WM Manager and REG as their own processes (as ``fsreg-graph``
+does, policy displacement so WM stays bounded), then sends ``--requests`` REG requests
+with distinct ids from this process, one at a time, waiting for each answer, and reads
+REG's RSS (``/proc/<pid>/status`` VmRSS) every ``--every`` requests.  It prints the RSS
+at each sample and the slope after the cache is full (default 1,024 entries), in bytes
+per request.  Before the fix, REG grew ~1.9 kB per request after the cache filled: every
+service call created a deadline timer, and rclpy's callback group kept a weak reference
+to each timer forever (see ``fsreg_ros.carrier.drop_timer``).
+
+    scripts/bench_rss.py [SCENARIO.yaml] [--requests 6000] [--every 500]
+
+Wall-clock figures belong here, not in the tests.  Runs with
+ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST unless you set otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "scripts"))
+from venv_python import use_venv  # noqa: E402
+
+use_venv()  # run with .venv/bin/python, however started
+
+from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
+
+os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
+
+import rclpy  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+from fsreg_ros import contract  # noqa: E402
+from fsreg_ros.carrier import publisher  # noqa: E402
+from fsreg_ros.codec import to_msg  # noqa: E402
+from fsreg_ros.core.scenario import load_scenario  # noqa: E402
+from fsreg_ros.core.simulation import Options  # noqa: E402
+
+
+NAMESPACE = "/bench_rss"
+
+
+def rss_kb(pid: int) -> int:
+    """Return the resident set size of a process in kB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    raise RuntimeError(f"no VmRSS for pid {pid}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", nargs="?", type=Path, default=REPO / "test" / "data" / "graph" / "kb.yaml")
+    parser.add_argument("--requests", type=int, default=6000)
+    parser.add_argument("--every", type=int, default=500)
+    parser.add_argument("--json", type=Path, help="also write the samples here")
+    args = parser.parse_args(argv)
+
+    scenario = load_scenario(args.scenario)
+    targets = [e for spec in scenario.domains.values() for e in spec.entities]
+    options = Options(memory={"policy": "displacement", "capacity": 2})
+    with tempfile.TemporaryDirectory(prefix="fsreg-rss-") as tmp:
+        nodes = [n for n in graph_nodes(scenario, args.scenario, options, Path(tmp) / "unused.json")
+                 if n.executable in ("consultant", "wm_manager", "reg")]
+        for spec in nodes:
+            spec.parameters["use_sim_time"] = False
+        graph = Graph(nodes, Path(tmp), namespace=NAMESPACE)  # its own namespace: other graphs may share the domain
+        rclpy.init()
+        node = Node("bench_rss", namespace=NAMESPACE)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        answers: dict[str, dict] = {}
+        node.create_subscription(String, contract.REG_EXPRESSION.name,
+                                 lambda m: answers.__setitem__(json.loads(m.data).get("id"), json.loads(m.data)),
+                                 contract.REG_EXPRESSION.subscriber_qos)
+        requests = publisher(node, contract.REG_REQUEST)
+        try:
+            graph.start()
+            reg_pid = next(p.pid for s, p in graph.procs if s.executable == "reg")
+
+            def ask(rid: str, target: str, timeout: float = 30.0) -> dict:
+                deadline = time.monotonic() + timeout
+                requests.publish(to_msg({"id": rid, "target": target}))
+                resend = time.monotonic() + 2.0
+                while rid not in answers:
+                    if time.monotonic() > deadline:
+                        raise RuntimeError(f"no answer to {rid}")
+                    if time.monotonic() > resend:  # discovery may drop the first ones
+                        requests.publish(to_msg({"id": rid, "target": target}))
+                        resend = time.monotonic() + 2.0
+                    executor.spin_once(timeout_sec=0.01)
+                return answers.pop(rid)
+
+            ask("warm-up", targets[0], timeout=60.0)
+            samples = [(0, rss_kb(reg_pid))]
+            started = time.monotonic()
+            for i in range(1, args.requests + 1):
+                reply = ask(f"r{i}", targets[i % len(targets)])
+                if "error" in reply:
+                    raise RuntimeError(f"request r{i}: {reply['error']}")
+                if i % args.every == 0:
+                    samples.append((i, rss_kb(reg_pid)))
+                    print(f"{i:>6} requests  REG RSS {samples[-1][1] / 1024:7.1f} MB", flush=True)
+            seconds = time.monotonic() - started
+        finally:
+            graph.stop()
+            node.destroy_node()
+            rclpy.try_shutdown()
+    full = [(n, kb) for n, kb in samples if n >= 1024 + args.every]
+    slope = (full[-1][1] - full[0][1]) * 1024 / (full[-1][0] - full[0][0]) if len(full) >= 2 else float("nan")
+    print(f"{args.requests} requests in {seconds:.1f} s; "
+          f"RSS {samples[0][1] / 1024:.1f} -> {samples[-1][1] / 1024:.1f} MB; "
+          f"slope after the cache filled ({full[0][0] if full else '-'}..{args.requests}): {slope:+.0f} bytes/request")
+    if args.json:
+        args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slope, "seconds": seconds}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
