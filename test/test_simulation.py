@@ -410,3 +410,14 @@ def test_cli_expect_with_json_still_checks(table1_path, tmp_path, capsys):
     assert sim_main([str(table1_path), "--expect", str(wrong), "--json"]) == 1
     assert list(json.loads(capsys.readouterr().out)) == ["none"]
     assert sim_main([str(table1_path), "--expect", str(PAPER), "--json"]) == 0
+
+
+def test_command_line_sets_every_memory_parameter(table1_path, capsys):
+    """--seed and --shared-capacity reach the effective setting, like the other parameters."""
+    assert sim_main([str(table1_path), "--json", "--policy", "displacement-random+shared-capacity",
+                     "--capacity", "2", "--seed", "3", "--shared-capacity", "4"]) == 0
+    memory = json.loads(capsys.readouterr().out)["memory"]
+    assert memory == {"faces": {"policy": "displacement-random+shared-capacity", "capacity": 2, "seed": 3,
+                                "shared_capacity": 4}}
+    assert sim_main([str(table1_path), "--policy", "decay", "--decay-period", "5", "--seed", "-1"]) == 2
+    assert capsys.readouterr().err.strip() == "fsreg-sim: error: seed must be >= 0, got -1"
