@@ -16,7 +16,7 @@ same run.  Each round shifts the turns' times by the dialogue's length, so time 
 runs backwards.
 
 The fixed cost of the graph is measured too: the p50 of one trivial consultant service
-round trip (``wm``) from this process (a *hop*), and the consultant calls per turn
+round trip (``wm``) from this process (a *hop*, one after each turn), and the consultant calls per turn
 (counted in-process with a port that counts what a ``RemotePort`` sends: every port
 call is one service call, except the preference order and the entity list, which a
 ``RemotePort`` caches).  The verdict per path is ``graph p50 <= k x core p50 + fixed``
@@ -191,8 +191,15 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
         human, robot, hops = [], [], []
         span = turns[-1].time + 1.0
         ready = 0.0
+        deadline = time.monotonic() + 10.0
+        while not hop_client.service_is_ready() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
         for rnd in range(rounds + 1):  # round 0 warms up (first calls to new servers are slow)
             for turn in turns:
+                if rnd:  # one hop per turn, interleaved, so both see the same machine load
+                    hops.append(hop())
+                else:
+                    hop(30.0)
                 message = {"id": f"{rnd}/{turn.index}", "time": turn.time + rnd * span, "turn": turn.index}
                 if turn.speaker == "human":
                     ms = exchange(human_pub, {**message, "description": list(turn.description)})
@@ -203,12 +210,6 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
             if rnd == 0:
                 ready = time.perf_counter() - started
             print(f"    round {rnd} done", file=sys.stderr, flush=True)
-        deadline = time.monotonic() + 10.0
-        while not hop_client.service_is_ready() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-        hop(30.0)  # a first call can be slow
-        for _ in range(50):
-            hops.append(hop())
         return {"human": human, "robot": robot, "hop": statistics.median(hops), "ready_s": ready}
     finally:
         node.destroy_node()

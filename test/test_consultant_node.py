@@ -246,7 +246,8 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     before = graph.call(Q, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
-    graph.spin_until(lambda: states, what="latched state")
+    # the state of the encode above went out once someone subscribed (within state_period)
+    graph.spin_until(lambda: states and states[-1]["queues"] == before["queues"], what="current state")
     n_states = len(states)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     for service, request, kind, text in BAD_REQUESTS:

@@ -65,8 +65,9 @@ unknown entity or property, ``MessageError`` for a malformed request).
 Topics
     out ``wm/events`` -- every encode/forget event (SPEC section 2), one message each;
     out ``wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
-    and at most once per request that changed WM: after the op, or, for a session, at its
-    ``close`` (``wm/events`` carries every single change);
+    and at most once per request that changed WM (after the op, or, for a session, at its
+    ``close``) and per ``state_period``, while someone subscribes (a late joiner gets the
+    current state within ``state_period``; ``wm/events`` carries every single change);
     in ``ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
     -- messages for other domains are ignored; out ``ltm/assert/result``
     ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
@@ -232,10 +233,14 @@ class ConsultantNode(Node):
 
         ``waiting`` (the timer): also wait while a session is open (its close publishes),
         for at most a second (a caller that never closes must not hold the state back).
+        While ``wm/state`` has no subscriber the state stays due: a late joiner gets the
+        latched start state at once and the current one within ``state_period``.
         """
         now = monotonic()
         if not self._state_due or now - self._state_sent < self._state_period:
             return
+        if not self._state.get_subscription_count():
+            return  # nobody reads it now: the timer sends it once someone subscribes
         self.sessions.expire(now)
         if waiting and len(self.sessions) and now - self._state_sent < MAX_STATE_DELAY:
             return
