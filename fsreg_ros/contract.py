@@ -223,15 +223,24 @@ class AffirmRequest(Stamp):
     cause: str
 
 
+class StepRequest(Stamp):
+    """One narrowing step: keep the members ``property`` holds for, encoding it (``cause``; null: no encoding)."""
+
+    property: str
+    cause: Optional[str]
+
+
 class OpenRequest(Message):
     """Op ``open``: open a session holding RR's candidates or REG's distractors.
 
-    No ``target``: every entity; else every entity but ``target``, or the ``context`` set's.
+    No ``target``: every entity; else every entity but ``target``, or the ``context``
+    set's.  ``first``: narrow it by that step at once (RR's first property).
     """
 
     op: Literal["open"]
     target: Optional[str] = None
     context: Optional[list[str]] = None
+    first: Optional[StepRequest] = None
 
 
 class NarrowRequest(Stamp):
@@ -316,6 +325,13 @@ class HoldsReply(Message):
     holds: list[str]
 
 
+class Narrowing(Message):
+    """What one narrowing step did: whether the property holds for the target (true without one), members left."""
+
+    target_holds: bool
+    size: int
+
+
 class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
 
@@ -329,13 +345,11 @@ class OpenReply(Versioned):
     queue: list[str]
     retains: bool
     holding: Optional[list[str]] = None
+    first: Optional[Narrowing] = None
 
 
-class NarrowReply(Versioned):
-    """Reply to ``narrow``: whether the property holds for the target (true without one), members left."""
-
-    target_holds: bool
-    size: int
+class NarrowReply(Narrowing, Versioned):
+    """Reply to ``narrow``."""
 
 
 class RuleOutReply(Versioned):

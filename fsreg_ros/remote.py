@@ -29,7 +29,7 @@ from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
 from . import contract
 from .codec import MessageError
 from .contract import consultant_service
-from .core.consultant import KnowledgeError, Narrowed, View
+from .core.consultant import KnowledgeError, Narrowed, Step, View
 
 
 @dataclass
@@ -139,16 +139,25 @@ class RemotePort:
     async def preference(self) -> list[str]:
         return list((await self.catalogue()).preference)
 
-    async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
         payload: dict[str, Any] = {"op": "open"}
         if target is not None:
             payload["target"] = target
         if context is not None:
             payload["context"] = list(context)
+        if first is not None:
+            payload["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
         reply = await self._call(payload)
         holding = reply.get("holding")
-        return View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
+        view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
                     frozenset(holding) if holding is not None else None)
+        if first is not None:
+            if reply.get("first") is None:
+                raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)
+            view.first = Narrowed(reply["first"]["target_holds"], reply["first"]["size"])
+        return view
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,

@@ -71,9 +71,9 @@ class CountingPort(LocalPort):
 
     calls = 0
 
-    async def open(self, target=None, context=None):
+    async def open(self, target=None, context=None, first=None):
         CountingPort.calls += 1
-        return await super().open(target, context)
+        return await super().open(target, context, first)
 
     async def narrow(self, view, prop, cause, time, turn):
         CountingPort.calls += 1

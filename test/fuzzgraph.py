@@ -126,6 +126,7 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         Template({"op": "encode", "entity": entity, "properties": [prop], "cause": "speaker", "time": TIME},
                  ("op", "entity", "properties", "cause"), ("entity", "properties", "cause"), ("time",)),
         Template({"op": "open", "target": entity, "context": list(spec.entities)}, ("op",), ("target", "context")),
+        Template({"op": "open", "first": {"property": prop, "cause": "rr", "time": TIME}}, ("op",)),
         # A session the fuzzer keeps open (SESSION is replaced by its id when sent).
         # 'cause' must be present but may be null (check without encoding): not "required" here.
         Template({"op": "narrow", "session": SESSION, "property": prop, "cause": "reg-distractor", "time": TIME},

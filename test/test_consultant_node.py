@@ -416,6 +416,17 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     # unused for longer than session_timeout: expired
     graph.spin_for(0.4)
     assert graph.call_error(Q, {"op": "close", "session": third}).kind == "SessionError"
+    # RR's open checks the first property at once (rule 2: encoded for face1 and face3)
+    n_events = len(events)
+    opened = graph.call(Q, {"op": "open", "first": {"property": "male", "cause": "rr", "time": 3.0, "turn": 2}})
+    assert opened["first"] == {"target_holds": True, "size": 2} and opened["size"] == 3
+    graph.spin_until(lambda: len(events) == n_events + 2, what="rule-2 events")
+    assert [(e["entity"], e["cause"]) for e in events[n_events:]] == [("face1", "rr"), ("face3", "rr")]
+    # a bad first step is refused and opens nothing, encodes nothing
+    assert graph.call_error(Q, {"op": "open", "first": {"property": "wings", "cause": "rr"}}).kind == "KnowledgeError"
+    assert graph.call_error(Q, {"op": "open", "first": {"property": "male", "cause": "decay"}}).kind == "MessageError"
+    graph.spin_for(0.05)
+    assert len(events) == n_events + 2
     # an LTM change changes the version callers cache by
     graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"male": 1.0}})
     graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"] == ["face4"],

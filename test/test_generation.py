@@ -572,9 +572,9 @@ class RecordingPort(LocalPort):
         super().__init__(consultant)
         self.calls: list[tuple] = []
 
-    async def open(self, target=None, context=None):
-        self.calls.append(("open", target))
-        return await super().open(target, context)
+    async def open(self, target=None, context=None, first=None):
+        self.calls.append(("open", target) + ((first.prop,) if first else ()))
+        return await super().open(target, context, first)
 
     async def narrow(self, view, prop, cause, time, turn):
         self.calls.append(("narrow", prop))
@@ -600,4 +600,5 @@ def test_reg_and_rr_ask_once_per_considered_property_and_nothing_twice():
     port.calls.clear()
     result = run_sync(resolve(["red", "big"], {"d": port}, time=2.0))
     assert result.status == RESOLVED and result.resolved == "t"
-    assert port.calls == [("open", None), ("narrow", "red"), ("narrow", "big"), ("close", ("red", "big"))]
+    # RR: opening checks the first property; one call per further property; close (rule 1)
+    assert port.calls == [("open", None, "red"), ("narrow", "big"), ("close", ("red", "big"))]

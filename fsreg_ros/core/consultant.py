@@ -350,6 +350,17 @@ class View:
     queue: list[str]
     retains: bool
     holding: Optional[frozenset[str]] = None
+    first: Optional["Narrowed"] = None  # what the first step given to open did
+
+
+@dataclass(frozen=True)
+class Step:
+    """One narrowing step: a property, its encoding cause (None: none), when and in which turn."""
+
+    prop: str
+    cause: Optional[str]
+    time: float = 0.0
+    turn: Optional[int] = None
 
 
 @dataclass(frozen=True)
@@ -373,8 +384,14 @@ class ConsultantPort(Protocol):
     async def preference(self) -> list[str]:
         """Return the domain's preference order, most preferred first."""
 
-    async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
-        """Open a view: every entity (RR), or the target's distractors (REG); see :meth:`Consultant.open_set`."""
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        """Open a view: every entity (RR), or the target's distractors (REG); see :meth:`Consultant.open_set`.
+
+        With ``first``, narrow it by that step at once (RR's first property: one call
+        opens the view and checks it); the view's ``first`` says what that did.
+        """
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         """Keep the members ``prop`` holds for, encoding it for each (``cause`` None: no encoding).
@@ -413,8 +430,10 @@ class LocalPort:
     async def preference(self) -> list[str]:
         return list(self.consultant.preference)
 
-    async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
-        return open_view(self.consultant, target, context)
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        return open_view(self.consultant, target, context, first)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         holds = self.consultant.narrow(view.handle, prop, cause, time, turn)
@@ -437,13 +456,24 @@ class LocalPort:
         self.consultant.encode(entity, properties, cause, time, turn)
 
 
-def open_view(consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]]) -> View:
-    """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set)."""
+def open_view(
+    consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step] = None
+) -> View:
+    """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set).
+
+    With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).
+    """
     candidates = consultant.open_set(target, context)
+    size = candidates.size
     if target is None:
-        return View(candidates, candidates.size, [], consultant.wm.retains)
-    holding = frozenset(consultant.properties_of(target))
-    return View(candidates, candidates.size, consultant.queue(target), consultant.wm.retains, holding)
+        view = View(candidates, size, [], consultant.wm.retains)
+    else:
+        holding = frozenset(consultant.properties_of(target))
+        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding)
+    if first is not None:
+        holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
+        view.first = Narrowed(holds, candidates.size)
+    return view
 
 
 def close_view(

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence, Union
 
-from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, View, run_sync
+from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, run_sync
 from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
@@ -111,10 +111,15 @@ class ViewPort:
     async def preference(self) -> list[str]:
         return list(self._preference)
 
-    async def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> View:
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
         view = self._opened
-        return View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains,
+        view = View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains,
                     view.holding)
+        if first is not None:
+            view.first = await self.narrow(view, first.prop, first.cause, first.time, first.turn)
+        return view
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         return await self.port.narrow(view, prop, cause if self.writes else None, time, turn)

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Collection, Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError
+from .consultant import ConsultantPort, KnowledgeError, Step
 
 RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
 
@@ -97,9 +97,10 @@ async def resolve(
     domain = await choose_domain(description, ports, domain)
     port = ports[domain]
     try:
-        view = await port.open()  # the consultant keeps the candidate set
-        remaining = view.size
-        for prop in description:
+        # The consultant keeps the candidate set; opening it checks the first property.
+        view = await port.open(first=Step(description[0], "rr", time, turn))  # rule 2
+        remaining = view.first.size if view.first is not None else view.size
+        for prop in description[1:]:
             if not remaining:
                 break
             remaining = (await port.narrow(view, prop, "rr", time, turn)).size  # rule 2

@@ -14,8 +14,10 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       ``info`` ``{"entities_from"?}`` -> ``{"domain", "entities", "entity_count", "preference",
       "threshold", "policy", "memory", "events", "version"}`` (entities from index
       ``entities_from`` on: they are only ever appended)
-      ``open`` ``{"target"?, "context"?}`` -> ``{"session", "size", "queue", "retains", "version"}``:
-      a session holding RR's candidates (no target) or REG's distractors
+      ``open`` ``{"target"?, "context"?, "first"?}`` -> ``{"session", "size", "queue", "retains",
+      "holding", "first"?, "version"}``: a session holding RR's candidates (no target) or
+      REG's distractors; ``first`` (``{"property", "cause", "time"?, "turn"?}``) narrows it at
+      once (RR's first property), its ``{"target_holds", "size"}`` in the reply
       ``narrow`` ``{"session", "property", "cause" (null: no encoding), "time"?, "turn"?}`` ->
       ``{"target_holds", "size", "version"}``: rules 2 and 3 (one call per considered property)
       ``rule_out`` ``{"session"}`` -> ``{"properties", "masks", "version"}`` (baselines; hex bitmasks
@@ -92,7 +94,7 @@ from .. import contract
 from ..carrier import publish, publisher, serve, subscribe
 from ..codec import NUMBER, MessageError, check_fields, printable
 from ..contract import consultant_service, manage_service
-from ..core.consultant import CandidateSet, Consultant, KnowledgeError, close_view, open_view
+from ..core.consultant import CandidateSet, Consultant, KnowledgeError, Step, close_view, open_view
 from ..core.decay import TickError, TickRun
 from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
@@ -306,11 +308,25 @@ class ConsultantNode(Node):
 
     def _open(self, request: dict) -> dict:
         contract.check(contract.OpenRequest, request)
-        view = open_view(self.consultant, request.get("target"), request.get("context"))
+        step = request.get("first")
+        first = None
+        if step is not None:
+            contract.check_sizes(step, self.limits, names=("property", "cause"))
+            if step["cause"] is not None:
+                self._encode_cause(step["cause"])
+            when, turn = self._time(step)
+            first = Step(step["property"], step["cause"], when, turn)
+        # The session is stored only once everything (the first step too) succeeded.
+        view = self._quietly(open_view, self.consultant, request.get("target"), request.get("context"), first)
+        if first is not None and first.cause is not None and view.first.target_holds and view.first.size:
+            self._state_due = self._state_due or self.consultant.wm.retains
         session = self.sessions.open(view.handle, monotonic())
         holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
-        return {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-                "holding": holding}
+        reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
+                 "holding": holding}
+        if view.first is not None:
+            reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
+        return reply
 
     def _narrow(self, request: dict) -> dict:
         contract.check(contract.NarrowRequest, request)
@@ -319,19 +335,25 @@ class ConsultantNode(Node):
             self._encode_cause(cause)
         when, turn = self._time(request)
         candidates = self.sessions.get(request["session"], monotonic())
-        # Consultant.narrow validates the property before anything changes.  With nobody
-        # listening to /wm/events, rule 2 and 3 encodings take the buffer's quiet path.
+        # Consultant.narrow validates the property before anything changes.
+        holds = self._quietly(self.consultant.narrow, candidates, request["property"], cause, when, turn)
+        if holds and cause is not None and candidates.members and self.consultant.wm.retains:
+            self._state_due = True
+        return {"target_holds": holds, "size": candidates.size}
+
+    def _quietly(self, action: Callable[..., Any], *args: Any) -> Any:
+        """Run ``action(*args)``; with nobody listening to /wm/events, without an event sink.
+
+        Rule 2 and 3 encodings then take the buffer's quiet path (no event objects).
+        """
         buffer = self.consultant.wm
         sink = buffer.sink
         if not self._listened:
             buffer.sink = None
         try:
-            holds = self.consultant.narrow(candidates, request["property"], cause, when, turn)
+            return action(*args)
         finally:
             buffer.sink = sink
-        if holds and cause is not None and candidates.members and buffer.retains:
-            self._state_due = True
-        return {"target_holds": holds, "size": candidates.size}
 
     def _rule_out(self, request: dict) -> dict:
         contract.check(contract.RuleOutRequest, request)
