@@ -15,13 +15,18 @@ warm-up round), next to the same turns run in-process by the core (RR and REG th
 same run.  Each round shifts the turns' times by the dialogue's length, so time never
 runs backwards.
 
-The fixed cost of the graph is measured too: the p50 of one trivial consultant service
-round trip (``wm``) from this process (a *hop*, one after each turn), and the consultant calls per turn
-(counted in-process with a port that counts what a ``RemotePort`` sends: every port
-call is one service call, except the preference order and the entity list, which a
-``RemotePort`` caches).  The verdict per path is ``graph p50 <= k x core p50 + fixed``
-with k = 1.5 at 1,000 entities and 3 at 10,000, and ``fixed`` = the Table 1 pipeline's
-cost (its graph p50 less its calls x hop: the topic hops) + this world's calls x hop.
+The fixed cost of the graph is measured in the same graph, interleaved with the turns:
+the p50 of one trivial consultant service round trip (``wm``) from this process (a
+*hop*), and of *null* requests that do no work -- a human turn with no known word (the
+parser -> RR -> result pipeline, no consultant call) and a REG request whose context is
+its target alone (open and close, no distractor).  Consultant calls per turn are
+counted in-process with a port that counts what a ``RemotePort`` sends (every port
+call is one service call; the preference order and the entity list are cached).  The
+verdict per path is ``graph p50 <= k x core p50 + fixed`` with k = 1.5 at 1,000
+entities and 3 at 10,000, and ``fixed`` = the null request's p50 + (this world's calls
+per turn - the null request's) x the cost of one call inside the pipeline, calibrated
+on Table 1 (where the core's work is tens of microseconds; a call from inside a node
+costs more than the bare hop: an awaited future, a deadline timer).
 
     scripts/bench_graph.py [--worlds table1,1000,10000] [--turns 40] [--rounds 3] [--json FILE]
 
@@ -57,6 +62,9 @@ from fsreg_ros.core.simulation import Options, Simulation  # noqa: E402
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
 
 TABLE1 = REPO / "scenarios" / "guess_who_table1.yaml"
+#: Consultant calls of the null requests: a human turn with no known word (none), REG
+#: with no distractor (open and close).
+NULL_CALLS = {"human": 0, "robot": 2}
 #: Target ratio graph p50 / core p50 (on top of the fixed cost) by world size.
 TARGETS = {1_000: 1.5, 10_000: 3.0}
 
@@ -194,10 +202,16 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
         deadline = time.monotonic() + 10.0
         while not hop_client.service_is_ready() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.01)
+        null_human, null_robot = [], []
         for rnd in range(rounds + 1):  # round 0 warms up (first calls to new servers are slow)
             for turn in turns:
-                if rnd:  # one hop per turn, interleaved, so both see the same machine load
+                if rnd:  # one hop and one null request per turn, interleaved: the same machine load
                     hops.append(hop())
+                    null = {"id": f"null/{rnd}/{turn.index}", "time": turn.time + rnd * span}
+                    if turn.speaker == "human":  # no known word: the pipeline, no consultant call
+                        null_human.append(exchange(human_pub, {**null, "text": "zzz"}))
+                    else:  # no distractor: open and close only
+                        null_robot.append(exchange(reg_pub, {**null, "target": turn.target, "context": [turn.target]}))
                 else:
                     hop(30.0)
                 message = {"id": f"{rnd}/{turn.index}", "time": turn.time + rnd * span, "turn": turn.index}
@@ -210,7 +224,8 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
             if rnd == 0:
                 ready = time.perf_counter() - started
             print(f"    round {rnd} done", file=sys.stderr, flush=True)
-        return {"human": human, "robot": robot, "hop": statistics.median(hops), "ready_s": ready}
+        return {"human": human, "robot": robot, "hop": statistics.median(hops), "ready_s": ready,
+                "null": {"human": statistics.median(null_human), "robot": statistics.median(null_robot)}}
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
@@ -237,7 +252,7 @@ def run_world(size: str, args, tmp: Path) -> dict:
     graph = graph_latencies(scenario, path, options, turns, args.rounds)
     entities = sum(len(spec.entities) for spec in scenario.domains.values())
     row = {"world": size, "entities": entities, "turns": len(turns), "load_s": load_s, "hop_ms": graph["hop"],
-           "ready_s": graph["ready_s"], "calls_per_turn": core["calls"], "paths": {}}
+           "ready_s": graph["ready_s"], "calls_per_turn": core["calls"], "null_ms": graph["null"], "paths": {}}
     for kind, label in (("human", "human turn -> /rr/result"), ("robot", "REG -> /reg/expression")):
         g, c = graph[kind], core[kind]
         row["paths"][kind] = {"label": label, "graph_p50": statistics.median(g), "graph_p95": percentile(g, 0.95),
@@ -245,16 +260,28 @@ def run_world(size: str, args, tmp: Path) -> dict:
     return row
 
 
+def per_call_ms(rows: list[dict], kind: str) -> float:
+    """Return what one consultant call costs inside the pipeline, calibrated where the core's work is nil.
+
+    On Table 1 (tens of microseconds of core work): (graph p50 - core p50 - null p50) /
+    (calls per turn - the null request's calls); the bare hop from this process if
+    Table 1 was not run.
+    """
+    base = next((r for r in rows if r["world"] == "table1"), None)
+    if base is None:
+        return statistics.median(r["hop_ms"] for r in rows)
+    path = base["paths"][kind]
+    extra = base["calls_per_turn"][kind] - NULL_CALLS[kind]
+    return max(0.0, path["graph_p50"] - path["core_p50"] - base["null_ms"][kind]) / max(extra, 1.0)
+
+
 def verdicts(rows: list[dict]) -> None:
     """Add the fixed cost, the net ratio and the verdict to each world's paths."""
-    base = next((r for r in rows if r["world"] == "table1"), None)
     for row in rows:
         for kind, path in row["paths"].items():
             path["ratio_p50"] = path["graph_p50"] / path["core_p50"]
-            if base is None:
-                continue
-            topics = base["paths"][kind]["graph_p50"] - base["calls_per_turn"][kind] * base["hop_ms"]
-            fixed = max(0.0, topics) + row["calls_per_turn"][kind] * row["hop_ms"]
+            path["per_call_ms"] = per_call = per_call_ms(rows, kind)
+            fixed = row["null_ms"][kind] + max(0.0, row["calls_per_turn"][kind] - NULL_CALLS[kind]) * per_call
             path["fixed_ms"] = fixed
             path["net_ratio_p50"] = max(0.0, path["graph_p50"] - fixed) / path["core_p50"]
             target = TARGETS.get(row["entities"])
@@ -278,9 +305,13 @@ def render(rows: list[dict], args) -> str:
     lines.append("")
     for row in rows:
         lines.append(f"{row['world']}: {row['entities']} entities, scenario loaded in {row['load_s']:.2f} s, "
-                     f"graph up + warm-up round {row['ready_s']:.1f} s, one consultant hop p50 {row['hop_ms']:.2f} ms")
-    lines.append("(ms; ratio = graph p50 / core p50; fixed = topic hops measured on Table 1 + calls x hop; "
-                 "net = (graph p50 - fixed) / core p50)")
+                     f"graph up + warm-up round {row['ready_s']:.1f} s, one consultant hop p50 {row['hop_ms']:.2f} ms, "
+                     f"null human turn p50 {row['null_ms']['human']:.2f} ms, "
+                     f"null REG p50 {row['null_ms']['robot']:.2f} ms")
+    per_call = {kind: p["per_call_ms"] for kind, p in rows[0]["paths"].items()} if rows else {}
+    lines.append("(ms; ratio = graph p50 / core p50; fixed = the null request's p50 + the calls it lacks x one call's "
+                 "cost in the pipeline, " + ", ".join(f"{k} {v:.2f}" for k, v in per_call.items()) +
+                 " ms; net = (graph p50 - fixed) / core p50)")
     return "\n".join(lines) + "\n"
 
 
