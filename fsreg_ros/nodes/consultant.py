@@ -6,8 +6,11 @@ One process per domain (give each its own node name, e.g.
 Parameters
     ``domain`` (string, required, read-only), ``kb`` (scenario/KB YAML, required,
     read-only), ``threshold`` (number in [0, 1]; default: the KB's threshold for the
-    domain; changeable at run time; it changes what holds, it does not touch WM), and
-    the size limits ``max_message_bytes``, ``max_name_chars``, ``max_list_items``.
+    domain; changeable at run time; it changes what holds, it does not touch WM), the
+    size limits ``max_message_bytes``, ``max_name_chars``, ``max_list_items``, and (all
+    read-only) ``max_sessions`` (open RR/REG sessions, default 64), ``session_timeout``
+    (s unused before a session is dropped, default 30) and ``state_period`` (least s
+    between two ``wm/state`` messages, default 0.1).
 
 Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contract`)
     ``consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
