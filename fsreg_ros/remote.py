@@ -1,7 +1,8 @@
 """A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
-call is one awaited JSON call to ``consultant/<domain>`` (see
+call is one awaited JSON call to ``consultant/<domain>`` (the preference order and
+the entity list are cached while the consultant's LTM ``version`` stays the same; see
 :mod:`fsreg_ros.nodes.consultant` for the ops).  Await port methods only from a
 callback outside ``callback_group`` (give the port a reentrant group of its own).
 
@@ -19,6 +20,7 @@ behind it for a full timeout each.  After that pause one call probes it again.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup
@@ -27,11 +29,30 @@ from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
 from . import contract
 from .codec import MessageError
 from .contract import consultant_service
-from .core.consultant import KnowledgeError
+from .core.consultant import KnowledgeError, Narrowed, Step, View
+
+
+@dataclass
+class Catalogue:
+    """What a caller caches of a consultant: preference order, entities, and the LTM version they are from."""
+
+    version: str
+    preference: list[str]
+    entities: list[str]
+    known: set[str] = field(default_factory=set)
+
+    @property
+    def incarnation(self) -> str:
+        return self.version.split(":", 1)[0]
 
 
 class RemotePort:
-    """The consultant of ``domain``, reached through its node's service."""
+    """The consultant of ``domain``, reached through its node's service.
+
+    The preference order and the entity list are cached (:class:`Catalogue`) until a
+    reply's ``version`` says LTM changed or the consultant restarted; then the next
+    use asks ``info`` for the entities added since (they are only ever appended).
+    """
 
     def __init__(
         self,
@@ -43,7 +64,8 @@ class RemotePort:
         self.domain = domain
         self.timeout = timeout
         self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
-        self._preference: Optional[list[str]] = None
+        self._catalogue: Optional[Catalogue] = None
+        self._latest = ""  # the newest version any reply named
         self._down_until = 0.0  # monotonic time before which calls fail fast
 
     # ------------------------------------------------------------ plumbing
@@ -57,17 +79,20 @@ class RemotePort:
         try:
             reply = await self.client.call(payload, self.timeout)
         except CarrierError as err:
-            if err.kind == "KnowledgeError":
+            if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
             if err.kind == "timeout":
                 self._down_until = time.monotonic() + self.timeout
             raise
         self._down_until = 0.0
         try:
-            return contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
+            contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
                                service=self.client.name) from None
+        if "version" in reply:
+            self._latest = reply["version"]
+        return reply
 
     async def wait_ready(self, timeout: float) -> dict:
         """Make one real round trip (an ``info`` call) within ``timeout`` seconds; return the info reply.
@@ -76,42 +101,89 @@ class RemotePort:
         :class:`CarrierError` (kind ``timeout``) when the deadline passes.
         """
         reply = await self.client.wait_ready({"op": "info"}, timeout)
-        self._remember(reply)
+        try:
+            contract.check(contract.InfoReply, reply)
+        except MessageError as err:
+            raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol", service=self.client.name) from None
+        self._latest = reply["version"]
+        self._catalogue = Catalogue(reply["version"], list(reply["preference"]), list(reply["entities"]),
+                                    set(reply["entities"]))
         return reply
 
-    def _remember(self, info: dict) -> None:
-        prefs = info.get("preference")
-        if isinstance(prefs, list):
-            self._preference = list(prefs)
+    async def catalogue(self, refresh: bool = False) -> Catalogue:
+        """Return the cached preference order and entities, asking ``info`` only if stale (or ``refresh``)."""
+        cat = self._catalogue
+        if cat is not None and not refresh and cat.version == self._latest:
+            return cat
+        start = len(cat.entities) if cat is not None else 0
+        reply = await self._call({"op": "info", "entities_from": start})
+        if cat is None or reply["version"].split(":", 1)[0] != cat.incarnation:
+            if start:  # restarted: its entities may differ from the first one on
+                reply = await self._call({"op": "info"})
+            cat = Catalogue(reply["version"], list(reply["preference"]), [], set())
+        cat.entities += reply["entities"]
+        cat.known.update(reply["entities"])
+        cat.version = reply["version"]
+        self._catalogue = cat
+        return cat
 
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
-        """``{"domain", "entities", "preference", "threshold", "policy", "memory"}``."""
-        reply = await self._call({"op": "info"})
-        self._remember(reply)
-        return reply
+        """Return the ``info`` reply (domain, entities, preference, threshold, policy, memory, events, version)."""
+        return await self._call({"op": "info"})
 
-    async def entities(self) -> list[str]:
-        # Not cached: /ltm/assert can add entities at run time.
-        return list((await self.info())["entities"])
+    async def knows(self, entity: str, refresh: bool = False) -> bool:
+        """Return True if ``entity`` is one of this domain's (entities never leave a domain)."""
+        return entity in (await self.catalogue(refresh)).known
 
     async def preference(self) -> list[str]:
-        # Cached: a domain's preference order never changes at run time.
-        if self._preference is None:
-            await self.info()
-        return list(self._preference or [])
+        return list((await self.catalogue()).preference)
+
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        payload: dict[str, Any] = {"op": "open"}
+        if target is not None:
+            payload["target"] = target
+        if context is not None:
+            payload["context"] = list(context)
+        if first is not None:
+            payload["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
+        reply = await self._call(payload)
+        holding = reply.get("holding")
+        view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
+                    frozenset(holding) if holding is not None else None)
+        if first is not None:
+            if reply.get("first") is None:
+                raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)
+            view.first = Narrowed(reply["first"]["target_holds"], reply["first"]["size"])
+        return view
+
+    async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
+        reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,
+                                  "time": time, "turn": turn})
+        return Narrowed(reply["target_holds"], reply["size"])
+
+    async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
+        reply = await self._call({"op": "rule_out", "session": view.handle})
+        try:
+            masks = [int(mask, 16) for mask in reply["masks"]]
+        except ValueError:
+            raise CarrierError("malformed reply to 'rule_out': a mask is not hexadecimal", kind="protocol",
+                               service=self.client.name) from None
+        return list(reply["properties"]), masks
+
+    async def close(
+        self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
+    ) -> list[str]:
+        payload: dict[str, Any] = {"op": "close", "session": view.handle, "time": time, "turn": turn}
+        if encode:
+            payload["encode"] = list(encode)
+        return list((await self._call(payload))["members"])
 
     async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
+        """Return the given entities ``prop`` holds for, in the given order (no encoding)."""
         reply = await self._call({"op": "holds", "property": prop, "entities": list(entities)})
-        return reply["holds"]
-
-    async def affirm(
-        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
-    ) -> list[str]:
-        reply = await self._call(
-            {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause,
-             "time": time, "turn": turn},
-        )
         return reply["holds"]
 
     async def wm(self, entity: str) -> list[str]:

@@ -59,6 +59,7 @@ ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), S
 REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT}
 
 TIME = 1.0  # the sim time the graph stands at while fuzzed
+SESSION = "<session>"  # stands for the id of a consultant session the fuzzer keeps open
 REPLY_TIMEOUT = 5.0
 LONG = 100_000  # characters in a "very long" string
 DEEP = 5_000  # nesting depth of a "deep" value
@@ -124,6 +125,15 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
                  ("op", "property", "entities", "cause"), ("property", "entities", "cause"), ("time",)),
         Template({"op": "encode", "entity": entity, "properties": [prop], "cause": "speaker", "time": TIME},
                  ("op", "entity", "properties", "cause"), ("entity", "properties", "cause"), ("time",)),
+        Template({"op": "open", "target": entity, "context": list(spec.entities)}, ("op",), ("target", "context")),
+        Template({"op": "open", "first": {"property": prop, "cause": "rr", "time": TIME}}, ("op",)),
+        # A session the fuzzer keeps open (SESSION is replaced by its id when sent).
+        # 'cause' must be present but may be null (check without encoding): not "required" here.
+        Template({"op": "narrow", "session": SESSION, "property": prop, "cause": "reg-distractor", "time": TIME},
+                 ("op", "session", "property"), ("session", "property", "cause"), ("time",)),
+        Template({"op": "rule_out", "session": SESSION}, ("op", "session"), ("session",)),
+        Template({"op": "close", "session": SESSION, "encode": [prop], "time": TIME}, ("op", "session"),
+                 ("session", "encode"), ("time",)),
     ]
     manage = [
         Template({"op": "configure", "policy": {"policy": "decay", "decay_period": 10.0}, "time": TIME},
@@ -312,6 +322,12 @@ class Fuzzer:
     def close(self) -> None:
         self.g.close()
 
+    def session(self, service: str) -> str:
+        """Return the id of a freshly opened REG session (target the first entity) at ``service``."""
+        spec = self.scenario.domains[self.domains[0]]
+        return self.g.call(service, {"op": "open", "target": next(iter(spec.entities))},
+                           timeout=REPLY_TIMEOUT)["session"]
+
     # ----------------------------------------------------------- memory state
     def snapshot(self) -> dict:
         """Every domain's WM queues and LTM (entities, what holds), and the WM Manager's status."""
@@ -342,6 +358,8 @@ class Fuzzer:
         """Call ``service`` with raw JSON text: (reply, None) or (None, error reason); Timeout if unanswered."""
         from diagnostic_msgs.srv import AddDiagnostics
 
+        if SESSION in text:
+            text = text.replace(SESSION, self.session(service))
         client = self.g.client(service)
         self.g.wait_service(service, REPLY_TIMEOUT)
         future = client.client.call_async(AddDiagnostics.Request(load_namespace=text))

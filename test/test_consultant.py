@@ -11,6 +11,7 @@ from fsreg_ros.core.consultant import (
     Consultant,
     KnowledgeError,
     LocalPort,
+    Narrowed,
     run_sync,
 )
 from fsreg_ros.core.forgetting import ForgettingPolicy
@@ -186,18 +187,52 @@ def test_local_port_answers_and_copies():
     c, events = make()
     port = LocalPort(c)
     assert port.domain == "faces"
-    entities = run_sync(port.entities())
-    entities.append("junk")
-    assert run_sync(port.entities()) == ["f1", "f2", "f3"]
     preference = run_sync(port.preference())
     preference.clear()
     assert run_sync(port.preference()) == PREF
-    assert run_sync(port.holds("male", ["f1", "f2", "f3"])) == ["f1", "f3"]
-    assert run_sync(port.affirm("male", ["f1", "f2", "f3"], "rr", 1.0, 0)) == ["f1", "f3"]
+    view = run_sync(port.open())
+    assert view.size == 3 and view.queue == [] and view.retains
+    # RR's narrowing: every member 'male' holds for is encoded, in entity order (rule 2)
+    assert run_sync(port.narrow(view, "male", "rr", 1.0, 0)) == Narrowed(True, 2)
+    assert run_sync(port.close(view)) == ["f1", "f3"]
     run_sync(port.encode("f2", ["female", "glasses"], "speaker", 1.0, 0))
     assert run_sync(port.wm("f2")) == ["female", "glasses"]
     assert run_sync(port.wm("f1")) == ["male"]
     assert len(events) == 4
+
+
+def test_views_check_the_target_encode_distractors_and_close_with_rule_1():
+    c, events = make()
+    port = LocalPort(c)
+    view = run_sync(port.open("f1"))  # distractors f2, f3
+    assert (view.size, view.queue) == (2, [])
+    # 'female' does not hold for the target: nothing is encoded or narrowed (rule 4)
+    assert run_sync(port.narrow(view, "female", "reg-distractor", 1.0, 3)) == Narrowed(False, 2)
+    assert events == []
+    # 'male' holds for f1 and f3: encoded for f3 only (rule 3), f2 ruled out
+    assert run_sync(port.narrow(view, "male", "reg-distractor", 1.0, 3)) == Narrowed(True, 1)
+    assert [(e.entity, e.property, e.cause) for e in events] == [("f3", "male", "reg-distractor")]
+    # a check without a cause encodes nothing
+    assert run_sync(port.narrow(view, "glasses", None, 1.0, 3)) == Narrowed(True, 0)  # f3: no glasses
+    assert len(events) == 1
+    assert run_sync(port.close(view, ["male", "glasses"], 2.0, 3)) == []
+    assert c.wm.queue("f1") == ("male", "glasses")
+    # baselines: rule-out sets by member rank
+    view = run_sync(port.open("f1", context=["f3", "f2", "f1"]))
+    props, masks = run_sync(port.rule_out(view))
+    assert props == ["light-hair", "male", "glasses"]
+    assert masks == [0b10, 0b01, 0b11]  # members f2 (bit 0), f3 (bit 1)
+    assert run_sync(port.close(view)) == ["f2", "f3"]
+    # a view without a target encodes rule 1 for its only member, and refuses otherwise
+    view = run_sync(port.open())
+    with pytest.raises(KnowledgeError, match="3 members remain"):
+        run_sync(port.close(view, ["male"], 3.0, 4))
+    run_sync(port.narrow(view, "female", "rr", 3.0, 4))
+    assert run_sync(port.close(view, ["female"], 3.0, 4)) == ["f2"]
+    with pytest.raises(KnowledgeError, match="no entity 'f9'"):
+        run_sync(port.open("f9"))
+    with pytest.raises(KnowledgeError, match="unknown entities of domain 'faces': f9"):
+        run_sync(port.open("f1", ["f2", "f9"]))
 
 
 def test_local_port_rejects_unknown_entities():
@@ -239,4 +274,5 @@ def test_raising_the_threshold_retracts_from_wm():
     assert retracted == [("e1", "a")]
     assert c.wm.queue("e1") == ("b",) and c.wm.queue("e2") == ("a",)
     assert c.holds("a", ["e1", "e2"]) == ["e2"]
-    assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [("forget", "e1", "a", "retract", 2.0)]
+    assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [
+        ("forget", "e1", "a", "retract", 2.0)]

@@ -17,6 +17,8 @@ from fsreg_ros import contract
 from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
 from fsreg_ros.core.consultant import KnowledgeError, LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.generation import generate
+from fsreg_ros.core.wm_manager import configure_buffer
 from fsreg_ros.core.resolution import resolve
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.nodes.common import StartupError
@@ -50,15 +52,20 @@ def configure(graph: Graph, policy: str = "displacement", domain: str = "faces",
 def test_info_and_latched_start_state(graph: Graph):
     start(graph)
     info = graph.call(Q, {"op": "info"})
+    version = info.pop("version")
+    assert version.endswith(":0")  # "<incarnation>:<LTM changes>"
     assert info == {
         "domain": "faces",
         "entities": ["face1", "face2", "face3"],
+        "entity_count": 3,
         "preference": ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"],
         "threshold": 0.5,
         "policy": "none",
         "memory": {"policy": "none"},
         "events": 0,
     }
+    # entities are only ever appended: a caller that knows some asks for the rest
+    assert graph.call(Q, {"op": "info", "entities_from": 2})["entities"] == ["face3"]
     # A late joiner gets the start state (transient local).
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched /wm/state")
@@ -239,7 +246,8 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     before = graph.call(Q, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
-    graph.spin_until(lambda: states, what="latched state")
+    # the state of the encode above went out once someone subscribed (within state_period)
+    graph.spin_until(lambda: states and states[-1]["queues"] == before["queues"], what="current state")
     n_states = len(states)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     for service, request, kind, text in BAD_REQUESTS:
@@ -354,7 +362,7 @@ def test_remote_port_matches_the_local_consultant(graph: Graph):
     remote = graph.run(resolve(["male", "lab-coat"], {"faces": port}, time=3.0, turn=1))
 
     local = load_scenario(KB).consultants()["faces"]
-    local.wm.policy = ForgettingPolicy.parse("displacement", capacity=2)
+    configure_buffer(local.wm, ForgettingPolicy.parse("displacement", capacity=2), 0.0)
     expected = graph.run(resolve(["male", "lab-coat"], {"faces": LocalPort(local)}, time=3.0, turn=1))
     assert remote.to_json() == expected.to_json()
     assert graph.call(Q, {"op": "snapshot"})["queues"] == local.wm.snapshot()
@@ -364,7 +372,77 @@ def test_remote_port_matches_the_local_consultant(graph: Graph):
     with pytest.raises(KnowledgeError, match="no entity 'face9'"):
         graph.run(port.wm("face9"))
     with pytest.raises(KnowledgeError, match="wings"):
-        graph.run(port.affirm("wings", ["face1"], "rr", 4.0, None))
+        view = graph.run(port.open())
+        graph.run(port.narrow(view, "wings", "rr", 4.0, None))
+    for algorithm in ("sd-pia", "dist-pia", "full-brevity", "greedy"):
+        remote = graph.run(generate("face1", port, algorithm, time=5.0, turn=2))
+        expected = graph.run(generate("face1", LocalPort(local), algorithm, time=5.0, turn=2))
+        assert remote.to_json() == expected.to_json(), algorithm
+        assert graph.call(Q, {"op": "snapshot"})["queues"] == local.wm.snapshot()
+
+
+def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph):
+    start(graph, max_sessions=2, session_timeout=0.3)
+    configure(graph, "displacement", capacity=3)
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    graph.spin_until(lambda: states, what="start state")
+    n_states = len(states)
+    opened = graph.call(Q, {"op": "open", "target": "face1"})
+    assert {k: opened[k] for k in ("size", "queue", "retains")} == {"size": 2, "queue": [], "retains": True}
+    session, version = opened["session"], opened["version"]
+    # 'female' does not hold for face1: nothing encoded, nothing narrowed (rule 4)
+    step = {"op": "narrow", "session": session, "cause": "reg-distractor", "time": 2.0, "turn": 1}
+    assert graph.call(Q, {**step, "property": "female"}) == {"target_holds": False, "size": 2, "version": version}
+    # 'glasses' holds for face1 and face2: encoded for face2 (rule 3), face3 ruled out
+    assert graph.call(Q, {**step, "property": "glasses"}) == {"target_holds": True, "size": 1, "version": version}
+    graph.spin_until(lambda: events, what="rule-3 event")
+    assert [(e["entity"], e["property"], e["cause"]) for e in events] == [("face2", "glasses", "reg-distractor")]
+    graph.spin_for(0.05)
+    assert len(states) == n_states  # the state waits for the close
+    closed = graph.call(Q, {"op": "close", "session": session, "encode": ["glasses"], "time": 2.0, "turn": 1})
+    assert closed == {"members": ["face2"], "version": version}
+    graph.spin_until(lambda: len(states) > n_states, what="state at close")
+    graph.spin_for(0.05)
+    assert len(states) == n_states + 1
+    assert states[-1]["queues"] == {"face2": ["glasses"], "face1": ["glasses"]}
+    # a closed session is gone
+    err = graph.call_error(Q, {**step, "property": "male"})
+    assert err.kind == "SessionError" and "no open session" in err.error
+    # at most two open: a third drops the least recently used
+    first, second, third = (graph.call(Q, {"op": "open"})["session"] for _ in range(3))
+    assert graph.call_error(Q, {"op": "rule_out", "session": first}).kind == "SessionError"
+    assert graph.call_error(Q, {"op": "rule_out", "session": second}).error == "rule-out sets need a target"
+    # unused for longer than session_timeout: expired
+    graph.spin_for(0.4)
+    assert graph.call_error(Q, {"op": "close", "session": third}).kind == "SessionError"
+    # RR's open checks the first property at once (rule 2: encoded for face1 and face3)
+    n_events = len(events)
+    opened = graph.call(Q, {"op": "open", "first": {"property": "male", "cause": "rr", "time": 3.0, "turn": 2}})
+    assert opened["first"] == {"target_holds": True, "size": 2} and opened["size"] == 3
+    graph.spin_until(lambda: len(events) == n_events + 2, what="rule-2 events")
+    assert [(e["entity"], e["cause"]) for e in events[n_events:]] == [("face1", "rr"), ("face3", "rr")]
+    # a bad first step is refused and opens nothing, encodes nothing
+    assert graph.call_error(Q, {"op": "open", "first": {"property": "wings", "cause": "rr"}}).kind == "KnowledgeError"
+    assert graph.call_error(Q, {"op": "open", "first": {"property": "male", "cause": "decay"}}).kind == "MessageError"
+    graph.spin_for(0.05)
+    assert len(events) == n_events + 2
+    # an LTM change changes the version callers cache by
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"male": 1.0}})
+    graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"] == ["face4"],
+                     what="new entity")
+    assert graph.call(Q, {"op": "open"})["version"] != version
+
+
+def test_remote_port_refreshes_its_catalogue_when_ltm_changes(graph: Graph):
+    start(graph)
+    port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())
+    graph.run(port.wait_ready(5.0))
+    assert graph.run(port.knows("face3")) and not graph.run(port.knows("face4"))
+    graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"male": 1.0}})
+    graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"], what="new entity")
+    assert graph.run(port.knows("face4", refresh=True))
+    assert graph.run(port.preference())[0] == "light-hair"
 
 
 def test_startup_errors(graph: Graph):

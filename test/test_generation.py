@@ -563,3 +563,42 @@ def test_unknown_algorithm_and_wm_order():
         run_sync(sd_pia("object1", port, wm_order="random"))
     assert events == []
     assert issubclass(GenerationError, ValueError)
+
+
+class RecordingPort(LocalPort):
+    """A LocalPort that records every call (each is one service call over the graph)."""
+
+    def __init__(self, consultant):
+        super().__init__(consultant)
+        self.calls: list[tuple] = []
+
+    async def open(self, target=None, context=None, first=None):
+        self.calls.append(("open", target) + ((first.prop,) if first else ()))
+        return await super().open(target, context, first)
+
+    async def narrow(self, view, prop, cause, time, turn):
+        self.calls.append(("narrow", prop))
+        return await super().narrow(view, prop, cause, time, turn)
+
+    async def close(self, view, encode=(), time=0.0, turn=None):
+        self.calls.append(("close", tuple(encode)))
+        return await super().close(view, encode, time, turn)
+
+
+def test_reg_and_rr_ask_once_per_considered_property_and_nothing_twice():
+    c, _, events = domain(
+        {"t": ["red", "big", "cup"], "a": ["red", "small", "cup"], "b": ["blue", "big", "cup"]},
+        ["blue", "red", "small", "big", "cup"],
+    )
+    port = RecordingPort(c)
+    expression = run_sync(generate("t", port, "dist-pia", time=1.0))
+    assert expression.description == ["red", "big"]
+    # 'blue' and 'small' do not hold for t: skipped without a call; 'cup' is never reached
+    assert port.calls == [("open", "t"), ("narrow", "red"), ("narrow", "big"), ("close", ("red", "big"))]
+    assert keys(events) == [("encode", "a", "red", "reg-distractor", 1.0, None),
+                            ("encode", "t", "red", "speaker", 1.0, None), ("encode", "t", "big", "speaker", 1.0, None)]
+    port.calls.clear()
+    result = run_sync(resolve(["red", "big"], {"d": port}, time=2.0))
+    assert result.status == RESOLVED and result.resolved == "t"
+    # RR: opening checks the first property; one call per further property; close (rule 1)
+    assert port.calls == [("open", None, "red"), ("narrow", "big"), ("close", ("red", "big"))]

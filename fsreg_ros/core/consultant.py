@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Coroutine, Iterable, Mapping, Optional, Protocol, Sequence, TypeVar
 
+from . import bitset
 from .memory import EventSink, WMBuffer
 
 DEFAULT_THRESHOLD = 0.5
@@ -49,7 +50,15 @@ class AssertResult:
 
 
 class Consultant:
-    """A domain's LTM (certainties, threshold, preference order) and WM buffer."""
+    """A domain's LTM (certainties, threshold, preference order) and WM buffer.
+
+    LTM is kept twice: per entity, the certainty of each listed property (what
+    :meth:`certainty` and :meth:`assert_facts` work on), and per property, the bitset
+    of the entities it holds for (:mod:`fsreg_ros.core.bitset`; bit i = the i-th
+    entity in entity order), which is what every query reads.  Entities are only
+    ever appended (a new entity joins last), so an index never changes meaning.
+    ``version`` counts LTM changes (facts, entities, threshold).
+    """
 
     def __init__(
         self,
@@ -72,16 +81,16 @@ class Consultant:
             raise KnowledgeError(f"domain '{domain}': preference order lists a property twice")
         self.threshold = check_certainty("threshold", threshold)
         self.entities: list[str] = []
+        self._index: dict[str, int] = {}
         self._certainty: dict[str, dict[str, float]] = {}
-        # The same entities as a set, for validating long entity lists in one C call.
-        self._entity_set: set[str] = set()
-        self._holders: dict[str, set[str]] = {p: set() for p in self.preference}
         for entity, facts in entities.items():
             self._check_facts(entity, facts)
+            self._index[entity] = len(self.entities)
             self.entities.append(entity)
-            self._entity_set.add(entity)
             self._certainty[entity] = {p: float(c) for p, c in facts.items() if c > 0}
+        self._holders: dict[str, int] = {}
         self._rebuild_holders()
+        self.version = 0
         self.wm = WMBuffer(domain, sink, attributes)
 
     # ----------------------------------------------------------------- LTM
@@ -115,20 +124,21 @@ class Consultant:
         self.wm.encode(entity, properties, cause, time, turn)
 
     def holders(self, prop: str) -> set[str]:
-        """Every entity ``prop`` holds for (a live view: do not modify)."""
+        """Return every entity ``prop`` holds for (a new set)."""
         self._require_property(prop)
-        return self._holders[prop]
+        return set(bitset.names(self._holders[prop], self.entities))
 
     def holds(self, prop: str, entities: Iterable[str]) -> list[str]:
-        """The entities (in the given order) that ``prop`` holds for.  No encoding."""
+        """Return the entities (in the given order) that ``prop`` holds for.  No encoding."""
         self._require_property(prop)
         if not isinstance(entities, (list, tuple)):
             entities = list(entities)
-        if not self._entity_set.issuperset(entities):
+        index = self._index
+        if not index.keys() >= set(entities):
             for entity in entities:  # name the first unknown one
                 self._require_entity(entity)
-        holders = self._holders[prop]
-        return [e for e in entities if e in holders]
+        bits = self._holders[prop]
+        return [e for e in entities if bits >> index[e] & 1]
 
     def affirm(
         self, prop: str, entities: Iterable[str], cause: str, time: float, turn: Optional[int] = None
@@ -142,16 +152,87 @@ class Consultant:
         self.wm.encode_each(held, prop, cause, time, turn)  # Encode(e, [prop]) for each, in order
         return held
 
+    # ------------------------------------------------------ candidate sets
+    def open_set(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> "CandidateSet":
+        """Open the candidate set of one RR request or the distractor set of one REG request.
+
+        Without a target: every entity (RR's candidates, SPEC section 3).  With one:
+        every other entity, or the entities of an explicit ``context`` set other
+        than the target (REG's distractors, SPEC section 4).  Raises KnowledgeError
+        for an unknown target or context entity.
+        """
+        everyone = (1 << len(self.entities)) - 1
+        where: Optional[int] = None
+        if target is not None:
+            self._require_entity(target)
+            where = self._index[target]
+        members = everyone
+        if context is not None:
+            unknown = [e for e in context if e not in self._index]
+            if unknown:
+                raise KnowledgeError(
+                    f"context names unknown entities of domain '{self.domain}': {', '.join(unknown)}"
+                )
+            members = bitset.from_indices((self._index[e] for e in context), len(self.entities))
+        if where is not None:
+            members &= ~(1 << where)
+        return CandidateSet(members, where)
+
+    def narrow(
+        self, candidates: "CandidateSet", prop: str, cause: Optional[str], time: float, turn: Optional[int]
+    ) -> bool:
+        """Keep the members ``prop`` holds for, encoding ``prop`` for each (rules 2 and 3).
+
+        With a target, nothing happens unless ``prop`` holds for it (SD-PIA skips
+        such a property; checking the target encodes nothing, rule 4); the return
+        value says whether it does (always True without a target).  Members are
+        visited in entity order; ``cause`` None checks without encoding.
+        """
+        self._require_property(prop)
+        holders = self._holders[prop]
+        if candidates.target is not None and not holders >> candidates.target & 1:
+            return False
+        kept = candidates.members & holders
+        if cause is not None and kept and self.wm.retains:
+            self.wm.encode_each(bitset.names(kept, self.entities), prop, cause, time, turn)
+        candidates.members = kept
+        return True
+
+    def members(self, candidates: "CandidateSet") -> list[str]:
+        """Return a candidate set's members, in entity order."""
+        return bitset.names(candidates.members, self.entities)
+
+    def rule_out(self, candidates: "CandidateSet") -> tuple[list[str], list[int]]:
+        """For each property holding for the target (preference order), the members it rules out.
+
+        Each set is written by member rank: bit k = the k-th member in entity order.
+        Queries only, no encoding.
+        """
+        if candidates.target is None:
+            raise KnowledgeError("rule-out sets need a target")
+        props, masks = [], []
+        members = candidates.members
+        for prop in self.preference:
+            holders = self._holders[prop]
+            if holders >> candidates.target & 1:
+                props.append(prop)
+                masks.append(bitset.positions(members & ~holders, members))
+        return props, masks
+
+    # ------------------------------------------------------------ updates
     def set_threshold(self, threshold: float, time: float = 0.0) -> list[tuple[str, str]]:
-        """Change the domain's threshold.  A property that stops holding for an entity
-        is forgotten from its WM (cause ``retract``), as with :meth:`assert_facts`;
-        returns those (entity, property) pairs."""
+        """Change the domain's threshold.
+
+        A property that stops holding for an entity is forgotten from its WM (cause
+        ``retract``), as with :meth:`assert_facts`; returns those (entity, property) pairs.
+        """
         self.threshold = check_certainty("threshold", threshold)
         self._rebuild_holders()
+        self.version += 1
         retracted = []
         for entity, queue in self.wm.snapshot().items():
             for prop in queue:
-                if entity not in self._holders[prop]:
+                if not self._holders[prop] >> self._index[entity] & 1:
                     self.wm.remove(entity, prop, "retract", time)
                     retracted.append((entity, prop))
         return retracted
@@ -171,19 +252,21 @@ class Consultant:
         new = entity not in self._certainty
         old_holding = set() if new else set(self.properties_of(entity))
         if new:
+            self._index[entity] = len(self.entities)
             self.entities.append(entity)
-            self._entity_set.add(entity)
             self._certainty[entity] = {}
         current = self._certainty[entity]
+        bit = 1 << self._index[entity]
         for prop, c in facts.items():
             if c > 0:
                 current[prop] = float(c)
             else:
                 current.pop(prop, None)
             if current.get(prop, 0.0) >= self.threshold:
-                self._holders[prop].add(entity)
+                self._holders[prop] |= bit
             else:
-                self._holders[prop].discard(entity)
+                self._holders[prop] &= ~bit
+        self.version += 1
         now_holding = set(self.properties_of(entity))
         retracted = [p for p in self.preference if p in old_holding and p not in now_holding]
         for prop in retracted:
@@ -201,10 +284,18 @@ class Consultant:
             check_certainty(f"certainty of '{prop}' for '{entity}'", c)
 
     def _rebuild_holders(self) -> None:
-        for prop in self.preference:
-            self._holders[prop] = {
-                e for e in self.entities if self._certainty[e].get(prop, 0.0) >= self.threshold
-            }
+        """Rebuild every property's holder bitset, fact by fact (not property x entity)."""
+        holding: dict[str, list[int]] = {p: [] for p in self.preference}
+        threshold = self.threshold
+        for i, entity in enumerate(self.entities):
+            for prop, c in self._certainty[entity].items():
+                if c >= threshold:
+                    holding[prop].append(i)
+        size = len(self.entities)
+        if threshold <= 0.0:  # certainty 0 (unlisted) holds too
+            self._holders = {p: (1 << size) - 1 for p in self.preference}
+            return
+        self._holders = {p: bitset.from_indices(held, size) for p, held in holding.items()}
 
     def _require_entity(self, entity: str) -> None:
         if entity not in self._certainty:
@@ -213,6 +304,22 @@ class Consultant:
     def _require_property(self, prop: str) -> None:
         if prop not in self._known:
             raise KnowledgeError(f"domain '{self.domain}' knows no property '{prop}'")
+
+
+@dataclass
+class CandidateSet:
+    """The entities still in play in one RR or REG request, held by the consultant.
+
+    ``members`` is a bitset over entity indices (:mod:`fsreg_ros.core.bitset`);
+    ``target`` is REG's target's index (None for RR).
+    """
+
+    members: int
+    target: Optional[int] = None
+
+    @property
+    def size(self) -> int:
+        return self.members.bit_count()
 
 
 def check_certainty(what: str, value: Any) -> float:
@@ -225,24 +332,84 @@ def check_certainty(what: str, value: Any) -> float:
 
 
 # --------------------------------------------------------------------- ports
+@dataclass
+class View:
+    """One RR or REG request's open candidate (or distractor) set at a consultant.
+
+    ``handle`` names the set to the port (a :class:`CandidateSet` in-process, a
+    session id over the graph); ``size`` is how many members it had when opened;
+    ``queue`` is Q[target] at that moment (REG's ``wm_before``; empty without a
+    target); ``retains`` whether the domain's WM retains anything (policy not
+    ``none``), which is what lets REG choose between SD-PIA and DIST-PIA;
+    ``holding`` the properties that hold for the target (None without one), so REG
+    asks nothing about a property it would skip.
+    """
+
+    handle: Any
+    size: int
+    queue: list[str]
+    retains: bool
+    holding: Optional[frozenset[str]] = None
+    first: Optional["Narrowed"] = None  # what the first step given to open did
+
+
+@dataclass(frozen=True)
+class Step:
+    """One narrowing step: a property, its encoding cause (None: none), when and in which turn."""
+
+    prop: str
+    cause: Optional[str]
+    time: float = 0.0
+    turn: Optional[int] = None
+
+
+@dataclass(frozen=True)
+class Narrowed:
+    """What one :meth:`ConsultantPort.narrow` did: whether the target holds, members left."""
+
+    target_holds: bool
+    size: int
+
+
 class ConsultantPort(Protocol):
-    """What reference resolution and REG may ask of a domain's consultant."""
+    """What reference resolution and REG may ask of a domain's consultant.
+
+    A request opens a :class:`View` (the consultant keeps the candidate or
+    distractor set), narrows it once per considered property, and closes it; so
+    each considered property costs one call, and no entity list travels per call.
+    """
 
     domain: str
 
-    async def entities(self) -> list[str]:
-        """The domain's entities, in entity order."""
-
     async def preference(self) -> list[str]:
-        """The domain's preference order, most preferred first."""
+        """Return the domain's preference order, most preferred first."""
 
-    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        """The given entities ``prop`` holds for, in the given order.  No encoding."""
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        """Open a view: every entity (RR), or the target's distractors (REG); see :meth:`Consultant.open_set`.
 
-    async def affirm(
-        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
+        With ``first``, narrow it by that step at once (RR's first property: one call
+        opens the view and checks it); the view's ``first`` says what that did.
+        """
+
+    async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
+        """Keep the members ``prop`` holds for, encoding it for each (``cause`` None: no encoding).
+
+        With a target, only if ``prop`` holds for the target (see :meth:`Consultant.narrow`).
+        """
+
+    async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
+        """Return each property holding for the target and the members it rules out (by member rank)."""
+
+    async def close(
+        self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        """As :meth:`holds`, and encode ``prop`` for each entity it holds for."""
+        """Close the view; return its members (entity order).
+
+        With ``encode``: Encode(x, encode) with cause ``speaker`` (rule 1) first, where x
+        is the view's target, or, without one, its only member.
+        """
 
     async def wm(self, entity: str) -> list[str]:
         """Q[entity], LRU first."""
@@ -260,19 +427,25 @@ class LocalPort:
         self.consultant = consultant
         self.domain = consultant.domain
 
-    async def entities(self) -> list[str]:
-        return list(self.consultant.entities)
-
     async def preference(self) -> list[str]:
         return list(self.consultant.preference)
 
-    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        return self.consultant.holds(prop, entities)
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        return open_view(self.consultant, target, context, first)
 
-    async def affirm(
-        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
+    async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
+        holds = self.consultant.narrow(view.handle, prop, cause, time, turn)
+        return Narrowed(holds, view.handle.size)
+
+    async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
+        return self.consultant.rule_out(view.handle)
+
+    async def close(
+        self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        return self.consultant.affirm(prop, entities, cause, time, turn)
+        return close_view(self.consultant, view.handle, encode, time, turn)
 
     async def wm(self, entity: str) -> list[str]:
         return self.consultant.queue(entity)
@@ -281,6 +454,42 @@ class LocalPort:
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
     ) -> None:
         self.consultant.encode(entity, properties, cause, time, turn)
+
+
+def open_view(
+    consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step] = None
+) -> View:
+    """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set).
+
+    With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).
+    """
+    candidates = consultant.open_set(target, context)
+    size = candidates.size
+    if target is None:
+        view = View(candidates, size, [], consultant.wm.retains)
+    else:
+        holding = frozenset(consultant.properties_of(target))
+        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding)
+    if first is not None:
+        holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
+        view.first = Narrowed(holds, candidates.size)
+    return view
+
+
+def close_view(
+    consultant: Consultant, candidates: CandidateSet, encode: Sequence[str], time: float, turn: Optional[int]
+) -> list[str]:
+    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says."""
+    members = consultant.members(candidates)
+    if encode:
+        if candidates.target is not None:
+            speaker = consultant.entities[candidates.target]
+        elif len(members) == 1:
+            speaker = members[0]
+        else:
+            raise KnowledgeError(f"cannot encode for the only member: {len(members)} members remain")
+        consultant.encode(speaker, encode, "speaker", time, turn)
+    return members
 
 
 T = TypeVar("T")

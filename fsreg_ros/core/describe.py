@@ -20,8 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence, Union
 
-from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, run_sync
-from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, distractors_for, generate
+from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, run_sync
+from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
 Facts = Union[Sequence[str], Mapping[str, object]]
@@ -80,10 +80,11 @@ class ViewPort:
     """A :class:`ConsultantPort` seen through one call's options.
 
     It serves ``preference`` instead of the consultant's order, hides properties
-    of the ``hidden`` attributes from the preference order and from WM, and
-    forwards encodings only when ``writes`` is true.  Final (``speaker``)
-    encodings are never forwarded: :func:`describe` encodes the whole description
-    itself.
+    of the ``hidden`` attributes from the preference order and from WM, hands out
+    ``opened`` (a view :func:`describe_async` has already narrowed by the forced
+    head) instead of opening one, and forwards encodings only when ``writes`` is
+    true.  Final (``speaker``) encodings are never forwarded: :func:`describe`
+    encodes the whole description itself.
     """
 
     def __init__(
@@ -92,12 +93,14 @@ class ViewPort:
         preference: Sequence[str],
         *,
         writes: bool,
+        opened: View,
         hidden: Sequence[str] = (),
         attributes: Optional[Mapping[str, str]] = None,
     ) -> None:
         self.port = port
         self.domain = port.domain
         self.writes = writes
+        self._opened = opened
         self._hidden = set(hidden)
         self._attributes = attributes
         self._preference = [p for p in preference if not self._is_hidden(p)]
@@ -105,21 +108,31 @@ class ViewPort:
     def _is_hidden(self, prop: str) -> bool:
         return attribute_of(prop, self._attributes) in self._hidden
 
-    async def entities(self) -> list[str]:
-        return await self.port.entities()
-
     async def preference(self) -> list[str]:
         return list(self._preference)
 
-    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        return await self.port.holds(prop, entities)
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        view = self._opened
+        view = View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains,
+                    view.holding)
+        if first is not None:
+            view.first = await self.narrow(view, first.prop, first.cause, first.time, first.turn)
+        return view
 
-    async def affirm(
-        self, prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]
+    async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
+        return await self.port.narrow(view, prop, cause if self.writes else None, time, turn)
+
+    async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
+        props, masks = await self.port.rule_out(view)
+        shown = [(p, m) for p, m in zip(props, masks) if not self._is_hidden(p)]
+        return [p for p, _ in shown], [m for _, m in shown]
+
+    async def close(
+        self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        if self.writes:
-            return await self.port.affirm(prop, entities, cause, time, turn)
-        return await self.port.holds(prop, entities)
+        return await self.port.close(view)
 
     async def wm(self, entity: str) -> list[str]:
         return [p for p in await self.port.wm(entity) if not self._is_hidden(p)]
@@ -151,22 +164,29 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
         raise GenerationError(f"unknown algorithm '{request.algorithm}' (known: {', '.join(ALGORITHMS)})")
     full = await port.preference()
     order = full if request.preference is None else expand_order(request.preference, full, request.attributes)
-    view = ViewPort(port, order, writes=request.writes, hidden=request.forced, attributes=request.attributes)
+    cause = "reg-distractor" if request.writes else None
     try:
-        distractors = await distractors_for(target, port, request.context)
+        opened = await port.open(target, request.context)
+        size = opened.size
         head = []  # the target's values of the forced attributes, selected first
         for attribute in request.forced:
-            values = [p for p in full if attribute_of(p, request.attributes) == attribute]
-            head += [p for p in values if await port.holds(p, [target])][:1]
-        for prop in head:
-            distractors = await view.affirm(prop, distractors, "reg-distractor", request.time, request.turn)
+            for prop in full:  # the first value holding for the target narrows the distractors
+                if attribute_of(prop, request.attributes) == attribute:
+                    step = await port.narrow(opened, prop, cause, request.time, request.turn)
+                    if step.target_holds:
+                        head.append(prop)
+                        size = step.size
+                        break
     except KnowledgeError as err:
         raise GenerationError(str(err)) from err
+    opened = View(opened.handle, size, opened.queue, opened.retains, opened.holding)
+    view = ViewPort(port, order, writes=request.writes, opened=opened, hidden=request.forced,
+                    attributes=request.attributes)
     expression = await generate(
         target,
         view,
         request.algorithm,
-        context=distractors,
+        context=request.context,
         wm_order=request.wm_order,
         time=request.time,
         turn=request.turn,

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError
+from .consultant import ConsultantPort, KnowledgeError, View
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
@@ -86,27 +86,8 @@ class Expression:
         }
 
 
-async def distractors_for(
-    target: str, port: ConsultantPort, context: Optional[Sequence[str]] = None
-) -> list[str]:
-    """Every other entity of the target's domain, or of an explicit context set,
-    in the domain's entity order."""
-    entities = await port.entities()
-    try:
-        at = entities.index(target)  # entity names are unique
-    except ValueError:
-        raise GenerationError(f"domain '{port.domain}' has no entity '{target}'") from None
-    if context is None:
-        return entities[:at] + entities[at + 1 :]  # one C-level pass, not two Python ones
-    unknown = [e for e in context if e not in entities]
-    if unknown:
-        raise GenerationError(f"context names unknown entities of domain '{port.domain}': {', '.join(unknown)}")
-    wanted = set(context)
-    return [e for e in entities if e in wanted and e != target]
-
-
 def phase1_order(wm_before: Sequence[str], wm_order: str, preference: Sequence[str]) -> list[str]:
-    """The order Phase 1 walks WM in (the paper's footnote lists the alternatives)."""
+    """Return the order Phase 1 walks WM in (the paper's footnote lists the alternatives)."""
     if wm_order == "lru-first":
         return list(wm_before)
     if wm_order == "mru-first":
@@ -127,17 +108,22 @@ async def sd_pia(
     time: float = 0.0,
     turn: Optional[int] = None,
     attributes: Optional[Mapping[str, str]] = None,
+    view: Optional[View] = None,
 ) -> Expression:
     """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  SPEC section 4.
 
-    Once a value of an attribute is selected, other values of it are skipped
-    (a description never holds two values of one attribute).
+    The consultant keeps the distractor set (``view``, opened here unless given):
+    each considered property is one :meth:`~ConsultantPort.narrow`, which checks the
+    target and encodes the property for every remaining distractor it holds for
+    (rule 3).  Once a value of an attribute is selected, other values of it are
+    skipped (a description never holds two values of one attribute).
     """
     algorithm = "sd-pia" if use_wm else "dist-pia"
-    remaining = await distractors_for(target, port, context)
+    if view is None:
+        view = await port.open(target, context)
     preference = await port.preference()
-    wm_before = await port.wm(target)
-    expression = Expression(target, port.domain, algorithm, wm_before=list(wm_before))
+    expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
+    remaining = view.size
     considered: set[str] = set()
     selected_attributes: set[str] = set()
 
@@ -146,18 +132,19 @@ async def sd_pia(
         considered.add(prop)
         if attribute_of(prop, attributes) in selected_attributes:
             return
-        if not await port.holds(prop, [target]):
-            return
-        # Rule 3: p is encoded for each remaining distractor it cannot rule out.
-        kept = await port.affirm(prop, remaining, "reg-distractor", time, turn)
-        if len(kept) < len(remaining):
+        if view.holding is not None and prop not in view.holding:
+            return  # p does not hold for t (as read when the view opened): skipped, nothing asked
+        # Skipped unless p holds for t; else p is encoded for each remaining
+        # distractor it cannot rule out (rule 3), and those stay.
+        step = await port.narrow(view, prop, "reg-distractor", time, turn)
+        if step.target_holds and step.size < remaining:
             expression.description.append(prop)
             expression.sources.append(source)
             selected_attributes.add(attribute_of(prop, attributes))
-            remaining = kept
+            remaining = step.size
 
     if use_wm:
-        for prop in phase1_order(wm_before, wm_order, preference):  # Phase 1: WM
+        for prop in phase1_order(view.queue, wm_order, preference):  # Phase 1: WM
             if not remaining:
                 break
             await consider(prop, "wm")
@@ -166,7 +153,7 @@ async def sd_pia(
             break
         if prop not in considered:
             await consider(prop, "ltm")
-    return await _finish(expression, remaining, port, time, turn)
+    return await _finish(expression, view, port, time, turn)
 
 
 async def dist_pia(target: str, port: ConsultantPort, **options) -> Expression:
@@ -175,35 +162,20 @@ async def dist_pia(target: str, port: ConsultantPort, **options) -> Expression:
     return await sd_pia(target, port, use_wm=False, **options)
 
 
-async def _rule_out_sets(
-    target: str, port: ConsultantPort, distractors: list[str]
-) -> tuple[list[str], list[int]]:
-    """For each property holding for the target (preference order), the bitmask of
-    distractors it rules out (bit i = distractors[i]).  Queries only, no encoding."""
-    index = {d: i for i, d in enumerate(distractors)}
-    everyone = (1 << len(distractors)) - 1
-    props, masks = [], []
-    for prop in await port.preference():
-        held = await port.holds(prop, [target] + distractors)
-        if not held or held[0] != target:
-            continue
-        keep = 0
-        for d in held[1:]:
-            keep |= 1 << index[d]
-        props.append(prop)
-        masks.append(everyone & ~keep)
-    return props, masks
-
-
 async def _baseline_view(
-    target: str, port: ConsultantPort, context: Optional[Sequence[str]]
-) -> tuple[list[str], list[str], list[str], list[int]]:
-    """What a baseline works from: the distractors, Q[target] (reported only, SPEC
-    section 6; baselines never use WM) and each property's rule-out bitmask."""
-    distractors = await distractors_for(target, port, context)
-    wm_before = await port.wm(target)
-    props, masks = await _rule_out_sets(target, port, distractors)
-    return distractors, wm_before, props, masks
+    target: str, port: ConsultantPort, context: Optional[Sequence[str]], view: Optional[View]
+) -> tuple[View, list[str], list[int]]:
+    """Return what a baseline works from: the open view and each property's rule-out bitmask.
+
+    The view's ``queue`` is Q[target], reported only (SPEC section 6; baselines never
+    use WM); for each property holding for the target (preference order), the bitmask
+    of distractors it rules out (bit i = the i-th distractor in entity order).
+    Queries only, no encoding.
+    """
+    if view is None:
+        view = await port.open(target, context)
+    props, masks = await port.rule_out(view)
+    return view, props, masks
 
 
 async def full_brevity(
@@ -214,6 +186,7 @@ async def full_brevity(
     time: float = 0.0,
     turn: Optional[int] = None,
     attributes: Optional[Mapping[str, str]] = None,
+    view: Optional[View] = None,
     **_ignored,
 ) -> Expression:
     """Full Brevity: a shortest set ruling out every distractor that can be ruled out.
@@ -221,7 +194,7 @@ async def full_brevity(
     Among equally short sets (never two values of one attribute), the one whose
     sorted preference ranks are lexicographically smallest; output in preference order.
     """
-    distractors, wm_before, props, masks = await _baseline_view(target, port, context)
+    view, props, masks = await _baseline_view(target, port, context, view)
     useful = [(p, m) for p, m in zip(props, masks) if m]
     goal = 0
     for _, mask in useful:
@@ -251,11 +224,10 @@ async def full_brevity(
             if found is not None:
                 chosen = found
                 break
-    expression = Expression(target, port.domain, "full-brevity", wm_before=list(wm_before))
+    expression = Expression(target, port.domain, "full-brevity", wm_before=list(view.queue))
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
-    left = [d for i, d in enumerate(distractors) if not best_cover >> i & 1]
-    return await _finish(expression, left, port, time, turn)
+    return await _finish(expression, view, port, time, turn, ruled_out=best_cover)
 
 
 async def greedy(
@@ -266,6 +238,7 @@ async def greedy(
     time: float = 0.0,
     turn: Optional[int] = None,
     attributes: Optional[Mapping[str, str]] = None,
+    view: Optional[View] = None,
     **_ignored,
 ) -> Expression:
     """Greedy: repeatedly select the property ruling out most remaining distractors.
@@ -273,9 +246,10 @@ async def greedy(
     Ties go to the more preferred; attributes already used are skipped; it stops
     when no property rules out any remaining distractor.
     """
-    distractors, wm_before, props, masks = await _baseline_view(target, port, context)
-    remaining = (1 << len(distractors)) - 1
-    expression = Expression(target, port.domain, "greedy", wm_before=list(wm_before))
+    view, props, masks = await _baseline_view(target, port, context, view)
+    everyone = (1 << view.size) - 1
+    remaining = everyone
+    expression = Expression(target, port.domain, "greedy", wm_before=list(view.queue))
     used: set[str] = set()
     while remaining:
         best, best_count = -1, 0
@@ -291,24 +265,33 @@ async def greedy(
         expression.sources.append("ltm")
         used.add(attribute_of(props[best], attributes))
         remaining &= ~masks[best]
-    left = [d for i, d in enumerate(distractors) if remaining >> i & 1]
-    return await _finish(expression, left, port, time, turn)
+    return await _finish(expression, view, port, time, turn, ruled_out=everyone & ~remaining)
 
 
 async def _finish(
-    expression: Expression, left: list[str], port: ConsultantPort, time: float, turn: Optional[int]
+    expression: Expression,
+    view: View,
+    port: ConsultantPort,
+    time: float,
+    turn: Optional[int],
+    ruled_out: int = 0,
 ) -> Expression:
-    expression.distractors_left = list(left)
+    """Close the view, encoding the description for the target (rule 1); fill in what is left.
+
+    The view's members are the distractors left, except those in ``ruled_out`` (the
+    baselines never narrow the view: bit i = the i-th member).
+    """
+    members = await port.close(view, expression.description, time, turn)
+    left = [d for i, d in enumerate(members) if not ruled_out >> i & 1]
+    expression.distractors_left = left
     expression.distinguishing = not left
-    if expression.description:  # rule 1: the robot's own description
-        await port.encode(expression.target, expression.description, "speaker", time, turn)
     return expression
 
 
 async def generate(
     target: str,
     port: ConsultantPort,
-    algorithm: str = "sd-pia",
+    algorithm: Optional[str] = "sd-pia",
     *,
     context: Optional[Sequence[str]] = None,
     wm_order: str = "lru-first",
@@ -316,19 +299,25 @@ async def generate(
     turn: Optional[int] = None,
     attributes: Optional[Mapping[str, str]] = None,
 ) -> Expression:
-    """Run the named REG algorithm for ``target`` in ``port``'s domain."""
+    """Run the named REG algorithm for ``target`` in ``port``'s domain.
+
+    ``algorithm`` None or ``auto`` chooses by the domain's memory policy, as read
+    when the distractor set is opened (:func:`algorithm_for`).
+    """
     if wm_order not in WM_ORDERS:
         raise GenerationError(f"unknown wm_order '{wm_order}' (known: {', '.join(WM_ORDERS)})")
-    options = dict(context=context, time=time, turn=turn, attributes=attributes)
+    if algorithm and algorithm != AUTO and algorithm not in ALGORITHMS:
+        raise GenerationError(f"unknown algorithm '{algorithm}' (known: {', '.join(ALGORITHMS)})")
     try:
+        view = await port.open(target, context)
+        options = dict(context=context, time=time, turn=turn, attributes=attributes, view=view)
+        algorithm = algorithm_for(view.retains, algorithm)
         if algorithm == "sd-pia":
             return await sd_pia(target, port, wm_order=wm_order, **options)
         if algorithm == "dist-pia":
             return await dist_pia(target, port, **options)
         if algorithm == "full-brevity":
             return await full_brevity(target, port, **options)
-        if algorithm == "greedy":
-            return await greedy(target, port, **options)
+        return await greedy(target, port, **options)
     except KnowledgeError as err:
         raise GenerationError(str(err)) from err
-    raise GenerationError(f"unknown algorithm '{algorithm}' (known: {', '.join(ALGORITHMS)})")

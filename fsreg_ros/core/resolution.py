@@ -1,7 +1,8 @@
-"""Reference resolution (RR): which entity does a heard description refer to?
+"""Reference resolution (RR): find the entity a heard description refers to.
 
 SPEC section 3.  The description's properties are checked in utterance order
-against every candidate still in play.  Each time a property is affirmed for a
+against every candidate still in play (the consultant keeps the candidate set: one
+call per property, see :class:`~fsreg_ros.core.consultant.ConsultantPort`).  Each time a property is affirmed for a
 candidate it is encoded into that candidate's WM (rule 2), even if the candidate
 is ruled out by a later property.  A description that resolves to exactly one
 entity is then encoded, whole and in utterance order, for its referent (rule 1).
@@ -12,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Collection, Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError
+from .consultant import ConsultantPort, KnowledgeError, Step
 
 RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
 
@@ -45,16 +46,21 @@ class Resolution:
 
 
 def domains_knowing(description: Sequence[str], preferences: Mapping[str, Collection[str]]) -> list[str]:
-    """The domains (in the given order) whose preference order contains every property
-    of the description: a description resolves in a domain only if exactly one fits."""
+    """Return the domains (in the given order) whose preference order contains every property.
+
+    A description resolves in a domain only if exactly one fits.
+    """
     return [d for d, preference in preferences.items() if all(p in preference for p in description)]
 
 
 async def choose_domain(
     description: Sequence[str], ports: Mapping[str, ConsultantPort], domain: Optional[str] = None
 ) -> str:
-    """The domain to resolve in: the given one, else the only domain whose preference
-    order contains every property of the description."""
+    """Return the domain to resolve in.
+
+    The given one, else the only domain whose preference order contains every property
+    of the description (the ports cache preference orders: no call per turn).
+    """
     if domain is not None:
         if domain not in ports:
             raise ResolutionError(f"unknown domain '{domain}' (known: {', '.join(sorted(ports))})")
@@ -71,7 +77,8 @@ async def choose_domain(
         raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}")
     if len(fitting) != 1:
         which = "no domain" if not fitting else f"several domains ({', '.join(sorted(fitting))})"
-        raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; name it with 'domain'")
+        raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; "
+                              "name it with 'domain'")
     return fitting[0]
 
 
@@ -89,15 +96,18 @@ async def resolve(
         raise ResolutionError("the description is empty")
     domain = await choose_domain(description, ports, domain)
     port = ports[domain]
-    candidates = await port.entities()
-    for prop in description:
-        if not candidates:
-            break
-        try:
-            candidates = await port.affirm(prop, candidates, "rr", time, turn)
-        except KnowledgeError as err:  # raced with an LTM change; report, never guess
-            raise ResolutionError(str(err)) from err
+    try:
+        # The consultant keeps the candidate set; opening it checks the first property.
+        view = await port.open(first=Step(description[0], "rr", time, turn))  # rule 2
+        remaining = view.first.size if view.first is not None else view.size
+        for prop in description[1:]:
+            if not remaining:
+                break
+            remaining = (await port.narrow(view, prop, "rr", time, turn)).size  # rule 2
+        # Rule 1 for a resolved description, in utterance order.
+        candidates = await port.close(view, description if remaining == 1 else (), time, turn)
+    except KnowledgeError as err:  # raced with an LTM change; report, never guess
+        raise ResolutionError(str(err)) from err
     if len(candidates) == 1:
-        await port.encode(candidates[0], description, "speaker", time, turn)
         return Resolution(RESOLVED, domain, description, candidates)
     return Resolution(AMBIGUOUS if candidates else NO_MATCH, domain, description, candidates)

@@ -6,12 +6,27 @@ One process per domain (give each its own node name, e.g.
 Parameters
     ``domain`` (string, required, read-only), ``kb`` (scenario/KB YAML, required,
     read-only), ``threshold`` (number in [0, 1]; default: the KB's threshold for the
-    domain; changeable at run time; it changes what holds, it does not touch WM), and
-    the size limits ``max_message_bytes``, ``max_name_chars``, ``max_list_items``.
+    domain; changeable at run time; it changes what holds, it does not touch WM), the
+    size limits ``max_message_bytes``, ``max_name_chars``, ``max_list_items``, and (all
+    read-only) ``max_sessions`` (open RR/REG sessions, default 64), ``session_timeout``
+    (s unused before a session is dropped, default 30) and ``state_period`` (least s
+    between two ``wm/state`` messages, default 0.1).
 
 Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contract`)
     ``consultant/<domain>`` -- queries from RR and REG, ``{"op": ...}``:
-      ``info`` -> ``{"domain", "entities", "preference", "threshold", "policy", "memory", "events"}``
+      ``info`` ``{"entities_from"?}`` -> ``{"domain", "entities", "entity_count", "preference",
+      "threshold", "policy", "memory", "events", "version"}`` (entities from index
+      ``entities_from`` on: they are only ever appended)
+      ``open`` ``{"target"?, "context"?, "first"?}`` -> ``{"session", "size", "queue", "retains",
+      "holding", "first"?, "version"}``: a session holding RR's candidates (no target) or
+      REG's distractors; ``first`` (``{"property", "cause", "time"?, "turn"?}``) narrows it at
+      once (RR's first property), its ``{"target_holds", "size"}`` in the reply
+      ``narrow`` ``{"session", "property", "cause" (null: no encoding), "time"?, "turn"?}`` ->
+      ``{"target_holds", "size", "version"}``: rules 2 and 3 (one call per considered property)
+      ``rule_out`` ``{"session"}`` -> ``{"properties", "masks", "version"}`` (baselines; hex bitmasks
+      by member rank)
+      ``close`` ``{"session", "encode"?, "time"?, "turn"?}`` -> ``{"members", "version"}``: ends
+      the session; ``encode`` is rule 1 for the target, or for a session's only member
       ``holds`` ``{"property", "entities"}`` -> ``{"holds"}`` (no encoding)
       ``affirm`` ``{"property", "entities", "cause", "time"?, "turn"?}`` -> ``{"holds"}``
       ``wm`` ``{"entity"}`` -> ``{"queue"}`` (LRU first; reading never refreshes)
@@ -31,6 +46,15 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
       ``size`` -> ``{"size"}``: how many properties WM holds.
 
+Sessions (SPEC sections 3 and 4 keep their order: members are visited in entity
+order) are kept at most ``max_sessions`` at once (the least recently used is dropped)
+and for ``session_timeout`` seconds unused, so a caller that dies leaks nothing.
+``version`` (``"<incarnation>:<LTM changes>"``) changes when LTM does (``ltm/assert``,
+``threshold``) or the consultant restarts: callers cache the preference order and the
+entity list until it does.
+
+``wm/events`` is a volatile topic: while it has no subscriber nothing is sent (and
+RR's and REG's encodings take the buffer's quiet path, building no events), so
 ``events`` is how many ``/wm/events`` messages this consultant has published so far:
 a listener that must have every event (a trace) asks ``info`` after the last change
 and waits until it has heard that many from the domain (topics are not ordered with
@@ -46,7 +70,9 @@ unknown entity or property, ``MessageError`` for a malformed request).
 Topics
     out ``wm/events`` -- every encode/forget event (SPEC section 2), one message each;
     out ``wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
-    and after every request that changed WM;
+    and at most once per request that changed WM (after the op, or, for a session, at its
+    ``close``) and per ``state_period``, while someone subscribes (a late joiner gets the
+    current state within ``state_period``; ``wm/events`` carries every single change);
     in ``ltm/assert`` ``{"domain", "entity", "properties": {name: certainty}, "id"?}``
     -- messages for other domains are ignored; out ``ltm/assert/result``
     ``{"domain", "entity", "ok", "new_entity", "updated", "retracted", "id"?}`` or
@@ -58,8 +84,12 @@ nothing (a buffer without a policy would retain everything, unmanaged).
 
 from __future__ import annotations
 
+import gc
+import secrets
+from time import monotonic
 from typing import Any, Callable, Optional
 
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
 from rclpy.validate_topic_name import validate_topic_name
@@ -68,16 +98,26 @@ from .. import contract
 from ..carrier import publish, publisher, serve, subscribe
 from ..codec import NUMBER, MessageError, check_fields, printable
 from ..contract import consultant_service, manage_service
-from ..core.consultant import Consultant, KnowledgeError
+from ..core.consultant import CandidateSet, Consultant, KnowledgeError, Step, close_view, open_view
 from ..core.decay import TickError, TickRun
 from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
 from ..core.wm_manager import apply_ticks, configure_buffer
 from ..core.scenario import ScenarioError, load_scenario
+from ..core.sessions import DEFAULT_CAPACITY, SessionTable
+from ..core.sessions import DEFAULT_TIMEOUT as DEFAULT_SESSION_TIMEOUT
 from .asking import declare_limits
 from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 TIME = {"time": NUMBER, "turn": (int, None)}
+#: Ops that change WM within a session: /wm/state waits for the session's close.
+SESSION_STEPS = ("open", "narrow", "rule_out")
+#: Ops whose replies carry the LTM ``version``.
+VERSIONED_OPS = ("info", "open", "narrow", "rule_out", "close")
+#: Default least time between two /wm/state messages, seconds.
+DEFAULT_STATE_PERIOD = 0.1
+#: Longest a due /wm/state waits for open sessions to close, seconds.
+MAX_STATE_DELAY = 1.0
 POLICY_FIELDS = {"policy": str}
 POLICY_OPTIONAL = {
     "decay_period": (NUMBER, None),
@@ -120,12 +160,27 @@ class ConsultantNode(Node):
             "a property holds iff its certainty >= threshold (default: the KB's)",
         )
         self.limits = declare_limits(self)
+        self.sessions: SessionTable[CandidateSet] = SessionTable(
+            declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000,
+                           "open RR/REG sessions kept at most (opening one more drops the least recently used)",
+                           integer=True, read_only=True),
+            declare_number(self, "session_timeout", DEFAULT_SESSION_TIMEOUT, 0.01, 3600.0,
+                           "a session unused this long (s, steady clock) is dropped", read_only=True),
+        )
+        self._incarnation = secrets.token_hex(4)  # so callers notice a restart
+        self._state_period = declare_number(
+            self, "state_period", DEFAULT_STATE_PERIOD, 0.0, 60.0,
+            "least time between two /wm/state messages (s, steady clock); a change within it is "
+            "published at its end", read_only=True)
 
         self.domain = domain
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
-        self._event_count = 0
+        self._event_count = 0  # /wm/events messages published
+        self._listened = True  # whether /wm/events has a subscriber (checked per request)
+        self._state_due = False  # WM changed since the last /wm/state
+        self._state_sent = float("-inf")  # monotonic time of the last /wm/state
         self._last_time = 0.0  # time of the latest change, for /wm/state
         self.consultant = Consultant(
             domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
@@ -137,6 +192,10 @@ class ConsultantNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._query_ops: dict[str, Callable[[dict], dict]] = {
             "info": self._info,
+            "open": self._open,
+            "narrow": self._narrow,
+            "rule_out": self._rule_out,
+            "close": self._close,
             "holds": self._holds,
             "affirm": self._affirm,
             "wm": self._wm,
@@ -154,7 +213,12 @@ class ConsultantNode(Node):
         serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops), max_bytes=size)
         subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
         self._clock_watch = watch_clock(self)
+        self._state_timer = self.create_timer(max(self._state_period, 0.02), lambda: self._publish_due(True),
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.publish_state(self.now())
+        # The KB's objects live as long as the node: keep the cyclic GC from scanning
+        # them again and again (a full collection over 10,000 entities' facts costs ms).
+        gc.freeze()
         self.get_logger().info(
             f"consultant of '{domain}': {len(self.consultant.entities)} entities, "
             f"{len(self.consultant.preference)} properties, threshold {threshold:g}, from {kb}"
@@ -165,11 +229,36 @@ class ConsultantNode(Node):
         return now_seconds(self)
 
     def _on_event(self, event: WMEvent) -> None:
-        self._event_count += 1
-        publish(self._events, event.to_json())
+        self._state_due = True
+        if self._listened:  # a volatile topic nobody reads: nothing to send
+            self._event_count += 1
+            publish(self._events, event.to_json())
+
+    def _check_listeners(self) -> None:
+        self._listened = self._events.get_subscription_count() > 0
+
+    def _publish_due(self, waiting: bool = False) -> None:
+        """Publish a /wm/state that is due, unless one went out less than ``state_period`` ago.
+
+        ``waiting`` (the timer): also wait while a session is open (its close publishes),
+        for at most a second (a caller that never closes must not hold the state back).
+        While ``wm/state`` has no subscriber the state stays due: a late joiner gets the
+        latched start state at once and the current one within ``state_period``.
+        """
+        now = monotonic()
+        if not self._state_due or now - self._state_sent < self._state_period:
+            return
+        if not self._state.get_subscription_count():
+            return  # nobody reads it now: the timer sends it once someone subscribes
+        self.sessions.expire(now)
+        if waiting and len(self.sessions) and now - self._state_sent < MAX_STATE_DELAY:
+            return
+        self.publish_state(self._last_time)
 
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
+        self._state_due = False
+        self._state_sent = monotonic()
         publish(
             self._state,
             {"domain": self.domain, "time": time, "queues": self.consultant.wm.snapshot(), "events": self._event_count},
@@ -180,12 +269,16 @@ class ConsultantNode(Node):
         handler = ops.get(op)
         if handler is None:
             raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
-        contract.check_sizes(request, self.limits, names=("entity", "property", "cause"),
-                             lists=("entities", "properties"))
-        before = self._event_count
+        contract.check_sizes(request, self.limits, names=("entity", "property", "cause", "target", "session"),
+                             lists=("entities", "properties", "context", "encode"))
+        self._check_listeners()
         reply = handler(request)
-        if self._event_count != before:
-            self.publish_state(self._last_time)
+        # /wm/state at most once per request (a session's steps wait for its close) and
+        # at most once per state_period (the timer sends what is left due).
+        if op not in SESSION_STEPS:
+            self._publish_due()
+        if op in VERSIONED_OPS:
+            reply["version"] = f"{self._incarnation}:{self.consultant.version}"
         return reply
 
     def _time(self, request: dict) -> tuple[float, Optional[int]]:
@@ -203,17 +296,84 @@ class ConsultantNode(Node):
 
     # ------------------------------------------------------------- query ops
     def _info(self, request: dict) -> dict:
+        contract.check(contract.InfoRequest, request)
+        start = request.get("entities_from") or 0
+        if start < 0:
+            raise MessageError(f"field 'entities_from': expected a whole number >= 0, got {start}")
         c = self.consultant
         policy = self.policy
         return {
             "domain": self.domain,
-            "entities": list(c.entities),
+            "entities": c.entities[start:],
+            "entity_count": len(c.entities),
             "preference": list(c.preference),
             "threshold": c.threshold,
             "policy": policy.name,
             "memory": policy.to_json(),
             "events": self._event_count,
         }
+
+    def _open(self, request: dict) -> dict:
+        contract.check(contract.OpenRequest, request)
+        step = request.get("first")
+        first = None
+        if step is not None:
+            contract.check_sizes(step, self.limits, names=("property", "cause"))
+            if step["cause"] is not None:
+                self._encode_cause(step["cause"])
+            when, turn = self._time(step)
+            first = Step(step["property"], step["cause"], when, turn)
+        # The session is stored only once everything (the first step too) succeeded.
+        view = self._quietly(open_view, self.consultant, request.get("target"), request.get("context"), first)
+        if first is not None and first.cause is not None and view.first.target_holds and view.first.size:
+            self._state_due = self._state_due or self.consultant.wm.retains
+        session = self.sessions.open(view.handle, monotonic())
+        holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
+        reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
+                 "holding": holding}
+        if view.first is not None:
+            reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
+        return reply
+
+    def _narrow(self, request: dict) -> dict:
+        contract.check(contract.NarrowRequest, request)
+        cause = request["cause"]
+        if cause is not None:
+            self._encode_cause(cause)
+        when, turn = self._time(request)
+        candidates = self.sessions.get(request["session"], monotonic())
+        # Consultant.narrow validates the property before anything changes.
+        holds = self._quietly(self.consultant.narrow, candidates, request["property"], cause, when, turn)
+        if holds and cause is not None and candidates.members and self.consultant.wm.retains:
+            self._state_due = True
+        return {"target_holds": holds, "size": candidates.size}
+
+    def _quietly(self, action: Callable[..., Any], *args: Any) -> Any:
+        """Run ``action(*args)``; with nobody listening to /wm/events, without an event sink.
+
+        Rule 2 and 3 encodings then take the buffer's quiet path (no event objects).
+        """
+        buffer = self.consultant.wm
+        sink = buffer.sink
+        if not self._listened:
+            buffer.sink = None
+        try:
+            return action(*args)
+        finally:
+            buffer.sink = sink
+
+    def _rule_out(self, request: dict) -> dict:
+        contract.check(contract.RuleOutRequest, request)
+        props, masks = self.consultant.rule_out(self.sessions.get(request["session"], monotonic()))
+        return {"properties": props, "masks": [format(mask, "x") for mask in masks]}
+
+    def _close(self, request: dict) -> dict:
+        contract.check(contract.CloseRequest, request)
+        when, turn = self._time(request)
+        candidates = self.sessions.get(request["session"], monotonic())
+        members = close_view(self.consultant, candidates, request.get("encode") or (), when, turn)
+        self.sessions.close(request["session"], monotonic())
+        return {"members": members}
 
     def _holds(self, request: dict) -> dict:
         contract.check(contract.HoldsRequest, request)
@@ -299,7 +459,7 @@ class ConsultantNode(Node):
             contract.check(contract.LtmAssert, data)
             contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
             time = self.now()
-            before = self._event_count
+            self._check_listeners()
             result = self.consultant.assert_facts(data["entity"], data["properties"], time)
         except (MessageError, KnowledgeError) as err:
             self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
@@ -312,8 +472,9 @@ class ConsultantNode(Node):
             f"LTM {'added' if result.new_entity else 'updated'} '{result.entity}': {result.updated}"
             + (f", retracted {result.retracted}" if result.retracted else "")
         ))
-        if self._event_count != before:
-            self.publish_state(time)
+        if self._state_due:
+            self._last_time = time
+            self._publish_due()
 
     # ------------------------------------------------------------ parameters
     def _after_set_parameters(self, params) -> None:
@@ -322,10 +483,12 @@ class ConsultantNode(Node):
                 value = float(param.value)  # typed and ranged by its descriptor
                 if value != self.consultant.threshold:
                     now = now_seconds(self)
+                    self._check_listeners()
                     retracted = self.consultant.set_threshold(value, now)
                     self.get_logger().info(f"threshold {value:g}" + (f", retracted {retracted}" if retracted else ""))
                     if retracted:
-                        self.publish_state(now)
+                        self._last_time = now
+                        self._publish_due()
 
 
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:

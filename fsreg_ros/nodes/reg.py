@@ -20,7 +20,7 @@ from rcl_interfaces.msg import SetParametersResult
 from .. import contract
 from ..carrier import CarrierError, publish, publisher, subscribe
 from ..codec import printable
-from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, algorithm_for, generate
+from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
 from ..core.lexicon import Lexicon
 from .asking import AskingNode
 from .common import descriptor, run_node
@@ -78,12 +78,11 @@ class RegNode(AskingNode):
         out = {"id": data["id"], "target": data["target"], "time": time}
         try:
             await self.ensure_ready()
-            domain, policy = await self._domain_of(data["target"])
-            algorithm = algorithm_for(policy != "none", self.get_parameter("algorithm").value)
-            expression = await generate(
+            domain = await self._domain_of(data["target"])
+            expression = await generate(  # "auto" is decided by the domain's policy when REG opens its view
                 data["target"],
                 self.ports[domain],
-                algorithm,
+                self.get_parameter("algorithm").value,
                 context=data.get("context"),
                 wm_order=self.get_parameter("wm_order").value,
                 time=time,
@@ -97,12 +96,16 @@ class RegNode(AskingNode):
         out.update(expression.to_json())
         return out
 
-    async def _domain_of(self, target: str) -> tuple[str, str]:
-        """Return the domain whose consultant knows ``target``, and that domain's policy name."""
-        for domain, port in self.ports.items():
-            info = await port.info()
-            if target in info["entities"]:
-                return domain, info.get("policy", "none")
+    async def _domain_of(self, target: str) -> str:
+        """Return the domain whose consultant knows ``target``.
+
+        From the ports' cached entity lists (an entity never leaves its domain); only a
+        target no cache knows makes every consultant say which entities it added since.
+        """
+        for refresh in (False, True):
+            for domain, port in self.ports.items():
+                if await port.knows(target, refresh):
+                    return domain
         raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})")
 
 
