@@ -201,7 +201,7 @@ class DomainStore:
                 if counters is not None:
                     self._put(db, "stamp", counters[0])
                     self._put(db, "ticks", counters[1])
-        except sqlite3.Error as err:
+        except (sqlite3.Error, UnicodeEncodeError) as err:
             raise StoreError(f"state database {self.path}: {err}") from None
 
     def _read(self, incarnation: int) -> StoredState:

@@ -407,6 +407,7 @@ class ConsultantNode(Node):
         try:
             contract.check(contract.LtmAssert, data)
             contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
+            _check_storable([data["entity"], *data["properties"]])
             time = self.now()
             before = self._event_count
             self._dirty = {}
@@ -449,6 +450,15 @@ class ConsultantNode(Node):
                     self.get_logger().info(f"threshold {value:g}" + (f", retracted {retracted}" if retracted else ""))
                     if retracted:
                         self.publish_state(now)
+
+
+def _check_storable(names: list[str]) -> None:
+    """Raise MessageError for a name the state database cannot hold (not valid UTF-8, e.g. a lone surrogate)."""
+    for name in names:
+        try:
+            name.encode("utf-8")
+        except UnicodeEncodeError:
+            raise MessageError(f"name {printable(repr(name), 80)} is not valid UTF-8 (a lone surrogate?)") from None
 
 
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:
