@@ -135,9 +135,10 @@ class DomainStore:
 
     # ---------------------------------------------------------------- writing
     def save_facts(self, entity: str, facts: Mapping[str, float], new_entity: bool,
-                   queues: Mapping[str, QueueItems] = (), counters: Optional[tuple[int, int]] = None) -> None:
+                   queues: Optional[Mapping[str, QueueItems]] = None,
+                   counters: Optional[tuple[int, int]] = None) -> None:
         """Record an accepted ``ltm/assert`` (and the WM queues it changed), in one transaction."""
-        self._write(lambda db: self._facts(db, entity, facts, new_entity), queues, counters)
+        self._write(lambda db: self._facts(db, entity, facts, new_entity), queues or {}, counters)
 
     def save_wm(self, queues: Mapping[str, QueueItems], counters: tuple[int, int],
                 decay_until: Optional[float] = None, policy: Optional[dict] = None) -> None:

@@ -238,6 +238,12 @@ class ConsultantNode(Node):
         )
         return store
 
+    def destroy_node(self) -> None:
+        store = getattr(self, "store", None)
+        if store is not None:
+            store.close()
+        super().destroy_node()
+
     def announce(self) -> None:
         """``consultant/announce``: this incarnation, whether it serves, and the policy it runs."""
         publish(self._announce, {"domain": self.domain, "incarnation": self.incarnation, "ready": self.ready,
