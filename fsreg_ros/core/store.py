@@ -20,9 +20,9 @@ Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
 ``facts(entity, property, certainty)``
     The latest certainty asserted at run time for each (entity, property); 0 is a
     retraction (it overrides the KB).
-``queues(entity, rank, items)``
+``queues(entity, items)``
     Each non-empty WM queue, ``items`` a JSON list of ``[property, stamp, hits]``
-    LRU first; ``rank`` orders the queues as they were created.
+    LRU first; the rowid orders the queues as they (last) became non-empty.
 
 The module does I/O but imports nothing from ROS; the consultant node calls it.
 """
@@ -48,7 +48,7 @@ CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS entities (seq INTEGER PRIMARY KEY, name TEXT NOT NULL UNIQUE);
 CREATE TABLE IF NOT EXISTS facts (
     entity TEXT NOT NULL, property TEXT NOT NULL, certainty REAL NOT NULL, PRIMARY KEY (entity, property));
-CREATE TABLE IF NOT EXISTS queues (entity TEXT PRIMARY KEY, rank INTEGER NOT NULL, items TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS queues (entity TEXT PRIMARY KEY, items TEXT NOT NULL);
 """
 
 QueueItems = Sequence[tuple[str, int, int]]
@@ -190,15 +190,12 @@ class DomainStore:
         try:
             with self._tx() as db:
                 extra(db)
-                for entity, items in queues.items():
-                    if not items:
-                        db.execute("DELETE FROM queues WHERE entity = ?", (entity,))
-                        continue
-                    db.execute(
-                        "INSERT INTO queues (entity, rank, items) "
-                        "VALUES (?, (SELECT COALESCE(MAX(rank), 0) + 1 FROM queues), ?) "
-                        "ON CONFLICT(entity) DO UPDATE SET items = excluded.items",
-                        (entity, json.dumps([list(item) for item in items])))
+                db.executemany("DELETE FROM queues WHERE entity = ?",
+                               [(entity,) for entity, items in queues.items() if not items])
+                db.executemany(
+                    "INSERT INTO queues (entity, items) VALUES (?, ?) "
+                    "ON CONFLICT(entity) DO UPDATE SET items = excluded.items",
+                    [(entity, json.dumps(items, separators=(",", ":"))) for entity, items in queues.items() if items])
                 if counters is not None:
                     self._put(db, "stamp", counters[0])
                     self._put(db, "ticks", counters[1])
@@ -218,7 +215,7 @@ class DomainStore:
         )
         for entity, prop, certainty in db.execute("SELECT entity, property, certainty FROM facts ORDER BY rowid"):
             state.facts.setdefault(entity, {})[prop] = certainty
-        for entity, items in db.execute("SELECT entity, items FROM queues ORDER BY rank"):
+        for entity, items in db.execute("SELECT entity, items FROM queues ORDER BY rowid"):
             state.queues[entity] = [(str(p), int(s), int(h)) for p, s, h in json.loads(items)]
         return state
 
