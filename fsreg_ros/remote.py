@@ -14,6 +14,10 @@ Failing fast: after a call times out the port counts the consultant as down, and
 call in the next ``timeout`` seconds fails at once (kind ``unavailable``) instead of
 waiting out its own deadline, so one dead consultant does not hold every request queued
 behind it for a full timeout each.  After that pause one call probes it again.
+A consultant that announces a new incarnation (``consultant/announce``, passed on by
+the node through :meth:`RemotePort.restarted`) ends the pause at once, and the calls
+still waiting on its previous incarnation fail at once (kind ``restarted``): they
+would never be answered.
 """
 
 from __future__ import annotations
@@ -45,6 +49,21 @@ class RemotePort:
         self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
         self._preference: Optional[list[str]] = None
         self._down_until = 0.0  # monotonic time before which calls fail fast
+        self._inflight: dict = {}  # futures of the calls awaiting a reply
+        self.incarnation: Optional[int] = None  # the consultant's, from its announcements
+
+    def restarted(self, incarnation: int) -> None:
+        """Note the consultant's announced incarnation; on a new one, fail the calls to the old one now."""
+        previous, self.incarnation = self.incarnation, incarnation
+        if previous is None or previous == incarnation:
+            return
+        self._down_until = 0.0
+        for future in list(self._inflight):
+            if not future.done():
+                self.client.client.remove_pending_request(future)
+                future.set_exception(CarrierError(
+                    f"consultant '{self.domain}' restarted (incarnation {incarnation}) before answering; try again",
+                    kind="restarted", service=self.client.name))
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any]) -> dict:
@@ -54,14 +73,18 @@ class RemotePort:
                 f"consultant '{self.domain}' is not answering (a call timed out "
                 f"{self.timeout - (self._down_until - now):.1f} s ago); failing fast, try again later",
                 kind="unavailable", service=self.client.name)
+        future = self.client.send(payload)
+        self._inflight[future] = None
         try:
-            reply = await self.client.call(payload, self.timeout)
+            reply = await self.client.result(future, self.timeout)
         except CarrierError as err:
             if err.kind == "KnowledgeError":
                 raise KnowledgeError(err.error) from None
             if err.kind == "timeout":
                 self._down_until = time.monotonic() + self.timeout
             raise
+        finally:
+            self._inflight.pop(future, None)
         self._down_until = 0.0
         try:
             return contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)

@@ -402,7 +402,7 @@ class WMManagerNode(Node):
             dom.configuring = None
 
     def _on_announce(self, data: dict) -> None:
-        """A consultant (re)started or was configured: attach a new incarnation at once."""
+        """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
         announce = contract.check(contract.ConsultantAnnounce, data)
         dom = self._domains.get(announce["domain"])
         if dom is None:
