@@ -199,7 +199,7 @@ def test_sigkilled_consultant_resumes_and_every_later_turn_equals_the_uninterrup
     assert failed["seconds"] < TIMEOUT + 2.0, failed
     # ...which was not cached: its retry under the same id, and every later turn, equal the uninterrupted run.
     for key in [k for k in base if k != "status"]:
-        assert killed[key] == base[key], key
+        assert killed[key] == base[key], (key, killed[key], base[key])
     assert base["reg-face17"]["description"] and "error" not in base["reg-face17"]
     # The WM Manager reports what the restarted consultant runs: its second incarnation, configured.
     status = killed["status"]
