@@ -16,8 +16,10 @@ waiting out its own deadline, so one dead consultant does not hold every request
 behind it for a full timeout each.  After that pause one call probes it again.
 A consultant that announces a new incarnation (``consultant/announce``, passed on by
 the node through :meth:`RemotePort.restarted`) ends the pause at once, and the calls
-still waiting on its previous incarnation fail at once (kind ``restarted``): they
-would never be answered.
+then in flight get :data:`RESTART_GRACE` seconds more before they fail (kind
+``restarted``): those sent to the previous incarnation would never be answered, while
+one the new incarnation received (an announcement can arrive late) is answered in
+milliseconds.
 """
 
 from __future__ import annotations
@@ -26,12 +28,17 @@ import time
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup
+from rclpy.clock import Clock, ClockType
 
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer
 from . import contract
 from .codec import MessageError
 from .contract import consultant_service
 from .core.consultant import KnowledgeError
+
+
+#: Seconds a call in flight when the consultant announces a new incarnation may still take.
+RESTART_GRACE = 1.0
 
 
 class RemotePort:
@@ -58,12 +65,22 @@ class RemotePort:
         if previous is None or previous == incarnation:
             return
         self._down_until = 0.0
-        for future in list(self._inflight):
-            if not future.done():
-                self.client.client.remove_pending_request(future)
-                future.set_exception(CarrierError(
-                    f"consultant '{self.domain}' restarted (incarnation {incarnation}) before answering; try again",
-                    kind="restarted", service=self.client.name))
+        stale = [future for future in self._inflight if not future.done()]
+        if not stale:
+            return
+        client, timer = self.client, None
+
+        def expire() -> None:
+            drop_timer(client.node, timer, client.callback_group)
+            for future in stale:
+                if not future.done():
+                    client.client.remove_pending_request(future)
+                    future.set_exception(CarrierError(
+                        f"consultant '{self.domain}' restarted (incarnation {incarnation}) before answering; "
+                        "try again", kind="restarted", service=client.name))
+
+        timer = client.node.create_timer(RESTART_GRACE, expire, client.callback_group,
+                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any]) -> dict:
