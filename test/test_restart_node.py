@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
+from rclpy.callback_groups import ReentrantCallbackGroup
 
 from fsreg_ros import contract
+from fsreg_ros.carrier import CarrierError
 from fsreg_ros.contract import STATE_QOS
 from fsreg_ros.nodes.common import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.remote import RESTART_GRACE, RemotePort
 from rosutil import KB, Graph, ros_graph
 
 pytestmark = pytest.mark.graph
@@ -96,3 +101,31 @@ def test_an_unusable_state_dir_stops_the_node_with_one_line(graph: Graph, tmp_pa
     (tmp_path / "file").write_text("not a directory")
     with pytest.raises(StartupError, match="state database .*file"):
         graph.add(ConsultantNode, domain="faces", kb=KB, name="consultant_faces", state_dir=str(tmp_path / "file"))
+
+
+def test_a_new_incarnation_ends_the_fail_fast_pause_and_fails_calls_left_with_the_old_one(graph: Graph):
+    """RR's and REG's port to a consultant that never answers: a new incarnation ends a stale call early.
+
+    The call in flight fails after the grace, not after its own 30 s timeout.
+    """
+    port = RemotePort(graph.probe, "nobody", ReentrantCallbackGroup(), timeout=30.0)
+    port.restarted(1)  # the first incarnation heard: nothing to do
+
+    async def info():
+        try:
+            return await port.info()
+        except CarrierError as err:
+            return err
+
+    task = graph.executor.create_task(info())
+    graph.spin_for(0.2)
+    assert not task.done()
+    started = time.monotonic()
+    port.restarted(2)
+    graph.spin_until(task.done, RESTART_GRACE + 3.0, what="the stale call to fail")
+    assert RESTART_GRACE - 0.1 <= time.monotonic() - started < RESTART_GRACE + 2.0
+    err = task.result()
+    assert isinstance(err, CarrierError) and err.kind == "restarted" and "incarnation 2" in err.error
+    port._down_until = time.monotonic() + 30.0  # as after a timeout
+    port.restarted(3)
+    assert port._down_until == 0.0  # calls go out again at once
