@@ -19,14 +19,14 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       ``snapshot`` -> ``{"queues", "events"}`` (non-empty queues only)
     ``consultant/<domain>/manage`` -- the WM Manager's:
       ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
-      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed"}``:
-      installs the policy and trims every queue at once (``none`` empties WM, cause
-      ``reset``);
+      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed",
+      "incarnation"}``: installs the policy and trims every queue at once (``none``
+      empties WM, cause ``reset``; the policy already installed changes nothing);
       ``decay`` ``{"ticks": {"origin", "period", "first", "count"}}`` ->
       ``{"queues_changed", "policy"}``: decay ticks (Algorithm 2) at ``origin + k *
       period`` for k = first .. first + count - 1, applied now (at most as many as
-      the longest queue holds can pop anything); ``policy`` is the installed policy's
-      name (so the WM Manager notices a restarted consultant);
+      the longest queue holds can pop anything; ticks at or before the last one
+      applied are skipped); ``policy`` is the installed policy's name;
       ``evict`` ``{"count", "time"?}`` -> ``{"queues_changed", "size"}``: forget the
       domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
       ``size`` -> ``{"size"}``: how many properties WM holds.
@@ -380,7 +380,6 @@ class ConsultantNode(Node):
             self.decay_until = due.last
             self._pending_meta = (due.last, None)
         self._last_time = ticks.last
-        # ``policy`` lets the WM Manager notice a restarted consultant.
         return {"queues_changed": _changed(before, buffer.snapshot()), "policy": self.policy.name}
 
     def _evict(self, request: dict) -> dict:
