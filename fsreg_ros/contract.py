@@ -161,6 +161,20 @@ class WMState(Message):
     events: int
 
 
+class ConsultantAnnounce(Message):
+    """``consultant/announce`` (latched): a consultant's incarnation and what it runs.
+
+    Published at start (``ready`` false: it answers query ops with kind ``not-ready``
+    until the WM Manager configures it) and after each configure (``ready`` true).
+    ``incarnation`` grows by one at every start (it is kept in the state database).
+    """
+
+    domain: str
+    incarnation: int
+    ready: bool
+    memory: Optional[dict[str, Any]] = None
+
+
 class WMEventMessage(Message):
     """``wm/events``: one encode or forget event (SPEC section 2)."""
 
@@ -519,6 +533,8 @@ REG_REQUEST = Topic("reg/request", RegRequest, PIPELINE_QOS, "dialogue manager",
 REG_EXPRESSION = Topic("reg/expression", Union[RegExpression, RegError], PIPELINE_QOS, "reg", "dialogue manager")
 WM_STATE = Topic("wm/state", WMState, STATE_PUB_QOS, "consultants", "anyone", reader_qos=STATE_QOS)
 WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialogue_player (trace)")
+ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants", "wm_manager",
+                 reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
                           "asserter")
@@ -530,7 +546,7 @@ SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogu
 STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")
 
 TOPICS: tuple[Topic, ...] = (HUMAN, SEMANTICS, RR_RESULT, REG_REQUEST, REG_EXPRESSION, WM_STATE, WM_EVENTS,
-                             LTM_ASSERT, LTM_ASSERT_RESULT)
+                             ANNOUNCE, LTM_ASSERT, LTM_ASSERT_RESULT)
 SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, SYNC, STATUS)
 
 #: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.

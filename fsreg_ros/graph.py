@@ -113,11 +113,15 @@ def graph_nodes(
     trace: Optional[Path] = None,
     lexicon: Optional[Path] = None,
 ) -> list[NodeSpec]:
-    """Return the node processes for one scenario run (the player last), from :mod:`fsreg_ros.graph_spec`."""
+    """Return the node processes for one scenario run (the player last), from :mod:`fsreg_ros.graph_spec`.
+
+    The consultants keep their state databases beside ``output`` (a run starts from the KB).
+    """
     kb = resolved(scenario_path)
     policies = {d: policy_settings(p) for d, p in effective_policies(scenario, options).items()}
     nodes = node_specs(kb, list(scenario.domains), policies, use_sim_time=True, algorithm=options.algorithm,
-                       wm_order=options.wm_order, lexicon=resolved(lexicon))
+                       wm_order=options.wm_order, lexicon=resolved(lexicon),
+                       state_dir=str(Path(output).resolve().parent / "state"))
     nodes.append(player_spec(kb, str(output), str(trace) if trace is not None else None, resolved(lexicon)))
     return nodes
 

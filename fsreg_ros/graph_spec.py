@@ -43,11 +43,13 @@ def node_specs(
     algorithm: Optional[str] = None,
     wm_order: str = "lru-first",
     lexicon: Optional[str] = None,
+    state_dir: Optional[str] = None,
 ) -> list[NodeSpec]:
     """Return the live graph's nodes (no player) for a knowledge base.
 
     ``policies`` maps each domain to ``{"policy": name, "decay_period"?: ..., ...}``;
     a setting that is ``None`` or absent is not passed (the WM Manager's default holds).
+    ``state_dir`` is the consultants' state directory (None: their default).
     """
     domains = list(domains)
     sim = {"use_sim_time": use_sim_time}
@@ -62,7 +64,8 @@ def node_specs(
     reg: dict = {**sim, "domains": domains, "wm_order": wm_order, **language}
     if algorithm:
         reg["algorithm"] = algorithm
-    nodes = [NodeSpec("consultant", f"consultant_{d}", {**sim, "domain": d, "kb": kb}) for d in domains]
+    state = {"state_dir": state_dir} if state_dir else {}
+    nodes = [NodeSpec("consultant", f"consultant_{d}", {**sim, "domain": d, "kb": kb, **state}) for d in domains]
     nodes += [
         NodeSpec("wm_manager", "wm_manager", manager),
         NodeSpec("parser", "parser", {**sim, "kb": kb, **language}),

@@ -15,6 +15,12 @@ Failing fast: after a call times out the port counts the consultant as down, and
 call in the next ``timeout`` seconds fails at once (kind ``unavailable``) instead of
 waiting out its own deadline, so one dead consultant does not hold every request queued
 behind it for a full timeout each.  After that pause one call probes it again.
+A consultant that announces a new incarnation (``consultant/announce``, passed on by
+the node through :meth:`RemotePort.restarted`) ends the pause at once, and the calls
+then in flight get :data:`RESTART_GRACE` seconds more before they fail (kind
+``restarted``): those sent to the previous incarnation would never be answered, while
+one the new incarnation received (an announcement can arrive late) is answered in
+milliseconds.
 """
 
 from __future__ import annotations
@@ -24,8 +30,9 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup
+from rclpy.clock import Clock, ClockType
 
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer
 from . import contract
 from .codec import MessageError
 from .contract import consultant_service
@@ -44,6 +51,10 @@ class Catalogue:
     @property
     def incarnation(self) -> str:
         return self.version.split(":", 1)[0]
+
+
+#: Seconds a call in flight when the consultant announces a new incarnation may still take.
+RESTART_GRACE = 1.0
 
 
 class RemotePort:
@@ -67,6 +78,31 @@ class RemotePort:
         self._catalogue: Optional[Catalogue] = None
         self._latest = ""  # the newest version any reply named
         self._down_until = 0.0  # monotonic time before which calls fail fast
+        self._inflight: dict = {}  # futures of the calls awaiting a reply
+        self.incarnation: Optional[int] = None  # the consultant's, from its announcements
+
+    def restarted(self, incarnation: int) -> None:
+        """Note the consultant's announced incarnation; on a new one, fail the calls to the old one now."""
+        previous, self.incarnation = self.incarnation, incarnation
+        if previous is None or previous == incarnation:
+            return
+        self._down_until = 0.0
+        stale = [future for future in self._inflight if not future.done()]
+        if not stale:
+            return
+        client, timer = self.client, None
+
+        def expire() -> None:
+            drop_timer(client.node, timer, client.callback_group)
+            for future in stale:
+                if not future.done():
+                    client.client.remove_pending_request(future)
+                    future.set_exception(CarrierError(
+                        f"consultant '{self.domain}' restarted (incarnation {incarnation}) before answering; "
+                        "try again", kind="restarted", service=client.name))
+
+        timer = client.node.create_timer(RESTART_GRACE, expire, client.callback_group,
+                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any]) -> dict:
@@ -76,14 +112,18 @@ class RemotePort:
                 f"consultant '{self.domain}' is not answering (a call timed out "
                 f"{self.timeout - (self._down_until - now):.1f} s ago); failing fast, try again later",
                 kind="unavailable", service=self.client.name)
+        future = self.client.send(payload)
+        self._inflight[future] = None
         try:
-            reply = await self.client.call(payload, self.timeout)
+            reply = await self.client.result(future, self.timeout)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
             if err.kind == "timeout":
                 self._down_until = time.monotonic() + self.timeout
             raise
+        finally:
+            self._inflight.pop(future, None)
         self._down_until = 0.0
         try:
             contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)

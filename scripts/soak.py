@@ -57,7 +57,7 @@ from fsreg_ros.carrier import CarrierError, JsonClient  # noqa: E402
 from fsreg_ros.codec import to_msg  # noqa: E402
 from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options  # noqa: E402
-from fsreg_ros.graph import Graph, _die_with_parent, graph_nodes  # noqa: E402
+from fsreg_ros.graph import Graph, _die_with_parent, command, graph_nodes  # noqa: E402
 from fsreg_ros.nodes.dialogue_player import clock_message  # noqa: E402
 
 HUMAN, REG_REQUEST, RR_RESULT, REG_EXPRESSION, SYNC = (
@@ -201,7 +201,7 @@ def restart(graph: Graph, name: str) -> None:
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     with open(graph.log_dir / f"{spec.name}.restarted.log", "wb") as log:
-        new = subprocess.Popen(spec.command(), env=graph.env, stdin=subprocess.DEVNULL, stdout=log,
+        new = subprocess.Popen(command(spec, graph.namespace), env=graph.env, stdin=subprocess.DEVNULL, stdout=log,
                                stderr=subprocess.STDOUT, preexec_fn=_die_with_parent, process_group=graph.group)
     graph.procs[index] = (spec, new)
 

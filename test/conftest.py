@@ -25,6 +25,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))  # test helpers (rosutil, naive_wm)
 
 
+@pytest.fixture(autouse=True)
+def _private_state_dir(tmp_path_factory, monkeypatch) -> None:
+    """Give every test its own consultant state directory (XDG_STATE_HOME), so no test restores another's."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.mktemp("state")))
+
+
 #: The Guess-Who case study (Table 1 of the paper): the repository's own scenarios.
 SCENARIOS = REPO / "scenarios"
 

@@ -70,10 +70,11 @@ def test_info_and_latched_start_state(graph: Graph):
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     graph.spin_until(lambda: states, what="latched /wm/state")
     assert states[0]["domain"] == "faces" and states[0]["queues"] == {}
-    # Unconfigured, the consultant runs policy none: nothing is retained.
+    # Unconfigured (in this incarnation), the consultant refuses query ops but info, and changes nothing.
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
-    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": []}
+    err = graph.call_error(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker",
+                               "time": 1.0})
+    assert err.kind == "not-ready" and "not configured by the WM Manager" in err.error
     graph.spin_for(0.05)
     assert events == [] and len(states) == 1
 
@@ -86,6 +87,7 @@ def test_query_ops_round_trip(graph: Graph):
     assert configure(graph, "displacement", capacity=3) == {
         "memory": {"policy": "displacement", "capacity": 3},
         "queues_changed": 0,
+        "incarnation": 1,
     }
     assert graph.call(Q, {"op": "info"})["policy"] == "displacement"
 
@@ -332,6 +334,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
 
 def test_threshold_parameter(graph: Graph):
     node = start(graph)
+    configure(graph, "none")
     holds = {"op": "holds", "property": "glasses", "entities": ["face1", "face2"]}
     assert graph.call(Q, holds)["holds"] == ["face1", "face2"]  # face2: 0.7
     assert node.set_parameters([Parameter("threshold", value=0.8)])[0].successful

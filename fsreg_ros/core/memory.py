@@ -494,3 +494,45 @@ class WMBuffer:
             self._nonempty.pop(entity, None)
         if self.sink is not None:
             self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))
+
+    # ------------------------------------------------------------ persistence
+    def export_queue(self, entity: str) -> list[tuple[str, int, int]]:
+        """Return Q[entity] as ``(property, stamp, hits)`` items, LRU first (for a store).
+
+        ``hits`` is the LFU count (1 when LFU is not in force).
+        """
+        self._catch_up(entity)
+        q = self._queues.get(entity)
+        if not q:
+            return []
+        hits = q.hits or {}
+        return [(prop, stamp, hits.get(prop, 1)) for prop, stamp in q.items()]
+
+    def counters(self) -> tuple[int, int]:
+        """Return ``(stamp counter, decay ticks applied so far)``: the buffer's state beside its queues."""
+        return self._stamp, self.ticks.count
+
+    def restore(self, queues: Mapping[str, Sequence[tuple[str, int, int]]], stamp: int, ticks: int,
+                limits: Limits) -> None:
+        """Replace the buffer's state with a stored one (queues LRU first, no events).
+
+        The queues are taken as up to date with ``ticks`` decay ticks; ``limits`` are
+        installed without trimming (the stored queues already respect them).
+        """
+        self.limits = limits
+        self._rng = random.Random(limits.seed)
+        self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
+        self._queues, self._nonempty, self._size = {}, {}, 0
+        self.ticks = TickLedger()
+        self.ticks.count = ticks
+        self._stamp = stamp
+        for entity, items in queues.items():
+            q = self._new_queue(entity)
+            for prop, prop_stamp, hits in items:
+                q[prop] = prop_stamp
+                if limits.victim == "lfu":
+                    q.hits = q.hits or {}
+                    q.hits[prop] = hits
+            if q:
+                self._nonempty[entity] = None
+                self._size += len(q)

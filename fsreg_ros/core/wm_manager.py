@@ -29,7 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Mapping, Optional, Protocol, Sequence
 
-from .decay import DecaySchedule, TickError, TickRun, check_time
+from .decay import TIME_EPSILON, DecaySchedule, TickError, TickRun, check_time
 from .forgetting import ForgettingPolicy
 from .memory import WMBuffer
 
@@ -65,6 +65,24 @@ def configure_buffer(buffer: WMBuffer, policy: ForgettingPolicy, time: float) ->
 def apply_ticks(buffer: WMBuffer, ticks: TickRun, entity_order: Sequence[str]) -> None:
     """Apply decay ticks now, in the canonical event order (tick, then entity order)."""
     buffer.decay_now(ticks, entity_order)
+
+
+def unapplied(ticks: TickRun, applied_until: float) -> Optional[TickRun]:
+    """Return the part of ``ticks`` later than ``applied_until`` (the last tick applied), or None.
+
+    Tick times only grow, so a run sent again (after a consultant restart or a lost
+    reply) is applied at most once: O(1), whatever the run's length.
+    """
+    if ticks.last <= applied_until + TIME_EPSILON:
+        return None
+    if ticks.time(0) > applied_until + TIME_EPSILON:
+        return ticks
+    skip = int((applied_until + TIME_EPSILON - ticks.origin) / ticks.period) - ticks.first + 1
+    while skip > 0 and ticks.time(skip - 1) > applied_until + TIME_EPSILON:  # float rounding
+        skip -= 1
+    while skip < ticks.count and ticks.time(skip) <= applied_until + TIME_EPSILON:
+        skip += 1
+    return ticks.tail(max(skip, 0))
 
 
 class BufferPort:
@@ -136,6 +154,15 @@ class WMManager:
         for ticks in owed:
             self.port.decay(domain, ticks)
         self.port.configure(domain, state.policy, now)
+
+    def owe(self, domain: str, ticks: TickRun) -> None:
+        """Keep ``ticks`` sent but not acknowledged (the consultant went away): send them again on attach.
+
+        The owed runs stay in time order; the consultant skips ticks it had applied.
+        """
+        state = self.domains[domain]
+        state.owed.append(ticks)
+        state.owed.sort(key=lambda run: run.time(0))
 
     def detach(self, domain: str) -> None:
         """Detach a domain whose buffer is unreachable: keep the ticks due until it is back."""

@@ -29,7 +29,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
-from ..carrier import DEFAULT_TIMEOUT
+from .. import contract
+from ..carrier import DEFAULT_TIMEOUT, subscribe
 from ..codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits
 from ..remote import RemotePort
@@ -116,8 +117,16 @@ class AskingNode(Node):
         self.client_group = ReentrantCallbackGroup()
         self.ports = {d: RemotePort(self, d, self.client_group, timeout) for d in domains}
         self.answers = AnswerCache(self.limits.answer_cache_entries, self.limits.answer_cache_bytes)
+        subscribe(self, contract.ANNOUNCE, self._on_announce, callback_group=self.client_group)
         self._ready = False
         self._clock_watch = watch_clock(self)
+
+    def _on_announce(self, data: dict) -> None:
+        """Tell the port of a (re)started consultant, so it stops waiting on the previous incarnation."""
+        announce = contract.check(contract.ConsultantAnnounce, data)
+        port = self.ports.get(announce["domain"])
+        if port is not None:
+            port.restarted(announce["incarnation"])
 
     async def ensure_ready(self) -> None:
         """Wait (with a deadline) until every consultant has answered a round trip; once."""

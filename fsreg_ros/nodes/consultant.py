@@ -34,14 +34,14 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       ``snapshot`` -> ``{"queues", "events"}`` (non-empty queues only)
     ``consultant/<domain>/manage`` -- the WM Manager's:
       ``configure`` ``{"policy": {"policy", "decay_period"?, "capacity"?,
-      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed"}``:
-      installs the policy and trims every queue at once (``none`` empties WM, cause
-      ``reset``);
+      "global_capacity"?, "seed"?}, "time"?}`` -> ``{"memory", "queues_changed",
+      "incarnation"}``: installs the policy and trims every queue at once (``none``
+      empties WM, cause ``reset``; the policy already installed changes nothing);
       ``decay`` ``{"ticks": {"origin", "period", "first", "count"}}`` ->
       ``{"queues_changed", "policy"}``: decay ticks (Algorithm 2) at ``origin + k *
       period`` for k = first .. first + count - 1, applied now (at most as many as
-      the longest queue holds can pop anything); ``policy`` is the installed policy's
-      name (so the WM Manager notices a restarted consultant);
+      the longest queue holds can pop anything; ticks at or before the last one
+      applied are skipped); ``policy`` is the installed policy's name;
       ``evict`` ``{"count", "time"?}`` -> ``{"queues_changed", "size"}``: forget the
       domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
       ``size`` -> ``{"size"}``: how many properties WM holds.
@@ -80,6 +80,21 @@ Topics
 
 Until the WM Manager configures it the consultant runs policy ``none``: it retains
 nothing (a buffer without a policy would retain everything, unmanaged).
+
+Recovery (:mod:`fsreg_ros.core.store`): ``state_dir`` (string, read-only; default
+``$XDG_STATE_HOME/fsreg_ros``, i.e. ``~/.local/state/fsreg_ros``) holds one SQLite
+database per consultant, ``<state_dir>/<node's full name>/<domain>.sqlite3``, created
+on first use.  Facts accepted on ``ltm/assert`` are written there before the result
+is published; with ``persist_wm`` (bool, default true) so is every change to WM, in
+one transaction per request, before the reply.  At start the consultant reads it back
+(the KB's runtime facts, entities added at run time, WM, the installed policy, the
+last decay tick applied), counts a new *incarnation* and publishes
+``consultant/announce`` (latched) ``{"domain", "incarnation", "ready": false,
+"memory"}``.  Until the WM Manager configures it in this incarnation, every query op
+but ``info`` is answered with kind ``not-ready``; each ``configure`` is acknowledged
+with ``{"memory", "queues_changed", "incarnation"}`` and announced with ``ready``
+true.  ``decay`` skips the ticks at or before the last one applied, so ticks sent
+again after a restart are applied once.
 """
 
 from __future__ import annotations
@@ -87,6 +102,7 @@ from __future__ import annotations
 import gc
 import secrets
 from time import monotonic
+from pathlib import Path
 from typing import Any, Callable, Optional
 
 from rclpy.clock import Clock, ClockType
@@ -95,14 +111,15 @@ from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameExcept
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import publish, publisher, serve, subscribe
+from ..carrier import CarrierError, publish, publisher, serve, subscribe
 from ..codec import NUMBER, MessageError, check_fields, printable
 from ..contract import consultant_service, manage_service
 from ..core.consultant import CandidateSet, Consultant, KnowledgeError, Step, close_view, open_view
 from ..core.decay import TickError, TickRun
 from ..core.forgetting import NONE, ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES, WMEvent
-from ..core.wm_manager import apply_ticks, configure_buffer
+from ..core.store import SUFFIX, DomainStore, StoreError, default_state_dir, fingerprint
+from ..core.wm_manager import apply_ticks, configure_buffer, unapplied
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.sessions import DEFAULT_CAPACITY, SessionTable
 from ..core.sessions import DEFAULT_TIMEOUT as DEFAULT_SESSION_TIMEOUT
@@ -131,6 +148,7 @@ class ConsultantNode(Node):
     """A core :class:`Consultant` behind two JSON services and the LTM/WM topics."""
 
     NODE_NAME = "consultant"
+    _pending_meta: tuple = (None, None)  # (decay_until, policy settings) the current request changed
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(self.NODE_NAME, **kwargs)
@@ -172,22 +190,34 @@ class ConsultantNode(Node):
             self, "state_period", DEFAULT_STATE_PERIOD, 0.0, 60.0,
             "least time between two /wm/state messages (s, steady clock); a change within it is "
             "published at its end", read_only=True)
+        self.declare_parameter("state_dir", "", descriptor(
+            "directory of the state databases ('' = $XDG_STATE_HOME/fsreg_ros)", read_only=True))
+        self.declare_parameter("persist_wm", True, descriptor(
+            "write every WM change to the state database before replying (false: only LTM facts and the "
+            "policy survive a crash)", read_only=True))
+        self.persist_wm = bool(self.get_parameter("persist_wm").value)
 
         self.domain = domain
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
+        self._announce = publisher(self, contract.ANNOUNCE)
         self._event_count = 0  # /wm/events messages published
         self._listened = True  # whether /wm/events has a subscriber (checked per request)
         self._state_due = False  # WM changed since the last /wm/state
         self._state_sent = float("-inf")  # monotonic time of the last /wm/state
         self._last_time = 0.0  # time of the latest change, for /wm/state
+        self._dirty: dict[str, None] = {}  # entities whose queues changed during the current request
+        self._muted = False
         self.consultant = Consultant(
             domain, spec.entities, spec.preference, threshold, sink=self._on_event, attributes=spec.attributes
         )
         # Retain nothing until the WM Manager says otherwise.
         self.policy = NONE
         configure_buffer(self.consultant.wm, NONE, 0.0)
+        self.ready = False  # configured by the WM Manager in this incarnation
+        self.decay_until = float("-inf")
+        self.store = self._open_store(spec, self.get_parameter("state_dir").value)
 
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._query_ops: dict[str, Callable[[dict], dict]] = {
@@ -219,6 +249,7 @@ class ConsultantNode(Node):
         # The KB's objects live as long as the node: keep the cyclic GC from scanning
         # them again and again (a full collection over 10,000 entities' facts costs ms).
         gc.freeze()
+        self.announce()
         self.get_logger().info(
             f"consultant of '{domain}': {len(self.consultant.entities)} entities, "
             f"{len(self.consultant.preference)} properties, threshold {threshold:g}, from {kb}"
@@ -229,6 +260,9 @@ class ConsultantNode(Node):
         return now_seconds(self)
 
     def _on_event(self, event: WMEvent) -> None:
+        if self._muted:
+            return
+        self._dirty[event.entity] = None
         self._state_due = True
         if self._listened:  # a volatile topic nobody reads: nothing to send
             self._event_count += 1
@@ -255,6 +289,65 @@ class ConsultantNode(Node):
             return
         self.publish_state(self._last_time)
 
+    # ------------------------------------------------------------- recovery
+    def _open_store(self, spec, state_dir: str) -> DomainStore:
+        """Open the domain's state database and restore what it holds (LTM facts, WM, policy)."""
+        base = Path(state_dir).expanduser() if state_dir else default_state_dir()
+        path = base / self.get_fully_qualified_name().strip("/") / f"{self.domain}{SUFFIX}"
+        store = DomainStore(path, fingerprint(spec.preference, spec.entities, spec.threshold, spec.attributes))
+        try:
+            state = store.open()
+        except StoreError as err:
+            raise StartupError(str(err)) from None
+        if state.discarded is not None:
+            self.get_logger().warning(f"{path} was written for another KB: moved to {state.discarded}, starting fresh")
+        self.incarnation = state.incarnation
+        self._muted = True  # restoring is not news: no events
+        try:
+            for entity in state.entities + [e for e in state.facts if e not in state.entities]:
+                if entity in state.facts:
+                    self.consultant.assert_facts(entity, state.facts[entity], 0.0)
+            if state.policy is not None:
+                self.policy = ForgettingPolicy.from_settings(state.policy)
+            if self.persist_wm:
+                self.consultant.wm.restore(state.queues, state.stamp, state.ticks, self.policy.limits())
+                self.decay_until = state.decay_until
+            else:
+                configure_buffer(self.consultant.wm, self.policy, 0.0)
+        except (KnowledgeError, ValueError) as err:
+            raise StartupError(f"{path}: cannot restore: {err}") from None
+        finally:
+            self._muted = False
+        self.get_logger().info(
+            f"state {path}: incarnation {state.incarnation}, {len(state.entities)} runtime entities, "
+            f"{sum(len(f) for f in state.facts.values())} runtime facts, {len(state.queues)} WM queues"
+            + ("" if self.persist_wm else " (persist_wm false: WM not restored)")
+        )
+        return store
+
+    def destroy_node(self) -> None:
+        store = getattr(self, "store", None)
+        if store is not None:
+            store.close()
+        super().destroy_node()
+
+    def announce(self) -> None:
+        """``consultant/announce``: this incarnation, whether it serves, and the policy it runs."""
+        publish(self._announce, {"domain": self.domain, "incarnation": self.incarnation, "ready": self.ready,
+                                 "memory": self.policy.to_json()})
+
+    def _persist(self, decay_until: Optional[float] = None, policy: Optional[dict] = None) -> None:
+        """Write the queues changed by the current request (and the counters) before the reply."""
+        dirty, self._dirty = self._dirty, {}
+        if not self.persist_wm:
+            if policy is not None:
+                self.store.save_wm({}, self.consultant.wm.counters(), policy=policy)
+            return
+        if not dirty and decay_until is None and policy is None:
+            return
+        wm = self.consultant.wm
+        self.store.save_wm({e: wm.export_queue(e) for e in dirty}, wm.counters(), decay_until, policy)
+
     def publish_state(self, time: float) -> None:
         """``/wm/state``: this domain's non-empty queues, LRU first."""
         self._state_due = False
@@ -271,8 +364,17 @@ class ConsultantNode(Node):
             raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
         contract.check_sizes(request, self.limits, names=("entity", "property", "cause", "target", "session"),
                              lists=("entities", "properties", "context", "encode"))
+        if ops is self._query_ops and not self.ready and op != "info":
+            raise CarrierError(
+                f"consultant '{self.domain}' (incarnation {self.incarnation}) is not configured by the WM Manager "
+                "yet; try again", kind="not-ready")
         self._check_listeners()
-        reply = handler(request)
+        self._dirty = {}
+        try:
+            reply = handler(request)
+        finally:  # a handler that changed WM and then failed still persists what changed
+            self._persist(*self._pending_meta)
+            self._pending_meta = (None, None)
         # /wm/state at most once per request (a session's steps wait for its close) and
         # at most once per state_period (the timer sends what is left due).
         if op not in SESSION_STEPS:
@@ -355,7 +457,7 @@ class ConsultantNode(Node):
         """
         buffer = self.consultant.wm
         sink = buffer.sink
-        if not self._listened:
+        if not self._listened and not self.persist_wm:  # persistence needs the events (dirty queues)
             buffer.sink = None
         try:
             return action(*args)
@@ -408,10 +510,18 @@ class ConsultantNode(Node):
         time, _ = self._time(request)
         buffer = self.consultant.wm
         before = buffer.snapshot()
-        configure_buffer(buffer, policy, time)
-        self.policy = policy
-        self.get_logger().info(f"memory policy {policy.to_json()}")
-        return {"memory": policy.to_json(), "queues_changed": _changed(before, buffer.snapshot())}
+        if policy != self.policy:  # the same policy again (a restart's reconfigure) changes nothing
+            configure_buffer(buffer, policy, time)
+            self.policy = policy
+            self._pending_meta = (None, policy.settings())
+            self.get_logger().info(f"memory policy {policy.to_json()}")
+        newly = not self.ready
+        self.ready = True
+        if newly:
+            self.get_logger().info(f"configured by the WM Manager (incarnation {self.incarnation}): serving")
+            self.announce()
+        return {"memory": policy.to_json(), "queues_changed": _changed(before, buffer.snapshot()),
+                "incarnation": self.incarnation}
 
     def _decay(self, request: dict) -> dict:
         check_fields(request, {"ticks": dict})
@@ -422,10 +532,14 @@ class ConsultantNode(Node):
         buffer = self.consultant.wm
         before = buffer.snapshot()
         # Applied now (the buffer is lazy otherwise), so the events and the state go
-        # out now, in the canonical order.
-        apply_ticks(buffer, ticks, self.consultant.entities)
+        # out now, in the canonical order; ticks already applied (sent again after a
+        # restart) are skipped.
+        due = unapplied(ticks, self.decay_until)
+        if due is not None:
+            apply_ticks(buffer, due, self.consultant.entities)
+            self.decay_until = due.last
+            self._pending_meta = (due.last, None)
         self._last_time = ticks.last
-        # ``policy`` lets the WM Manager notice a restarted consultant.
         return {"queues_changed": _changed(before, buffer.snapshot()), "policy": self.policy.name}
 
     def _evict(self, request: dict) -> dict:
@@ -458,9 +572,22 @@ class ConsultantNode(Node):
         try:
             contract.check(contract.LtmAssert, data)
             contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
+            _check_storable([data["entity"], *data["properties"]])
             time = self.now()
             self._check_listeners()
+            self._dirty = {}
             result = self.consultant.assert_facts(data["entity"], data["properties"], time)
+            dirty, self._dirty = self._dirty, {}
+            wm = self.consultant.wm
+            # Durable before it is acknowledged (and the queues a retraction changed).
+            self.store.save_facts(result.entity, result.updated, result.new_entity,
+                                  {e: wm.export_queue(e) for e in dirty} if self.persist_wm else {},
+                                  wm.counters() if self.persist_wm else None)
+        except StoreError as err:
+            self.get_logger().error(printable(f"{contract.LTM_ASSERT.name}: not stored: {err}"))
+            reply.update(ok=False, error=printable(f"not stored: {err}"))
+            publish(self._assert_results, reply)
+            return
         except (MessageError, KnowledgeError) as err:
             self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
             reply.update(ok=False, error=printable(err))
@@ -484,11 +611,22 @@ class ConsultantNode(Node):
                 if value != self.consultant.threshold:
                     now = now_seconds(self)
                     self._check_listeners()
+                    self._dirty = {}
                     retracted = self.consultant.set_threshold(value, now)
+                    self._persist()
                     self.get_logger().info(f"threshold {value:g}" + (f", retracted {retracted}" if retracted else ""))
                     if retracted:
                         self._last_time = now
                         self._publish_due()
+
+
+def _check_storable(names: list[str]) -> None:
+    """Raise MessageError for a name the state database cannot hold (not valid UTF-8, e.g. a lone surrogate)."""
+    for name in names:
+        try:
+            name.encode("utf-8")
+        except UnicodeEncodeError:
+            raise MessageError(f"name {printable(repr(name), 80)} is not valid UTF-8 (a lone surrogate?)") from None
 
 
 def _changed(before: dict[str, list[str]], after: dict[str, list[str]]) -> int:

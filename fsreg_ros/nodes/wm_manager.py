@@ -8,8 +8,11 @@ sends each decision to ``/consultant/<domain>/manage``:
 
 * ``configure`` installs a domain's policy (the consultant trims every queue at
   once).  Sent when the consultant first answers (``attach``), after every accepted
-  parameter change, and again when a decay reply shows a consultant that lost its
-  policy (restarted), preceded by the ticks owed while it was away.
+  parameter change, and at once when ``consultant/announce`` shows a new incarnation
+  (a restarted consultant), preceded by the ticks owed while it was away and the ticks
+  of any ``decay`` it never acknowledged (the consultant skips ticks it had applied,
+  so none is applied twice).  A restarted consultant refuses query ops (kind
+  ``not-ready``) until that configure arrives.
 * ``decay`` sends a run of ticks ``{"origin", "period", "first", "count"}``: a few
   numbers however many ticks, so a clock far ahead costs what one tick costs.
 
@@ -48,7 +51,13 @@ Services (JSON in ``AddDiagnostics``):
     than a day (``core.wm_manager.SYNC_AHEAD``) ahead of the node's clock is rejected
     with a reason and changes nothing.  Before the consultants are configured it
     waits for them (up to ``service_timeout``), then replies an error.
-    ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "next_tick"}``.
+    ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "running",
+    "incarnation", "next_tick"}``: ``memory`` is each domain's setting from the
+    parameters; ``running`` what its consultant last acknowledged (configure reply) or
+    announced, null until known; ``configured`` true once the consultant's current
+    incarnation has acknowledged the current setting.
+
+Topics: in ``consultant/announce`` (latched) from every consultant.
 """
 
 from __future__ import annotations
@@ -74,7 +83,7 @@ from rclpy.task import Future
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, serve, wait_until
+from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
 from ..codec import NUMBER, check_fields
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError, TickRun
@@ -149,9 +158,11 @@ class _Domain:
     name: str
     client: JsonClient
     timer: Any = None
-    configured: bool = False  # a configure has been acknowledged
+    configured: bool = False  # a configure has been acknowledged by the current incarnation
     configuring: Optional[Future] = None
-    inflight: list = field(default_factory=list)  # [(future, op, deadline)]
+    inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
+    incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
+    running: Optional[dict] = None  # the policy it acknowledged or announced
 
 
 class _ManagePort:
@@ -245,6 +256,7 @@ class WMManagerNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
         serve(self, contract.SYNC.name, self._sync, self._barrier_group)
         serve(self, contract.STATUS.name, self._status)
+        subscribe(self, contract.ANNOUNCE, self._on_announce)
         self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -356,7 +368,7 @@ class WMManagerNode(Node):
     # ------------------------------------------------------------ consultants
     def _send(self, dom: _Domain, payload: dict) -> Future:
         future = dom.client.send(payload)
-        entry = (future, payload["op"], wallclock.monotonic() + self.timeout)
+        entry = (future, payload, wallclock.monotonic() + self.timeout)
         dom.inflight.append(entry)
         future.add_done_callback(partial(self._on_reply, dom, entry))
         return future
@@ -364,32 +376,51 @@ class WMManagerNode(Node):
     def _on_reply(self, dom: _Domain, entry: tuple, future: Future) -> None:
         if entry in dom.inflight:
             dom.inflight.remove(entry)
-        op = entry[1]
+        payload = entry[1]
+        op = payload["op"]
         try:
             reply = dom.client.decode(future)
         except CarrierError as err:
             self.get_logger().error(f"consultant '{dom.name}' failed '{op}': {err}")
-            if op == "configure" and future is dom.configuring:
-                # Start over: attach again when the consultant answers.
+            if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
+                self.manager.owe(dom.name, TickRun.from_json(payload["ticks"]))
+            if op in ("decay", "configure"):
+                # Start over: attach again when the consultant answers or announces itself.
                 self.manager.detach(dom.name)
                 dom.configured = False
                 dom.configuring = None
             return
         policy = self.manager.domains[dom.name].policy
-        if op == "decay" and dom.configured and dom.configuring is None and reply.get("policy") != policy.name:
-            # The consultant lost its setting (it was restarted): attach it again.
-            self.get_logger().warning(
-                f"consultant '{dom.name}' runs policy {reply.get('policy')!r}, not '{policy.name}': reconfiguring"
-            )
-            dom.configured = False
-            self.manager.detach(dom.name)
-            self._attach(dom)
-            return
         if op == "configure" and future is dom.configuring:
+            dom.running = reply.get("memory")
+            if isinstance(reply.get("incarnation"), int):
+                dom.incarnation = reply["incarnation"]
             if not dom.configured:
-                self.get_logger().info(f"consultant '{dom.name}' configured: {policy.to_json()}")
-            dom.configured = True
+                self.get_logger().info(
+                    f"consultant '{dom.name}' (incarnation {dom.incarnation}) configured: {dom.running}")
+            dom.configured = dom.running == policy.to_json()
             dom.configuring = None
+
+    def _on_announce(self, data: dict) -> None:
+        """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
+        announce = contract.check(contract.ConsultantAnnounce, data)
+        dom = self._domains.get(announce["domain"])
+        if dom is None:
+            return  # not managed here
+        incarnation = announce["incarnation"]
+        if announce["ready"] and incarnation == dom.incarnation:
+            dom.running = announce.get("memory")
+            return
+        if incarnation == dom.incarnation and (dom.configuring is not None or dom.configured):
+            return  # already being configured
+        self.get_logger().info(
+            f"consultant '{dom.name}' announced incarnation {incarnation} (was {dom.incarnation}), "
+            f"running {announce.get('memory')}: configuring it")
+        dom.incarnation = incarnation
+        dom.running = announce.get("memory")
+        dom.configured = False
+        self.manager.detach(dom.name)
+        self._attach(dom)
 
     def _attach(self, dom: _Domain) -> None:
         try:
@@ -402,7 +433,7 @@ class WMManagerNode(Node):
         """Attach consultants that became reachable; expire unanswered calls."""
         now_wall = wallclock.monotonic()
         for dom in self._domains.values():
-            for future, op, deadline in list(dom.inflight):
+            for future, _, deadline in list(dom.inflight):
                 if now_wall > deadline and not future.done():
                     dom.client.expire(future, self.timeout)
             if not self.manager.domains[dom.name].attached and dom.client.ready():
@@ -458,6 +489,8 @@ class WMManagerNode(Node):
             "domains": list(self._names),
             "memory": self.memory(),
             "configured": {d: dom.configured for d, dom in self._domains.items()},
+            "running": {d: dom.running for d, dom in self._domains.items()},
+            "incarnation": {d: dom.incarnation for d, dom in self._domains.items()},
             "next_tick": {d: self.manager.next_tick(d) for d in self._domains},
         }
 
