@@ -8,6 +8,12 @@ descriptions against expected ones (e.g. the paper's Table 1 in
 ``config/paper_table1.yaml``).  Command-line memory options are merged over the
 file's before the effective setting of each domain is checked.  Errors in the
 input are one line on stderr and exit code 2, never a traceback.
+
+Every run is measured for alignment (:func:`fsreg_ros.core.alignment.annotate`,
+from the run's result and WM event trace) against the same game under policy
+``none``: the compared ``none`` run if there is one, else the core simulator
+under ``none`` (for ``fsreg-graph`` too, so both print the same bytes).
+``--trace-dir`` and ``--plot-dir`` write each run's trace and WM timeline.
 """
 
 from __future__ import annotations
@@ -18,15 +24,16 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
+from .core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR, annotate, summarise
 from .core.consultant import KnowledgeError
-from .core.forgetting import PolicyError, check_parameter, parse_rules
+from .core.forgetting import PARAMETERS, RULES, PolicyError, check_parameter, parse_rules
 from .core.generation import ALGORITHMS, WM_ORDERS, GenerationError
 from .core.lexicon import Lexicon
 from .core.resolution import ResolutionError
 from .core.scenario import load_scenario
 from .core.simulation import Options, Simulation, dumps
 from .core.yaml_source import SourceError, find_line, read_yaml
-from .report import render_comparison, render_table
+from .report import render_comparison, render_table, run_label
 
 EXIT_OK, EXIT_MISMATCH, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_FAILED = 1
@@ -44,10 +51,12 @@ def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("scenario", type=Path, help="scenario YAML file (docs/scenario-format.md)")
     memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    memory.add_argument("--policy", help="none, or decay / displacement / global-capacity joined by +")
+    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
     memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
     memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
     memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
+    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
+    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
@@ -55,6 +64,12 @@ def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     out.add_argument("--json", action="store_true", help="print the result as one JSON object")
     out.add_argument(
         "--trace", type=Path, metavar="FILE", help="write every WM encode/forget event as JSON lines (one run only)"
+    )
+    out.add_argument(
+        "--trace-dir", type=Path, metavar="DIR", help="write each run's WM events to DIR/<scenario>-<policy>.jsonl"
+    )
+    out.add_argument(
+        "--plot-dir", type=Path, metavar="DIR", help="draw each run's WM timeline to DIR/<scenario>-<policy>.png"
     )
     out.add_argument(
         "--compare-policies",
@@ -82,7 +97,7 @@ def options_from_args(args: argparse.Namespace, policy: Optional[str] = None) ->
     if policy is not None:
         parse_rules(policy)
         memory["policy"] = policy
-    for name in ("decay_period", "capacity", "global_capacity"):
+    for name in PARAMETERS:
         value = getattr(args, name)
         if value is not None:
             check_parameter(name, value)
@@ -128,6 +143,57 @@ def load_expected(path: Path) -> dict[str, list[list[str]]]:
 Runner = Callable[[argparse.Namespace, Options], tuple[dict, list[dict]]]
 
 
+def play_all(args: argparse.Namespace, runner: Runner, policies: Sequence[Optional[str]]) -> dict[str, tuple]:
+    """Play the scenario once per policy (None: the options as given); return label -> (result, trace)."""
+    runs = {}
+    for policy in policies:
+        result, trace = runner(args, options_from_args(args, policy))
+        runs[policy if policy is not None else run_label(result)] = (result, trace)
+    return runs
+
+
+def with_alignment(args: argparse.Namespace, runs: dict[str, tuple]) -> dict[str, dict]:
+    """Return each run's result annotated with its alignment against the same game under ``none``.
+
+    The baseline is the run labelled ``none`` if there is one, else the core
+    simulator under ``none`` with the same options.
+    """
+    if "none" in runs:
+        baseline = summarise(*runs["none"])
+        sources = {label: BASELINE_RUN if len(runs) == 1 else BASELINE_COMPARED for label in runs}
+    else:
+        baseline = summarise(*simulate_args(args, options_from_args(args, "none")))
+        sources = {label: BASELINE_SIMULATOR for label in runs}
+    return {label: annotate(result, trace, baseline, sources[label]) for label, (result, trace) in runs.items()}
+
+
+def write_run_files(args: argparse.Namespace, runs: dict[str, tuple], results: dict[str, dict]) -> list[Path]:
+    """Write ``--trace`` / ``--trace-dir`` traces and ``--plot-dir`` WM timelines; return the files written."""
+    written = []
+    if args.trace:
+        (_, trace), = runs.values()
+        write_trace(args.trace, trace)
+    for label, (_, trace) in runs.items():
+        name = f"{args.scenario.stem}-{label}"
+        if args.trace_dir:
+            written.append(write_trace(args.trace_dir / f"{name}.jsonl", trace))
+        if args.plot_dir:
+            from .research.plot import wm_timeline
+
+            path = args.plot_dir / f"{name}.png"
+            wm_timeline(trace, path, results[label], f"{args.scenario.stem} under {label}: working memory over time")
+            written.append(path)
+    return written
+
+
+def write_trace(path: Path, trace: Sequence[dict]) -> Path:
+    """Write WM events as JSON lines; return the path."""
+    with path.open("w", encoding="utf-8") as out:
+        for event in trace:
+            out.write(json.dumps(event, sort_keys=True) + "\n")
+    return path
+
+
 def run_cli(
     prog: str,
     description: str,
@@ -138,26 +204,23 @@ def run_cli(
     """Run the shared main of ``fsreg-sim`` and ``fsreg-graph``.
 
     ``runner`` plays one scenario with the given options and returns (result,
-    trace).  Bad input exits 2; a run that fails in one of the ``failures`` ways
-    exits 1; both print one message.  A comparison checked with ``--expect`` exits
-    1 unless every robot turn was checked and matched.
+    trace); the trace is always needed (alignment reads it).  Bad input exits 2; a
+    run that fails in one of the ``failures`` ways exits 1; both print one message.
+    A comparison checked with ``--expect`` exits 1 unless every robot turn was
+    checked and matched.
     """
     args = build_parser(prog, description).parse_args(argv)
     try:
         check_usage(args)
-        if args.compare_policies or args.expect:
-            expected = load_expected(args.expect) if args.expect else None
-            results = {}
-            for policy in compared_policies(args, expected):
-                results[policy], _ = runner(args, options_from_args(args, policy))
-            comparison = render_comparison(results, expected)
-            sys.stdout.write(dumps(results) if args.json else comparison.text)
-            return EXIT_OK if expected is None or comparison.passed else EXIT_MISMATCH
-        result, trace = runner(args, options_from_args(args))
-        if args.trace:
-            with args.trace.open("w", encoding="utf-8") as out:
-                for event in trace:
-                    out.write(json.dumps(event, sort_keys=True) + "\n")
+        for directory in (args.trace_dir, args.plot_dir):
+            if directory is not None:
+                directory.mkdir(parents=True, exist_ok=True)
+        compare = bool(args.compare_policies or args.expect)
+        expected = load_expected(args.expect) if args.expect else None
+        policies: list[Optional[str]] = list(compared_policies(args, expected)) if compare else [None]
+        runs = play_all(args, runner, policies)
+        results = with_alignment(args, runs)
+        written = write_run_files(args, runs, results)
     except INPUT_ERRORS as err:
         print(f"{prog}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -167,8 +230,19 @@ def run_cli(
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
-    sys.stdout.write(dumps(result) if args.json else render_table(result))
-    return EXIT_OK
+    code = EXIT_OK
+    if compare:
+        comparison = render_comparison(results, expected)
+        text = dumps(results) if args.json else comparison.text
+        code = EXIT_OK if expected is None or comparison.passed else EXIT_MISMATCH
+    else:
+        (result,) = results.values()
+        text = dumps(result) if args.json else render_table(result)
+    sys.stdout.write(text)
+    if written:
+        note = "files written: " + ", ".join(str(p) for p in written)
+        print(note, file=sys.stderr if args.json else sys.stdout)
+    return code
 
 
 def one_line(err: BaseException) -> str:
@@ -179,12 +253,12 @@ def one_line(err: BaseException) -> str:
 
 
 def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-    """Play the scenario of ``args`` with the core; the trace is built only with ``--trace``."""
+    """Play the scenario of ``args`` with the core; return (result, WM event trace)."""
     lexicon = Lexicon.load(args.lexicon)
     scenario = load_scenario(args.scenario, lexicon)
-    simulation = Simulation(scenario, options, lexicon, trace=args.trace is not None)
+    simulation = Simulation(scenario, options, lexicon, trace=True)
     result = simulation.run()
-    return result, (simulation.trace() if args.trace is not None else [])
+    return result, simulation.trace()
 
 
 def sim_main(argv: Optional[Sequence[str]] = None) -> int:

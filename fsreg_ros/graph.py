@@ -243,7 +243,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
 
     def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-        return run_graph(args.scenario, options, trace=bool(args.trace), lexicon=args.lexicon, namespace=namespace)
+        # The trace always: the shared CLI measures alignment from it.
+        return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon, namespace=namespace)
 
     try:
         return run_cli(

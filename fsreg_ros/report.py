@@ -2,15 +2,18 @@
 
 Used by ``fsreg-sim`` and ``fsreg-graph`` (:mod:`fsreg_ros.cli`) and by the
 ``dialogue_player`` node; it reads the result objects of
-:mod:`fsreg_ros.core.simulation` and imports nothing else of the project.  Every
-figure printed is explained by a sentence printed with it.
+:mod:`fsreg_ros.core.simulation`, with the alignment keys that
+:func:`fsreg_ros.core.alignment.annotate` adds when present, and computes nothing
+itself.  Every figure printed is explained by a sentence printed with it.
 """
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any, Mapping, Optional
+
+from .core.alignment import ORIGIN_WORDS, ORIGINS
 
 #: What the marks of a checked comparison mean.
 MARKS = (
@@ -62,7 +65,16 @@ def render_table(result: Mapping[str, Any]) -> str:
     ]
     if any(r["speaker"] == "robot" and not r.get("distinguishing") for r in result["turns"]):
         lines.append("(not distinguishing): the description also fits other entities.")
+    if "alignment" in result:
+        label = run_label(result)
+        lines += ["", *turn_alignment_lines({label: result}), "", *summary_lines({label: result})]
     return "\n".join(lines) + "\n"
+
+
+def run_label(result: Mapping[str, Any]) -> str:
+    """Return the policy of a run if every domain has the same one, else ``run``."""
+    policies = {str(m.get("policy")) for m in result.get("memory", {}).values()}
+    return policies.pop() if len(policies) == 1 else "run"
 
 
 @dataclass
@@ -91,7 +103,6 @@ def render_comparison(
     """
     labels = list(results)
     turns = {label: results[label]["turns"] for label in labels}
-    robot_rows = {label: [t for t in turns[label] if t["speaker"] == "robot"] for label in labels}
     out = Comparison(text="")
     cells: dict[str, list[str]] = {label: [] for label in labels}
     for label in labels:
@@ -130,7 +141,8 @@ def render_comparison(
     lines.append("robot turns: per policy, what the robot said about the target.")
     if expected is not None:
         lines += ["", *MARKS]
-    lines += ["", *summary_lines(robot_rows)]
+    if all("alignment" in results[label] for label in labels):
+        lines += ["", *turn_alignment_lines(results), "", *summary_lines(results)]
     if expected is not None:
         lines.append("")
         lines.append(f"{out.matched}/{out.checked} robot descriptions match the expected ones")
@@ -140,26 +152,60 @@ def render_comparison(
     return out
 
 
-def summary_lines(robot_rows: Mapping[str, Sequence[Mapping[str, Any]]]) -> list[str]:
-    """Return the per-policy figures of a comparison, each explained in one sentence.
+def aligned_cell(record: Mapping[str, Any]) -> str:
+    """Return a robot turn's alignment: aligned/said, then each property from WM and what had put it there."""
+    cell = f"{len(record.get('aligned') or [])}/{len(record.get('description') or [])} aligned"
+    origins = record.get("wm_origins") or {}
+    if origins:
+        cell += "; from WM: " + ", ".join(f"{p} ({o})" for p, o in origins.items())
+    return cell
 
-    For each policy: how many of the robot's properties came from working memory
-    (alignment), and how long its descriptions were.
+
+def turn_alignment_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Return the alignment of every robot turn, one column per run (the results carry ``aligned``)."""
+    labels = list(results)
+    rows = {label: [t for t in results[label]["turns"] if t["speaker"] == "robot"] for label in labels}
+    cells = {label: [aligned_cell(t) for t in rows[label]] for label in labels}
+    widths = {label: max([len(label)] + [len(c) for c in cells[label]]) for label in labels}
+    lines = [
+        "alignment per robot turn: how many of the properties said the human had already used for that target "
+        "earlier in the game, then each property taken from WM with what had put it there.",
+        f"{'turn':>4}  {'target':<8}  " + "  ".join(f"{label:<{widths[label]}}" for label in labels).rstrip(),
+    ]
+    for i, record in enumerate(rows[labels[0]]):
+        row = "  ".join(f"{cells[label][i]:<{widths[label]}}" for label in labels)
+        lines.append(f"{record['turn']:>4}  {str(record.get('target') or ''):<8}  {row}".rstrip())
+    return lines
+
+
+def summary_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Return the per-run alignment figures (``alignment`` blocks), each explained in one sentence.
+
+    For each run: alignment with the human, its gain over the same game under
+    policy ``none``, the properties taken from WM by what had put them there, and
+    the mean description length.
     """
-    width = max(map(len, robot_rows)) if robot_rows else 0
+    width = max(map(len, results)) if results else 0
     lines = []
-    for label, rows in robot_rows.items():
-        sources = [s for t in rows for s in (t.get("sources") or [])]
-        from_wm = sources.count("wm")
-        mean = len(sources) / len(rows) if rows else 0.0
-        share = f"{100 * from_wm / len(sources):.0f}%" if sources else "-"
+    for label, result in results.items():
+        block = result["alignment"]
+        rows = [t for t in result["turns"] if t["speaker"] == "robot"]
+        mean = block["properties"] / len(rows) if rows else 0.0
+        origins = ", ".join(f"{o} {block['wm_origins'].get(o, 0)}" for o in ORIGINS)
         lines.append(
-            f"{label:<{width}}  {from_wm}/{len(sources)} properties reused from WM ({share}), "
-            f"{mean:.2f} properties per description"
+            f"{label:<{width}}  alignment {block['alignment']:.0%} ({block['aligned']}/{block['properties']}), "
+            f"gain {100 * block['gain_over_none']:+.0f} points over none ({block['none_alignment']:.0%}); "
+            f"from WM {block['from_wm']}/{block['properties']}: {origins}; {mean:.2f} properties per description"
         )
-    lines.append(
-        "reused from WM: of all properties the robot said, those taken from the target's working memory "
-        "(recently said or heard) rather than from long-term memory."
-    )
-    lines.append("properties per description: the mean number of properties in the robot's descriptions.")
+    sources = sorted({r["alignment"]["none_baseline"] for r in results.values()})
+    words = ", ".join(f"{o} = {ORIGIN_WORDS[o]}" for o in ORIGINS)
+    lines += [
+        "alignment: the share of the robot's properties that the human had already used for the same referent "
+        "earlier in the game.",
+        "gain over none: alignment minus that of the same game under policy none (no working memory), in "
+        f"percentage points; the none figure comes from {' and '.join(sources)}.",
+        "from WM: the properties the robot took from the target's working memory, counted by what had put each "
+        f"there ({words}).",
+        "properties per description: the mean number of properties in the robot's descriptions.",
+    ]
     return lines

@@ -31,7 +31,7 @@ def test_table1_origins_and_gain(table1_path):
     none = play(table1_path, {"policy": "none"})
     displacement = play(table1_path, {"policy": "displacement", "capacity": 2})
     assert none.from_wm == 0
-    assert displacement.origins == {"human-speech": 3, "rr": 6, "robot-speech": 1}
+    assert displacement.origins == {"human-speech": 5, "rr": 4, "robot-speech": 1}
     last = displacement.turns[-1]
     assert (last.turn, last.description) == (11, ["short-hair", "glasses", "lab-coat"])
     assert last.origins == {"short-hair": "rr", "glasses": "robot-speech"}
@@ -53,11 +53,12 @@ def test_origin_is_what_made_the_property_enter_wm():
         {"turn": 1, "time": 2.0, "speaker": "robot", "target": "a", "domain": "d",
          "description": ["p", "r"], "sources": ["wm", "ltm"]},
         {"turn": 2, "time": 9.0, "speaker": "robot", "target": "a", "domain": "d",
-         "description": ["p", "r", "s"], "sources": ["wm", "wm", "wm"]},
+         "description": ["p", "r", "s", "u"], "sources": ["wm", "wm", "wm", "wm"]},
     ]}
     trace = [
-        ev("encode", "a", "p", "rr", 1.0, 0),  # RR affirmed p for candidate a first
+        ev("encode", "a", "p", "rr", 1.0, 0),  # RR affirmed the human's p for a, the referent: human speech
         ev("encode", "a", "p", "speaker", 1.0, 0),  # refresh: does not change the origin
+        ev("encode", "a", "u", "rr", 1.0, 0),  # RR affirmed u, which the human did not say: rr
         ev("encode", "b", "s", "reg-distractor", 2.0, 1),
         ev("encode", "a", "r", "speaker", 2.0, 1),  # the robot's own description
         ev("encode", "a", "s", "reg-distractor", 2.0, 1),
@@ -66,8 +67,8 @@ def test_origin_is_what_made_the_property_enter_wm():
     ]
     trace = sorted(trace, key=lambda e: e["time"])
     turns = turn_alignment(result, trace)
-    assert turns[0].origins == {"p": "rr"} and turns[0].aligned == ["p"]
-    assert turns[1].origins == {"p": "unknown", "r": "robot-speech", "s": "reg-distractor"}
+    assert turns[0].origins == {"p": "human-speech"} and turns[0].aligned == ["p"]
+    assert turns[1].origins == {"p": "unknown", "r": "robot-speech", "s": "reg-distractor", "u": "rr"}
     assert turns[1].human_used == ["p", "q"] and turns[1].aligned == ["p"]
     summary = summarise(result, trace)
-    assert (summary.aligned, summary.properties, summary.from_wm) == (2, 5, 4)
+    assert (summary.aligned, summary.properties, summary.from_wm) == (2, 6, 5)

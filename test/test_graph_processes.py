@@ -15,8 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, dumps, simulate
+from fsreg_ros.cli import sim_main
 from fsreg_ros.graph import Graph, GraphError, NodeSpec
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
@@ -54,19 +53,36 @@ def wait_until(predicate, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
-def test_fsreg_graph_json_equals_fsreg_sim(table1_path):
+def test_fsreg_graph_json_equals_fsreg_sim(table1_path, capsys):
     graph = subprocess.run(
         [str(BIN / "fsreg-graph"), str(table1_path), "--policy", "decay", "--json"],
         capture_output=True, text=True, timeout=180,
     )
     assert graph.returncode == 0, graph.stderr
-    expected = dumps(simulate(load_scenario(table1_path), Options(memory={"policy": "decay"})))
-    assert graph.stdout == expected
+    assert sim_main([str(table1_path), "--policy", "decay", "--json"]) == 0
+    assert graph.stdout == capsys.readouterr().out
     robot = [t for t in json.loads(graph.stdout)["turns"] if t["speaker"] == "robot"]
     assert robot[5]["description"] == ["lab-coat", "glasses"]
+    assert robot[5]["aligned"] == ["lab-coat", "glasses"]
+    assert robot[5]["wm_origins"] == {"lab-coat": "rr", "glasses": "rr"}
 
 
-def test_two_namespaced_fsreg_graphs_run_side_by_side_on_one_domain(table1_path):
+def test_fsreg_graph_comparison_json_and_traces_equal_fsreg_sim(table1_path, tmp_path, capsys):
+    """The alignment of a comparison (none baseline from its own none run) and --trace-dir, graph == simulator."""
+    args = [str(table1_path), "--compare-policies", "displacement,none", "--json", "--trace-dir"]
+    graph = subprocess.run(
+        [str(BIN / "fsreg-graph"), *args, str(tmp_path / "graph")], capture_output=True, text=True, timeout=240,
+    )
+    assert graph.returncode == 0, graph.stderr
+    assert sim_main([*args, str(tmp_path / "sim")]) == 0
+    assert graph.stdout == capsys.readouterr().out
+    assert json.loads(graph.stdout)["displacement"]["alignment"]["gain_over_none"] == -0.0667
+    for policy in ("displacement", "none"):
+        name = f"guess_who_table1-{policy}.jsonl"
+        assert (tmp_path / "graph" / name).read_bytes() == (tmp_path / "sim" / name).read_bytes()
+
+
+def test_two_namespaced_fsreg_graphs_run_side_by_side_on_one_domain(table1_path, capsys):
     """``fsreg-graph --namespace`` twice at once, same ROS_DOMAIN_ID, different policies:
     each run's nodes (and clock) live under their own namespace, and each output equals
     the simulator's for its own policy."""
@@ -82,9 +98,9 @@ def test_two_namespaced_fsreg_graphs_run_side_by_side_on_one_domain(table1_path)
         out, err = proc.communicate(timeout=240)
         assert proc.returncode == 0, err
         outputs[ns] = out
-    scenario = load_scenario(table1_path)
-    assert outputs["robot1"] == dumps(simulate(scenario, Options(memory={"policy": "decay"})))
-    assert outputs["robot2"] == dumps(simulate(scenario, Options(memory={"policy": "displacement"})))
+    for ns, policy in (("robot1", "decay"), ("robot2", "displacement")):
+        assert sim_main([str(table1_path), "--policy", policy, "--json"]) == 0
+        assert outputs[ns] == capsys.readouterr().out
     assert outputs["robot1"] != outputs["robot2"]
 
 

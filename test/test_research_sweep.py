@@ -103,3 +103,27 @@ def test_human_with_its_own_wm_hears_the_robot(tmp_path):
                            "--human-memory", "decay_period=10"]) == 0
     assert json.loads((out / "manifest.json").read_text())["parameters"]["human_memory"] == {
         "policy": "decay", "decay_period": 10}
+
+
+def test_new_forgetting_rules_get_their_settings_from_the_grid_and_the_game():
+    setting = Setting("displacement-random+shared-capacity", 10.0, 2)
+    assert setting.memory({}, seed=5) == {"policy": "displacement-random+shared-capacity", "decay_period": 10.0,
+                                          "capacity": 2, "shared_capacity": 2, "seed": 5}
+    assert setting.memory({"seed": 9, "shared_capacity": 7}, seed=5)["seed"] == 9
+    assert scenario_of(make_game(1, 4)).domains["faces"].attributes["hoodie"] == "clothing"
+
+
+def test_sweep_runs_the_new_rules_reproducibly(tmp_path):
+    args = ["--policies", "none,displacement-lfu,displacement-random,similarity,shared-capacity",
+            "--decay-periods", "10", "--capacities", "2", "--seeds", "3", "--turns", "30", "--no-progress",
+            "--no-plots"]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli.sweep_main([*args, "--out", str(a)]) == 0
+    assert cli.sweep_main([*args, "--out", str(b), "--jobs", "2"]) == 0
+    assert (a / "runs.csv").read_bytes() == (b / "runs.csv").read_bytes()
+    rows = list(csv.DictReader((a / "runs.csv").open()))
+    assert sorted({r["policy"] for r in rows}) == ["displacement-lfu", "displacement-random", "none",
+                                                   "shared-capacity", "similarity"]
+    lfu = [float(r["mean_wm_occupancy"]) for r in rows if r["policy"] == "displacement-lfu"]
+    pooled = [float(r["mean_wm_occupancy"]) for r in rows if r["policy"] == "shared-capacity"]
+    assert all(x <= 2 for x in pooled) and max(lfu) > 2  # one pool of 2 vs 2 per face

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from fsreg_ros.cli import sim_main
+from fsreg_ros.core.alignment import BASELINE_SIMULATOR, annotate, summarise
 from fsreg_ros.core.scenario import load_scenario, parse_scenario
 from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
 
@@ -96,8 +97,12 @@ def test_cli_json_matches_library_and_is_byte_identical(table1_path, capsys):
     first = capsys.readouterr().out
     assert sim_main([str(table1_path), "--json", "--policy", "displacement"]) == 0
     assert capsys.readouterr().out == first
-    expected = dumps(simulate(load_scenario(table1_path), Options(memory={"policy": "displacement"})))
-    assert first == expected
+    scenario = load_scenario(table1_path)
+    played = Simulation(scenario, Options(memory={"policy": "displacement"}), trace=True)
+    result = played.run()
+    baseline = Simulation(scenario, Options(memory={"policy": "none"}), trace=True)
+    none = summarise(baseline.run(), baseline.trace())
+    assert first == dumps(annotate(result, played.trace(), none, BASELINE_SIMULATOR))
     assert json.loads(first)["memory"]["faces"]["policy"] == "displacement"
 
 
@@ -115,9 +120,8 @@ def test_cli_compare_policies_with_paper_expectations(table1_path, capsys):
     assert code == 0
     assert "18/18 robot descriptions match the expected ones" in out
     assert "the person with a lab coat and glasses" in out  # decay, turn 6
-    assert "decay         8/14 properties reused from WM (57%), 2.33 properties per description" in out
-    assert "displacement  10/15 properties reused from WM (67%), 2.50 properties per description" in out
-    assert "none          0/15 properties reused from WM (0%), 2.50 properties per description" in out
+    assert "decay         alignment 79% (11/14), gain -8 points over none (87%)" in out
+    assert "displacement  alignment 80% (12/15), gain -7 points over none (87%)" in out
 
 
 def test_cli_expect_mismatch_exits_1(table1_path, tmp_path, capsys):
@@ -406,3 +410,14 @@ def test_cli_expect_with_json_still_checks(table1_path, tmp_path, capsys):
     assert sim_main([str(table1_path), "--expect", str(wrong), "--json"]) == 1
     assert list(json.loads(capsys.readouterr().out)) == ["none"]
     assert sim_main([str(table1_path), "--expect", str(PAPER), "--json"]) == 0
+
+
+def test_command_line_sets_every_memory_parameter(table1_path, capsys):
+    """--seed and --shared-capacity reach the effective setting, like the other parameters."""
+    assert sim_main([str(table1_path), "--json", "--policy", "displacement-random+shared-capacity",
+                     "--capacity", "2", "--seed", "3", "--shared-capacity", "4"]) == 0
+    memory = json.loads(capsys.readouterr().out)["memory"]
+    assert memory == {"faces": {"policy": "displacement-random+shared-capacity", "capacity": 2, "seed": 3,
+                                "shared_capacity": 4}}
+    assert sim_main([str(table1_path), "--policy", "decay", "--decay-period", "5", "--seed", "-1"]) == 2
+    assert capsys.readouterr().err.strip() == "fsreg-sim: error: seed must be >= 0, got -1"

@@ -12,11 +12,19 @@ encoded there by rule 1).  This module measures it on a played game:
   human turn), ``robot-speech`` (``speaker`` on a robot turn), ``rr`` (reference
   resolution affirming it for a candidate, rule 2) or ``reg-distractor`` (REG
   affirming it for a distractor, rule 3).  It is the encoding that last made the
-  property *enter* WM (a refresh while present does not change it);
+  property *enter* WM (a refresh while present does not change it).  On a human
+  turn, RR affirms the human's words for every candidate before rule 1 encodes
+  them for the referent, so an ``rr`` entry of a property the human said, for the
+  entity the turn referred to, counts as ``human-speech``: the human's
+  description put it there; ``rr`` is left for what RR affirmed of other
+  candidates;
 * **gain**: alignment under a policy minus alignment of the same game under
   policy ``none`` (No-WM).
 
 Inputs are the SPEC section 6 result dict and the event trace (``Simulation.trace()``).
+:func:`annotate` adds these figures to a result as extra keys (SPEC section 6 allows
+them): ``aligned`` and ``wm_origins`` on each robot turn and an ``alignment`` block;
+``fsreg-sim`` and ``fsreg-graph`` both print results annotated by it.
 """
 
 from __future__ import annotations
@@ -88,6 +96,9 @@ def turn_alignment(result: Mapping[str, Any], trace: Sequence[Mapping[str, Any]]
     """Return each robot turn's alignment record, in turn order."""
     turns = list(result.get("turns", ()))
     speaker_of = {t.get("turn"): t.get("speaker") for t in turns}
+    said = {  # human turn -> (referent, properties the human said)
+        t.get("turn"): (_referent(t), set(t.get("description") or ())) for t in turns if t.get("speaker") == "human"
+    }
     entered: dict[tuple, str] = {}  # (domain, entity, property) in WM -> what put it there
     events = iter(trace)
     pending: Optional[Mapping[str, Any]] = next(events, None)
@@ -97,7 +108,7 @@ def turn_alignment(result: Mapping[str, Any], trace: Sequence[Mapping[str, Any]]
         index, time = record.get("turn"), record.get("time") or 0.0
         # Replay every event before this turn (decay ticks at its time come first).
         while pending is not None and _before(pending, index, time):
-            _apply(pending, entered, speaker_of)
+            _apply(pending, entered, speaker_of, said)
             pending = next(events, None)
         if record.get("speaker") == "human":
             referent = _referent(record)
@@ -126,7 +137,7 @@ def _before(event: Mapping[str, Any], index: Any, time: float) -> bool:
     return (event.get("time") or 0.0) <= time
 
 
-def _apply(event: Mapping[str, Any], entered: dict, speaker_of: Mapping[Any, Any]) -> None:
+def _apply(event: Mapping[str, Any], entered: dict, speaker_of: Mapping[Any, Any], said: Mapping[Any, tuple]) -> None:
     key = (event.get("domain"), event.get("entity"), event.get("property"))
     if event.get("op") == "forget":
         entered.pop(key, None)
@@ -136,6 +147,10 @@ def _apply(event: Mapping[str, Any], entered: dict, speaker_of: Mapping[Any, Any
     cause = event.get("cause")
     if cause == "speaker":
         cause = "robot-speech" if speaker_of.get(event.get("turn")) == "robot" else "human-speech"
+    elif cause == "rr" and event.get("turn") in said:
+        referent, words = said[event.get("turn")]
+        if event.get("entity") == referent and event.get("property") in words:
+            cause = "human-speech"
     entered[key] = cause
 
 
@@ -175,3 +190,43 @@ def explain(summary: AlignmentSummary, baseline: Optional[AlignmentSummary] = No
             f"(policy none) reaches {baseline.alignment:.0%}."
         )
     return sentences
+
+
+#: Where the ``none`` baseline of an annotated result came from (the ``none_baseline`` key).
+BASELINE_RUN = "this run"
+BASELINE_COMPARED = "the none run of this comparison"
+BASELINE_SIMULATOR = "the core simulator under policy none"
+
+
+def annotate(
+    result: Mapping[str, Any],
+    trace: Sequence[Mapping[str, Any]],
+    baseline: AlignmentSummary,
+    baseline_source: str,
+) -> dict:
+    """Return ``result`` with its alignment figures added as extra keys (the input is not changed).
+
+    Each robot turn gets ``aligned`` (its properties the human had used for that
+    referent earlier) and ``wm_origins`` (property -> what had put it in WM, for
+    those taken from WM); the result gets ``alignment``: the pooled figures of
+    :meth:`AlignmentSummary.to_json`, ``none_alignment`` and ``gain_over_none``
+    against ``baseline`` (the same game under policy ``none``) and
+    ``none_baseline``, where that baseline came from.
+    """
+    summary = summarise(result, trace)
+    by_turn = {t.turn: t for t in summary.turns}
+    turns = []
+    for record in result.get("turns", ()):
+        record = dict(record)
+        mine = by_turn.get(record.get("turn")) if record.get("speaker") == "robot" else None
+        if mine is not None:
+            record["aligned"] = list(mine.aligned)
+            record["wm_origins"] = dict(mine.origins)
+        turns.append(record)
+    block = summary.to_json()
+    block.update(
+        none_alignment=round(baseline.alignment, 4),
+        gain_over_none=round(gain(summary, baseline), 4),
+        none_baseline=baseline_source,
+    )
+    return {**result, "turns": turns, "alignment": block}

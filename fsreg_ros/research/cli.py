@@ -204,12 +204,14 @@ def sweep_command(args: argparse.Namespace) -> int:
 def headline(rows: list) -> list[str]:
     """Return one line per policy: mean alignment, gain over none and divergence."""
     lines = []
-    for policy in dict.fromkeys(r["policy"] for r in rows):
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    width = max((len(p) for p in policies), default=0)
+    for policy in policies:
         mine = [r for r in rows if r["policy"] == policy]
         metrics = ("alignment", "alignment_gain", "divergence", "mean_length", "overspecification")
         mean = {m: sum(r[m] for r in mine) / len(mine) for m in metrics}
         lines.append(
-            f"  {policy:14} alignment {mean['alignment']:.3f}  gain {mean['alignment_gain']:+.3f}  "
+            f"  {policy:{width}}  alignment {mean['alignment']:.3f}  gain {mean['alignment_gain']:+.3f}  "
             f"length {mean['mean_length']:.2f}  overspec {mean['overspecification']:.2f}  "
             f"divergence {mean['divergence']:.3f}  ({len(mine)} runs)"
         )

@@ -89,7 +89,8 @@ def make_game(seed: int, turns: int, gap_range: tuple = (2.0, 12.0)) -> Game:
 def scenario_of(game: Game) -> Scenario:
     """Return the game as a scenario (one domain ``faces``, the robot's preference order)."""
     entities = {face: {p: 1.0 for p in props} for face, props in game.board.items()}
-    domain = DomainSpec(DOMAIN, ROBOT_ORDER, entities)
+    # The board's attributes let attribute-similarity interference (rule ``similarity``) act.
+    domain = DomainSpec(DOMAIN, ROBOT_ORDER, entities, attributes=dict(PROPERTY_ATTRIBUTE))
     dialogue = tuple(
         Turn(i, time, speaker, target=target, description=said, domain=DOMAIN if speaker == "human" else None)
         for i, (speaker, time, target, said) in enumerate(game.turns)

@@ -193,13 +193,16 @@ def wm_timeline(
         if s.forgotten_by is not None:
             ax.plot(stop, y, marker="x", color=CAUSE_COLOURS.get(s.forgotten_by, "black"), markersize=5)
     for time, turn, speaker in turns:
-        ax.axvline(time, color="tab:blue" if speaker == "human" else "tab:orange" if speaker == "robot" else "gray",
-                   alpha=0.4, linewidth=0.8)
+        colour = "tab:blue" if speaker == "human" else "tab:orange" if speaker == "robot" else "gray"
+        ax.axvline(time, color=colour, alpha=0.4, linewidth=0.8)
+        if turn is not None:  # the turn number above the lanes: H3 = human turn 3, R4 = robot turn 4
+            mark = {"human": "H", "robot": "R"}.get(str(speaker), "")
+            ax.text(time, -1.0, f"{mark}{turn}", color=colour, fontsize=7, ha="center", va="bottom")
     ax.set_yticks(range(len(lanes)))
     ax.set_yticklabels([f"{entity}: {prop}" for (_, entity, prop) in lanes], fontsize=7)
-    ax.invert_yaxis()
+    ax.set_ylim(len(lanes), -2.0)
     ax.set_xlim(0, end_of_plot)
-    ax.set_xlabel("time (s); vertical lines: human turns (blue), robot turns (orange)")
+    ax.set_xlabel("time (s); vertical lines: human turns (blue, H), robot turns (orange, R), numbered on top")
     handles = [plt.Line2D([], [], marker="o", linestyle="", color=c, label=cause) for cause, c in CAUSE_COLOURS.items()]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
               title="cause (> encode, x forget)", title_fontsize=7)

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
+from ..core.forgetting import parse_rules
 from ..core.lexicon import Lexicon
 from .games import DOMAIN, make_game, play, scenario_of, shortest_lengths
 
@@ -70,14 +71,25 @@ class Setting:
     decay_period: Optional[float] = None
     capacity: Optional[int] = None
 
-    def memory(self, extra: dict) -> dict:
-        """Return the memory settings a simulation gets for this setting."""
+    def memory(self, extra: dict, seed: int = 0) -> dict:
+        """Return the memory settings a simulation of game ``seed`` gets for this setting.
+
+        The grid's capacity also bounds the pool rules (``global-capacity``,
+        ``shared-capacity``) unless ``extra`` names their limits, and random
+        displacement draws from the game's seed unless ``extra`` names one, so every
+        game is reproducible on its own.
+        """
         if self.policy == "none":
             return {"policy": "none"}
         out = dict(extra)
         out.update(policy=self.policy, decay_period=self.decay_period, capacity=self.capacity)
-        if "global-capacity" in self.policy and "global_capacity" not in extra:
+        rules = parse_rules(self.policy)
+        if "global-capacity" in rules and "global_capacity" not in extra:
             out["global_capacity"] = self.capacity
+        if "shared-capacity" in rules and "shared_capacity" not in extra:
+            out["shared_capacity"] = self.capacity
+        if "displacement-random" in rules and "seed" not in extra:
+            out["seed"] = seed
         return out
 
 
@@ -122,7 +134,7 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
         played = (
             baseline
             if setting.policy == "none"
-            else play(game, setting.memory(config.memory), lexicon, config.human_memory)
+            else play(game, setting.memory(config.memory, seed), lexicon, config.human_memory)
         )
         robot = [t for t in played.result["turns"] if t["speaker"] == "robot"]
         summary = played.alignment

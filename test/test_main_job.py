@@ -1,0 +1,138 @@
+"""The main job's alignment figures: fsreg-sim's JSON keys and summary lines, and --trace-dir / --plot-dir."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from fsreg_ros.cli import sim_main
+from fsreg_ros.core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR
+from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.core.simulation import Options, Simulation
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER = REPO / "config/paper_table1.yaml"
+
+
+def compare_json(table1_path, capsys, *extra) -> tuple[dict, str]:
+    """Return the policies' results of Table 1 (fsreg-sim --json) and what went to stderr."""
+    assert sim_main([str(table1_path), "--compare-policies", "decay,displacement,none", "--json", *extra]) == 0
+    captured = capsys.readouterr()
+    return json.loads(captured.out), captured.err
+
+
+def robot(result: dict, turn: int) -> dict:
+    (record,) = [t for t in result["turns"] if t["turn"] == turn]
+    assert record["speaker"] == "robot"
+    return record
+
+
+def test_table1_alignment_blocks(table1_path, capsys):
+    runs, _ = compare_json(table1_path, capsys)
+    assert runs["decay"]["alignment"] == {
+        "robot_turns": 6, "properties": 14, "aligned": 11, "alignment": 0.7857, "from_wm": 8,
+        "wm_origins": {"human-speech": 3, "rr": 3, "reg-distractor": 2, "robot-speech": 0},
+        "none_alignment": 0.8667, "gain_over_none": -0.081, "none_baseline": BASELINE_COMPARED,
+    }
+    assert runs["displacement"]["alignment"] == {
+        "robot_turns": 6, "properties": 15, "aligned": 12, "alignment": 0.8, "from_wm": 10,
+        "wm_origins": {"human-speech": 5, "rr": 4, "reg-distractor": 0, "robot-speech": 1},
+        "none_alignment": 0.8667, "gain_over_none": -0.0667, "none_baseline": BASELINE_COMPARED,
+    }
+    assert runs["none"]["alignment"] == {
+        "robot_turns": 6, "properties": 15, "aligned": 13, "alignment": 0.8667, "from_wm": 0,
+        "wm_origins": {"human-speech": 0, "rr": 0, "reg-distractor": 0, "robot-speech": 0},
+        "none_alignment": 0.8667, "gain_over_none": 0.0, "none_baseline": BASELINE_COMPARED,
+    }
+
+
+def test_table1_aligned_properties_and_their_origins_per_turn(table1_path, capsys):
+    runs, _ = compare_json(table1_path, capsys)
+    decay, displacement, none = runs["decay"], runs["displacement"], runs["none"]
+    # Turn 1: the human's words of turn 0, kept in WM, all aligned.
+    assert robot(decay, 1)["aligned"] == ["lab-coat", "light-hair", "glasses"]
+    assert robot(decay, 1)["wm_origins"] == {"lab-coat": "human-speech", "light-hair": "human-speech",
+                                             "glasses": "human-speech"}
+    # Turn 7: WM offers what REG ruled out for distractors; the human never said short-hair of face1.
+    assert robot(decay, 7)["description"] == ["glasses", "short-hair", "lab-coat"]
+    assert robot(decay, 7)["aligned"] == ["glasses", "lab-coat"]
+    assert robot(decay, 7)["wm_origins"] == {"glasses": "reg-distractor", "short-hair": "reg-distractor",
+                                             "lab-coat": "rr"}
+    # Turn 11: the robot's own description of turn 7, and RR checking face1 against "short-hair, glasses, hoodie".
+    assert robot(displacement, 11)["aligned"] == ["glasses", "lab-coat"]
+    assert robot(displacement, 11)["wm_origins"] == {"short-hair": "rr", "glasses": "robot-speech"}
+    assert robot(displacement, 3)["aligned"] == [] and robot(displacement, 3)["wm_origins"] == {"male": "rr"}
+    assert robot(none, 11)["aligned"] == ["light-hair", "lab-coat", "glasses"] and robot(none, 11)["wm_origins"] == {}
+    # Human turns carry no alignment keys.
+    assert all("aligned" not in t and "wm_origins" not in t for t in decay["turns"] if t["speaker"] == "human")
+
+
+def test_single_run_baseline_is_the_simulator_under_none_or_the_run_itself(table1_path, capsys):
+    assert sim_main([str(table1_path), "--policy", "decay", "--decay-period", "40", "--json"]) == 0
+    block = json.loads(capsys.readouterr().out)["alignment"]
+    assert (block["aligned"], block["properties"], block["gain_over_none"]) == (14, 16, 0.0083)
+    assert block["none_baseline"] == BASELINE_SIMULATOR
+    assert sim_main([str(table1_path), "--policy", "none", "--json"]) == 0
+    block = json.loads(capsys.readouterr().out)["alignment"]
+    assert (block["alignment"], block["gain_over_none"], block["none_baseline"]) == (0.8667, 0.0, BASELINE_RUN)
+
+
+def test_main_job_summary_lines(table1_path, capsys):
+    assert sim_main([str(table1_path), "--expect", str(PAPER)]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    start = lines.index(next(line for line in lines if line.startswith("decay         alignment")))
+    assert lines[start:start + 7] == [
+        "decay         alignment 79% (11/14), gain -8 points over none (87%); from WM 8/14: human-speech 3, rr 3, "
+        "reg-distractor 2, robot-speech 0; 2.33 properties per description",
+        "displacement  alignment 80% (12/15), gain -7 points over none (87%); from WM 10/15: human-speech 5, rr 4, "
+        "reg-distractor 0, robot-speech 1; 2.50 properties per description",
+        "none          alignment 87% (13/15), gain +0 points over none (87%); from WM 0/15: human-speech 0, rr 0, "
+        "reg-distractor 0, robot-speech 0; 2.50 properties per description",
+        "alignment: the share of the robot's properties that the human had already used for the same referent "
+        "earlier in the game.",
+        "gain over none: alignment minus that of the same game under policy none (no working memory), in percentage "
+        "points; the none figure comes from the none run of this comparison.",
+        "from WM: the properties the robot took from the target's working memory, counted by what had put each there "
+        "(human-speech = the human's own description, rr = reference resolution checking a candidate, "
+        "reg-distractor = REG ruling out a distractor, robot-speech = the robot's own earlier description).",
+        "properties per description: the mean number of properties in the robot's descriptions.",
+    ]
+    assert "reused from WM" not in out
+    assert "  11  face1     2/2 aligned; from WM: lab-coat (rr), glasses (rr)" in out
+    assert "18/18 robot descriptions match the expected ones" in out
+
+
+def test_single_run_table_shows_alignment(table1_path, capsys):
+    assert sim_main([str(table1_path), "--policy", "displacement"]) == 0
+    out = capsys.readouterr().out
+    assert "  11  face1     2/3 aligned; from WM: short-hair (rr), glasses (robot-speech)" in out
+    assert "the none figure comes from the core simulator under policy none." in out
+
+
+def test_trace_dir_and_plot_dir_write_one_file_per_policy(table1_path, tmp_path, capsys):
+    traces, plots = tmp_path / "traces", tmp_path / "plots" / "deep"
+    runs, err = compare_json(table1_path, capsys, "--trace-dir", str(traces), "--plot-dir", str(plots))
+    scenario = load_scenario(table1_path)
+    for policy in ("decay", "displacement", "none"):
+        simulation = Simulation(scenario, Options(memory={"policy": policy}), trace=True)
+        simulation.run()
+        written = traces / f"guess_who_table1-{policy}.jsonl"
+        assert [json.loads(line) for line in written.read_text().splitlines()] == simulation.trace()
+        png = plots / f"guess_who_table1-{policy}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and str(png) in err  # --json: paths on stderr
+    assert list(runs) == ["decay", "displacement", "none"]
+
+
+def test_plot_dir_in_text_mode_says_where(table1_path, tmp_path, capsys):
+    assert sim_main([str(table1_path), "--policy", "decay", "--plot-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[-1] == f"files written: {tmp_path / 'guess_who_table1-decay.png'}"
+
+
+def test_unwritable_plot_dir_is_one_line_exit_2(table1_path, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert sim_main([str(table1_path), "--plot-dir", str(blocker / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("fsreg-sim: error: ") and err.count("\n") == 1
