@@ -288,7 +288,8 @@ class WMBuffer:
     def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int]) -> None:
         """Run :meth:`encode_each` with no events and at most an LRU capacity.
 
-        Per entity: one dict assignment and, when the queue is full, one front deletion.
+        Per entity: the decay ticks it owes (inline), one dict assignment and, when the
+        queue is full, one front deletion.  No event objects, no calls per entity.
         """
         queues = self._queues
         nonempty = self._nonempty
@@ -304,10 +305,18 @@ class WMBuffer:
                 q.hits = None
                 nonempty[entity] = None
             else:
-                if q.synced != ticks:
-                    self._size = size
-                    self._sync(entity, q)
-                    size = self._size
+                owed = ticks - q.synced
+                if owed:  # lazy decay catch-up, inline (:meth:`_sync` without a sink)
+                    q.synced = ticks
+                    if owed >= len(q):
+                        if q:
+                            size -= len(q)
+                            q.clear()
+                            del nonempty[entity]
+                    else:
+                        size -= owed
+                        for _ in range(owed):
+                            del q[next(iter(q))]
                 # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
                 if prop in q:
                     del q[prop]

@@ -85,6 +85,7 @@ class Checker:
                 )
             first[prop] = i
         entities: dict[str, dict[str, float]] = {}
+        known = set(block.preference)
         for entity, facts in block.entities.items():
             at = here + ("entities", entity)
             if entity in owner:
@@ -94,7 +95,7 @@ class Checker:
                     "(an entity belongs to exactly one domain; names are unique across the file)",
                 )
             owner[entity] = name
-            entities[entity] = self.facts(at, name, block.preference, facts, all_properties)
+            entities[entity] = self.facts(at, name, block.preference, facts, all_properties, known)
         memory = self.memory_block(here + ("memory",), block.memory)
         attributes = self.attributes(here + ("attributes",), block)
         return DomainSpec(name, tuple(block.preference), entities, threshold, memory, attributes)
@@ -139,9 +140,20 @@ class Checker:
         preference: Sequence[str],
         facts: Union[list[str], dict[str, float]],
         all_properties: set[str],
+        known: Optional[set[str]] = None,
     ) -> dict[str, float]:
-        """Return an entity's facts as {property: certainty}; list form means certainty 1."""
-        known = set(preference)
+        """Return an entity's facts as {property: certainty}; list form means certainty 1.
+
+        ``known`` is ``set(preference)``, when the caller has it.  A list of distinct
+        known properties (the usual case, and all of a generated world) is accepted
+        with two set operations; anything else is checked fact by fact, which names
+        the first problem.
+        """
+        known = set(preference) if known is None else known
+        if isinstance(facts, list) and known.issuperset(facts):
+            out = dict.fromkeys(facts, 1.0)
+            if len(out) == len(facts):
+                return out
         # (path key, property, certainty): list items are addressed by index.
         items: list[tuple[Union[int, str], str, float]]
         if isinstance(facts, list):
