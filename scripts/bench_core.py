@@ -153,7 +153,8 @@ def bench_reg(sizes: list[tuple[int, int]], trials: int, warmup: int, seed: int,
             configs.append(("sd-pia", "wm", True))
         for algorithm, policy, sink in configs:
             label = algorithm + ("/none" if policy == "none" else "") + ("+sink" if sink else "")
-            runs = [bench_reg_config(facts, props, algorithm, policy, sink, trials, warmup, seed) for _ in range(repeat)]
+            runs = [bench_reg_config(facts, props, algorithm, policy, sink, trials, warmup, seed)
+                    for _ in range(repeat)]
             result = min(runs, key=lambda r: r["median_ms"])  # least disturbed run
             result["medians_all_runs_ms"] = [r["median_ms"] for r in runs]
             rows.append({"config": label, "entities": n_entities, "properties": n_props, **result})
@@ -261,7 +262,8 @@ def render(result: dict) -> str:
     lines.append("REG latency (ms per generate call; random KB, prevalence 0.1-0.3; "
                  f"{result['meta']['trials']} trials, random targets"
                  + (f"; best of {repeat} runs" if repeat > 1 else "") + ")")
-    header = f"{'config':<14} {'entities':>8} {'props':>5} {'median':>9} {'p95':>9} {'enc/call':>9} {'|WM(t)|':>7} {'wm src':>6}"
+    header = (f"{'config':<14} {'entities':>8} {'props':>5} {'median':>9} {'p95':>9} {'enc/call':>9} "
+              f"{'|WM(t)|':>7} {'wm src':>6}")
     lines.append(header)
     lines.append("-" * len(header))
     for r in result["reg"]:

@@ -38,7 +38,8 @@ def write_message_schemas(scenario_output: str | None) -> None:
         return
     directory = Path(scenario_output).parent
     for stem, schema in json_schemas().items():
-        (directory / f"{stem}.schema.json").write_text(json.dumps(schema, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        text = json.dumps(schema, indent=2, sort_keys=True) + "\n"
+        (directory / f"{stem}.schema.json").write_text(text, encoding="utf-8")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -323,7 +323,7 @@ class Fuzzer:
         self.g.close()
 
     def session(self, service: str) -> str:
-        """Return the id of a freshly opened REG session (target the first entity) at ``service``."""
+        """Open a REG session at ``service`` (its target: the first entity); return its id."""
         spec = self.scenario.domains[self.domains[0]]
         return self.g.call(service, {"op": "open", "target": next(iter(spec.entities))},
                            timeout=REPLY_TIMEOUT)["session"]
