@@ -1,4 +1,4 @@
-"""JSON over ROS 2 services and topics: serving, subscribing, calling (SPEC §7).
+"""JSON over ROS 2 services and topics: serving, subscribing, calling (docs/semantics.md §7).
 
 The one small module for fsreg's carrier convention.  Names, QoS and schemas are in
 :mod:`fsreg_ros.contract`; the JSON codec is :mod:`fsreg_ros.codec`.

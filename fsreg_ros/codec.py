@@ -1,4 +1,4 @@
-r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (SPEC §7).
+r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (docs/semantics.md §7).
 
 Decoding (:func:`parse`, :func:`from_msg`) is bounded (a text longer than
 ``max_bytes`` is refused before it is parsed) and checks fields against a small spec

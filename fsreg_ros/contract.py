@@ -1,6 +1,6 @@
 """The fsreg message contract: every topic and service, its QoS and its JSON schema.
 
-This module is the one owner of the wire contract (SPEC §7).  Nodes, the remote
+This module is the one owner of the wire contract (docs/semantics.md §7).  Nodes, the remote
 consultant port, the graph runner and the tests take names, QoS profiles and schemas
 from here; ``docs/design.md`` lists them (a test checks the table against
 :func:`message_table`), and ``scripts/export_schemas.py`` writes their JSON Schemas.
@@ -176,7 +176,7 @@ class ConsultantAnnounce(Message):
 
 
 class WMEventMessage(Message):
-    """``wm/events``: one encode or forget event (SPEC section 2)."""
+    """``wm/events``: one encode or forget event (docs/semantics.md section 2)."""
 
     op: str
     domain: str

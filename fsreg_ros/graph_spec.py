@@ -21,7 +21,7 @@ from .core.forgetting import PARAMETERS
 
 #: The package whose executables the nodes are.
 PACKAGE = "fsreg_ros"
-#: Memory settings the WM Manager takes per domain (SPEC §5 names).
+#: Memory settings the WM Manager takes per domain (docs/semantics.md §5 names).
 POLICY_KEYS = PARAMETERS
 
 

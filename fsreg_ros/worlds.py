@@ -11,7 +11,7 @@ ambiguous) with robot turns (a random target, or the target the human just named
 at increasing times in tenths of a second (equal times and times on decay ticks
 happen).  The same :class:`WorldShape` gives the same world on every run.
 
-The result is a SPEC section 5 scenario document (a dict); :func:`dump_world`
+The result is a docs/semantics.md section 5 scenario document (a dict); :func:`dump_world`
 writes it as YAML that :func:`fsreg_ros.core.scenario.load_scenario` reads.
 """
 

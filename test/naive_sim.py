@@ -1,13 +1,13 @@
 """A deliberately naive, eager reference simulator (tests and benchmark only).
 
-It plays a scenario file as SPEC.md sections 2-4 say, as literally as possible, and
+It plays a scenario file as docs/semantics.md sections 2-4 say, as literally as possible, and
 shares no algorithm code with :mod:`fsreg_ros.core`:
 
 * the scenario is read with plain ``yaml`` (libyaml when present) and used as the
   dict it is: no validation (give it files the project's loader accepts);
 * working memory is :class:`naive_wm.NaiveWM` per domain (lists, eager decay over
   every queue at every tick, displacement and the global limit after every event);
-* reference resolution (SPEC section 3) and SD-PIA / DIST-PIA (SPEC section 4, with
+* reference resolution (docs/semantics.md section 3) and SD-PIA / DIST-PIA (docs/semantics.md section 4, with
   the rule-3 encodings for distractors) are written out as loops over entities;
 * a property holds iff its certainty >= the domain's threshold, looked up in the
   entity's facts on every check.
@@ -63,7 +63,7 @@ def memory_settings(document: dict, domain: str, overrides: Optional[dict]) -> d
 
 
 class NaiveSimulator:
-    """Plays a scenario document turn by turn (SPEC sections 2-4 and 6)."""
+    """Plays a scenario document turn by turn (docs/semantics.md sections 2-4 and 6)."""
 
     def __init__(
         self,
@@ -94,7 +94,7 @@ class NaiveSimulator:
             return self.hear(index, turn)
         return self.describe(index, turn)
 
-    # ------------------------------------------------------------- SPEC §3
+    # ------------------------------------------------------------- docs/semantics.md §3
     def hear(self, index: int, turn: dict) -> dict:
         if "text" in turn:
             known = {p for d in self.domains.values() for p in d.preference}
@@ -128,7 +128,7 @@ class NaiveSimulator:
             "domain": name,
         }
 
-    # ------------------------------------------------------------- SPEC §4
+    # ------------------------------------------------------------- docs/semantics.md §4
     def describe(self, index: int, turn: dict) -> dict:
         target = turn["target"]
         domain = next(d for d in self.domains.values() if target in d.facts)

@@ -1,6 +1,6 @@
 """A deliberately naive, eager reference working memory (tests and benchmark only).
 
-It follows SPEC.md section 2 as literally as possible and shares no code with
+It follows docs/semantics.md section 2 as literally as possible and shares no code with
 :mod:`fsreg_ros.core.memory` / :mod:`fsreg_ros.core.forgetting`:
 
 * ``queues`` is a plain ``dict`` of Python lists, LRU first;
@@ -188,7 +188,7 @@ class NaiveWM:
 
 
 class NaiveClock:
-    """SPEC section 2's decay schedule, literally.
+    """docs/semantics.md section 2's decay schedule, literally.
 
     Tick k at origin + k * period, due at T iff origin + k * period <= T + 1e-9; each
     tick is handed out once.

@@ -1,4 +1,4 @@
-"""The JSON carrier: String topics and AddDiagnostics services (SPEC §7)."""
+"""The JSON carrier: String topics and AddDiagnostics services (docs/semantics.md §7)."""
 
 from __future__ import annotations
 

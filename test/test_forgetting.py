@@ -1,4 +1,4 @@
-"""Forgetting policies and the WM Manager (SPEC sections 2 and 7, paper Algs. 2 and 3)."""
+"""Forgetting policies and the WM Manager (docs/semantics.md sections 2 and 7, paper Algs. 2 and 3)."""
 
 from __future__ import annotations
 

@@ -128,7 +128,7 @@ def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(table1_
 
 
 def random_scenario(seed: int) -> dict:
-    """A random scenario in the SPEC section 5 schema (valid by construction)."""
+    """A random scenario in the docs/semantics.md section 5 schema (valid by construction)."""
     rng = random.Random(seed)
     props = [f"p{i}" for i in range(8)]
     entities = {f"e{i}": sorted(rng.sample(props, rng.randint(1, 5))) for i in range(10)}

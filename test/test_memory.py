@@ -1,4 +1,4 @@
-"""WMBuffer: Encode (Algorithm 1), reads, lazy decay ticks, events (SPEC section 2)."""
+"""WMBuffer: Encode (Algorithm 1), reads, lazy decay ticks, events (docs/semantics.md section 2)."""
 
 from __future__ import annotations
 

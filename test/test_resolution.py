@@ -1,4 +1,4 @@
-"""Reference resolution (SPEC section 3) and its encodings (SPEC section 2, rules 1, 2, 4)."""
+"""Reference resolution (docs/semantics.md section 3) and its encodings (docs/semantics.md section 2, rules 1, 2, 4)."""
 
 from __future__ import annotations
 

@@ -21,8 +21,8 @@ encoded there by rule 1).  This module measures it on a played game:
 * **gain**: alignment under a policy minus alignment of the same game under
   policy ``none`` (No-WM).
 
-Inputs are the SPEC section 6 result dict and the event trace (``Simulation.trace()``).
-:func:`annotate` adds these figures to a result as extra keys (SPEC section 6 allows
+Inputs are the docs/semantics.md section 6 result dict and the event trace (``Simulation.trace()``).
+:func:`annotate` adds these figures to a result as extra keys (docs/semantics.md section 6 allows
 them): ``aligned`` and ``wm_origins`` on each robot turn and an ``alignment`` block;
 ``fsreg-sim`` and ``fsreg-graph`` both print results annotated by it.
 """

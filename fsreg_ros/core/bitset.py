@@ -1,6 +1,6 @@
 """Sets of a domain's entities as Python int bitsets over entity indices.
 
-Bit i stands for the domain's i-th entity in entity order (SPEC section 2, "Entity
+Bit i stands for the domain's i-th entity in entity order (docs/semantics.md section 2, "Entity
 order"), so ascending bits are entity order and set algebra (``&``, ``|``, ``~``) is
 one C-level operation on the whole domain.  Chosen by measurement (issue 11): asking
 whether a property holds for each of 10,000 remaining entities took 553 us with a

@@ -145,7 +145,7 @@ class Consultant:
     ) -> list[str]:
         """Check ``prop`` for each entity in order; encode it for each it holds for.
 
-        This is how affirming a property through an LTM query enters WM (SPEC
+        This is how affirming a property through an LTM query enters WM (docs/semantics.md
         section 2, rules 2 and 3).  Returns the entities it holds for.
         """
         held = self.holds(prop, entities)
@@ -156,9 +156,9 @@ class Consultant:
     def open_set(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None) -> "CandidateSet":
         """Open the candidate set of one RR request or the distractor set of one REG request.
 
-        Without a target: every entity (RR's candidates, SPEC section 3).  With one:
+        Without a target: every entity (RR's candidates, docs/semantics.md section 3).  With one:
         every other entity, or the entities of an explicit ``context`` set other
-        than the target (REG's distractors, SPEC section 4).  Raises KnowledgeError
+        than the target (REG's distractors, docs/semantics.md section 4).  Raises KnowledgeError
         for an unknown target or context entity.
         """
         everyone = (1 << len(self.entities)) - 1

@@ -28,7 +28,7 @@ from bisect import bisect_right
 from dataclasses import dataclass
 from typing import Optional
 
-#: Slack when comparing tick times with event times (SPEC section 2).
+#: Slack when comparing tick times with event times (docs/semantics.md section 2).
 TIME_EPSILON = 1e-9
 #: Largest clock reading accepted, in seconds (~31,700 years): with a period of at
 #: least ``forgetting.MIN_DECAY_PERIOD`` the tick index stays below 2**53, so
@@ -115,7 +115,7 @@ class TickRun:
 class DecaySchedule:
     """Algorithm 2's schedule for one domain: ticks at ``origin + k * period``, k >= 1.
 
-    One schedule per domain, shared by the whole buffer (SPEC section 8), not one
+    One schedule per domain, shared by the whole buffer (docs/semantics.md section 8), not one
     timer per queue.  :meth:`take` is idempotent: it derives the number of elapsed
     periods from the time and subtracts those already applied, so a timer that fires
     late, or once for several periods, and a barrier that asks again, never apply a
@@ -127,14 +127,14 @@ class DecaySchedule:
     applied: int = 0
 
     def elapsed(self, now: float) -> int:
-        """Count the ticks at or before ``now`` (the SPEC's test, in O(1))."""
+        """Count the ticks at or before ``now`` (the docs/semantics.md's test, in O(1))."""
         now = check_time("time", now)
         limit = now + TIME_EPSILON
         if limit < self.origin + self.period:
             return 0
         k = math.floor((limit - self.origin) / self.period)
         # The rounded quotient can be one off right at the slack's edge; settle on
-        # the SPEC's own test: tick k is due iff origin + k * period <= now + 1e-9.
+        # the docs/semantics.md's own test: tick k is due iff origin + k * period <= now + 1e-9.
         while self.origin + (k + 1) * self.period <= limit:
             k += 1
         while k > 0 and self.origin + k * self.period > limit:

@@ -1,4 +1,4 @@
-"""Generation as a library call: describe one target in one call (SPEC section 4).
+"""Generation as a library call: describe one target in one call (docs/semantics.md section 4).
 
 :func:`describe` runs a REG algorithm (SD-PIA, DIST-PIA, Full Brevity, Greedy;
 paper Algorithm 4 and its baselines) for a target in a knowledge base, with a

@@ -171,7 +171,7 @@ class ForgettingPolicy:
         return DEFAULTS.get(param) if found is None else found
 
     def to_json(self) -> dict:
-        """Return the effective setting as SPEC section 6 reports it (only what is used)."""
+        """Return the effective setting as docs/semantics.md section 6 reports it (only what is used)."""
         out: dict = {"policy": self.name}
         for rule in self.rules:
             for param in RULE_PARAMETERS[rule]:

@@ -1,6 +1,6 @@
 """Referring expression generation (REG): SD-PIA, DIST-PIA and two baselines.
 
-SPEC section 4.  A property *rules out* a distractor iff it holds for the target
+docs/semantics.md section 4.  A property *rules out* a distractor iff it holds for the target
 and not for the distractor.
 
 * :func:`sd_pia` - the paper's forgetting-sensitive REG (SD-PIA).  Phase 1 walks
@@ -110,7 +110,7 @@ async def sd_pia(
     attributes: Optional[Mapping[str, str]] = None,
     view: Optional[View] = None,
 ) -> Expression:
-    """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  SPEC section 4.
+    """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  docs/semantics.md section 4.
 
     The consultant keeps the distractor set (``view``, opened here unless given):
     each considered property is one :meth:`~ConsultantPort.narrow`, which checks the
@@ -167,7 +167,7 @@ async def _baseline_view(
 ) -> tuple[View, list[str], list[int]]:
     """Return what a baseline works from: the open view and each property's rule-out bitmask.
 
-    The view's ``queue`` is Q[target], reported only (SPEC section 6; baselines never
+    The view's ``queue`` is Q[target], reported only (docs/semantics.md section 6; baselines never
     use WM); for each property holding for the target (preference order), the bitmask
     of distractors it rules out (bit i = the i-th distractor in entity order).
     Queries only, no encoding.

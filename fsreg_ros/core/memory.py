@@ -33,7 +33,7 @@ from typing import Callable, Iterable, Mapping, NamedTuple, Optional, Sequence
 
 from .decay import TickLedger, TickRun
 
-#: Causes an event can have (SPEC section 2).
+#: Causes an event can have (docs/semantics.md section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
 FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract")
 #: How displacement chooses the property it forgets from an over-full queue.
@@ -189,7 +189,7 @@ class WMBuffer:
 
     # ---------------------------------------------------------------- limits
     def set_limits(self, limits: Limits, time: float) -> None:
-        """Install new limits and apply them to every queue at once (SPEC section 7).
+        """Install new limits and apply them to every queue at once (docs/semantics.md section 7).
 
         Not retaining forgets everything (cause ``reset``); a capacity trims every
         queue; a global limit trims the domain.  Similarity applies from the next
@@ -357,7 +357,7 @@ class WMBuffer:
         """Apply decay ticks (Algorithm 2) at once, in the canonical event order.
 
         Tick by tick, and within a tick in ``entity_order`` (the domain's entity
-        order, SPEC section 2), not in the order the queues happened to fill.  Costs
+        order, docs/semantics.md section 2), not in the order the queues happened to fill.  Costs
         O(properties held), however many ticks: after as many ticks as the longest
         queue holds, WM is empty and the remaining ticks pop nothing.
         """

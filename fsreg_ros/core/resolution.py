@@ -1,6 +1,6 @@
 """Reference resolution (RR): find the entity a heard description refers to.
 
-SPEC section 3.  The description's properties are checked in utterance order
+docs/semantics.md section 3.  The description's properties are checked in utterance order
 against every candidate still in play (the consultant keeps the candidate set: one
 call per property, see :class:`~fsreg_ros.core.consultant.ConsultantPort`).  Each time a property is affirmed for a
 candidate it is encoded into that candidate's WM (rule 2), even if the candidate
@@ -90,7 +90,7 @@ async def resolve(
     time: float = 0.0,
     turn: Optional[int] = None,
 ) -> Resolution:
-    """Resolve a heard description (SPEC section 3), encoding as rules 1 and 2 say."""
+    """Resolve a heard description (docs/semantics.md section 3), encoding as rules 1 and 2 say."""
     description = list(description)
     if not description:
         raise ResolutionError("the description is empty")

@@ -258,7 +258,7 @@ class WMManager:
         return schedule.next_tick() if schedule is not None else None
 
     def effective(self) -> dict[str, dict]:
-        """Each domain's effective setting, keyed by domain (SPEC section 6 ``memory``)."""
+        """Each domain's effective setting, keyed by domain (docs/semantics.md section 6 ``memory``)."""
         return {d: self.domains[d].policy.to_json() for d in sorted(self.domains)}
 
     # ------------------------------------------------------------- internals

@@ -46,7 +46,7 @@ Services (JSON in ``AddDiagnostics``, names and schemas in :mod:`fsreg_ros.contr
       domain's ``count`` least recently encoded fronts (cause ``shared-capacity``);
       ``size`` -> ``{"size"}``: how many properties WM holds.
 
-Sessions (SPEC sections 3 and 4 keep their order: members are visited in entity
+Sessions (docs/semantics.md sections 3 and 4 keep their order: members are visited in entity
 order) are kept at most ``max_sessions`` at once (the least recently used is dropped)
 and for ``session_timeout`` seconds unused, so a caller that dies leaks nothing.
 ``version`` (``"<incarnation>:<LTM changes>"``) changes when LTM does (``ltm/assert``,
@@ -68,7 +68,7 @@ changes; a rejected one gets ``{"error", "kind"}`` (kind ``KnowledgeError`` for 
 unknown entity or property, ``MessageError`` for a malformed request).
 
 Topics
-    out ``wm/events`` -- every encode/forget event (SPEC section 2), one message each;
+    out ``wm/events`` -- every encode/forget event (docs/semantics.md section 2), one message each;
     out ``wm/state`` (latched) ``{"domain", "time", "queues", "events"}`` -- at start
     and at most once per request that changed WM (after the op, or, for a session, at its
     ``close``) and per ``state_period``, while someone subscribes (a late joiner gets the

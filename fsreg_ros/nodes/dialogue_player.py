@@ -59,7 +59,7 @@ class DialoguePlayer(Node):
         describe = ParameterDescriptor
         self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
         self.declare_parameter(
-            "output", "", describe(description="write the SPEC section 6 JSON here ('' = print a table)")
+            "output", "", describe(description="write the docs/semantics.md section 6 JSON here ('' = print a table)")
         )
         self.declare_parameter("trace", "", describe(description="write wm/events as JSON lines here ('' = off)"))
         self.declare_parameter("drive_clock", True, describe(description="publish /clock at each turn's time"))
@@ -149,7 +149,7 @@ class DialoguePlayer(Node):
 
     # ---------------------------------------------------------------- play
     async def play(self) -> dict:
-        """Play every turn; return the SPEC section 6 result object."""
+        """Play every turn; return the docs/semantics.md section 6 result object."""
         await self.wait_ready()
         records = [await self.play_turn(turn) for turn in self.scenario.dialogue]
         if self.get_parameter("trace").value:

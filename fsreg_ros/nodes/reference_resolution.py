@@ -1,4 +1,4 @@
-"""``reference_resolution``: find the entity the human meant (SPEC section 3).
+"""``reference_resolution``: find the entity the human meant (docs/semantics.md section 3).
 
 Subscribes ``dialogue/semantics`` (from the parser) and publishes ``rr/result``
 (schemas :class:`~fsreg_ros.contract.Semantics`, :class:`~fsreg_ros.contract.RRResult`;

@@ -1,4 +1,4 @@
-"""``reg``: referring expression generation + realisation (SPEC section 4).
+"""``reg``: referring expression generation + realisation (docs/semantics.md section 4).
 
 Subscribes ``reg/request`` and publishes ``reg/expression`` (schemas
 :class:`~fsreg_ros.contract.RegRequest`, :class:`~fsreg_ros.contract.RegExpression`).

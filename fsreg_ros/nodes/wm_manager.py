@@ -1,4 +1,4 @@
-"""``wm_manager``: the ROS wrapper of the core WM Manager (SPEC sections 2 and 7).
+"""``wm_manager``: the ROS wrapper of the core WM Manager (docs/semantics.md sections 2 and 7).
 
 The buffers live in the consultant processes; what each domain forgets, and when,
 is decided by the core :class:`~fsreg_ros.core.wm_manager.WMManager` (policies,
@@ -91,7 +91,7 @@ from ..core.forgetting import BOUNDS, ForgettingPolicy, PolicyError, check_setti
 from ..core.wm_manager import WMManager
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 
-#: Defaults for every domain (SPEC section 5 names).
+#: Defaults for every domain (docs/semantics.md section 5 names).
 DEFAULTS: dict[str, Any] = {
     "policy": "none",
     "decay_period": 10.0,
@@ -495,7 +495,7 @@ class WMManagerNode(Node):
         }
 
     def memory(self) -> dict[str, dict]:
-        """Each domain's effective setting (SPEC section 6 ``memory``), sorted by domain."""
+        """Each domain's effective setting (docs/semantics.md section 6 ``memory``), sorted by domain."""
         return self.manager.effective()
 
 

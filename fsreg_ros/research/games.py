@@ -100,7 +100,7 @@ def scenario_of(game: Game) -> Scenario:
 
 @dataclass
 class Played:
-    """A played game: the SPEC section 6 result, the event trace and its alignment summary."""
+    """A played game: the docs/semantics.md section 6 result, the event trace and its alignment summary."""
 
     result: dict
     trace: list
