@@ -77,14 +77,14 @@ def divergence_curve(
     return [(last[b], *mean_band(per_seed_means(by_block[b]))) for b in sorted(by_block)]
 
 
-def sweep_plots(rows: list[dict], curves: Mapping[tuple, Sequence[int]], out: Path) -> list[str]:
-    """Write the sweep's PNG plots into ``out``; return their file names."""
-    from .sweep import METRICS
-
+def sweep_plots(
+    rows: list[dict], curves: Mapping[tuple, Sequence[int]], out: Path, metrics: Sequence[str]
+) -> list[str]:
+    """Write the sweep's PNG plots (one per metric in ``metrics``) into ``out``; return their file names."""
     plt = _pyplot()
     policies = list(dict.fromkeys(r["policy"] for r in rows))
     files = []
-    for metric in METRICS:
+    for metric in metrics:
         fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
         for ax, parameter, label in ((axes[0], "decay_period", "decay period (s)"), (axes[1], "capacity", "capacity")):
             for policy in policies:

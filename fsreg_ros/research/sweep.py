@@ -265,6 +265,6 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
     if plots:
         from .plot import sweep_plots
 
-        files += sweep_plots(rows, curves, out)
+        files += sweep_plots(rows, curves, out, METRICS)
     (out / "manifest.json").write_text(json.dumps(manifest(config, hashes, jobs, files), indent=2) + "\n")
     return rows
