@@ -1,15 +1,20 @@
 """fsreg-eval tuna on a hand-made mini corpus whose scores were worked out by hand."""
 
+import atexit
 import json
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
+from tuna_mini import write_mini
 
 from fsreg_ros.research import cli
 from fsreg_ros.research.scores import dice, masi
 from fsreg_ros.research.tuna import TunaError, evaluate, learn_order, load_trials, parse_trial, trial_entities
 
-MINI = Path(__file__).parent / "data" / "tuna_mini"
+MINI = write_mini(Path(tempfile.mkdtemp(prefix="fsreg-tuna-mini-")))
+atexit.register(shutil.rmtree, MINI, ignore_errors=True)
 ORDERS = ["--order", "furniture=type,colour,orientation,size", "--order", "people=type,hasBeard,hasGlasses"]
 
 
