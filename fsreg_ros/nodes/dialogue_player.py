@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import time as wallclock
-from typing import Any
+from typing import Any, Optional
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -53,8 +53,8 @@ class PlayerError(RuntimeError):
 class DialoguePlayer(Node):
     """Plays one scenario and collects the robot's and RR's answers."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__("dialogue_player", **kwargs)
+    def __init__(self, node_name: str = "dialogue_player", *, namespace: Optional[str] = None, **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         describe = ParameterDescriptor
         self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
         self.declare_parameter(

@@ -193,8 +193,8 @@ class WMManagerNode(Node):
 
     NODE_NAME = "wm_manager"
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, **kwargs)
+    def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         self.declare_parameter(
             "domains",
             Parameter.Type.STRING_ARRAY,
