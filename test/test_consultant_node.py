@@ -63,6 +63,7 @@ def test_info_and_latched_start_state(graph: Graph):
         "policy": "none",
         "memory": {"policy": "none"},
         "events": 0,
+        "event_listeners": 0,
     }
     # entities are only ever appended: a caller that knows some asks for the rest
     assert graph.call(Q, {"op": "info", "entities_from": 2})["entities"] == ["face3"]
@@ -102,8 +103,9 @@ def test_query_ops_round_trip(graph: Graph):
     ) == {"holds": ["face1", "face3"]}
     graph.spin_until(lambda: len(events) == 2, what="affirm events")
     assert events == [
-        {"op": "encode", "domain": "faces", "entity": e, "property": "male", "cause": "rr", "time": 2.0, "turn": 4}
-        for e in ("face1", "face3")
+        {"op": "encode", "domain": "faces", "entity": e, "property": "male", "cause": "rr", "time": 2.0, "turn": 4,
+         "seq": seq, "incarnation": 1}
+        for seq, e in ((1, "face1"), (2, "face3"))
     ]
     graph.spin_until(lambda: len(states) == 2, what="state after affirm")
     assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2}
@@ -258,7 +260,7 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
         assert text in err.error, (request, err.error)
         assert err.reply["error"] == err.error
         assert graph.call(Q, {"op": "snapshot"}) == before, request
-    assert graph.call(Q, {"op": "info"}) == info
+    assert graph.call(Q, {"op": "info"}) == {**info, "event_listeners": 1}  # the listener above
     # A last good change: its state and events arrive after any stray ones would have.
     graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 5.0})
     graph.spin_until(lambda: len(states) > n_states, what="state of the good request")
@@ -300,7 +302,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     assert results[-1]["ok"] is True and results[-1]["new_entity"] is False and results[-1]["retracted"] == ["glasses"]
     graph.spin_until(lambda: events, what="retract event")
     assert events == [{"op": "forget", "domain": "faces", "entity": "face1", "property": "glasses", "cause": "retract",
-                       "time": events[0]["time"], "turn": None}]
+                       "time": events[0]["time"], "turn": None, "seq": 3, "incarnation": 1}]
     graph.spin_until(lambda: len(states) > n_states, what="state after retraction")
     assert states[-1]["queues"]["face1"] == ["male"]
     assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []

@@ -266,7 +266,7 @@ class ConsultantNode(Node):
         self._state_due = True
         if self._listened:  # a volatile topic nobody reads: nothing to send
             self._event_count += 1
-            publish(self._events, event.to_json())
+            publish(self._events, {**event.to_json(), "seq": self._event_count, "incarnation": self.incarnation})
 
     def _check_listeners(self) -> None:
         self._listened = self._events.get_subscription_count() > 0
@@ -413,6 +413,7 @@ class ConsultantNode(Node):
             "policy": policy.name,
             "memory": policy.to_json(),
             "events": self._event_count,
+            "event_listeners": self._events.get_subscription_count(),
         }
 
     def _open(self, request: dict) -> dict:
