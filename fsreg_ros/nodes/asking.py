@@ -30,7 +30,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
 from .. import contract
-from ..carrier import DEFAULT_TIMEOUT, subscribe
+from ..carrier import DEFAULT_TIMEOUT, stamped, subscribe
 from ..codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits
 from ..remote import RemotePort
@@ -151,11 +151,11 @@ class AskingNode(Node):
             error = (f"request id {printable(repr(data['id']), 80)} was already used for a different request; "
                      "use a new id for a new request")
             self.get_logger().warning(error)
-            publisher.publish(String(data=safe_dumps(self.conflict_reply(data, error))))
+            publisher.publish(String(data=safe_dumps(stamped(publisher, self.conflict_reply(data, error)))))
             return
         if cached is None:
             reply = await self.answer(data)
-            cached = safe_dumps(reply)
+            cached = safe_dumps(stamped(publisher, reply))  # the answer as published, graph identity included
             if "error" not in reply:
                 self.answers.put(data, cached)
         publisher.publish(String(data=cached))
