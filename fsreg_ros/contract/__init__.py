@@ -75,6 +75,7 @@ from .endpoints import (
     STATUS,
     SYNC,
     TOPICS,
+    READY,
     WM_EVENTS,
     WM_STATE,
     Service,
@@ -85,8 +86,8 @@ from .endpoints import (
 from .export import fields_of, json_schemas, message_table
 from .limits import LIMIT_RANGES, Limits, check_sizes
 from .ltm import LtmAssert, LtmAssertResult
-from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
-from .naming import clock_remap, normalise_namespace
+from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
+from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import WMEventMessage, WMState
 
@@ -103,4 +104,5 @@ __all__ = [
     "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState", "check",
     "check_sizes", "clock_remap", "consultant_service", "fields_of", "json_schemas", "manage_service",
     "message_table", "normalise_namespace",
+    "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
 ]

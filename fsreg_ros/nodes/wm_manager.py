@@ -52,16 +52,23 @@ Services (JSON in ``AddDiagnostics``):
     with a reason and changes nothing.  Before the consultants are configured it
     waits for them (up to ``service_timeout``), then replies an error.
     ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "running",
-    "incarnation", "next_tick"}``: ``memory`` is each domain's setting from the
+    "incarnation", "next_tick", "ready", "graph"}``: ``memory`` is each domain's setting from the
     parameters; ``running`` what its consultant last acknowledged (configure reply) or
     announced, null until known; ``configured`` true once the consultant's current
-    incarnation has acknowledged the current setting.
+    incarnation has acknowledged the current setting; ``ready`` true when every domain
+    is configured; ``graph`` this node's graph identity.
 
-Topics: in ``consultant/announce`` (latched) from every consultant.
+Topics: in ``consultant/announce`` (latched) from every consultant; out
+``wm_manager/ready`` (latched, :class:`~fsreg_ros.contract.ManagerReady`): ``ready`` and
+each domain's ``configured``/``incarnation``/``running``, at start and at every change,
+so a client waits for readiness instead of retrying (``fsreg-up``, ``fsreg-ctl``,
+``fsreg_ros.testing``).
 """
 
 from __future__ import annotations
 
+import os
+import socket
 import time as wallclock
 from dataclasses import dataclass, field
 from functools import partial
@@ -83,7 +90,7 @@ from rclpy.task import Future
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
+from ..carrier import CarrierError, JsonClient, graph_identity, publish, publisher, serve, subscribe, wait_until
 from ..codec import NUMBER, check_fields
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError, TickRun
@@ -254,6 +261,8 @@ class WMManagerNode(Node):
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._ready = publisher(self, contract.READY)
+        self._ready_sent: Optional[dict] = None
         serve(self, contract.SYNC.name, self._sync, self._barrier_group)
         serve(self, contract.STATUS.name, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
@@ -265,6 +274,7 @@ class WMManagerNode(Node):
             + "; waiting for consultants"
         )
         self._supervise()
+        self._publish_ready()
 
     # ------------------------------------------------------------------ time
     def now(self) -> float:
@@ -400,6 +410,7 @@ class WMManagerNode(Node):
                     f"consultant '{dom.name}' (incarnation {dom.incarnation}) configured: {dom.running}")
             dom.configured = dom.running == policy.to_json()
             dom.configuring = None
+        self._publish_ready()
 
     def _on_announce(self, data: dict) -> None:
         """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
@@ -421,6 +432,7 @@ class WMManagerNode(Node):
         dom.configured = False
         self.manager.detach(dom.name)
         self._attach(dom)
+        self._publish_ready()
 
     def _attach(self, dom: _Domain) -> None:
         try:
@@ -438,9 +450,20 @@ class WMManagerNode(Node):
                     dom.client.expire(future, self.timeout)
             if not self.manager.domains[dom.name].attached and dom.client.ready():
                 self._attach(dom)
+        self._publish_ready()
 
     def _all_configured(self) -> bool:
         return all(dom.configured for dom in self._domains.values())
+
+    def _publish_ready(self) -> None:
+        """Publish ``wm_manager/ready`` when readiness or a domain's configuration changed."""
+        state = {"ready": self._all_configured(),
+                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running}
+                             for d, dom in self._domains.items()}}
+        if state == self._ready_sent:
+            return
+        self._ready_sent = state
+        publish(self._ready, {**state, "time": self.now(), "pid": os.getpid(), "host": socket.gethostname()})
 
     # --------------------------------------------------------------- services
     async def _sync(self, request: dict) -> dict:
@@ -492,6 +515,8 @@ class WMManagerNode(Node):
             "running": {d: dom.running for d, dom in self._domains.items()},
             "incarnation": {d: dom.incarnation for d, dom in self._domains.items()},
             "next_tick": {d: self.manager.next_tick(d) for d in self._domains},
+            "ready": self._all_configured(),
+            "graph": graph_identity(self),
         }
 
     def memory(self) -> dict[str, dict]:
