@@ -62,6 +62,20 @@ def loopback_profile() -> Path:
     return config_path(PROFILE_FILE)
 
 
+def is_loopback_profile(path: str) -> bool:
+    """Return whether ``path`` is fsreg's loopback profile: the shipped file, or a copy of it.
+
+    (A process started from a source tree and one from a colcon install name two copies.)
+    """
+    ours = loopback_profile()
+    if path == str(ours):
+        return True
+    try:
+        return Path(path).read_bytes() == ours.read_bytes()
+    except OSError:
+        return False
+
+
 def network_allowed(env: dict) -> bool:
     """Return whether the user widened deliberately (``FSREG_ALLOW_NETWORK=1``)."""
     return env.get(ALLOW_NETWORK, "").strip().lower() in ("1", "true", "yes")
@@ -86,7 +100,7 @@ def check_loopback(env: dict, cwd: Optional[str] = None) -> None:
                              f"or peers from a file; {hint}")
     profile = str(loopback_profile())
     for name in PROFILE_VARIABLES:
-        if env.get(name) and env[name] != profile:
+        if env.get(name) and not is_loopback_profile(env[name]):
             raise NetworkRefused(
                 f"{name}={env[name]!r} replaces fsreg's loopback profile ({profile}); {hint}"
             )

@@ -8,8 +8,8 @@ test talks through.  Every wait has a deadline and fails the test with
 
     with RosSession() as ros:
         consultant = ros.add(ConsultantNode, name="consultant_faces", domain="faces", kb="kb.yaml")
-        reply = ros.call("consultant/faces", {"op": "info"})
-        states = ros.listen("wm/state", contract.STATE_QOS)
+        reply = ros.call(contract.consultant_service("faces"), {"op": "info"})
+        states = ros.listen(contract.WM_STATE.name, contract.STATE_QOS)
         ros.set_clock(10.0)              # publish /clock; spin until the sim-time nodes read it
 """
 
