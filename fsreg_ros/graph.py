@@ -41,7 +41,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
-from .cli import run_cli
+from .cli import run_cli, warn_unsayable
 from .contract import CLOCK, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
 from .core.lexicon import Lexicon
@@ -317,7 +317,9 @@ def run_graph(
     root namespace) and with a new graph identity that every node stamps and the
     player checks.
     """
-    scenario = load_scenario(scenario_path, Lexicon.load(lexicon))  # bad input fails here, before any process
+    words = Lexicon.load(lexicon)
+    scenario = load_scenario(scenario_path, words)  # bad input fails here, before any process
+    warn_unsayable("fsreg-graph", words, scenario)
     namespace = unique_namespace() if namespace is None else namespace
     with tempfile.TemporaryDirectory(prefix="fsreg-graph-") as tmp:
         tmp_path = Path(tmp)
