@@ -396,12 +396,16 @@ class GraphClient:
         """Call the WM Manager's barrier: every decay tick due at or before ``t`` applied (docs/design.md)."""
         return self.call(contract.SYNC.name, {"time": t}, timeout)
 
+    def publish_clock(self, t: float) -> None:
+        """Publish the graph's clock = ``t`` (nothing waits: see :meth:`set_clock`)."""
+        self._clock.publish(clock_message(t))
+
     def set_clock(self, t: float, timeout: Optional[float] = None) -> dict:
         """Publish the graph's clock = ``t`` and wait until the forgetting due by then is applied; the sync reply.
 
         Later requests from this client are stamped with ``t``.
         """
-        self._clock.publish(clock_message(t))
+        self.publish_clock(t)
         reply = self.sync(t, timeout)
         self.time = t
         return reply

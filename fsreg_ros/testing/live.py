@@ -111,6 +111,7 @@ class LiveGraph:
                 if self.domain_id is not None:
                     env["ROS_DOMAIN_ID"] = str(self.domain_id)
                 self.log_dir = self.log_dir or self._temp_dir("fsreg-test-logs-")
+                self.log_dir.mkdir(parents=True, exist_ok=True)
                 self.graph = Graph(self.specs, self.log_dir, env, self.namespace)
                 self.session = RosSession(self.namespace, domain_id=int(self.graph.env["ROS_DOMAIN_ID"]))
                 self.graph.start()
