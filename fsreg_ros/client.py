@@ -373,13 +373,18 @@ class GraphClient:
         return self._services[name]
 
     def call(self, name: str, payload: Mapping[str, Any], timeout: Optional[float] = None) -> dict:
-        """Call one of the graph's JSON services; its reply (ClientError with the service's error kind)."""
+        """Call one of the graph's JSON services; its reply (ClientError with the service's error kind).
+
+        Every service the client calls is idempotent (status, sync, a consultant's
+        queries), so a call that times out is sent again within ``timeout``: a first
+        request to a server just discovered can be lost.
+        """
         timeout = self.timeout if timeout is None else timeout
         client = self.service(name)
         self.spin_until(client.ready, timeout, f"service {self.node.resolve_service_name(name)} is not available",
                         "not-ready")
         try:
-            return self.run(client.call(payload, timeout), timeout + 1.0, f"service {name}")
+            return self.run(client.wait_ready(payload, timeout), timeout + 1.0, f"service {name}")
         except CarrierError as err:
             raise ClientError(printable(str(err)), err.kind) from None
 
@@ -441,15 +446,20 @@ class GraphClient:
         return self._param_clients[key]
 
     def _service_call(self, client, request, timeout: float, what: str):
+        """Call a parameter service (idempotent: sent again after 2, 4, ... s without a reply, until ``timeout``)."""
         self.spin_until(client.service_is_ready, timeout, f"{what}: service {client.srv_name} is not available",
                         "not-ready")
-        future = client.call_async(request)
-        try:
-            self.spin_until(future.done, timeout, what)
-        except ClientError:
-            client.remove_pending_request(future)
-            raise
-        return future.result()
+        deadline, attempt = time.monotonic() + timeout, 2.0
+        while True:
+            future = client.call_async(request)
+            try:
+                self.spin_until(future.done, min(attempt, max(0.0, deadline - time.monotonic())), what)
+                return future.result()
+            except ClientError:
+                client.remove_pending_request(future)
+                if time.monotonic() >= deadline:
+                    raise
+                attempt *= 2
 
     def set_parameters(self, node_name: str, values: Mapping[str, Any], timeout: Optional[float] = None) -> None:
         """Set parameters of node ``node_name`` (relative, e.g. ``wm_manager``) all at once, or none.

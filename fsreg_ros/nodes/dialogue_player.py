@@ -185,6 +185,7 @@ class DialoguePlayer(Node):
         self.graph = graph_identity(self)
         self._sync = JsonClient(self, contract.SYNC.name, group)
         self._status = JsonClient(self, contract.STATUS.name, group)
+        self._consultants = {d: JsonClient(self, contract.consultant_service(d), group) for d in self.scenario.domains}
         self._pending: dict[str, Future] = {}
         self.ledger = EventLedger(self.graph, tuple(self.scenario.domains))
         self.memory: dict[str, Any] = {}
@@ -237,8 +238,9 @@ class DialoguePlayer(Node):
             raise PlayerError(f"graph not ready within {timeout} s: no peers on {', '.join(self._missing_peers())}")
         remaining = max(1.0, timeout - (wallclock.monotonic() - started))
         try:
+            # wait_ready: a first request to a server just discovered can be lost, so it is sent again
             reply = await self._sync.wait_ready({"time": 0.0}, remaining)
-            status = await self._status.call({}, remaining)
+            status = await self._status.wait_ready({}, remaining)
         except CarrierError as err:
             raise PlayerError(f"graph not ready: {err}") from None
         self.memory = reply.get("memory", {})
@@ -256,14 +258,14 @@ class DialoguePlayer(Node):
         ``info``) and this player's subscription sees each consultant.
         """
         domains = list(self.scenario.domains)
-        clients = {d: JsonClient(self, contract.consultant_service(d), self._group) for d in domains}
+        clients = self._consultants
         deadline = wallclock.monotonic() + timeout
         waiting = list(domains)
         while waiting:
             matched = self._events_sub.get_publisher_count() >= len(domains)
             for domain in list(waiting):
                 try:
-                    info = await clients[domain].call({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
+                    info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
                 except CarrierError as err:
                     raise PlayerError(f"graph not ready: {err}") from None
                 if matched and info.get("event_listeners", 0) >= 1:
@@ -277,8 +279,6 @@ class DialoguePlayer(Node):
                         f"graph not ready: the {contract.WM_EVENTS.name} publisher of {', '.join(waiting)} is not "
                         f"matched with this player (its events would be lost)")
                 await wait_until(self, lambda: False, 0.05)
-        for client in clients.values():
-            client.destroy()
 
     async def exchange(self, publisher, message: dict) -> dict:
         """Publish ``message`` and return the answer with its id.
@@ -330,13 +330,10 @@ class DialoguePlayer(Node):
         """
         timeout = self.get_parameter("turn_timeout").value
         for domain in self.scenario.domains:
-            client = JsonClient(self, contract.consultant_service(domain), self._group)
             try:
-                last = int((await client.call({"op": "info"}, timeout))["events"])
+                last = int((await self._consultants[domain].wait_ready({"op": "info"}, timeout))["events"])
             except CarrierError as err:
                 raise PlayerError(f"cannot check the events of '{domain}': {err}") from None
-            finally:
-                client.destroy()
             wanted = last - self.ledger.base[domain]
             done = lambda: self.ledger.fault is not None or self.ledger.heard(domain) >= wanted  # noqa: E731
             await wait_until(self, done, timeout)
