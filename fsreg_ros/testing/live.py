@@ -146,14 +146,44 @@ class LiveGraph:
                        for spec, code in self.graph.dead())
 
     def restart(self, name: str) -> None:
-        """Stop node ``name`` at once (SIGKILL for a process) and start it again; then wait until ready."""
+        """Stop node ``name`` at once (SIGKILL for a process) and start it again; return once it serves again.
+
+        Synchronised positively: a consultant's new incarnation configured by the WM
+        Manager (``wm_manager/ready``), a WM Manager's readiness from its new process, or
+        for the parser, RR and REG one answer that changes nothing (an empty
+        description; a target nobody knows).
+        """
+        spec = next(s for s in self.specs if s.name == name)
+        client = self._client()
+        before = client.readiness() or {}
         if self.graph is not None:
             self.graph.restart(name)
         else:
-            spec = next(s for s in self.specs if s.name == name)
             self.session.remove(self.nodes.pop(name))
             self.nodes[name] = self._add(node_classes()[spec.executable], spec)
+        if spec.executable == "consultant":
+            domain = spec.parameters["domain"]
+            old = before.get("domains", {}).get(domain, {}).get("incarnation")
+
+            def served() -> bool:
+                state = (client.readiness() or {}).get("domains", {}).get(domain, {})
+                return state.get("incarnation") != old and bool(state.get("configured"))
+        elif spec.executable == "wm_manager":
+            def served() -> bool:
+                message = client.readiness() or {}
+                return message.get("pid") != before.get("pid") and bool(message.get("ready"))
+        else:
+            served = None
+        if served is not None:
+            try:
+                client.spin_until(served, self.ready_timeout, f"{name} serving again after its restart")
+            except ClientError as err:
+                raise Timeout(f"{err}{self._dead_nodes()}") from None
         self.wait_ready(self.ready_timeout)
+        if spec.executable in ("parser", "reference_resolution"):
+            client.say(description=[], timeout=self.ready_timeout)
+        elif spec.executable == "reg":
+            client.describe("fsreg-testing-nobody", timeout=self.ready_timeout)
 
     def close(self) -> None:
         """Stop every node and remove the temporary directories this graph made."""
