@@ -256,7 +256,7 @@ class GraphClient:
             self.executor.spin_once(timeout_sec=0.05)
 
     def domains(self) -> list[str]:
-        """Return the graph's domains (from its readiness)."""
+        """Return the names of the graph's domains, as its readiness lists them."""
         message = self.readiness()
         if message is None:
             raise ClientError(f"no fsreg graph answers in {self.where()}", "not-ready")
@@ -487,8 +487,9 @@ class GraphClient:
 
     # ---------------------------------------------------------------- watching
     def watch(self, on_state: Callable[[dict], None], on_event: Optional[Callable[[dict], None]] = None) -> list:
-        """Call ``on_state`` with every ``wm/state`` (latched: each domain's current one first) and ``on_event``
-        with every ``wm/events`` message of this client's graph; return the subscriptions.
+        """Pass every ``wm/state`` and (with ``on_event``) ``wm/events`` message of this graph on; the subscriptions.
+
+        ``wm/state`` is latched: each domain's current state comes first.
 
         A message stamped by another graph raises ClientError ``foreign`` out of the spin.
         """

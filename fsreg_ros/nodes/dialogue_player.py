@@ -151,7 +151,7 @@ class EventLedger:
         return f"consultant '{domain}': " + "; ".join(what)
 
     def trace_events(self) -> list[dict]:
-        """The events heard in the run, without their transport fields, in arrival order."""
+        """Return the events heard in the run, without their transport fields, in arrival order."""
         return [{k: v for k, v in e.items() if k != "_seq"} for e in self.events]
 
 

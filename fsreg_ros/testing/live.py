@@ -210,12 +210,12 @@ class LiveGraph:
     # ------------------------------------------------------------ talking
     def say(self, text: Optional[str] = None, *, description: Optional[Sequence[str]] = None,
             domain: Optional[str] = None, time: Optional[float] = None, timeout: float = 10.0) -> dict:
-        """The human says ``text`` (or a property list); return the ``rr/result`` (``status``, ``resolved``, ...)."""
+        """Say ``text`` (or a property list) as the human; return the ``rr/result`` (``status``, ``resolved``, ...)."""
         return self._client().say(text, description=description, domain=domain, time=time, timeout=timeout)
 
     def describe(self, target: str, *, context: Optional[Sequence[str]] = None, time: Optional[float] = None,
                  timeout: float = 10.0) -> dict:
-        """The robot describes ``target``; return the ``reg/expression`` (``text``, ``description``, ...)."""
+        """Ask the robot to describe ``target``; return the ``reg/expression`` (``text``, ``description``, ...)."""
         return self._client().describe(target, context=context, time=time, timeout=timeout)
 
     def assert_facts(self, entity: str, properties: Union[Mapping[str, float], Sequence[str]], *,
@@ -255,7 +255,7 @@ class LiveGraph:
 
     @property
     def identity(self) -> str:
-        """This graph's identity (the ``graph`` parameter of every node)."""
+        """Return this graph's identity, the ``graph`` parameter of every node."""
         return self.graph_id
 
 

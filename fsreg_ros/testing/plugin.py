@@ -20,7 +20,7 @@ import pytest
 
 @pytest.fixture
 def fsreg_graph() -> Iterator[Callable[..., Any]]:
-    """Return a factory: ``fsreg_graph(scenario, **options)`` starts a LiveGraph (stopped after the test)."""
+    """Return a factory of live graphs: each call starts a LiveGraph, stopped after the test."""
     from .live import LiveGraph  # loads rclpy only when a test asks for a graph
 
     graphs: list[LiveGraph] = []
