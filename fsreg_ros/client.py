@@ -181,11 +181,14 @@ class GraphClient:
         Two messages from WM Managers that are not both matched now (one was restarted)
         are not a clash: the latest heard stands.
         """
-        if self._ready_sub.get_publisher_count() > len(self.ready_messages):
-            # Another WM Manager is matched: collect its latched message (or let a dead one's entity go).
+        def others() -> bool:  # another WM Manager is known (matched, or a node of that name): hear it
+            managers = sum(1 for name, ns in self.node.get_node_names_and_namespaces()
+                           if name == "wm_manager" and ns == self.namespace)
+            return max(self._ready_sub.get_publisher_count(), managers) > len(self.ready_messages)
+
+        if others():  # collect its latched message (or let a dead one's entity go)
             deadline = time.monotonic() + CLASH_WAIT
-            while (time.monotonic() < deadline
-                   and self._ready_sub.get_publisher_count() > len(self.ready_messages)):
+            while time.monotonic() < deadline and others():
                 self.executor.spin_once(timeout_sec=0.01)
         if len(self.ready_messages) > 1 and self._ready_sub.get_publisher_count() <= 1:
             latest = max(self.ready_messages, key=self._ready_heard.__getitem__)

@@ -148,7 +148,13 @@ def test_fsreg_up_and_fsreg_ctl_as_a_user_runs_them(table1_up):
 
 def test_ctrl_c_stops_every_node_and_a_second_graph_in_the_namespace_is_refused(table1_path, tmp_path):
     ns = namespace()
-    up = Up(str(table1_path), "--namespace", ns, "--state-dir", str(tmp_path / "state"))
+    up = Up(str(table1_path), "--namespace", ns, "--state-dir", str(tmp_path / "state"), "--json", "--wall-time")
+    report = json.loads(up.ready)
+    assert report["ready"] is True and report["namespace"] == f"/{ns}" and report["clock"] is None
+    assert report["ros_domain_id"] == int(os.environ["ROS_DOMAIN_ID"]) and report["graph"].startswith("fsreg-up-")
+    assert report["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}  # the scenario's own
+    assert report["topics"]["dialogue/human"] == f"/{ns}/dialogue/human"
+    assert report["services"]["consultant/faces"] == f"/{ns}/consultant/faces"
     try:
         second = subprocess.run([str(BIN / "fsreg-up"), str(table1_path), "--namespace", ns], capture_output=True,
                                 text=True, timeout=120)
