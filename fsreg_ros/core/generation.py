@@ -168,14 +168,19 @@ async def _baseline_view(
     """Return what a baseline works from: the open view and each property's rule-out bitmask.
 
     The view's ``queue`` is Q[target], reported only (docs/semantics.md section 6; baselines never
-    use WM); for each property holding for the target (preference order), the bitmask
-    of distractors it rules out (bit i = the i-th distractor in entity order).
-    Queries only, no encoding.
+    use WM); for each property holding for the target *that the port's preference order
+    names*, in that order, the bitmask of distractors it rules out (bit i = the i-th
+    distractor in entity order).  A property the order does not name is never
+    considered, and ties are broken by the order (the port may serve a per-call order,
+    :class:`~fsreg_ros.core.describe.ViewPort`).  Queries only, no encoding.
     """
     if view is None:
         view = await port.open(target, context)
+    preference = await port.preference()
     props, masks = await port.rule_out(view)
-    return view, props, masks
+    rank = {p: i for i, p in enumerate(preference)}
+    named = sorted((rank[p], p, m) for p, m in zip(props, masks) if p in rank)
+    return view, [p for _, p, _ in named], [m for _, _, m in named]
 
 
 async def full_brevity(

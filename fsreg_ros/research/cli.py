@@ -109,7 +109,7 @@ def write_per_trial(path: Path, results: list) -> None:
             for s in result.scores:
                 writer.writerow([
                     s.trial, s.domain, s.condition, s.algorithm, " ".join(s.order), " ".join(s.description),
-                    " ".join(s.gold), f"{s.dice:.4f}", f"{s.masi:.4f}", int(s.minimal), int(s.unique),
+                    " ".join(s.gold), f"{s.dice:.6f}", f"{s.masi:.6f}", int(s.minimal), int(s.unique),
                 ])
 
 
