@@ -71,6 +71,10 @@ class Expression:
     distractors_left: list[str] = field(default_factory=list)
     wm_before: list[str] = field(default_factory=list)
     text: str = ""
+    #: Parallel to ``description``: for a property taken from WM, the raw origin of its entry in
+    #: Q[target] (``{"cause", "turn"}`` of the encoding that made it enter, as the buffer kept it);
+    #: None for the others.  :mod:`fsreg_ros.core.alignment` names it from the turns' records.
+    origins: list[Optional[dict]] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {
@@ -83,6 +87,7 @@ class Expression:
             "distractors_left": list(self.distractors_left),
             "wm_before": list(self.wm_before),
             "text": self.text,
+            "origins": [None if o is None else dict(o) for o in self.origins],
         }
 
 
@@ -123,6 +128,7 @@ async def sd_pia(
         view = await port.open(target, context)
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
+    entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
     remaining = view.size
     considered: set[str] = set()
     selected_attributes: set[str] = set()
@@ -140,6 +146,7 @@ async def sd_pia(
         if step.target_holds and step.size < remaining:
             expression.description.append(prop)
             expression.sources.append(source)
+            expression.origins.append(entered.get(prop) if source == "wm" else None)
             selected_attributes.add(attribute_of(prop, attributes))
             remaining = step.size
 
@@ -232,6 +239,7 @@ async def full_brevity(
     expression = Expression(target, port.domain, "full-brevity", wm_before=list(view.queue))
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
+    expression.origins = [None] * len(chosen)
     return await _finish(expression, view, port, time, turn, ruled_out=best_cover)
 
 
@@ -268,6 +276,7 @@ async def greedy(
             break
         expression.description.append(props[best])
         expression.sources.append("ltm")
+        expression.origins.append(None)
         used.add(attribute_of(props[best], attributes))
         remaining &= ~masks[best]
     return await _finish(expression, view, port, time, turn, ruled_out=everyone & ~remaining)
