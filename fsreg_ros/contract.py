@@ -346,12 +346,20 @@ class Narrowing(Message):
     size: int
 
 
+class Origin(Message):
+    """What made a property enter a WM queue: the encoding's cause and dialogue turn."""
+
+    cause: str
+    turn: Optional[int] = None
+
+
 class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
 
     ``queue`` is LRU first ([] without a target); ``retains`` whether the domain's WM
     retains anything (policy not ``none``); ``holding`` the properties holding for the
-    target (preference order; null without a target).
+    target (preference order; null without a target); ``origins`` what made each
+    property of ``queue`` enter it (parallel to ``queue``).
     """
 
     session: str
@@ -360,6 +368,7 @@ class OpenReply(Versioned):
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None
+    origins: list[Origin] = []
 
 
 class NarrowReply(Narrowing, Versioned):
