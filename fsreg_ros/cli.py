@@ -260,10 +260,17 @@ def one_line(err: BaseException) -> str:
     return " ".join(str(err).split())
 
 
+def loaded(args: argparse.Namespace) -> tuple[Lexicon, Any]:
+    """Return the lexicon and scenario of ``args``, loaded once per command (every run and the baseline share them)."""
+    if getattr(args, "loaded", None) is None:
+        lexicon = Lexicon.load(args.lexicon)
+        args.loaded = (lexicon, load_scenario(args.scenario, lexicon))
+    return args.loaded
+
+
 def play_core(args: argparse.Namespace, options: Options, trace: bool) -> tuple[dict, Optional[list[dict]]]:
     """Play the scenario of ``args`` with the core; return (result, WM event trace if ``trace`` else None)."""
-    lexicon = Lexicon.load(args.lexicon)
-    scenario = load_scenario(args.scenario, lexicon)
+    lexicon, scenario = loaded(args)
     simulation = Simulation(scenario, options, lexicon, trace=trace)
     result = simulation.run()
     return result, simulation.trace() if trace else None
