@@ -127,8 +127,19 @@ class RegRequest(Stamp):
     context: Optional[list[str]] = None
 
 
+class Origin(Message):
+    """What made a property enter a WM queue: the encoding's cause and dialogue turn."""
+
+    cause: str
+    turn: Optional[int] = None
+
+
 class RegExpression(Message):
-    """``reg/expression``: the referring expression for one request."""
+    """``reg/expression``: the referring expression for one request.
+
+    ``origins`` is parallel to ``description``: for a property taken from WM, what had made
+    it enter Q[target]; null for the others (alignment names it, core/alignment.py).
+    """
 
     id: Id
     target: str
@@ -141,6 +152,7 @@ class RegExpression(Message):
     distractors_left: list[str]
     wm_before: list[str]
     text: str
+    origins: list[Optional[Origin]] = []
 
 
 class RegError(Message):
@@ -344,13 +356,6 @@ class Narrowing(Message):
 
     target_holds: bool
     size: int
-
-
-class Origin(Message):
-    """What made a property enter a WM queue: the encoding's cause and dialogue turn."""
-
-    cause: str
-    turn: Optional[int] = None
 
 
 class OpenReply(Versioned):
