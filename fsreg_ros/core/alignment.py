@@ -221,7 +221,7 @@ def gain(summary: AlignmentSummary, baseline: AlignmentSummary) -> float:
 
 
 def _paired(summary: AlignmentSummary, baseline: AlignmentSummary) -> list[tuple[TurnAlignment, TurnAlignment]]:
-    """The robot turns of the same game under two policies, paired by turn index."""
+    """Pair the robot turns of the same game under two policies by turn index."""
     theirs = {t.turn: t for t in baseline.turns}
     return [(t, theirs[t.turn]) for t in summary.turns if t.turn in theirs]
 

@@ -72,7 +72,9 @@ MAX_BOARD_SIZE = 48
 #: The robot's preference order per domain (the same in every game).
 ROBOT_ORDERS = {d: tuple(v for values in attrs.values() for v in values) for d, attrs in DOMAIN_ATTRIBUTES.items()}
 ROBOT_ORDER = ROBOT_ORDERS[DOMAIN]
-PROPERTY_ATTRIBUTE = {value: a for attrs in DOMAIN_ATTRIBUTES.values() for a, values in attrs.items() for value in values}
+PROPERTY_ATTRIBUTE = {
+    value: a for attrs in DOMAIN_ATTRIBUTES.values() for a, values in attrs.items() for value in values
+}
 
 
 @dataclass(frozen=True)
@@ -105,12 +107,12 @@ class Game:
 
     @property
     def board(self) -> dict:
-        """The faces board (every world has one)."""
+        """Return the board of faces; every world has one."""
         return self.boards[DOMAIN]
 
     @property
     def human_order(self) -> tuple:
-        """The human's order over faces."""
+        """Return the human's order over faces."""
         return self.human_orders[DOMAIN]
 
     def kb_hash(self) -> str:

@@ -88,6 +88,7 @@ def policy_plot(policy: str, entries: Sequence[dict], none: Optional[dict], out:
         groups[(tuple(getattr(s, p) for p in line_params), s.retraction)].append(entry)
     xs_all = sorted({getattr(e["setting"], x_param) for e in entries}) if x_param else [0]
     n = max(e["n"] for e in entries)
+    colours = {values: f"C{i % 10}" for i, values in enumerate(dict.fromkeys(v for v, _ in groups))}
     for ax, (metric, title) in zip(axes, panels):
         for (line_values, told), group in groups.items():
             group = sorted(group, key=lambda e: getattr(e["setting"], x_param) if x_param else 0)
@@ -98,12 +99,16 @@ def policy_plot(policy: str, entries: Sequence[dict], none: Optional[dict], out:
             if dynamic:
                 label += "" if told else " (WM not told)"
             ax.errorbar(xs, [e.mean for e in est], yerr=[[e.mean - e.low for e in est], [e.high - e.mean for e in est]],
-                        marker="o", capsize=3, linestyle="-" if told else "--", label=label)
+                        marker="o" if told else "s", capsize=3, linestyle="-" if told else "--", label=label,
+                        color=colours[line_values])
         if metric.endswith("_gain") or metric.endswith("_change"):
             ax.axhline(0.0, color="gray", linewidth=0.8)
         elif none is not None and metric in none["estimates"] and none["estimates"][metric].mean:
             ax.axhline(none["estimates"][metric].mean, color="gray", linestyle="--", label="none")
         ax.set_title(title, fontsize=9)
+        if x_param == "decay_period" and len(xs_all) > 2 and xs_all[-1] / xs_all[0] > 8:
+            ax.set_xscale("log")  # periods spread over decades: equal steps for doublings
+            ax.minorticks_off()
         ax.set_xticks(xs_all)
         if x_param in INTEGER or x_param is None:
             ax.set_xticklabels([str(int(x)) for x in xs_all] if x_param else ["(no parameter)"])
@@ -147,8 +152,20 @@ def divergence_curve(
     return out
 
 
+#: At most this many settings per panel of the divergence plot (evenly chosen; divergence.csv has all).
+DIVERGENCE_LINES = 6
+
+
+def shown_settings(settings: Sequence[Any], most: int = DIVERGENCE_LINES) -> list:
+    """Return at most ``most`` of ``settings``, evenly spread over the grid order, first and last included."""
+    if len(settings) <= most:
+        return list(settings)
+    picks = sorted({round(i * (len(settings) - 1) / (most - 1)) for i in range(most)})
+    return [settings[i] for i in picks]
+
+
 def divergence_plot(curves: Mapping[tuple, Sequence[int]], out: Path) -> Optional[str]:
-    """Draw the divergence from ``none`` by robot turn, one panel per policy, one line per setting."""
+    """Draw the divergence from ``none`` by robot turn, one panel per policy, one line per setting shown."""
     settings = list(dict.fromkeys(s for s, _ in curves if s.policy != "none"))
     if not settings:
         return None
@@ -156,23 +173,36 @@ def divergence_plot(curves: Mapping[tuple, Sequence[int]], out: Path) -> Optiona
     turns = max(len(f) for f in curves.values())
     window = max(1, turns // 20)
     games = len({seed for _, seed in curves})
+    columns = min(3, len(policies))
+    rows = (len(policies) + columns - 1) // columns
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(policies), figsize=(5.0 * len(policies), 4.0), squeeze=False)
-    for ax, policy in zip(axes[0], policies):
-        for setting in (s for s in settings if s.policy == policy):
+    fig, axes = plt.subplots(rows, columns, figsize=(5.2 * columns, 3.8 * rows + 0.5), squeeze=False)
+    for ax in axes.flat[len(policies):]:
+        ax.set_visible(False)
+    omitted = []
+    for ax, policy in zip(axes.flat, policies):
+        mine = [s for s in settings if s.policy == policy]
+        told = [s for s in mine if s.retraction]  # WM not told of changes diverges alike: one family is drawn
+        shown = shown_settings(told or mine)
+        if len(shown) < len(mine):
+            omitted.append(f"{policy}: {len(shown)} of {len(mine)}")
+        for setting in shown:
             curve = divergence_curve(curves, setting, window)
             xs = [j for j, _, _, _ in curve]
-            ax.plot(xs, [m for _, m, _, _ in curve], label=setting.label().split(" ", 1)[-1] or policy)
-            ax.fill_between(xs, [lo for _, _, lo, _ in curve], [hi for _, _, _, hi in curve], alpha=0.2)
+            ax.plot(xs, [m for _, m, _, _ in curve], label=setting.label().split(" ", 1)[-1] or policy,
+                    linestyle="-" if setting.retraction else "--")
+            ax.fill_between(xs, [lo for _, _, lo, _ in curve], [hi for _, _, _, hi in curve], alpha=0.15)
         ax.set_title(policy, fontsize=10)
         ax.set_xlabel(f"robot turn (blocks of {window})")
+        ax.set_ylabel("share differing from none")
         ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    axes[0][0].set_ylabel("share of descriptions differing from none")
+        ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Divergence from No-WM by robot turn")
+    note = f" Settings shown ({'; '.join(omitted)}): WM told of fact changes, evenly chosen over the grid; " \
+           "divergence.csv has all." if omitted else ""
     _caption(fig, f"Lines: mean over n = {games} games of each game's share of differing descriptions in the "
-                  f"block; bands: {METHOD}.")
+                  f"block; bands: {METHOD}.{note}")
     fig.tight_layout(rect=(0, 0.05, 1, 1))
     fig.savefig(out / "divergence_by_turn.png", dpi=100)
     plt.close(fig)
@@ -184,10 +214,15 @@ def tradeoff_plot(summary: Sequence[dict], out: Path, bounds: Sequence[float]) -
     plt = _pyplot()
     configurations = list(dict.fromkeys(e["setting"].wm for e in summary if e["setting"].policy != "none"))
     none = [e for e in summary if e["setting"].policy == "none"]
-    fig, axes = plt.subplots(1, len(configurations), figsize=(4.6 * len(configurations), 4.2), squeeze=False,
-                             sharey=True)
+    columns = 2 if len(configurations) > 1 else 1
+    rows = (len(configurations) + columns - 1) // columns
+    fig, axes = plt.subplots(rows, columns, figsize=(6.5 * columns, 4.0 * rows + 0.6), squeeze=False,
+                             sharex=True, sharey=True)
     n = max(e["n"] for e in summary)
-    for ax, wm in zip(axes[0], configurations):
+    worst = max(e["estimates"]["outdated_rate"].high for e in summary)
+    for ax in axes.flat[len(configurations):]:
+        ax.set_visible(False)
+    for ax, wm in zip(axes.flat, configurations):
         mine = [e for e in summary if e["setting"].wm == wm and e["setting"].policy != "none"]
         for policy in dict.fromkeys(e["setting"].policy for e in mine):
             points = [e for e in mine if e["setting"].policy == policy]
@@ -201,12 +236,13 @@ def tradeoff_plot(summary: Sequence[dict], out: Path, bounds: Sequence[float]) -
             ax.axhline(e["estimates"]["entrainment"].mean, color="gray", linestyle="--", label="none")
         for bound in bounds:
             ax.axvline(bound, color="black", linewidth=0.8, linestyle=":")
-            ax.text(bound, ax.get_ylim()[0], f" {bound:.0%}", fontsize=7, va="bottom")
+            ax.text(bound, 0.02, f" {bound:.0%}", fontsize=7, va="bottom", transform=ax.get_xaxis_transform())
         ax.set_title(f"WM: {wm}", fontsize=10)
+        ax.set_xlim(-0.002, max(worst, max(bounds)) * 1.1)
         ax.set_xlabel("outdated rate (share of properties said no longer true)")
+        ax.set_ylabel("entrainment (Dice with the\nhuman's last description)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    axes[0][0].set_ylabel("entrainment (Dice with the human's last description)")
     fig.suptitle("Entrainment against outdated information, one point per setting")
     _caption(fig, f"Points: means over n = {n} games; bars: {METHOD}; dotted lines: the recommendation's bounds.")
     fig.tight_layout(rect=(0, 0.05, 1, 1))

@@ -166,7 +166,7 @@ def _number(value: Any) -> str:
 
 
 def reads(policy: str, extra: dict) -> tuple:
-    """Return the grid parameters ``policy`` reads (those ``extra`` does not fix), in :data:`GRID` order."""
+    """Return the grid parameters read by a policy, in :data:`GRID` order; ``extra`` fixes some of them."""
     if policy == "none":
         return ()
     wanted = {p for rule in parse_rules(policy) for p in RULE_PARAMETERS[rule]}
@@ -358,21 +358,20 @@ def write_recommendation(path: Path, table: Sequence[dict]) -> None:
     """Write recommendation.csv (one row per WM configuration and bound)."""
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(["wm", "max_outdated_rate", "policy", *GRID, "entrainment", "entrainment_low",
-                         "entrainment_high", "entrainment_gain", "outdated_rate", "outdated_rate_low",
-                         "outdated_rate_high", "settings_allowed", "settings_considered"])
+        metrics = ("entrainment", "entrainment_gain", "outdated_rate")
+        writer.writerow(["wm", "max_outdated_rate", "policy", *GRID]
+                        + [f"{m}{suffix}" for m in metrics for suffix in ("", "_low", "_high")]
+                        + ["settings_allowed", "settings_considered"])
         for entry in table:
             best = entry["best"]
             if best is None:
-                writer.writerow([entry["wm"], entry["bound"], "", *[""] * len(GRID), *[""] * 7, 0,
+                writer.writerow([entry["wm"], entry["bound"], "", *[""] * len(GRID), *[""] * 9, 0,
                                  entry["considered"]])
                 continue
             s, e = best["setting"], best["estimates"]
-            writer.writerow([entry["wm"], entry["bound"], s.policy, *(_cell(getattr(s, p)) for p in GRID),
-                             _cell(e["entrainment"].mean), _cell(e["entrainment"].low), _cell(e["entrainment"].high),
-                             _cell(e["entrainment_gain"].mean), _cell(e["outdated_rate"].mean),
-                             _cell(e["outdated_rate"].low), _cell(e["outdated_rate"].high), entry["allowed"],
-                             entry["considered"]])
+            cells = [_cell(x) for m in metrics for x in (e[m].mean, e[m].low, e[m].high)]
+            writer.writerow([entry["wm"], entry["bound"], s.policy, *(_cell(getattr(s, p)) for p in GRID), *cells,
+                             entry["allowed"], entry["considered"]])
 
 
 # ---------------------------------------------------------------------- files
