@@ -223,3 +223,14 @@ def test_printed_table_equals_the_recorded_figures_rounded_once(tuna_dir, capsys
         for (label, domain, cond, algorithm), v in RECORDED.items() if label == "given"
     }
     assert printed == expected
+
+
+def test_documented_tables_equal_the_recorded_figures():
+    """docs/research.md's tables (written by scripts/figures.sh) are the recorded rows, rounded once."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "research.md").read_text(encoding="utf-8")
+    for label, name in (("given", "tuna"), ("learned", "tuna-learned")):
+        block = text.split(f"<!-- figure {name} -->", 1)[1].split("<!-- /figure -->", 1)[0]
+        rows = [line.split() for line in block.splitlines() if line.startswith(("furniture ", "people "))]
+        documented = {(label, *cells[:3]): [cells[3], *cells[4:9]] for cells in rows}
+        recorded = {key: [str(v[0])] + [f"{x:.3f}" for x in v[1:6]] for key, v in RECORDED.items() if key[0] == label}
+        assert documented == recorded
