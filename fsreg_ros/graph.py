@@ -41,7 +41,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
-from .cli import run_cli, warn_unsayable
+from .cli import needs_trace, run_cli, warn_unsayable
 from .contract import CLOCK, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
 from .core.lexicon import Lexicon
@@ -371,8 +371,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if namespace is not None and not checked:  # a namespace given: is a graph running there already?
             checked.append(True)
             refuse_running_graph(namespace)
-        # The trace always: the shared CLI measures alignment from it.
-        return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon, namespace=namespace)
+        # The trace only when an option writes it: alignment reads the result records alone.
+        return run_graph(args.scenario, options, trace=needs_trace(args), lexicon=args.lexicon, namespace=namespace)
 
     try:
         return run_cli(
