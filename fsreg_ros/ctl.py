@@ -280,8 +280,8 @@ class Ctl:
         args = self.args
         if args.command in ("status", "watch"):  # these work on a graph that is not ready (yet)
             self._find(client)
-        else:
-            client.wait_ready(self.timeout)
+        else:  # say, describe and assert wait for their own topics to match (GraphClient.exchange)
+            client.wait_ready(self.timeout, pipeline=False)
         if args.command == "say":
             description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
             answer = client.say(" ".join(args.text) if args.text else None, description=description,
