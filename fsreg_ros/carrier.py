@@ -33,6 +33,7 @@ its own :class:`~rclpy.callback_groups.ReentrantCallbackGroup`.
 from __future__ import annotations
 
 import inspect
+import sys
 import time
 import weakref
 from typing import Any, Awaitable, Callable, Mapping, Optional, Union
@@ -95,6 +96,35 @@ def _context(where: str, rid: Any) -> str:
     return f"{where} (id {printable(repr(rid), 80)})" if rid is not None else where
 
 
+def log_warning(logger, text: Any) -> None:
+    """Log one warning line that cannot raise (see :func:`log_error`)."""
+    try:
+        logger.warning(printable(text))
+    except Exception as err:  # noqa: BLE001 - a log line must never take a node down
+        _log_fallback("warning", text, err)
+
+
+def log_error(logger, text: Any) -> None:
+    """Log one error line that cannot raise.
+
+    rclpy remembers each logging call site and raises ``ValueError`` if one site logs
+    with another severity (or other filters) later, and the text may hold anything a
+    message carried.  So every severity has its own call site here, the text is made
+    printable, and a logger failure goes to stderr instead of out of the callback.
+    """
+    try:
+        logger.error(printable(text))
+    except Exception as err:  # noqa: BLE001 - a log line must never take a node down
+        _log_fallback("error", text, err)
+
+
+def _log_fallback(severity: str, text: Any, err: BaseException) -> None:
+    try:
+        print(printable(f"[{severity}] {text} (logger failed: {type(err).__name__}: {err})"), file=sys.stderr)
+    except Exception:  # noqa: BLE001 - stderr closed: nothing left to tell
+        pass
+
+
 async def _run(handler, text: str, max_bytes: Limit, seen: dict) -> Any:
     """Decode ``text`` (bounded), note its request id in ``seen``, run ``handler``; return its result."""
     payload = parse(text, max_bytes=_limit(max_bytes))
@@ -129,15 +159,16 @@ def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGr
             text = dumps(result)
         except (ValueError, CarrierError) as err:
             rid = seen.get("id")
-            logger.warning(printable(f"{_context(name, rid)}: {err}"))
+            log_warning(logger, f"{_context(name, rid)}: {printable(err)}")
             response.success = False
             response.message = error_json(err, error_kind(err), rid)
             return response
         except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
             rid = seen.get("id")
-            logger.error(printable(f"{_context(name, rid)}: internal error: {type(err).__name__}: {err}"))
+            text = f"internal error: {type(err).__name__}: {printable(err)}"
+            log_error(logger, f"{_context(name, rid)}: {text}")
             response.success = False
-            response.message = error_json(f"internal error: {type(err).__name__}: {err}", "internal", rid)
+            response.message = error_json(text, "internal", rid)
             return response
         response.success = True
         response.message = text
@@ -206,22 +237,25 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
     logger = node.get_logger()
 
     def refuse(rid: Any, error: str, internal: bool) -> None:
-        text = printable(f"{_context(topic.name, rid)}: {error}")
-        (logger.error if internal else logger.warning)(text)
+        text = f"{_context(topic.name, rid)}: {error}"
+        if internal:
+            log_error(logger, text)
+        else:
+            log_warning(logger, text)
         if reject is not None:
             try:
                 reject(rid, printable(error))
             except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
-                logger.error(printable(f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {err}"))
+                log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
 
     async def callback(msg: String) -> None:
         seen: dict = {}
         try:
             await _run(handler, msg.data, max_bytes, seen)
         except (ValueError, CarrierError) as err:
-            refuse(seen.get("id"), str(err), internal=False)
+            refuse(seen.get("id"), printable(err), internal=False)
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
-            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {err}", internal=True)
+            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True)
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group)

@@ -229,3 +229,54 @@ def test_a_service_answers_hostile_requests(graph: Graph):
         err = graph.call_error("/carrier/fail", text)
         assert err.kind in ("internal", "MessageError")
     assert graph.call("/carrier/echo", {"ok": 1}) == {"echo": {"ok": 1}}
+
+
+# ------------------------------------------------------------------ callbacks survive every input
+def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(graph: Graph):
+    """rclpy raises if one logging call site changes severity: a malformed message (a
+    warning) followed by one whose handler fails unexpectedly (an error) once killed
+    REG, RR and the consultant.  Both are logged and answered, and the node serves on."""
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import publisher, subscribe
+
+    node = Node("survivor", context=graph.context)
+    graph.executor.add_node(node)
+    graph.nodes.append(node)
+    handled, rejected = [], []
+
+    def handler(data: dict) -> None:
+        float(data["time"])  # OverflowError for 10**400: not a ValueError, so "internal"
+        handled.append(data["time"])
+
+    subscribe(node, contract.REG_REQUEST, handler, reject=lambda rid, error: rejected.append((rid, error)))
+    publisher(node, contract.REG_EXPRESSION)
+    huge = "1" + "0" * 400
+    for text in ["not json", '{"id": 1, "time": ' + huge + "}", "{", '{"id": 2, "time": -' + huge + "}",
+                 '{"id": 3, "time": 1.5}']:
+        graph.publish("/" + contract.REG_REQUEST.name, text, contract.REG_REQUEST.qos)
+    graph.spin_until(lambda: handled == [1.5], what="the last, valid message")
+    assert [rid for rid, _ in rejected] == [None, 1, None, 2]
+    assert "not JSON" in rejected[0][1] and rejected[1][1].startswith("internal error: OverflowError")
+
+
+def test_a_service_logging_a_warning_then_an_error_keeps_serving(graph: Graph):
+    server = Server(graph.context)
+    graph.executor.add_node(server)
+    graph.nodes.append(server)
+    for _ in range(2):
+        assert graph.call_error("/carrier/fail", "not json").kind == "MessageError"
+        assert graph.call_error("/carrier/fail", {"mode": "bug"}).kind == "internal"
+    assert graph.call("/carrier/echo", {"ok": 2}) == {"echo": {"ok": 2}}
+
+
+def test_log_lines_never_raise():
+    from fsreg_ros.carrier import log_error, log_warning
+
+    class Refusing:
+        def warning(self, text):
+            raise ValueError("Logger severity cannot be changed between calls.")
+
+        error = warning
+
+    log_warning(Refusing(), "x\ud800")
+    log_error(Refusing(), object())
