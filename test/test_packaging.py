@@ -89,13 +89,15 @@ def _launch_nodes(monkeypatch, given: dict) -> list:
 
 
 def test_launch_file_builds_the_graph_spec(monkeypatch):
+    from fsreg_ros.core import settings
     from fsreg_ros.core.forgetting import ForgettingPolicy
     from fsreg_ros.graph_spec import node_specs, policy_settings
 
     given = {"kb": "/tmp/kb.yaml", "domains": "faces, objects", "policy": "displacement", "capacity": "3",
              "namespace": "robot1", "use_sim_time": "true"}
     nodes = _launch_nodes(monkeypatch, given)
-    policy = policy_settings(ForgettingPolicy.parse("displacement", decay_period=10.0, capacity=3, global_capacity=6))
+    defaults = {row.name: row.default for row in settings.TABLE}  # the launch arguments' defaults
+    policy = policy_settings(ForgettingPolicy.from_settings({**defaults, "policy": "displacement", "capacity": 3}))
     expected = node_specs("/tmp/kb.yaml", ["faces", "objects"], {"faces": policy, "objects": policy},
                           use_sim_time=True, algorithm="auto", wm_order="lru-first")
     got = [(n.kwargs["executable"], n.kwargs["name"], n.kwargs["parameters"]) for n in nodes]

@@ -24,20 +24,15 @@ armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
 a clock that does not move is reported (``common.watch_clock``).
 
-Parameters (all but ``domains`` changeable at run time; every numeric one has a
-declared range, so ``ros2 param describe`` shows it; a change is validated as the
+Parameters (all but ``domains`` changeable at run time; a change is validated as the
 effective policy of every domain and rejected with a reason if any is invalid;
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
     ``domains`` (string array, required, read-only): the consultant domains managed;
-    ``policy`` (default ``none``), ``decay_period`` (10.0 s, in [0.01, 1e6]),
-    ``capacity`` (2, in [1, 10000]), ``global_capacity`` (6, in [1, 1e6]),
-    ``seed`` (0, in [0, 2**31 - 1]), ``shared_capacity`` (12, in [1, 1e6]):
-    defaults for every domain (bounds:
-    :data:`fsreg_ros.core.forgetting.BOUNDS`);
-    ``<domain>.policy`` (``""`` = inherit), ``<domain>.decay_period`` (0 = inherit,
-    else in [0.01, 1e6]), ``<domain>.capacity``, ``<domain>.global_capacity``,
-    ``<domain>.shared_capacity`` (0 = inherit), ``<domain>.seed`` (-1 = inherit):
-    the ranges include the inherit marker;
+    one parameter per memory setting (``policy``, ``decay_period``, ``capacity``, ...:
+    the settings table :mod:`fsreg_ros.core.settings`, with its defaults, bounds as
+    declared ranges, and help as descriptions): the setting of every domain;
+    ``<domain>.<setting>`` the same per domain, defaulting to the table's inherit marker
+    (``""``, 0, or -1 for ``seed``: use the node-wide value), the range widened to it;
     ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of each consultant call.
 
 Services (JSON in ``AddDiagnostics``):
@@ -87,29 +82,13 @@ from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
 from ..codec import NUMBER, check_fields
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError, TickRun
-from ..core.forgetting import BOUNDS, ForgettingPolicy, PolicyError, check_setting
+from ..core import settings
+from ..core.forgetting import ForgettingPolicy, PolicyError, check_setting
 from ..core.wm_manager import WMManager
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 
-#: Defaults for every domain (docs/semantics.md section 5 names).
-DEFAULTS: dict[str, Any] = {
-    "policy": "none",
-    "decay_period": 10.0,
-    "capacity": 2,
-    "global_capacity": 6,
-    "seed": 0,
-    "shared_capacity": 12,
-}
-#: Per-domain "inherit" markers (each inside its parameter's declared range).
-INHERIT: dict[str, Any] = {
-    "policy": "",
-    "decay_period": 0.0,
-    "capacity": 0,
-    "global_capacity": 0,
-    "seed": -1,
-    "shared_capacity": 0,
-}
-SETTINGS = tuple(DEFAULTS)
+#: The memory settings, each a node-wide parameter and one per domain (core/settings.py).
+SETTINGS = settings.names()
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
 #: How often unconfigured consultants are looked for and stale calls expired (s).
@@ -117,37 +96,27 @@ SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
 
-DESCRIPTIONS = {
-    "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
-    "displacement-random, similarity, global-capacity, shared-capacity)",
-    "decay_period": "decay period delta, seconds",
-    "capacity": "per-entity queue limit alpha",
-    "global_capacity": "per-domain total limit",
-    "seed": "seed of displacement-random",
-    "shared_capacity": "limit of the pool shared by every domain with shared-capacity",
-}
-
 
 def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
-    """Return a memory setting's descriptor, with the core's bounds as its range.
+    """Return a memory setting's descriptor, from its row of the settings table.
 
-    A per-domain setting's range is widened to include its inherit marker.
+    A numeric setting's range is its bounds; a per-domain setting's range is widened
+    down to its inherit marker (which is below the bounds, so it is never a real value).
     """
-    text = DESCRIPTIONS[key]
+    row = settings.setting(key)
+    text = row.description
     if domain is not None:
-        text = f"domain '{domain}' {text}; {INHERIT[key]!r} = inherit '{key}'"
+        text = f"domain '{domain}' {text}; {row.inherit!r} = inherit '{key}'"
     out = ParameterDescriptor(description=text)
-    if key == "policy":
+    if not row.is_parameter:
         return out
-    low, high = BOUNDS[key]
-    if domain is not None:
-        low = INHERIT[key]
-    if key == "decay_period":
-        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-        if domain is not None:
-            out.additional_constraints = f"0 (inherit) or in [{BOUNDS[key][0]:g}, {high:g}]"
+    low = row.inherit if domain is not None else row.low
+    if row.kind is float:
+        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(row.high), step=0.0)]
     else:
-        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(row.high), step=1)]
+    if domain is not None:
+        out.additional_constraints = f"{row.inherit!r} (inherit) or {row.bounds_text}"
     return out
 
 
@@ -223,11 +192,11 @@ class WMManagerNode(Node):
             floating_point_range=[FloatingPointRange(from_value=TIMEOUT_RANGE[0], to_value=TIMEOUT_RANGE[1], step=0.0)],
         )
         try:
-            for key in SETTINGS:
-                self.declare_parameter(key, DEFAULTS[key], setting_descriptor(key))
+            for row in settings.TABLE:
+                self.declare_parameter(row.name, row.default, setting_descriptor(row.name))
             for name in names:
-                for key in SETTINGS:
-                    self.declare_parameter(f"{name}.{key}", INHERIT[key], setting_descriptor(key, name))
+                for row in settings.TABLE:
+                    self.declare_parameter(f"{name}.{row.name}", row.inherit, setting_descriptor(row.name, name))
             self.declare_parameter("service_timeout", 10.0, timeout)
             policies = self._effective(self._values())
         except (InvalidParameterTypeException, InvalidParameterValueException) as err:
@@ -299,14 +268,15 @@ class WMManagerNode(Node):
         policies = {}
         for d in self._names:
             merged = {}
-            for key in SETTINGS:
+            for row in settings.TABLE:
+                key = row.name
                 own = values[f"{d}.{key}"]
-                if own != INHERIT[key]:
+                if own != row.inherit:
                     try:
                         check_setting(key, own)
                     except PolicyError as err:
-                        raise ValueError(f"{d}.{key}: {err} ({INHERIT[key]!r} inherits '{key}')") from None
-                merged[key] = values[key] if own == INHERIT[key] else own
+                        raise ValueError(f"{d}.{key}: {err} ({row.inherit!r} inherits '{key}')") from None
+                merged[key] = values[key] if own == row.inherit else own
             try:
                 policies[d] = ForgettingPolicy.from_settings(merged)
             except PolicyError as err:
