@@ -5,7 +5,8 @@ Decoding (:func:`parse`) is bounded (a text longer than
 (:func:`check_fields`: a type, a tuple of types with ``None`` for JSON ``null``, or
 ``list[T]`` / ``dict[str, T]``); a problem raises :class:`MessageError` naming the field
 and what is wrong.  ``float`` accepts whole numbers; ``int`` never accepts
-``true``/``false``; NaN and infinities are never valid JSON here.
+``true``/``false``; NaN and infinities (``NaN``, ``Infinity``, ``1e999``) are never
+valid JSON here, in any field.
 
 Encoding (:func:`dumps`) refuses what is not JSON.  Error replies go
 through :func:`error_json`/:func:`safe_dumps`, which never raise: non-finite numbers,
@@ -99,6 +100,20 @@ def _reject_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _non_finite_path(value: Any, depth: int = 0) -> Optional[list]:
+    """Return the path to the first non-finite float in a decoded value (None if there is none)."""
+    if isinstance(value, float):
+        return [] if not math.isfinite(value) else None
+    if depth > 200:
+        return None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        found = _non_finite_path(item, depth + 1)
+        if found is not None:
+            return [key, *found]
+    return None
+
+
 def parse(
     text: str,
     required: Optional[Mapping[str, "FieldSpec"]] = None,
@@ -116,12 +131,24 @@ def parse(
         size = len(text.encode("utf-8", "surrogatepass"))
         if size > max_bytes:
             raise MessageError(f"message is {size} bytes, over the limit of {max_bytes}")
+    too_large: list[str] = []
+
+    def parse_float(number: str) -> float:
+        value = float(number)
+        if not math.isfinite(value):  # 1e999: JSON syntax, but no number; located below
+            too_large.append(number)
+        return value
+
     try:
-        obj = json.loads(text, parse_constant=_reject_constant)
+        obj = json.loads(text, parse_constant=_reject_constant, parse_float=parse_float)
     except (ValueError, RecursionError) as err:
         raise MessageError(f"not JSON ({printable(err, 120)}): {printable(text, 80)}") from None
     if not isinstance(obj, dict):
         raise MessageError(f"expected a JSON object, got {_json_kind(obj)}: {printable(text, 80)}")
+    if too_large:
+        path = _non_finite_path(obj) or ["?"]
+        where = f"field '{printable(path[0], 60)}'" + "".join(f"[{printable(repr(p), 40)}]" for p in path[1:])
+        raise MessageError(f"{where}: {_clip(too_large[0], 40)} is too large for a number (not finite)")
     return check_fields(obj, required or {}, optional)
 
 

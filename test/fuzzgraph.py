@@ -9,8 +9,12 @@ Every input is one of:
 * random JSON (any value, any object) or non-JSON text;
 * a structure-aware mutation of a valid message of that endpoint: a required field
   dropped or given the wrong type, a known name replaced by an unknown one, a number
-  replaced by a hostile one (``1e999``, ``NaN``, ``Infinity``, 1e308, 2**64), a lone
-  surrogate, a very long string, deep nesting, extra fields.
+  replaced by a hostile one (``1e999``, ``NaN``, ``Infinity``, 1e308, 2**64, a 401-digit
+  integer, also as a certainty in ``ltm/assert``), a lone surrogate, a very long string,
+  deep nesting, extra fields;
+* each hostile input right after a malformed message on the same endpoint
+  (:func:`fuzz_after_malformed`: a node once died when one logging call site saw a
+  warning and then an error).
 
 Each input carries whether it MUST be rejected (``invalid``) or may be accepted.  The
 checks (:meth:`Fuzzer.check`): the call or message is answered (topics: a message on
@@ -18,7 +22,9 @@ the reply topic; ``/ltm/assert`` naming no consultant's domain has no reply by
 contract), an invalid input is rejected with a reason (an ``error`` field), a
 rejected input leaves every domain's WM and LTM and the WM Manager's status exactly
 as they were, and no callback raised (an exception out of a callback is a node that
-dies in a real process).
+dies in a real process).  A message that has no reply by contract (``consultant/announce``,
+an ``ltm/assert`` for no consultant's domain) is followed by one that must be answered or
+seen after it on the same topic, so the check never waits on a silence.
 """
 
 from __future__ import annotations
@@ -52,19 +58,25 @@ LTM_ASSERT = "/" + contract.LTM_ASSERT.name
 RR_RESULT = "/" + contract.RR_RESULT.name
 REG_EXPRESSION = "/" + contract.REG_EXPRESSION.name
 LTM_RESULT = "/" + contract.LTM_ASSERT_RESULT.name
+ANNOUNCE = "/" + contract.ANNOUNCE.name
 #: Every endpoint fuzzed, for Table 1's one domain.
 ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), SYNC, STATUS,
-             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
-#: Topic -> the topic its answers (and rejections) come back on.
-REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT}
+             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT, ANNOUNCE]
+#: Topic -> the topic its answers (and rejections) come back on (None: no answers by contract).
+REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT,
+               ANNOUNCE: None}
 
 TIME = 1.0  # the sim time the graph stands at while fuzzed
 SESSION = "<session>"  # stands for the id of a consultant session the fuzzer keeps open
+INCARNATION = 424242  # stands for the consultant's current incarnation (replaced when sent)
 REPLY_TIMEOUT = 5.0
 LONG = 100_000  # characters in a "very long" string
 DEEP = 5_000  # nesting depth of a "deep" value
-HOSTILE_NUMBERS = ["1e999", "-1e999", "NaN", "Infinity", "-Infinity", "1e308", "-1e308", str(2**64), "-1"]
-NON_FINITE = {"1e999", "-1e999", "NaN", "Infinity", "-Infinity"}
+HUGE = "1" + "0" * 400  # an integer no float can hold
+HOSTILE_NUMBERS = ["1e999", "-1e999", "NaN", "Infinity", "-Infinity", "1e308", "-1e308", str(2**64), "-1", HUGE,
+                   "-" + HUGE]
+#: Hostile numbers every endpoint must refuse (not JSON numbers, or no float holds them).
+NON_FINITE = {"1e999", "-1e999", "NaN", "Infinity", "-Infinity", HUGE, "-" + HUGE}
 NOT_JSON = ["", "{", "}", "[1,", "null", "nul", "\x00", "{'a': 1}", '{"a": 1}}', "\\ud800", "{\"id\": 1,}"]
 
 
@@ -76,6 +88,8 @@ class Template:
     required: tuple[str, ...]
     names: tuple[str, ...] = ()  # fields holding names the graph must know (str or list of str)
     numbers: tuple[str, ...] = ()  # numeric fields
+    mapped_numbers: tuple[tuple[str, str], ...] = ()  # (field, key) of numbers inside a mapping field
+    valid_numbers: bool = True  # False: only numbers that must be refused are tried (any other is a change)
 
 
 @dataclass
@@ -155,7 +169,12 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         REG_REQUEST: [Template({"id": 0, "target": entity, "time": TIME}, ("id", "target"), ("target",),
                                ("time",))],
         LTM_ASSERT: [Template({"domain": domain, "entity": entity, "properties": {prop: 0.9}, "id": 0},
-                              ("domain", "entity", "properties"), ("domain", "properties"))],
+                              ("domain", "entity", "properties"), ("domain", "properties"),
+                              mapped_numbers=(("properties", prop),))],
+        # The consultant's current incarnation, ready: what a consultant announces after a configure.
+        ANNOUNCE: [Template({"domain": domain, "incarnation": INCARNATION, "ready": True,
+                             "memory": {"policy": "decay", "decay_period": 10.0}},
+                            ("domain", "incarnation", "ready"), (), ("incarnation",), valid_numbers=False)],
     }
 
 
@@ -226,7 +245,7 @@ def mutations(draw, template: Template, fresh_id: int) -> Input:
         return Input(json.dumps({**payload, key: value}), True, f"{key} {kind}")
     if kind == "hostile-number" and template.numbers:
         key = draw(st.sampled_from(template.numbers))
-        number = draw(st.sampled_from(HOSTILE_NUMBERS))
+        number = draw(st.sampled_from(hostile_numbers(template)))
         raw = f"[{number}]" if isinstance(payload[key], list) else number
         return Input(_with(payload, key, raw), number in NON_FINITE, f"{key} = {number}")
     if kind == "surrogate" or kind == "long":  # no name field: into any string field (may be accepted)
@@ -243,6 +262,25 @@ def mutations(draw, template: Template, fresh_id: int) -> Input:
                                      json_values(4), min_size=1, max_size=3))
         return Input(json.dumps({**payload, **extra}), False, f"extra fields {sorted(extra)}")
     return Input(json.dumps(payload), False, "valid")
+
+
+def hostile_numbers(template: Template) -> list[str]:
+    """Return the hostile numbers to try on ``template``'s numeric fields."""
+    return HOSTILE_NUMBERS if template.valid_numbers else [n for n in HOSTILE_NUMBERS if n in NON_FINITE]
+
+
+def number_inputs(template: Template, payload) -> list[Input]:
+    """Every hostile number in every numeric field of ``template`` (``payload()`` gives a fresh valid one)."""
+    out = []
+    for key in template.numbers:
+        for number in hostile_numbers(template):
+            raw = f"[{number}]" if isinstance(template.payload[key], list) else number
+            out.append(Input(_with(payload(), key, raw), number in NON_FINITE, f"{key} = {number}"))
+    for key, inner in template.mapped_numbers:
+        for number in hostile_numbers(template):
+            mapping = _with(template.payload[key], inner, number)
+            out.append(Input(_with(payload(), key, mapping), number in NON_FINITE, f"{key}.{inner} = {number}"))
+    return out
 
 
 def catalogue(template: Template, fresh_ids) -> list[Input]:
@@ -262,10 +300,7 @@ def catalogue(template: Template, fresh_ids) -> list[Input]:
         for kind, name in (("unknown-name", "zz-unknown"), ("surrogate", "face\ud800"), ("long", "n" * LONG)):
             value = [name] if isinstance(base[key], list) else ({name: 0.9} if isinstance(base[key], dict) else name)
             out.append(Input(json.dumps({**payload(), key: value}), True, f"{key} {kind}"))
-    for key in template.numbers:
-        for number in HOSTILE_NUMBERS:
-            raw = f"[{number}]" if isinstance(base[key], list) else number
-            out.append(Input(_with(payload(), key, raw), number in NON_FINITE, f"{key} = {number}"))
+    out += number_inputs(template, payload)
     for key in base:
         if isinstance(base[key], str) and key not in template.names:
             out.append(Input(json.dumps({**payload(), key: "x\ud800"}), False, f"{key} surrogate (free text)"))
@@ -275,6 +310,27 @@ def catalogue(template: Template, fresh_ids) -> list[Input]:
                          f"{key} nested {DEEP} deep"))
     out.append(Input(json.dumps({**payload(), "zz-extra": {"a": [1, None]}}), False, "extra field"))
     out += [Input(text, True, f"not JSON {text[:12]!r}") for text in NOT_JSON]
+    return out
+
+
+def hostile(template: Template, fresh_ids) -> list[Input]:
+    """Return the hostile inputs of ``template``.
+
+    Numbers (in every numeric field, and as an extra field), surrogate and overlong names.
+    """
+    base = dict(template.payload)
+
+    def payload() -> dict:
+        return {**base, "id": next(fresh_ids)} if "id" in base else dict(base)
+
+    out = number_inputs(template, payload)
+    for number in HOSTILE_NUMBERS:
+        out.append(Input(_with(payload(), "zz-extra", number), number in NON_FINITE - {HUGE, "-" + HUGE},
+                         f"extra field = {number}"))
+    for key in template.names:
+        for kind, name in (("surrogate", "face\ud800"), ("long", "n" * LONG)):
+            value = [name] if isinstance(base[key], list) else ({name: 0.9} if isinstance(base[key], dict) else name)
+            out.append(Input(json.dumps({**payload(), key: value}), True, f"{key} {kind}"))
     return out
 
 
@@ -302,6 +358,7 @@ class Fuzzer:
         self.domains = list(scenario.domains)
         self.outcomes: dict[str, Outcome] = {}
         self.restarts = 0
+        self._markers = itertools.count()
         self.state: Optional[dict] = None  # the last snapshot, while nothing has been accepted since
         self._open()
         spec = scenario.domains[self.domains[0]]
@@ -311,7 +368,7 @@ class Fuzzer:
     def _open(self) -> None:
         self.state = None
         self.g = self.start()
-        self.inboxes = {topic: self.g.listen(topic) for topic in set(REPLY_TOPIC.values())}
+        self.inboxes = {topic: self.g.listen(topic) for topic in set(REPLY_TOPIC.values()) if topic is not None}
 
     def restart(self) -> None:
         """Start a fresh graph after a callback raised (a real node process would have died)."""
@@ -371,18 +428,47 @@ class Fuzzer:
             return None, str(err)
 
     def publish(self, topic: str, text: str) -> tuple[Optional[dict], Optional[str]]:
-        """Publish raw text on ``topic``; (reply, None), (None, reason), or (None, None) if no reply is due."""
+        """Publish raw text on ``topic``; (reply, None), (None, reason), or (None, None) if no reply is due.
+
+        A message with no reply by contract is followed by one that must be answered
+        (or seen) after it, so that it has been handled when this returns.
+        """
+        if topic == ANNOUNCE:
+            self.g.publish(topic, text.replace(str(INCARNATION), str(self.incarnation())), contract.ANNOUNCE.qos)
+            self._announce_marker()
+            return None, None
         inbox = self.inboxes[REPLY_TOPIC[topic]]
         before = len(inbox)
         self.g.publish(topic, text)
         if topic == LTM_ASSERT and not self._names_a_consultant(text):
-            self.g.spin_for(0.05)
+            self._ltm_marker(inbox)
             return None, None
         self.g.spin_until(lambda: len(inbox) > before, REPLY_TIMEOUT, what=f"a reply on {REPLY_TOPIC[topic]}")
         reply = inbox[before]
         if reply.get("error"):
             return None, str(reply["error"])
         return reply, None
+
+    def incarnation(self) -> int:
+        """Return the current incarnation of the first domain's consultant (the WM Manager's view)."""
+        return self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)["incarnation"][self.domains[0]]
+
+    def _ltm_marker(self, inbox) -> None:
+        """Publish an assertion the consultant must refuse (no entity) and wait for its refusal."""
+        marker = f"fuzz-sync-{next(self._markers)}"
+        self.g.publish(LTM_ASSERT, {"domain": self.domains[0], "id": marker})
+        self.g.spin_until(lambda: inbox.latest(id=marker) is not None, REPLY_TIMEOUT, what=f"the reply to {marker}")
+
+    def _announce_marker(self) -> None:
+        """Announce the current incarnation with a marked setting; wait until the WM Manager reports it."""
+        marker = next(self._markers)
+        domain = self.domains[0]
+        self.g.publish(ANNOUNCE, {"domain": domain, "incarnation": self.incarnation(), "ready": True,
+                                  "memory": {"policy": "none", "fuzz_marker": marker}}, contract.ANNOUNCE.qos)
+        self.g.spin_until(
+            lambda: (self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)["running"][domain] or {}).get("fuzz_marker")
+            == marker, REPLY_TIMEOUT, what=f"announce marker {marker}")
+        self.state = None  # the status now reports the marker
 
     def _names_a_consultant(self, text: str) -> bool:
         """Whether an ``/ltm/assert`` message is due a reply: malformed, or for a known domain."""
@@ -487,6 +573,19 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
     g.set_time(TIME)
     g.call(SYNC, {"time": TIME}, timeout=10.0)
     return g
+
+
+#: Sent before each hostile input by :func:`fuzz_after_malformed`.
+MALFORMED = Input("{", True, "malformed (before a hostile input)")
+
+
+def fuzz_after_malformed(fuzzer: Fuzzer, endpoint: str, first_id: int = 50_000) -> None:
+    """Send each hostile input of ``endpoint`` right after a malformed message."""
+    ids = itertools.count(first_id)
+    for template in templates(fuzzer.scenario)[endpoint]:
+        for given_input in hostile(template, ids):
+            fuzzer.check(endpoint, MALFORMED)
+            fuzzer.check(endpoint, given_input)
 
 
 def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 10_000) -> None:

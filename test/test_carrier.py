@@ -43,6 +43,7 @@ def test_round_trip_keeps_the_object():
         ("not json", {}, None, "not JSON"),
         ('{"a": NaN}', {}, None, "not JSON"),
         ('{"a": Infinity}', {}, None, "not JSON"),
+        ('{"a": [1, {"b": -1e999}]}', {}, None, "field 'a'[1]['b']: -1e999 is too large for a number (not finite)"),
         ("[1, 2]", {}, None, "expected a JSON object, got a list"),
         ('"text"', {}, None, "expected a JSON object, got a string"),
         ("{}", {"entity": str}, None, "missing field 'entity' (expected a string)"),
@@ -237,7 +238,7 @@ def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(grap
     warning) followed by one whose handler fails unexpectedly (an error) once killed
     REG, RR and the consultant.  Both are logged and answered, and the node serves on."""
     from fsreg_ros import contract
-    from fsreg_ros.carrier import publisher, subscribe
+    from fsreg_ros.carrier import subscribe
 
     node = Node("survivor", context=graph.context)
     graph.executor.add_node(node)
@@ -248,15 +249,36 @@ def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(grap
         float(data["time"])  # OverflowError for 10**400: not a ValueError, so "internal"
         handled.append(data["time"])
 
-    subscribe(node, contract.REG_REQUEST, handler, reject=lambda rid, error: rejected.append((rid, error)))
-    publisher(node, contract.REG_EXPRESSION)
+    # A topic whose schema takes any object, so the handler sees the hostile number.
+    topic = contract.Topic("carrier/any", contract.Message, contract.DEFAULT_QOS, "test", "test")
+    subscribe(node, topic, handler, reject=lambda rid, error: rejected.append((rid, error)))
     huge = "1" + "0" * 400
     for text in ["not json", '{"id": 1, "time": ' + huge + "}", "{", '{"id": 2, "time": -' + huge + "}",
                  '{"id": 3, "time": 1.5}']:
-        graph.publish("/" + contract.REG_REQUEST.name, text, contract.REG_REQUEST.qos)
+        graph.publish("/carrier/any", text, topic.qos)
     graph.spin_until(lambda: handled == [1.5], what="the last, valid message")
     assert [rid for rid, _ in rejected] == [None, 1, None, 2]
     assert "not JSON" in rejected[0][1] and rejected[1][1].startswith("internal error: OverflowError")
+
+
+def test_a_contract_topic_refuses_a_number_no_float_holds_before_the_handler(graph: Graph):
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import subscribe
+
+    node = Node("strict", context=graph.context)
+    graph.executor.add_node(node)
+    graph.nodes.append(node)
+    handled, rejected = [], []
+    subscribe(node, contract.REG_REQUEST, handled.append, reject=lambda rid, error: rejected.append((rid, error)),
+              limits=contract.Limits(max_name_chars=8))
+    huge = "1" + "0" * 400
+    for text in ['{"id": 1, "target": "f", "time": ' + huge + "}", '{"id": 2, "target": "far-too-long"}',
+                 '{"id": 3, "target": "face1", "time": 2}']:
+        graph.publish("/" + contract.REG_REQUEST.name, text, contract.REG_REQUEST.qos)
+    graph.spin_until(lambda: len(handled) == 1, what="the valid request")
+    assert handled == [{"id": 3, "target": "face1", "time": 2}]
+    assert rejected == [(1, "field 'time': a number too large (1329 bits; at most about 1e308)"),
+                        (2, "field 'target': a name of 12 characters, over the limit of 8")]
 
 
 def test_a_service_logging_a_warning_then_an_error_keeps_serving(graph: Graph):

@@ -528,7 +528,7 @@ class Flaky(Node):
         self.create_timer(0.5, lambda: self.done.done() or self.done.set_result("survived"))
     def send(self):
         self.boom.cancel()
-        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7"}'))
+        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7", "target": "x"}'))
     def explode(self, data):
         raise RuntimeError("boom")
 

@@ -79,7 +79,6 @@ from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
 from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
-from ..codec import NUMBER, check_fields
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError, TickRun
 from ..core import settings
@@ -223,8 +222,8 @@ class WMManagerNode(Node):
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
-        serve(self, contract.SYNC.name, self._sync, self._barrier_group)
-        serve(self, contract.STATUS.name, self._status)
+        serve(self, contract.SYNC, self._sync, self._barrier_group)
+        serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
         self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -371,9 +370,8 @@ class WMManagerNode(Node):
             dom.configured = dom.running == policy.to_json()
             dom.configuring = None
 
-    def _on_announce(self, data: dict) -> None:
+    def _on_announce(self, announce: dict) -> None:
         """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
-        announce = contract.check(contract.ConsultantAnnounce, data)
         dom = self._domains.get(announce["domain"])
         if dom is None:
             return  # not managed here
@@ -413,8 +411,7 @@ class WMManagerNode(Node):
         return all(dom.configured for dom in self._domains.values())
 
     # --------------------------------------------------------------- services
-    async def _sync(self, request: dict) -> dict:
-        check_fields(request, {"time": NUMBER})
+    async def _sync(self, request: dict) -> contract.SyncReply:
         t = self.manager.check_sync_time(request["time"], self.now())  # TickError -> error reply
         timeout = self.timeout
         deadline = wallclock.monotonic() + timeout
@@ -438,7 +435,7 @@ class WMManagerNode(Node):
                 sizes[name] = reply["size"]
             self.manager.share(sizes, t)
             await self._settle(deadline)
-        return {"time": t, "memory": self.memory(), "applied": applied}
+        return contract.SyncReply(time=t, memory=self.memory(), applied=applied)
 
     async def _settle(self, deadline: float) -> None:
         """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
@@ -453,16 +450,16 @@ class WMManagerNode(Node):
         except CarrierError as err:
             raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
 
-    def _status(self, request: dict) -> dict:
-        return {
-            "time": self.now(),
-            "domains": list(self._names),
-            "memory": self.memory(),
-            "configured": {d: dom.configured for d, dom in self._domains.items()},
-            "running": {d: dom.running for d, dom in self._domains.items()},
-            "incarnation": {d: dom.incarnation for d, dom in self._domains.items()},
-            "next_tick": {d: self.manager.next_tick(d) for d in self._domains},
-        }
+    def _status(self, request: dict) -> contract.StatusReply:
+        return contract.StatusReply(
+            time=self.now(),
+            domains=list(self._names),
+            memory=self.memory(),
+            configured={d: dom.configured for d, dom in self._domains.items()},
+            running={d: dom.running for d, dom in self._domains.items()},
+            incarnation={d: dom.incarnation for d, dom in self._domains.items()},
+            next_tick={d: self.manager.next_tick(d) for d in self._domains},
+        )
 
     def memory(self) -> dict[str, dict]:
         """Each domain's effective setting (docs/semantics.md section 6 ``memory``), sorted by domain."""
