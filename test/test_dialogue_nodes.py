@@ -378,3 +378,22 @@ def test_a_sim_time_node_without_clock_warns_once_naming_the_topic(capfd):
         g.spin_for(1.6)
     err = capfd.readouterr().err
     assert err.count("nothing has moved /quiet/clock for 0.3 s") == 1
+
+
+def test_a_whole_number_for_a_real_parameter_is_taken_and_a_wrong_type_refused():
+    """``-p service_timeout:=2`` means 2.0 s; a text is refused by rclpy's static typing.
+
+    declare_number reads the given value with public rclpy API only (no private state)."""
+    import inspect
+
+    from rclpy.exceptions import InvalidParameterTypeException
+
+    from fsreg_ros.nodes import common
+
+    with Graph() as g:
+        reg = g.add(RegNode, domains=["faces"], service_timeout=2, ready_timeout=3)
+        assert reg.get_parameter("service_timeout").value == 2.0
+        assert reg.describe_parameter("service_timeout").type == 3  # DOUBLE, statically typed
+        with pytest.raises(InvalidParameterTypeException, match="ready_timeout"):
+            g.add(RegNode, domains=["faces"], ready_timeout="soon", name="reg2")
+    assert "_parameter_overrides" not in inspect.getsource(common)
