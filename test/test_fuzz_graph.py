@@ -11,6 +11,7 @@ import pytest
 from fuzzgraph import ENDPOINTS, NOT_JSON, REPLY_TOPIC, Fuzzer, fuzz_after_malformed, fuzz_endpoint, start_graph, \
     templates
 
+from fsreg_ros import contract
 from fsreg_ros.core.scenario import load_scenario
 
 pytestmark = pytest.mark.graph
@@ -25,8 +26,16 @@ def fuzzer(table1_path, tmp_path_factory):
     fuzzer.close()
 
 
+#: Topics the graph only publishes (its answers and state): nothing in the graph (the player aside) reads them.
+OUTPUTS = {contract.RR_RESULT, contract.REG_EXPRESSION, contract.WM_STATE, contract.WM_EVENTS,
+           contract.LTM_ASSERT_RESULT}
+
+
 def test_the_fuzzed_endpoints_are_every_endpoint(table1_path):
     assert sorted(templates(load_scenario(table1_path))) == sorted(ENDPOINTS)
+    inputs = [t.name for t in contract.TOPICS if t not in OUTPUTS] + [s.name for s in contract.SERVICES]
+    fuzzed = {e.lstrip("/").replace("/faces", "/<domain>") for e in ENDPOINTS}
+    assert sorted(set(inputs) - fuzzed) == []  # every input of the graph is fuzzed
 
 
 @pytest.mark.parametrize("endpoint", ENDPOINTS)
