@@ -92,8 +92,14 @@ def test_a_late_reader_of_wm_state_gets_every_writers_latest_state(graph: Graph)
         writer.publish(to_msg({"domain": f"d{i}", "time": 1.0, "queues": {}, "events": 1}))
     late = graph.listen(contract.WM_STATE.name, contract.WM_STATE.subscriber_qos)
     graph.spin_until(lambda: len(late) >= 3, 5.0, what="three latched states")
-    graph.spin_for(0.2)
-    assert sorted((m["domain"], m["time"]) for m in late) == [("d0", 1.0), ("d1", 1.0), ("d2", 1.0)]
+    # Each writer's next message arrives after whatever history it delivered: once all three
+    # are here, the late reader has heard everything it will of the earlier states.
+    graph.spin_until(lambda: all(w.get_subscription_count() for w in writers), 5.0, what="matched writers")
+    for i, writer in enumerate(writers):
+        writer.publish(to_msg({"domain": f"d{i}", "time": 2.0, "queues": {}, "events": 2}))
+    graph.spin_until(lambda: len([m for m in late if m["time"] == 2.0]) == 3, 5.0, what="three new states")
+    assert sorted((m["domain"], m["time"]) for m in late) == [("d0", 1.0), ("d0", 2.0), ("d1", 1.0), ("d1", 2.0),
+                                                              ("d2", 1.0), ("d2", 2.0)]
     assert STATE_QOS.depth >= len(writers)
 
 

@@ -374,10 +374,17 @@ def test_a_sim_time_node_without_clock_warns_once_naming_the_topic(capfd):
 
     with Graph(namespace="quiet") as g:
         node = g.add(ParserNode, use_sim_time=True, name="quiet_parser")
-        watch_clock(node, silence=0.3)
-        g.spin_for(1.6)
-    err = capfd.readouterr().err
-    assert err.count("nothing has moved /quiet/clock for 0.3 s") == 1
+        timer = watch_clock(node, silence=0.3)
+        checks = []
+        check = timer.callback
+        timer.callback = lambda: (check(), checks.append(1))  # count the watchdog's own checks
+        seen = []
+        g.spin_until(lambda: seen.append(capfd.readouterr().err) or "nothing has moved" in "".join(seen),
+                     what="the warning")
+        after = len(checks)
+        g.spin_until(lambda: len(checks) >= after + 10, what="ten more checks of a still clock")
+        seen.append(capfd.readouterr().err)
+    assert "".join(seen).count("nothing has moved /quiet/clock for 0.3 s") == 1
 
 
 def test_a_whole_number_for_a_real_parameter_is_taken_and_a_wrong_type_refused():

@@ -1,15 +1,17 @@
 """Fuzz every topic and service of the running graph (in-process, sim time, fixed seed).
 
-See ``fuzzgraph`` for the inputs and the checks.  The example count per endpoint is
-bounded for CI (``FUZZ_EXAMPLES``); ``scripts/fuzz.py`` runs the same fuzzer longer.
+See ``fuzzgraph`` for the inputs and the checks.  The catalogue (every hostile mutation,
+field by field) and the hostile-after-malformed inputs run in the quick suite; the
+generated inputs (``FUZZ_EXAMPLES`` per endpoint) are marked slow, and
+``scripts/fuzz.py`` runs the same fuzzer longer.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from fuzzgraph import ENDPOINTS, NOT_JSON, REPLY_TOPIC, Fuzzer, fuzz_after_malformed, fuzz_endpoint, start_graph, \
-    templates
+from fuzzgraph import ENDPOINTS, NOT_JSON, REPLY_TOPIC, Fuzzer, Outcome, fuzz_after_malformed, fuzz_catalogue, \
+    fuzz_generated, start_graph, templates
 
 from fsreg_ros import contract
 from fsreg_ros.core.scenario import load_scenario
@@ -38,15 +40,30 @@ def test_the_fuzzed_endpoints_are_every_endpoint(table1_path):
     assert sorted(set(inputs) - fuzzed) == []  # every input of the graph is fuzzed
 
 
-@pytest.mark.parametrize("endpoint", ENDPOINTS)
-def test_every_input_is_answered_and_rejections_change_nothing(fuzzer, endpoint):
-    fuzz_endpoint(fuzzer, endpoint, FUZZ_EXAMPLES, first_id=10_000 + 1_000 * ENDPOINTS.index(endpoint))
+def check_outcome(fuzzer: Fuzzer, endpoint: str) -> Outcome:
     outcome = fuzzer.outcomes[endpoint]
-    assert outcome.tried >= FUZZ_EXAMPLES
-    if REPLY_TOPIC.get(endpoint, "") is not None:  # consultant/announce has no replies by contract
-        assert outcome.rejected >= len(NOT_JSON)
     assert not outcome.failures(), "\n" + fuzzer.report([endpoint])
     assert fuzzer.restarts == 0, "a callback raised: " + fuzzer.report([endpoint])
+    return outcome
+
+
+@pytest.mark.parametrize("endpoint", ENDPOINTS)
+def test_every_catalogued_input_is_answered_and_rejections_change_nothing(fuzzer, endpoint):
+    """Every hostile mutation of every valid message, field by field (deterministic)."""
+    fuzzer.outcomes.pop(endpoint, None)
+    fuzz_catalogue(fuzzer, endpoint, first_id=10_000 + 1_000 * ENDPOINTS.index(endpoint))
+    outcome = check_outcome(fuzzer, endpoint)
+    if REPLY_TOPIC.get(endpoint, "") is not None:  # consultant/announce has no replies by contract
+        assert outcome.rejected >= len(NOT_JSON)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("endpoint", ENDPOINTS)
+def test_generated_inputs_are_answered_and_rejections_change_nothing(fuzzer, endpoint):
+    """Generated inputs (fixed seed): mutations of valid messages, random JSON, text."""
+    fuzzer.outcomes.pop(endpoint, None)
+    fuzz_generated(fuzzer, endpoint, FUZZ_EXAMPLES, first_id=30_000 + 1_000 * ENDPOINTS.index(endpoint))
+    assert check_outcome(fuzzer, endpoint).tried >= FUZZ_EXAMPLES
 
 
 @pytest.mark.parametrize("endpoint", ENDPOINTS)
@@ -56,7 +73,4 @@ def test_hostile_inputs_after_a_malformed_one_are_answered(fuzzer, endpoint):
     and lives on.  The logging of the first once made the second kill the node."""
     fuzzer.outcomes.pop(endpoint, None)
     fuzz_after_malformed(fuzzer, endpoint, first_id=50_000 + 1_000 * ENDPOINTS.index(endpoint))
-    outcome = fuzzer.outcomes[endpoint]
-    assert outcome.tried >= 10
-    assert not outcome.failures(), "\n" + fuzzer.report([endpoint])
-    assert fuzzer.restarts == 0, "a callback raised: " + fuzzer.report([endpoint])
+    assert check_outcome(fuzzer, endpoint).tried >= 10
