@@ -93,8 +93,8 @@ def test_the_command_line_options_are_the_table():
 
 
 def test_the_node_parameter_descriptors_are_the_table():
-    from fsreg_ros.nodes.wm_manager import SETTINGS as NODE_SETTINGS
-    from fsreg_ros.nodes.wm_manager import setting_descriptor
+    from fsreg_ros.nodes.memory_parameters import SETTINGS as NODE_SETTINGS
+    from fsreg_ros.nodes.memory_parameters import setting_descriptor
 
     assert NODE_SETTINGS == settings.names()
     for row in settings.parameters():
@@ -165,7 +165,7 @@ from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.scenario.schema import scenario_json_schema
 from fsreg_ros.graph_spec import node_specs, policy_settings
-from fsreg_ros.nodes.wm_manager import setting_descriptor
+from fsreg_ros.nodes.memory_parameters import setting_descriptor
 
 out = {}
 policy = ForgettingPolicy.parse("similarity", patience=4)

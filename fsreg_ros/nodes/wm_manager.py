@@ -27,42 +27,30 @@ a clock that does not move is reported (``common.watch_clock``).
 Parameters (all but ``domains`` changeable at run time; a change is validated as the
 effective policy of every domain and rejected with a reason if any is invalid;
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
-    ``domains`` (string array, required, read-only): the consultant domains managed;
-    one parameter per memory setting (``policy``, ``decay_period``, ``capacity``, ...:
-    the settings table :mod:`fsreg_ros.core.settings`, with its defaults, bounds as
-    declared ranges, and help as descriptions): the setting of every domain;
-    ``<domain>.<setting>`` the same per domain, defaulting to the table's inherit marker
-    (``""``, 0, or -1 for ``seed``: use the node-wide value), the range widened to it;
-    ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of each consultant call.
+``domains`` (string array, required, read-only): the consultant domains managed; the
+memory settings, node-wide and per domain (:mod:`fsreg_ros.nodes.memory_parameters`,
+from the settings table); ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of
+each consultant call, and of sync's wait for the consultants to be configured.
 
-Services (JSON in ``AddDiagnostics``):
-    ``/wm_manager/sync`` ``{"time": t}`` -> ``{"time", "memory": {domain: policy},
-    "applied": {domain: n_ticks}}``: the race-free hand-off of a scripted player.
-    Applies every tick due at or before t in every domain (t from the request: no
-    waiting on ``/clock``), waits until every consultant has acknowledged everything
-    sent to it so far; then, if any domain has ``shared-capacity``, asks the pool's
-    consultants their sizes and sends the evictions the core decides (``evict``),
-    and waits for those too; then replies.  A t that is not finite, beyond 1e12 s, or more
-    than a day (``core.wm_manager.SYNC_AHEAD``) ahead of the node's clock is rejected
-    with a reason and changes nothing.  Before the consultants are configured it
-    waits for them (up to ``service_timeout``), then replies an error.
-    ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "running",
-    "incarnation", "next_tick"}``: ``memory`` is each domain's setting from the
-    parameters; ``running`` what its consultant last acknowledged (configure reply) or
-    announced, null until known; ``configured`` true once the consultant's current
-    incarnation has acknowledged the current setting.
-
-Topics: in ``consultant/announce`` (latched) from every consultant.
+Services (schemas: :class:`~fsreg_ros.contract.SyncRequest`/``SyncReply``,
+``StatusRequest``/``StatusReply``): ``wm_manager/sync`` is the race-free hand-off of a
+scripted player (docs/design.md, "Forgetting without races"): it applies every tick due
+at or before the request's time in every domain (no waiting on ``/clock``), waits until
+every consultant acknowledged everything sent to it so far, then trims the shared pool
+if a domain has ``shared-capacity``, and replies; a time that is not finite, beyond
+1e12 s, or more than a day ahead of the node's clock is refused and changes nothing.
+``wm_manager/status`` reports each domain's setting, what its consultant runs, whether
+its current incarnation is configured, and the next tick.  Topic in:
+``consultant/announce`` (latched), from every consultant.
 """
 
 from __future__ import annotations
 
 import time as wallclock
-from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Optional
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -74,86 +62,24 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.task import Future
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
+from ..carrier import CarrierError, log_error, log_warning, serve, subscribe, wait_until
 from ..contract import manage_service
-from ..core.decay import TIME_EPSILON, TickError, TickRun
-from ..core import settings
-from ..core.forgetting import ForgettingPolicy, PolicyError, check_setting
+from ..core.decay import TIME_EPSILON, TickError
+from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
+from .manage_link import ConsultantLink, ManageLinks, ManagePort
+from .memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
 
-#: The memory settings, each a node-wide parameter and one per domain (core/settings.py).
-SETTINGS = settings.names()
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
 #: How often unconfigured consultants are looked for and stale calls expired (s).
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
-
-
-def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
-    """Return a memory setting's descriptor, from its row of the settings table.
-
-    A numeric setting's range is its bounds; a per-domain setting's range is widened
-    down to its inherit marker (which is below the bounds, so it is never a real value).
-    """
-    row = settings.setting(key)
-    text = row.description
-    if domain is not None:
-        text = f"domain '{domain}' {text}; {row.inherit!r} = inherit '{key}'"
-    out = ParameterDescriptor(description=text)
-    if not row.is_parameter:
-        return out
-    low = row.inherit if domain is not None else row.low
-    if row.kind is float:
-        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(row.high), step=0.0)]
-    else:
-        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(row.high), step=1)]
-    if domain is not None:
-        out.additional_constraints = f"{row.inherit!r} (inherit) or {row.bounds_text}"
-    return out
-
-
-@dataclass
-class _Domain:
-    """The transport state of one domain's consultant."""
-
-    name: str
-    client: JsonClient
-    timer: Any = None
-    configured: bool = False  # a configure has been acknowledged by the current incarnation
-    configuring: Optional[Future] = None
-    inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
-    incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
-    running: Optional[dict] = None  # the policy it acknowledged or announced
-
-
-class _ManagePort:
-    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph.
-
-    Each decision becomes a request to the consultant's manage service.
-    """
-
-    def __init__(self, node: "WMManagerNode") -> None:
-        self.node = node
-
-    def configure(self, domain: str, policy: ForgettingPolicy, time: float) -> None:
-        dom = self.node._domains[domain]
-        dom.configuring = self.node._send(dom, {"op": "configure", "policy": policy.settings(), "time": time})
-
-    def decay(self, domain: str, ticks: TickRun) -> None:
-        self.node._send(self.node._domains[domain], {"op": "decay", "ticks": ticks.to_json()})
-
-    def evict(self, domain: str, count: int, time: float) -> None:
-        self.node._send(self.node._domains[domain], {"op": "evict", "count": count, "time": time})
-
-    def sizes(self, domains: list[str]) -> None:
-        return None  # needs service calls: the sync barrier asks, then calls manager.share
 
 
 class WMManagerNode(Node):
@@ -185,17 +111,13 @@ class WMManagerNode(Node):
                 raise StartupError(f"domain {name!r} clashes with a parameter name")
 
         self._names = names
-        self._param_names = list(SETTINGS) + [f"{d}.{k}" for d in names for k in SETTINGS] + ["service_timeout"]
+        self._param_names = parameter_names(names) + ["service_timeout"]
         timeout = ParameterDescriptor(
             description="deadline of each consultant call, and of sync's wait for configuration, s",
             floating_point_range=[FloatingPointRange(from_value=TIMEOUT_RANGE[0], to_value=TIMEOUT_RANGE[1], step=0.0)],
         )
         try:
-            for row in settings.TABLE:
-                self.declare_parameter(row.name, row.default, setting_descriptor(row.name))
-            for name in names:
-                for row in settings.TABLE:
-                    self.declare_parameter(f"{name}.{row.name}", row.inherit, setting_descriptor(row.name, name))
+            declare_memory_parameters(self, names)
             self.declare_parameter("service_timeout", 10.0, timeout)
             policies = self._effective(self._values())
         except (InvalidParameterTypeException, InvalidParameterValueException) as err:
@@ -212,10 +134,10 @@ class WMManagerNode(Node):
         now = self.now()
         self._latest = now
         self._warned_backwards = False
-        self._domains: dict[str, _Domain] = {}
-        self.manager = WMManager(_ManagePort(self), origin=now)
+        self._links = ManageLinks(self, names, self._client_group, lambda: self.timeout)
+        self._domains: dict[str, ConsultantLink] = self._links.links
+        self.manager = self._links.manager = WMManager(ManagePort(self._links), origin=now)
         for name in names:
-            self._domains[name] = _Domain(name, JsonClient(self, manage_service(name), self._client_group))
             self.manager.manage_domain(name, policies[name], now)
             self._domains[name].timer = self.create_timer(1.0, partial(self._on_decay_timer, name), autostart=False)
             self._arm(name)
@@ -259,28 +181,7 @@ class WMManagerNode(Node):
 
     def _effective(self, values: dict[str, Any]) -> dict[str, ForgettingPolicy]:
         """Every domain's effective policy from parameter values; ValueError if invalid."""
-        try:
-            for key in SETTINGS:
-                check_setting(key, values[key])
-        except PolicyError as err:
-            raise ValueError(str(err)) from None
-        policies = {}
-        for d in self._names:
-            merged = {}
-            for row in settings.TABLE:
-                key = row.name
-                own = values[f"{d}.{key}"]
-                if own != row.inherit:
-                    try:
-                        check_setting(key, own)
-                    except PolicyError as err:
-                        raise ValueError(f"{d}.{key}: {err} ({row.inherit!r} inherits '{key}')") from None
-                merged[key] = values[key] if own == row.inherit else own
-            try:
-                policies[d] = ForgettingPolicy.from_settings(merged)
-            except PolicyError as err:
-                raise ValueError(f"domain '{d}': {err}") from None
-        return policies
+        return effective_policies(values, self._names)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = self._values()
@@ -295,7 +196,7 @@ class WMManagerNode(Node):
         try:
             self._effective(values)
         except ValueError as err:
-            self.get_logger().warning(f"rejected parameter change: {err}")
+            log_warning(self.get_logger(), f"rejected parameter change: {err}")
             return rejected(str(err))
         return accepted()
 
@@ -312,7 +213,7 @@ class WMManagerNode(Node):
                     self._arm(name)
                     self.get_logger().info(f"domain '{name}': memory {policy.to_json()}")
         except (ValueError, TickError) as err:  # validated above: only a clock fault gets here
-            self.get_logger().error(f"parameter change not applied: {err}")
+            log_error(self.get_logger(), f"parameter change not applied: {err}")
 
     # ----------------------------------------------------------------- decay
     def _arm(self, name: str) -> None:
@@ -335,41 +236,6 @@ class WMManagerNode(Node):
         self._arm(name)
 
     # ------------------------------------------------------------ consultants
-    def _send(self, dom: _Domain, payload: dict) -> Future:
-        future = dom.client.send(payload)
-        entry = (future, payload, wallclock.monotonic() + self.timeout)
-        dom.inflight.append(entry)
-        future.add_done_callback(partial(self._on_reply, dom, entry))
-        return future
-
-    def _on_reply(self, dom: _Domain, entry: tuple, future: Future) -> None:
-        if entry in dom.inflight:
-            dom.inflight.remove(entry)
-        payload = entry[1]
-        op = payload["op"]
-        try:
-            reply = dom.client.decode(future)
-        except CarrierError as err:
-            self.get_logger().error(f"consultant '{dom.name}' failed '{op}': {err}")
-            if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
-                self.manager.owe(dom.name, TickRun.from_json(payload["ticks"]))
-            if op in ("decay", "configure"):
-                # Start over: attach again when the consultant answers or announces itself.
-                self.manager.detach(dom.name)
-                dom.configured = False
-                dom.configuring = None
-            return
-        policy = self.manager.domains[dom.name].policy
-        if op == "configure" and future is dom.configuring:
-            dom.running = reply.get("memory")
-            if isinstance(reply.get("incarnation"), int):
-                dom.incarnation = reply["incarnation"]
-            if not dom.configured:
-                self.get_logger().info(
-                    f"consultant '{dom.name}' (incarnation {dom.incarnation}) configured: {dom.running}")
-            dom.configured = dom.running == policy.to_json()
-            dom.configuring = None
-
     def _on_announce(self, announce: dict) -> None:
         """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
         dom = self._domains.get(announce["domain"])
@@ -390,7 +256,7 @@ class WMManagerNode(Node):
         self.manager.detach(dom.name)
         self._attach(dom)
 
-    def _attach(self, dom: _Domain) -> None:
+    def _attach(self, dom: ConsultantLink) -> None:
         try:
             self.manager.attach(dom.name, None, self.now())
         except TickError as err:
@@ -399,11 +265,8 @@ class WMManagerNode(Node):
 
     def _supervise(self) -> None:
         """Attach consultants that became reachable; expire unanswered calls."""
-        now_wall = wallclock.monotonic()
+        self._links.expire()
         for dom in self._domains.values():
-            for future, _, deadline in list(dom.inflight):
-                if now_wall > deadline and not future.done():
-                    dom.client.expire(future, self.timeout)
             if not self.manager.domains[dom.name].attached and dom.client.ready():
                 self._attach(dom)
 
@@ -425,30 +288,17 @@ class WMManagerNode(Node):
         applied = {name: self._advance(name, t) for name in self._domains}
         for name in self._domains:
             self._arm(name)
-        await self._settle(deadline)
+        await self._links.settle(deadline)
         sharing = self.manager.sharing()
         if sharing:  # the shared pool, after the ticks (as core WMManager.advance)
             sizes = {}
             for name in sharing:
                 dom = self._domains[name]
-                reply = await self._await(dom, self._send(dom, {"op": "size"}), deadline)
+                reply = await self._links.result(dom, self._links.send(dom, {"op": "size"}), deadline)
                 sizes[name] = reply["size"]
             self.manager.share(sizes, t)
-            await self._settle(deadline)
+            await self._links.settle(deadline)
         return contract.SyncReply(time=t, memory=self.memory(), applied=applied)
-
-    async def _settle(self, deadline: float) -> None:
-        """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
-        pending = [(dom, entry[0]) for dom in self._domains.values() for entry in list(dom.inflight)]
-        for dom, future in pending:
-            await self._await(dom, future, deadline)
-
-    async def _await(self, dom: _Domain, future: Future, deadline: float) -> dict:
-        remaining = max(deadline - wallclock.monotonic(), 0.05)
-        try:
-            return await dom.client.result(future, remaining)
-        except CarrierError as err:
-            raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
 
     def _status(self, request: dict) -> contract.StatusReply:
         return contract.StatusReply(
