@@ -216,7 +216,7 @@ class DomainStore:
         for entity, prop, certainty in db.execute("SELECT entity, property, certainty FROM facts ORDER BY rowid"):
             state.facts.setdefault(entity, {})[prop] = certainty
         for entity, items in db.execute("SELECT entity, items FROM queues ORDER BY rowid"):
-            state.queues[entity] = [(str(p), int(s), int(h)) for p, s, h in json.loads(items)]
+            state.queues[entity] = [(str(p), int(s), int(h), *origin) for p, s, h, *origin in json.loads(items)]
         return state
 
 
