@@ -167,15 +167,18 @@ def _reply_object(result: Any) -> Mapping[str, Any]:
     return result
 
 
-def _dispatch(handlers: Mapping[str, Handler]) -> Handler:
-    """One handler per ``op``: the request's ``op`` chooses (an op with no handler is refused)."""
-    def handler(request: dict) -> Any:
-        op = request.get("op")
-        if not isinstance(op, str) or op not in handlers:
-            raise MessageError(f"field 'op': expected one of {', '.join(handlers)}, got {printable(repr(op), 60)}")
-        return handlers[op](request)
+def _check_op(handlers: Mapping[str, Any], request: dict) -> None:
+    """Refuse a request whose ``op`` has no handler (before its schema, which depends on the op)."""
+    if "op" not in request:
+        raise MessageError(f"missing field 'op' (one of {', '.join(handlers)})")
+    op = request["op"]
+    if not isinstance(op, str) or op not in handlers:
+        raise MessageError(f"field 'op': expected one of {', '.join(handlers)}, got {printable(repr(op), 60)}")
 
-    return handler
+
+def _dispatch(handlers: Mapping[str, Handler]) -> Handler:
+    """One handler per ``op``: the request's ``op`` chooses (checked by :func:`_check_op` first)."""
+    return lambda request: handlers[request["op"]](request)
 
 
 # ----------------------------------------------------------------- serving
@@ -204,7 +207,13 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
     else:
         name, schema = service, None
     validate = _checker(schema, limits)
-    handler = _dispatch(handlers) if isinstance(handlers, Mapping) else handlers
+    handler = handlers
+    if isinstance(handlers, Mapping):
+        check_schema, handler = validate, _dispatch(handlers)
+
+        def validate(data: dict) -> None:
+            _check_op(handlers, data)
+            check_schema(data)
     if max_bytes is None and limits is not None:
         max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
 

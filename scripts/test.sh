@@ -10,7 +10,7 @@
 # Tests that start a graph of node processes or run for more than a few seconds are marked slow
 # (pytest.ini).  Always set ROS_DOMAIN_ID to a domain of your own when other graphs run.
 set -euo pipefail
-if [[ "${1:-}" == "--help" || "${1:-}" == "-h" ]]; then
+if [[ " $* " == *" --help "* || "${1:-}" == "-h" ]]; then
     sed -n '2,11s/^# \{0,1\}//p' "$0"
     exit 0
 fi
@@ -18,8 +18,8 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
 . "$root/scripts/rosenv.sh"
 cd "$root"
-args=("$@")
-if [[ "${1:-}" == "--quick" ]]; then
-    args=(-m "not slow" "${@:2}")
-fi
+args=()
+for arg in "$@"; do  # --quick anywhere stands for -m "not slow"
+    if [[ "$arg" == "--quick" ]]; then args+=(-m "not slow"); else args+=("$arg"); fi
+done
 exec "$root/.venv/bin/python" -m pytest "${args[@]}"

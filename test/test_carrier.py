@@ -308,3 +308,49 @@ def test_log_lines_never_raise():
 
     log_warning(Refusing(), "x\ud800")
     log_error(Refusing(), object())
+
+
+def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: Graph):
+    """A contract service with ops: the op chooses the handler, the request is validated
+    against that op's schema (names within the limits) before any handler runs, and a
+    handler may return a contract model."""
+    from typing import Literal, Union
+
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import serve
+
+    class Look(contract.Message):
+        op: Literal["look"]
+        entity: contract.Name
+
+    class Count(contract.Message):
+        op: Literal["count"]
+        entities: contract.Names
+
+    class Counted(contract.Message):
+        count: int
+        note: str = "unset"
+
+    service = contract.Service("carrier/<domain>/ops", Union[Look, Count], Union[contract.Message, Counted],
+                               "test", "test")
+    node = Node("ops", context=graph.context)
+    graph.executor.add_node(node)
+    graph.nodes.append(node)
+    ran = []
+    serve(node, service, {"look": lambda r: ran.append(r) or {"seen": r["entity"]},
+                          "count": lambda r: ran.append(r) or Counted(count=len(r["entities"]))},
+          limits=contract.Limits(max_name_chars=5, max_list_items=3), domain="faces")
+    name = "/carrier/faces/ops"
+    assert graph.call(name, {"op": "look", "entity": "face1"}) == {"seen": "face1"}
+    assert graph.call(name, {"op": "count", "entities": ["a", "b"]}) == {"count": 2}  # fields set only
+    for request, error in [
+        ({"op": "jump"}, "field 'op': expected one of look, count, got 'jump'"),
+        ({"entity": "face1"}, "missing field 'op' (one of look, count)"),
+        ({"op": "count", "entities": "a"}, "field 'entities': expected a list of strings, got 'a'"),
+        ({"op": "count", "entities": ["a"] * 4}, "field 'entities': 4 items, over the limit of 3"),
+        ({"op": "look", "entity": "face10"}, "field 'entity': a name of 6 characters, over the limit of 5"),
+        ({"op": "look"}, "missing field 'entity'"),
+    ]:
+        err = graph.call_error(name, request)
+        assert (err.kind, err.error) == ("MessageError", error)
+    assert len(ran) == 2  # no handler saw a refused request

@@ -21,14 +21,27 @@ from ..codec import MessageError, describe, printable
 def check(model: Any, data: dict, limits: Optional[Any] = None) -> dict:
     """Return ``data`` unchanged if it fits ``model``; else raise :class:`MessageError` naming the field.
 
-    ``model`` is a schema class or a union of them (a topic's or service's schema);
-    ``limits`` (:class:`~fsreg_ros.contract.limits.Limits`) bounds names and lists.
+    ``model`` is a schema class or a union of them (a topic's or service's schema; a
+    request naming an ``op`` is checked against that op's member); ``limits``
+    (:class:`~fsreg_ros.contract.limits.Limits`) bounds names and lists.
     """
+    model = _member_for_op(model, data)
     try:
         _adapter(model).validate_python(data, context={"limits": limits})
     except ValidationError as err:
         raise MessageError(_first_problem(model, data, err)) from None
     return data
+
+
+def _member_for_op(schema: Any, data: Any) -> Any:
+    """Return the union member whose ``op`` the data names (a request of one op is checked as that op)."""
+    if not isinstance(data, dict) or "op" not in data:
+        return schema
+    for member in _members(schema):
+        op = member.model_fields.get("op")
+        if op is not None and get_origin(op.annotation) is Literal and data["op"] in get_args(op.annotation):
+            return member
+    return schema
 
 
 @lru_cache(maxsize=None)
