@@ -357,6 +357,7 @@ def test_answer_cache_is_bounded_in_bytes():
     assert cache.get({"id": "big"}, "0" * 16) == (None, None) and cache.bytes <= 10_000
 
 
+@pytest.mark.slow  # starts a node process
 def test_reference_resolution_without_domains_exits_2_in_one_line():
     import os
     import subprocess

@@ -1,9 +1,9 @@
 """Fuzz every topic and service of the running graph (in-process, sim time, fixed seed).
 
-See ``fuzzgraph`` for the inputs and the checks.  The catalogue (every hostile mutation,
-field by field) and the hostile-after-malformed inputs run in the quick suite; the
-generated inputs (``FUZZ_EXAMPLES`` per endpoint) are marked slow, and
-``scripts/fuzz.py`` runs the same fuzzer longer.
+See ``fuzzgraph`` for the inputs and the checks.  The quick suite sends every hostile
+input right after a malformed one on every endpoint; the catalogue (every hostile
+mutation, field by field) and the generated inputs (``FUZZ_EXAMPLES`` per endpoint) are
+marked slow, and ``scripts/fuzz.py`` runs the same fuzzer longer.
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ def check_outcome(fuzzer: Fuzzer, endpoint: str) -> Outcome:
     return outcome
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("endpoint", ENDPOINTS)
 def test_every_catalogued_input_is_answered_and_rejections_change_nothing(fuzzer, endpoint):
     """Every hostile mutation of every valid message, field by field (deterministic)."""

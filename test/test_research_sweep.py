@@ -46,6 +46,7 @@ def test_grid_runs_none_once():
                                 Setting("decay", 10.0, 2), Setting("none")]
 
 
+@pytest.mark.slow  # the same sweep in one process and in several
 def test_same_arguments_same_runs_csv_whatever_jobs(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert cli.sweep_main([*SMALL, "--out", str(a), "--jobs", "1"]) == 0
