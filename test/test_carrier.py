@@ -354,3 +354,24 @@ def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: G
         err = graph.call_error(name, request)
         assert (err.kind, err.error) == ("MessageError", error)
     assert len(ran) == 2  # no handler saw a refused request
+
+
+def test_subscribe_ignores_what_accept_refuses_before_validating_it(graph: Graph):
+    """Several consultants share ltm/assert: a message for another domain is that one's to
+    refuse; this node neither handles nor rejects it, however malformed."""
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import subscribe
+
+    node = Node("faces_only", context=graph.context)
+    graph.executor.add_node(node)
+    graph.nodes.append(node)
+    handled, rejected = [], []
+    subscribe(node, contract.LTM_ASSERT, lambda data: handled.append(data["id"]),
+              reject=lambda rid, error: rejected.append(rid),
+              accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == "faces")
+    for text in ['{"domain": "objects", "id": 1, "properties": "bad"}', '{"domain": 7, "id": 2}',
+                 '{"domain": "faces", "id": 3, "properties": "bad"}',
+                 '{"domain": "faces", "id": 4, "entity": "e", "properties": {"p": 1}}']:
+        graph.publish("/" + contract.LTM_ASSERT.name, text, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: handled == [4], what="the one valid assertion for faces")
+    assert rejected == [2, 3]  # the objects message was not this node's to refuse

@@ -241,7 +241,8 @@ class ConsultantNode(Node):
         size = self.limits.max_message_bytes
         serve(self, consultant_service(domain), lambda req: self._dispatch(req, self._query_ops), max_bytes=size)
         serve(self, manage_service(domain), lambda req: self._dispatch(req, self._manage_ops), max_bytes=size)
-        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
+        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size,
+                  accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain)
         self._clock_watch = watch_clock(self)
         self._state_timer = self.create_timer(max(self._state_period, 0.02), lambda: self._publish_due(True),
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
