@@ -93,7 +93,7 @@ from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import clock_remap, normalise_namespace
 from .policy import PolicySettings
 from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
-from .wm import WMEventMessage, WMState
+from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
     "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEFAULT_QOS", "EVENTS_QOS", "HUMAN", "LIMIT_RANGES",
@@ -102,10 +102,10 @@ __all__ = [
     "AffirmRequest", "CloseReply", "CloseRequest", "ConsultantAnnounce", "ConsultantReply", "ConsultantRequest",
     "EncodeReply", "EncodeRequest", "ErrorReply", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id", "InfoReply",
     "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageRequest", "Message", "Name", "NameNumbers",
-    "Names", "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "PolicySettings",
-    "QosSpec", "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest", "Request", "RequestRef",
-    "RuleOutReply", "RuleOutRequest", "Semantics", "Service", "SnapshotReply", "SnapshotRequest", "Stamp",
-    "StatusReply", "StatusRequest", "StepRequest", "SyncReply", "SyncRequest", "Topic", "Versioned",
+    "Names", "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "Origin",
+    "PolicySettings", "QosSpec", "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest", "Request",
+    "RequestRef", "RuleOutReply", "RuleOutRequest", "Semantics", "Service", "SnapshotReply", "SnapshotRequest",
+    "Stamp", "StatusReply", "StatusRequest", "StepRequest", "SyncReply", "SyncRequest", "Topic", "Versioned",
     "WMEventMessage", "WMRequest", "WMState", "attribution", "cache_key", "check", "check_sizes", "clock_remap",
     "consultant_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace",

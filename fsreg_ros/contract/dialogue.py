@@ -13,6 +13,7 @@ from typing import Literal, Optional
 from pydantic import model_validator
 
 from .base import Id, Message, Name, Names, Number, RequestRef, Stamp
+from .wm import Origin
 
 
 class Request(Stamp):
@@ -76,7 +77,11 @@ class RegRequest(Request):
 
 
 class RegExpression(Message):
-    """``reg/expression``: the referring expression for one request."""
+    """``reg/expression``: the referring expression for one request.
+
+    ``origins`` is parallel to ``description``: for a property taken from WM, what had made
+    it enter Q[target]; null for the others (alignment names it, core/alignment.py).
+    """
 
     id: Id
     target: str
@@ -89,6 +94,7 @@ class RegExpression(Message):
     distractors_left: list[str]
     wm_before: list[str]
     text: str
+    origins: list[Optional[Origin]] = []
     client: Optional[str] = None
     request: Optional[str] = None
 
