@@ -28,7 +28,7 @@ def graph(table1_path: Path):
     """Consultant (displacement, capacity 2), WM Manager, parser, RR and REG."""
     with Graph() as g:
         kb = str(table1_path)
-        g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=kb)
+        g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=kb, debug=True)
         g.add(WMManagerNode, domains=["faces"], policy="displacement", capacity=2)
         g.add(ParserNode, kb=kb)
         g.add(ReferenceResolutionNode, domains=["faces"])
@@ -40,7 +40,7 @@ def graph(table1_path: Path):
 
 
 def snapshot(g: Graph) -> dict:
-    return g.call(contract.consultant_service("faces"), {"op": "snapshot"})["queues"]
+    return g.call(contract.debug_service("faces"), {"op": "snapshot"})["queues"]
 
 
 def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -> dict:

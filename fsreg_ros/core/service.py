@@ -173,7 +173,7 @@ class ConsultantService:
         self.wm_note = ""
         self.persisted = True
         self.store_error: Optional[str] = None
-        self.notices: list[str] = []  # log lines for the node (epoch decisions, write failures)
+        self.notices: list[tuple[str, str]] = []  # (level, line) for the node's log: epochs, write failures
         self._stored_epoch: Optional[tuple[Optional[str], float]] = None
         self._records: list[list] = []
         self._events: list[WMEvent] = []
@@ -307,10 +307,10 @@ class ConsultantService:
             self.policy = policy
             self._record(journal.limits(policy, time))
             self._unsaved_meta["policy"] = policy.settings()
-            self.notices.append(f"memory policy {policy.to_json()}")
+            self.notices.append(("info", f"memory policy {policy.to_json()}"))
         if not self.ready:
             self.ready = True
-            self.notices.append(f"configured by the WM Manager (incarnation {self.incarnation}): serving")
+            self.notices.append(("info", f"configured by the WM Manager (incarnation {self.incarnation}): serving"))
         self._touch(time)
 
     def decay(self, ticks: TickRun) -> None:
@@ -471,7 +471,7 @@ class ConsultantService:
             self._failed_at = self.steady()
             self._journal_ok = False
             if self.persisted or self.store_error != str(err):
-                self.notices.append(f"WM not stored (serving on; retrying with a checkpoint): {err}")
+                self.notices.append(("warning", f"WM not stored (serving on; retrying with a checkpoint): {err}"))
             self.persisted, self.store_error = False, str(err)
             return
         self._unsaved_meta.clear()
@@ -484,7 +484,7 @@ class ConsultantService:
             self._journal_rows += len(batch.records)
             self._journal_names += sum(journal.names_in(r) for r in batch.records)
         if not self.persisted:
-            self.notices.append("WM stored again")
+            self.notices.append(("info", "WM stored again"))
         self.persisted, self.store_error = True, None
 
     def _checkpoint(self) -> Checkpoint:
@@ -541,7 +541,7 @@ class ConsultantService:
         self.decay_until = -math.inf
         self.latest = -math.inf
         self.wm_state, self.wm_note = "dropped", f"stored WM not restored: {why}"
-        self.notices.append(f"{self.wm_note}; runtime facts and policy restored")
+        self.notices.append(("warning", f"{self.wm_note}; runtime facts and policy restored"))
         if self._recording:  # the stored queues go at the next write, which is a checkpoint
             self._unsaved.clear()
             self._clear_stored, self._journal_ok = True, False
