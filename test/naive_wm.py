@@ -14,7 +14,13 @@ It follows docs/semantics.md section 2 as literally as possible and shares no co
   with ``random.Random(seed).randrange`` among the others (``displacement-random``);
 * similarity: an encoded property's attribute (declared, or ``attribute=`` in its
   name) forgets the entity's other properties of that attribute, front first;
-* the decay schedule is "tick k at k * delta while k * delta <= T + 1e-9".
+* the decay schedule is "tick k at k * delta while k * delta <= T + 1e-9";
+* an entry's origin is the ``(cause, turn)`` of the encoding that made its property
+  enter the queue (kept while it stays, replaced when it enters again);
+* the change record lists, in first-change order, every entity that had an encode or
+  forget event, or whose LFU counts a new policy reset (only counts other than 1 of
+  properties in its queue, and only if the old policy was ``displacement-lfu``),
+  since :meth:`NaiveWM.take_changes` was last called.
 
 Events are recorded as plain tuples ``(op, entity, property, cause, time, turn)``;
 :func:`event_key` turns a :class:`fsreg_ros.core.memory.WMEvent` into the same form.
@@ -61,6 +67,8 @@ class NaiveWM:
         self.attributes = dict(attributes or {})
         self.record = record
         self.events: list[tuple] = []
+        self.origins: dict[tuple[str, str], tuple[str, Optional[int]]] = {}
+        self.changed: dict[str, None] = {}
 
     # ---------------------------------------------------------------- policy
     def set_policy(
@@ -76,6 +84,10 @@ class NaiveWM:
         ``none`` forgets everything (cause ``reset``), the size limits trim every
         queue (turn ``None``).
         """
+        if self._displacing() == "displacement-lfu":  # the counts restart: exported ones may change
+            for entity, queue in self.queues.items():
+                if any(self.counts.get((entity, p), 1) != 1 for p in queue):
+                    self.changed[entity] = None
         self.rules = set(rules)
         self.capacity = capacity
         self.global_capacity = global_capacity
@@ -110,6 +122,7 @@ class NaiveWM:
                 self.counts[(entity, prop)] = self.counts.get((entity, prop), 1) + 1
             else:
                 self.counts[(entity, prop)] = 1
+                self.origins[(entity, prop)] = (cause, turn)
             queue.append(prop)
             self.counter += 1
             self.stamps[(entity, prop)] = self.counter
@@ -139,6 +152,15 @@ class NaiveWM:
 
     def queue(self, entity: str) -> list[str]:
         return list(self.queues.get(entity, ()))
+
+    def origins_of(self, entity: str) -> list[tuple[str, Optional[int]]]:
+        """Return the origin of each entry of the entity's queue, front first."""
+        return [self.origins[(entity, p)] for p in self.queues.get(entity, ())]
+
+    def take_changes(self) -> list[str]:
+        """Return the entities changed since the last call, in first-change order, and forget them."""
+        changed, self.changed = list(self.changed), {}
+        return changed
 
     def snapshot(self) -> dict[str, list[str]]:
         return {e: list(q) for e, q in self.queues.items() if q}
@@ -183,6 +205,7 @@ class NaiveWM:
         self._log("forget", entity, prop, cause, time, turn)
 
     def _log(self, op: str, entity: str, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
+        self.changed[entity] = None
         if self.record:
             self.events.append((op, entity, prop, cause, time, turn))
 

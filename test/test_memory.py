@@ -6,7 +6,9 @@ import pytest
 
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.decay import TickRun
-from fsreg_ros.core.memory import ENCODE_CAUSES, FORGET_CAUSES, UNLIMITED, WMBuffer, WMEvent
+from fsreg_ros.core.memory import (
+    ENCODE_CAUSES, FORGET_CAUSES, UNKNOWN_ORIGIN, UNLIMITED, QueueItem, WMBuffer, WMEvent,
+)
 
 
 def ticks(*times: float) -> TickRun:
@@ -267,3 +269,187 @@ def test_hot_path_events_equal_constructed_ones(buf):
     assert buf.events[0].to_json()["property"] == "a"
     with pytest.raises(AttributeError):
         buf.events[0].cause = "x"  # type: ignore[misc]
+
+
+# ------------------------------------------------------------- changes
+def lru(capacity=None, global_capacity=None, rules="displacement"):
+    return ForgettingPolicy.parse(rules, capacity=capacity, global_capacity=global_capacity).limits()
+
+
+@pytest.mark.parametrize("sink", [True, False])
+def test_take_changes_lists_changed_entities_in_first_change_order_and_resets(sink):
+    buffer = WMBuffer("d", [].append if sink else None)
+    buffer.set_limits(lru(capacity=2), 0.0)
+    assert buffer.take_changes() == []
+    buffer.encode_each(["b", "a", "b"], "p", "rr", 1.0, 1)  # quiet path without a sink
+    buffer.encode("c", ["p", "q", "r"], "speaker", 1.0, 1)  # displaces c's p
+    buffer.encode("a", ["p"], "speaker", 1.0, 1)  # a refresh is a change too
+    assert buffer.take_changes() == ["b", "a", "c"]
+    assert buffer.take_changes() == []
+    buffer.queue("a"), buffer.snapshot(), buffer.origins("c"), buffer.export_queue("b")  # reads change nothing
+    assert buffer.take_changes() == []
+    assert buffer.remove("c", "q", "retract", 2.0) and not buffer.remove("c", "zzz", "retract", 2.0)
+    assert buffer.pop_front("b", "displacement", 2.0) == "p"
+    assert buffer.pop_front("nobody", "displacement", 2.0) is None
+    assert buffer.take_changes() == ["c", "b"]
+    buffer.clear("reset", 3.0)
+    assert buffer.take_changes() == ["a", "c"]  # b was already empty
+
+
+def test_lazy_decay_is_applied_and_reported_by_take_changes():
+    buffer = WMBuffer("d")
+    buffer.encode("e1", ["a", "b"], "rr", 0.0)
+    buffer.encode("e2", ["c"], "rr", 0.0)
+    buffer.encode("e3", ["d"], "rr", 0.0)
+    buffer.take_changes()
+    buffer.decay(ticks(10.0))
+    buffer.encode("e3", ["x"], "rr", 11.0)  # catches up first: its pop and the encoding
+    # e1 and e2 still owe the tick; take_changes applies it, so what a store saves from
+    # export_queue and counters() is the whole state.
+    assert buffer.take_changes() == ["e3", "e1", "e2"]
+    assert [buffer.export_queue(e) for e in ("e1", "e2")] == [[("b", 2, 1, "rr", None)], []]
+    assert buffer.counters() == (5, 1)
+    buffer.decay(ticks(20.0))
+    buffer.decay(ticks(30.0))
+    assert buffer.queue("e3") == ()
+    assert buffer.take_changes() == ["e3", "e1"]  # e2 was empty: nothing to pop
+
+
+def test_decay_now_reports_popped_queues_in_canonical_order():
+    buffer = WMBuffer("d")
+    buffer.encode("e2", ["a", "b"], "rr", 0.0)
+    buffer.encode("e1", ["c"], "rr", 0.0)
+    buffer.encode("e3", ["d"], "rr", 0.0)
+    buffer.remove("e3", "d", "retract", 0.0)
+    buffer.take_changes()
+    buffer.decay_now(TickRun(0.0, 10.0, 1, 3), ["e1", "e2", "e3"])
+    assert buffer.take_changes() == ["e1", "e2"]  # e3 empty: not popped, not reported
+    buffer.decay_now(TickRun(0.0, 10.0, 4, 1), ["e1", "e2", "e3"])
+    assert buffer.take_changes() == []
+
+
+def test_limits_report_what_they_trim():
+    buffer = WMBuffer("d")
+    buffer.encode("e1", ["a", "b", "c"], "rr", 0.0)
+    buffer.encode("e2", ["a"], "rr", 0.0)
+    buffer.encode("e3", ["a", "b"], "rr", 0.0)
+    buffer.take_changes()
+    buffer.set_limits(lru(capacity=1), 1.0)  # trims e1 and e3
+    assert buffer.take_changes() == ["e1", "e3"]
+    buffer.set_limits(lru(capacity=1, global_capacity=2, rules="displacement+global-capacity"), 2.0)
+    assert buffer.take_changes() == ["e1"]  # e1's c is the oldest front
+    buffer.encode("e4", ["z"], "rr", 3.0)  # the global limit forgets e2's a
+    assert buffer.take_changes() == ["e4", "e2"]
+    buffer.evict_oldest(1, "shared-capacity", 4.0)  # e3's b
+    assert buffer.take_changes() == ["e3"]
+    buffer.set_limits(ForgettingPolicy.parse("none").limits(), 5.0)
+    assert buffer.take_changes() == ["e4"]
+    assert len(buffer) == 0
+
+
+def test_similarity_reports_the_entity_once():
+    buffer = WMBuffer("d", attributes={"red": "colour", "blue": "colour"})
+    buffer.set_limits(ForgettingPolicy.parse("similarity").limits(), 0.0)
+    buffer.encode("e1", ["red", "x"], "rr", 0.0)
+    buffer.encode("e2", ["y"], "rr", 0.0)
+    buffer.take_changes()
+    buffer.encode("e1", ["blue"], "speaker", 1.0)
+    assert buffer.queue("e1") == ("x", "blue")
+    assert buffer.take_changes() == ["e1"]
+
+
+def test_new_limits_resetting_lfu_counts_are_a_change():
+    buffer = WMBuffer("d")
+    buffer.set_limits(ForgettingPolicy.parse("displacement-lfu", capacity=3).limits(), 0.0)
+    buffer.encode("e1", ["a", "a"], "rr", 0.0, 1)
+    buffer.encode("e2", ["a"], "rr", 0.0, 1)
+    assert buffer.export_queue("e1")[0].hits == 2
+    assert buffer.take_changes() == ["e1", "e2"]
+    buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=3).limits(), 1.0)
+    assert buffer.export_queue("e1")[0].hits == 1
+    assert buffer.take_changes() == ["e1"]  # e2's count was 1 already: its export is the same
+
+
+def test_restore_records_nothing_and_clears_the_record():
+    original = WMBuffer("d")
+    original.encode("e1", ["a", "b"], "rr", 0.0, 1)
+    stored = {"e1": original.export_queue("e1")}
+    copy = WMBuffer("d")
+    copy.encode("e9", ["z"], "rr", 0.0)
+    copy.restore(stored, *original.counters(), UNLIMITED)
+    assert copy.take_changes() == []
+    assert copy.snapshot() == {"e1": ["a", "b"]}
+
+
+# ------------------------------------------------------------- origins
+@pytest.mark.parametrize("sink", [True, False])
+def test_origin_is_the_encoding_that_made_the_property_enter(sink):
+    buffer = WMBuffer("d", [].append if sink else None)
+    buffer.set_limits(lru(capacity=2), 0.0)
+    buffer.encode_each(["e1", "e2"], "a", "rr", 1.0, 0)
+    buffer.encode("e1", ["b"], "reg-distractor", 2.0, 1)
+    buffer.encode_each(["e1"], "a", "speaker", 3.0, 2)  # a refresh keeps rr, turn 0
+    assert buffer.queue("e1") == ("b", "a")
+    assert buffer.origins("e1") == [("reg-distractor", 1), ("rr", 0)]
+    buffer.encode("e1", ["c"], "speaker", 4.0, 3)  # displaces b
+    buffer.encode("e1", ["b"], "speaker", 5.0, 4)  # b enters again: a new origin; a is displaced
+    assert buffer.queue("e1") == ("c", "b")
+    assert buffer.origins("e1") == [("speaker", 3), ("speaker", 4)]
+    assert buffer.origins("e2") == [("rr", 0)]
+    assert buffer.origins("nobody") == []
+    assert buffer.export_queue("e1") == [("c", 5, 1, "speaker", 3), ("b", 6, 1, "speaker", 4)]
+    item = buffer.export_queue("e2")[0]
+    assert item == QueueItem("a", 2, 1, "rr", 0)
+    assert (item.property, item.stamp, item.hits, item.cause, item.turn) == ("a", 2, 1, "rr", 0)
+    assert item[:3] == ("a", 2, 1)  # the former (property, stamp, hits) tuple comes first
+
+
+def test_origins_survive_a_round_trip_and_refreshes_after_it():
+    buffer = WMBuffer("d")
+    buffer.encode("e1", ["a", "b"], "speaker", 0.0, 7)
+    buffer.encode("e2", ["a"], "rr", 0.0, None)
+    copy = WMBuffer("d")
+    copy.restore({e: buffer.export_queue(e) for e in ("e1", "e2")}, *buffer.counters(), UNLIMITED)
+    assert copy.export_queue("e1") == buffer.export_queue("e1")
+    assert copy.origins("e2") == [("rr", None)]
+    copy.encode("e1", ["a"], "rr", 1.0, 8)  # refresh after restore: still the speaker's
+    assert copy.origins("e1") == [("speaker", 7), ("speaker", 7)]
+    assert copy.front_stamp("e1") == 2 and copy.export_queue("e1")[-1].stamp == 4
+
+
+def test_restore_of_items_without_origins_and_of_bad_items():
+    buffer = WMBuffer("d")
+    buffer.restore({"e1": [("a", 3, 1)]}, 3, 0, UNLIMITED)  # a store that kept no origins
+    assert buffer.origins("e1") == [UNKNOWN_ORIGIN]
+    before = buffer.export_queue("e1")
+    for bad in ([("a", 1)], [("a", 1, 1, 5, None)], [("a", 1, 1, "rr", "7")], [("a", 1, 1, "rr", True)]):
+        with pytest.raises(ValueError, match="queue of 'e2': item"):
+            buffer.restore({"e3": [("b", 1, 1, "rr", 1)], "e2": bad}, 9, 0, UNLIMITED)
+        assert buffer.export_queue("e1") == before and buffer.counters() == (3, 0)  # nothing changed
+
+
+def test_origin_log_stays_bounded_over_many_turns():
+    buffer = WMBuffer("d")
+    buffer.set_limits(lru(capacity=2), 0.0)
+    for turn in range(20_000):
+        buffer.encode_each([f"e{turn % 50}"], f"p{turn % 3}", ENCODE_CAUSES[turn % 3], float(turn), turn)
+    assert len(buffer._origin_starts) <= 2_048  # one run per call would be 20,000
+    expected = []  # e49's queue by hand: (property, origin), capacity 2
+    for turn in range(20_000):
+        if turn % 50 == 49:
+            prop = f"p{turn % 3}"
+            expected = [e for e in expected if e[0] != prop] + [(prop, (ENCODE_CAUSES[turn % 3], turn))]
+            expected = expected[-2:]
+    assert list(buffer.queue("e49")) == [p for p, _ in expected]
+    assert buffer.origins("e49") == [o for _, o in expected]
+
+
+def test_view_origins_parallel_to_the_queue():
+    from fsreg_ros.core.consultant import Consultant, open_view
+
+    consultant = Consultant("d", {"x": {"a": 1.0, "b": 1.0}, "y": {"a": 1.0}}, ["a", "b"])
+    consultant.encode("x", ["b"], "speaker", 0.0, 0)
+    consultant.wm.encode_each(["x", "y"], "a", "rr", 1.0, 1)
+    view = open_view(consultant, "x", None)
+    assert view.queue == ["b", "a"] and view.origins == [("speaker", 0), ("rr", 1)]
+    assert open_view(consultant, None, None).origins == []

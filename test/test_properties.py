@@ -4,6 +4,7 @@ reference, the forgetting limits as invariants, and REG invariants on random KBs
 from __future__ import annotations
 
 import os
+import random
 from collections import Counter
 
 from hypothesis import HealthCheck, given, settings
@@ -71,6 +72,8 @@ def operations(policy_strategy):
             st.tuples(st.just("snapshot")),
             st.tuples(st.just("remove"), entity, prop),
             st.tuples(st.just("policy"), policy_strategy),
+            st.tuples(st.just("take")),
+            st.tuples(st.just("restore")),
         ),
         max_size=40,
     )
@@ -104,15 +107,31 @@ def run_lazy(initial: ForgettingPolicy, ops, check=None):
             buffer.remove(op[1], op[2], "retract", t)
         elif kind == "policy":
             manager.set_policy("d", op[1], t)
+        elif kind == "take":
+            buffer.take_changes()
+        elif kind == "restore":
+            round_trip(buffer)
         if check is not None:
             check(buffer, manager.policies["d"])
     return buffer, events
 
 
+def round_trip(buffer: WMBuffer) -> None:
+    """Replace the buffer's state with its own export (what a store holds), as after a restart."""
+    exported = {e: buffer.export_queue(e) for e in buffer.nonempty_entities()}
+    buffer.restore(exported, *buffer.counters(), buffer.limits)
+
+
 # ============================================== lazy buffer == eager reference
-@FAST
-@given(initial=policies(), ops=operations(policies()))
-def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
+def check_against_naive(initial, ops, eager_decay: bool) -> None:
+    """Play ``ops`` on a buffer with an event sink, one without, and the naive reference; compare.
+
+    Compared: every event (decay pops owed lazily: at their tick's time, by the end),
+    queues, sizes, origins (parallel to the queues), the change record and a restore
+    round trip.  With ``eager_decay`` ticks go through ``decay_now`` in the naive
+    reference's queue order, so events and changes must come in exactly its order;
+    lazily, a queue's decay pops are applied (and recorded) when it is next touched.
+    """
     events: list = []
     buffer = WMBuffer("d", events.append)
     manager = WMManager()
@@ -122,33 +141,43 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
     quiet_manager = WMManager()
     quiet_manager.manage(quiet, initial)
     naive = naive_for(initial)
+    for b in (buffer, quiet):  # installing the first policy is no change to report
+        assert b.take_changes() == []
+    naive.take_changes()
     seen = 0
     lazy_decay: list = []
     for t, op in enumerate(ops):
-        t = float(t)
+        t, turn = float(t), t
         kind = op[0]
         naive_before = len(naive.events)
         if kind == "encode":
-            buffer.encode(op[1], op[2], op[3], t, t)
-            quiet.encode(op[1], op[2], op[3], t, t)
-            naive.encode(op[1], op[2], op[3], t, t)
+            buffer.encode(op[1], op[2], op[3], t, turn)
+            quiet.encode(op[1], op[2], op[3], t, turn)
+            naive.encode(op[1], op[2], op[3], t, turn)
         elif kind == "each":
-            buffer.encode_each(op[1], op[2], op[3], t, t)
-            quiet.encode_each(op[1], op[2], op[3], t, t)
+            buffer.encode_each(op[1], op[2], op[3], t, turn)
+            quiet.encode_each(op[1], op[2], op[3], t, turn)
             for entity in op[1]:
-                naive.encode(entity, [op[2]], op[3], t, t)
+                naive.encode(entity, [op[2]], op[3], t, turn)
         elif kind == "tick":
-            buffer.decay(TickRun.single(t))
-            quiet.decay(TickRun.single(t))
+            if eager_decay:
+                order = list(naive.queues)
+                buffer.decay_now(TickRun.single(t), order)
+                quiet.decay_now(TickRun.single(t), order)
+            else:
+                buffer.decay(TickRun.single(t))
+                quiet.decay(TickRun.single(t))
             naive.tick(t)
         elif kind == "read":
-            assert buffer.queue(op[1]) == tuple(naive.queue(op[1]))
+            for b in (buffer, quiet):
+                assert b.queue(op[1]) == tuple(naive.queue(op[1]))
+                assert b.origins(op[1]) == naive.origins_of(op[1])
             assert buffer.length(op[1]) == len(naive.queue(op[1]))
-            assert quiet.queue(op[1]) == tuple(naive.queue(op[1]))
         elif kind == "snapshot":
-            assert buffer.snapshot() == naive.snapshot()
-            assert len(buffer) == naive.total()
-            assert quiet.snapshot() == naive.snapshot()
+            for b in (buffer, quiet):
+                assert b.snapshot() == naive.snapshot()
+                assert len(b) == naive.total()
+                assert {e: b.origins(e) for e in naive.queues} == {e: naive.origins_of(e) for e in naive.queues}
         elif kind == "remove":
             assert buffer.remove(op[1], op[2], "retract", t) == naive.remove(op[1], op[2], "retract", t)
             quiet.remove(op[1], op[2], "retract", t)
@@ -157,6 +186,26 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             manager.set_policy("d", policy, t)
             quiet_manager.set_policy("d", policy, t)
             naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t, seed=policy.seed or 0)
+        elif kind == "take":
+            expected = naive.take_changes()
+            for b in (buffer, quiet):
+                changed = b.take_changes()
+                assert len(changed) == len(set(changed))
+                if eager_decay:
+                    assert changed == expected
+                else:  # a lazily decayed queue is recorded when its pops are applied
+                    assert set(changed) == set(expected)
+        elif kind == "restore":
+            # As after a restart: the stored state comes back, nothing counts as changed,
+            # and a random victim is drawn from a new Random(seed) (the naive one follows).
+            expected = naive.take_changes()
+            for b in (buffer, quiet):
+                assert set(b.take_changes()) == set(expected)  # what a store saved since the last write
+                before = {e: b.export_queue(e) for e in ENTITIES}
+                round_trip(b)
+                assert b.take_changes() == []
+                assert {e: b.export_queue(e) for e in ENTITIES} == before
+            naive.rng = random.Random(manager.policies["d"].seed or 0)
         new = [event_key(e) for e in events[seen:]]
         seen = len(events)
         # Decay the lazy buffer owes is materialised later, stamped with the tick's time.
@@ -167,16 +216,34 @@ def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
             assert Counter(lazy_now) == Counter(naive_now)
         else:  # everything else happens in the same order
             assert lazy_now == naive_now
+        if eager_decay and kind == "tick":  # the canonical order, tick by tick
+            assert [e for e in new if e[3] == "decay"] == [e for e in naive.events[naive_before:] if e[3] == "decay"]
         naive_decay = Counter(e for e in naive.events if e[3] == "decay")
         assert not Counter(lazy_decay) - naive_decay  # never a tick the eager one did not do
     # Bring every queue up to date: same content, same decay events per tick.
     assert buffer.snapshot() == naive.snapshot() == quiet.snapshot()
     assert len(quiet) == naive.total()
     assert len(buffer) == naive.total()
+    for b in (buffer, quiet):
+        assert {e: b.origins(e) for e in naive.queues} == {e: naive.origins_of(e) for e in naive.queues}
+        assert set(b.take_changes()) == set(naive.changed)
+    naive.take_changes()
     lazy_decay += [event_key(e) for e in events[seen:]]
     assert all(e[3] == "decay" for e in (event_key(x) for x in events[seen:]))
     assert Counter(lazy_decay) == Counter(e for e in naive.events if e[3] == "decay")
     assert Counter(event_key(e) for e in events) == Counter(naive.events)
+
+
+@FAST
+@given(initial=policies(), ops=operations(policies()))
+def test_lazy_buffer_equals_naive_eager_reference(initial, ops):
+    check_against_naive(initial, ops, eager_decay=False)
+
+
+@FAST
+@given(initial=policies(), ops=operations(policies()))
+def test_eager_decay_buffer_equals_naive_in_order(initial, ops):
+    check_against_naive(initial, ops, eager_decay=True)
 
 
 DECAY_PERIODS = st.sampled_from([0.5, 1.0, 2.5, 10.0 / 3.0, 0.1])

@@ -15,11 +15,11 @@ nodes instead.  One implementation of each algorithm serves both.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Coroutine, Iterable, Mapping, Optional, Protocol, Sequence, TypeVar
 
 from . import bitset
-from .memory import EventSink, WMBuffer
+from .memory import EventSink, Origin, WMBuffer
 
 DEFAULT_THRESHOLD = 0.5
 
@@ -367,7 +367,9 @@ class View:
     target); ``retains`` whether the domain's WM retains anything (policy not
     ``none``), which is what lets REG choose between SD-PIA and DIST-PIA;
     ``holding`` the properties that hold for the target (None without one), so REG
-    asks nothing about a property it would skip.
+    asks nothing about a property it would skip; ``origins`` the ``(cause, turn)``
+    of the encoding that made each property of ``queue`` enter Q[target], parallel
+    to ``queue`` (:meth:`WMBuffer.origins`; empty without a target).
     """
 
     handle: Any
@@ -376,6 +378,7 @@ class View:
     retains: bool
     holding: Optional[frozenset[str]] = None
     first: Optional["Narrowed"] = None  # what the first step given to open did
+    origins: list[Origin] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -495,7 +498,8 @@ def open_view(
         view = View(candidates, size, [], consultant.wm.retains)
     else:
         holding = frozenset(consultant.properties_of(target))
-        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding)
+        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding,
+                    origins=consultant.wm.origins(target))
     if first is not None:
         holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
         view.first = Narrowed(holds, candidates.size)
