@@ -95,6 +95,7 @@ class RemotePort:
         self.ready: Optional[bool] = None  # whether it said it serves
         self.alive: Optional[bool] = None  # its liveliness (None: not heard of yet)
         self._heard_at = 0.0  # monotonic time the current incarnation was first heard
+        self._down_since = time.monotonic()  # when it was last seen to go (or the port started)
         topic = contract.alive_topic(domain)
         self._alive_sub = node.create_subscription(
             String, topic.name, self._on_alive, qos_profile(topic.subscriber_qos),
@@ -118,11 +119,13 @@ class RemotePort:
         self.alive = True
 
     def _on_liveliness(self, info) -> None:
-        """A writer of the alive topic appeared or lapsed; fail the calls a dead one will never answer."""
+        """Follow the alive topic's writers; when one lapsed, fail the calls it will never answer."""
         if info.alive_count > 0 and info.alive_count_change >= 0 and info.not_alive_count_change <= 0:
             self.alive = True
             return
         self.alive = info.alive_count > 0
+        if not self.alive:
+            self._down_since = time.monotonic()
         # With a live writer left (a new incarnation), only calls sent before it was heard are lost.
         before = time.monotonic() if not self.alive else self._heard_at
         error = (f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again")
@@ -137,8 +140,11 @@ class RemotePort:
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
         if not self._available():
-            await wait_until(self.client.node, self._available, self.outage_wait,
-                             callback_group=self.client.callback_group)
+            # Wait for a restart only within ``outage_wait`` of the outage's start: requests
+            # queued behind a dead consultant are answered at once.
+            wait = self._down_since + self.outage_wait - time.monotonic()
+            if wait > 0:
+                await wait_until(self.client.node, self._available, wait, callback_group=self.client.callback_group)
             if not self._available():
                 why = "its liveliness lapsed" if self.alive is False else "no server is matched"
                 raise CarrierError(f"consultant '{self.domain}' is not running ({why}); try again later",
@@ -226,7 +232,8 @@ class RemotePort:
         reply = await self._call(payload)
         holding = reply.get("holding")
         view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
-                    frozenset(holding) if holding is not None else None)
+                    frozenset(holding) if holding is not None else None,
+                    origins=[(cause, turn) for cause, turn in reply.get("origins", ())])
         if first is not None:
             if reply.get("first") is None:
                 raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)

@@ -166,14 +166,17 @@ class Narrowing(Message):
 class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
 
-    ``queue`` is LRU first ([] without a target); ``retains`` whether the domain's WM
-    retains anything (policy not ``none``); ``holding`` the properties holding for the
-    target (preference order; null without a target).
+    ``queue`` is LRU first ([] without a target); ``origins`` parallel to it, the
+    ``[cause, turn]`` of the encoding that made each property enter Q[target];
+    ``retains`` whether the domain's WM retains anything (policy not ``none``);
+    ``holding`` the properties holding for the target (preference order; null without
+    a target).
     """
 
     session: str
     size: int
     queue: list[str]
+    origins: list[Annotated[tuple[str, Optional[int]], Field(strict=False)]] = []  # JSON lists of two
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None

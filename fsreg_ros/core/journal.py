@@ -46,12 +46,12 @@ class JournalError(ValueError):
 
 # ------------------------------------------------------------------ records
 def each(prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]) -> Record:
-    """Return the record of ``encode_each(entities, prop, cause, time, turn)``."""
+    """Return the record of encoding ``prop`` for each of ``entities`` (``WMBuffer.encode_each``)."""
     return ["each", prop, list(entities), cause, time, turn]
 
 
 def encode(entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]) -> Record:
-    """Return the record of ``encode(entity, properties, cause, time, turn)``."""
+    """Return the record of encoding ``properties`` for ``entity`` (``WMBuffer.encode``)."""
     return ["encode", entity, list(properties), cause, time, turn]
 
 

@@ -46,7 +46,7 @@ from . import journal
 from .consultant import CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, close_view, open_view
 from .decay import TickError, TickRun, check_time
 from .forgetting import NONE, ForgettingPolicy, PolicyError
-from .memory import ENCODE_CAUSES, WMEvent
+from .memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMEvent
 from .sessions import SessionTable
 from .store import Batch, Checkpoint, DomainStore, StoreError, StoredState, damaged
 from .wm_manager import apply_ticks, configure_buffer, unapplied
@@ -344,7 +344,7 @@ class ConsultantService:
         return f"{self.incarnation}:{self.consultant.version}"
 
     def numbered(self, events: Sequence[WMEvent]) -> list[dict]:
-        """Number events for publishing: ``seq`` 1, 2, 3, ... per incarnation, and the ``incarnation``."""
+        """Return events as messages, numbered ``seq`` 1, 2, 3, ... per incarnation, with the ``incarnation``."""
         out = []
         for event in events:
             self.seq += 1
@@ -588,7 +588,7 @@ class ConsultantService:
         c, migrate = self.consultant, state.other_kb
         queues = {}
         for entity, items in state.queues.items():
-            stray = [item[3] for item in items if item[3] not in ENCODE_CAUSES]
+            stray = [item[3] for item in items if item[3] not in ENCODE_CAUSES and item[3] != UNKNOWN_ORIGIN[0]]
             if stray:
                 raise damaged(path, f"the WM queue of {entity!r} has an entry with cause {stray[0]!r}")
             if not c.knows_entity(entity):
@@ -664,7 +664,7 @@ class ConsultantService:
             self._touch(first.time, wm=False)
         holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
         reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-                 "holding": holding}
+                 "holding": holding, "origins": [list(origin) for origin in view.origins]}
         if view.first is not None:
             reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
         return reply

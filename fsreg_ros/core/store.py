@@ -64,6 +64,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from .memory import UNKNOWN_ORIGIN
+
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.
 SUFFIX = ".sqlite3"
@@ -416,7 +418,7 @@ class DomainStore:
             db.execute("CREATE TABLE journal (seq INTEGER PRIMARY KEY, record TEXT NOT NULL)")
             rows = db.execute("SELECT entity, items FROM queues").fetchall()
             db.executemany("UPDATE queues SET items = ? WHERE entity = ?",
-                           [(_dumps([[*item[:3], "unknown", None] for item in json.loads(items)]), entity)
+                           [(_dumps([[*item[:3], *UNKNOWN_ORIGIN] for item in json.loads(items)]), entity)
                             for entity, items in rows])
             stamp, ticks = self._meta("stamp") or 0, self._meta("ticks") or 0
             self._put(db, "checkpoint", {"stamp": stamp, "ticks": ticks, "policy": self._meta("policy")})

@@ -115,7 +115,10 @@ class ConsultantNode(Node):
         if stored.created and legacy.exists():
             log.warning(f"a state database from before ROS domain ids were part of the path is at {legacy}; "
                         f"not used: move it to {path} if it belongs to this robot")
-        (log.warning if restored.migrated else log.info)(printable(f"state {path}: {restored.summary()}"))
+        if restored.migrated:
+            log.warning(printable(f"state {path}: {restored.summary()}", 4000))
+        else:
+            log.info(printable(f"state {path}: {restored.summary()}"))
         self.service.maintain()  # compact a replayed journal now
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
@@ -276,8 +279,11 @@ class ConsultantNode(Node):
 
     def _log_notices(self) -> None:
         notices, self.service.notices = self.service.notices, []
-        for level, text in notices:
-            (self.get_logger().warning if level == "warning" else self.get_logger().info)(printable(text))
+        for level, text in notices:  # one call site per severity: rclpy refuses to mix them
+            if level == "warning":
+                self.get_logger().warning(printable(text))
+            else:
+                self.get_logger().info(printable(text))
 
     # ------------------------------------------------------------ parameters
     def _text(self, name: str, description: str) -> str:
