@@ -615,3 +615,40 @@ def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
     assert "300 characters" in results.latest(id="a1")["error"] and not results.latest(id="a1")["ok"]
     assert "1001 items" in results.latest(id="a2")["error"]
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3"]
+
+
+# ------------------------------------------------------------------ the production protocol
+def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
+    node = start(graph, debug=False)
+    assert node.get_parameter("debug").value is False
+    names = {name for name, _ in node.get_service_names_and_types_by_node(node.get_name(), node.get_namespace())}
+    assert "/" + Q in names and "/" + M in names and "/" + D not in names
+    err = graph.call_error(Q, {"op": "snapshot"})  # nor are its ops on the production service
+    assert err.kind == "MessageError"
+    assert "unknown op 'snapshot' (known: info, open, narrow, rule_out, close)" in err.error
+
+
+def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(graph: Graph):
+    start(graph, max_sessions=8, max_sessions_per_client=2)
+    configure(graph, "displacement", capacity=2)
+    mine = graph.call(Q, {"op": "open", "target": "face1", "client": "reg"})["session"]
+    hog = [graph.call(Q, {"op": "open", "client": "hog"})["session"] for _ in range(6)]
+    assert graph.call(Q, {"op": "close", "session": mine})["members"] == ["face2", "face3"]
+    assert graph.call_error(Q, {"op": "close", "session": hog[0]}).kind == "SessionError"
+    assert graph.call(Q, {"op": "close", "session": hog[-1]})["members"] == ["face1", "face2", "face3"]
+
+
+def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(graph: Graph):
+    start(graph)
+    configure(graph, "displacement", capacity=2)
+    assert graph.call(Q, {"op": "info"})["event_listeners"] == 0
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    graph.spin_until(lambda: graph.call(Q, {"op": "info"})["event_listeners"] == 1, what="the listener matched")
+    # nothing was published while nobody listened: numbering starts with the first event sent
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "lab-coat"], "cause": "speaker",
+                   "time": 2.0})
+    graph.spin_until(lambda: len(events) == 3, what="three events")
+    assert [(e["seq"], e["incarnation"], e["op"], e["property"]) for e in events] == [
+        (1, 1, "encode", "glasses"), (2, 1, "encode", "lab-coat"), (3, 1, "forget", "male")]
+    assert graph.call(Q, {"op": "info"})["events"] == 3

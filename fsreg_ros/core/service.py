@@ -525,8 +525,8 @@ class ConsultantService:
     def _settle_epoch(self, time: float) -> None:
         """At the first configure: drop stored WM that belongs to another clock or run."""
         stored, self._stored_epoch = self._stored_epoch, None
-        if stored is None:
-            return
+        if stored is None or (not self.buffer.nonempty_entities() and self.decay_until == -math.inf):
+            return  # nothing stored to judge
         clock, latest = stored
         if clock is not None and clock != self.clock:
             why = f"it was stored on the {clock} clock and this consultant runs on the {self.clock} clock"
@@ -622,11 +622,12 @@ class ConsultantService:
         for record in records:
             journal.replay(self.buffer, c.entities, record)
         report.records = len(records)
-        if c.retract_on_update:  # a fact stored before its WM retraction was: retract now, as it would have been
-            for entity in self.buffer.nonempty_entities():
-                for prop in self.buffer.queue(entity):
-                    if prop not in c.properties_of(entity):
-                        self.buffer.remove(entity, prop, "retract", 0.0)
+        if c.retract_on_update:  # a runtime retraction stored while WM could not be: apply it now
+            for entity, facts in state.facts.items():
+                gone = [p for p, certainty in facts.items() if certainty < c.threshold and c.knows_entity(entity)
+                        and c.knows_property(p) and p not in c.properties_of(entity)]
+                for prop in gone:
+                    self.buffer.remove(entity, prop, "retract", 0.0)
         self.decay_until = state.decay_until
         self.latest = state.latest
         self._clock_saved = state.clock == self.clock
