@@ -185,6 +185,23 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
             raise RuntimeError(answers[key]["error"])
         return (time.perf_counter() - start) * 1e3
 
+    status_client = node.create_client(AddDiagnostics, contract.STATUS.name)
+
+    def call(client, payload: dict, timeout: float = 10.0) -> dict:
+        future = client.call_async(AddDiagnostics.Request(load_namespace=json.dumps(payload)))
+        start = time.perf_counter()
+        while not future.done():
+            executor.spin_once(timeout_sec=0.001)
+            if time.perf_counter() - start > timeout:
+                raise RuntimeError(f"no answer from {client.srv_name}")
+        return json.loads(future.result().message)
+
+    def hop_info() -> dict:
+        return call(hop_client, {"op": "info", "entities_from": 1 << 30})
+
+    def configured() -> bool:
+        return status_client.service_is_ready() and all(call(status_client, {}).get("configured", {}).values())
+
     def hop(timeout: float = 10.0) -> float:
         # a production op with no work: info for the entities past the last (none)
         request = AddDiagnostics.Request(load_namespace=json.dumps({"op": "info", "entities_from": 1 << 30}))
@@ -203,6 +220,10 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
         deadline = time.monotonic() + 10.0
         while not hop_client.service_is_ready() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.01)
+        while not hop_info()["state"] or not configured():  # the WM Manager has configured every consultant
+            if time.monotonic() > deadline + 20.0:
+                raise RuntimeError("the consultants were not configured within 30 s")
+            executor.spin_once(timeout_sec=0.05)
         null_human, null_robot = [], []
         for rnd in range(rounds + 1):  # round 0 warms up (first calls to new servers are slow)
             for turn in turns:
