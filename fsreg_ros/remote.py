@@ -94,7 +94,7 @@ class RemotePort:
         self.incarnation: Optional[int] = None  # the consultant's, from its announcements
         self.ready: Optional[bool] = None  # whether it said it serves
         self.alive: Optional[bool] = None  # its liveliness (None: not heard of yet)
-        self._heard_at = 0.0  # monotonic time the current incarnation was first heard
+        self._appeared_at = 0.0  # monotonic time the newest writer of the alive topic appeared
         self._down_since = time.monotonic()  # when it was last seen to go (or the port started)
         topic = contract.alive_topic(domain)
         self._alive_sub = node.create_subscription(
@@ -105,9 +105,7 @@ class RemotePort:
     # ------------------------------------------------------------ liveness
     def restarted(self, incarnation: int) -> None:
         """Note the consultant's announced incarnation (from ``consultant/announce`` or its alive topic)."""
-        if incarnation != self.incarnation:
-            self.incarnation = incarnation
-            self._heard_at = time.monotonic()
+        self.incarnation = incarnation
 
     def _on_alive(self, msg: String) -> None:
         try:
@@ -120,15 +118,18 @@ class RemotePort:
 
     def _on_liveliness(self, info) -> None:
         """Follow the alive topic's writers; when one lapsed, fail the calls it will never answer."""
-        if info.alive_count > 0 and info.alive_count_change >= 0 and info.not_alive_count_change <= 0:
-            self.alive = True
-            return
+        now = time.monotonic()
+        if info.alive_count_change > 0:
+            self._appeared_at = now  # a consultant (a new incarnation) appeared
         self.alive = info.alive_count > 0
+        if info.alive_count_change >= 0 and info.not_alive_count_change <= 0:
+            return
         if not self.alive:
-            self._down_since = time.monotonic()
-        # With a live writer left (a new incarnation), only calls sent before it was heard are lost.
-        before = time.monotonic() if not self.alive else self._heard_at
-        error = (f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again")
+            self._down_since = now
+        # A call sent while a live consultant was matched was answered by it; those sent
+        # before the newest appeared (all of them, if none lives) went to the dead one.
+        before = self._appeared_at if self.alive else now
+        error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
         for future, sent in list(self._inflight.items()):
             if sent <= before and not future.done():
                 self.client.client.remove_pending_request(future)

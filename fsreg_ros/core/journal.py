@@ -13,6 +13,10 @@ Records are JSON lists whose first item names the operation:
 
 ``["each", property, [entity, ...], cause, time, turn]``
     ``WMBuffer.encode_each``: Encode(e, [property]) for each entity, in order (rules 2 and 3).
+``["bits", property, hex, cause, time, turn]``
+    the same, for the entities whose bits are set in ``hex`` (bit i = the i-th entity in
+    entity order): how a narrowing is written, without naming thousands of entities;
+    :func:`decode` turns it into ``each`` with the entity order it was written under.
 ``["encode", entity, [property, ...], cause, time, turn]``
     ``WMBuffer.encode``: Encode(entity, properties), Algorithm 1 (rule 1).
 ``["decay", {"origin", "period", "first", "count"}]``
@@ -32,6 +36,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Optional, Sequence
 
+from . import bitset
 from .decay import TickError, TickRun, check_time
 from .forgetting import ForgettingPolicy, PolicyError
 from .memory import ENCODE_CAUSES, WMBuffer
@@ -48,6 +53,30 @@ class JournalError(ValueError):
 def each(prop: str, entities: Sequence[str], cause: str, time: float, turn: Optional[int]) -> Record:
     """Return the record of encoding ``prop`` for each of ``entities`` (``WMBuffer.encode_each``)."""
     return ["each", prop, list(entities), cause, time, turn]
+
+
+def bits(prop: str, members: int, cause: str, time: float, turn: Optional[int]) -> Record:
+    """Return the record of encoding ``prop`` for each entity of a bitset (entity order), in order."""
+    return ["bits", prop, format(members, "x"), cause, time, turn]
+
+
+def decode(record: Any, order: Optional[Sequence[str]]) -> Any:
+    """Return a ``bits`` record as the ``each`` record it stands for (other records unchanged).
+
+    ``order`` is the entity order the journal was written under; JournalError if a bit
+    names no entity of it (or there is no order).
+    """
+    if not (isinstance(record, list) and record and record[0] == "bits"):
+        return record
+    if len(record) != 6 or not isinstance(record[2], str):
+        raise JournalError(f"malformed 'bits' record {str(record)[:80]}")
+    try:
+        members = int(record[2], 16)
+    except ValueError:
+        raise JournalError(f"malformed 'bits' record {str(record)[:80]}") from None
+    if order is None or members < 0 or members.bit_length() > len(order):
+        raise JournalError("a 'bits' record names entities beyond the stored entity order")
+    return ["each", record[1], bitset.names(members, order), *record[3:]]
 
 
 def encode(entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]) -> Record:
@@ -76,8 +105,12 @@ def remove(entity: str, properties: Sequence[str], time: float) -> Record:
 
 
 def names_in(record: Record) -> int:
-    """Return how many entity names a record carries (what its size grows with)."""
-    return len(record[2]) if record and record[0] == "each" else 1
+    """Return how many entity names a record carries (what its size grows with; a bitset counts 1 per 8)."""
+    if record and record[0] == "each":
+        return len(record[2])
+    if record and record[0] == "bits":
+        return len(record[2]) // 2 + 1
+    return 1
 
 
 # ------------------------------------------------------------------ replay

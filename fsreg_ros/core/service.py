@@ -178,7 +178,7 @@ class ConsultantService:
         self._records: list[list] = []
         self._events: list[WMEvent] = []
         self._recording = store is not None and persist_wm
-        self._unsaved: dict[str, None] = {}  # entities changed since the last checkpoint
+        self._unsaved: set[str] = set()  # entities changed since the last checkpoint
         self._unsaved_meta: dict[str, Any] = {}
         self._journal_rows = 0
         self._journal_names = 0
@@ -368,6 +368,9 @@ class ConsultantService:
         path = self.store.path if self.store is not None else "state"
         report = Restored(state.incarnation, migrated=migrate)
         self.incarnation = state.incarnation
+        kb_entities = list(self.consultant.entities)  # before any runtime entity joins
+        if state.kb_entities is None and self._recording:
+            self._unsaved_meta["kb_entities"] = kb_entities
         sink, self.buffer.sink = self.buffer.sink, None
         try:
             runtime = self._restore_facts(state, report, path)
@@ -383,11 +386,11 @@ class ConsultantService:
                 self.wm_state = "not-persisted"
         finally:
             self.buffer.sink = sink
-        self._unsaved.update(dict.fromkeys(self.buffer.take_changes()))
+        self._unsaved.update(self.buffer.take_changes())
         if report.records:
             self._journal_ok = False  # compact the replayed journal at the next write
         if migrate and self.store is not None:
-            backup = self.store.rewrite(self._export(state, runtime))
+            backup = self.store.rewrite(self._export(state, runtime, kb_entities))
             report.backup = str(backup) if backup else None
             self._unsaved.clear()
             self._journal_ok, self._journal_rows, self._journal_names = True, 0, 0
@@ -437,7 +440,7 @@ class ConsultantService:
             self._unsaved_meta.clear()
             return
         if self._recording:
-            self._unsaved.update(dict.fromkeys(changes.queues))
+            self._unsaved.update(changes.queues)
             if not changes.queues and not changes.records and not self._unsaved_meta:
                 return
         elif not self._unsaved_meta:
@@ -460,6 +463,8 @@ class ConsultantService:
             meta["latest"] = self.latest if math.isfinite(self.latest) else None
             if not self._clock_saved:
                 meta["clock"] = self.clock
+            if "kb_entities" in self._unsaved_meta:
+                meta["kb_entities"] = self._unsaved_meta["kb_entities"]
             if checkpoint:
                 batch.checkpoint = self._checkpoint()
             else:
@@ -488,9 +493,11 @@ class ConsultantService:
         self.persisted, self.store_error = True, None
 
     def _checkpoint(self) -> Checkpoint:
-        export = self.buffer.export_queue
+        export, unsaved = self.buffer.export_queue, self._unsaved
+        held = [e for e in self.buffer.nonempty_entities() if e in unsaved]  # in the buffer's order
+        emptied = sorted(unsaved.difference(held))
         stamp, ticks = self.buffer.counters()
-        return Checkpoint({e: export(e) for e in self._unsaved}, stamp, ticks, self.policy.settings(),
+        return Checkpoint({e: export(e) for e in held + emptied}, stamp, ticks, self.policy.settings(),
                           clear=self._clear_stored)
 
     def _journals(self) -> bool:
@@ -505,7 +512,7 @@ class ConsultantService:
                           turn: Optional[int]) -> None:
         """Record the rule 2/3 encodings a narrowing (or an open's first step) just did, if it did any."""
         if cause is not None and candidates.members and self.buffer.retains:
-            self._records.append(journal.each(prop, self.consultant.members(candidates), cause, time, turn))
+            self._records.append(journal.bits(prop, candidates.members, cause, time, turn))
             self._touch(time)
 
     def _touch(self, time: float, wm: bool = True) -> None:
@@ -610,8 +617,10 @@ class ConsultantService:
             raise damaged(path, f"stored checkpoint policy: {err}") from None
         self.buffer.restore(queues, state.stamp, state.ticks, limits.limits())
         records = []
+        order = None if state.kb_entities is None else state.kb_entities + state.entities
         for record in state.journal:
             try:
+                record = journal.decode(record, order)
                 checked = journal.check(record, c.knows_entity, c.knows_property, keep_known=state.other_kb)
             except journal.JournalError as err:
                 raise damaged(path, f"journal: {err}") from None
@@ -634,7 +643,8 @@ class ConsultantService:
         self._stored_epoch = (state.clock, state.latest)
         self.wm_state = "restored" if self.buffer.nonempty_entities() or records else "empty"
 
-    def _export(self, state: StoredState, runtime_facts: dict[str, dict[str, float]]) -> StoredState:
+    def _export(self, state: StoredState, runtime_facts: dict[str, dict[str, float]],
+                kb_entities: list[str]) -> StoredState:
         """Return the state to write after a migration: what was kept, as of now."""
         export = self.buffer.export_queue
         stamp, ticks = self.buffer.counters()
@@ -642,7 +652,7 @@ class ConsultantService:
             self.incarnation, policy=state.policy, decay_until=self.decay_until, clock=state.clock,
             latest=self.latest, entities=list(self._runtime), facts=runtime_facts,
             queues={e: export(e) for e in self.buffer.nonempty_entities()} if self.persist_wm else {},
-            stamp=stamp, ticks=ticks, limits=self.policy.settings())
+            stamp=stamp, ticks=ticks, limits=self.policy.settings(), kb_entities=kb_entities)
 
     # ============================================================ internals: handlers
     def _info(self, req: dict, client: str) -> dict:

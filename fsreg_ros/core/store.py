@@ -190,6 +190,8 @@ class StoredState:
     ticks: int = 0
     limits: Optional[dict] = None
     journal: list[Any] = field(default_factory=list)
+    #: The KB's entities in entity order when the database was written (None: not recorded).
+    kb_entities: Optional[list[str]] = None
     #: The database was written for another KB (its fingerprint differs): migrate it.
     other_kb: bool = False
     #: The database was created by this open (nothing stored before).
@@ -303,7 +305,8 @@ class DomainStore:
                     self._facts(db, entity, facts, False)
                 self._checkpoint(db, Checkpoint(state.queues, state.stamp, state.ticks, state.limits))
                 self._put(db, "kb", self.kb)
-                for key, value in (("policy", state.policy), ("clock", state.clock)):
+                for key, value in (("policy", state.policy), ("clock", state.clock),
+                                   ("kb_entities", state.kb_entities)):
                     self._put(db, key, value)
                 self._put(db, "latest", state.latest if math.isfinite(state.latest) else None)
                 self._put(db, "decay_until", state.decay_until if math.isfinite(state.decay_until) else None)
@@ -485,7 +488,11 @@ class DomainStore:
             limits=checkpoint.get("policy"),
             entities=[name for (name,) in db.execute("SELECT name FROM entities ORDER BY seq")],
             other_kb=self._meta("kb") != self.kb,
+            kb_entities=self._meta("kb_entities"),
         )
+        if state.kb_entities is not None and not (isinstance(state.kb_entities, list)
+                                                  and all(isinstance(e, str) for e in state.kb_entities)):
+            raise damaged(path, "meta 'kb_entities' is not a list of names")
         for entity, prop, certainty in db.execute("SELECT entity, property, certainty FROM facts ORDER BY rowid"):
             if not isinstance(certainty, (int, float)) or not 0.0 <= certainty <= 1.0:
                 raise damaged(path, f"fact {entity!r}.{prop!r} has certainty {certainty!r}, not a number in [0, 1]")
