@@ -142,13 +142,15 @@ def test_query_ops_round_trip(graph: Graph):
     }
     assert graph.call(Q, {"op": "info"})["events"] == len(events) == states[-1]["events"]
 
-    # reads do not publish anything
+    # reads publish nothing: the next change's event and state come right after the last ones
     n_states, n_events = len(states), len(events)
     graph.call(D, {"op": "wm", "entity": "face2"})
     graph.call(D, {"op": "holds", "property": "male", "entities": ["face1"]})
     graph.call(D, {"op": "snapshot"})
-    graph.spin_for(0.05)
-    assert (len(states), len(events)) == (n_states, n_events)
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 4.0})
+    graph.spin_until(lambda: len(events) > n_events and len(states) > n_states, what="the change after the reads")
+    assert events[n_events]["seq"] == events[n_events - 1]["seq"] + 1 and events[n_events]["property"] == "female"
+    assert states[n_states]["time"] == 4.0 and states[n_states]["events"] == events[n_events]["seq"]
 
 
 def test_configure_trims_and_decay_ticks(graph: Graph):
@@ -157,12 +159,11 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
 
     def new_events(n: int, what: str) -> list[dict]:
-        """Wait until ``n`` more events arrived since the last call; those events."""
+        """Wait for the next ``n`` events; they must be numbered right after the last ones (nothing between)."""
         graph.spin_until(lambda: len(events) >= seen[0] + n, what=what)
-        graph.spin_for(0.02)
-        got = events[seen[0]:]
-        seen[0] = len(events)
-        assert len(got) == n, got
+        got = events[seen[0]:seen[0] + n]
+        assert [e["seq"] for e in got] == list(range(seen[0] + 1, seen[0] + n + 1)), got
+        seen[0] += n
         return got
 
     seen = [0]
@@ -420,14 +421,12 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     assert graph.call(Q, {**step, "property": "glasses"}) == {"target_holds": True, "size": 1, "version": version}
     graph.spin_until(lambda: events, what="rule-3 event")
     assert [(e["entity"], e["property"], e["cause"]) for e in events] == [("face2", "glasses", "reg-distractor")]
-    graph.spin_for(0.05)
-    assert len(states) == n_states  # the state waits for the close
     closed = graph.call(Q, {"op": "close", "session": session, "encode": ["glasses"], "time": 2.0, "turn": 1})
     assert closed == {"members": ["face2"], "version": version}
     graph.spin_until(lambda: len(states) > n_states, what="state at close")
-    graph.spin_for(0.05)
-    assert len(states) == n_states + 1
-    assert states[-1]["queues"] == {"face2": ["glasses"], "face1": ["glasses"]}
+    # the first state after the open is the close's (the session's steps published none)
+    assert states[n_states]["queues"] == {"face2": ["glasses"], "face1": ["glasses"]}
+    assert states[n_states]["events"] == 2
     # a closed session is gone
     err = graph.call_error(Q, {**step, "property": "male"})
     assert err.kind == "SessionError" and "no open session" in err.error
@@ -444,11 +443,13 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     assert opened["first"] == {"target_holds": True, "size": 2} and opened["size"] == 3
     graph.spin_until(lambda: len(events) == n_events + 2, what="rule-2 events")
     assert [(e["entity"], e["cause"]) for e in events[n_events:]] == [("face1", "rr"), ("face3", "rr")]
-    # a bad first step is refused and opens nothing, encodes nothing
+    # a bad first step is refused and opens nothing, encodes nothing: the next event is numbered right after
     assert graph.call_error(Q, {"op": "open", "first": {"property": "wings", "cause": "rr"}}).kind == "KnowledgeError"
     assert graph.call_error(Q, {"op": "open", "first": {"property": "male", "cause": "decay"}}).kind == "MessageError"
-    graph.spin_for(0.05)
-    assert len(events) == n_events + 2
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 4.0})
+    graph.spin_until(lambda: len(events) > n_events + 2, what="the next event")
+    assert events[n_events + 2]["seq"] == events[n_events + 1]["seq"] + 1
+    assert events[n_events + 2]["property"] == "female"
     # an LTM change changes the version callers cache by
     graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"male": 1.0}})
     graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"] == ["face4"],
