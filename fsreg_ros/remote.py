@@ -14,11 +14,13 @@ malformed reply, other rejections, an outage) raises :class:`~fsreg_ros.carrier.
 
 Outages are detected, not waited out.  The port listens to the consultant's latched
 ``consultant/<domain>/alive`` announcement, whose writer has a DDS liveliness lease of
-1 s (kept by the DDS threads, whatever the consultant's Python is doing).  When the
-process dies its liveliness lapses: the calls it had not answered fail at once (kind
-``unavailable``) and new calls wait at most ``outage_wait`` seconds for a consultant
-to come back before failing the same way; so a query during an outage is answered
-within about 1.5 s, not after ``timeout``.  A consultant that lives but is slow gets
+1 s (kept by the DDS threads across processes, whatever the consultant's Python is
+doing; a reader in the consultant's own process needs its writes, every 0.25 s).  When
+the process dies its liveliness lapses: the calls it had not answered fail (kind
+``unavailable``, after a 0.25 s grace: a lease can lapse and recover under load) and new
+calls wait at most ``outage_wait`` seconds for a consultant to come back before failing
+the same way; so a query during an outage is answered within about 1.5 s, not after
+``timeout``.  A consultant that lives but is slow gets
 the full ``timeout``.  An ``open`` or ``info`` that failed only because the consultant
 restarted under it (its new incarnation is up) is sent again once, with the catalogue
 refreshed: the first request after a restart succeeds.  Each port has a client id
@@ -34,16 +36,19 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from std_msgs.msg import String
 
 from . import contract
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, qos_profile, wait_until
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, qos_profile, wait_until
 from .codec import MessageError, parse
 from .core.consultant import KnowledgeError, Narrowed, Step, View
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5
+#: Seconds a lapsed liveliness must stay lapsed before the calls in flight fail.
+LAPSE_GRACE = 0.25
 #: Calls a port keeps outstanding at most (RR and REG make one at a time).
 MAX_IN_FLIGHT = 16
 #: Ops sent again once when the consultant restarted under them (they hold no session).
@@ -120,20 +125,30 @@ class RemotePort:
         """Follow the alive topic's writers; when one lapsed, fail the calls it will never answer."""
         now = time.monotonic()
         if info.alive_count_change > 0:
-            self._appeared_at = now  # a consultant (a new incarnation) appeared
+            self._appeared_at = now  # a consultant (perhaps a new incarnation) appeared
         self.alive = info.alive_count > 0
         if info.alive_count_change >= 0 and info.not_alive_count_change <= 0:
             return
         if not self.alive:
             self._down_since = now
-        # A call sent while a live consultant was matched was answered by it; those sent
-        # before the newest appeared (all of them, if none lives) went to the dead one.
-        before = self._appeared_at if self.alive else now
-        error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
-        for future, sent in list(self._inflight.items()):
-            if sent <= before and not future.done():
-                self.client.client.remove_pending_request(future)
-                future.set_exception(CarrierError(error, kind="unavailable", service=self.client.name))
+        # Confirm after a short grace (a lease can lapse under heavy load and recover).
+        client, incarnation, timer = self.client, self.incarnation, None
+
+        def confirm() -> None:
+            drop_timer(client.node, timer, client.callback_group)
+            if self.alive and self.incarnation == incarnation and self._appeared_at > now:
+                return  # the same consultant again: its calls are answered
+            # A call sent while a live consultant was matched was answered by it; those
+            # sent before the newest appeared (all of them, if none lives) went to the dead one.
+            before = self._appeared_at if self.alive else now
+            error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
+            for future, sent in list(self._inflight.items()):
+                if sent <= before and not future.done():
+                    client.client.remove_pending_request(future)
+                    future.set_exception(CarrierError(error, kind="unavailable", service=client.name))
+
+        timer = client.node.create_timer(LAPSE_GRACE, confirm, client.callback_group,
+                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _available(self) -> bool:
         return self.alive is not False and self.client.ready()

@@ -49,6 +49,8 @@ NAMES = ("entity", "property", "cause", "target", "session", "client")
 LISTS = ("entities", "properties", "context", "encode")
 #: Longest a due /wm/state waits for open sessions to close, seconds.
 MAX_STATE_DELAY = 1.0
+#: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
+ALIVE_PERIOD = 0.25
 
 
 class ConsultantNode(Node):
@@ -125,6 +127,7 @@ class ConsultantNode(Node):
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._announce = [publisher(self, contract.ANNOUNCE), publisher(self, contract.alive_topic(domain))]
         self._announced: Optional[tuple] = None
+        self._announcement: dict = {}
         self._state_due, self._state_sent = False, float("-inf")
         size = self.limits.max_message_bytes
         services = [(contract.consultant_service, contract.CONSULTANT_OPS),
@@ -136,8 +139,12 @@ class ConsultantNode(Node):
         subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
-        self._timer = self.create_timer(max(self._state_period, 0.02), self._tick,
-                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timer = self.create_timer(max(self._state_period, 0.02), self._tick, clock=steady)
+        # Across processes DDS keeps the alive topic's liveliness itself; a reader in this
+        # process (a composed graph) sees it only through writes: repeat the announcement.
+        self._alive_timer = self.create_timer(ALIVE_PERIOD, lambda: publish(self._announce[1], self._announcement),
+                                              clock=steady)
         self.publish_state()
         gc.freeze()  # the KB's objects live as long as the node: keep the cyclic GC off them
         self.announce()
@@ -245,7 +252,7 @@ class ConsultantNode(Node):
         key = (s.ready, str(message["memory"]), str(message["state"]))
         if only_if_changed and key == self._announced:
             return
-        self._announced = key
+        self._announced, self._announcement = key, message
         for pub in self._announce:
             publish(pub, message)
 
