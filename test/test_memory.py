@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core import memory
 from fsreg_ros.core.decay import TickRun
 from fsreg_ros.core.memory import (
     ENCODE_CAUSES, FORGET_CAUSES, UNKNOWN_ORIGIN, UNLIMITED, QueueItem, WMBuffer, WMEvent,
@@ -541,3 +542,26 @@ def test_columns_only_for_large_domains_and_the_bound_entity_list():
     entities.append("e4")  # the domain grows (a new entity joins last)
     grown.encode_members(0b10001, entities, "b", "rr", 0.0)
     assert grown.snapshot() == {"e0": ["a", "b"], "e4": ["b"]} and entities == NAMES_GROWN
+
+
+def test_restored_queue_longer_than_the_columns_goes_queue_by_queue():
+    stored = {"e0": [("x", 1, 1, "rr", 0), ("y", 2, 1, "rr", 0), ("z", 3, 1, "rr", 0)]}
+    buffer, plain = column_buffer(capacity=2), column_buffer(capacity=2)
+    for b in (buffer, plain):  # stored under a larger capacity (restore does not trim)
+        b.restore(stored, 3, 0, b.limits)
+    buffer.encode_members(0b0011, NAMES, "a", "rr", 1.0, 1)
+    plain.encode_each(["e0", "e1"], "a", "rr", 1.0, 1)
+    assert buffer._in_columns == set()  # nothing moved: e0 does not fit in two slots
+    assert [buffer.export_queue(e) for e in NAMES] == [plain.export_queue(e) for e in NAMES]
+
+
+def test_change_record_keeps_its_order_when_compacted(monkeypatch):
+    monkeypatch.setattr(memory, "_CHANGE_MARKS_MAX", 2)
+    buffer = column_buffer(capacity=3)
+    for members, prop in [(0b1000, "a"), (0b0001, "b"), (0b0110, "c"), (0b1001, "d"), (0b0100, "e")]:
+        buffer.encode_members(members, NAMES, prop, "rr", 1.0, 1)
+    buffer.encode("e1", ["f"], "speaker", 2.0, 2)  # by name, between column operations
+    buffer.encode_members(0b0010, NAMES, "g", "rr", 3.0, 3)
+    assert buffer._marks <= 2
+    assert buffer.take_changes() == ["e3", "e0", "e1", "e2"]
+    assert buffer.take_changes() == []

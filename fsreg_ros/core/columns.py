@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Larger than any stamp: an empty slot never is a queue's front.
+#: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
 
 
@@ -44,19 +44,20 @@ class QueueColumns:
 
     @property
     def rows(self) -> int:
+        """Rows allocated (at least the number of entities bound)."""
         return self.length.shape[0]
 
     def grow(self, rows: int) -> None:
         """Make room for at least ``rows`` rows (new rows empty, not held)."""
         if rows <= self.rows:
             return
-        size = max(rows, 2 * self.rows)
-        extra = size - self.rows
+        extra = max(rows, 2 * self.rows) - self.rows  # doubling: appending entities stays cheap
         self.prop = np.concatenate([self.prop, np.full((self.width, extra), -1, dtype=np.int32)], axis=1)
         self.stamp = np.concatenate([self.stamp, np.zeros((self.width, extra), dtype=np.int64)], axis=1)
         self.entry = np.concatenate([self.entry, np.zeros((self.width, extra), dtype=np.int64)], axis=1)
-        for name in ("length", "synced", "changed"):
-            setattr(self, name, np.concatenate([getattr(self, name), np.zeros(extra, dtype=np.int64)]))
+        self.length = np.concatenate([self.length, np.zeros(extra, dtype=np.int64)])
+        self.synced = np.concatenate([self.synced, np.zeros(extra, dtype=np.int64)])
+        self.changed = np.concatenate([self.changed, np.zeros(extra, dtype=np.int64)])
         self.held = np.concatenate([self.held, np.zeros(extra, dtype=bool)])
 
     # ------------------------------------------------------------ one row
