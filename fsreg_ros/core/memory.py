@@ -177,10 +177,12 @@ class _Queue(dict):
     entity-keyed table, halves the memory touched per encoding, which dominates
     when thousands of distractors are encoded at once (rule 3).  A plain dict
     subclass, not an OrderedDict, for the same reason.  ``hits`` counts encodings per
-    property for LFU displacement (only kept while LFU is in force).
+    property for LFU displacement (only kept while LFU is in force).  ``marked``: the
+    queue is in the buffer's change record already (so recording a change is one
+    attribute test on an object just touched, not a store into a table).
     """
 
-    __slots__ = ("synced", "hits")
+    __slots__ = ("synced", "hits", "marked")
 
 
 class WMBuffer:
@@ -224,10 +226,10 @@ class WMBuffer:
         self.ticks = TickLedger()
         # Queues that may hold something (insertion-ordered set).
         self._nonempty: dict[str, None] = {}
-        # Entities whose queue changed since take_changes (insertion-ordered set; an int
-        # key is a column operation's mark, see _expand_changes), and the tick count
-        # every queue has been brought up to (flush, decay_now, restore).
-        self._changed: dict[Union[str, int], None] = {}
+        # Entities whose queue changed since take_changes, in first-change order (an int
+        # is a column operation's mark, see _expand_changes; a name may recur), and the
+        # tick count every queue has been brought up to (flush, decay_now, restore).
+        self._changed: list[Union[str, int]] = []
         self._settled = 0
         self._origin_starts: list[int] = []
         self._origin_runs: list[Origin] = []
@@ -318,19 +320,24 @@ class WMBuffer:
         if self.ticks.count != self._settled:
             self.flush()
         changed = self._expand_changes()
-        self._changed, self._marks = {}, 0
+        queues = self._queues
+        for entity in changed:  # out of the record: the next change records it again
+            q = queues.get(entity)
+            if q is not None:
+                q.marked = False
+        self._changed, self._marks = [], 0
         return changed
 
     def _expand_changes(self) -> list[str]:
-        """Return the change record as entity names, in order, and clear the column part.
+        """Return the change record as distinct entity names, in order, and clear its column part.
 
-        ``_changed`` holds entity names, and for each column operation an int mark
-        standing for the rows it changed first (in row order, which is entity order).
+        ``_changed`` holds entity names (a queue moved to the columns and back may be
+        named twice), and for each column operation an int mark standing for the rows
+        it changed first (in row order, which is entity order).
         """
-        if not self._marks:
-            return list(self._changed)
-        rows, marks = self._columns.take_changed()
-        bound = self._bound
+        if self._marks:
+            rows, marks = self._columns.take_changed()
+            bound = self._bound
         out: dict[str, None] = {}
         for key in self._changed:
             if key.__class__ is int:
@@ -344,8 +351,14 @@ class WMBuffer:
     def _compact_changes(self) -> None:
         """Replace the change record's column marks by the names they stand for."""
         if self._marks:
-            self._changed = dict.fromkeys(self._expand_changes())
+            self._changed = self._expand_changes()
             self._marks = 0
+
+    def _record(self, entity: str, q: _Queue) -> None:
+        """Note that Q[entity] (a dict queue) changed."""
+        if not q.marked:
+            q.marked = True
+            self._changed.append(entity)
 
     # ---------------------------------------------------------------- limits
     def set_limits(self, limits: Limits, time: float) -> None:
@@ -366,7 +379,7 @@ class WMBuffer:
             hits = q.hits
             if hits is not None:  # the LFU counts restart: an exported count may change
                 if any(hits.get(prop, 1) != 1 for prop in q):
-                    self._changed[entity] = None
+                    self._record(entity, q)
                 q.hits = None
         if not limits.retains:
             for entity in self.nonempty_entities():
@@ -448,7 +461,7 @@ class WMBuffer:
                 q[prop] = self._stamp
                 self._size += 1
             self._nonempty[entity] = None
-            self._changed[entity] = None
+            self._record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
                 if q.hits is None:
                     q.hits = {}
@@ -473,19 +486,23 @@ class WMBuffer:
         stamp = self._stamp
         size = self._size
         for entity in entities:
-            changed[entity] = None
             q = queues.get(entity)
             if q is None:
                 if entity not in in_columns:
                     q = queues[entity] = _Queue()
                     q.synced = ticks
                     q.hits = None
+                    q.marked = True
+                    changed.append(entity)
                     nonempty[entity] = None
                     stamp += 1
                     q[prop] = stamp
                     size += 1
                     continue
                 q = self._to_dict(entity)
+            if not q.marked:
+                q.marked = True
+                changed.append(entity)
             owed = ticks - q.synced
             if owed:  # lazy decay catch-up, inline (:meth:`_sync` without a sink)
                 q.synced = ticks
@@ -706,6 +723,7 @@ class WMBuffer:
         q = self._queues[entity] = _Queue()
         q.synced = self.ticks.count  # ticks before a queue existed are not owed
         q.hits = None
+        q.marked = False
         return q
 
     def _catch_up(self, entity: str) -> None:
@@ -797,6 +815,7 @@ class WMBuffer:
         q = self._queues[entity] = _Queue(self._row_dict(row))
         q.synced = int(columns.synced[row])
         q.hits = None
+        q.marked = False  # if it changed since the last take, a column mark says so
         columns.release(row)
         self._in_columns.discard(entity)
         return q
@@ -830,7 +849,7 @@ class WMBuffer:
             self._compact_changes()
         self._marks += 1
         mark = self._marks
-        self._changed[mark] = None
+        self._changed.append(mark)
         self._columns.mark_changed(rows, mark)
 
     def _sync(self, entity: str, q: _Queue) -> None:
@@ -843,7 +862,7 @@ class WMBuffer:
         if not q:  # an empty queue owes nothing (and never needs a tick's time)
             return
         owed = min(ticks - synced, len(q))
-        self._changed[entity] = None
+        self._record(entity, q)
         sink = self.sink
         if sink is None:  # no events to report: just drop the fronts
             self._size -= owed
@@ -874,7 +893,7 @@ class WMBuffer:
     def _forget(self, entity: str, q: _Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         del q[prop]
         self._size -= 1
-        self._changed[entity] = None
+        self._record(entity, q)
         if not q:
             self._nonempty.pop(entity, None)
         if self.sink is not None:
@@ -971,7 +990,7 @@ class WMBuffer:
         self.limits = limits
         self._rng = random.Random(limits.seed)
         self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
-        self._queues, self._nonempty, self._size, self._changed, self._marks = {}, {}, 0, {}, 0
+        self._queues, self._nonempty, self._size, self._changed, self._marks = {}, {}, 0, [], 0
         self._columns, self._in_columns, self._explicit, self._explicit_id = None, set(), [], {}
         self.ticks = TickLedger()
         self.ticks.count = self._settled = ticks
