@@ -198,7 +198,7 @@ class Consultant:
             return False
         kept = candidates.members & holders
         if cause is not None and kept and self.wm.retains:
-            self.wm.encode_each(bitset.names(kept, self.entities), prop, cause, time, turn)
+            self.wm.encode_members(kept, self.entities, prop, cause, time, turn)
         candidates.members = kept
         return True
 
