@@ -103,7 +103,7 @@ def run_turn(port: ApplyPort, turn: dict, index: int, target: str) -> None:
     """One dialogue turn: the decay ticks due, then RR (human) or SD-PIA (robot)."""
     t = turn["time"]
     due = int(t // 10.0)
-    if due >= 1:  # ticks already applied are skipped by the consultant (applied once)
+    if due >= 1 and "decay" in port.service.policy.rules:  # ticks already applied are skipped (applied once)
         port._apply("decay", {"ticks": {"origin": 0.0, "period": 10.0, "first": 1, "count": due}})
     if turn["speaker"] == "human":
         run_sync(resolve(turn["description"], {DOMAIN: port}, domain=DOMAIN, time=t, turn=index))

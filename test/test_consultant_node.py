@@ -622,8 +622,12 @@ def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
 def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
     node = start(graph, debug=False)
     assert node.get_parameter("debug").value is False
-    names = {name for name, _ in node.get_service_names_and_types_by_node(node.get_name(), node.get_namespace())}
-    assert "/" + Q in names and "/" + M in names and "/" + D not in names
+
+    def names() -> set[str]:
+        return {name for name, _ in node.get_service_names_and_types_by_node(node.get_name(), node.get_namespace())}
+
+    graph.spin_until(lambda: {"/" + Q, "/" + M} <= names(), what="the node's services in the ROS graph")
+    assert "/" + D not in names()
     err = graph.call_error(Q, {"op": "snapshot"})  # nor are its ops on the production service
     assert err.kind == "MessageError"
     assert "unknown op 'snapshot' (known: info, open, narrow, rule_out, close)" in err.error

@@ -76,39 +76,45 @@ def test_queries_wait_for_the_wm_manager_but_info_and_manage_ops_do_not():
     assert service.ready and ("info", "configured by the WM Manager (incarnation 1): serving") in service.notices
 
 
-def test_every_op_reports_exactly_the_queues_it_changed_and_numbers_its_events():
+def test_every_op_reports_whether_it_changed_wm_and_manage_ops_exactly_which_queues():
     service = make()
     configure(service)
+    take = service.buffer.take_changes  # what a query changed, read off the buffer here
+
     out = encode(service, "face1", ["male", "glasses"], 1.0, listening=True)
-    assert out.changes.queues == ["face1"] and [e["seq"] for e in out.events] == [1, 2]
+    assert out.changes.wm and out.changes.queues == [] and take() == ["face1"]
+    assert [e["seq"] for e in out.events] == [1, 2]
     assert out.events[0] == {"op": "encode", "domain": "faces", "entity": "face1", "property": "male",
                              "cause": "speaker", "time": 1.0, "turn": None, "seq": 1, "incarnation": 1}
     out = service.apply("affirm", {"op": "affirm", "property": "glasses", "entities": ["face3", "face2", "face1"],
                                    "cause": "rr", "time": 2.0, "turn": 1})
-    assert out.reply == {"holds": ["face2", "face1"]} and out.changes.queues == ["face2", "face1"]
+    assert out.reply == {"holds": ["face2", "face1"]} and out.changes.wm and take() == ["face2", "face1"]
     assert out.events == []  # nobody listening: no events built, none numbered
     opened = service.apply("open", {"op": "open", "target": "face1", "client": "reg"}, client="reg")
-    assert opened.reply["queue"] == ["male", "glasses"] and opened.changes.queues == []
+    assert opened.reply["queue"] == ["male", "glasses"] and not opened.changes.wm and take() == []
     assert opened.reply["origins"] == [["speaker", None], ["speaker", None]]
     session = opened.reply["session"]
     step = {"op": "narrow", "session": session, "cause": "reg-distractor", "time": 3.0, "turn": 2}
     out = service.apply("narrow", {**step, "property": "male"}, listening=True)
-    assert out.reply == {"target_holds": True, "size": 1, "version": "1:0"} and out.changes.queues == ["face3"]
-    assert [e["seq"] for e in out.events] == [3]  # consecutive over what was published
-    assert service.apply("narrow", {**step, "property": "female"}).changes.queues == []  # not the target's
-    assert service.apply("rule_out", {"op": "rule_out", "session": session}).changes.queues == []
+    assert out.reply == {"target_holds": True, "size": 1, "version": "1:0"}
+    assert out.changes.wm and take() == ["face3"] and [e["seq"] for e in out.events] == [3]  # no gap
+    out = service.apply("narrow", {**step, "property": "female"})  # not the target's: nothing
+    assert not out.changes.wm and take() == []
+    assert not service.apply("rule_out", {"op": "rule_out", "session": session}).changes.wm and take() == []
     out = service.apply("close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 3.0,
                                   "turn": 2})
-    assert out.reply == {"members": ["face3"], "version": "1:0"} and out.changes.queues == ["face1"]
+    assert out.reply == {"members": ["face3"], "version": "1:0"} and out.changes.wm and take() == ["face1"]
     assert service.apply("snapshot", {"op": "snapshot"}).reply == {
         "queues": {"face1": ["male", "glasses", "light-hair"], "face2": ["glasses"], "face3": ["male"]}, "events": 3}
+    encode(service, "face2", ["female"], 4.0)  # not taken: the next manage op does not count it
     out = service.apply("decay", {"op": "decay", "ticks": TICK})
     assert out.reply == {"policy": "decay+displacement", "queues_changed": 3} and out.changes.decay_until == 10.0
+    assert out.changes.queues == ["face1", "face2", "face3"]  # every queue popped by the tick, in entity order
     assert service.apply("decay", {"op": "decay", "ticks": TICK}).reply["queues_changed"] == 0  # applied once
     out = service.apply("evict", {"op": "evict", "count": 1, "time": 11.0})
-    assert out.reply == {"size": 1, "queues_changed": 1} and out.changes.queues == ["face1"]
+    assert out.reply == {"size": 2, "queues_changed": 1} and out.changes.queues == ["face1"]
     out = configure(service, {"policy": "none"}, 12.0)
-    assert out.changes.queues == ["face1"] and out.reply["queues_changed"] == 1
+    assert out.changes.queues == ["face1", "face2"] and out.reply["queues_changed"] == 2
     assert service.apply("wm", {"op": "wm", "entity": "face1"}).reply == {"queue": []}
 
 
@@ -117,6 +123,7 @@ def test_refused_requests_change_nothing():
     configure(service)
     encode(service, "face1", ["male"], 1.0)
     before = service.buffer.snapshot()
+    service.buffer.take_changes()
     bad = [
         ("encode", {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, KnowledgeError),
         ("encode", {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"},

@@ -113,6 +113,16 @@ def names_in(record: Record) -> int:
     return 1
 
 
+def time_of(record: Record) -> float:
+    """Return the latest robot-clock time a (checked) record's operation happened at."""
+    kind = record[0]
+    if kind in ("each", "encode"):
+        return float(record[4])
+    if kind == "decay":
+        return TickRun.from_json(record[1]).last
+    return float(record[-1])  # limits, evict, remove
+
+
 # ------------------------------------------------------------------ replay
 def replay(buffer: WMBuffer, entity_order: Sequence[str], record: Record) -> None:
     """Apply one (checked) record to ``buffer`` as the live consultant did.

@@ -15,10 +15,12 @@ One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contrac
 1. the op runs (typed methods: :meth:`open`, :meth:`narrow`, :meth:`close`,
    :meth:`configure`, ...); while someone listens to the events, the buffer's sink
    collects them, otherwise encodings take the buffer's quiet path;
-2. the call's :class:`Changes` are read off the buffer (``WMBuffer.take_changes``:
-   the entities whose queue changed), with the policy, decay mark and time it set;
-3. they are committed to the store, once (WM as a journal record per operation,
-   :mod:`fsreg_ros.core.journal`; a checkpoint when the journal is long);
+2. the call's :class:`Changes` say whether WM changed, with the journal records of
+   its buffer operations (:mod:`fsreg_ros.core.journal`) and the policy, decay mark
+   and facts it set; a manage op also lists exactly the queues it changed
+   (``WMBuffer.take_changes``: the WM Manager is told how many);
+3. they are committed to the store, once (the records; a checkpoint of the queues
+   changed since the last one, read off ``take_changes``, when the journal is long);
 4. the :class:`Outcome` carries the reply, the changes and the numbered events.
 
 Durability by kind of data (docs/deployment.md, "State"): an LTM fact is written and
@@ -55,6 +57,8 @@ from .wm_manager import apply_ticks, configure_buffer, unapplied
 QUERY_OPS = ("info", "open", "narrow", "rule_out", "close")
 DEBUG_OPS = ("holds", "affirm", "wm", "encode", "snapshot")
 MANAGE_OPS = ("configure", "decay", "evict", "size")
+#: Ops whose change set is listed exactly (their replies say how many queues changed).
+COUNTED_OPS = ("configure", "decay", "evict")
 #: Ops whose replies carry the LTM ``version``.
 VERSIONED_OPS = ("info", "open", "narrow", "rule_out", "close")
 #: Journal length (records, names) at which :meth:`ConsultantService.maintain` writes a checkpoint ...
@@ -77,20 +81,21 @@ class RequestError(ValueError):
 class Changes:
     """What one call changed, and so what the state database must hold.
 
-    ``queues``: entities whose WM queue changed (first change first); ``policy``: the
-    settings installed, if the call installed a policy; ``decay_until``: the new decay
-    mark, if ticks were applied; ``facts``: the LTM update, if any; ``records``: the
-    journal records of the call's WM operations.
+    ``wm``: whether the call changed WM (encoded or forgot something); ``queues``: for
+    the manage ops (``configure``, ``decay``, ``evict``) exactly the entities whose queue
+    changed, first change first (other calls leave them to the next checkpoint: listing
+    the thousands of queues a rule-3 narrowing touches would cost more than the call);
+    ``records``: the journal records of the call's WM operations; ``policy``: the
+    settings installed, if it installed a policy; ``decay_until``: the new decay mark, if
+    ticks were applied; ``facts``: the LTM update, if any.
     """
 
+    wm: bool = False
     queues: list[str] = field(default_factory=list)
+    records: list[list] = field(default_factory=list)
     policy: Optional[dict] = None
     decay_until: Optional[float] = None
     facts: Optional[tuple[str, dict[str, float], bool]] = None
-    records: list[list] = field(default_factory=list)
-
-    def __bool__(self) -> bool:
-        return bool(self.queues or self.policy is not None or self.decay_until is not None or self.facts is not None)
 
 
 @dataclass
@@ -184,6 +189,7 @@ class ConsultantService:
         self._journal_names = 0
         self._journal_ok = True  # False after a failed write: the next WM write is a checkpoint
         self._failed_at = -math.inf
+        self._touched = False  # the current call changed WM
         self._clock_saved = False
         self._clear_stored = False  # the next checkpoint deletes every stored queue first
         self._runtime: list[str] = []  # runtime-added entities, in order (restored)
@@ -259,16 +265,16 @@ class ConsultantService:
              first: Optional[Step] = None) -> View:
         """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.consultant.ConsultantPort.open`."""
         view = open_view(self.consultant, target, context, first)
-        if first is not None and self._recording and view.first.target_holds:
-            self._record_narrowing(view.handle, first.prop, first.cause, first.time, first.turn)
+        if first is not None and view.first.target_holds:
+            self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
         return view
 
     def narrow(self, candidates: CandidateSet, prop: str, cause: Optional[str], time: float,
                turn: Optional[int]) -> Narrowed:
         """Keep the members ``prop`` holds for, encoding it for each (rules 2 and 3)."""
         holds = self.consultant.narrow(candidates, prop, cause, time, turn)
-        if holds and self._recording:
-            self._record_narrowing(candidates, prop, cause, time, turn)
+        if holds:
+            self._narrowed(candidates, prop, cause, time, turn)
         return Narrowed(holds, candidates.size)
 
     def close(self, candidates: CandidateSet, encode: Sequence[str] = (), time: float = 0.0,
@@ -386,7 +392,7 @@ class ConsultantService:
                 self.wm_state = "not-persisted"
         finally:
             self.buffer.sink = sink
-        self._unsaved.update(self.buffer.take_changes())
+        self._take_changes()
         if report.records:
             self._journal_ok = False  # compact the replayed journal at the next write
         if migrate and self.store is not None:
@@ -402,7 +408,7 @@ class ConsultantService:
         if not self._recording:
             return
         due = (self._journal_rows >= CHECKPOINT_RECORDS or self._journal_names >= CHECKPOINT_NAMES
-               or (not self._journal_ok and (self._unsaved or self._unsaved_meta)))
+               or not self._journal_ok)
         if due and self.steady() - self._failed_at >= RETRY_AFTER:
             self._write(checkpoint=True)
 
@@ -410,23 +416,26 @@ class ConsultantService:
         """Write what is unsaved as a checkpoint (best effort) and close the store."""
         if self.store is None:
             return
-        if self._recording and (self._unsaved or self._journal_rows or not self._journal_ok):
+        if self._recording:
             self._write(checkpoint=True)
         self.store.close()
 
     # ============================================================ internals: a call
     def _run(self, body: Callable[[], dict], listening: bool, op: str) -> Outcome:
-        self._records = []
-        self._events = []
+        self._records, self._events, self._touched = [], [], False
+        counted = op in COUNTED_OPS
+        if counted:
+            self._take_changes()  # what earlier calls changed is not this one's
         sink = self.buffer.sink
         self.buffer.sink = self._events.append if listening else None
         try:
             reply = body()
         finally:
             self.buffer.sink = sink
-            changes = Changes(self.buffer.take_changes(), records=self._records)
+            queues = self._take_changes() if counted else []
+            changes = Changes(self._touched or bool(queues), queues, self._records)
             self._finish(changes)
-        if op in ("configure", "decay", "evict"):
+        if counted:
             reply["queues_changed"] = len(changes.queues)
         if op in VERSIONED_OPS:
             reply["version"] = self.version()
@@ -440,9 +449,8 @@ class ConsultantService:
             self._unsaved_meta.clear()
             return
         if self._recording:
-            self._unsaved.update(changes.queues)
-            if not changes.queues and not changes.records and not self._unsaved_meta:
-                return
+            if not changes.records and not self._unsaved_meta and self._journal_ok:
+                return  # nothing to write, or written already (a retraction goes with its fact)
         elif not self._unsaved_meta:
             return
         if self.steady() - self._failed_at < RETRY_AFTER:
@@ -460,7 +468,8 @@ class ConsultantService:
         if self._recording:
             if "decay_until" in self._unsaved_meta:
                 meta["decay_until"] = self.decay_until if math.isfinite(self.decay_until) else None
-            meta["latest"] = self.latest if math.isfinite(self.latest) else None
+            if checkpoint:  # the journal's records carry their own times
+                meta["latest"] = self.latest if math.isfinite(self.latest) else None
             if not self._clock_saved:
                 meta["clock"] = self.clock
             if "kb_entities" in self._unsaved_meta:
@@ -492,7 +501,15 @@ class ConsultantService:
             self.notices.append(("info", "WM stored again"))
         self.persisted, self.store_error = True, None
 
+    def _take_changes(self) -> list[str]:
+        """Take the buffer's change record (entities whose queue changed), keeping them for the checkpoint."""
+        changed = self.buffer.take_changes()
+        if self._recording:
+            self._unsaved.update(changed)
+        return changed
+
     def _checkpoint(self) -> Checkpoint:
+        self._take_changes()
         export, unsaved = self.buffer.export_queue, self._unsaved
         held = [e for e in self.buffer.nonempty_entities() if e in unsaved]  # in the buffer's order
         emptied = sorted(unsaved.difference(held))
@@ -508,18 +525,20 @@ class ConsultantService:
         if self._recording:
             self._records.append(record)
 
-    def _record_narrowing(self, candidates: CandidateSet, prop: str, cause: Optional[str], time: float,
-                          turn: Optional[int]) -> None:
-        """Record the rule 2/3 encodings a narrowing (or an open's first step) just did, if it did any."""
+    def _narrowed(self, candidates: CandidateSet, prop: str, cause: Optional[str], time: float,
+                  turn: Optional[int]) -> None:
+        """Note (and record) the rule 2/3 encodings a narrowing (or an open's first step) just did, if any."""
         if cause is not None and candidates.members and self.buffer.retains:
-            self._records.append(journal.bits(prop, candidates.members, cause, time, turn))
+            self._record(journal.bits(prop, candidates.members, cause, time, turn))
             self._touch(time)
 
     def _touch(self, time: float, wm: bool = True) -> None:
-        """Note a request's time (and, for a WM change, the latest time WM reflects)."""
+        """Note a request's time (and, for a WM change, that WM changed and the latest time it reflects)."""
         self.time = time
-        if wm and time > self.latest:
-            self.latest = time
+        if wm:
+            self._touched = True
+            if time > self.latest:
+                self.latest = time
 
     def _time(self, value: Any) -> float:
         if value is None:
@@ -631,6 +650,7 @@ class ConsultantService:
         for record in records:
             journal.replay(self.buffer, c.entities, record)
         report.records = len(records)
+        latest = max([state.latest, *(journal.time_of(record) for record in records)])
         if c.retract_on_update:  # a runtime retraction stored while WM could not be: apply it now
             for entity, facts in state.facts.items():
                 gone = [p for p, certainty in facts.items() if certainty < c.threshold and c.knows_entity(entity)
@@ -638,9 +658,9 @@ class ConsultantService:
                 for prop in gone:
                     self.buffer.remove(entity, prop, "retract", 0.0)
         self.decay_until = state.decay_until
-        self.latest = state.latest
+        self.latest = latest
         self._clock_saved = state.clock == self.clock
-        self._stored_epoch = (state.clock, state.latest)
+        self._stored_epoch = (state.clock, latest)
         self.wm_state = "restored" if self.buffer.nonempty_entities() or records else "empty"
 
     def _export(self, state: StoredState, runtime_facts: dict[str, dict[str, float]],

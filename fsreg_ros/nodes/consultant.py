@@ -186,7 +186,7 @@ class ConsultantNode(Node):
     def _published(self, outcome: Outcome, wait: bool = False) -> None:
         for event in outcome.events:
             publish(self._events, event)
-        if outcome.changes.queues:
+        if outcome.changes.wm:
             self._state_due = True
         if not wait:
             self._publish_due()
