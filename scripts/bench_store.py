@@ -206,7 +206,8 @@ class _OldStore:
         self.service = service
         self.port = ApplyPort(service, self.write)
 
-    def write(self, changed: list[str]) -> None:
+    def write(self, _: list[str]) -> None:
+        changed = self.service.buffer.take_changes()  # this call's changed queues, as that design took them
         export = self.service.buffer.export_queue
         self.db.execute("BEGIN IMMEDIATE")
         self.db.executemany("INSERT INTO queues VALUES (?, ?) ON CONFLICT(entity) DO UPDATE SET items = "
