@@ -249,7 +249,7 @@ class RemotePort:
         holding = reply.get("holding")
         view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
                     frozenset(holding) if holding is not None else None,
-                    origins=[(cause, turn) for cause, turn in reply.get("origins", ())])
+                    origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
         if first is not None:
             if reply.get("first") is None:
                 raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)

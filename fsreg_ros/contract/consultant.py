@@ -22,6 +22,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import Field
 
 from .base import Message, Number, Stamp
+from .wm import Origin
 
 #: Causes a request may give an encoding (docs/semantics.md section 2).
 Cause = Literal["speaker", "rr", "reg-distractor"]
@@ -167,7 +168,7 @@ class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
 
     ``queue`` is LRU first ([] without a target); ``origins`` parallel to it, the
-    ``[cause, turn]`` of the encoding that made each property enter Q[target];
+    ``cause`` and ``turn`` of the encoding that made each property enter Q[target];
     ``retains`` whether the domain's WM retains anything (policy not ``none``);
     ``holding`` the properties holding for the target (preference order; null without
     a target).
@@ -176,7 +177,7 @@ class OpenReply(Versioned):
     session: str
     size: int
     queue: list[str]
-    origins: list[Annotated[tuple[str, Optional[int]], Field(strict=False)]] = []  # JSON lists of two
+    origins: list[Origin] = []
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None

@@ -245,11 +245,11 @@ class Consultant:
         return retracted
 
     def preview_assert(self, entity: str, facts: Mapping[str, Any]) -> tuple[bool, list[str]]:
-        """Validate an LTM update without applying it: (new entity?, properties it would retract from WM).
+        """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
-        retracted properties are those that stop holding (preference order); empty
-        when ``retract_on_update`` is False.
+        properties are in preference order; they are forgotten from WM only when
+        ``retract_on_update`` is True.
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
@@ -257,7 +257,7 @@ class Consultant:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
         new = entity not in self._certainty
-        if new or not self.retract_on_update:
+        if new:
             return new, []
         current = self._certainty[entity]
         after = {**current, **{p: float(c) for p, c in facts.items()}}
@@ -270,8 +270,10 @@ class Consultant:
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
         a fact; a property that stops holding is also forgotten from Q[entity]
-        (cause ``retract``) unless ``retract_on_update`` is False.  Everything is
-        validated (:meth:`preview_assert`) before anything changes.
+        (cause ``retract``) unless ``retract_on_update`` is False (the follow-up study's
+        configuration: WM not told of LTM changes); ``retracted`` lists those
+        properties either way.  Everything is validated (:meth:`preview_assert`)
+        before anything changes.
         """
         new, retracted = self.preview_assert(entity, facts)
         if new:
@@ -290,7 +292,7 @@ class Consultant:
             else:
                 self._holders[prop] &= ~bit
         self.version += 1
-        for prop in retracted:
+        for prop in retracted if self.retract_on_update else ():
             self.wm.remove(entity, prop, "retract", time)
         return AssertResult(entity, new, {p: float(c) for p, c in facts.items()}, retracted)
 

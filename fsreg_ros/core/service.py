@@ -227,7 +227,8 @@ class ConsultantService:
         """
         def run() -> dict:
             when = self._time(time)
-            new, retracted = self.consultant.preview_assert(entity, facts)
+            new, stopped = self.consultant.preview_assert(entity, facts)
+            retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
             _check_storable([entity, *facts])
             values = {p: float(c) for p, c in facts.items()}
             if self.store is not None:
@@ -695,7 +696,7 @@ class ConsultantService:
             self._touch(first.time, wm=False)
         holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
         reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-                 "holding": holding, "origins": [list(origin) for origin in view.origins]}
+                 "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
         if view.first is not None:
             reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
         return reply
