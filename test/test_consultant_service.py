@@ -92,7 +92,7 @@ def test_every_op_reports_whether_it_changed_wm_and_manage_ops_exactly_which_que
     assert out.events == []  # nobody listening: no events built, none numbered
     opened = service.apply("open", {"op": "open", "target": "face1", "client": "reg"}, client="reg")
     assert opened.reply["queue"] == ["male", "glasses"] and not opened.changes.wm and take() == []
-    assert opened.reply["origins"] == [["speaker", None], ["speaker", None]]
+    assert opened.reply["origins"] == [{"cause": "speaker", "turn": None}, {"cause": "speaker", "turn": None}]
     session = opened.reply["session"]
     step = {"op": "narrow", "session": session, "cause": "reg-distractor", "time": 3.0, "turn": 2}
     out = service.apply("narrow", {**step, "property": "male"}, listening=True)
