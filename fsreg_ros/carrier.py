@@ -40,12 +40,13 @@ from typing import Any, Awaitable, Callable, Mapping, Optional, Union
 from diagnostic_msgs.srv import AddDiagnostics
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 
 from .codec import FieldSpec, MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
-from .contract import QosSpec, Topic
+from .contract import SERVICE_QOS, QosSpec, Topic
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -143,19 +144,27 @@ def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGr
         response.message = text
         return response
 
-    return node.create_service(SERVICE_TYPE, name, callback, callback_group=callback_group)
+    return node.create_service(SERVICE_TYPE, name, callback, qos_profile=qos_profile(SERVICE_QOS),
+                               callback_group=callback_group)
 
 
 # ----------------------------------------------------------------- messages
 def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
-    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile."""
+    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile.
+
+    A ``lease`` makes liveliness automatic with that lease duration.
+    """
     if isinstance(spec, QoSProfile):
         return spec
+    lease = {}
+    if spec.lease is not None:
+        lease = {"liveliness": LivelinessPolicy.AUTOMATIC, "liveliness_lease_duration": Duration(seconds=spec.lease)}
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=spec.depth,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+        **lease,
     )
 
 
@@ -271,7 +280,8 @@ class JsonClient:
         else:
             self.name = name
             self.callback_group = callback_group if callback_group is not None else ReentrantCallbackGroup()
-            self.client = node.create_client(SERVICE_TYPE, name, callback_group=self.callback_group)
+            self.client = node.create_client(SERVICE_TYPE, name, qos_profile=qos_profile(SERVICE_QOS),
+                                             callback_group=self.callback_group)
         self._steady = Clock(clock_type=_STEADY)
 
     @classmethod

@@ -43,6 +43,7 @@ from fsreg_ros.core.scenario import Scenario, load_scenario
 # Every name the fuzzer uses, resolved from the contract (the graph runs un-namespaced).
 CONSULTANT = "/" + contract.CONSULTANT.name.replace("<domain>", "{domain}")
 MANAGE = "/" + contract.MANAGE.name.replace("<domain>", "{domain}")
+DEBUG = "/" + contract.DEBUG.name.replace("<domain>", "{domain}")
 SYNC = "/" + contract.SYNC.name
 STATUS = "/" + contract.STATUS.name
 HUMAN = "/" + contract.HUMAN.name
@@ -53,8 +54,8 @@ RR_RESULT = "/" + contract.RR_RESULT.name
 REG_EXPRESSION = "/" + contract.REG_EXPRESSION.name
 LTM_RESULT = "/" + contract.LTM_ASSERT_RESULT.name
 #: Every endpoint fuzzed, for Table 1's one domain.
-ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), SYNC, STATUS,
-             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
+ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), DEBUG.format(domain="faces"), SYNC,
+             STATUS, HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
 #: Topic -> the topic its answers (and rejections) come back on.
 REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT}
 
@@ -115,8 +116,7 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
     domain = next(iter(scenario.domains))
     spec = scenario.domains[domain]
     entity, prop = next(iter(spec.entities)), spec.preference[0]
-    consultant = [
-        Template({"op": "info"}, ("op",)),
+    debug = [
         Template({"op": "snapshot"}, ("op",)),
         Template({"op": "holds", "property": prop, "entities": [entity]}, ("op", "property", "entities"),
                  ("property", "entities")),
@@ -125,6 +125,9 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
                  ("op", "property", "entities", "cause"), ("property", "entities", "cause"), ("time",)),
         Template({"op": "encode", "entity": entity, "properties": [prop], "cause": "speaker", "time": TIME},
                  ("op", "entity", "properties", "cause"), ("entity", "properties", "cause"), ("time",)),
+    ]
+    consultant = [
+        Template({"op": "info"}, ("op",)),
         Template({"op": "open", "target": entity, "context": list(spec.entities)}, ("op",), ("target", "context")),
         Template({"op": "open", "first": {"property": prop, "cause": "rr", "time": TIME}}, ("op",)),
         # A session the fuzzer keeps open (SESSION is replaced by its id when sent).
@@ -143,6 +146,7 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
     return {
         CONSULTANT.format(domain=domain): consultant,
         MANAGE.format(domain=domain): manage,
+        DEBUG.format(domain=domain): debug,
         SYNC: [Template({"time": TIME}, ("time",), (), ("time",))],
         STATUS: [Template({}, ())],
         HUMAN: [
@@ -333,12 +337,12 @@ class Fuzzer:
         """Every domain's WM queues and LTM (entities, what holds), and the WM Manager's status."""
         state: dict[str, Any] = {"status": self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)}
         for domain in self.domains:
-            service = CONSULTANT.format(domain=domain)
+            service, debug = CONSULTANT.format(domain=domain), DEBUG.format(domain=domain)
             info = self.g.call(service, {"op": "info"}, timeout=REPLY_TIMEOUT)
-            holds = {p: self.g.call(service, {"op": "holds", "property": p, "entities": info["entities"]})["holds"]
+            holds = {p: self.g.call(debug, {"op": "holds", "property": p, "entities": info["entities"]})["holds"]
                      for p in info["preference"]}
             state[domain] = {"info": info, "holds": holds,
-                             "wm": self.g.call(service, {"op": "snapshot"}, timeout=REPLY_TIMEOUT)}
+                             "wm": self.g.call(debug, {"op": "snapshot"}, timeout=REPLY_TIMEOUT)}
         return state
 
     def state_before(self) -> dict:
@@ -349,7 +353,7 @@ class Fuzzer:
         if not self.state[domain]["wm"]["queues"]:
             self.g.call(MANAGE.format(domain=domain),
                         {"op": "configure", "policy": {"policy": "decay", "decay_period": 10.0}, "time": TIME})
-            self.g.call(CONSULTANT.format(domain=domain), self.seed_wm)
+            self.g.call(DEBUG.format(domain=domain), self.seed_wm)
             self.state = self.snapshot()
         return self.state
 
@@ -482,6 +486,8 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
         params = dict(spec.parameters)
         if spec.executable == "wm_manager":
             params["service_timeout"] = service_timeout
+        if spec.executable == "consultant":
+            params["debug"] = True  # the fuzzer reads WM and LTM through the debug service
         sim_time = params.pop("use_sim_time", False)
         g.add(NODE_CLASSES[spec.executable], use_sim_time=sim_time, name=spec.name, **params)
     g.set_time(TIME)

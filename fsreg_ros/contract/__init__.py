@@ -31,38 +31,56 @@ from .base import ErrorReply, Id, Message, Number, Stamp
 from .checking import check
 from .consultant import (
     CONSULTANT_OPS,
+    DEBUG_OPS,
+    MANAGE_OPS,
     AffirmRequest,
     CloseReply,
     CloseRequest,
+    ConfigureReply,
+    ConfigureRequest,
     ConsultantAnnounce,
     ConsultantReply,
     ConsultantRequest,
+    DebugReply,
+    DebugRequest,
+    DecayReply,
+    DecayRequest,
     EncodeReply,
     EncodeRequest,
+    EvictReply,
+    EvictRequest,
     HoldsReply,
     HoldsRequest,
     InfoReply,
     InfoRequest,
+    ManageReply,
     ManageRequest,
     NarrowReply,
     NarrowRequest,
     Narrowing,
     OpenReply,
     OpenRequest,
+    PolicySettings,
     QueueReply,
     RuleOutReply,
     RuleOutRequest,
+    SizeReply,
+    SizeRequest,
     SnapshotReply,
     SnapshotRequest,
     StepRequest,
+    StoredState,
+    TickRun,
     Versioned,
     WMRequest,
 )
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .endpoints import (
+    ALIVE,
     ANNOUNCE,
     CLOCK,
     CONSULTANT,
+    DEBUG,
     HUMAN,
     LTM_ASSERT,
     LTM_ASSERT_RESULT,
@@ -79,7 +97,9 @@ from .endpoints import (
     WM_STATE,
     Service,
     Topic,
+    alive_topic,
     consultant_service,
+    debug_service,
     manage_service,
 )
 from .export import fields_of, json_schemas, message_table
@@ -87,10 +107,13 @@ from .limits import LIMIT_RANGES, Limits, check_sizes
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import clock_remap, normalise_namespace
-from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
+    "ALIVE", "ALIVE_QOS", "DEBUG", "DEBUG_OPS", "MANAGE_OPS", "SERVICE_QOS", "ConfigureReply", "ConfigureRequest",
+    "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EvictReply", "EvictRequest", "ManageReply",
+    "PolicySettings", "SizeReply", "SizeRequest", "StoredState", "TickRun", "alive_topic", "debug_service",
     "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEFAULT_QOS", "EVENTS_QOS", "HUMAN", "LIMIT_RANGES",
     "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT",
     "SEMANTICS", "SERVICES", "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE",
