@@ -49,12 +49,13 @@ from diagnostic_msgs.srv import AddDiagnostics
 from pydantic import BaseModel
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 
 from .codec import FieldSpec, MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
-from .contract import QosSpec, Service, Topic, check
+from .contract import SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -239,19 +240,27 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
         response.message = text
         return response
 
-    return node.create_service(SERVICE_TYPE, name, callback, callback_group=callback_group)
+    return node.create_service(SERVICE_TYPE, name, callback, qos_profile=qos_profile(SERVICE_QOS),
+                               callback_group=callback_group)
 
 
 # ----------------------------------------------------------------- messages
 def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
-    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile."""
+    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile.
+
+    A ``lease`` makes liveliness automatic with that lease duration.
+    """
     if isinstance(spec, QoSProfile):
         return spec
+    lease = {}
+    if spec.lease is not None:
+        lease = {"liveliness": LivelinessPolicy.AUTOMATIC, "liveliness_lease_duration": Duration(seconds=spec.lease)}
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=spec.depth,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+        **lease,
     )
 
 
@@ -378,7 +387,8 @@ class JsonClient:
         else:
             self.name = name
             self.callback_group = callback_group if callback_group is not None else ReentrantCallbackGroup()
-            self.client = node.create_client(SERVICE_TYPE, name, callback_group=self.callback_group)
+            self.client = node.create_client(SERVICE_TYPE, name, qos_profile=qos_profile(SERVICE_QOS),
+                                             callback_group=self.callback_group)
         self._steady = Clock(clock_type=_STEADY)
 
     @classmethod

@@ -49,6 +49,7 @@ from fsreg_ros.core.scenario import Scenario, load_scenario
 # Every name the fuzzer uses, resolved from the contract (the graph runs un-namespaced).
 CONSULTANT = "/" + contract.CONSULTANT.name.replace("<domain>", "{domain}")
 MANAGE = "/" + contract.MANAGE.name.replace("<domain>", "{domain}")
+DEBUG = "/" + contract.DEBUG.name.replace("<domain>", "{domain}")
 SYNC = "/" + contract.SYNC.name
 STATUS = "/" + contract.STATUS.name
 HUMAN = "/" + contract.HUMAN.name
@@ -59,12 +60,13 @@ RR_RESULT = "/" + contract.RR_RESULT.name
 REG_EXPRESSION = "/" + contract.REG_EXPRESSION.name
 LTM_RESULT = "/" + contract.LTM_ASSERT_RESULT.name
 ANNOUNCE = "/" + contract.ANNOUNCE.name
+ALIVE = "/" + contract.alive_topic("faces").name
 #: Every endpoint fuzzed, for Table 1's one domain.
-ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), SYNC, STATUS,
-             HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT, ANNOUNCE]
+ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), DEBUG.format(domain="faces"), SYNC,
+             STATUS, HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT, ANNOUNCE, ALIVE]
 #: Topic -> the topic its answers (and rejections) come back on (None: no answers by contract).
 REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT,
-               ANNOUNCE: None}
+               ANNOUNCE: None, ALIVE: None}
 
 TIME = 1.0  # the sim time the graph stands at while fuzzed
 SESSION = "<session>"  # stands for the id of a consultant session the fuzzer keeps open
@@ -129,8 +131,7 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
     domain = next(iter(scenario.domains))
     spec = scenario.domains[domain]
     entity, prop = next(iter(spec.entities)), spec.preference[0]
-    consultant = [
-        Template({"op": "info"}, ("op",)),
+    debug = [
         Template({"op": "snapshot"}, ("op",)),
         Template({"op": "holds", "property": prop, "entities": [entity]}, ("op", "property", "entities"),
                  ("property", "entities")),
@@ -139,6 +140,9 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
                  ("op", "property", "entities", "cause"), ("property", "entities", "cause"), ("time",)),
         Template({"op": "encode", "entity": entity, "properties": [prop], "cause": "speaker", "time": TIME},
                  ("op", "entity", "properties", "cause"), ("entity", "properties", "cause"), ("time",)),
+    ]
+    consultant = [
+        Template({"op": "info"}, ("op",)),
         Template({"op": "open", "target": entity, "context": list(spec.entities)}, ("op",), ("target", "context")),
         Template({"op": "open", "first": {"property": prop, "cause": "rr", "time": TIME}}, ("op",)),
         # A session the fuzzer keeps open (SESSION is replaced by its id when sent).
@@ -157,6 +161,7 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
     return {
         CONSULTANT.format(domain=domain): consultant,
         MANAGE.format(domain=domain): manage,
+        DEBUG.format(domain=domain): debug,
         SYNC: [Template({"time": TIME}, ("time",), (), ("time",))],
         STATUS: [Template({}, ())],
         HUMAN: [
@@ -175,6 +180,9 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         ANNOUNCE: [Template({"domain": domain, "incarnation": INCARNATION, "ready": True,
                              "memory": {"policy": "decay", "decay_period": 10.0}},
                             ("domain", "incarnation", "ready"), (), ("incarnation",), valid_numbers=False)],
+        ALIVE: [Template({"domain": domain, "incarnation": INCARNATION, "ready": True,
+                          "memory": {"policy": "decay", "decay_period": 10.0}},
+                         ("domain", "incarnation", "ready"), (), ("incarnation",), valid_numbers=False)],
     }
 
 
@@ -399,9 +407,9 @@ class Fuzzer:
         """
         state: dict[str, Any] = {"status": self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)}
         for domain in self.domains:
-            service = CONSULTANT.format(domain=domain)
+            service, debug = CONSULTANT.format(domain=domain), DEBUG.format(domain=domain)
             state[domain] = {"info": self.g.call(service, {"op": "info"}, timeout=REPLY_TIMEOUT),
-                             "wm": self.g.call(service, {"op": "snapshot"}, timeout=REPLY_TIMEOUT)}
+                             "wm": self.g.call(debug, {"op": "snapshot"}, timeout=REPLY_TIMEOUT)}
         return state
 
     def state_before(self) -> dict:
@@ -412,7 +420,7 @@ class Fuzzer:
         if not self.state[domain]["wm"]["queues"]:
             self.g.call(MANAGE.format(domain=domain),
                         {"op": "configure", "policy": {"policy": "decay", "decay_period": 10.0}, "time": TIME})
-            self.g.call(CONSULTANT.format(domain=domain), self.seed_wm)
+            self.g.call(DEBUG.format(domain=domain), self.seed_wm)
             self.state = self.snapshot()
         return self.state
 
@@ -443,6 +451,10 @@ class Fuzzer:
             self.g.publish(topic, text.replace(str(INCARNATION), str(self.incarnation())), contract.ANNOUNCE.qos)
             self._announce_marker()
             return None, None
+        if topic == ALIVE:  # read by RR's and REG's consultant ports: a REG answer comes after it
+            self.g.publish(topic, text.replace(str(INCARNATION), str(self.incarnation())), contract.ALIVE.qos)
+            self._reg_marker()
+            return None, None
         inbox = self.inboxes[REPLY_TOPIC[topic]]
         before = len(inbox)
         self.g.publish(topic, text)
@@ -464,6 +476,15 @@ class Fuzzer:
         marker = f"fuzz-sync-{next(self._markers)}"
         self.g.publish(LTM_ASSERT, {"domain": self.domains[0], "id": marker})
         self.g.spin_until(lambda: inbox.latest(id=marker) is not None, REPLY_TIMEOUT, what=f"the reply to {marker}")
+
+    def _reg_marker(self) -> None:
+        """Ask REG for a description (through its consultant port) and wait for the answer."""
+        marker = f"fuzz-sync-{next(self._markers)}"
+        inbox = self.inboxes[REG_EXPRESSION]
+        entity = next(iter(self.scenario.domains[self.domains[0]].entities))
+        self.g.publish(REG_REQUEST, {"id": marker, "target": entity, "time": TIME})
+        self.g.spin_until(lambda: inbox.latest(id=marker) is not None, REPLY_TIMEOUT, what=f"the reply to {marker}")
+        self.state = None  # REG encoded what it said
 
     def _announce_marker(self) -> None:
         """Announce the current incarnation with a marked setting; wait until the WM Manager reports it."""
@@ -580,6 +601,8 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
         params = dict(spec.parameters)
         if spec.executable == "wm_manager":
             params["service_timeout"] = service_timeout
+        if spec.executable == "consultant":
+            params["debug"] = True  # the fuzzer reads WM and LTM through the debug service
         sim_time = params.pop("use_sim_time", False)
         g.add(NODE_CLASSES[spec.executable], use_sim_time=sim_time, name=spec.name, **params)
     g.set_time(TIME)

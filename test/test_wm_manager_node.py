@@ -25,7 +25,7 @@ def graph():
 
 
 def consultant(graph: Graph, domain: str = "faces"):
-    return graph.add(ConsultantNode, use_sim_time=True, domain=domain, kb=KB, name=f"consultant_{domain}")
+    return graph.add(ConsultantNode, use_sim_time=True, domain=domain, kb=KB, name=f"consultant_{domain}", debug=True)
 
 
 def manager(graph: Graph, domains=("faces",), **params):
@@ -34,11 +34,11 @@ def manager(graph: Graph, domains=("faces",), **params):
 
 def encode(graph: Graph, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
     request = {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t}
-    graph.call(f"/consultant/{domain}", request)
+    graph.call(f"/consultant/{domain}/debug", request)
 
 
 def queues(graph: Graph, domain: str = "faces") -> dict:
-    return graph.call(f"/consultant/{domain}", {"op": "snapshot"})["queues"]
+    return graph.call(f"/consultant/{domain}/debug", {"op": "snapshot"})["queues"]
 
 
 def memory(graph: Graph, domain: str = "faces") -> dict:

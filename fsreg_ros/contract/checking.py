@@ -92,6 +92,8 @@ def _field_spec(annotation: Any) -> Any:
         return str
     if origin in (list, dict):
         return origin[tuple(_field_spec(a) for a in args)] if args else origin
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return dict  # a nested model is an object on the wire
     return annotation if isinstance(annotation, type) and annotation is not Any else object
 
 

@@ -92,7 +92,8 @@ class DialoguePlayer(Node):
             future.set_result(data)
 
     def _on_event(self, data: dict) -> None:
-        self.events.append(contract.check(contract.WMEventMessage, data))
+        event = contract.check(contract.WMEventMessage, data)
+        self.events.append({k: v for k, v in event.items() if k not in ("seq", "incarnation")})  # the trace's fields
 
     # -------------------------------------------------------------- waiting
     def _missing_peers(self) -> list[str]:
