@@ -54,7 +54,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.task import Future
 from std_msgs.msg import String
 
-from .codec import FieldSpec, MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
 from .contract import SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
@@ -269,20 +269,9 @@ def to_msg(obj: Mapping[str, Any]) -> String:
     return String(data=dumps(obj))
 
 
-def from_msg(
-    msg: String,
-    required: Optional[Mapping[str, FieldSpec]] = None,
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-    *,
-    max_bytes: Optional[int] = None,
-) -> dict:
-    """Decode a ``std_msgs/String`` carrying one JSON object; check its fields.
-
-    ``required`` maps field names to specs; a missing or wrong-typed one raises
-    :class:`MessageError`.  ``optional`` fields are checked only when present.
-    Other fields are kept unchecked.
-    """
-    return parse(getattr(msg, "data", msg), required, optional, max_bytes=max_bytes)
+def from_msg(msg: String, *, max_bytes: Optional[int] = None) -> dict:
+    """Decode a ``std_msgs/String`` carrying one JSON object (its fields: :func:`fsreg_ros.contract.check`)."""
+    return parse(getattr(msg, "data", msg), max_bytes=max_bytes)
 
 
 # ----------------------------------------------------------------- topics
