@@ -124,6 +124,7 @@ def test_world_shape_rejects_bad_sizes(field, value):
         WorldShape(**{field: value}).check()
 
 
+@pytest.mark.slow  # runs the benchmark script as a process
 def test_bench_sim_small_world_runs_and_agrees(tmp_path):
     out = tmp_path / "bench.json"
     proc = subprocess.run(

@@ -1086,6 +1086,7 @@ def test_json_schema_describes_the_format():
     json.dumps(schema)
 
 
+@pytest.mark.slow  # runs the script as a process
 def test_export_schemas_script(tmp_path):
     out = tmp_path / "scenario.schema.json"
     script = REPO / "scripts" / "export_schemas.py"
