@@ -1,7 +1,10 @@
 """JSON over ROS 2 services and topics: serving, subscribing, calling (docs/semantics.md §7).
 
-The one small module for fsreg's carrier convention.  Names, QoS and schemas are in
-:mod:`fsreg_ros.contract`; the JSON codec is :mod:`fsreg_ros.codec`.
+The one small module for fsreg's carrier convention, and the only place where the
+ROS-free contract meets ROS types: names, QoS specs and schemas are in
+:mod:`fsreg_ros.contract` (:func:`qos_profile` makes an rclpy profile of a
+:class:`~fsreg_ros.contract.QosSpec`); the JSON codec is :mod:`fsreg_ros.codec`
+(:func:`to_msg`/:func:`from_msg` wrap it in ``std_msgs/String``).
 
 Services use ``diagnostic_msgs/srv/AddDiagnostics`` as a string-to-string carrier
 (common_interfaces has no such service): the request JSON goes in ``load_namespace``,
@@ -37,11 +40,12 @@ from typing import Any, Awaitable, Callable, Mapping, Optional, Union
 from diagnostic_msgs.srv import AddDiagnostics
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 
-from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
-from .contract import Topic
+from .codec import FieldSpec, MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from .contract import QosSpec, Topic
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -142,10 +146,44 @@ def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGr
     return node.create_service(SERVICE_TYPE, name, callback, callback_group=callback_group)
 
 
+# ----------------------------------------------------------------- messages
+def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
+    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile."""
+    if isinstance(spec, QoSProfile):
+        return spec
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=spec.depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+def to_msg(obj: Mapping[str, Any]) -> String:
+    """Return a ``std_msgs/String`` carrying ``obj`` as JSON (NaN/Infinity refused: they are not JSON)."""
+    return String(data=dumps(obj))
+
+
+def from_msg(
+    msg: String,
+    required: Optional[Mapping[str, FieldSpec]] = None,
+    optional: Optional[Mapping[str, FieldSpec]] = None,
+    *,
+    max_bytes: Optional[int] = None,
+) -> dict:
+    """Decode a ``std_msgs/String`` carrying one JSON object; check its fields.
+
+    ``required`` maps field names to specs; a missing or wrong-typed one raises
+    :class:`MessageError`.  ``optional`` fields are checked only when present.
+    Other fields are kept unchecked.
+    """
+    return parse(getattr(msg, "data", msg), required, optional, max_bytes=max_bytes)
+
+
 # ----------------------------------------------------------------- topics
 def publisher(node, topic: Topic):
     """Return a ``std_msgs/String`` publisher of a contract topic, with its QoS."""
-    return node.create_publisher(String, topic.name, topic.qos)
+    return node.create_publisher(String, topic.name, qos_profile(topic.qos))
 
 
 def publish(pub, obj: Mapping[str, Any]) -> None:
@@ -185,7 +223,7 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
             refuse(seen.get("id"), f"internal error: {type(err).__name__}: {err}", internal=True)
 
-    return node.create_subscription(String, topic.name, callback, topic.subscriber_qos,
+    return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group)
 
 

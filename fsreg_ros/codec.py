@@ -1,19 +1,19 @@
 r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (docs/semantics.md §7).
 
-Decoding (:func:`parse`, :func:`from_msg`) is bounded (a text longer than
+Decoding (:func:`parse`) is bounded (a text longer than
 ``max_bytes`` is refused before it is parsed) and checks fields against a small spec
 (:func:`check_fields`: a type, a tuple of types with ``None`` for JSON ``null``, or
 ``list[T]`` / ``dict[str, T]``); a problem raises :class:`MessageError` naming the field
 and what is wrong.  ``float`` accepts whole numbers; ``int`` never accepts
 ``true``/``false``; NaN and infinities are never valid JSON here.
 
-Encoding (:func:`dumps`, :func:`to_msg`) refuses what is not JSON.  Error replies go
+Encoding (:func:`dumps`) refuses what is not JSON.  Error replies go
 through :func:`error_json`/:func:`safe_dumps`, which never raise: non-finite numbers,
 integers too long to print, lone surrogates (``"\ud800"``) and unserialisable values
 become printable text, and long texts are clipped.  :func:`printable` makes any text
 safe for a ROS logger (which raises on a lone surrogate).
 
-This module imports no ROS package except ``std_msgs`` for :func:`to_msg`.
+This module imports no ROS package (the ``std_msgs/String`` glue is :mod:`fsreg_ros.carrier`'s).
 """
 
 from __future__ import annotations
@@ -22,8 +22,6 @@ import json
 import math
 import types
 from typing import Any, Mapping, Optional, Union
-
-from std_msgs.msg import String
 
 #: Field spec for "any JSON number" (whole numbers included, booleans excluded).
 NUMBER = (int, float)
@@ -43,11 +41,6 @@ class MessageError(ValueError):
 def dumps(obj: Mapping[str, Any]) -> str:
     """Return the compact JSON text of one object (NaN/Infinity refused: they are not JSON)."""
     return json.dumps(obj, separators=(",", ":"), allow_nan=False)
-
-
-def to_msg(obj: Mapping[str, Any]) -> String:
-    """Return a ``std_msgs/String`` carrying ``obj`` as JSON."""
-    return String(data=dumps(obj))
 
 
 def printable(text: Any, limit: int = MAX_ERROR_CHARS) -> str:
@@ -130,22 +123,6 @@ def parse(
     if not isinstance(obj, dict):
         raise MessageError(f"expected a JSON object, got {_json_kind(obj)}: {printable(text, 80)}")
     return check_fields(obj, required or {}, optional)
-
-
-def from_msg(
-    msg: String,
-    required: Optional[Mapping[str, "FieldSpec"]] = None,
-    optional: Optional[Mapping[str, "FieldSpec"]] = None,
-    *,
-    max_bytes: Optional[int] = None,
-) -> dict:
-    """Decode a ``std_msgs/String`` carrying one JSON object; check its fields.
-
-    ``required`` maps field names to specs; a missing or wrong-typed one raises
-    :class:`MessageError`.  ``optional`` fields are checked only when present.
-    Other fields are kept unchecked.
-    """
-    return parse(getattr(msg, "data", msg), required, optional, max_bytes=max_bytes)
 
 
 def request_id(data: Any) -> Any:

@@ -142,7 +142,7 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
     from std_msgs.msg import String
 
     from fsreg_ros import contract
-    from fsreg_ros.codec import from_msg, to_msg
+    from fsreg_ros.carrier import from_msg, qos_profile, to_msg
 
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-bench-"))
     nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json")
@@ -160,10 +160,11 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
         data = from_msg(msg, {})
         answers[str(data.get("id"))] = data
 
-    node.create_subscription(String, contract.RR_RESULT.name, on_answer, contract.RR_RESULT.qos)
-    node.create_subscription(String, contract.REG_EXPRESSION.name, on_answer, contract.REG_EXPRESSION.qos)
-    human_pub = node.create_publisher(String, contract.HUMAN.name, contract.HUMAN.qos)
-    reg_pub = node.create_publisher(String, contract.REG_REQUEST.name, contract.REG_REQUEST.qos)
+    node.create_subscription(String, contract.RR_RESULT.name, on_answer, qos_profile(contract.RR_RESULT.qos))
+    node.create_subscription(String, contract.REG_EXPRESSION.name, on_answer,
+                             qos_profile(contract.REG_EXPRESSION.qos))
+    human_pub = node.create_publisher(String, contract.HUMAN.name, qos_profile(contract.HUMAN.qos))
+    reg_pub = node.create_publisher(String, contract.REG_REQUEST.name, qos_profile(contract.REG_REQUEST.qos))
     domain = next(iter(scenario.domains))
     hop_client = node.create_client(AddDiagnostics, contract.consultant_service(domain))
 

@@ -42,8 +42,7 @@ from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.carrier import publisher  # noqa: E402
-from fsreg_ros.codec import to_msg  # noqa: E402
+from fsreg_ros.carrier import publisher, to_msg  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options  # noqa: E402
 

@@ -53,8 +53,7 @@ from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import CarrierError, JsonClient  # noqa: E402
-from fsreg_ros.codec import to_msg  # noqa: E402
+from fsreg_ros.carrier import CarrierError, JsonClient, to_msg  # noqa: E402
 from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options  # noqa: E402
 from fsreg_ros.graph import Graph, _die_with_parent, command, graph_nodes  # noqa: E402

@@ -37,8 +37,8 @@ from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import DEFAULT_TIMEOUT, SERVICE_TYPE, CarrierError, JsonClient  # noqa: E402
-from fsreg_ros.codec import dumps, to_msg  # noqa: E402
+from fsreg_ros.carrier import DEFAULT_TIMEOUT, SERVICE_TYPE, CarrierError, JsonClient, qos_profile, to_msg  # noqa: E402
+from fsreg_ros.codec import dumps  # noqa: E402
 from fsreg_ros.contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace  # noqa: E402
 from fsreg_ros.nodes.dialogue_player import clock_message  # noqa: E402
 
@@ -152,7 +152,7 @@ class Graph:
     def publish(self, topic: str, obj: Any, qos=DEFAULT_QOS) -> None:
         """Publish a JSON object (or raw text) as std_msgs/String."""
         if topic not in self._publishers:
-            self._publishers[topic] = self.probe.create_publisher(String, topic, qos)
+            self._publishers[topic] = self.probe.create_publisher(String, topic, qos_profile(qos))
         pub = self._publishers[topic]
         self.spin_until(lambda: pub.get_subscription_count() > 0, 5.0, what=f"a subscriber of {topic}")
         pub.publish(String(data=obj) if isinstance(obj, str) else to_msg(obj))
@@ -162,7 +162,7 @@ class Graph:
         import json
 
         inbox = Inbox()
-        self.probe.create_subscription(String, topic, lambda m: inbox.append(json.loads(m.data)), qos)
+        self.probe.create_subscription(String, topic, lambda m: inbox.append(json.loads(m.data)), qos_profile(qos))
         return inbox
 
     # ------------------------------------------------------------- sim time

@@ -15,8 +15,8 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import CarrierError, JsonClient, serve, wait_until  # noqa: E402
-from fsreg_ros.codec import NUMBER, MessageError, from_msg, to_msg  # noqa: E402
+from fsreg_ros.carrier import CarrierError, JsonClient, from_msg, serve, to_msg, wait_until  # noqa: E402
+from fsreg_ros.codec import NUMBER, MessageError  # noqa: E402
 from fsreg_ros.contract import STATE_QOS  # noqa: E402
 from fsreg_ros.nodes.common import error_reply  # noqa: E402
 from rosutil import Graph, call, ros_graph  # noqa: E402

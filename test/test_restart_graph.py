@@ -26,8 +26,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from fsreg_ros import contract
-from fsreg_ros.carrier import CarrierError, JsonClient
-from fsreg_ros.codec import to_msg
+from fsreg_ros.carrier import CarrierError, JsonClient, qos_profile, to_msg
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options
 from fsreg_ros.graph import Graph, _die_with_parent, command, graph_nodes
@@ -54,13 +53,14 @@ class Player:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.clock = self.node.create_publisher(Clock, "/clock", 10)
-        self.pubs = {name: self.node.create_publisher(String, "/" + topic.name, topic.qos) for name, topic in
-                     (("human", contract.HUMAN), ("reg", contract.REG_REQUEST), ("ltm", contract.LTM_ASSERT))}
+        self.pubs = {name: self.node.create_publisher(String, "/" + topic.name, qos_profile(topic.qos))
+                     for name, topic in (("human", contract.HUMAN), ("reg", contract.REG_REQUEST),
+                                         ("ltm", contract.LTM_ASSERT))}
         self.sync = JsonClient(self.node, "/" + contract.SYNC.name)
         self.status = JsonClient(self.node, "/" + contract.STATUS.name)
         self.replies: dict[str, list[dict]] = {}
         for topic in (contract.RR_RESULT, contract.REG_EXPRESSION, contract.LTM_ASSERT_RESULT):
-            self.node.create_subscription(String, "/" + topic.name, self._on_reply, topic.qos)
+            self.node.create_subscription(String, "/" + topic.name, self._on_reply, qos_profile(topic.qos))
 
     def _on_reply(self, msg: String) -> None:
         data = json.loads(msg.data)

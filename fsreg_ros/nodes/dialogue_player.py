@@ -32,8 +32,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, drop_timer, publisher, subscribe, wait_until
-from ..codec import to_msg
+from ..carrier import CarrierError, JsonClient, drop_timer, publisher, subscribe, to_msg, wait_until
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order

@@ -1,0 +1,106 @@
+"""The fsreg message contract: every topic and service, its QoS and its JSON schema.
+
+This package is the one owner of the wire contract (docs/semantics.md §7).  Nodes, the
+remote consultant port, the graph runner and the tests take names, QoS profiles and
+schemas from here; ``docs/design.md`` lists them (a test checks the table against
+:func:`message_table`), and ``scripts/export_schemas.py`` writes their JSON Schemas.
+It imports no ROS package, so a tool that only needs names or schemas stays ROS-free.
+
+One module per job:
+
+* schemas (pydantic models): :mod:`.base` (``Message``, ``ErrorReply``, ``Stamp``),
+  :mod:`.dialogue` (the dialogue pipeline), :mod:`.wm` (``wm/state``, ``wm/events``),
+  :mod:`.ltm` (``ltm/assert``), :mod:`.consultant` (a consultant's announcement,
+  query ops and manage ops), :mod:`.manager` (the WM Manager's services);
+* :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.carrier.qos_profile`` makes the
+  rclpy profile);
+* :mod:`.endpoints`: the registry of topics and services (relative names, who talks);
+* :mod:`.naming`: namespaces and the per-graph ``/clock`` remapping;
+* :mod:`.limits`: bounds on what a node accepts;
+* :mod:`.checking`: a decoded message against its schema, with one-line errors;
+* :mod:`.export`: JSON Schemas and the docs' message table.
+
+Names are **relative** (``rr/result``, ``consultant/faces``): a node started with
+``--ros-args -r __ns:=/robot1`` (or ``fsreg-graph --namespace robot1``) uses
+``/robot1/rr/result``, so two graphs in different namespaces share a ROS domain without
+hearing each other.  ``/clock`` is the one absolute name (the ROS convention): a
+namespaced *sim-time* graph is given its own clock by remapping it (:func:`clock_remap`).
+"""
+
+from .base import ErrorReply, Id, Message, Number, Stamp
+from .checking import check
+from .consultant import (
+    CONSULTANT_OPS,
+    AffirmRequest,
+    CloseReply,
+    CloseRequest,
+    ConsultantAnnounce,
+    ConsultantReply,
+    ConsultantRequest,
+    EncodeReply,
+    EncodeRequest,
+    HoldsReply,
+    HoldsRequest,
+    InfoReply,
+    InfoRequest,
+    ManageRequest,
+    NarrowReply,
+    NarrowRequest,
+    Narrowing,
+    OpenReply,
+    OpenRequest,
+    QueueReply,
+    RuleOutReply,
+    RuleOutRequest,
+    SnapshotReply,
+    SnapshotRequest,
+    StepRequest,
+    Versioned,
+    WMRequest,
+)
+from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
+from .endpoints import (
+    ANNOUNCE,
+    CLOCK,
+    CONSULTANT,
+    HUMAN,
+    LTM_ASSERT,
+    LTM_ASSERT_RESULT,
+    MANAGE,
+    REG_EXPRESSION,
+    REG_REQUEST,
+    RR_RESULT,
+    SEMANTICS,
+    SERVICES,
+    STATUS,
+    SYNC,
+    TOPICS,
+    WM_EVENTS,
+    WM_STATE,
+    Service,
+    Topic,
+    consultant_service,
+    manage_service,
+)
+from .export import fields_of, json_schemas, message_table
+from .limits import LIMIT_RANGES, Limits, check_sizes
+from .ltm import LtmAssert, LtmAssertResult
+from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
+from .naming import clock_remap, normalise_namespace
+from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .wm import WMEventMessage, WMState
+
+__all__ = [
+    "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEFAULT_QOS", "EVENTS_QOS", "HUMAN", "LIMIT_RANGES",
+    "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT",
+    "SEMANTICS", "SERVICES", "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE",
+    "AffirmRequest", "CloseReply", "CloseRequest", "ConsultantAnnounce", "ConsultantReply", "ConsultantRequest",
+    "EncodeReply", "EncodeRequest", "ErrorReply", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id",
+    "InfoReply", "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageRequest", "Message",
+    "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "QosSpec", "QueueReply",
+    "RRResult", "RegError", "RegExpression", "RegRequest", "RuleOutReply", "RuleOutRequest", "Semantics",
+    "Service", "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest",
+    "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState", "check",
+    "check_sizes", "clock_remap", "consultant_service", "fields_of", "json_schemas", "manage_service",
+    "message_table", "normalise_namespace",
+]

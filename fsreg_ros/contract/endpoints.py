@@ -1,0 +1,84 @@
+"""Every topic and service of the graph: relative name, schema, QoS, who talks (the registry).
+
+Names are **relative** (``rr/result``, ``consultant/faces``): a node started with
+``--ros-args -r __ns:=/robot1`` uses ``/robot1/rr/result``.  ``/clock`` is the one
+absolute name (see :mod:`fsreg_ros.contract.naming`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional, Union
+
+from .base import ErrorReply, Message
+from .consultant import ConsultantAnnounce, ConsultantReply, ConsultantRequest, ManageRequest
+from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
+from .ltm import LtmAssert, LtmAssertResult
+from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
+from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .wm import WMEventMessage, WMState
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic: relative name, JSON schema of ``String.data``, QoS, who talks."""
+
+    name: str
+    schema: Any
+    qos: QosSpec
+    publishers: str
+    subscribers: str
+    reader_qos: Optional[QosSpec] = None
+
+    @property
+    def subscriber_qos(self) -> QosSpec:
+        return self.reader_qos if self.reader_qos is not None else self.qos
+
+
+@dataclass(frozen=True)
+class Service:
+    """One JSON service: relative name (``<domain>`` filled in per consultant), schemas."""
+
+    name: str
+    request: Any
+    reply: Any
+    server: str
+    clients: str
+
+
+HUMAN = Topic("dialogue/human", HumanUtterance, PIPELINE_QOS, "the robot's speech input", "parser")
+SEMANTICS = Topic("dialogue/semantics", Semantics, PIPELINE_QOS, "parser", "reference_resolution")
+RR_RESULT = Topic("rr/result", Union[RRResult, ErrorReply], PIPELINE_QOS, "reference_resolution, parser (errors)",
+                  "dialogue manager")
+REG_REQUEST = Topic("reg/request", RegRequest, PIPELINE_QOS, "dialogue manager", "reg")
+REG_EXPRESSION = Topic("reg/expression", Union[RegExpression, RegError], PIPELINE_QOS, "reg", "dialogue manager")
+WM_STATE = Topic("wm/state", WMState, STATE_PUB_QOS, "consultants", "anyone", reader_qos=STATE_QOS)
+WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialogue_player (trace)")
+ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants", "wm_manager",
+                 reader_qos=STATE_QOS)
+LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
+LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
+                          "asserter")
+
+CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant",
+                     "reference_resolution, reg")
+MANAGE = Service("consultant/<domain>/manage", ManageRequest, Message, "consultant", "wm_manager only")
+SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogue_player")
+STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")
+
+TOPICS: tuple[Topic, ...] = (HUMAN, SEMANTICS, RR_RESULT, REG_REQUEST, REG_EXPRESSION, WM_STATE, WM_EVENTS,
+                             ANNOUNCE, LTM_ASSERT, LTM_ASSERT_RESULT)
+SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, SYNC, STATUS)
+
+#: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.
+CLOCK = "/clock"
+
+
+def consultant_service(domain: str) -> str:
+    """Return the (relative) query service of a domain's consultant."""
+    return CONSULTANT.name.replace("<domain>", domain)
+
+
+def manage_service(domain: str) -> str:
+    """Return the (relative) WM Manager service of a domain's consultant."""
+    return MANAGE.name.replace("<domain>", domain)

@@ -1,0 +1,28 @@
+"""Schemas of the working-memory topics: ``wm/state`` and ``wm/events``."""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .base import Message, Number
+
+
+class WMState(Message):
+    """``wm/state``: one domain's non-empty WM queues (LRU first) and its event count."""
+
+    domain: str
+    time: Number
+    queues: dict[str, list[str]]
+    events: int
+
+
+class WMEventMessage(Message):
+    """``wm/events``: one encode or forget event (docs/semantics.md section 2)."""
+
+    op: str
+    domain: str
+    entity: str
+    property: str
+    cause: str
+    time: Number
+    turn: Optional[int] = None
