@@ -10,10 +10,11 @@ file's before the effective setting of each domain is checked.  Errors in the
 input are one line on stderr and exit code 2, never a traceback.
 
 Every run is measured for alignment (:func:`fsreg_ros.core.alignment.annotate`,
-from the run's result and WM event trace) against the same game under policy
-``none``: the compared ``none`` run if there is one, else the core simulator
-under ``none`` (for ``fsreg-graph`` too, so both print the same bytes).
-``--trace-dir`` and ``--plot-dir`` write each run's trace and WM timeline.
+from the run's result records alone) against the same game under policy ``none``:
+the compared ``none`` run if there is one, the run itself under ``none``, else the
+core simulator under ``none``, played without a trace (for ``fsreg-graph`` too, so
+both print the same bytes).  The WM event trace is built only when an option writes
+it: ``--trace``, ``--trace-dir`` and ``--plot-dir`` (:func:`needs_trace`).
 """
 
 from __future__ import annotations
@@ -140,7 +141,13 @@ def load_expected(path: Path) -> dict[str, list[list[str]]]:
 
 
 # ---------------------------------------------------------------------- main
-Runner = Callable[[argparse.Namespace, Options], tuple[dict, list[dict]]]
+#: Plays one scenario: (args, options) -> (result, WM event trace, or None when :func:`needs_trace` is False).
+Runner = Callable[[argparse.Namespace, Options], tuple[dict, Optional[list[dict]]]]
+
+
+def needs_trace(args: argparse.Namespace) -> bool:
+    """Whether an option writes WM events (``--trace``, ``--trace-dir``, ``--plot-dir``): only then is a trace built."""
+    return bool(args.trace or args.trace_dir or args.plot_dir)
 
 
 def play_all(args: argparse.Namespace, runner: Runner, policies: Sequence[Optional[str]]) -> dict[str, tuple]:
@@ -155,16 +162,16 @@ def play_all(args: argparse.Namespace, runner: Runner, policies: Sequence[Option
 def with_alignment(args: argparse.Namespace, runs: dict[str, tuple]) -> dict[str, dict]:
     """Return each run's result annotated with its alignment against the same game under ``none``.
 
-    The baseline is the run labelled ``none`` if there is one, else the core
-    simulator under ``none`` with the same options.
+    The baseline is the run labelled ``none`` if there is one (no extra game), else
+    the core simulator under ``none`` with the same options, played without a trace.
     """
     if "none" in runs:
-        baseline = summarise(*runs["none"])
+        baseline = summarise(runs["none"][0])
         sources = {label: BASELINE_RUN if len(runs) == 1 else BASELINE_COMPARED for label in runs}
     else:
-        baseline = summarise(*simulate_args(args, options_from_args(args, "none")))
+        baseline = summarise(play_core(args, options_from_args(args, "none"), trace=False)[0])
         sources = {label: BASELINE_SIMULATOR for label in runs}
-    return {label: annotate(result, trace, baseline, sources[label]) for label, (result, trace) in runs.items()}
+    return {label: annotate(result, baseline, sources[label]) for label, (result, _) in runs.items()}
 
 
 def write_run_files(args: argparse.Namespace, runs: dict[str, tuple], results: dict[str, dict]) -> list[Path]:
@@ -204,7 +211,8 @@ def run_cli(
     """Run the shared main of ``fsreg-sim`` and ``fsreg-graph``.
 
     ``runner`` plays one scenario with the given options and returns (result,
-    trace); the trace is always needed (alignment reads it).  Bad input exits 2; a
+    trace); the trace is needed only when :func:`needs_trace` says so (alignment reads
+    the result records alone).  Bad input exits 2; a
     run that fails in one of the ``failures`` ways exits 1; both print one message.
     A comparison checked with ``--expect`` exits 1 unless every robot turn was
     checked and matched.
@@ -252,13 +260,25 @@ def one_line(err: BaseException) -> str:
     return " ".join(str(err).split())
 
 
-def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-    """Play the scenario of ``args`` with the core; return (result, WM event trace)."""
-    lexicon = Lexicon.load(args.lexicon)
-    scenario = load_scenario(args.scenario, lexicon)
-    simulation = Simulation(scenario, options, lexicon, trace=True)
+def loaded(args: argparse.Namespace) -> tuple[Lexicon, Any]:
+    """Return the lexicon and scenario of ``args``, loaded once per command (every run and the baseline share them)."""
+    if getattr(args, "loaded", None) is None:
+        lexicon = Lexicon.load(args.lexicon)
+        args.loaded = (lexicon, load_scenario(args.scenario, lexicon))
+    return args.loaded
+
+
+def play_core(args: argparse.Namespace, options: Options, trace: bool) -> tuple[dict, Optional[list[dict]]]:
+    """Play the scenario of ``args`` with the core; return (result, WM event trace if ``trace`` else None)."""
+    lexicon, scenario = loaded(args)
+    simulation = Simulation(scenario, options, lexicon, trace=trace)
     result = simulation.run()
-    return result, simulation.trace()
+    return result, simulation.trace() if trace else None
+
+
+def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, Optional[list[dict]]]:
+    """Play the scenario of ``args`` with the core; return (result, WM event trace when an option writes it)."""
+    return play_core(args, options, needs_trace(args))
 
 
 def sim_main(argv: Optional[Sequence[str]] = None) -> int:

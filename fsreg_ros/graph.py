@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Optional, Sequence
 
-from .cli import run_cli
+from .cli import needs_trace, run_cli
 from .contract import clock_remap, normalise_namespace
 from .graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
 from .core.lexicon import Lexicon
@@ -247,8 +247,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
 
     def graph_args(args: argparse.Namespace, options: Options) -> tuple[dict, list[dict]]:
-        # The trace always: the shared CLI measures alignment from it.
-        return run_graph(args.scenario, options, trace=True, lexicon=args.lexicon, namespace=namespace)
+        # The trace only when an option writes it: alignment reads the result records alone.
+        return run_graph(args.scenario, options, trace=needs_trace(args), lexicon=args.lexicon, namespace=namespace)
 
     try:
         return run_cli(

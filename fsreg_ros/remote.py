@@ -192,7 +192,8 @@ class RemotePort:
         reply = await self._call(payload)
         holding = reply.get("holding")
         view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
-                    frozenset(holding) if holding is not None else None)
+                    frozenset(holding) if holding is not None else None,
+                    origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
         if first is not None:
             if reply.get("first") is None:
                 raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)

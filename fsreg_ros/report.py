@@ -68,6 +68,7 @@ def render_table(result: Mapping[str, Any]) -> str:
     if "alignment" in result:
         label = run_label(result)
         lines += ["", *turn_alignment_lines({label: result}), "", *summary_lines({label: result})]
+        lines += ["", *conclusion_lines({label: result})] if label != "none" else []
     return "\n".join(lines) + "\n"
 
 
@@ -142,7 +143,7 @@ def render_comparison(
     if expected is not None:
         lines += ["", *MARKS]
     if all("alignment" in results[label] for label in labels):
-        lines += ["", *turn_alignment_lines(results), "", *summary_lines(results)]
+        lines += ["", *turn_alignment_lines(results), "", *summary_lines(results), "", *conclusion_lines(results)]
     if expected is not None:
         lines.append("")
         lines.append(f"{out.matched}/{out.checked} robot descriptions match the expected ones")
@@ -153,8 +154,10 @@ def render_comparison(
 
 
 def aligned_cell(record: Mapping[str, Any]) -> str:
-    """Return a robot turn's alignment: aligned/said, then each property from WM and what had put it there."""
+    """Return a robot turn's alignment: aligned/said, Dice with the human's last description, WM origins."""
     cell = f"{len(record.get('aligned') or [])}/{len(record.get('description') or [])} aligned"
+    if record.get("dice_last") is not None:
+        cell += f", Dice {record['dice_last']:.2f} with H{record.get('human_last_turn')}"
     origins = record.get("wm_origins") or {}
     if origins:
         cell += "; from WM: " + ", ".join(f"{p} ({o})" for p, o in origins.items())
@@ -169,7 +172,9 @@ def turn_alignment_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
     widths = {label: max([len(label)] + [len(c) for c in cells[label]]) for label in labels}
     lines = [
         "alignment per robot turn: how many of the properties said the human had already used for that target "
-        "earlier in the game, then each property taken from WM with what had put it there.",
+        "earlier in the game; the Dice of the description with the human's most recent description of the target "
+        "(Hn: the human turn n; left out if the human had not described it); then each property taken from WM "
+        "with what had put it there.",
         f"{'turn':>4}  {'target':<8}  " + "  ".join(f"{label:<{widths[label]}}" for label in labels).rstrip(),
     ]
     for i, record in enumerate(rows[labels[0]]):
@@ -181,9 +186,9 @@ def turn_alignment_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
 def summary_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
     """Return the per-run alignment figures (``alignment`` blocks), each explained in one sentence.
 
-    For each run: alignment with the human, its gain over the same game under
-    policy ``none``, the properties taken from WM by what had put them there, and
-    the mean description length.
+    For each run: entrainment (the headline) and its gain over the same game under
+    policy ``none``, the length-matched gain, the aligned share and recall, the
+    properties taken from WM by what had put them there, and the mean description length.
     """
     width = max(map(len, results)) if results else 0
     lines = []
@@ -193,19 +198,47 @@ def summary_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
         mean = block["properties"] / len(rows) if rows else 0.0
         origins = ", ".join(f"{o} {block['wm_origins'].get(o, 0)}" for o in ORIGINS)
         lines.append(
-            f"{label:<{width}}  alignment {block['alignment']:.0%} ({block['aligned']}/{block['properties']}), "
-            f"gain {100 * block['gain_over_none']:+.0f} points over none ({block['none_alignment']:.0%}); "
+            f"{label:<{width}}  entrainment {block['entrainment']:.2f} over {block['described_turns']} turns, "
+            f"gain {block['entrainment_gain']:+.2f} over none ({block['none_entrainment']:.2f}); length-matched "
+            f"{block['length_matched_gain']:+.2f} aligned ({block['length_matched_turns']} turns); aligned "
+            f"{block['aligned']}/{block['properties']} ({block['alignment']:.0%}), recall {block['recall']:.2f}; "
             f"from WM {block['from_wm']}/{block['properties']}: {origins}; {mean:.2f} properties per description"
         )
     sources = sorted({r["alignment"]["none_baseline"] for r in results.values()})
     words = ", ".join(f"{o} = {ORIGIN_WORDS[o]}" for o in ORIGINS)
     lines += [
-        "alignment: the share of the robot's properties that the human had already used for the same referent "
-        "earlier in the game.",
-        "gain over none: alignment minus that of the same game under policy none (no working memory), in "
-        f"percentage points; the none figure comes from {' and '.join(sources)}.",
+        "entrainment: the mean Dice of the robot's description with the human's most recent description of the same "
+        "referent, over the robot turns whose referent the human had described; unlike the aligned share, length "
+        "alone cannot raise it (Dice falls with every property the human did not say and every one of theirs left "
+        "out).",
+        "gain over none: entrainment minus that of the same game under policy none (no working memory), paired turn "
+        f"by turn; the none figure comes from {' and '.join(sources)}. One game: no interval (fsreg-sweep gives "
+        "intervals over many games).",
+        "length-matched: the mean change in aligned properties against none on the turns where both descriptions "
+        "are as long.",
+        "aligned: the robot's properties that the human had already used for the same referent earlier in the game "
+        "(the share can rise just by saying less); recall: the mean share of the human's last description repeated.",
         "from WM: the properties the robot took from the target's working memory, counted by what had put each "
         f"there ({words}).",
         "properties per description: the mean number of properties in the robot's descriptions.",
     ]
     return lines
+
+
+def conclusion_lines(results: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Return what the runs say about alignment through WM, from the headline (entrainment gain over none)."""
+    gains = {label: r["alignment"]["entrainment_gain"] for label, r in results.items() if label != "none"}
+    if not gains:
+        return []
+    paired = max(r["alignment"]["paired_turns"] for r in results.values())
+    parts = []
+    for word, test in (("lower", lambda g: g < 0), ("higher", lambda g: g > 0), ("unchanged", lambda g: g == 0)):
+        mine = [f"{label} ({gain:+.2f})" for label, gain in gains.items() if test(gain)]
+        if mine:
+            parts.append(f"{word} under " + (" and ".join(mine) if len(mine) < 3 else
+                                             ", ".join(mine[:-1]) + " and " + mine[-1]))
+    return [
+        f"conclusion: on this one dialogue ({paired} paired turns), compared with no working memory the robot's "
+        f"entrainment with the human (Dice with the human's last description) is {'; '.join(parts)}. One game is no "
+        "evidence either way: fsreg-sweep measures the gain over many games, with intervals (docs/research.md)."
+    ]

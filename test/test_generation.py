@@ -538,8 +538,14 @@ def test_expression_json():
         "distractors_left": [],
         "wm_before": [],
         "text": "",
+        "origins": [None, None],
     }
     assert Expression("x", "d", "greedy").to_json()["distinguishing"] is True
+    # Asked again, WM holds what the first call said (rule 1): each WM property carries the encoding that made
+    # it enter.
+    again = gen("object2", port, "sd-pia", time=5.0, turn=4).to_json()
+    assert again["sources"] == ["wm", "wm"]
+    assert again["origins"] == [{"cause": "speaker", "turn": None}, {"cause": "speaker", "turn": None}]
 
 
 # ================================================================= errors

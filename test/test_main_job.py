@@ -30,19 +30,28 @@ def robot(result: dict, turn: int) -> dict:
 def test_table1_alignment_blocks(table1_path, capsys):
     runs, _ = compare_json(table1_path, capsys)
     assert runs["decay"]["alignment"] == {
-        "robot_turns": 6, "properties": 14, "aligned": 11, "alignment": 0.7857, "from_wm": 8,
+        "robot_turns": 6, "properties": 14, "aligned": 11, "alignment": 0.7857, "described_turns": 5,
+        "entrainment": 0.779, "recall": 0.6833, "from_wm": 8,
         "wm_origins": {"human-speech": 3, "rr": 3, "reg-distractor": 2, "robot-speech": 0},
-        "none_alignment": 0.8667, "gain_over_none": -0.081, "none_baseline": BASELINE_COMPARED,
+        "none_alignment": 0.8667, "gain_over_none": -0.081, "none_entrainment": 0.8743, "entrainment_gain": -0.0952,
+        "paired_turns": 5, "length_matched_gain": -0.2, "length_matched_turns": 5,
+        "none_baseline": BASELINE_COMPARED,
     }
     assert runs["displacement"]["alignment"] == {
-        "robot_turns": 6, "properties": 15, "aligned": 12, "alignment": 0.8, "from_wm": 10,
+        "robot_turns": 6, "properties": 15, "aligned": 12, "alignment": 0.8, "described_turns": 5,
+        "entrainment": 0.8171, "recall": 0.7333, "from_wm": 10,
         "wm_origins": {"human-speech": 5, "rr": 4, "reg-distractor": 0, "robot-speech": 1},
-        "none_alignment": 0.8667, "gain_over_none": -0.0667, "none_baseline": BASELINE_COMPARED,
+        "none_alignment": 0.8667, "gain_over_none": -0.0667, "none_entrainment": 0.8743, "entrainment_gain": -0.0571,
+        "paired_turns": 5, "length_matched_gain": -0.1667, "length_matched_turns": 6,
+        "none_baseline": BASELINE_COMPARED,
     }
     assert runs["none"]["alignment"] == {
-        "robot_turns": 6, "properties": 15, "aligned": 13, "alignment": 0.8667, "from_wm": 0,
+        "robot_turns": 6, "properties": 15, "aligned": 13, "alignment": 0.8667, "described_turns": 5,
+        "entrainment": 0.8743, "recall": 0.7833, "from_wm": 0,
         "wm_origins": {"human-speech": 0, "rr": 0, "reg-distractor": 0, "robot-speech": 0},
-        "none_alignment": 0.8667, "gain_over_none": 0.0, "none_baseline": BASELINE_COMPARED,
+        "none_alignment": 0.8667, "gain_over_none": 0.0, "none_entrainment": 0.8743, "entrainment_gain": 0.0,
+        "paired_turns": 5, "length_matched_gain": 0.0, "length_matched_turns": 6,
+        "none_baseline": BASELINE_COMPARED,
     }
 
 
@@ -63,14 +72,23 @@ def test_table1_aligned_properties_and_their_origins_per_turn(table1_path, capsy
     assert robot(displacement, 11)["wm_origins"] == {"short-hair": "rr", "glasses": "robot-speech"}
     assert robot(displacement, 3)["aligned"] == [] and robot(displacement, 3)["wm_origins"] == {"male": "rr"}
     assert robot(none, 11)["aligned"] == ["light-hair", "lab-coat", "glasses"] and robot(none, 11)["wm_origins"] == {}
+    # Against the human's last description of face1 (turn 0: male, lab-coat, light-hair, glasses).
+    assert (robot(decay, 7)["human_last_turn"], robot(decay, 7)["dice_last"], robot(decay, 7)["recall_last"]) == (
+        0, round(2 * 2 / 7, 4), 0.5)
+    assert robot(decay, 3)["human_last"] is None and robot(decay, 3)["dice_last"] is None  # face5: not described
+    # The raw origins REG reported: what made each WM property enter Q[face1].
+    assert robot(decay, 7)["origins"] == [{"cause": "reg-distractor", "turn": 5}, {"cause": "reg-distractor",
+                                          "turn": 3}, {"cause": "rr", "turn": 6}]
     # Human turns carry no alignment keys.
-    assert all("aligned" not in t and "wm_origins" not in t for t in decay["turns"] if t["speaker"] == "human")
+    assert all("aligned" not in t and "wm_origins" not in t and "dice_last" not in t
+               for t in decay["turns"] if t["speaker"] == "human")
 
 
 def test_single_run_baseline_is_the_simulator_under_none_or_the_run_itself(table1_path, capsys):
     assert sim_main([str(table1_path), "--policy", "decay", "--decay-period", "40", "--json"]) == 0
     block = json.loads(capsys.readouterr().out)["alignment"]
     assert (block["aligned"], block["properties"], block["gain_over_none"]) == (14, 16, 0.0083)
+    assert (block["entrainment"], block["entrainment_gain"], block["none_entrainment"]) == (0.9143, 0.04, 0.8743)
     assert block["none_baseline"] == BASELINE_SIMULATOR
     assert sim_main([str(table1_path), "--policy", "none", "--json"]) == 0
     block = json.loads(capsys.readouterr().out)["alignment"]
@@ -81,33 +99,50 @@ def test_main_job_summary_lines(table1_path, capsys):
     assert sim_main([str(table1_path), "--expect", str(PAPER)]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    start = lines.index(next(line for line in lines if line.startswith("decay         alignment")))
-    assert lines[start:start + 7] == [
-        "decay         alignment 79% (11/14), gain -8 points over none (87%); from WM 8/14: human-speech 3, rr 3, "
-        "reg-distractor 2, robot-speech 0; 2.33 properties per description",
-        "displacement  alignment 80% (12/15), gain -7 points over none (87%); from WM 10/15: human-speech 5, rr 4, "
-        "reg-distractor 0, robot-speech 1; 2.50 properties per description",
-        "none          alignment 87% (13/15), gain +0 points over none (87%); from WM 0/15: human-speech 0, rr 0, "
-        "reg-distractor 0, robot-speech 0; 2.50 properties per description",
-        "alignment: the share of the robot's properties that the human had already used for the same referent "
-        "earlier in the game.",
-        "gain over none: alignment minus that of the same game under policy none (no working memory), in percentage "
-        "points; the none figure comes from the none run of this comparison.",
+    start = lines.index(next(line for line in lines if line.startswith("decay         entrainment")))
+    assert lines[start:start + 11] == [
+        "decay         entrainment 0.78 over 5 turns, gain -0.10 over none (0.87); length-matched -0.20 aligned "
+        "(5 turns); aligned 11/14 (79%), recall 0.68; from WM 8/14: human-speech 3, rr 3, reg-distractor 2, "
+        "robot-speech 0; 2.33 properties per description",
+        "displacement  entrainment 0.82 over 5 turns, gain -0.06 over none (0.87); length-matched -0.17 aligned "
+        "(6 turns); aligned 12/15 (80%), recall 0.73; from WM 10/15: human-speech 5, rr 4, reg-distractor 0, "
+        "robot-speech 1; 2.50 properties per description",
+        "none          entrainment 0.87 over 5 turns, gain +0.00 over none (0.87); length-matched +0.00 aligned "
+        "(6 turns); aligned 13/15 (87%), recall 0.78; from WM 0/15: human-speech 0, rr 0, reg-distractor 0, "
+        "robot-speech 0; 2.50 properties per description",
+        "entrainment: the mean Dice of the robot's description with the human's most recent description of the same "
+        "referent, over the robot turns whose referent the human had described; unlike the aligned share, length "
+        "alone cannot raise it (Dice falls with every property the human did not say and every one of theirs left "
+        "out).",
+        "gain over none: entrainment minus that of the same game under policy none (no working memory), paired turn "
+        "by turn; the none figure comes from the none run of this comparison. One game: no interval (fsreg-sweep "
+        "gives intervals over many games).",
+        "length-matched: the mean change in aligned properties against none on the turns where both descriptions are "
+        "as long.",
+        "aligned: the robot's properties that the human had already used for the same referent earlier in the game "
+        "(the share can rise just by saying less); recall: the mean share of the human's last description repeated.",
         "from WM: the properties the robot took from the target's working memory, counted by what had put each there "
         "(human-speech = the human's own description, rr = reference resolution checking a candidate, "
         "reg-distractor = REG ruling out a distractor, robot-speech = the robot's own earlier description).",
         "properties per description: the mean number of properties in the robot's descriptions.",
+        "",
+        "conclusion: on this one dialogue (5 paired turns), compared with no working memory the robot's entrainment "
+        "with the human (Dice with the human's last description) is lower under decay (-0.10) and displacement "
+        "(-0.06). One game is no evidence either way: fsreg-sweep measures the gain over many games, with intervals "
+        "(docs/research.md).",
     ]
     assert "reused from WM" not in out
-    assert "  11  face1     2/2 aligned; from WM: lab-coat (rr), glasses (rr)" in out
+    assert "  11  face1     2/2 aligned, Dice 0.67 with H0; from WM: lab-coat (rr), glasses (rr)" in out
+    assert "   3  face5     0/2 aligned  " in out  # no human description of face5: no Dice
     assert "18/18 robot descriptions match the expected ones" in out
 
 
 def test_single_run_table_shows_alignment(table1_path, capsys):
     assert sim_main([str(table1_path), "--policy", "displacement"]) == 0
     out = capsys.readouterr().out
-    assert "  11  face1     2/3 aligned; from WM: short-hair (rr), glasses (robot-speech)" in out
-    assert "the none figure comes from the core simulator under policy none." in out
+    assert "  11  face1     2/3 aligned, Dice 0.57 with H0; from WM: short-hair (rr), glasses (robot-speech)" in out
+    assert "the none figure comes from the core simulator under policy none. One game: no interval" in out
+    assert "is lower under displacement (-0.06)" in out
 
 
 def test_trace_dir_and_plot_dir_write_one_file_per_policy(table1_path, tmp_path, capsys):

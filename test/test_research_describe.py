@@ -92,3 +92,22 @@ def test_bad_input_is_a_generation_error():
         describe("nobody", kb)
     with pytest.raises(GenerationError, match="unknown algorithm 'best'"):
         describe("t", kb, "best")
+
+
+@pytest.mark.parametrize("algorithm", ["full-brevity", "greedy"])
+def test_baselines_consider_only_the_attributes_the_order_names(algorithm):
+    """The issue's case: a ``loc`` attribute the call's order does not name must never be used."""
+    kb = knowledge_base("f", {"t": {"type": "chair", "colour": "red", "loc": "1"},
+                              "d": {"type": "chair", "colour": "red", "loc": "2"}})
+    got = describe("t", kb, algorithm, preference=["type", "colour"], forced=["type"])
+    assert got.description == ["type=chair"] and not got.distinguishing and got.distractors_left == ["d"]
+    named = describe("t", kb, algorithm, preference=["type", "loc"], forced=["type"])
+    assert named.description == ["type=chair", "loc=1"] and named.distinguishing
+
+
+@pytest.mark.parametrize("algorithm", ["full-brevity", "greedy"])
+def test_baselines_break_ties_by_the_calls_order_not_the_file_order(algorithm):
+    # colour and size each rule out the one distractor; the knowledge base lists colour first.
+    kb = knowledge_base("f", {"t": {"colour": "red", "size": "large"}, "d": {"colour": "blue", "size": "small"}})
+    assert describe("t", kb, algorithm, preference=["size", "colour"]).description == ["size=large"]
+    assert describe("t", kb, algorithm, preference=["colour", "size"]).description == ["colour=red"]

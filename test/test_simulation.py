@@ -63,6 +63,8 @@ def test_table1_exact_records_under_displacement(table1_path):
         "text": "the person with light hair, glasses and a lab coat",
         "domain": "faces",
         "algorithm": "sd-pia",
+        # what made each WM property enter Q[face1]: the human's description at turn 0 (rule 1)
+        "origins": [{"cause": "speaker", "turn": 0}, {"cause": "speaker", "turn": 0}, None],
     }
     human = result["turns"][0]
     assert human == {
@@ -98,11 +100,9 @@ def test_cli_json_matches_library_and_is_byte_identical(table1_path, capsys):
     assert sim_main([str(table1_path), "--json", "--policy", "displacement"]) == 0
     assert capsys.readouterr().out == first
     scenario = load_scenario(table1_path)
-    played = Simulation(scenario, Options(memory={"policy": "displacement"}), trace=True)
-    result = played.run()
-    baseline = Simulation(scenario, Options(memory={"policy": "none"}), trace=True)
-    none = summarise(baseline.run(), baseline.trace())
-    assert first == dumps(annotate(result, played.trace(), none, BASELINE_SIMULATOR))
+    result = Simulation(scenario, Options(memory={"policy": "displacement"})).run()
+    none = summarise(Simulation(scenario, Options(memory={"policy": "none"})).run())
+    assert first == dumps(annotate(result, none, BASELINE_SIMULATOR))
     assert json.loads(first)["memory"]["faces"]["policy"] == "displacement"
 
 
@@ -120,8 +120,8 @@ def test_cli_compare_policies_with_paper_expectations(table1_path, capsys):
     assert code == 0
     assert "18/18 robot descriptions match the expected ones" in out
     assert "the person with a lab coat and glasses" in out  # decay, turn 6
-    assert "decay         alignment 79% (11/14), gain -8 points over none (87%)" in out
-    assert "displacement  alignment 80% (12/15), gain -7 points over none (87%)" in out
+    assert "decay         entrainment 0.78 over 5 turns, gain -0.10 over none (0.87)" in out
+    assert "displacement  entrainment 0.82 over 5 turns, gain -0.06 over none (0.87)" in out
 
 
 def test_cli_expect_mismatch_exits_1(table1_path, tmp_path, capsys):

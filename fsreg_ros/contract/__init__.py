@@ -88,7 +88,7 @@ from .ltm import LtmAssert, LtmAssertResult
 from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import clock_remap, normalise_namespace
 from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
-from .wm import WMEventMessage, WMState
+from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
     "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEFAULT_QOS", "EVENTS_QOS", "HUMAN", "LIMIT_RANGES",
@@ -97,8 +97,8 @@ __all__ = [
     "AffirmRequest", "CloseReply", "CloseRequest", "ConsultantAnnounce", "ConsultantReply", "ConsultantRequest",
     "EncodeReply", "EncodeRequest", "ErrorReply", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id",
     "InfoReply", "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageRequest", "Message",
-    "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "QosSpec", "QueueReply",
-    "RRResult", "RegError", "RegExpression", "RegRequest", "RuleOutReply", "RuleOutRequest", "Semantics",
+    "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "Origin", "QosSpec",
+    "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest", "RuleOutReply", "RuleOutRequest", "Semantics",
     "Service", "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest",
     "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState", "check",
     "check_sizes", "clock_remap", "consultant_service", "fields_of", "json_schemas", "manage_service",

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any, Literal, Optional, Union
 
 from .base import Message, Number, Stamp
+from .wm import Origin
 
 
 class ConsultantAnnounce(Message):
@@ -163,7 +164,8 @@ class OpenReply(Versioned):
 
     ``queue`` is LRU first ([] without a target); ``retains`` whether the domain's WM
     retains anything (policy not ``none``); ``holding`` the properties holding for the
-    target (preference order; null without a target).
+    target (preference order; null without a target); ``origins`` what made each
+    property of ``queue`` enter it (parallel to ``queue``).
     """
 
     session: str
@@ -172,6 +174,7 @@ class OpenReply(Versioned):
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None
+    origins: list[Origin] = []
 
 
 class NarrowReply(Narrowing, Versioned):

@@ -7,6 +7,7 @@ from typing import Literal, Optional
 from pydantic import model_validator
 
 from .base import Id, Message, Number, Stamp
+from .wm import Origin
 
 
 class HumanUtterance(Stamp):
@@ -58,7 +59,11 @@ class RegRequest(Stamp):
 
 
 class RegExpression(Message):
-    """``reg/expression``: the referring expression for one request."""
+    """``reg/expression``: the referring expression for one request.
+
+    ``origins`` is parallel to ``description``: for a property taken from WM, what had made
+    it enter Q[target]; null for the others (alignment names it, core/alignment.py).
+    """
 
     id: Id
     target: str
@@ -71,6 +76,7 @@ class RegExpression(Message):
     distractors_left: list[str]
     wm_before: list[str]
     text: str
+    origins: list[Optional[Origin]] = []
 
 
 class RegError(Message):

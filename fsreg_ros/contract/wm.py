@@ -7,6 +7,13 @@ from typing import Optional
 from .base import Message, Number
 
 
+class Origin(Message):
+    """What made a property enter a WM queue: the encoding's cause and dialogue turn."""
+
+    cause: str
+    turn: Optional[int] = None
+
+
 class WMState(Message):
     """``wm/state``: one domain's non-empty WM queues (LRU first) and its event count."""
 

@@ -68,12 +68,16 @@ class Consultant:
         threshold: float = DEFAULT_THRESHOLD,
         sink: Optional[EventSink] = None,
         attributes: Optional[Mapping[str, str]] = None,
+        retract_on_update: bool = True,
     ) -> None:
         """Build a domain's consultant.
 
         ``attributes`` maps a property to its attribute (for similarity interference);
-        a property named ``attribute=value`` needs no entry.
+        a property named ``attribute=value`` needs no entry.  ``retract_on_update``
+        False keeps WM uninformed of LTM changes: a property that stops holding stays
+        in WM until forgotten (the follow-up study's configuration, docs/research.md).
         """
+        self.retract_on_update = retract_on_update
         self.domain = domain
         self.preference: list[str] = list(preference)
         self._known = set(self.preference)
@@ -224,12 +228,15 @@ class Consultant:
         """Change the domain's threshold.
 
         A property that stops holding for an entity is forgotten from its WM (cause
-        ``retract``), as with :meth:`assert_facts`; returns those (entity, property) pairs.
+        ``retract``), as with :meth:`assert_facts`; returns those (entity, property) pairs
+        (none with ``retract_on_update`` False).
         """
         self.threshold = check_certainty("threshold", threshold)
         self._rebuild_holders()
         self.version += 1
-        retracted = []
+        retracted: list[tuple[str, str]] = []
+        if not self.retract_on_update:
+            return retracted
         for entity, queue in self.wm.snapshot().items():
             for prop in queue:
                 if not self._holders[prop] >> self._index[entity] & 1:
@@ -242,7 +249,7 @@ class Consultant:
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
         a fact; a property that stops holding is also forgotten from Q[entity]
-        (cause ``retract``).  Everything is validated before anything changes.
+        (cause ``retract``) unless ``retract_on_update`` is False.  Everything is validated before anything changes.
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
@@ -269,7 +276,7 @@ class Consultant:
         self.version += 1
         now_holding = set(self.properties_of(entity))
         retracted = [p for p in self.preference if p in old_holding and p not in now_holding]
-        for prop in retracted:
+        for prop in retracted if self.retract_on_update else ():
             self.wm.remove(entity, prop, "retract", time)
         return AssertResult(entity, new, {p: float(c) for p, c in facts.items()}, retracted)
 

@@ -17,7 +17,7 @@ knowledge base's own order.  Properties written ``attribute=value`` belong to
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Optional, Sequence, Union
 
 from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, run_sync
@@ -115,8 +115,9 @@ class ViewPort:
         self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
     ) -> View:
         view = self._opened
-        view = View(view.handle, view.size, [p for p in view.queue if not self._is_hidden(p)], view.retains,
-                    view.holding)
+        shown = [(p, o) for p, o in zip(view.queue, view.origins) if not self._is_hidden(p)]
+        view = View(view.handle, view.size, [p for p, _ in shown], view.retains, view.holding,
+                    origins=[o for _, o in shown])
         if first is not None:
             view.first = await self.narrow(view, first.prop, first.cause, first.time, first.turn)
         return view
@@ -179,7 +180,7 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
                         break
     except KnowledgeError as err:
         raise GenerationError(str(err)) from err
-    opened = View(opened.handle, size, opened.queue, opened.retains, opened.holding)
+    opened = replace(opened, size=size, first=None)
     view = ViewPort(port, order, writes=request.writes, opened=opened, hidden=request.forced,
                     attributes=request.attributes)
     expression = await generate(
@@ -194,6 +195,7 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
     )
     expression.description = head + expression.description
     expression.sources = ["forced"] * len(head) + expression.sources
+    expression.origins = [None] * len(head) + expression.origins
     if request.writes and expression.description:  # rule 1: the robot's own description
         await port.encode(target, expression.description, "speaker", request.time, request.turn)
     return expression

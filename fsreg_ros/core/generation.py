@@ -71,6 +71,10 @@ class Expression:
     distractors_left: list[str] = field(default_factory=list)
     wm_before: list[str] = field(default_factory=list)
     text: str = ""
+    #: Parallel to ``description``: for a property taken from WM, the raw origin of its entry in
+    #: Q[target] (``{"cause", "turn"}`` of the encoding that made it enter, as the buffer kept it);
+    #: None for the others.  :mod:`fsreg_ros.core.alignment` names it from the turns' records.
+    origins: list[Optional[dict]] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {
@@ -83,6 +87,7 @@ class Expression:
             "distractors_left": list(self.distractors_left),
             "wm_before": list(self.wm_before),
             "text": self.text,
+            "origins": [None if o is None else dict(o) for o in self.origins],
         }
 
 
@@ -123,6 +128,7 @@ async def sd_pia(
         view = await port.open(target, context)
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
+    entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
     remaining = view.size
     considered: set[str] = set()
     selected_attributes: set[str] = set()
@@ -140,6 +146,7 @@ async def sd_pia(
         if step.target_holds and step.size < remaining:
             expression.description.append(prop)
             expression.sources.append(source)
+            expression.origins.append(entered.get(prop) if source == "wm" else None)
             selected_attributes.add(attribute_of(prop, attributes))
             remaining = step.size
 
@@ -168,14 +175,19 @@ async def _baseline_view(
     """Return what a baseline works from: the open view and each property's rule-out bitmask.
 
     The view's ``queue`` is Q[target], reported only (docs/semantics.md section 6; baselines never
-    use WM); for each property holding for the target (preference order), the bitmask
-    of distractors it rules out (bit i = the i-th distractor in entity order).
-    Queries only, no encoding.
+    use WM); for each property holding for the target *that the port's preference order
+    names*, in that order, the bitmask of distractors it rules out (bit i = the i-th
+    distractor in entity order).  A property the order does not name is never
+    considered, and ties are broken by the order (the port may serve a per-call order,
+    :class:`~fsreg_ros.core.describe.ViewPort`).  Queries only, no encoding.
     """
     if view is None:
         view = await port.open(target, context)
+    preference = await port.preference()
     props, masks = await port.rule_out(view)
-    return view, props, masks
+    rank = {p: i for i, p in enumerate(preference)}
+    named = sorted((rank[p], p, m) for p, m in zip(props, masks) if p in rank)
+    return view, [p for _, p, _ in named], [m for _, _, m in named]
 
 
 async def full_brevity(
@@ -227,6 +239,7 @@ async def full_brevity(
     expression = Expression(target, port.domain, "full-brevity", wm_before=list(view.queue))
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
+    expression.origins = [None] * len(chosen)
     return await _finish(expression, view, port, time, turn, ruled_out=best_cover)
 
 
@@ -263,6 +276,7 @@ async def greedy(
             break
         expression.description.append(props[best])
         expression.sources.append("ltm")
+        expression.origins.append(None)
         used.add(attribute_of(props[best], attributes))
         remaining &= ~masks[best]
     return await _finish(expression, view, port, time, turn, ruled_out=everyone & ~remaining)

@@ -74,6 +74,7 @@ def robot_record(turn: Turn, expression: Mapping[str, Any]) -> dict:
         "text",
         "domain",
         "algorithm",
+        "origins",
     ):
         record[key] = expression.get(key)
     if "error" in expression:

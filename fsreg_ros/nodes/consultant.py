@@ -432,7 +432,7 @@ class ConsultantNode(Node):
         session = self.sessions.open(view.handle, monotonic())
         holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
         reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-                 "holding": holding}
+                 "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
         if view.first is not None:
             reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
         return reply

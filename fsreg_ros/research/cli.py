@@ -14,6 +14,7 @@ from typing import Callable, Optional, Sequence
 
 from ..core.forgetting import PolicyError
 from ..core.generation import GenerationError
+from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
 from .tuna import ALGORITHMS, DOMAINS, TunaError, evaluate, load_trials
 
 
@@ -109,7 +110,7 @@ def write_per_trial(path: Path, results: list) -> None:
             for s in result.scores:
                 writer.writerow([
                     s.trial, s.domain, s.condition, s.algorithm, " ".join(s.order), " ".join(s.description),
-                    " ".join(s.gold), f"{s.dice:.4f}", f"{s.masi:.4f}", int(s.minimal), int(s.unique),
+                    " ".join(s.gold), f"{s.dice:.6f}", f"{s.masi:.6f}", int(s.minimal), int(s.unique),
                 ])
 
 
@@ -152,16 +153,33 @@ def memory_settings(entries: Sequence[str], option: str = "--memory") -> dict:
 
 def sweep_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="fsreg-sweep", description="Play generated Guess-Who games under a grid of forgetting settings."
+        prog="fsreg-sweep",
+        description="Play generated Guess-Who games under forgetting settings; each policy runs over the parameters "
+                    "it reads.",
     )
     parser.add_argument("--policies", default="decay,displacement,none", help="comma-separated policy strings")
-    parser.add_argument("--decay-periods", default="5,10,20", help="comma-separated seconds (delta)")
-    parser.add_argument("--capacities", default="1,2,3", help="comma-separated integers (alpha)")
+    parser.add_argument("--decay-periods", default="5,10,20", help="comma-separated seconds (delta), for decay")
+    parser.add_argument("--capacities", default="1,2,3",
+                        help="comma-separated integers (alpha), for the displacement rules")
+    parser.add_argument("--global-capacities", default="4,8,16", help="comma-separated integers, for global-capacity")
+    parser.add_argument("--shared-capacities", default="4,8,16",
+                        help="comma-separated integers (one pool for all domains), for shared-capacity")
     parser.add_argument("--seeds", type=int, default=10, help="number of games (seeds --seed-base ... +N-1)")
     parser.add_argument("--seed-base", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
+    parser.add_argument("--board-size", type=int, default=BOARD_SIZE,
+                        help=f"entities per domain (default {BOARD_SIZE}, at most {MAX_BOARD_SIZE})")
+    parser.add_argument("--world", choices=list(WORLDS), default="faces",
+                        help="faces (the paper's board) or faces+objects (two domains)")
+    parser.add_argument("--changes", type=float, default=0.0, metavar="N",
+                        help="fact changes per 100 turns (glasses taken off, clothes changed, objects moved); "
+                             "default 0: static games")
+    parser.add_argument("--retraction", default="on",
+                        help="with --changes: on (WM told of LTM changes), off (not told), or on,off")
+    parser.add_argument("--wm-belief", action="store_true",
+                        help="REG takes the target's WM as true without checking LTM (see docs/research.md)")
     parser.add_argument("--memory", action="append", default=[], metavar="KEY=VALUE",
-                        help="extra memory setting for every non-none run (e.g. global_capacity=8)")
+                        help="extra memory setting for every non-none run (fixes that parameter)")
     parser.add_argument("--human-memory", action="append", default=[], metavar="KEY=VALUE",
                         help="give the human a WM of its own (e.g. policy=decay, decay_period=10)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
@@ -171,8 +189,16 @@ def sweep_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def sweep_command(args: argparse.Namespace) -> int:
-    from .sweep import SweepConfig, run
+def retraction_list(text: str) -> tuple:
+    """Parse ``on``, ``off`` or ``on,off`` into booleans (WM told of LTM changes)."""
+    values = [v.strip() for v in text.split(",") if v.strip()]
+    if not values or any(v not in ("on", "off") for v in values):
+        raise UsageError(f"--retraction: expected on, off or on,off, got '{text}'")
+    return tuple(dict.fromkeys(v == "on" for v in values))
+
+
+def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
+    from .sweep import SweepConfig, recommend, run
 
     policies = tuple(dict.fromkeys(p.strip() for p in args.policies.split(",") if p.strip()))
     if not policies:
@@ -183,44 +209,94 @@ def sweep_command(args: argparse.Namespace) -> int:
         raise UsageError(f"--seed-base must be in [0, 2^31], got {args.seed_base}")
     if not 2 <= args.turns <= 10_000:
         raise UsageError(f"--turns must be in [2, 10000], got {args.turns}")
+    if not 2 <= args.board_size <= MAX_BOARD_SIZE:
+        raise UsageError(f"--board-size must be in [2, {MAX_BOARD_SIZE}], got {args.board_size}")
+    if not 0 <= args.changes <= 100 or args.changes != args.changes:
+        raise UsageError(f"--changes must be in [0, 100] (per 100 turns), got {args.changes}")
     if not 1 <= args.jobs <= 256:
         raise UsageError(f"--jobs must be in [1, 256], got {args.jobs}")
     config = SweepConfig(
         policies=policies,
-        decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-3, 1e6),
+        decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-2, 1e6),
         capacities=number_list("--capacities", args.capacities, int, 1, 10_000),
+        global_capacities=number_list("--global-capacities", args.global_capacities, int, 1, 1_000_000),
+        shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
         seeds=tuple(range(args.seed_base, args.seed_base + args.seeds)),
         turns=args.turns,
         memory=memory_settings(args.memory),
         human_memory=memory_settings(args.human_memory, "--human-memory") if args.human_memory else None,
+        board_size=args.board_size,
+        world=args.world,
+        changes=args.changes,
+        retraction=retraction_list(args.retraction),
+        wm_belief=args.wm_belief,
     )
-    rows = run(config, args.out, args.jobs, progress=not args.no_progress, plots=not args.no_plots)
-    print(f"fsreg-sweep: {len(rows)} runs written to {args.out / 'runs.csv'}")
-    for line in headline(rows):
+    rows, summary = run(config, args.out, args.jobs, progress=not args.no_progress, plots=not args.no_plots,
+                        argv=argv)
+    settings_run = len(summary)
+    print(f"fsreg-sweep: {len(rows)} distinct runs ({settings_run} settings x {len(config.seeds)} games) "
+          f"written to {args.out / 'runs.csv'}")
+    for line in headline(summary, dynamic=config.changes > 0):
         print(line)
+    if config.changes > 0:
+        for line in recommendation_lines(recommend(summary)):
+            print(line)
     return 0
 
 
-def headline(rows: list) -> list[str]:
-    """Return one line per policy: mean alignment, gain over none and divergence."""
-    lines = []
-    policies = list(dict.fromkeys(r["policy"] for r in rows))
-    width = max((len(p) for p in policies), default=0)
-    for policy in policies:
-        mine = [r for r in rows if r["policy"] == policy]
-        metrics = ("alignment", "alignment_gain", "divergence", "mean_length", "overspecification")
-        mean = {m: sum(r[m] for r in mine) / len(mine) for m in metrics}
+def headline(summary: list, dynamic: bool = False) -> list[str]:
+    """Return one line per setting: entrainment, its gain over none with the 95 % interval, and what moves with it."""
+    from .stats import METHOD
+
+    labels = [e["setting"].label() for e in summary]
+    width = max([len(label) for label in labels] + [7])
+    head = (f"  {'setting':{width}}  {'entrainment':>11}  {'gain over none [95% CI]':>25}  {'len.-matched':>12}  "
+            f"{'length':>6}  {'WM':>5}  {'diverg.':>7}" + ("  outdated [95% CI]" if dynamic else ""))
+    lines = [head]
+    for label, entry in zip(labels, summary):
+        e = entry["estimates"]
+        line = (f"  {label:{width}}  {e['entrainment'].mean:11.3f}  {e['entrainment_gain'].text(3, True):>25}  "
+                f"{e['length_matched_gain'].mean:+12.3f}  {e['mean_length'].mean:6.2f}  "
+                f"{e['mean_wm_occupancy'].mean:5.1f}  {e['divergence'].mean:7.3f}")
+        if dynamic:
+            line += f"  {e['outdated_rate'].text(4)}"
+        lines.append(line)
+    n = max((entry["n"] for entry in summary), default=0)
+    rate = min((entry["estimates"]["distinguishing_rate"].mean for entry in summary), default=1.0)
+    lines += [
+        f"  entrainment: mean Dice with the human's last description of the referent; gain: paired by game against "
+        f"none, {METHOD}, n = {n};",
+        "  len.-matched: aligned properties gained per description on turns where both descriptions are as long; "
+        "length: properties per description; WM: properties in WM before the robot speaks; diverg.: share of "
+        "descriptions differing from none" + ("; outdated: share of properties said that no longer held." if dynamic
+                                              else "."),
+        "  every description was distinguishing." if rate == 1.0 else
+        f"  lowest distinguishing rate of a setting: {rate:.3f}.",
+    ]
+    return lines
+
+
+def recommendation_lines(table: list) -> list[str]:
+    """Return the recommendation table as text: per WM configuration and bound, the best setting."""
+    lines = ["recommendation: per WM configuration, the setting with the most entrainment whose mean outdated "
+             "rate is within the bound"]
+    for entry in table:
+        best = entry["best"]
+        if best is None:
+            lines.append(f"  {entry['wm']:22}  outdated <= {entry['bound']:.0%}: no setting qualifies")
+            continue
+        e = best["estimates"]
         lines.append(
-            f"  {policy:{width}}  alignment {mean['alignment']:.3f}  gain {mean['alignment_gain']:+.3f}  "
-            f"length {mean['mean_length']:.2f}  overspec {mean['overspecification']:.2f}  "
-            f"divergence {mean['divergence']:.3f}  ({len(mine)} runs)"
+            f"  {entry['wm']:22}  outdated <= {entry['bound']:.0%}: {best['setting'].label():32}  entrainment "
+            f"{e['entrainment'].mean:.3f} (gain {e['entrainment_gain'].text(3, True)}), outdated "
+            f"{e['outdated_rate'].text(4)}  ({entry['allowed']} of {entry['considered']} settings within the bound)"
         )
     return lines
 
 
 def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``fsreg-sweep``."""
-    return _run(sweep_command, sweep_parser(), argv)
+    return _run(lambda args: sweep_command(args, argv), sweep_parser(), argv)
 
 
 # ------------------------------------------------------------------ fsreg-plot
@@ -232,6 +308,8 @@ def plot_parser() -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
     parser.add_argument("--result", type=Path, help="fsreg-sim --json output, for the turns' times and speakers")
     parser.add_argument("--title", default="", help="plot title")
+    parser.add_argument("--entities", metavar="E1,E2,...", help="draw only these entities' lanes")
+    parser.add_argument("--top", type=int, metavar="N", help="draw only the N lanes longest in WM")
     return parser
 
 
@@ -266,7 +344,15 @@ def plot_command(args: argparse.Namespace) -> int:
             raise UsageError(f"{args.result}: not JSON ({err.msg})") from None
         if not isinstance(result, dict) or not isinstance(result.get("turns"), list):
             raise UsageError(f"{args.result}: not an fsreg-sim --json result (no 'turns' list)")
-    segments = wm_timeline(events, args.output, result, args.title)
+    entities = [e.strip() for e in args.entities.split(",") if e.strip()] if args.entities is not None else None
+    if entities is not None:
+        known = {e.get("entity") for e in events}
+        unknown = [e for e in entities if e not in known]
+        if not entities or unknown:
+            raise UsageError(f"--entities: no event names {', '.join(unknown) or '(none given)'}")
+    if args.top is not None and args.top < 1:
+        raise UsageError(f"--top must be at least 1, got {args.top}")
+    segments = wm_timeline(events, args.output, result, args.title, entities, args.top)
     print(f"fsreg-plot: {len(segments)} WM stays from {len(events)} events drawn to {args.output}")
     return 0
 

@@ -1,15 +1,26 @@
 """Random Guess-Who games like the paper's case study, played by the core simulator.
 
-A game (:func:`make_game`, deterministic per seed) is a board of 16 distinct faces
-over five attributes (hair colour, hair length, gender, clothing, glasses), a
-human speaker modelled as the Incremental Algorithm (DIST-PIA, read-only) with its
-own attribute preference order drawn per game, and alternating turns: the human
-describes a random face (the robot resolves it), then the robot describes a random
-face.  Seconds between turns are drawn per game.  :func:`play` runs the game as a
-:class:`~fsreg_ros.core.scenario.Scenario` through
+A game (:func:`make_game`, deterministic per seed) is a board of distinct entities
+per domain -- faces over five attributes (hair colour, hair length, gender,
+clothing, glasses), and in the ``faces+objects`` world also objects (kind, colour,
+size, place) -- a human speaker modelled as the Incremental Algorithm (DIST-PIA,
+read-only) with its own attribute preference order per domain drawn per game, and
+alternating turns: the human describes a random entity (the robot resolves it),
+then the robot describes a random entity.  Seconds between turns are drawn per game.
+
+A game may be *dynamic*: facts change mid-game as perception would report them (a
+person takes off their glasses or changes clothes, an object is moved).  Each change
+is an LTM update through :meth:`~fsreg_ros.core.consultant.Consultant.assert_facts`,
+the path the consultant node's ``ltm/assert`` topic takes; the human describes the
+world as it is at each turn.
+
+:func:`play` runs the game as a :class:`~fsreg_ros.core.scenario.Scenario` through
 :class:`~fsreg_ros.core.simulation.Simulation`, so the robot runs the real RR and
-REG (SD-PIA, or DIST-PIA under policy ``none``) under any forgetting policy.
-Optionally the human speaks from a WM of its own (:class:`HumanSpeaker`).
+REG (SD-PIA, or DIST-PIA under policy ``none``) under any forgetting policy, with
+the robot's WM told of LTM changes or not (``retract``) and REG verifying WM against
+LTM (the package's SD-PIA) or taking the target's WM as what it believes
+(``wm_belief``, :class:`BeliefPort`).  Optionally the human speaks from a WM of its
+own (:class:`HumanSpeaker`).
 """
 
 from __future__ import annotations
@@ -17,124 +28,287 @@ from __future__ import annotations
 import hashlib
 import json
 import random
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from itertools import product
 from typing import Any, Mapping, Optional, Sequence
 
 from ..core.alignment import AlignmentSummary, summarise
-from ..core.consultant import Consultant, LocalPort, run_sync
+from ..core.consultant import Consultant, LocalPort, Narrowed, Step, View, run_sync
 from ..core.describe import describe
 from ..core.generation import algorithm_for
-from ..core.wm_manager import WMManager
 from ..core.lexicon import Lexicon
 from ..core.resolution import resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation import Options, Simulation
+from ..core.wm_manager import WMManager
 
 DOMAIN = "faces"
-#: The board's attributes and their values (property names as in the shipped lexicon).
-ATTRIBUTES = {
-    "hair-colour": ("light-hair", "dark-hair"),
-    "hair-length": ("short-hair", "long-hair"),
-    "gender": ("male", "female"),
-    "clothing": ("lab-coat", "hoodie", "t-shirt"),
-    "glasses": ("glasses", "no-glasses"),
+OBJECTS = "objects"
+#: Each domain's attributes and their values (property names as in the shipped lexicon where it has them).
+DOMAIN_ATTRIBUTES: dict[str, dict[str, tuple[str, ...]]] = {
+    DOMAIN: {
+        "hair-colour": ("light-hair", "dark-hair"),
+        "hair-length": ("short-hair", "long-hair"),
+        "gender": ("male", "female"),
+        "clothing": ("lab-coat", "hoodie", "t-shirt"),
+        "glasses": ("glasses", "no-glasses"),
+    },
+    OBJECTS: {
+        "kind": ("mug", "ball", "box"),
+        "colour": ("red", "green", "blue", "yellow"),
+        "size": ("large", "small"),
+        "place": ("on-table", "on-shelf", "in-drawer", "on-floor"),
+    },
 }
+ATTRIBUTES = DOMAIN_ATTRIBUTES[DOMAIN]
+#: What can change mid-game, as perception would report it: glasses taken off or put on,
+#: clothes changed, an object moved.
+MUTABLE = {DOMAIN: ("glasses", "clothing"), OBJECTS: ("place",)}
+#: The worlds a game can be played in: their domains, in order.
+WORLDS = {"faces": (DOMAIN,), "faces+objects": (DOMAIN, OBJECTS)}
 BOARD_SIZE = 16
-#: The robot's preference order (the same in every game).
-ROBOT_ORDER = tuple(value for values in ATTRIBUTES.values() for value in values)
-PROPERTY_ATTRIBUTE = {value: attribute for attribute, values in ATTRIBUTES.items() for value in values}
+#: Board sizes a world allows (at least two entities; at most every distinct entity of the smallest domain).
+MAX_BOARD_SIZE = 48
+#: The robot's preference order per domain (the same in every game).
+ROBOT_ORDERS = {d: tuple(v for values in attrs.values() for v in values) for d, attrs in DOMAIN_ATTRIBUTES.items()}
+ROBOT_ORDER = ROBOT_ORDERS[DOMAIN]
+PROPERTY_ATTRIBUTE = {
+    value: a for attrs in DOMAIN_ATTRIBUTES.values() for a, values in attrs.items() for value in values
+}
+
+
+@dataclass(frozen=True)
+class Change:
+    """One fact change as perception reports it: at ``time`` ``entity`` has ``new`` instead of ``old``."""
+
+    time: float
+    domain: str
+    entity: str
+    old: str
+    new: str
+
+    def facts(self) -> dict[str, float]:
+        """Return the LTM update (``ltm/assert`` properties): the old value retracted, the new one asserted."""
+        return {self.old: 0.0, self.new: 1.0}
 
 
 @dataclass(frozen=True)
 class Game:
-    """One generated game: the board, the human's order, the turns (speaker, time, target)."""
+    """One generated game: the boards, the human's orders, the turns, the fact changes."""
 
     seed: int
-    board: dict
-    human_order: tuple
+    world: str
+    boards: dict  # domain -> {entity: [properties]} at the start
+    human_orders: dict  # domain -> the human's preference order
     gap: float
-    turns: tuple  # of (speaker, time, target, description or None)
+    turns: tuple  # of (speaker, time, target, domain, description or None)
+    changes: tuple = ()  # of Change, in time order
+    shortest: tuple = ()  # per robot turn: the shortest distinguishing description's length then
+
+    @property
+    def board(self) -> dict:
+        """Return the board of faces; every world has one."""
+        return self.boards[DOMAIN]
+
+    @property
+    def human_order(self) -> tuple:
+        """Return the human's order over faces."""
+        return self.human_orders[DOMAIN]
 
     def kb_hash(self) -> str:
-        """Return the SHA-256 of the board (the knowledge base) as canonical JSON."""
-        text = json.dumps({"board": self.board, "robot_order": ROBOT_ORDER}, sort_keys=True)
+        """Return the SHA-256 of the knowledge base (boards, robot orders, fact changes) as canonical JSON."""
+        text = json.dumps(
+            {"boards": self.boards, "robot_orders": {d: ROBOT_ORDERS[d] for d in self.boards},
+             "changes": [[c.time, c.domain, c.entity, c.old, c.new] for c in self.changes]},
+            sort_keys=True,
+        )
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def make_game(seed: int, turns: int, gap_range: tuple = (2.0, 12.0)) -> Game:
-    """Generate the game of ``seed`` with ``turns`` dialogue turns (human first, alternating)."""
+def _consultant(domain: str, board: Mapping[str, Sequence[str]], order: Sequence[str]) -> Consultant:
+    return Consultant(domain, {e: {p: 1.0 for p in props} for e, props in board.items()}, order)
+
+
+def _draw_change(rng: random.Random, time: float, world: Mapping[str, dict]) -> Optional[Change]:
+    """Draw one fact change that keeps every entity of its domain distinct (None if none can)."""
+    domain = rng.choice(sorted(world))
+    board = world[domain]
+    for _ in range(20):
+        entity = rng.choice(sorted(board))
+        attribute = rng.choice(MUTABLE[domain])
+        values = DOMAIN_ATTRIBUTES[domain][attribute]
+        (old,) = [p for p in board[entity] if p in values]
+        new = rng.choice([v for v in values if v != old])
+        after = [new if p == old else p for p in board[entity]]
+        if all(sorted(after) != sorted(props) for e, props in board.items() if e != entity):
+            board[entity] = after
+            return Change(time, domain, entity, old, new)
+    return None
+
+
+def make_game(
+    seed: int,
+    turns: int,
+    gap_range: tuple = (2.0, 12.0),
+    board_size: int = BOARD_SIZE,
+    world: str = "faces",
+    changes: float = 0.0,
+) -> Game:
+    """Generate the game of ``seed`` with ``turns`` dialogue turns (human first, alternating).
+
+    ``board_size`` entities per domain; ``changes`` fact changes per 100 turns, at
+    random times during the game (0: a static game, as in the paper).
+    """
+    if world not in WORLDS:
+        raise ValueError(f"unknown world '{world}' (known: {', '.join(WORLDS)})")
+    if not 2 <= board_size <= MAX_BOARD_SIZE:
+        raise ValueError(f"board size must be in [2, {MAX_BOARD_SIZE}], got {board_size}")
     rng = random.Random(seed)
-    faces = rng.sample(list(product(*ATTRIBUTES.values())), BOARD_SIZE)
-    board = {f"face{i + 1}": list(face) for i, face in enumerate(faces)}
-    human_attributes = list(ATTRIBUTES)
-    rng.shuffle(human_attributes)
-    human_order = tuple(v for a in human_attributes for v in ATTRIBUTES[a])
+    domains = WORLDS[world]
+    boards, human_orders = {}, {}
+    for domain in domains:
+        attrs = DOMAIN_ATTRIBUTES[domain]
+        entities = rng.sample(list(product(*attrs.values())), board_size)
+        prefix = "face" if domain == DOMAIN else "object"
+        boards[domain] = {f"{prefix}{i + 1}": list(e) for i, e in enumerate(entities)}
+        order = list(attrs)
+        rng.shuffle(order)
+        human_orders[domain] = tuple(v for a in order for v in attrs[a])
     gap = round(rng.uniform(*gap_range), 1)
-    human = Consultant("human", {f: {p: 1.0 for p in props} for f, props in board.items()}, human_order)
-    names = list(board)
-    time = 0.0
-    played = []
-    for index in range(turns):
+    times, time = [], 0.0
+    for _ in range(turns):
         time = round(time + gap * rng.uniform(0.5, 1.5), 3)
-        target = rng.choice(names)
+        times.append(time)
+    targets = [(d, e) for d in domains for e in boards[d]]
+    picks = [rng.choice(targets) for _ in range(turns)]
+    count = round(changes * turns / 100)
+    change_times = sorted(round(rng.uniform(times[0], times[-1]), 3) for _ in range(count))
+    # The world as it is at each moment: the human's view and the full-brevity length.
+    world_now = {d: {e: list(p) for e, p in boards[d].items()} for d in domains}
+    humans = {d: _consultant(d, boards[d], human_orders[d]) for d in domains}
+    robots = {d: _consultant(d, boards[d], ROBOT_ORDERS[d]) for d in domains}
+    drawn: list[Change] = []
+    pending = list(change_times)
+    played, shortest = [], []
+    for index, (time, (domain, target)) in enumerate(zip(times, picks)):
+        while pending and pending[0] <= time:
+            change = _draw_change(rng, pending.pop(0), world_now)
+            if change is not None:
+                drawn.append(change)
+                for kb in (humans[change.domain], robots[change.domain]):
+                    kb.assert_facts(change.entity, change.facts(), change.time)
         if index % 2 == 0:
-            said = describe(target, human, "dist-pia", attributes=PROPERTY_ATTRIBUTE).description
-            played.append(("human", time, target, tuple(said)))
+            said = describe(target, humans[domain], "dist-pia", attributes=PROPERTY_ATTRIBUTE).description
+            played.append(("human", time, target, domain, tuple(said)))
         else:
-            played.append(("robot", time, target, None))
-    return Game(seed, board, human_order, gap, tuple(played))
+            played.append(("robot", time, target, domain, None))
+            shortest.append(len(describe(target, robots[domain], "full-brevity").description))
+    return Game(seed, world, boards, human_orders, gap, tuple(played), tuple(drawn), tuple(shortest))
 
 
 def scenario_of(game: Game) -> Scenario:
-    """Return the game as a scenario (one domain ``faces``, the robot's preference order)."""
-    entities = {face: {p: 1.0 for p in props} for face, props in game.board.items()}
-    # The board's attributes let attribute-similarity interference (rule ``similarity``) act.
-    domain = DomainSpec(DOMAIN, ROBOT_ORDER, entities, attributes=dict(PROPERTY_ATTRIBUTE))
+    """Return the game as a scenario (the world's domains, the robot's preference orders)."""
+    domains = {}
+    for domain, board in game.boards.items():
+        entities = {e: {p: 1.0 for p in props} for e, props in board.items()}
+        # The attributes let attribute-similarity interference (rule ``similarity``) act.
+        attributes = {p: PROPERTY_ATTRIBUTE[p] for p in ROBOT_ORDERS[domain]}
+        domains[domain] = DomainSpec(domain, ROBOT_ORDERS[domain], entities, attributes=attributes)
     dialogue = tuple(
-        Turn(i, time, speaker, target=target, description=said, domain=DOMAIN if speaker == "human" else None)
-        for i, (speaker, time, target, said) in enumerate(game.turns)
+        Turn(i, time, speaker, target=target, description=said, domain=domain if speaker == "human" else None)
+        for i, (speaker, time, target, domain, said) in enumerate(game.turns)
     )
-    return Scenario(f"guess-who-{game.seed}", f"<game {game.seed}>", {DOMAIN: domain}, None, dialogue)
+    return Scenario(f"guess-who-{game.seed}", f"<game {game.seed}>", domains, None, dialogue)
+
+
+class BeliefPort(LocalPort):
+    """A :class:`LocalPort` through which REG takes the target's WM as what the robot believes of it.
+
+    The package's SD-PIA (docs/semantics.md section 4) skips a WM property that no
+    longer holds for the target in LTM, so a stale WM entry is never said.  Through
+    this port the robot trusts its WM instead -- the reading under which WM saves LTM
+    queries, and the one the follow-up study (Sousa Silva & Williams, 2026) weighs
+    against outdated information: a property in Q[target] counts as holding for the
+    target, and it narrows the distractors (encoding it for those it holds for, rule 3)
+    whatever LTM now says of the target.  Reference resolution (no target) is unchanged.
+    """
+
+    async def open(
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+    ) -> View:
+        view = await super().open(target, context, first)
+        if target is not None and view.holding is not None:
+            view.holding = view.holding | frozenset(view.queue)
+        return view
+
+    async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
+        candidates = view.handle
+        if candidates.target is None or prop not in view.queue:
+            return await super().narrow(view, prop, cause, time, turn)
+        target = candidates.target
+        if self.consultant.certainty(self.consultant.entities[target], prop) >= self.consultant.threshold:
+            return await super().narrow(view, prop, cause, time, turn)
+        # Believed from WM, no longer true in LTM: narrow the distractors as if no target were checked.
+        candidates.target = None
+        try:
+            self.consultant.narrow(candidates, prop, cause, time, turn)
+        finally:
+            candidates.target = target
+        return Narrowed(True, candidates.size)
 
 
 @dataclass
 class Played:
-    """A played game: the docs/semantics.md section 6 result, the event trace and its alignment summary."""
+    """A played game: the docs/semantics.md section 6 result, its alignment and what the robot said wrongly.
+
+    ``wm_sizes`` and ``outdated`` are parallel to ``alignment.turns`` (the robot's
+    turns): the properties in the target domain's WM just before the turn, and the
+    properties said of the target that no longer held for it.  ``trace`` is the WM
+    event trace when asked for (else None).
+    """
 
     result: dict
-    trace: list
     alignment: AlignmentSummary
+    wm_sizes: list = field(default_factory=list)
+    outdated: list = field(default_factory=list)
+    trace: Optional[list] = None
 
 
 class HumanSpeaker:
     """The human with a working memory of its own (paper Algorithm 4 on the human's side).
 
     It describes with SD-PIA over its own WM (DIST-PIA under ``none``) in its own
-    preference order, and resolves the robot's descriptions (rules 1 and 2), so
-    what the robot says can shape what the human says next.
+    preference orders, and resolves the robot's descriptions (rules 1 and 2), so
+    what the robot says can shape what the human says next.  It sees fact changes too.
     """
 
     def __init__(self, game: Game, memory: Mapping[str, Any]) -> None:
         scenario = scenario_of(game)
-        self.policy = scenario.policy_for(DOMAIN, dict(memory))
-        entities = {face: {p: 1.0 for p in props} for face, props in game.board.items()}
-        self.consultant = Consultant(DOMAIN, entities, game.human_order)
         self.manager = WMManager()
-        self.manager.manage(self.consultant.wm, self.policy, now=0.0)
+        self.consultants, self.algorithms = {}, {}
+        for domain, board in game.boards.items():
+            policy = scenario.policy_for(domain, dict(memory))
+            self.consultants[domain] = _consultant(domain, board, game.human_orders[domain])
+            self.manager.manage(self.consultants[domain].wm, policy, now=0.0)
+            self.algorithms[domain] = algorithm_for(policy.retains, None)
 
-    def say(self, target: str, time: float, turn: int) -> list[str]:
+    def say(self, target: str, domain: str, time: float, turn: int) -> list[str]:
         """Return the human's description of ``target`` at ``time`` (encoding it in the human's WM)."""
         self.manager.advance(time)
-        algorithm = algorithm_for(self.policy.retains, None)
-        return describe(target, self.consultant, algorithm, attributes=PROPERTY_ATTRIBUTE, writes=True, time=time,
-                        turn=turn).description
+        return describe(target, self.consultants[domain], self.algorithms[domain], attributes=PROPERTY_ATTRIBUTE,
+                        writes=True, time=time, turn=turn).description
 
-    def hear(self, description: Sequence[str], time: float, turn: int) -> None:
+    def hear(self, description: Sequence[str], domain: str, time: float, turn: int) -> None:
         """Resolve the robot's description in the human's WM."""
         if description:
             self.manager.advance(time)
-            run_sync(resolve(description, {DOMAIN: LocalPort(self.consultant)}, domain=DOMAIN, time=time, turn=turn))
+            ports = {domain: LocalPort(self.consultants[domain])}
+            run_sync(resolve(description, ports, domain=domain, time=time, turn=turn))
+
+    def see(self, change: Change) -> None:
+        """Take in a fact change (the human sees it as perception reports it to the robot)."""
+        self.manager.advance(change.time)
+        self.consultants[change.domain].assert_facts(change.entity, change.facts(), change.time)
 
 
 def play(
@@ -142,32 +316,48 @@ def play(
     memory: Mapping[str, Any],
     lexicon: Optional[Lexicon] = None,
     human_memory: Optional[Mapping[str, Any]] = None,
+    retract: bool = True,
+    wm_belief: bool = False,
+    trace: bool = False,
 ) -> Played:
     """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``).
 
     With ``human_memory`` the human speaks from a WM of its own (:class:`HumanSpeaker`),
-    turn by turn, instead of the game's precomputed no-WM descriptions.
+    turn by turn, instead of the game's precomputed no-WM descriptions.  ``retract``
+    False keeps the robot's WM uninformed of fact changes; ``wm_belief`` makes REG
+    take the target's WM as true (:class:`BeliefPort`).  Fact changes reach the
+    robot's LTM through ``Consultant.assert_facts`` before the first turn at or after
+    their time (decay ticks due by then first).
     """
     scenario = scenario_of(game)
-    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon, trace=True)
-    if human_memory is None:
-        result = simulation.run()
-    else:
-        human = HumanSpeaker(game, human_memory)
-        turns = []
-        for turn in scenario.dialogue:
-            if turn.speaker == "human":
-                turn = replace(turn, description=tuple(human.say(turn.target, turn.time, turn.index)))
-            record = simulation.play(turn)
-            if turn.speaker == "robot":
-                human.hear(record["description"] or (), turn.time, turn.index)
-            turns.append(record)
-        result = {"scenario": scenario.name, "memory": simulation.manager.effective(), "turns": turns}
-    trace = simulation.trace()
-    return Played(result, trace, summarise(result, trace))
-
-
-def shortest_lengths(game: Game) -> dict:
-    """Return each face's shortest distinguishing description length (Full Brevity, no WM)."""
-    kb = Consultant(DOMAIN, {f: {p: 1.0 for p in props} for f, props in game.board.items()}, ROBOT_ORDER)
-    return {face: len(describe(face, kb, "full-brevity").description) for face in game.board}
+    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon, trace=trace)
+    for consultant in simulation.consultants.values():
+        consultant.retract_on_update = retract
+    if wm_belief:
+        simulation.ports = {d: BeliefPort(c) for d, c in simulation.consultants.items()}
+    human = HumanSpeaker(game, human_memory) if human_memory is not None else None
+    changes = list(game.changes)
+    records, wm_sizes, outdated = [], [], []
+    for turn in scenario.dialogue:
+        while changes and changes[0].time <= turn.time:
+            change = changes.pop(0)
+            simulation.manager.advance(change.time)  # ticks due by then happen first
+            simulation.consultants[change.domain].assert_facts(change.entity, change.facts(), change.time)
+            if human is not None:
+                human.see(change)
+        if turn.speaker == "human" and human is not None:
+            turn = replace(turn, description=tuple(human.say(turn.target, turn.domain, turn.time, turn.index)))
+        if turn.speaker == "robot":
+            domain = scenario.domain_of(turn.target)  # type: ignore[arg-type]
+            simulation.manager.advance(turn.time)
+            wm_sizes.append(len(simulation.consultants[domain].wm))
+        record = simulation.play(turn)
+        if turn.speaker == "robot":
+            consultant = simulation.consultants[record["domain"]]
+            holding = set(consultant.properties_of(turn.target))  # type: ignore[arg-type]
+            outdated.append([p for p in record["description"] or () if p not in holding])
+            if human is not None:
+                human.hear(record["description"] or (), record["domain"], turn.time, turn.index)
+        records.append(record)
+    result = {"scenario": scenario.name, "memory": simulation.manager.effective(), "turns": records}
+    return Played(result, summarise(result), wm_sizes, outdated, simulation.trace() if trace else None)

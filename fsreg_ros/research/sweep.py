@@ -1,53 +1,94 @@
 """Sweep forgetting settings over many generated Guess-Who games.
 
 Every seed is one game (:func:`fsreg_ros.research.games.make_game`); it is played
-once under policy ``none`` (the No-WM baseline) and once per setting (policy x
-decay period x capacity).  Seeds run in parallel worker processes; a seed's rows
-depend only on the seed and the settings, so ``runs.csv`` is the same for any
-``--jobs``.
+once under policy ``none`` (the No-WM baseline) and once per setting.  Each policy
+runs over the grid of the parameters *it reads* and no other (``decay`` over decay
+periods, ``displacement`` over capacities, ``decay+displacement`` over both, ...),
+so no two runs of a sweep are the same run; with fact changes (``changes`` > 0) the
+robot's WM is either told of them or not (``retraction``).  Seeds run in parallel
+worker processes; a seed's rows depend only on the seed and the settings, so
+``runs.csv`` is the same for any ``--jobs``.
 
-Metrics per game and setting (pooled over the robot's turns):
+Metrics per game and setting (:data:`METRICS`; over the robot's turns):
 
-* ``alignment``: share of the robot's properties the human had already used for
-  that referent (:mod:`fsreg_ros.core.alignment`); ``alignment_gain`` is minus
-  the same game's under ``none``;
-* ``mean_length``; ``overspecification``: mean of (length - length of the
-  shortest distinguishing description, Full Brevity); ``distinguishing_rate``;
-* ``mean_wm_occupancy``: properties in the robot's WM just before its turns;
+* ``entrainment`` (the headline): mean Dice of the robot's description with the
+  human's most recent description of the same referent, over the turns whose
+  referent the human had described (:mod:`fsreg_ros.core.alignment`);
+  ``entrainment_gain``: minus the same game's under ``none``, paired by turn;
+* ``recall`` of the human's last description; ``share``: share of the robot's
+  properties the human had used for the referent (pooled), ``share_gain``;
+  ``aligned_per_description``; ``length_matched_gain``: the gain in aligned
+  properties on the turns where both runs' descriptions are as long;
+* ``mean_length``, ``length_change`` (minus none's), ``overspecification``: mean of
+  (length - length of the shortest distinguishing description then, Full Brevity);
+  ``distinguishing_rate``;
+* ``mean_wm_occupancy``: properties in the target domain's WM just before the turn;
 * ``divergence``: share of robot turns whose description (as a set) differs from
-  the one under ``none``; ``divergence_kK``: the same over the first K robot turns.
+  the one under ``none``; ``divergence_kK``: the same over the first K robot turns;
+* ``outdated_rate``: share of the robot's properties that no longer held for the
+  referent when said; ``outdated_descriptions``: share of descriptions with one;
+* ``from_wm_share`` and, of the properties taken from WM, the share each origin put there.
+
+:func:`summarise_runs` gives each setting's means with bootstrap intervals over
+games (:mod:`fsreg_ros.research.stats`), and :func:`recommend` the follow-up study's
+table: per WM configuration, the setting with the most entrainment whose outdated
+rate stays within a bound.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import multiprocessing
+import platform
+import shlex
 import subprocess
+import sys
 from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from itertools import product
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
-from ..core.forgetting import parse_rules
+from ..core.alignment import ORIGINS, entrainment_gain, length_matched
+from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
-from .games import DOMAIN, make_game, play, scenario_of, shortest_lengths
+from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
+from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
+#: The grid parameters, in column order (a policy reads some of them).
+GRID = ("decay_period", "capacity", "global_capacity", "shared_capacity")
 METRICS = (
-    "alignment",
-    "alignment_gain",
+    "entrainment",
+    "entrainment_gain",
+    "recall",
+    "share",
+    "share_gain",
+    "aligned_per_description",
+    "length_matched_gain",
     "mean_length",
+    "length_change",
     "overspecification",
     "distinguishing_rate",
     "mean_wm_occupancy",
     "divergence",
+    "outdated_rate",
+    "outdated_descriptions",
 )
 COLUMNS = (
-    ("policy", "decay_period", "capacity", "seed", "turns", "robot_turns")
+    ("policy", "wm") + GRID + ("retraction", "seed", "turns", "robot_turns", "described_turns",
+                               "length_matched_turns")
     + METRICS
     + tuple(f"divergence_k{k}" for k in CHECKPOINTS)
-    + ("from_wm_share", "gap", "human_order")
+    + ("from_wm_share",) + tuple(f"from_{o}" for o in ORIGINS)
+    + ("gap", "human_order")
 )
+#: The outdated-rate bounds of the recommendation table.
+BOUNDS = (0.01, 0.05)
+#: Parameters each grid policy reads come from the rules (``seed`` is drawn per game).
+WORLD_DEFAULT = "faces"
 
 
 @dataclass(frozen=True)
@@ -59,56 +100,103 @@ class SweepConfig:
     capacities: tuple
     seeds: tuple
     turns: int
+    global_capacities: tuple = (4, 8, 16)
+    shared_capacities: tuple = (4, 8, 16)
     memory: dict = field(default_factory=dict)  # extra memory settings for every non-none run
     human_memory: Optional[dict] = None  # the human's own WM settings (None: a no-WM human)
+    board_size: int = BOARD_SIZE
+    world: str = WORLD_DEFAULT
+    changes: float = 0.0  # fact changes per 100 turns (0: static games)
+    retraction: tuple = (True,)  # the robot's WM told of LTM changes (True), not told (False)
+    wm_belief: bool = False  # REG takes the target's WM as true (games.BeliefPort)
+    gap_range: tuple = (2.0, 12.0)
+
+    def values(self, parameter: str) -> tuple:
+        """Return the grid's values of one parameter."""
+        return {"decay_period": self.decay_periods, "capacity": self.capacities,
+                "global_capacity": self.global_capacities, "shared_capacity": self.shared_capacities}[parameter]
 
 
 @dataclass(frozen=True)
 class Setting:
-    """One robot memory setting of the grid (``none`` has no parameters)."""
+    """One robot memory setting of the grid: a policy, the parameters it reads, whether WM hears LTM changes."""
 
     policy: str
     decay_period: Optional[float] = None
     capacity: Optional[int] = None
+    global_capacity: Optional[int] = None
+    shared_capacity: Optional[int] = None
+    retraction: bool = True
+
+    @property
+    def wm(self) -> str:
+        """The WM configuration: one pool per domain or one shared by all, told of LTM changes or not."""
+        pool = "shared" if self.policy != "none" and "shared-capacity" in parse_rules(self.policy) else "per-domain"
+        return pool if self.retraction else f"{pool}, not told"
+
+    def parameters(self) -> dict:
+        """Return the grid parameters this setting sets (the ones its policy reads)."""
+        return {p: getattr(self, p) for p in GRID if getattr(self, p) is not None}
 
     def memory(self, extra: dict, seed: int = 0) -> dict:
         """Return the memory settings a simulation of game ``seed`` gets for this setting.
 
-        The grid's capacity also bounds the pool rules (``global-capacity``,
-        ``shared-capacity``) unless ``extra`` names their limits, and random
-        displacement draws from the game's seed unless ``extra`` names one, so every
-        game is reproducible on its own.
+        Random displacement draws from the game's seed unless ``extra`` names one, so
+        every game is reproducible on its own.
         """
         if self.policy == "none":
             return {"policy": "none"}
         out = dict(extra)
-        out.update(policy=self.policy, decay_period=self.decay_period, capacity=self.capacity)
-        rules = parse_rules(self.policy)
-        if "global-capacity" in rules and "global_capacity" not in extra:
-            out["global_capacity"] = self.capacity
-        if "shared-capacity" in rules and "shared_capacity" not in extra:
-            out["shared_capacity"] = self.capacity
-        if "displacement-random" in rules and "seed" not in extra:
+        out.update(policy=self.policy, **self.parameters())
+        if "displacement-random" in parse_rules(self.policy) and "seed" not in extra:
             out["seed"] = seed
         return out
 
+    def label(self) -> str:
+        """Return e.g. ``decay delta=10`` or ``displacement alpha=2, not told``."""
+        names = {"decay_period": "delta", "capacity": "alpha", "global_capacity": "global",
+                 "shared_capacity": "pool"}
+        params = ", ".join(f"{names[p]}={_number(v)}" for p, v in self.parameters().items())
+        text = f"{self.policy} {params}".strip()
+        return text if self.retraction else f"{text} (not told)"
+
+
+def _number(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def reads(policy: str, extra: dict) -> tuple:
+    """Return the grid parameters read by a policy, in :data:`GRID` order; ``extra`` fixes some of them."""
+    if policy == "none":
+        return ()
+    wanted = {p for rule in parse_rules(policy) for p in RULE_PARAMETERS[rule]}
+    return tuple(p for p in GRID if p in wanted and p not in extra)
+
 
 def settings(config: SweepConfig) -> list[Setting]:
-    """Return the grid: each policy x decay period x capacity (``none`` once)."""
+    """Return the grid: each policy over the parameters it reads (``none`` once), each WM told or not.
+
+    Retraction is a dimension only when facts change (``changes`` > 0), and never for ``none``.
+    """
+    told = config.retraction if config.changes > 0 else (True,)
     out = []
     for policy in config.policies:
         if policy == "none":
             out.append(Setting("none"))
             continue
-        out += [Setting(policy, d, c) for d in config.decay_periods for c in config.capacities]
+        names = reads(policy, config.memory)
+        for values in product(*(config.values(p) for p in names)):
+            for retraction in told:
+                out.append(Setting(policy, retraction=retraction, **dict(zip(names, values))))
     return out
 
 
 def check(config: SweepConfig) -> None:
     """Raise a one-line error if any setting of the grid is invalid (before any game runs)."""
-    scenario = scenario_of(make_game(0, 2))
+    scenario = scenario_of(make_game(0, 2, board_size=config.board_size, world=config.world))
     for setting in settings(config):
-        scenario.policy_for(DOMAIN, setting.memory(config.memory))
+        for domain in scenario.domains:
+            scenario.policy_for(domain, setting.memory(config.memory))
     if config.human_memory is not None:
         scenario.policy_for(DOMAIN, config.human_memory)
 
@@ -117,56 +205,75 @@ def _descriptions(played) -> list:
     return [frozenset(t["description"] or ()) for t in played.result["turns"] if t["speaker"] == "robot"]
 
 
-def _share(flags: Sequence[int]) -> float:
-    return sum(flags) / len(flags) if flags else 0.0
+def _share(values: Sequence[float]) -> float:
+    return sum(values) / len(values) if values else 0.0
 
 
 def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
     """Play one seed's game under ``none`` and every setting; return rows, divergence curves, KB hash."""
     config, seed = task
     lexicon = Lexicon.load()
-    game = make_game(seed, config.turns)
-    shortest = shortest_lengths(game)
-    baseline = play(game, {"policy": "none"}, lexicon, config.human_memory)
+    game = make_game(seed, config.turns, config.gap_range, config.board_size, config.world, config.changes)
+    options = dict(human_memory=config.human_memory, wm_belief=config.wm_belief)
+    baseline = play(game, {"policy": "none"}, lexicon, **options)
     base_descriptions = _descriptions(baseline)
+    base_length = baseline.alignment.mean_length
     rows, curves = [], {}
     for setting in settings(config):
         played = (
-            baseline
-            if setting.policy == "none"
-            else play(game, setting.memory(config.memory, seed), lexicon, config.human_memory)
+            baseline if setting.policy == "none"
+            else play(game, setting.memory(config.memory, seed), lexicon, retract=setting.retraction, **options)
         )
-        robot = [t for t in played.result["turns"] if t["speaker"] == "robot"]
         summary = played.alignment
+        robot = [t for t in played.result["turns"] if t["speaker"] == "robot"]
         flags = [int(a != b) for a, b in zip(_descriptions(played), base_descriptions)]
         lengths = [len(t["description"] or ()) for t in robot]
+        delta, _ = entrainment_gain(summary, baseline.alignment)
+        matched, matched_turns = length_matched(summary, baseline.alignment)
+        outdated = sum(len(o) for o in played.outdated)
         row: dict[str, Any] = {
             "policy": setting.policy,
-            "decay_period": setting.decay_period,
-            "capacity": setting.capacity,
+            "wm": setting.wm,
+            **{p: getattr(setting, p) for p in GRID},
+            "retraction": "on" if setting.retraction else "off",
             "seed": seed,
             "turns": config.turns,
             "robot_turns": len(robot),
-            "alignment": summary.alignment,
-            "alignment_gain": summary.alignment - baseline.alignment.alignment,
-            "mean_length": _share(lengths),
-            "overspecification": _share([n - shortest[t["target"]] for n, t in zip(lengths, robot)]),
+            "described_turns": len(summary.described),
+            "length_matched_turns": matched_turns,
+            "entrainment": summary.entrainment,
+            "entrainment_gain": delta,
+            "recall": summary.recall,
+            "share": summary.alignment,
+            "share_gain": summary.alignment - baseline.alignment.alignment,
+            "aligned_per_description": summary.aligned / len(robot) if robot else 0.0,
+            "length_matched_gain": matched,
+            "mean_length": summary.mean_length,
+            "length_change": summary.mean_length - base_length,
+            "overspecification": _share([n - s for n, s in zip(lengths, game.shortest)]),
             "distinguishing_rate": _share([int(bool(t["distinguishing"])) for t in robot]),
-            "mean_wm_occupancy": _share([t.wm_size for t in summary.turns]),
+            "mean_wm_occupancy": _share(played.wm_sizes),
             "divergence": _share(flags),
+            "outdated_rate": outdated / summary.properties if summary.properties else 0.0,
+            "outdated_descriptions": _share([int(bool(o)) for o in played.outdated]),
             "from_wm_share": summary.wm_share,
             "gap": game.gap,
             "human_order": " ".join(game.human_order),
         }
+        for origin in ORIGINS:
+            row[f"from_{origin}"] = summary.origins.get(origin, 0) / summary.from_wm if summary.from_wm else None
         for k in CHECKPOINTS:
             row[f"divergence_k{k}"] = _share(flags[:k]) if len(flags) >= k else None
         rows.append(row)
-        curves[(setting.policy, setting.decay_period, setting.capacity, seed)] = flags
+        curves[setting] = flags
     return rows, curves, game.kb_hash()
 
 
 def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True) -> tuple[list[dict], dict, dict]:
-    """Run every seed (in ``jobs`` processes); return rows, curves and KB hashes, in seed order."""
+    """Run every seed (in ``jobs`` processes); return rows, curves and KB hashes, in seed order.
+
+    ``curves`` maps (setting, seed) to the per-robot-turn divergence flags.
+    """
     from tqdm import tqdm
 
     tasks = [(config, seed) for seed in config.seeds]
@@ -181,7 +288,7 @@ def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True) -> tuple[li
             results = pool.imap(run_seed, tasks)  # ordered: seed order whatever the worker timing
         for (seed_rows, seed_curves, kb_hash), (_, seed) in zip(results, tasks):
             rows += seed_rows
-            curves.update(seed_curves)
+            curves.update({(setting, seed): flags for setting, flags in seed_curves.items()})
             hashes[seed] = kb_hash
             bar.update(1)
         if pool is not None:
@@ -192,6 +299,82 @@ def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True) -> tuple[li
     return rows, curves, hashes
 
 
+# ------------------------------------------------------------------ summaries
+def setting_of(row: dict) -> Setting:
+    """Return the setting a row of runs.csv was played under."""
+    return Setting(row["policy"], *(row[p] for p in GRID), retraction=row["retraction"] == "on")
+
+
+def summarise_runs(rows: Sequence[dict], metrics: Sequence[str] = METRICS) -> list[dict]:
+    """Return one entry per setting (grid order): its setting, n games and each metric's :class:`Estimate`."""
+    by_setting: dict[Setting, list[dict]] = {}
+    for row in rows:
+        by_setting.setdefault(setting_of(row), []).append(row)
+    return [
+        {"setting": setting, "n": len(mine),
+         "estimates": {m: bootstrap_ci([r[m] for r in mine]) for m in metrics}}
+        for setting, mine in by_setting.items()
+    ]
+
+
+def write_summary(path: Path, summary: Sequence[dict]) -> None:
+    """Write summary.csv: per setting, n games and each metric's mean and 95 % bootstrap interval."""
+    metrics = list(summary[0]["estimates"]) if summary else []
+    with path.open("w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(["policy", "wm", *GRID, "retraction", "games"]
+                        + [f"{m}{suffix}" for m in metrics for suffix in ("", "_low", "_high")])
+        for entry in summary:
+            s: Setting = entry["setting"]
+            cells = [s.policy, s.wm, *(_cell(getattr(s, p)) for p in GRID), "on" if s.retraction else "off",
+                     entry["n"]]
+            for m in metrics:
+                e: Estimate = entry["estimates"][m]
+                cells += [_cell(e.mean), _cell(e.low), _cell(e.high)]
+            writer.writerow(cells)
+
+
+def recommend(summary: Sequence[dict], bounds: Sequence[float] = BOUNDS) -> list[dict]:
+    """Return the follow-up study's recommendation: per WM configuration and outdated-rate bound, the best setting.
+
+    Among the settings of one configuration (``none`` belongs to every one: no WM
+    says nothing outdated) whose mean outdated rate is at most the bound, the one
+    with the highest mean entrainment; ties go to the earlier setting in grid order.
+    """
+    configurations = list(dict.fromkeys(e["setting"].wm for e in summary if e["setting"].policy != "none"))
+    none = [e for e in summary if e["setting"].policy == "none"]
+    out = []
+    for wm in configurations:
+        candidates = [e for e in summary if e["setting"].wm == wm and e["setting"].policy != "none"] + none
+        for bound in bounds:
+            allowed = [e for e in candidates if e["estimates"]["outdated_rate"].mean <= bound + 1e-12]
+            best = max(allowed, key=lambda e: e["estimates"]["entrainment"].mean, default=None)
+            out.append({"wm": wm, "bound": bound, "best": best, "considered": len(candidates),
+                        "allowed": len(allowed)})
+    return out
+
+
+def write_recommendation(path: Path, table: Sequence[dict]) -> None:
+    """Write recommendation.csv (one row per WM configuration and bound)."""
+    with path.open("w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out, lineterminator="\n")
+        metrics = ("entrainment", "entrainment_gain", "outdated_rate")
+        writer.writerow(["wm", "max_outdated_rate", "policy", *GRID]
+                        + [f"{m}{suffix}" for m in metrics for suffix in ("", "_low", "_high")]
+                        + ["settings_allowed", "settings_considered"])
+        for entry in table:
+            best = entry["best"]
+            if best is None:
+                writer.writerow([entry["wm"], entry["bound"], "", *[""] * len(GRID), *[""] * 9, 0,
+                                 entry["considered"]])
+                continue
+            s, e = best["setting"], best["estimates"]
+            cells = [_cell(x) for m in metrics for x in (e[m].mean, e[m].low, e[m].high)]
+            writer.writerow([entry["wm"], entry["bound"], s.policy, *(_cell(getattr(s, p)) for p in GRID), *cells,
+                             entry["allowed"], entry["considered"]])
+
+
+# ---------------------------------------------------------------------- files
 def _cell(value: Any) -> str:
     if value is None:
         return ""
@@ -213,58 +396,120 @@ def write_curves(path: Path, curves: dict) -> None:
     """Write divergence.csv: per setting, seed and robot turn, 1 if the description differs from none's."""
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(("policy", "decay_period", "capacity", "seed", "robot_turn", "diverged"))
-        for (policy, period, capacity, seed), flags in curves.items():
+        writer.writerow(("policy", *GRID, "retraction", "seed", "robot_turn", "diverged"))
+        for (setting, seed), flags in curves.items():
+            cells = [setting.policy, *(_cell(getattr(setting, p)) for p in GRID),
+                     "on" if setting.retraction else "off", seed]
             for j, flag in enumerate(flags, 1):
-                writer.writerow((policy, _cell(period), _cell(capacity), seed, j, flag))
+                writer.writerow((*cells, j, flag))
+
+
+def _git(*args: str) -> Optional[bytes]:
+    try:
+        done = subprocess.run(["git", *args], cwd=Path(__file__).parent, capture_output=True, timeout=20)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout if done.returncode == 0 else None
+
+
+def git_state() -> dict:
+    """Return the checkout's commit, whether the tree is dirty and the SHA-256 of its changes.
+
+    The changes are ``git diff HEAD`` plus every untracked, not ignored file (name and
+    content); ``null`` values outside a git checkout.
+    """
+    commit = _git("rev-parse", "HEAD")
+    if commit is None:
+        return {"commit": None, "dirty": None, "diff_sha256": None}
+    status = _git("status", "--porcelain") or b""
+    digest = hashlib.sha256(_git("diff", "HEAD", "--binary") or b"")
+    top = Path((_git("rev-parse", "--show-toplevel") or b".").decode().strip())
+    for name in sorted((_git("ls-files", "--others", "--exclude-standard", "-z") or b"").split(b"\0")):
+        if name:
+            digest.update(b"\0untracked\0" + name + b"\0")
+            try:
+                digest.update((top / name.decode()).read_bytes())
+            except OSError:
+                pass
+    dirty = bool(status.strip())
+    return {"commit": commit.decode().strip(), "dirty": dirty, "diff_sha256": digest.hexdigest() if dirty else None}
 
 
 def git_commit() -> Optional[str]:
     """Return the repository's HEAD commit, or None outside a git checkout."""
-    try:
-        done = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True, timeout=10
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return (done.stdout.strip() or None) if done.returncode == 0 else None
+    return git_state()["commit"]
 
 
-def package_version() -> str:
-    """Return fsreg_ros's installed version (or "unknown")."""
+def package_version(name: str = "fsreg_ros") -> str:
+    """Return an installed distribution's version (or "unknown")."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
-        return version("fsreg_ros")
+        return version(name)
     except PackageNotFoundError:
         return "unknown"
 
 
-def manifest(config: SweepConfig, hashes: dict, jobs: int, files: list[str]) -> dict:
-    """Return manifest.json's content: version, commit, every parameter, seeds and KB hashes."""
+#: Libraries whose versions a manifest records.
+LIBRARIES = ("numpy", "matplotlib", "tqdm", "pyyaml", "pydantic")
+
+
+def environment() -> dict:
+    """Return the Python, platform and library versions a run used."""
     return {
-        "tool": "fsreg-sweep",
-        "version": package_version(),
-        "git_commit": git_commit(),
-        "parameters": {**asdict(config), "seeds": list(config.seeds), "jobs": jobs, "checkpoints": list(CHECKPOINTS)},
-        "game": {"board_size": 16, "generator": "fsreg_ros.research.games.make_game"},
-        "seeds": list(config.seeds),
-        "kb_sha256": {str(seed): h for seed, h in hashes.items()},
-        "files": files,
+        "python": platform.python_version(),
+        "implementation": platform.python_implementation(),
+        "platform": platform.platform(),
+        "libraries": {name: package_version(name) for name in LIBRARIES},
     }
 
 
-def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, plots: bool = True) -> list[dict]:
-    """Run a sweep and write runs.csv, divergence.csv, manifest.json and the plots into ``out``."""
+def manifest(config: SweepConfig, hashes: dict, jobs: int, files: Sequence[str], runs: int,
+             started: str, argv: Optional[Sequence[str]] = None) -> dict:
+    """Return manifest.json's content: what ran, where, with what, every parameter, seeds, KB hashes, files."""
+    return {
+        "tool": "fsreg-sweep",
+        "version": package_version(),
+        "command": shlex.join(["fsreg-sweep", *(sys.argv[1:] if argv is None else argv)]),
+        "started": started,
+        "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "git": git_state(),
+        "environment": environment(),
+        "parameters": {**asdict(config), "seeds": list(config.seeds), "jobs": jobs,
+                       "checkpoints": list(CHECKPOINTS)},
+        "game": {"generator": "fsreg_ros.research.games.make_game", "world": config.world,
+                 "board_size": config.board_size, "turns": config.turns, "gap_range": list(config.gap_range),
+                 "changes_per_100_turns": config.changes},
+        "intervals": METHOD,
+        "distinct_runs": runs,
+        "seeds": list(config.seeds),
+        "kb_sha256": {str(seed): h for seed, h in hashes.items()},
+        "files": list(dict.fromkeys(files)),
+    }
+
+
+def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, plots: bool = True,
+        argv: Optional[Sequence[str]] = None) -> tuple[list[dict], list[dict]]:
+    """Run a sweep and write runs.csv, divergence.csv, summary.csv, manifest.json and the plots into ``out``.
+
+    Returns the rows and the per-setting summary.
+    """
     check(config)
+    started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     out.mkdir(parents=True, exist_ok=True)
     rows, curves, hashes = sweep(config, jobs, progress)
+    summary = summarise_runs(rows)
     write_runs(out / "runs.csv", rows)
     write_curves(out / "divergence.csv", curves)
-    files = ["runs.csv", "divergence.csv"]
+    write_summary(out / "summary.csv", summary)
+    files = ["runs.csv", "divergence.csv", "summary.csv"]
+    if config.changes > 0:
+        write_recommendation(out / "recommendation.csv", recommend(summary))
+        files.append("recommendation.csv")
     if plots:
         from .plot import sweep_plots
 
-        files += sweep_plots(rows, curves, out, METRICS)
-    (out / "manifest.json").write_text(json.dumps(manifest(config, hashes, jobs, files), indent=2) + "\n")
-    return rows
+        files += sweep_plots(rows, summary, curves, out, dynamic=config.changes > 0)
+    (out / "manifest.json").write_text(
+        json.dumps(manifest(config, hashes, jobs, files, len(rows), started, argv), indent=2) + "\n")
+    return rows, summary

@@ -207,17 +207,18 @@ class Result:
     fold_orders: Optional[list] = None
 
     def to_json(self) -> dict:
+        """Return the row: means over the trials, unrounded (a report rounds once, when it prints)."""
         out = {
             "domain": self.domain,
             "condition": self.condition,
             "algorithm": self.algorithm,
             "order": list(self.order),
             "n": len(self.scores),
-            "dice": round(mean([s.dice for s in self.scores]), 4),
-            "masi": round(mean([s.masi for s in self.scores]), 4),
-            "accuracy": round(mean([s.dice == 1.0 for s in self.scores]), 4),
-            "minimality": round(mean([s.minimal for s in self.scores]), 4),
-            "uniqueness": round(mean([s.unique for s in self.scores]), 4),
+            "dice": mean([s.dice for s in self.scores]),
+            "masi": mean([s.masi for s in self.scores]),
+            "accuracy": mean([s.dice == 1.0 for s in self.scores]),
+            "minimality": mean([s.minimal for s in self.scores]),
+            "uniqueness": mean([s.unique for s in self.scores]),
         }
         if self.fold_orders is not None:
             out["learned"] = "cross-validated"
