@@ -117,6 +117,7 @@ class GraphClient:
         self._param_clients: dict[tuple[str, str], Any] = {}
         self._entities: dict[str, set[str]] = {}
         self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
+        self._states: Optional[dict[str, dict]] = None  # domain -> latest wm/state (once :meth:`state` is used)
         self._ids = itertools.count(1)
         self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
 
@@ -433,13 +434,35 @@ class GraphClient:
                           + ("; name the domain of a new entity" if new_ok else ""), "usage")
 
     def wm(self, entity: str, domain: Optional[str] = None) -> list[str]:
-        """Return ``entity``'s working memory, least recently used first (reading never refreshes it)."""
+        """Return ``entity``'s working memory now, least recently used first (reading never refreshes it).
+
+        Asks the consultant's debug service (served when its ``debug`` parameter is true,
+        as :mod:`fsreg_ros.testing` starts it); :meth:`state` needs no debug service.
+        """
         domain = domain or self.domain_of(entity)
-        return list(self.call(contract.consultant_service(domain), {"op": "wm", "entity": entity})["queue"])
+        return list(self.call(contract.debug_service(domain), {"op": "wm", "entity": entity})["queue"])
 
     def snapshot(self, domain: str) -> dict[str, list[str]]:
-        """Return every non-empty WM queue of ``domain``."""
-        return dict(self.call(contract.consultant_service(domain), {"op": "snapshot"})["queues"])
+        """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""
+        return dict(self.call(contract.debug_service(domain), {"op": "snapshot"})["queues"])
+
+    def state(self, domain: str, timeout: Optional[float] = None) -> dict:
+        """Return ``domain``'s latest ``wm/state`` (latched: its non-empty queues as last published).
+
+        A consultant publishes it after each request that changed WM, at most every
+        ``state_period`` (0.1 s by default), so it may lag a change by that much.
+        """
+        if self._states is None:
+            self._states = {}
+            subscribe(self.node, contract.WM_STATE, self._on_state)
+        self.spin_until(lambda: domain in self._states, self.timeout if timeout is None else timeout,
+                        f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
+        return self._states[domain]
+
+    def _on_state(self, data: dict) -> None:
+        graph = data.get(contract.GRAPH_FIELD) or ""
+        if self.graph is None or graph == self.graph:
+            self._states[data["domain"]] = data
 
     # ------------------------------------------------------------ parameters
     def _param_client(self, node_name: str, srv_type, suffix: str):

@@ -6,7 +6,7 @@
     fsreg-ctl [--namespace NS] status                      readiness, memory per domain
     fsreg-ctl [--namespace NS] set KEY=VALUE...            change memory settings (or NODE:KEY=VALUE)
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
-    fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM
+    fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM (as last published on wm/state)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
 
 Every command waits (``--timeout``) until the graph in the namespace is ready (its WM
@@ -306,8 +306,9 @@ class Ctl:
             return self._set(client)
         elif args.command == "wm":
             domain = args.domain or client.domain_of(args.entity)
-            queue = client.wm(args.entity, domain)
-            self.emit({"entity": args.entity, "domain": domain, "queue": queue},
+            state = client.state(domain)  # as the consultant last published it (wm/state): no debug service needed
+            queue = list((state.get("queues") or {}).get(args.entity, []))
+            self.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},
                       f"{args.entity} ({domain}): {', '.join(queue) or '(empty)'}")
         elif args.command == "clock":
             reply = client.set_clock(args.seconds)

@@ -1,42 +1,63 @@
 """A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
-call is one awaited JSON call to ``consultant/<domain>`` (the preference order and
-the entity list are cached while the consultant's LTM ``version`` stays the same; see
-:mod:`fsreg_ros.nodes.consultant` for the ops).  Await port methods only from a
-callback outside ``callback_group`` (give the port a reentrant group of its own).
+call is one awaited JSON call to ``consultant/<domain>`` (ops and replies:
+:mod:`fsreg_ros.contract.consultant`; the preference order and the entity list are
+cached while the consultant's LTM ``version`` stays the same).  Await port methods
+only from a callback outside ``callback_group`` (give the port a reentrant group of its own).
 
 Errors: a request the consultant rejects because it names an unknown entity or
-property raises :class:`~fsreg_ros.core.consultant.KnowledgeError` (as the in-process
-:class:`~fsreg_ros.core.consultant.LocalPort` would); everything else (timeouts, a
-malformed reply, other rejections) raises :class:`~fsreg_ros.carrier.CarrierError`.
+property (or a session it no longer holds) raises
+:class:`~fsreg_ros.core.consultant.KnowledgeError`, as the in-process
+:class:`~fsreg_ros.core.consultant.LocalPort` would; everything else (timeouts, a
+malformed reply, other rejections, an outage) raises :class:`~fsreg_ros.carrier.CarrierError`.
 
-Failing fast: after a call times out the port counts the consultant as down, and every
-call in the next ``timeout`` seconds fails at once (kind ``unavailable``) instead of
-waiting out its own deadline, so one dead consultant does not hold every request queued
-behind it for a full timeout each.  After that pause one call probes it again.
-A consultant that announces a new incarnation (``consultant/announce``, passed on by
-the node through :meth:`RemotePort.restarted`) ends the pause at once, and the calls
-then in flight get :data:`RESTART_GRACE` seconds more before they fail (kind
-``restarted``): those sent to the previous incarnation would never be answered, while
-one the new incarnation received (an announcement can arrive late) is answered in
-milliseconds.
+Outages are detected, not waited out.  The port listens to the consultant's latched
+``consultant/<domain>/alive`` announcement, whose writer has a DDS liveliness lease of
+1 s (kept by the DDS threads across processes, whatever the consultant's Python is
+doing; a reader in the consultant's own process needs its writes, every 0.25 s).  When
+the process dies its liveliness lapses: the calls it had not answered fail (kind
+``unavailable``, after a 0.25 s grace: a lease can lapse and recover under load), and a
+new call waits at most ``outage_wait`` seconds for a consultant to come back.  A lapse
+alone never fails a new call: a CPU-starved machine can miss a lease while the consultant
+lives.  The call is sent with a deadline of ``lapsed_deadline`` seconds instead of
+``timeout``; an answer in time is proof of life, no answer fails it the same way.  So a
+query during an outage is answered within about 1.5 s, not after ``timeout``, and a
+consultant that lives but is slow gets the full ``timeout``.  An ``open`` or ``info`` that
+failed only because the consultant restarted under it (its new incarnation is up) is sent
+again once, with the catalogue refreshed: the first request after a restart succeeds.  Each port has a client id
+(``open`` carries it: the consultant counts sessions per client) and keeps at most
+``max_in_flight`` calls outstanding.
 """
 
 from __future__ import annotations
 
+import secrets
 import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
-from rclpy.callback_groups import CallbackGroup
+from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
+from std_msgs.msg import String
 
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer
 from . import contract
-from .codec import MessageError
-from .contract import consultant_service
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, qos_profile, wait_until
+from .codec import MessageError, parse
 from .core.consultant import KnowledgeError, Narrowed, Step, View
+
+#: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
+OUTAGE_WAIT = 0.5
+#: Seconds a lapsed liveliness must stay lapsed before the calls in flight fail.
+LAPSE_GRACE = 0.25
+#: Deadline of a call sent while the consultant's liveliness is lapsed, seconds: an answer
+#: within it shows the consultant lives (a loaded machine can miss a lease); none fails the call.
+LAPSED_DEADLINE = 1.0
+#: Calls a port keeps outstanding at most (RR and REG make one at a time).
+MAX_IN_FLIGHT = 16
+#: Ops sent again once when the consultant restarted under them (they hold no session).
+RETRIED_OPS = ("info", "open")
 
 
 @dataclass
@@ -53,10 +74,6 @@ class Catalogue:
         return self.version.split(":", 1)[0]
 
 
-#: Seconds a call in flight when the consultant announces a new incarnation may still take.
-RESTART_GRACE = 1.0
-
-
 class RemotePort:
     """The consultant of ``domain``, reached through its node's service.
 
@@ -71,60 +88,112 @@ class RemotePort:
         domain: str,
         callback_group: Optional[CallbackGroup] = None,
         timeout: float = DEFAULT_TIMEOUT,
+        *,
+        outage_wait: float = OUTAGE_WAIT,
+        lapsed_deadline: float = LAPSED_DEADLINE,
+        max_in_flight: int = MAX_IN_FLIGHT,
     ) -> None:
         self.domain = domain
         self.timeout = timeout
-        self.client = JsonClient(node, consultant_service(domain), callback_group, timeout)
+        self.outage_wait = outage_wait
+        self.lapsed_deadline = lapsed_deadline
+        self.max_in_flight = max(1, max_in_flight)
+        self.client = JsonClient(node, contract.consultant_service(domain), callback_group, timeout)
+        self.client_id = f"{node.get_fully_qualified_name()}#{secrets.token_hex(3)}"
         self._catalogue: Optional[Catalogue] = None
         self._latest = ""  # the newest version any reply named
-        self._down_until = 0.0  # monotonic time before which calls fail fast
-        self._inflight: dict = {}  # futures of the calls awaiting a reply
+        self._inflight: dict[Any, float] = {}  # future -> monotonic time sent
         self.incarnation: Optional[int] = None  # the consultant's, from its announcements
+        self.ready: Optional[bool] = None  # whether it said it serves
+        self.alive: Optional[bool] = None  # its liveliness (None: not heard of yet)
+        self._appeared_at = 0.0  # monotonic time the newest writer of the alive topic appeared
+        self._down_since = time.monotonic()  # when it was last seen to go (or the port started)
+        topic = contract.alive_topic(domain)
+        self._alive_sub = node.create_subscription(
+            String, topic.name, self._on_alive, qos_profile(topic.subscriber_qos),
+            callback_group=callback_group or ReentrantCallbackGroup(),
+            event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
 
+    # ------------------------------------------------------------ liveness
     def restarted(self, incarnation: int) -> None:
-        """Note the consultant's announced incarnation; on a new one, fail the calls to the old one now."""
-        previous, self.incarnation = self.incarnation, incarnation
-        if previous is None or previous == incarnation:
-            return
-        self._down_until = 0.0
-        stale = [future for future in self._inflight if not future.done()]
-        if not stale:
-            return
-        client, timer = self.client, None
+        """Note the consultant's announced incarnation (from ``consultant/announce`` or its alive topic)."""
+        self.incarnation = incarnation
 
-        def expire() -> None:
+    def _on_alive(self, msg: String) -> None:
+        try:
+            data = contract.check(contract.ConsultantAnnounce, parse(msg.data))
+        except MessageError:
+            return  # not ours to answer: a malformed announcement changes nothing
+        self.restarted(data["incarnation"])
+        self.ready = data["ready"]
+        self.alive = True
+
+    def _on_liveliness(self, info) -> None:
+        """Follow the alive topic's writers; when one lapsed, fail the calls it will never answer."""
+        now = time.monotonic()
+        if info.alive_count_change > 0:
+            self._appeared_at = now  # a consultant (perhaps a new incarnation) appeared
+        self.alive = info.alive_count > 0
+        if info.alive_count_change >= 0 and info.not_alive_count_change <= 0:
+            return
+        if not self.alive:
+            self._down_since = now
+        # Confirm after a short grace (a lease can lapse under heavy load and recover).
+        client, incarnation, timer = self.client, self.incarnation, None
+
+        def confirm() -> None:
             drop_timer(client.node, timer, client.callback_group)
-            for future in stale:
-                if not future.done():
+            if self.alive and self.incarnation == incarnation and self._appeared_at > now:
+                return  # the same consultant again: its calls are answered
+            # A call sent while a live consultant was matched was answered by it; those
+            # sent before the newest appeared (all of them, if none lives) went to the dead one.
+            before = self._appeared_at if self.alive else now
+            error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
+            for future, sent in list(self._inflight.items()):
+                if sent <= before and not future.done():
                     client.client.remove_pending_request(future)
-                    future.set_exception(CarrierError(
-                        f"consultant '{self.domain}' restarted (incarnation {incarnation}) before answering; "
-                        "try again", kind="restarted", service=client.name))
+                    future.set_exception(CarrierError(error, kind="unavailable", service=client.name))
 
-        timer = client.node.create_timer(RESTART_GRACE, expire, client.callback_group,
+        timer = client.node.create_timer(LAPSE_GRACE, confirm, client.callback_group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
+    def _available(self) -> bool:
+        return self.alive is not False and self.client.ready()
+
     # ------------------------------------------------------------ plumbing
-    async def _call(self, payload: Mapping[str, Any]) -> dict:
-        now = time.monotonic()
-        if now < self._down_until:
-            raise CarrierError(
-                f"consultant '{self.domain}' is not answering (a call timed out "
-                f"{self.timeout - (self._down_until - now):.1f} s ago); failing fast, try again later",
-                kind="unavailable", service=self.client.name)
+    async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
+        deadline = self.timeout
+        if not self._available():
+            # Wait for a restart only within ``outage_wait`` of the outage's start: requests
+            # queued behind a dead consultant are answered at once.
+            wait = self._down_since + self.outage_wait - time.monotonic()
+            if wait > 0:
+                await wait_until(self.client.node, self._available, wait, callback_group=self.client.callback_group)
+            if not self.client.ready():
+                raise CarrierError(f"consultant '{self.domain}' is not running (no server is matched); try again "
+                                   "later", kind="unavailable", service=self.client.name)
+            if self.alive is False:  # a lapse alone is no proof of death: ask, briefly
+                deadline = min(self.timeout, self.lapsed_deadline)
+        if len(self._inflight) >= self.max_in_flight:
+            await wait_until(self.client.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
+                             callback_group=self.client.callback_group)
         future = self.client.send(payload)
-        self._inflight[future] = None
+        self._inflight[future] = time.monotonic()
         try:
-            reply = await self.client.result(future, self.timeout)
+            reply = await self.client.result(future, deadline)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
-            if err.kind == "timeout":
-                self._down_until = time.monotonic() + self.timeout
+            if err.kind == "timeout" and deadline < self.timeout:
+                raise CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
+                                   f"answer within {deadline:g} s); try again later", kind="unavailable",
+                                   service=self.client.name) from None
+            if retry and err.kind == "unavailable" and payload["op"] in RETRIED_OPS and self.alive:
+                self._latest = ""  # the new incarnation's catalogue may differ
+                return await self._call(payload, retry=False)
             raise
         finally:
             self._inflight.pop(future, None)
-        self._down_until = 0.0
         try:
             contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
@@ -169,7 +238,7 @@ class RemotePort:
 
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
-        """Return the ``info`` reply (domain, entities, preference, threshold, policy, memory, events, version)."""
+        """Return the ``info`` reply (entities, preference, policy, events, event listeners, stored state, ...)."""
         return await self._call({"op": "info"})
 
     async def knows(self, entity: str, refresh: bool = False) -> bool:
@@ -182,7 +251,7 @@ class RemotePort:
     async def open(
         self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
     ) -> View:
-        payload: dict[str, Any] = {"op": "open"}
+        payload: dict[str, Any] = {"op": "open", "client": self.client_id}
         if target is not None:
             payload["target"] = target
         if context is not None:
@@ -221,23 +290,3 @@ class RemotePort:
         if encode:
             payload["encode"] = list(encode)
         return list((await self._call(payload))["members"])
-
-    async def holds(self, prop: str, entities: Sequence[str]) -> list[str]:
-        """Return the given entities ``prop`` holds for, in the given order (no encoding)."""
-        reply = await self._call({"op": "holds", "property": prop, "entities": list(entities)})
-        return reply["holds"]
-
-    async def wm(self, entity: str) -> list[str]:
-        return (await self._call({"op": "wm", "entity": entity}))["queue"]
-
-    async def encode(
-        self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
-    ) -> None:
-        await self._call(
-            {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause,
-             "time": time, "turn": turn},
-        )
-
-    async def snapshot(self) -> dict[str, list[str]]:
-        """Every non-empty queue of the domain, LRU first."""
-        return (await self._call({"op": "snapshot"}))["queues"]

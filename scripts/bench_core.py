@@ -18,7 +18,11 @@
                         WMEvent, as the ROS consultant does); largest size only.
 
    Reported: median and p95 latency, median encodings per call, and the ratio of
-   medians 10k/1k entities (10.0 would be linear in the number of entities).
+   medians 10k/1k entities (10.0 would be linear in the number of entities).  Next
+   to it, the floor of the encoding work (``scripts/bench_encode.py``, in the same
+   run): one property encoded into every one of 10,000 entities by
+   ``WMBuffer.encode_members`` (what ``Consultant.narrow`` calls; column queues at this
+   size) against a vectorised numpy assignment of one stamp-matrix column.
 
 2. Decay-tick cost, "mostly idle".  Q queues each start with ticks + 1 properties
    (so the eager version really pops every queue at every tick).  Between two ticks
@@ -62,6 +66,7 @@ from fsreg_ros.core.wm_manager import WMManager  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 from naive_wm import NaiveWM  # noqa: E402
+from bench_encode import best_encode, best_vectorised  # noqa: E402
 
 PREVALENCE = (0.1, 0.3)
 WM_POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4}
@@ -295,6 +300,12 @@ def render(result: dict) -> str:
             f"{str(r['same_final_state']):>5}"
         )
     lines.append("")
+    floor = result.get("encode_floor")
+    if floor:
+        lines.append(f"Encoding floor, one property into {floor['entities']:,} entities: encode_members "
+                     f"{floor['encode_members_ms']:.3f} ms, numpy column assignment {floor['numpy_floor_ms']:.3f} ms "
+                     f"(x{floor['ratio']:.1f})")
+        lines.append("")
     lines.append("Targets")
     for t in result["targets"]:
         lines.append(f"  {t['name']}: {t['value']} -> {t['verdict']}")
@@ -389,6 +400,11 @@ def main(argv: Optional[list[str]] = None) -> int:
         log("REG latency")
         result["reg"] = bench_reg(sizes, trials, warmup, args.seed, max(1, args.repeat), log)
         result["reg_ratios"] = reg_ratios(result["reg"])
+        if not args.quick:
+            names = [f"e{i}" for i in range(10_000)]
+            members, floor = best_encode(names, 5, members=True), best_vectorised(names, 5)
+            result["encode_floor"] = {"entities": len(names), "encode_members_ms": members * 1e3,
+                                      "numpy_floor_ms": floor * 1e3, "ratio": members / floor}
     if not args.skip_decay:
         log("decay tick")
         for n in queue_counts:

@@ -1,13 +1,16 @@
 #!/usr/bin/env python3
-"""Benchmark of ``WMBuffer.encode_each`` (rules 2 and 3): one property into N entities.
+"""Benchmark of one rule 2/3 encoding: one property into N entities (``WMBuffer``).
 
 Policy decay+displacement (capacity 4), no event sink, 8 properties encoded in turn
-into every entity (so from the fifth on every encoding displaces a front).  Reported:
-the best time of one ``encode_each`` call over many, and its ratio to two floors: a
-plain Python loop assigning one dict item per entity (the floor for any per-entity
-Python work), and a vectorised numpy assignment of one column of an entities x
-properties stamp matrix, including the conversion of the entity names the call
-receives to row numbers (the floor for an array representation).
+into every entity (so from the fifth on every encoding displaces a front).  Two ways
+in: ``encode_each`` (entity names, queue by queue) and ``encode_members`` (a bitset
+over the domain's entities, as ``Consultant.narrow`` calls it; column queues in a
+domain of at least ``memory.COLUMN_MIN`` entities).  Reported: the best time of one
+call over many, and its ratio to two floors: a plain Python loop assigning one dict
+item per entity (the floor for any per-entity Python work), and a vectorised numpy
+assignment of one column of an entities x properties stamp matrix, including the
+conversion of the entity names the call receives to row numbers (the floor for an
+array representation).
 Usage: ``scripts/bench_encode.py [--entities N] [--rounds R]``.
 """
 
@@ -24,17 +27,25 @@ from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 
 
-def best_encode_each(names: list[str], rounds: int) -> float:
+def best_encode(names: list[str], rounds: int, members: bool) -> float:
     buffer = WMBuffer("d")
     buffer.set_limits(ForgettingPolicy.parse("decay+displacement", decay_period=10.0, capacity=4).limits(), 0.0)
     props = [f"p{j}" for j in range(8)]
+    everyone = (1 << len(names)) - 1
+
+    def encode(prop: str) -> None:
+        if members:
+            buffer.encode_members(everyone, names, prop, "rr", 0.0)
+        else:
+            buffer.encode_each(names, prop, "rr", 0.0)
+
     for prop in props:  # fill every queue first
-        buffer.encode_each(names, prop, "rr", 0.0)
+        encode(prop)
     times = []
     for _ in range(rounds):
         for prop in props:
             start = time.perf_counter()
-            buffer.encode_each(names, prop, "rr", 0.0)
+            encode(prop)
             times.append(time.perf_counter() - start)
     return min(times)
 
@@ -70,12 +81,15 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=5)
     args = parser.parse_args(argv)
     names = [f"e{i}" for i in range(args.entities)]
-    encode = best_encode_each(names, args.rounds)
+    each = best_encode(names, args.rounds, members=False)
+    members = best_encode(names, args.rounds, members=True)
     assign = best_assignment(args.entities, args.rounds)
     vector = best_vectorised(names, args.rounds)
-    print(f"encode_each, {args.entities} entities: {encode * 1e3:.3f} ms; "
-          f"dict assignment loop: {assign * 1e3:.3f} ms (ratio {encode / assign:.1f}); "
-          f"numpy column assignment from names: {vector * 1e3:.3f} ms (ratio {encode / vector:.1f})")
+    print(f"{args.entities} entities: dict assignment loop {assign * 1e3:.3f} ms; "
+          f"numpy column assignment from names {vector * 1e3:.3f} ms")
+    for label, best in (("encode_each (names)", each), ("encode_members (bitset)", members)):
+        print(f"  {label:<24} {best * 1e3:.3f} ms: x{best / assign:.1f} the dict loop, x{best / vector:.1f} "
+              "the numpy floor")
     return 0
 
 

@@ -30,6 +30,7 @@ pytestmark = pytest.mark.graph
 
 Q = contract.consultant_service("faces")
 M = contract.manage_service("faces")
+D = contract.debug_service("faces")
 
 
 @pytest.fixture
@@ -37,11 +38,18 @@ def graph():
     yield from ros_graph()
 
 
-def start(graph: Graph, domain: str = "faces", **params):
-    node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", **params)
+def start(graph: Graph, domain: str = "faces", debug: bool = True, **params):
+    node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", debug=debug, **params)
     graph.wait_service(contract.consultant_service(domain))
     graph.wait_service(contract.manage_service(domain))
+    if debug:
+        graph.wait_service(contract.debug_service(domain))
     return node
+
+
+def plain(events: list[dict]) -> list[dict]:
+    """Events without their numbering (``seq``, ``incarnation``)."""
+    return [{k: v for k, v in e.items() if k not in ("seq", "incarnation")} for e in events]
 
 
 def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
@@ -64,7 +72,10 @@ def test_info_and_latched_start_state(graph: Graph):
         "memory": {"policy": "none"},
         "events": 0,
         "event_listeners": 0,
+        "state": {"wm": "empty", "persisted": True},
     }
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    graph.spin_until(lambda: graph.call(Q, {"op": "info"})["event_listeners"] == 1, what="a matched event listener")
     # entities are only ever appended: a caller that knows some asks for the rest
     assert graph.call(Q, {"op": "info", "entities_from": 2})["entities"] == ["face3"]
     # A late joiner gets the start state (transient local).
@@ -72,12 +83,18 @@ def test_info_and_latched_start_state(graph: Graph):
     graph.spin_until(lambda: states, what="latched /wm/state")
     assert states[0]["domain"] == "faces" and states[0]["queues"] == {}
     # Unconfigured (in this incarnation), the consultant refuses query ops but info, and changes nothing.
-    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
-    err = graph.call_error(Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker",
-                               "time": 1.0})
-    assert err.kind == "not-ready" and "not configured by the WM Manager" in err.error
-    graph.spin_for(0.05)
-    assert events == [] and len(states) == 1
+    for service, request in ((D, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker",
+                                  "time": 1.0}), (Q, {"op": "open", "first": {"property": "male", "cause": "rr"}})):
+        err = graph.call_error(service, request)
+        assert err.kind == "not-ready" and "not configured by the WM Manager" in err.error
+    # Configured, the first change's events are numbered from 1 in this incarnation.
+    configure(graph, "displacement", capacity=2)
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 2.0})
+    graph.spin_until(lambda: events, what="the first event")
+    assert events == [{"op": "encode", "domain": "faces", "entity": "face2", "property": "female",
+                       "cause": "speaker", "time": 2.0, "turn": None, "seq": 1, "incarnation": 1}]
+    graph.spin_until(lambda: len(states) == 2, what="the state of the first change")
+    assert states[-1]["queues"] == {"face2": ["female"]}  # nothing the refused requests did
 
 
 def test_query_ops_round_trip(graph: Graph):
@@ -89,16 +106,17 @@ def test_query_ops_round_trip(graph: Graph):
         "memory": {"policy": "displacement", "capacity": 3},
         "queues_changed": 0,
         "incarnation": 1,
+        "state": {"wm": "empty", "persisted": True},
     }
     assert graph.call(Q, {"op": "info"})["policy"] == "displacement"
 
     # holds: no encoding
-    assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face3", "face2", "face1"]}) == {
+    assert graph.call(D, {"op": "holds", "property": "glasses", "entities": ["face3", "face2", "face1"]}) == {
         "holds": ["face2", "face1"]
     }
     # affirm: encodes for each holder, in the given order, with cause/time/turn
     assert graph.call(
-        Q, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0,
+        D, {"op": "affirm", "property": "male", "entities": ["face1", "face2", "face3"], "cause": "rr", "time": 2.0,
             "turn": 4}
     ) == {"holds": ["face1", "face3"]}
     graph.spin_until(lambda: len(events) == 2, what="affirm events")
@@ -111,26 +129,28 @@ def test_query_ops_round_trip(graph: Graph):
     assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2}
 
     # encode (Algorithm 1: re-encoding moves to the back); displacement at capacity 3
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],
                    "cause": "speaker", "time": 3.0})
-    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["male", "lab-coat", "light-hair"]}
+    assert graph.call(D, {"op": "wm", "entity": "face1"}) == {"queue": ["male", "lab-coat", "light-hair"]}
     graph.spin_until(lambda: len(states) == 3 and len(events) == 7, what="state and events after encode")
     assert states[-1]["queues"]["face1"] == ["male", "lab-coat", "light-hair"] and states[-1]["time"] == 3.0
     assert [e["cause"] for e in events[2:]] == ["speaker", "speaker", "speaker", "speaker", "displacement"]
     assert events[-1]["property"] == "glasses" and events[-1]["turn"] is None
-    assert graph.call(Q, {"op": "snapshot"}) == {
+    assert graph.call(D, {"op": "snapshot"}) == {
         "queues": {"face1": ["male", "lab-coat", "light-hair"], "face3": ["male"]},
         "events": 7,  # every event published so far: a trace listener waits for this many
     }
     assert graph.call(Q, {"op": "info"})["events"] == len(events) == states[-1]["events"]
 
-    # reads do not publish anything
+    # reads publish nothing: the next change's event and state come right after the last ones
     n_states, n_events = len(states), len(events)
-    graph.call(Q, {"op": "wm", "entity": "face2"})
-    graph.call(Q, {"op": "holds", "property": "male", "entities": ["face1"]})
-    graph.call(Q, {"op": "snapshot"})
-    graph.spin_for(0.05)
-    assert (len(states), len(events)) == (n_states, n_events)
+    graph.call(D, {"op": "wm", "entity": "face2"})
+    graph.call(D, {"op": "holds", "property": "male", "entities": ["face1"]})
+    graph.call(D, {"op": "snapshot"})
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 4.0})
+    graph.spin_until(lambda: len(events) > n_events and len(states) > n_states, what="the change after the reads")
+    assert events[n_events]["seq"] == events[n_events - 1]["seq"] + 1 and events[n_events]["property"] == "female"
+    assert states[n_states]["time"] == 4.0 and states[n_states]["events"] == events[n_events]["seq"]
 
 
 def test_configure_trims_and_decay_ticks(graph: Graph):
@@ -139,18 +159,17 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
 
     def new_events(n: int, what: str) -> list[dict]:
-        """Wait until ``n`` more events arrived since the last call; those events."""
+        """Wait for the next ``n`` events; they must be numbered right after the last ones (nothing between)."""
         graph.spin_until(lambda: len(events) >= seen[0] + n, what=what)
-        graph.spin_for(0.02)
-        got = events[seen[0]:]
-        seen[0] = len(events)
-        assert len(got) == n, got
+        got = events[seen[0]:seen[0] + n]
+        assert [e["seq"] for e in got] == list(range(seen[0] + 1, seen[0] + n + 1)), got
+        seen[0] += n
         return got
 
     seen = [0]
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"],
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male", "glasses", "lab-coat"],
                    "cause": "speaker", "time": 1.0})
     new_events(4, "encode events")
     # two ticks at once: both applied now, with their own times, in time order and
@@ -167,25 +186,25 @@ def test_configure_trims_and_decay_ticks(graph: Graph):
     n_states = len(states)
 
     # a lower capacity trims at once
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
                    "time": 21.0})
     new_events(2, "encode events")
     assert configure(graph, "displacement", capacity=1)["queues_changed"] == 1
-    assert graph.call(Q, {"op": "wm", "entity": "face1"}) == {"queue": ["glasses"]}
+    assert graph.call(D, {"op": "wm", "entity": "face1"}) == {"queue": ["glasses"]}
     assert [(e["property"], e["cause"]) for e in new_events(2, "displacement events")] == [
         ("lab-coat", "displacement"), ("male", "displacement")
     ]
     # global-capacity victims: the oldest front across queues
     configure(graph, "global-capacity", global_capacity=2)
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker",
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female", "dark-hair"], "cause": "speaker",
                    "time": 22.0})
-    assert graph.call(Q, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
+    assert graph.call(D, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
     assert [(e["entity"], e["property"], e["cause"]) for e in new_events(3, "global-capacity events")] == [
         ("face2", "female", "speaker"), ("face2", "dark-hair", "speaker"), ("face1", "glasses", "global-capacity")
     ]
     # none empties WM, cause reset
     configure(graph, "none")
-    assert graph.call(Q, {"op": "snapshot"})["queues"] == {}
+    assert graph.call(D, {"op": "snapshot"})["queues"] == {}
     assert {e["cause"] for e in new_events(2, "reset events")} == {"reset"}
     graph.spin_until(lambda: states[-1]["queues"] == {}, what="empty state")
     assert len(states) > n_states
@@ -198,40 +217,42 @@ BAD_REQUESTS = [
     (Q, {}, "MessageError", "missing field 'op'"),
     (Q, {"op": 3}, "MessageError", "field 'op'"),
     (Q, {"op": "fly"}, "MessageError", "unknown op 'fly'"),
-    (Q, {"op": "holds", "entities": ["face1"]}, "MessageError", "missing field 'property'"),
-    (Q, {"op": "holds", "property": "wings", "entities": ["face1"]}, "KnowledgeError", "no property 'wings'"),
-    (Q, {"op": "holds", "property": "male", "entities": ["face1", "face9"]}, "KnowledgeError", "no entity 'face9'"),
-    (Q, {"op": "holds", "property": "male", "entities": "face1"}, "MessageError", "list of strings"),
-    (Q, {"op": "holds", "property": "male", "entities": ["face1", 2]}, "MessageError", "field 'entities'[1]"),
-    (Q, {"op": "affirm", "property": "wings", "entities": ["face1"], "cause": "rr"}, "KnowledgeError", "wings"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1", "face9"], "cause": "rr"}, "KnowledgeError", "face9"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "decay"}, "MessageError", "field 'cause'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"]}, "MessageError", "missing field 'cause'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError",
+    (D, {"op": "holds", "entities": ["face1"]}, "MessageError", "missing field 'property'"),
+    (D, {"op": "holds", "property": "wings", "entities": ["face1"]}, "KnowledgeError", "no property 'wings'"),
+    (D, {"op": "holds", "property": "male", "entities": ["face1", "face9"]}, "KnowledgeError", "no entity 'face9'"),
+    (D, {"op": "holds", "property": "male", "entities": "face1"}, "MessageError", "list of strings"),
+    (D, {"op": "holds", "property": "male", "entities": ["face1", 2]}, "MessageError", "field 'entities'[1]"),
+    (D, {"op": "affirm", "property": "wings", "entities": ["face1"], "cause": "rr"}, "KnowledgeError", "wings"),
+    (D, {"op": "affirm", "property": "male", "entities": ["face1", "face9"], "cause": "rr"}, "KnowledgeError", "face9"),
+    (D, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "decay"}, "MessageError", "field 'cause'"),
+    (D, {"op": "affirm", "property": "male", "entities": ["face1"]}, "MessageError", "missing field 'cause'"),
+    (D, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": "now"}, "MessageError",
      "field 'time'"),
-    (Q, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError",
+    (D, {"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "turn": True}, "MessageError",
      "field 'turn'"),
-    (Q, {"op": "wm"}, "MessageError", "missing field 'entity'"),
-    (Q, {"op": "wm", "entity": "face9"}, "KnowledgeError", "no entity 'face9'"),
-    (Q, {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, "KnowledgeError", "face9"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError",
+    (D, {"op": "wm"}, "MessageError", "missing field 'entity'"),
+    (D, {"op": "wm", "entity": "face9"}, "KnowledgeError", "no entity 'face9'"),
+    (D, {"op": "encode", "entity": "face9", "properties": ["male"], "cause": "speaker"}, "KnowledgeError", "face9"),
+    (D, {"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}, "KnowledgeError",
      "wings"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError",
+    (D, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "retract"}, "MessageError",
      "field 'cause'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError",
+    (D, {"op": "encode", "entity": "face1", "properties": "male", "cause": "speaker"}, "MessageError",
      "field 'properties'"),
-    (Q, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError",
+    (D, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "turn": "1"}, "MessageError",
      "field 'turn'"),
     (Q, {"op": "configure", "policy": {"policy": "none"}}, "MessageError", "unknown op 'configure'"),
     (M, {"op": "snapshot"}, "MessageError", "unknown op 'snapshot'"),
     (M, {"op": "configure"}, "MessageError", "missing field 'policy'"),
     (M, {"op": "configure", "policy": "none"}, "MessageError", "field 'policy': expected an object"),
-    (M, {"op": "configure", "policy": {"policy": "forget-all"}}, "PolicyError", "unknown forgetting rule 'forget-all'"),
-    (M, {"op": "configure", "policy": {"policy": "decay"}}, "PolicyError", "needs 'decay_period'"),
-    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "PolicyError",
+    # the policy object is the contract's (generated from the settings table): refused when it is validated
+    (M, {"op": "configure", "policy": {"policy": "forget-all"}}, "MessageError",
+     "unknown forgetting rule 'forget-all'"),
+    (M, {"op": "configure", "policy": {"policy": "decay"}}, "MessageError", "needs 'decay_period'"),
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": 0}}, "MessageError",
      "capacity must be >= 1"),
-    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": "2"}}, "MessageError", "field 'capacity'"),
-    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "PolicyError",
+    (M, {"op": "configure", "policy": {"policy": "displacement", "capacity": "2"}}, "MessageError", "['capacity']"),
+    (M, {"op": "configure", "policy": {"policy": "decay", "decay_period": -1}}, "MessageError",
      "decay_period must be > 0"),
     (M, {"op": "decay", "ticks": 10}, "MessageError", "field 'ticks'"),
     (M, {"op": "decay", "ticks": [10.0, 20.0]}, "MessageError", "field 'ticks'"),
@@ -245,9 +266,9 @@ BAD_REQUESTS = [
 def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     start(graph)
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
                    "time": 1.0})
-    before = graph.call(Q, {"op": "snapshot"})
+    before = graph.call(D, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     # the state of the encode above went out once someone subscribed (within state_period)
@@ -259,10 +280,10 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
         assert err.kind == kind, (request, err)
         assert text in err.error, (request, err.error)
         assert err.reply["error"] == err.error
-        assert graph.call(Q, {"op": "snapshot"}) == before, request
-    assert graph.call(Q, {"op": "info"}) == {**info, "event_listeners": 1}  # the listener above
+        assert graph.call(D, {"op": "snapshot"}) == before, request
+    assert {**graph.call(Q, {"op": "info"}), "event_listeners": 0} == {**info, "event_listeners": 0}
     # A last good change: its state and events arrive after any stray ones would have.
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 5.0})
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 5.0})
     graph.spin_until(lambda: len(states) > n_states, what="state of the good request")
     assert len(states) == n_states + 1 and states[-1]["time"] == 5.0
     graph.spin_until(lambda: events, what="event of the good request")
@@ -275,7 +296,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     results = graph.listen(contract.LTM_ASSERT_RESULT.name)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
-    graph.call(Q, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker",
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "male"], "cause": "speaker",
                    "time": 1.0})
     graph.spin_until(lambda: len(events) == 2, what="encode events")
 
@@ -288,7 +309,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
         "updated": {"light-hair": 1.0, "female": 0.8}, "retracted": [],
     }
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face4"]
-    assert graph.call(Q, {"op": "holds", "property": "light-hair", "entities": ["face1",
+    assert graph.call(D, {"op": "holds", "property": "light-hair", "entities": ["face1",
                                                                                 "face4"]})["holds"] == ["face1",
                                                                                                         "face4"]
 
@@ -305,7 +326,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
                        "time": events[0]["time"], "turn": None, "seq": 3, "incarnation": 1}]
     graph.spin_until(lambda: len(states) > n_states, what="state after retraction")
     assert states[-1]["queues"]["face1"] == ["male"]
-    assert graph.call(Q, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []
+    assert graph.call(D, {"op": "holds", "property": "glasses", "entities": ["face1"]})["holds"] == []
 
     # another domain's message is not ours: silence
     graph.publish(contract.LTM_ASSERT.name, {"domain": "objects", "entity": "obj9", "properties": {"red": 1.0}})
@@ -320,7 +341,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
         ({"domain": "faces", "entity": "face1", "properties": {}}, "non-empty"),
         ({"domain": "faces", "entity": "face5", "properties": {"male": 1.0, "wings": 1.0}}, "wings"),
     ]
-    snapshot = graph.call(Q, {"op": "snapshot"})
+    snapshot = graph.call(D, {"op": "snapshot"})
     info = graph.call(Q, {"op": "info"})
     n_events = len(events)
     for message, text in bad:
@@ -329,7 +350,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
         graph.spin_until(lambda: len(results) > count, what=f"error result for {message}")
         assert results[-1]["ok"] is False and text in results[-1]["error"], (message, results[-1])
     assert all(r.get("entity") != "obj9" for r in results)
-    assert graph.call(Q, {"op": "snapshot"}) == snapshot
+    assert graph.call(D, {"op": "snapshot"}) == snapshot
     assert graph.call(Q, {"op": "info"}) == info  # face5 did not join
     assert len(events) == n_events
 
@@ -338,9 +359,9 @@ def test_threshold_parameter(graph: Graph):
     node = start(graph)
     configure(graph, "none")
     holds = {"op": "holds", "property": "glasses", "entities": ["face1", "face2"]}
-    assert graph.call(Q, holds)["holds"] == ["face1", "face2"]  # face2: 0.7
+    assert graph.call(D, holds)["holds"] == ["face1", "face2"]  # face2: 0.7
     assert node.set_parameters([Parameter("threshold", value=0.8)])[0].successful
-    assert graph.call(Q, holds)["holds"] == ["face1"]
+    assert graph.call(D, holds)["holds"] == ["face1"]
     assert graph.call(Q, {"op": "info"})["threshold"] == 0.8
     for value in (1.5, -0.1):
         result = node.set_parameters([Parameter("threshold", value=value)])[0]
@@ -354,7 +375,7 @@ def test_threshold_parameter(graph: Graph):
     described = node.describe_parameter("threshold")
     assert (described.floating_point_range[0].from_value, described.floating_point_range[0].to_value) == (0.0, 1.0)
     assert node.set_parameters([Parameter("threshold", value=1.0)])[0].successful  # the bound itself is in range
-    assert graph.call(Q, holds)["holds"] == ["face1"]
+    assert graph.call(D, holds)["holds"] == ["face1"]
 
 
 def test_remote_port_matches_the_local_consultant(graph: Graph):
@@ -370,12 +391,11 @@ def test_remote_port_matches_the_local_consultant(graph: Graph):
     configure_buffer(local.wm, ForgettingPolicy.parse("displacement", capacity=2), 0.0)
     expected = graph.run(resolve(["male", "lab-coat"], {"faces": LocalPort(local)}, time=3.0, turn=1))
     assert remote.to_json() == expected.to_json()
-    assert graph.call(Q, {"op": "snapshot"})["queues"] == local.wm.snapshot()
-    assert graph.run(port.wm("face1")) == list(local.wm.queue("face1"))
+    assert graph.call(D, {"op": "snapshot"})["queues"] == local.wm.snapshot()
+    assert graph.call(D, {"op": "wm", "entity": "face1"})["queue"] == list(local.wm.queue("face1"))
     assert graph.run(port.preference()) == list(local.preference)
-    assert graph.run(port.holds("glasses", ["face3", "face2"])) == ["face2"]
     with pytest.raises(KnowledgeError, match="no entity 'face9'"):
-        graph.run(port.wm("face9"))
+        graph.run(port.open("face9"))
     with pytest.raises(KnowledgeError, match="wings"):
         view = graph.run(port.open())
         graph.run(port.narrow(view, "wings", "rr", 4.0, None))
@@ -383,7 +403,7 @@ def test_remote_port_matches_the_local_consultant(graph: Graph):
         remote = graph.run(generate("face1", port, algorithm, time=5.0, turn=2))
         expected = graph.run(generate("face1", LocalPort(local), algorithm, time=5.0, turn=2))
         assert remote.to_json() == expected.to_json(), algorithm
-        assert graph.call(Q, {"op": "snapshot"})["queues"] == local.wm.snapshot()
+        assert graph.call(D, {"op": "snapshot"})["queues"] == local.wm.snapshot()
 
 
 def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph):
@@ -403,14 +423,12 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     assert graph.call(Q, {**step, "property": "glasses"}) == {"target_holds": True, "size": 1, "version": version}
     graph.spin_until(lambda: events, what="rule-3 event")
     assert [(e["entity"], e["property"], e["cause"]) for e in events] == [("face2", "glasses", "reg-distractor")]
-    graph.spin_for(0.05)
-    assert len(states) == n_states  # the state waits for the close
     closed = graph.call(Q, {"op": "close", "session": session, "encode": ["glasses"], "time": 2.0, "turn": 1})
     assert closed == {"members": ["face2"], "version": version}
     graph.spin_until(lambda: len(states) > n_states, what="state at close")
-    graph.spin_for(0.05)
-    assert len(states) == n_states + 1
-    assert states[-1]["queues"] == {"face2": ["glasses"], "face1": ["glasses"]}
+    # the first state after the open is the close's (the session's steps published none)
+    assert states[n_states]["queues"] == {"face2": ["glasses"], "face1": ["glasses"]}
+    assert states[n_states]["events"] == 2
     # a closed session is gone
     err = graph.call_error(Q, {**step, "property": "male"})
     assert err.kind == "SessionError" and "no open session" in err.error
@@ -427,11 +445,13 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     assert opened["first"] == {"target_holds": True, "size": 2} and opened["size"] == 3
     graph.spin_until(lambda: len(events) == n_events + 2, what="rule-2 events")
     assert [(e["entity"], e["cause"]) for e in events[n_events:]] == [("face1", "rr"), ("face3", "rr")]
-    # a bad first step is refused and opens nothing, encodes nothing
+    # a bad first step is refused and opens nothing, encodes nothing: the next event is numbered right after
     assert graph.call_error(Q, {"op": "open", "first": {"property": "wings", "cause": "rr"}}).kind == "KnowledgeError"
     assert graph.call_error(Q, {"op": "open", "first": {"property": "male", "cause": "decay"}}).kind == "MessageError"
-    graph.spin_for(0.05)
-    assert len(events) == n_events + 2
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 4.0})
+    graph.spin_until(lambda: len(events) > n_events + 2, what="the next event")
+    assert events[n_events + 2]["seq"] == events[n_events + 1]["seq"] + 1
+    assert events[n_events + 2]["property"] == "female"
     # an LTM change changes the version callers cache by
     graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": "face4", "properties": {"male": 1.0}})
     graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"] == ["face4"],
@@ -530,7 +550,7 @@ class Flaky(Node):
         self.create_timer(0.5, lambda: self.done.done() or self.done.set_result("survived"))
     def send(self):
         self.boom.cancel()
-        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7"}'))
+        self.pub.publish(__import__("std_msgs.msg").msg.String(data='{"id": "r7", "target": "x"}'))
     def explode(self, data):
         raise RuntimeError("boom")
 
@@ -580,11 +600,11 @@ def test_run_node_exit_codes():
 def test_hostile_requests_are_answered_and_change_nothing(graph: Graph, request_text, kind, fragment):
     start(graph)
     configure(graph, "displacement", capacity=2)
-    graph.call(Q, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
-    before = graph.call(Q, {"op": "snapshot"})
-    err = graph.call_error(Q, request_text)
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
+    before = graph.call(D, {"op": "snapshot"})
+    err = graph.call_error(D, request_text)
     assert err.kind == kind and fragment in err.error, err.error
-    assert graph.call(Q, {"op": "snapshot"}) == before
+    assert graph.call(D, {"op": "snapshot"}) == before
 
 
 def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
@@ -598,3 +618,44 @@ def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
     assert "300 characters" in results.latest(id="a1")["error"] and not results.latest(id="a1")["ok"]
     assert "1001 items" in results.latest(id="a2")["error"]
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3"]
+
+
+# ------------------------------------------------------------------ the production protocol
+def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
+    node = start(graph, debug=False)
+    assert node.get_parameter("debug").value is False
+
+    def names() -> set[str]:
+        return {name for name, _ in node.get_service_names_and_types_by_node(node.get_name(), node.get_namespace())}
+
+    graph.spin_until(lambda: {"/" + Q, "/" + M} <= names(), what="the node's services in the ROS graph")
+    assert "/" + D not in names()
+    err = graph.call_error(Q, {"op": "snapshot"})  # nor are its ops on the production service
+    assert err.kind == "MessageError"
+    assert "unknown op 'snapshot' (known: info, open, narrow, rule_out, close)" in err.error
+
+
+def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(graph: Graph):
+    start(graph, max_sessions=8, max_sessions_per_client=2)
+    configure(graph, "displacement", capacity=2)
+    mine = graph.call(Q, {"op": "open", "target": "face1", "client": "reg"})["session"]
+    hog = [graph.call(Q, {"op": "open", "client": "hog"})["session"] for _ in range(6)]
+    assert graph.call(Q, {"op": "close", "session": mine})["members"] == ["face2", "face3"]
+    assert graph.call_error(Q, {"op": "close", "session": hog[0]}).kind == "SessionError"
+    assert graph.call(Q, {"op": "close", "session": hog[-1]})["members"] == ["face1", "face2", "face3"]
+
+
+def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(graph: Graph):
+    start(graph)
+    configure(graph, "displacement", capacity=2)
+    assert graph.call(Q, {"op": "info"})["event_listeners"] == 0
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male"], "cause": "speaker", "time": 1.0})
+    events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
+    graph.spin_until(lambda: graph.call(Q, {"op": "info"})["event_listeners"] == 1, what="the listener matched")
+    # nothing was published while nobody listened: numbering starts with the first event sent
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "lab-coat"], "cause": "speaker",
+                   "time": 2.0})
+    graph.spin_until(lambda: len(events) == 3, what="three events")
+    assert [(e["seq"], e["incarnation"], e["op"], e["property"]) for e in events] == [
+        (1, 1, "encode", "glasses"), (2, 1, "encode", "lab-coat"), (3, 1, "forget", "male")]
+    assert graph.call(Q, {"op": "info"})["events"] == 3

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core import memory
 from fsreg_ros.core.decay import TickRun
 from fsreg_ros.core.memory import (
     ENCODE_CAUSES, FORGET_CAUSES, UNKNOWN_ORIGIN, UNLIMITED, QueueItem, WMBuffer, WMEvent,
@@ -453,3 +454,114 @@ def test_view_origins_parallel_to_the_queue():
     view = open_view(consultant, "x", None)
     assert view.queue == ["b", "a"] and view.origins == [("speaker", 0), ("rr", 1)]
     assert open_view(consultant, None, None).origins == []
+
+
+# ------------------------------------------------------------- column queues
+def column_buffer(sink=None, capacity=2):
+    buffer = WMBuffer("d", sink)
+    buffer.column_min = 1  # column queues however small the domain
+    buffer.set_limits(ForgettingPolicy.parse("decay+displacement", decay_period=10.0, capacity=capacity).limits(), 0)
+    return buffer
+
+
+NAMES = ["e0", "e1", "e2", "e3"]
+
+
+def test_encode_members_with_column_queues_is_encode_each_in_entity_order():
+    columns, plain = column_buffer(), WMBuffer("d")
+    plain.set_limits(columns.limits, 0.0)
+    for prop, members, turn in [("a", 0b1011, 1), ("b", 0b0011, 2), ("a", 0b0110, 3), ("c", 0b1111, 4)]:
+        columns.encode_members(members, NAMES, prop, "rr", 1.0, turn)
+        plain.encode_each([e for i, e in enumerate(NAMES) if members >> i & 1], prop, "rr", 1.0, turn)
+    assert columns._in_columns == set(NAMES)  # the queues live in the columns
+    assert [columns.export_queue(e) for e in NAMES] == [plain.export_queue(e) for e in NAMES]
+    assert columns.snapshot() == plain.snapshot() and len(columns) == len(plain) == 8
+    assert columns.counters() == plain.counters()
+    assert columns.take_changes() == plain.take_changes() == NAMES[:2] + ["e3", "e2"]
+    assert columns.origins("e1") == [("rr", 1), ("rr", 4)]  # a refreshed in turn 3 kept turn 1
+    assert columns._in_columns == set(NAMES)  # reads leave them there
+
+
+def test_column_queue_owing_decay_reports_its_pops_once_a_sink_listens():
+    events: list = []
+    buffer = column_buffer()
+    buffer.encode_members(0b0011, NAMES, "a", "rr", 1.0, 1)
+    buffer.encode_members(0b0001, NAMES, "b", "rr", 1.0, 1)
+    buffer.decay(TickRun(0.0, 10.0, 1, 1))  # lazily: owed by the column queues
+    buffer.sink = events.append
+    assert buffer.queue("e0") == ("b",)  # the read applies e0's tick and reports it
+    assert keys(events) == [("forget", "e0", "a", "decay", 10.0, None)]
+    assert len(buffer) == 1  # e1's tick too
+    assert keys(events)[1:] == [("forget", "e1", "a", "decay", 10.0, None)]
+    assert buffer.take_changes() == ["e0", "e1"]
+
+
+def test_column_queues_come_back_as_dicts_when_another_path_needs_them():
+    events: list = []
+    buffer = column_buffer(capacity=3)
+    buffer.encode_members(0b0111, NAMES, "a", "rr", 1.0, 1)
+    buffer.encode_members(0b0101, NAMES, "b", "reg-distractor", 2.0, 2)
+    buffer.sink = events.append
+    buffer.encode("e0", ["c", "a"], "speaker", 3.0, 3)  # rule 1, with events: a dict queue again
+    assert "e0" not in buffer._in_columns
+    assert buffer.export_queue("e0") == [("b", 4, 1, "reg-distractor", 2), ("c", 6, 1, "speaker", 3),
+                                         ("a", 7, 1, "rr", 1)]
+    buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=1).limits(), 4.0)  # all become dicts
+    assert buffer._in_columns == set() and buffer.snapshot() == {"e0": ["a"], "e1": ["a"], "e2": ["b"]}
+    assert [k[2] for k in keys(events) if k[3] == "displacement"] == ["b", "c", "a"]
+
+
+def test_column_queues_restore_and_round_trip():
+    buffer = column_buffer()
+    buffer.restore({"e1": [("x", 3, 1, "speaker", 0), ("y", 4, 1)]}, 4, 0, buffer.limits)
+    buffer.encode_members(0b0011, NAMES, "x", "rr", 1.0, 1)  # e1's x: a refresh, origin kept
+    assert buffer._in_columns == {"e0", "e1"}
+    assert buffer.export_queue("e1") == [("y", 4, 1, "unknown", None), ("x", 6, 1, "speaker", 0)]
+    assert buffer.export_queue("e0") == [("x", 5, 1, "rr", 1)]
+    copy = column_buffer()
+    copy.restore({e: buffer.export_queue(e) for e in buffer.nonempty_entities()}, *buffer.counters(), buffer.limits)
+    assert copy.snapshot() == buffer.snapshot() == {"e0": ["x"], "e1": ["y", "x"]}
+
+
+def test_columns_only_for_large_domains_and_the_bound_entity_list():
+    buffer = WMBuffer("d")
+    buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=2).limits(), 0.0)
+    buffer.encode_members(0b11, NAMES, "a", "rr", 0.0)
+    assert buffer._in_columns == set()  # four entities: queue by queue
+    buffer.column_min = 1
+    buffer.encode_members(0b11, NAMES, "b", "rr", 0.0)
+    assert buffer._in_columns == {"e0", "e1"}
+    buffer.encode_members(0b100, list(NAMES), "c", "rr", 0.0)  # another list: queue by queue
+    assert buffer._in_columns == {"e0", "e1"} and buffer.queue("e2") == ("c",)
+    NAMES_GROWN = NAMES + ["e4"]
+    grown = WMBuffer("d")
+    grown.column_min = 1
+    grown.set_limits(buffer.limits, 0.0)
+    entities = list(NAMES)
+    grown.encode_members(0b1, entities, "a", "rr", 0.0)
+    entities.append("e4")  # the domain grows (a new entity joins last)
+    grown.encode_members(0b10001, entities, "b", "rr", 0.0)
+    assert grown.snapshot() == {"e0": ["a", "b"], "e4": ["b"]} and entities == NAMES_GROWN
+
+
+def test_restored_queue_longer_than_the_columns_goes_queue_by_queue():
+    stored = {"e0": [("x", 1, 1, "rr", 0), ("y", 2, 1, "rr", 0), ("z", 3, 1, "rr", 0)]}
+    buffer, plain = column_buffer(capacity=2), column_buffer(capacity=2)
+    for b in (buffer, plain):  # stored under a larger capacity (restore does not trim)
+        b.restore(stored, 3, 0, b.limits)
+    buffer.encode_members(0b0011, NAMES, "a", "rr", 1.0, 1)
+    plain.encode_each(["e0", "e1"], "a", "rr", 1.0, 1)
+    assert buffer._in_columns == set()  # nothing moved: e0 does not fit in two slots
+    assert [buffer.export_queue(e) for e in NAMES] == [plain.export_queue(e) for e in NAMES]
+
+
+def test_change_record_keeps_its_order_when_compacted(monkeypatch):
+    monkeypatch.setattr(memory, "_CHANGE_MARKS_MAX", 2)
+    buffer = column_buffer(capacity=3)
+    for members, prop in [(0b1000, "a"), (0b0001, "b"), (0b0110, "c"), (0b1001, "d"), (0b0100, "e")]:
+        buffer.encode_members(members, NAMES, prop, "rr", 1.0, 1)
+    buffer.encode("e1", ["f"], "speaker", 2.0, 2)  # by name, between column operations
+    buffer.encode_members(0b0010, NAMES, "g", "rr", 3.0, 3)
+    assert buffer._marks <= 2
+    assert buffer.take_changes() == ["e3", "e0", "e1", "e2"]
+    assert buffer.take_changes() == []

@@ -79,6 +79,7 @@ def worlds(draw):
     )
 
 
+@pytest.mark.slow  # 120 generated worlds
 @settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(shape=worlds(), wm_order=st.sampled_from(WM_ORDERS), algorithm=st.sampled_from((None, "sd-pia", "dist-pia")))
 def test_random_worlds_equal_naive_reference(shape, wm_order, algorithm):
@@ -123,6 +124,7 @@ def test_world_shape_rejects_bad_sizes(field, value):
         WorldShape(**{field: value}).check()
 
 
+@pytest.mark.slow  # runs the benchmark script as a process
 def test_bench_sim_small_world_runs_and_agrees(tmp_path):
     out = tmp_path / "bench.json"
     proc = subprocess.run(

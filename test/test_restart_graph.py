@@ -30,7 +30,8 @@ ASSERT_AFTER = 2  # turn index after which face17 is asserted
 KILL_AFTER = 7  # turn index after which the consultant is SIGKILLed
 TIMEOUT = 1.5  # service_timeout of the WM Manager, RR and REG (s)
 #: What an error during the outage says (RR and REG pass the consultant's error text on).
-OUTAGE_ERRORS = ("not configured by the WM Manager", "not answering", "no reply within", "restarted")
+OUTAGE_ERRORS = ("not configured by the WM Manager", "is not running", "stopped (its liveliness lapsed)",
+                 "no reply within")
 CONSULTANT = "consultant_faces"
 
 

@@ -38,6 +38,48 @@ def test_sessions_expire_when_unused_and_the_least_recently_used_is_dropped():
     assert table.get(c, now=7.5) == "c"
 
 
+def test_a_client_over_its_quota_loses_its_own_oldest_session_never_anothers():
+    table: SessionTable[str] = SessionTable(capacity=100, timeout=60.0, per_client=3)
+    rr = table.open("rr-1", now=0.0, client="rr")
+    hog = [table.open(f"hog-{i}", now=float(i), client="hog") for i in range(10)]
+    assert table.held("hog") == 3 and table.held("rr") == 1
+    assert table.get(rr, now=20.0) == "rr-1"  # untouched by the hog's opens
+    assert [table.get(s, now=20.0) for s in hog[-3:]] == ["hog-7", "hog-8", "hog-9"]
+    with pytest.raises(SessionError, match="at most 3 per client"):
+        table.get(hog[6], now=20.0)
+    assert table.dropped == 7
+
+
+def test_a_full_table_drops_from_the_client_holding_the_most():
+    table: SessionTable[str] = SessionTable(capacity=4, timeout=60.0, per_client=3)
+    a1 = table.open("a1", 0.0, client="a")
+    b = [table.open(f"b{i}", 1.0 + i, client="b") for i in range(3)]
+    table.get(b[0], now=5.0)  # b0 is now b's most recently used
+    c1 = table.open("c1", 6.0, client="c")  # full: b holds the most, its LRU (b1) goes
+    assert len(table) == 4 and table.held("b") == 2
+    with pytest.raises(SessionError):
+        table.get(b[1], now=6.0)
+    assert table.get(a1, now=6.0) == "a1" and table.get(c1, now=6.0) == "c1"
+    a2 = table.open("a2", 7.0, client="a")  # b still holds the most (2): its LRU (b2) goes
+    with pytest.raises(SessionError):
+        table.get(b[2], now=7.0)
+    # the opener is (one of) the largest holders: its own LRU goes
+    a3 = table.open("a3", 8.0, client="a")
+    with pytest.raises(SessionError):
+        table.get(a1, now=8.0)
+    assert [table.get(s, now=8.0) for s in (a2, a3, b[0], c1)] == ["a2", "a3", "b0", "c1"]
+
+
+def test_closed_and_expired_sessions_free_their_clients_quota():
+    table: SessionTable[str] = SessionTable(capacity=10, timeout=5.0, per_client=2)
+    first = table.open("x", 0.0, client="rr")
+    table.open("y", 0.0, client="rr")
+    table.close(first, 1.0)
+    assert table.held("rr") == 1
+    table.expire(10.0)
+    assert table.held("rr") == 0 and len(table) == 0 and table.dropped == 0
+
+
 def test_a_restarted_table_never_reuses_ids():
     assert SessionTable().open("x", 0.0) != SessionTable().open("x", 0.0)
 

@@ -1,29 +1,69 @@
-"""Schemas of a consultant's protocol: its announcement, its query ops and the WM Manager's manage ops."""
+"""Schemas of a consultant's protocol: its announcements, query ops, debug ops and the WM Manager's manage ops.
+
+Three services per domain (``<domain>`` filled in):
+
+* ``consultant/<domain>`` -- RR's and REG's: ``info``, ``open``, ``narrow``, ``rule_out``,
+  ``close`` (:data:`CONSULTANT_OPS`);
+* ``consultant/<domain>/manage`` -- the WM Manager's: ``configure``, ``decay``,
+  ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
+* ``consultant/<domain>/debug`` -- tests' and tools': ``holds``, ``affirm``, ``wm``,
+  ``encode``, ``snapshot`` (:data:`DEBUG_OPS`); served only when the consultant's
+  read-only parameter ``debug`` is true.
+
+Every request is one of the models below, chosen by its ``op``; a reply is the op's
+reply model.  Semantics: docs/semantics.md sections 2-4 (encoding rules 1-3, RR, REG),
+:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).
+"""
 
 from __future__ import annotations
 
-from typing import Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union
+
+from pydantic import Field
 
 from .base import Message, Number, Stamp
+from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
+
+#: Causes a request may give an encoding (docs/semantics.md section 2).
+Cause = Literal["speaker", "rr", "reg-distractor"]
+
+
+class StoredState(Message):
+    """What a consultant reports of its stored state (``info``, announcements, ``configure``).
+
+    ``wm``: ``restored`` (WM taken up from the database), ``dropped`` (it belonged to
+    another clock or run: see ``note``), ``empty`` or ``not-persisted``; ``persisted``
+    false while writes to the database fail (``error`` says why): the consultant
+    serves on and retries.
+    """
+
+    wm: str
+    persisted: bool
+    note: Optional[str] = None
+    error: Optional[str] = None
 
 
 class ConsultantAnnounce(Message):
-    """``consultant/announce`` (latched): a consultant's incarnation and what it runs.
+    """``consultant/announce`` and ``consultant/<domain>/alive`` (latched): an incarnation and what it runs.
 
     Published at start (``ready`` false: it answers query ops with kind ``not-ready``
     until the WM Manager configures it) and after each configure (``ready`` true).
     ``incarnation`` grows by one at every start (it is kept in the state database).
+    On ``consultant/<domain>/alive`` the writer's DDS liveliness (automatic, lease
+    1 s) says whether the process lives.
     """
 
     domain: str
     incarnation: int
     ready: bool
     memory: Optional[dict[str, Any]] = None
+    state: Optional[StoredState] = None
 
 
+# ------------------------------------------------------------------ query ops
 class InfoRequest(Message):
-    """``consultant/<domain>`` op ``info``: the domain's entities, preference order and memory.
+    """Op ``info``: the domain's entities, preference order, memory, events and stored state.
 
     ``entities_from`` (default 0) skips the first entities: entities are only ever
     appended, so a caller that knows the first k asks for the rest only.
@@ -33,28 +73,11 @@ class InfoRequest(Message):
     entities_from: Optional[int] = None
 
 
-class HoldsRequest(Message):
-    """Op ``holds``: for which of ``entities`` does ``property`` hold (nothing is encoded)."""
-
-    op: Literal["holds"]
-    property: str
-    entities: list[str]
-
-
-class AffirmRequest(Stamp):
-    """Op ``affirm``: as ``holds``, and encode ``property`` for each entity it holds for."""
-
-    op: Literal["affirm"]
-    property: str
-    entities: list[str]
-    cause: str
-
-
 class StepRequest(Stamp):
     """One narrowing step: keep the members ``property`` holds for, encoding it (``cause``; null: no encoding)."""
 
     property: str
-    cause: Optional[str]
+    cause: Optional[Cause]
 
 
 class OpenRequest(Message):
@@ -62,12 +85,15 @@ class OpenRequest(Message):
 
     No ``target``: every entity; else every entity but ``target``, or the ``context``
     set's.  ``first``: narrow it by that step at once (RR's first property).
+    ``client`` names the caller: each client holds at most ``max_sessions_per_client``
+    sessions (opening one more drops its own least recently used, never another's).
     """
 
     op: Literal["open"]
     target: Optional[str] = None
     context: Optional[list[str]] = None
     first: Optional[StepRequest] = None
+    client: Optional[str] = None
 
 
 class NarrowRequest(Stamp):
@@ -79,7 +105,7 @@ class NarrowRequest(Stamp):
     op: Literal["narrow"]
     session: str
     property: str
-    cause: Optional[str]
+    cause: Optional[Cause]
 
 
 class RuleOutRequest(Message):
@@ -101,28 +127,6 @@ class CloseRequest(Stamp):
     encode: Optional[list[str]] = None
 
 
-class WMRequest(Message):
-    """Op ``wm``: one entity's WM queue, LRU first (reading never refreshes)."""
-
-    op: Literal["wm"]
-    entity: str
-
-
-class EncodeRequest(Stamp):
-    """Op ``encode``: encode ``properties`` for ``entity`` in WM."""
-
-    op: Literal["encode"]
-    entity: str
-    properties: list[str]
-    cause: str
-
-
-class SnapshotRequest(Message):
-    """Op ``snapshot``: every non-empty WM queue of the domain."""
-
-    op: Literal["snapshot"]
-
-
 class Versioned(Message):
     """A reply that says which LTM it was answered from: ``"<incarnation>:<changes>"``.
 
@@ -134,7 +138,13 @@ class Versioned(Message):
 
 
 class InfoReply(Versioned):
-    """Reply to ``info``: ``entities`` from ``entities_from`` on; ``entity_count`` in all."""
+    """Reply to ``info``.
+
+    ``entities`` from ``entities_from`` on; ``entity_count`` in all; ``events`` the
+    ``seq`` of the last ``wm/events`` message published in this incarnation;
+    ``event_listeners`` how many subscriptions the ``wm/events`` publisher is matched
+    with now (events are published only while there is one); ``state`` the stored state.
+    """
 
     domain: str
     entities: list[str]
@@ -144,12 +154,8 @@ class InfoReply(Versioned):
     policy: str
     memory: dict[str, Any]
     events: int
-
-
-class HoldsReply(Message):
-    """Reply to ``holds`` and ``affirm``: the entities the property holds for."""
-
-    holds: list[str]
+    event_listeners: int
+    state: StoredState
 
 
 class Narrowing(Message):
@@ -162,19 +168,20 @@ class Narrowing(Message):
 class OpenReply(Versioned):
     """Reply to ``open``: the session id, its size, Q[target] and what holds for the target.
 
-    ``queue`` is LRU first ([] without a target); ``retains`` whether the domain's WM
-    retains anything (policy not ``none``); ``holding`` the properties holding for the
-    target (preference order; null without a target); ``origins`` what made each
-    property of ``queue`` enter it (parallel to ``queue``).
+    ``queue`` is LRU first ([] without a target); ``origins`` parallel to it, the
+    ``cause`` and ``turn`` of the encoding that made each property enter Q[target];
+    ``retains`` whether the domain's WM retains anything (policy not ``none``);
+    ``holding`` the properties holding for the target (preference order; null without
+    a target).
     """
 
     session: str
     size: int
     queue: list[str]
+    origins: list[Origin] = []
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None
-    origins: list[Origin] = []
 
 
 class NarrowReply(Narrowing, Versioned):
@@ -197,6 +204,52 @@ class CloseReply(Versioned):
     members: list[str]
 
 
+# ------------------------------------------------------------------ debug ops
+class HoldsRequest(Message):
+    """Debug op ``holds``: for which of ``entities`` does ``property`` hold (nothing is encoded)."""
+
+    op: Literal["holds"]
+    property: str
+    entities: list[str]
+
+
+class AffirmRequest(Stamp):
+    """Debug op ``affirm``: as ``holds``, and encode ``property`` for each entity it holds for."""
+
+    op: Literal["affirm"]
+    property: str
+    entities: list[str]
+    cause: Cause
+
+
+class WMRequest(Message):
+    """Debug op ``wm``: one entity's WM queue, LRU first (reading never refreshes)."""
+
+    op: Literal["wm"]
+    entity: str
+
+
+class EncodeRequest(Stamp):
+    """Debug op ``encode``: encode ``properties`` for ``entity`` in WM (Algorithm 1)."""
+
+    op: Literal["encode"]
+    entity: str
+    properties: list[str]
+    cause: Cause
+
+
+class SnapshotRequest(Message):
+    """Debug op ``snapshot``: every non-empty WM queue of the domain."""
+
+    op: Literal["snapshot"]
+
+
+class HoldsReply(Message):
+    """Reply to ``holds`` and ``affirm``: the entities the property holds for."""
+
+    holds: list[str]
+
+
 class QueueReply(Message):
     """Reply to ``wm``."""
 
@@ -208,32 +261,106 @@ class EncodeReply(Message):
 
 
 class SnapshotReply(Message):
-    """Reply to ``snapshot``: non-empty queues, LRU first, and the events published so far."""
+    """Reply to ``snapshot``: non-empty queues, LRU first, and the ``seq`` of the last event published."""
 
     queues: dict[str, list[str]]
     events: int
 
 
-#: The consultant's query ops: op -> (request schema, reply schema).
+# ------------------------------------------------------------------ manage ops
+class TickRun(Message):
+    """Decay ticks at ``origin + k * period`` for k = ``first`` .. ``first + count - 1`` (Algorithm 2)."""
+
+    origin: Number
+    period: Number
+    first: int
+    count: int
+
+
+class ConfigureRequest(Stamp):
+    """Manage op ``configure``: install ``policy`` (its limits trim every queue at once) and serve."""
+
+    op: Literal["configure"]
+    policy: PolicySettings
+
+
+class DecayRequest(Message):
+    """Manage op ``decay``: apply ``ticks`` now; ticks at or before the last one applied are skipped."""
+
+    op: Literal["decay"]
+    ticks: TickRun
+
+
+class EvictRequest(Stamp):
+    """Manage op ``evict``: forget the domain's ``count`` least recently encoded fronts (cause ``shared-capacity``)."""
+
+    op: Literal["evict"]
+    count: int
+
+
+class SizeRequest(Message):
+    """Manage op ``size``: how many properties WM holds."""
+
+    op: Literal["size"]
+
+
+class ConfigureReply(Message):
+    """Reply to ``configure``: the policy now running, queues it changed, the incarnation, the stored state."""
+
+    memory: dict[str, Any]
+    queues_changed: int
+    incarnation: int
+    state: StoredState
+
+
+class DecayReply(Message):
+    """Reply to ``decay``: queues changed and the installed policy's name."""
+
+    queues_changed: int
+    policy: str
+
+
+class EvictReply(Message):
+    """Reply to ``evict``: queues changed and the size WM is left with."""
+
+    queues_changed: int
+    size: int
+
+
+class SizeReply(Message):
+    """Reply to ``size``."""
+
+    size: int
+
+
+# ------------------------------------------------------------------ by op
+#: Each service's ops: op -> (request schema, reply schema).
 CONSULTANT_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "info": (InfoRequest, InfoReply),
     "open": (OpenRequest, OpenReply),
     "narrow": (NarrowRequest, NarrowReply),
     "rule_out": (RuleOutRequest, RuleOutReply),
     "close": (CloseRequest, CloseReply),
+}
+DEBUG_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "holds": (HoldsRequest, HoldsReply),
     "affirm": (AffirmRequest, HoldsReply),
     "wm": (WMRequest, QueueReply),
     "encode": (EncodeRequest, EncodeReply),
     "snapshot": (SnapshotRequest, SnapshotReply),
 }
-ConsultantRequest = Union[InfoRequest, OpenRequest, NarrowRequest, RuleOutRequest, CloseRequest, HoldsRequest,
-                          AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest]
-ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, RuleOutReply, CloseReply, HoldsReply, QueueReply,
-                        SnapshotReply, EncodeReply]
+MANAGE_OPS: dict[str, tuple[type[Message], type[Message]]] = {
+    "configure": (ConfigureRequest, ConfigureReply),
+    "decay": (DecayRequest, DecayReply),
+    "evict": (EvictRequest, EvictReply),
+    "size": (SizeRequest, SizeReply),
+}
 
-
-class ManageRequest(Stamp):
-    """``consultant/<domain>/manage`` (the WM Manager's): ``configure``, ``decay``, ``evict`` or ``size``."""
-
-    op: str
+ConsultantRequest = Annotated[Union[InfoRequest, OpenRequest, NarrowRequest, RuleOutRequest, CloseRequest],
+                              Field(discriminator="op")]
+ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, RuleOutReply, CloseReply]
+DebugRequest = Annotated[Union[HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest],
+                         Field(discriminator="op")]
+DebugReply = Union[HoldsReply, QueueReply, EncodeReply, SnapshotReply]
+ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, EvictRequest, SizeRequest], Field(discriminator="op")]
+ManageReply = Union[ConfigureReply, DecayReply, EvictReply, SizeReply]

@@ -7,15 +7,23 @@ absolute name (see :mod:`fsreg_ros.contract.naming`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Optional, Union
 
-from .base import ErrorReply, Message
-from .consultant import ConsultantAnnounce, ConsultantReply, ConsultantRequest, ManageRequest
+from .base import ErrorReply
+from .consultant import (
+    ConsultantAnnounce,
+    ConsultantReply,
+    ConsultantRequest,
+    DebugReply,
+    DebugRequest,
+    ManageReply,
+    ManageRequest,
+)
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
-from .qos import DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import WMEventMessage, WMState
 
 
@@ -56,6 +64,7 @@ WM_STATE = Topic("wm/state", WMState, STATE_PUB_QOS, "consultants", "anyone", re
 WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialogue_player (trace)")
 ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants", "wm_manager",
                  reader_qos=STATE_QOS)
+ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant", "reference_resolution, reg")
 READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "clients (fsreg-up, fsreg-ctl, "
               "fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
@@ -64,13 +73,14 @@ LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply
 
 CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant",
                      "reference_resolution, reg")
-MANAGE = Service("consultant/<domain>/manage", ManageRequest, Message, "consultant", "wm_manager only")
+MANAGE = Service("consultant/<domain>/manage", ManageRequest, ManageReply, "consultant", "wm_manager only")
+DEBUG = Service("consultant/<domain>/debug", DebugRequest, DebugReply, "consultant (parameter debug)", "tests, tools")
 SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogue_player")
 STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")
 
 TOPICS: tuple[Topic, ...] = (HUMAN, SEMANTICS, RR_RESULT, REG_REQUEST, REG_EXPRESSION, WM_STATE, WM_EVENTS,
-                             ANNOUNCE, READY, LTM_ASSERT, LTM_ASSERT_RESULT)
-SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, SYNC, STATUS)
+                             ANNOUNCE, ALIVE, READY, LTM_ASSERT, LTM_ASSERT_RESULT)
+SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, DEBUG, SYNC, STATUS)
 
 #: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.
 CLOCK = "/clock"
@@ -84,3 +94,13 @@ def consultant_service(domain: str) -> str:
 def manage_service(domain: str) -> str:
     """Return the (relative) WM Manager service of a domain's consultant."""
     return MANAGE.name.replace("<domain>", domain)
+
+
+def debug_service(domain: str) -> str:
+    """Return the (relative) debug service of a domain's consultant (served only with ``debug`` true)."""
+    return DEBUG.name.replace("<domain>", domain)
+
+
+def alive_topic(domain: str) -> Topic:
+    """Return the latched, liveliness-leased announcement topic of one domain's consultant."""
+    return replace(ALIVE, name=ALIVE.name.replace("<domain>", domain))

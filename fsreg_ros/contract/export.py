@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any, get_args, get_origin
 
 from pydantic import TypeAdapter
 
@@ -29,6 +29,8 @@ def json_schemas() -> dict[str, dict]:
 
 def fields_of(schema: Any) -> list[str]:
     """Return the field names a schema (model or union of models) names, in order, without duplicates."""
+    if get_origin(schema) is Annotated:  # e.g. a discriminated union
+        schema = get_args(schema)[0]
     models = getattr(schema, "__args__", None) or (schema,)
     names: list[str] = []
     for model in models:

@@ -8,6 +8,7 @@ tool that only needs names and schemas imports no ROS package.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 
 @dataclass(frozen=True)
@@ -16,10 +17,13 @@ class QosSpec:
 
     depth: int
     latched: bool = False
+    #: Seconds of DDS liveliness lease (automatic liveliness): readers learn within it that the writer died.
+    lease: Optional[float] = None
 
     def describe(self) -> str:
         """Return the profile in words, as the docs' message table shows it."""
-        return f"{'latched' if self.latched else 'volatile'}, depth {self.depth}"
+        lease = f", liveliness lease {self.lease:g} s" if self.lease is not None else ""
+        return f"{'latched' if self.latched else 'volatile'}, depth {self.depth}{lease}"
 
 
 #: ``wm/state`` readers: latched, reliable, depth 10 so a late joiner gets the state of
@@ -33,3 +37,9 @@ EVENTS_QOS = QosSpec(1000)
 PIPELINE_QOS = QosSpec(100)
 #: Everything else: reliable, volatile, depth 10 (the rclpy default).
 DEFAULT_QOS = QosSpec(10)
+#: ``consultant/<domain>/alive``: latched, and the writer's liveliness lapses within 1 s of its process dying.
+ALIVE_QOS = QosSpec(1, latched=True, lease=1.0)
+#: Every service (requests and replies): depth 1000.  With rclpy's default (depth 10) a
+#: server more than 10 requests behind silently dropped the oldest (measured: 10 of 100
+#: concurrent calls answered; 100 of 100 with depth 1000).
+SERVICE_QOS = QosSpec(1000)

@@ -24,7 +24,13 @@ class WMState(Message):
 
 
 class WMEventMessage(Message):
-    """``wm/events``: one encode or forget event (docs/semantics.md section 2)."""
+    """``wm/events``: one encode or forget event (docs/semantics.md section 2).
+
+    ``seq`` numbers a consultant's event messages 1, 2, 3, ... per ``incarnation``,
+    consecutively: a listener that sees a gap missed events (a consultant publishes
+    only while its publisher is matched with a subscription: ``info``'s
+    ``event_listeners``).
+    """
 
     op: str
     domain: str
@@ -33,3 +39,5 @@ class WMEventMessage(Message):
     cause: str
     time: Number
     turn: Optional[int] = None
+    seq: int
+    incarnation: int

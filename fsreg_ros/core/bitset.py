@@ -25,10 +25,15 @@ def from_indices(indices: Iterable[int], size: int) -> int:
 
 def indices(bits: int) -> list[int]:
     """Return the indices of the set bits of ``bits``, ascending."""
+    return index_array(bits).tolist()
+
+
+def index_array(bits: int) -> np.ndarray:
+    """Return the indices of the set bits of ``bits``, ascending, as a numpy array (no Python ints)."""
     if not bits:
-        return []
+        return np.zeros(0, dtype=np.intp)
     data = np.frombuffer(bits.to_bytes((bits.bit_length() + 7) // 8, "little"), dtype=np.uint8)
-    return np.flatnonzero(np.unpackbits(data, bitorder="little")).tolist()
+    return np.flatnonzero(np.unpackbits(data, bitorder="little"))
 
 
 def names(bits: int, entities: Sequence[str]) -> list[str]:

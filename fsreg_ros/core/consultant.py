@@ -74,10 +74,9 @@ class Consultant:
 
         ``attributes`` maps a property to its attribute (for similarity interference);
         a property named ``attribute=value`` needs no entry.  ``retract_on_update``
-        False keeps WM uninformed of LTM changes: a property that stops holding stays
-        in WM until forgotten (the follow-up study's configuration, docs/research.md).
+        False leaves WM alone when an LTM change makes a property stop holding (WM
+        is not told of LTM changes; only forgetting clears such a property).
         """
-        self.retract_on_update = retract_on_update
         self.domain = domain
         self.preference: list[str] = list(preference)
         self._known = set(self.preference)
@@ -95,6 +94,7 @@ class Consultant:
         self._holders: dict[str, int] = {}
         self._rebuild_holders()
         self.version = 0
+        self.retract_on_update = retract_on_update
         self.wm = WMBuffer(domain, sink, attributes)
 
     # ----------------------------------------------------------------- LTM
@@ -198,7 +198,7 @@ class Consultant:
             return False
         kept = candidates.members & holders
         if cause is not None and kept and self.wm.retains:
-            self.wm.encode_each(bitset.names(kept, self.entities), prop, cause, time, turn)
+            self.wm.encode_members(kept, self.entities, prop, cause, time, turn)
         candidates.members = kept
         return True
 
@@ -228,8 +228,8 @@ class Consultant:
         """Change the domain's threshold.
 
         A property that stops holding for an entity is forgotten from its WM (cause
-        ``retract``), as with :meth:`assert_facts`; returns those (entity, property) pairs
-        (none with ``retract_on_update`` False).
+        ``retract``), as with :meth:`assert_facts`, unless ``retract_on_update`` is
+        False; returns those (entity, property) pairs.
         """
         self.threshold = check_certainty("threshold", threshold)
         self._rebuild_holders()
@@ -244,12 +244,12 @@ class Consultant:
                     retracted.append((entity, prop))
         return retracted
 
-    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
-        """Add or update LTM facts for one entity (perception, a user); atomic.
+    def preview_assert(self, entity: str, facts: Mapping[str, Any]) -> tuple[bool, list[str]]:
+        """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
-        A new entity joins the domain (last in entity order).  Certainty 0 retracts
-        a fact; a property that stops holding is also forgotten from Q[entity]
-        (cause ``retract``) unless ``retract_on_update`` is False.  Everything is validated before anything changes.
+        Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
+        properties are in preference order; they are forgotten from WM only when
+        ``retract_on_update`` is True.
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
@@ -257,7 +257,25 @@ class Consultant:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
         new = entity not in self._certainty
-        old_holding = set() if new else set(self.properties_of(entity))
+        if new:
+            return new, []
+        current = self._certainty[entity]
+        after = {**current, **{p: float(c) for p, c in facts.items()}}
+        threshold = self.threshold
+        return False, [p for p in self.preference
+                       if current.get(p, 0.0) >= threshold and after.get(p, 0.0) < threshold]
+
+    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
+        """Add or update LTM facts for one entity (perception, a user); atomic.
+
+        A new entity joins the domain (last in entity order).  Certainty 0 retracts
+        a fact; a property that stops holding is also forgotten from Q[entity]
+        (cause ``retract``) unless ``retract_on_update`` is False (the follow-up study's
+        configuration: WM not told of LTM changes); ``retracted`` lists those
+        properties either way.  Everything is validated (:meth:`preview_assert`)
+        before anything changes.
+        """
+        new, retracted = self.preview_assert(entity, facts)
         if new:
             self._index[entity] = len(self.entities)
             self.entities.append(entity)
@@ -274,8 +292,6 @@ class Consultant:
             else:
                 self._holders[prop] &= ~bit
         self.version += 1
-        now_holding = set(self.properties_of(entity))
-        retracted = [p for p in self.preference if p in old_holding and p not in now_holding]
         for prop in retracted if self.retract_on_update else ():
             self.wm.remove(entity, prop, "retract", time)
         return AssertResult(entity, new, {p: float(c) for p, c in facts.items()}, retracted)
@@ -331,7 +347,11 @@ class CandidateSet:
 
 def check_certainty(what: str, value: Any) -> float:
     """Validate a certainty or threshold: a number in [0, 1]."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise KnowledgeError(f"{what} must be a number in [0, 1], got {value!r}")
+    if isinstance(value, int) and not -1 <= value <= 2:  # checked before float(): 10**400 has no float
+        raise KnowledgeError(f"{what} must be in [0, 1], got an integer of {value.bit_length()} bits")
+    if not math.isfinite(value):
         raise KnowledgeError(f"{what} must be a number in [0, 1], got {value!r}")
     if not 0.0 <= value <= 1.0:
         raise KnowledgeError(f"{what} must be in [0, 1], got {value!r}")
@@ -421,21 +441,21 @@ class ConsultantPort(Protocol):
         is the view's target, or, without one, its only member.
         """
 
-    async def wm(self, entity: str) -> list[str]:
-        """Q[entity], LRU first."""
-
-    async def encode(
-        self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
-    ) -> None:
-        """Encode(entity, properties) (Algorithm 1)."""
-
 
 class LocalPort:
-    """A :class:`ConsultantPort` over an in-process :class:`Consultant`."""
+    """A :class:`ConsultantPort` over an in-process :class:`Consultant`.
+
+    It is backed by a :class:`~fsreg_ros.core.service.ConsultantService` (ready at once,
+    no store), the same code the consultant node serves with: the simulator and the
+    graph share it.
+    """
 
     def __init__(self, consultant: Consultant) -> None:
+        from .service import ConsultantService  # the service module builds on this one
+
         self.consultant = consultant
         self.domain = consultant.domain
+        self.service = ConsultantService(consultant, ready=True)
 
     async def preference(self) -> list[str]:
         return list(self.consultant.preference)
@@ -443,27 +463,28 @@ class LocalPort:
     async def open(
         self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
     ) -> View:
-        return open_view(self.consultant, target, context, first)
+        return self.service.open(target, context, first)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
-        holds = self.consultant.narrow(view.handle, prop, cause, time, turn)
-        return Narrowed(holds, view.handle.size)
+        return self.service.narrow(view.handle, prop, cause, time, turn)
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
-        return self.consultant.rule_out(view.handle)
+        return self.service.rule_out(view.handle)
 
     async def close(
         self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        return close_view(self.consultant, view.handle, encode, time, turn)
+        return self.service.close(view.handle, encode, time, turn)
 
     async def wm(self, entity: str) -> list[str]:
+        """Q[entity], LRU first (in-process only: the graph serves it on the debug service)."""
         return self.consultant.queue(entity)
 
     async def encode(
         self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]
     ) -> None:
-        self.consultant.encode(entity, properties, cause, time, turn)
+        """Encode(entity, properties) (Algorithm 1; in-process only)."""
+        self.service.encode(entity, properties, cause, time, turn)
 
 
 def open_view(

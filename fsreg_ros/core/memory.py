@@ -30,6 +30,11 @@ Two records are kept beside the queues, whatever event sink is attached (or none
 * **origins**: every queue entry knows the cause and turn of the encoding that made
   its property *enter* the queue (a refresh while present keeps it; after it is
   forgotten, the next encoding sets a new one): :meth:`WMBuffer.origins`.
+
+In a large domain, rule 2 and 3 encodings (:meth:`WMBuffer.encode_members`) keep the
+queues they touch as numpy columns (:mod:`fsreg_ros.core.columns`) while no event
+sink listens and the limits are at most an LRU capacity: one vectorised operation per
+encoding call instead of Python work per entity, with exactly the same results.
 """
 
 from __future__ import annotations
@@ -41,6 +46,10 @@ from bisect import bisect_right
 from itertools import islice
 from typing import Callable, Iterable, Mapping, NamedTuple, Optional, Sequence, Union
 
+import numpy as np
+
+from . import bitset
+from .columns import QueueColumns
 from .decay import TickLedger, TickRun
 
 #: Causes an event can have (docs/semantics.md section 2).
@@ -50,6 +59,18 @@ FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shar
 VICTIMS = ("lru", "lfu", "random")
 #: The origin log is pruned when it reaches twice its size after the last pruning, or this.
 _ORIGIN_LOG_MIN = 1024
+#: :meth:`WMBuffer.encode_members` keeps the queues of a domain of at least this many
+#: entities as columns (:mod:`fsreg_ros.core.columns`); smaller domains go queue by
+#: queue.  A column operation costs tens of microseconds however few its members, and
+#: a queue moved between the two forms costs more than an encoding, so the choice is
+#: made per domain, not per call (bench_core, scripts/bench_encode.py).
+COLUMN_MIN = 4096
+#: Column queues are used up to this displacement capacity (their width), and while
+#: width x entities stays within this many slots (20 bytes each, held for every entity).
+COLUMN_MAX_WIDTH = 64
+COLUMN_MAX_SLOTS = 2**22
+#: The change record is compacted when it holds this many column-operation marks.
+_CHANGE_MARKS_MAX = 4096
 
 
 class WMEvent(NamedTuple):
@@ -150,19 +171,23 @@ class _Queue(dict):
     An entry is its stamp (an ``int``) while the property has not been encoded again
     since it entered the queue: its origin is then the encoding with that very stamp,
     found in the buffer's origin log (:meth:`WMBuffer._origin_at`).  A refreshed entry
-    is the pair ``(stamp, origin)``.  So the common encoding, a property entering a
-    queue, stores one int and builds no per-entry object (measured: a pair per entry
-    made rule-3 encodings into 10,000 queues half again as slow).
+    is the pair ``(stamp, reference)``, the reference being the stamp its property
+    entered with, or, for an entry restored from a store, its origin itself.  So the
+    common encoding, a property entering a queue, stores one int and builds no
+    per-entry object (measured: a pair per entry made rule-3 encodings into 10,000
+    queues half again as slow).
 
     ``synced`` is the number of decay ticks this queue has been brought up to (lazy
     decay).  Keeping it in the queue object itself, rather than in a second
     entity-keyed table, halves the memory touched per encoding, which dominates
     when thousands of distractors are encoded at once (rule 3).  A plain dict
     subclass, not an OrderedDict, for the same reason.  ``hits`` counts encodings per
-    property for LFU displacement (only kept while LFU is in force).
+    property for LFU displacement (only kept while LFU is in force).  ``marked``: the
+    queue is in the buffer's change record already (so recording a change is one
+    attribute test on an object just touched, not a store into a table).
     """
 
-    __slots__ = ("synced", "hits")
+    __slots__ = ("synced", "hits", "marked")
 
 
 class WMBuffer:
@@ -179,7 +204,14 @@ class WMBuffer:
     The origin log maps stamps to origins: ``_origin_starts[i]`` is the first stamp
     of a run of encodings that all had origin ``_origin_runs[i]`` (consecutive calls
     with the same cause and turn share one run).  It only has to answer for entries
-    still stored as a bare stamp, so it is pruned to those from time to time.
+    that refer to an entering stamp, so it is pruned to those from time to time.
+
+    Each queue lives in exactly one place: a :class:`_Queue` in ``_queues``, or a row
+    of the column store (:class:`~fsreg_ros.core.columns.QueueColumns`, entities in
+    ``_in_columns``), where :meth:`encode_members` puts the members of rule 2 and 3
+    encodings in a large domain while no event sink listens and the limits are at
+    most an LRU capacity.  Anything else that touches a column queue first moves it back to a
+    dict (:meth:`_to_dict`), so every other code path only ever sees dicts.
     """
 
     def __init__(
@@ -199,13 +231,27 @@ class WMBuffer:
         self.ticks = TickLedger()
         # Queues that may hold something (insertion-ordered set).
         self._nonempty: dict[str, None] = {}
-        # Entities whose queue changed since take_changes (insertion-ordered set), and
-        # the tick count every queue has been brought up to (flush, decay_now, restore).
-        self._changed: dict[str, None] = {}
+        # Entities whose queue changed since take_changes, in first-change order (an int
+        # is a column operation's mark, see _expand_changes; a name may recur), and the
+        # tick count every queue has been brought up to (flush, decay_now, restore).
+        self._changed: list[Union[str, int]] = []
         self._settled = 0
         self._origin_starts: list[int] = []
         self._origin_runs: list[Origin] = []
         self._origin_prune_at = _ORIGIN_LOG_MIN
+        # The column store (None until encode_members uses it), the entity list its rows
+        # are numbered by, property ids, origins restored from a store (column
+        # references -(i + 1)), and the number of column marks in _changed.
+        self.column_min = COLUMN_MIN
+        self._columns: Optional[QueueColumns] = None
+        self._bound: Optional[list[str]] = None
+        self._row: dict[str, int] = {}
+        self._in_columns: set[str] = set()
+        self._prop_id: dict[str, int] = {}
+        self._prop_name: list[str] = []
+        self._explicit: list[Origin] = []
+        self._explicit_id: dict[Origin, int] = {}
+        self._marks = 0
 
     # ------------------------------------------------------------------ reads
     @property
@@ -215,8 +261,7 @@ class WMBuffer:
 
     def queue(self, entity: str) -> tuple[str, ...]:
         """Q[entity], LRU first.  Does not refresh recency."""
-        self._catch_up(entity)
-        q = self._queues.get(entity)
+        q = self._readable(entity)
         return tuple(q) if q else ()
 
     def origins(self, entity: str) -> list[Origin]:
@@ -225,14 +270,12 @@ class WMBuffer:
         An entry's origin is the encoding that made its property enter the queue
         (Algorithm 1's push of a property not in Q); a refresh while present keeps it.
         """
-        self._catch_up(entity)
-        q = self._queues.get(entity)
+        q = self._readable(entity)
         return [self._origin_of(value) for value in q.values()] if q else []
 
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""
-        self._catch_up(entity)
-        q = self._queues.get(entity)
+        q = self._readable(entity)
         return len(q) if q else 0
 
     def __len__(self) -> int:
@@ -243,10 +286,17 @@ class WMBuffer:
     def snapshot(self) -> dict[str, list[str]]:
         """Every non-empty queue, LRU first, keyed by entity (insertion order)."""
         self.flush()
-        return {e: list(self._queues[e]) for e in self._nonempty}
+        if not self._in_columns:
+            return {e: list(self._queues[e]) for e in self._nonempty}
+        return {
+            e: list(self._row_dict(self._row[e])) if e in self._in_columns else list(self._queues[e])
+            for e in self._nonempty
+        }
 
     def front_stamp(self, entity: str) -> int:
         """Stamp of Q[entity]'s front (call only on a caught-up, non-empty queue)."""
+        if entity in self._in_columns:
+            self._to_dict(entity)
         value = next(iter(self._queues[entity].values()))
         return value if value.__class__ is int else value[0]
 
@@ -274,9 +324,46 @@ class WMBuffer:
         """
         if self.ticks.count != self._settled:
             self.flush()
-        changed = list(self._changed)
-        self._changed = {}
+        changed = self._expand_changes()
+        queues = self._queues
+        for entity in changed:  # out of the record: the next change records it again
+            q = queues.get(entity)
+            if q is not None:
+                q.marked = False
+        self._changed, self._marks = [], 0
         return changed
+
+    def _expand_changes(self) -> list[str]:
+        """Return the change record as distinct entity names, in order, and clear its column part.
+
+        ``_changed`` holds entity names (a queue moved to the columns and back may be
+        named twice), and for each column operation an int mark standing for the rows
+        it changed first (in row order, which is entity order).
+        """
+        if self._marks:
+            rows, marks = self._columns.take_changed()
+            bound = self._bound
+        out: dict[str, None] = {}
+        for key in self._changed:
+            if key.__class__ is int:
+                end = int(np.searchsorted(marks, key, side="right"))
+                start = int(np.searchsorted(marks, key, side="left"))
+                out.update(dict.fromkeys([bound[r] for r in rows[start:end].tolist()]))
+            elif key not in out:
+                out[key] = None
+        return list(out)
+
+    def _compact_changes(self) -> None:
+        """Replace the change record's column marks by the names they stand for."""
+        if self._marks:
+            self._changed = self._expand_changes()
+            self._marks = 0
+
+    def _record(self, entity: str, q: _Queue) -> None:
+        """Note that Q[entity] (a dict queue) changed."""
+        if not q.marked:
+            q.marked = True
+            self._changed.append(entity)
 
     # ---------------------------------------------------------------- limits
     def set_limits(self, limits: Limits, time: float) -> None:
@@ -284,10 +371,12 @@ class WMBuffer:
 
         Not retaining forgets everything (cause ``reset``); a capacity trims every
         queue; a global limit trims the domain.  Similarity applies from the next
-        encoding on.  Queues are trimmed in the order they were created.
+        encoding on.  Queues are trimmed one after the other, in no specified order
+        (what each loses depends on itself only; the global victims on stamps only).
         """
         if limits.victim not in VICTIMS:
             raise ValueError(f"unknown displacement victim {limits.victim!r} (known: {', '.join(VICTIMS)})")
+        self._drop_columns()
         self.limits = limits
         self._rng = random.Random(limits.seed)
         self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
@@ -295,7 +384,7 @@ class WMBuffer:
             hits = q.hits
             if hits is not None:  # the LFU counts restart: an exported count may change
                 if any(hits.get(prop, 1) != 1 for prop in q):
-                    self._changed[entity] = None
+                    self._record(entity, q)
                 q.hits = None
         if not limits.retains:
             for entity in self.nonempty_entities():
@@ -304,13 +393,14 @@ class WMBuffer:
             return
         if limits.capacity is not None:
             self.flush()
-            for entity, q in self._queues.items():  # in the order the queues were created
+            for entity, q in self._queues.items():
                 self._displace(entity, q, limits.capacity, "", time, None)
         if limits.global_capacity is not None:
             self._evict_global(limits.global_capacity, time, None)
 
     def evict_oldest(self, count: int, cause: str, time: float) -> None:
         """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
+        self._drop_columns()
         self._evict_global(max(len(self) - count, 0), time, None, cause)
 
     # ---------------------------------------------------------------- writes
@@ -361,6 +451,8 @@ class WMBuffer:
         lfu = limits.victim == "lfu"
         for entity in entities:
             q = self._queues.get(entity)
+            if q is None and entity in self._in_columns:
+                q = self._to_dict(entity)
             if q is None:
                 q = self._new_queue(entity)
             else:
@@ -369,12 +461,12 @@ class WMBuffer:
             present = old is not None
             self._stamp += 1
             if present:  # a refresh keeps the entry's origin
-                q[prop] = (self._stamp, self._origin_of(old))
+                q[prop] = (self._stamp, old if old.__class__ is int else old[1])
             else:
                 q[prop] = self._stamp
                 self._size += 1
             self._nonempty[entity] = None
-            self._changed[entity] = None
+            self._record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
                 if q.hits is None:
                     q.hits = {}
@@ -393,22 +485,29 @@ class WMBuffer:
         queues = self._queues
         nonempty = self._nonempty
         changed = self._changed
+        in_columns = self._in_columns
         ticks = self.ticks.count  # nothing below applies new ticks
         limit = capacity if capacity is not None else sys.maxsize
         stamp = self._stamp
         size = self._size
         for entity in entities:
-            changed[entity] = None
             q = queues.get(entity)
             if q is None:
-                q = queues[entity] = _Queue()
-                q.synced = ticks
-                q.hits = None
-                nonempty[entity] = None
-                stamp += 1
-                q[prop] = stamp
-                size += 1
-                continue
+                if entity not in in_columns:
+                    q = queues[entity] = _Queue()
+                    q.synced = ticks
+                    q.hits = None
+                    q.marked = True
+                    changed.append(entity)
+                    nonempty[entity] = None
+                    stamp += 1
+                    q[prop] = stamp
+                    size += 1
+                    continue
+                q = self._to_dict(entity)
+            if not q.marked:
+                q.marked = True
+                changed.append(entity)
             owed = ticks - q.synced
             if owed:  # lazy decay catch-up, inline (:meth:`_sync` without a sink)
                 q.synced = ticks
@@ -425,7 +524,7 @@ class WMBuffer:
             if prop in q:  # a refresh: same size, the entry keeps its origin
                 old = q.pop(prop)
                 stamp += 1
-                q[prop] = (stamp, old[1] if old.__class__ is tuple else self._origin_at(old))
+                q[prop] = (stamp, old if old.__class__ is int else old[1])
                 continue
             if not q:
                 nonempty[entity] = None
@@ -436,6 +535,63 @@ class WMBuffer:
             else:
                 size += 1
         self._stamp, self._size = stamp, size
+
+    def encode_members(
+        self,
+        members: int,
+        entities: Sequence[str],
+        prop: str,
+        cause: str,
+        time: float,
+        turn: Optional[int] = None,
+    ) -> None:
+        """Encode(e, [prop]) (Algorithm 1) for each member e, in entity order: rules 2 and 3.
+
+        ``members`` is a bitset over ``entities`` (:mod:`fsreg_ros.core.bitset`; the
+        domain's entity list, which may only grow by appending).  Exactly
+        ``self.encode_each(bitset.names(members, entities), prop, ...)``: same queues,
+        stamps, origins, sizes and change record.  With no event sink, limits of at
+        most an LRU capacity (Algorithm 3) and a domain of at least :data:`COLUMN_MIN`
+        entities, it is one column operation over the members' queues
+        (:class:`~fsreg_ros.core.columns.QueueColumns`), with their owed decay
+        (Algorithm 2) applied the same way, instead of Python work per entity.
+        """
+        limits = self.limits
+        if not limits.retains or not members:
+            return
+        capacity = limits.capacity
+        if (
+            len(entities) < self.column_min
+            or self.sink is not None
+            or limits.victim != "lru"
+            or limits.similarity
+            or limits.global_capacity is not None
+            or capacity is None
+            or capacity > COLUMN_MAX_WIDTH
+            or capacity * len(entities) > COLUMN_MAX_SLOTS
+            or not self._bind(entities, capacity)
+        ):
+            self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
+            return
+        rows = bitset.index_array(members)
+        if not self._adopt(rows):  # a queue longer than the capacity (restored so): queue by queue
+            self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
+            return
+        self._log_origin(cause, turn)
+        columns = self._columns
+        pid = self._prop_id.get(prop)
+        if pid is None:
+            pid = self._prop_id[prop] = len(self._prop_name)
+            self._prop_name.append(prop)
+        popped = columns.pop_owed(rows, self.ticks.count)
+        grew, was_empty = columns.encode(rows, pid, self._stamp + 1)
+        self._stamp += len(rows)
+        self._size += int(grew.sum()) - int(popped.sum())
+        nonempty, bound = self._nonempty, self._bound
+        for row in rows[was_empty].tolist():  # (re)joins the non-empty queues last, as queue by queue
+            nonempty.pop(bound[row], None)
+            nonempty[bound[row]] = None
+        self._mark_changed(rows)
 
     def pop_front(
         self, entity: str, cause: str, time: float, turn: Optional[int] = None
@@ -467,6 +623,7 @@ class WMBuffer:
         O(properties held), however many ticks: after as many ticks as the longest
         queue holds, WM is empty and the remaining ticks pop nothing.
         """
+        self._drop_columns()
         self.flush()
         rank = {entity: i for i, entity in enumerate(entity_order)}
         pending = sorted(self._nonempty, key=lambda e: rank.get(e, len(rank)))
@@ -485,14 +642,26 @@ class WMBuffer:
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
+        self._drop_columns()
         for entity in self.nonempty_entities():
             while self._pop(entity, cause, time, turn) is not None:
                 pass
 
     def flush(self) -> None:
         """Bring every queue up to date with the decay ticks applied so far."""
+        if self._in_columns:
+            columns = self._columns
+            owing = np.flatnonzero(columns.held & (columns.length > 0) & (columns.synced != self.ticks.count))
+            if self.sink is None:
+                self._settle_columns(owing)
+            else:  # the pops must be reported: those queues become dict queues, caught up below
+                for row in owing.tolist():
+                    self._to_dict(self._bound[row])
+        ticks = self.ticks.count
         for entity in list(self._nonempty):
-            self._catch_up(entity)
+            q = self._queues.get(entity)  # None: a column queue, caught up above
+            if q is not None and q.synced != ticks:
+                self._sync(entity, q)
         # Every non-empty queue is now up to date, and an empty one never needs a
         # tick's time, so older runs can go (bounded memory for long runs).
         self.ticks.drop_before(self.ticks.count)
@@ -559,13 +728,138 @@ class WMBuffer:
         q = self._queues[entity] = _Queue()
         q.synced = self.ticks.count  # ticks before a queue existed are not owed
         q.hits = None
+        q.marked = False
         return q
 
     def _catch_up(self, entity: str) -> None:
-        """Apply the decay ticks Q[entity] still owes (if any)."""
+        """Apply the decay ticks Q[entity] still owes (if any); a column queue becomes a dict first."""
         q = self._queues.get(entity)
+        if q is None and entity in self._in_columns:
+            q = self._to_dict(entity)
         if q is not None and q.synced != self.ticks.count:
             self._sync(entity, q)
+
+    # ------------------------------------------------------------ column queues
+    def _bind(self, entities: Sequence[str], width: int) -> bool:
+        """Bind column rows to ``entities`` (the first list given) and size the store; False for another list."""
+        if self._bound is None:
+            self._bound = entities
+        elif entities is not self._bound:
+            return False
+        if self._columns is not None and self._columns.width != width:
+            self._drop_columns()
+        if len(self._row) < len(entities):  # new entities were appended
+            for i in range(len(self._row), len(entities)):
+                self._row[entities[i]] = i
+        if self._columns is None:
+            self._columns = QueueColumns(width, len(entities))
+        self._columns.grow(len(entities))
+        return True
+
+    def _adopt(self, rows: np.ndarray) -> bool:
+        """Move the queues of ``rows`` into the columns (those not there yet); False, moving none, if one is longer."""
+        columns = self._columns
+        fresh = rows[~columns.held[rows]].tolist()
+        if not fresh:
+            return True
+        names = [self._bound[row] for row in fresh]
+        queues = self._queues
+        if any(len(queues.get(name, ())) > columns.width for name in names):
+            return False
+        ticks = self.ticks.count
+        for row, name in zip(fresh, names):
+            q = queues.pop(name, None)
+            if q is None:  # a new queue: ticks before it existed are not owed
+                columns.write(row, [], ticks)
+            else:
+                columns.write(row, [self._column_item(prop, value) for prop, value in q.items()], q.synced)
+            self._in_columns.add(name)
+        return True
+
+    def _column_item(self, prop: str, value: Union[int, tuple]) -> tuple[int, int, int]:
+        """Return a dict queue's entry as a column item ``(property id, stamp, origin reference)``."""
+        pid = self._prop_id.get(prop)
+        if pid is None:
+            pid = self._prop_id[prop] = len(self._prop_name)
+            self._prop_name.append(prop)
+        if value.__class__ is int:
+            return pid, value, value
+        stamp, ref = value
+        if ref.__class__ is not int:  # an origin restored from a store
+            index = self._explicit_id.get(ref)
+            if index is None:
+                index = self._explicit_id[ref] = len(self._explicit)
+                self._explicit.append(ref)
+            ref = -(index + 1)
+        return pid, stamp, ref
+
+    def _row_dict(self, row: int) -> dict:
+        """Return a column row's queue as a dict queue's entries (property -> entry), LRU first."""
+        names, explicit = self._prop_name, self._explicit
+        return {
+            names[pid]: stamp if ref == stamp else (stamp, ref if ref > 0 else explicit[-ref - 1])
+            for pid, stamp, ref in self._columns.read(row)
+        }
+
+    def _readable(self, entity: str) -> Optional[Mapping]:
+        """Return Q[entity] up to date with decay, for reading: its dict queue, or a copy of its column row."""
+        q = self._queues.get(entity)
+        if q is not None:
+            if q.synced != self.ticks.count:
+                self._sync(entity, q)
+            return q
+        if entity not in self._in_columns:
+            return None
+        row, columns = self._row[entity], self._columns
+        if columns.synced[row] != self.ticks.count and columns.length[row]:
+            if self.sink is not None:  # the pops must be reported: it becomes a dict queue
+                self._catch_up(entity)
+                return self._queues[entity]
+            self._settle_columns(np.array([row]))
+        return self._row_dict(row)
+
+    def _to_dict(self, entity: str) -> _Queue:
+        """Move Q[entity] from its column row to a dict queue (same content, owed ticks still owed)."""
+        row, columns = self._row[entity], self._columns
+        q = self._queues[entity] = _Queue(self._row_dict(row))
+        q.synced = int(columns.synced[row])
+        q.hits = None
+        q.marked = False  # if it changed since the last take, a column mark says so
+        columns.release(row)
+        self._in_columns.discard(entity)
+        return q
+
+    def _drop_columns(self) -> None:
+        """Move every column queue back to a dict queue (before any code path that only knows dicts)."""
+        if self._columns is None:
+            return
+        self._compact_changes()
+        for entity in [e for e in self._bound if e in self._in_columns]:
+            self._to_dict(entity)
+        self._columns = None
+        self._in_columns = set()
+
+    def _settle_columns(self, rows: np.ndarray) -> None:
+        """Apply the decay ticks the column ``rows`` owe (no events: only called without a sink)."""
+        if not len(rows):
+            return
+        columns = self._columns
+        popped = columns.pop_owed(rows, self.ticks.count)
+        self._size -= int(popped.sum())
+        for row in rows[columns.length[rows] == 0].tolist():
+            self._nonempty.pop(self._bound[row], None)
+        self._mark_changed(rows[popped > 0])
+
+    def _mark_changed(self, rows: np.ndarray) -> None:
+        """Record the column ``rows`` as changed now (one mark in the change record stands for them)."""
+        if not len(rows):
+            return
+        if self._marks >= _CHANGE_MARKS_MAX:  # bounded: fold the marks into names
+            self._compact_changes()
+        self._marks += 1
+        mark = self._marks
+        self._changed.append(mark)
+        self._columns.mark_changed(rows, mark)
 
     def _sync(self, entity: str, q: _Queue) -> None:
         """Apply the ticks since ``q.synced``: one front pop per tick (Algorithm 2, deferred).
@@ -577,7 +871,7 @@ class WMBuffer:
         if not q:  # an empty queue owes nothing (and never needs a tick's time)
             return
         owed = min(ticks - synced, len(q))
-        self._changed[entity] = None
+        self._record(entity, q)
         sink = self.sink
         if sink is None:  # no events to report: just drop the fronts
             self._size -= owed
@@ -608,7 +902,7 @@ class WMBuffer:
     def _forget(self, entity: str, q: _Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         del q[prop]
         self._size -= 1
-        self._changed[entity] = None
+        self._record(entity, q)
         if not q:
             self._nonempty.pop(entity, None)
         if self.sink is not None:
@@ -633,9 +927,12 @@ class WMBuffer:
         """Return the origin of the encoding with this stamp (one still referenced by an entry)."""
         return self._origin_runs[bisect_right(self._origin_starts, stamp) - 1]
 
-    def _origin_of(self, value: Union[int, tuple[int, Origin]]) -> Origin:
-        """Return the origin of a queue entry (see :class:`_Queue`)."""
-        return value[1] if value.__class__ is tuple else self._origin_at(value)
+    def _origin_of(self, value: Union[int, tuple]) -> Origin:
+        """Return the origin of a dict queue's entry (see :class:`_Queue`)."""
+        if value.__class__ is int:
+            return self._origin_at(value)
+        ref = value[1]
+        return self._origin_at(ref) if ref.__class__ is int else ref
 
     def _prune_origins(self) -> None:
         """Keep only the origin runs some entry still stored as a bare stamp falls in.
@@ -643,7 +940,11 @@ class WMBuffer:
         O(entries stored); run when the log has doubled since the last pruning, so
         its cost per encoding call stays bounded and the log's size follows WM's.
         """
-        live = sorted(v for q in self._queues.values() for v in q.values() if v.__class__ is int)
+        live = [v if v.__class__ is int else v[1] for q in self._queues.values() for v in q.values()]
+        live = [ref for ref in live if ref.__class__ is int]
+        if self._in_columns:
+            live += self._columns.origin_stamps().tolist()
+        live.sort()
         starts, runs = self._origin_starts, self._origin_runs
         kept_starts: list[int] = []
         kept_runs: list[Origin] = []
@@ -664,19 +965,19 @@ class WMBuffer:
         ``hits`` is the LFU count (1 when LFU is not in force); ``cause`` and ``turn``
         the entry's origin (:meth:`origins`).
         """
-        self._catch_up(entity)
-        q = self._queues.get(entity)
+        q = self._readable(entity)
         if not q:
             return []
-        hits = q.hits or {}
+        hits = ((q.hits if q.__class__ is _Queue else None) or {}).get  # a column queue's copy has none (LRU)
+        starts, runs = self._origin_starts, self._origin_runs
         items = []
-        for prop, value in q.items():
-            if value.__class__ is tuple:
-                stamp, (cause, turn) = value
+        for prop, value in q.items():  # _origin_of and QueueItem(...) inlined: a store exports thousands
+            if value.__class__ is int:
+                stamp = ref = value
             else:
-                stamp = value
-                cause, turn = self._origin_at(value)
-            items.append(QueueItem(prop, stamp, hits.get(prop, 1), cause, turn))
+                stamp, ref = value
+            origin = runs[bisect_right(starts, ref) - 1] if ref.__class__ is int else ref
+            items.append(tuple.__new__(QueueItem, (prop, stamp, hits(prop, 1), origin[0], origin[1])))
         return items
 
     def counters(self) -> tuple[int, int]:
@@ -695,13 +996,16 @@ class WMBuffer:
         if limits.victim not in VICTIMS:
             raise ValueError(f"unknown displacement victim {limits.victim!r} (known: {', '.join(VICTIMS)})")
         for entity, items in queues.items():  # all checked before anything changes
+            if not isinstance(entity, str):
+                raise ValueError(f"queue of {entity!r}: an entity is named by a string")
             for item in items:
                 if len(item) not in (3, 5) or len(item) == 5 and not _is_origin(item[3], item[4]):
                     raise ValueError(f"queue of {entity!r}: item {item!r} is not (property, stamp, hits, cause, turn)")
         self.limits = limits
         self._rng = random.Random(limits.seed)
         self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
-        self._queues, self._nonempty, self._size, self._changed = {}, {}, 0, {}
+        self._queues, self._nonempty, self._size, self._changed, self._marks = {}, {}, 0, [], 0
+        self._columns, self._in_columns, self._explicit, self._explicit_id = None, set(), [], {}
         self.ticks = TickLedger()
         self.ticks.count = self._settled = ticks
         self._stamp = stamp

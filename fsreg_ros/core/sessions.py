@@ -1,10 +1,15 @@
-"""Open RR and REG requests at a consultant: a bounded table of candidate sets, with expiry.
+"""Open RR and REG requests at a consultant: a bounded table of candidate sets, fair to each client.
 
 A request opens a session (its candidate or distractor set stays at the consultant),
 names it by id in every later call, and closes it at the end.  So that a caller that
 crashes or loses its connection leaks nothing, a session not used for ``timeout``
-seconds expires, and at most ``capacity`` sessions are open: opening one more drops
-the least recently used.  A call naming a closed, expired or dropped session is
+seconds expires.  So that one busy client cannot starve the others, each client (the
+``client`` id an ``open`` carries; requests without one share the anonymous client
+``""``) may hold at most ``per_client`` sessions: opening one more drops *its own*
+least recently used session, never another client's.  At most ``capacity`` sessions
+are open in all; when the table is full, the least recently used session of the
+client holding the most is dropped (the opener's own on a tie), so a client within its
+fair share keeps its sessions.  A call naming a closed, expired or dropped session is
 refused (:class:`SessionError`) and changes nothing.  Time is a monotonic clock in
 seconds, given by the caller (so tests can drive it).
 """
@@ -13,13 +18,15 @@ from __future__ import annotations
 
 import secrets
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 from .consultant import KnowledgeError
 
 S = TypeVar("S")
 
-DEFAULT_CAPACITY = 64
+DEFAULT_CAPACITY = 256
+DEFAULT_PER_CLIENT = 16
 DEFAULT_TIMEOUT = 30.0
 
 
@@ -27,27 +34,46 @@ class SessionError(KnowledgeError):
     """A call names a session that is not open (never was, closed, expired or dropped)."""
 
 
-class SessionTable(Generic[S]):
-    """Open sessions by id, least recently used first."""
+@dataclass
+class _Entry(Generic[S]):
+    state: S
+    used: float
+    client: str
 
-    def __init__(self, capacity: int = DEFAULT_CAPACITY, timeout: float = DEFAULT_TIMEOUT) -> None:
+
+class SessionTable(Generic[S]):
+    """Open sessions by id, least recently used first, with a quota per client."""
+
+    def __init__(self, capacity: int = DEFAULT_CAPACITY, timeout: float = DEFAULT_TIMEOUT,
+                 per_client: int = DEFAULT_PER_CLIENT) -> None:
         self.capacity = max(1, int(capacity))
+        self.per_client = max(1, min(int(per_client), self.capacity))
         self.timeout = float(timeout)
         self._prefix = secrets.token_hex(3)  # ids of a restarted consultant never match old ones
         self._next = 0
-        self._open: OrderedDict[str, tuple[S, float]] = OrderedDict()
+        self._open: OrderedDict[str, _Entry[S]] = OrderedDict()
+        self._clients: dict[str, OrderedDict[str, None]] = {}  # client -> its sessions, LRU first
+        self.dropped = 0  # sessions dropped to make room (not expired, not closed)
 
     def __len__(self) -> int:
         return len(self._open)
 
-    def open(self, state: S, now: float) -> str:
-        """Store ``state`` as a new session; return its id."""
+    def held(self, client: str) -> int:
+        """Return how many sessions ``client`` holds."""
+        return len(self._clients.get(client, ()))
+
+    def open(self, state: S, now: float, client: str = "") -> str:
+        """Store ``state`` as a new session of ``client``; return its id."""
         self.expire(now)
+        mine = self._clients.get(client)
+        if mine is not None and len(mine) >= self.per_client:
+            self._drop(next(iter(mine)))
         while len(self._open) >= self.capacity:
-            self._open.popitem(last=False)
+            self._drop(self._victim(client))
         self._next += 1
         session = f"{self._prefix}-{self._next}"
-        self._open[session] = (state, now)
+        self._open[session] = _Entry(state, now, client)
+        self._clients.setdefault(client, OrderedDict())[session] = None
         return session
 
     def get(self, session: str, now: float) -> S:
@@ -56,24 +82,48 @@ class SessionTable(Generic[S]):
         entry = self._open.get(session)
         if entry is None:
             raise SessionError(f"no open session {session!r} (closed, expired after {self.timeout:g} s "
-                               f"unused, or dropped: at most {self.capacity} are open)")
-        self._open[session] = (entry[0], now)
+                               f"unused, or dropped: at most {self.per_client} per client and {self.capacity} "
+                               "in all are open)")
+        entry.used = now
         self._open.move_to_end(session)
-        return entry[0]
+        self._clients[entry.client].move_to_end(session)
+        return entry.state
 
     def close(self, session: str, now: float) -> S:
         """Return an open session's state and forget the session; SessionError if not open."""
         state = self.get(session, now)
-        del self._open[session]
+        self._forget(session)
         return state
 
     def expire(self, now: float) -> int:
         """Forget every session unused for longer than the timeout; return how many."""
         dropped = 0
         while self._open:
-            session, (_, used) = next(iter(self._open.items()))
-            if now - used <= self.timeout:
+            session, entry = next(iter(self._open.items()))
+            if now - entry.used <= self.timeout:
                 break
-            del self._open[session]
+            self._forget(session)
             dropped += 1
         return dropped
+
+    # ------------------------------------------------------------ internals
+    def _victim(self, opener: str) -> str:
+        """Return the session to drop from a full table: the LRU one of the client holding the most."""
+        most = max(len(sessions) for sessions in self._clients.values())
+        if len(self._clients.get(opener, ())) == most:
+            return next(iter(self._clients[opener]))
+        for session, entry in self._open.items():  # LRU first
+            if len(self._clients[entry.client]) == most:
+                return session
+        raise AssertionError("unreachable: a full table has a client holding the most")
+
+    def _drop(self, session: str) -> None:
+        self._forget(session)
+        self.dropped += 1
+
+    def _forget(self, session: str) -> None:
+        entry = self._open.pop(session)
+        sessions = self._clients[entry.client]
+        del sessions[session]
+        if not sessions:
+            del self._clients[entry.client]

@@ -91,6 +91,8 @@ class LiveGraph:
         self.specs = live_nodes(self.scenario, self.scenario_path, self.options, graph=self.graph_id,
                                 lexicon=self.lexicon_path, state_dir=str(self.state_dir), use_sim_time=use_sim_time)
         for spec in self.specs:
+            if spec.executable == "consultant":
+                spec.parameters["debug"] = True  # the debug service: wm() reads a queue as it is now
             spec.parameters.update((parameters or {}).get(spec.name, {}))
         self.session: Optional[RosSession] = None
         self.client: Optional[GraphClient] = None
