@@ -446,17 +446,32 @@ class GraphClient:
         """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""
         return dict(self.call(contract.debug_service(domain), {"op": "snapshot"})["queues"])
 
-    def state(self, domain: str, timeout: Optional[float] = None) -> dict:
+    def state(self, domain: str, timeout: Optional[float] = None, current: bool = False) -> dict:
         """Return ``domain``'s latest ``wm/state`` (latched: its non-empty queues as last published).
 
         A consultant publishes it after each request that changed WM, at most every
         ``state_period`` (0.1 s by default), so it may lag a change by that much.
+        ``current``: first ask the consultant (``info``) how many of its calls changed
+        WM, and wait for the state that shows them all (what ``fsreg-ctl wm`` prints).
         """
         if self._states is None:
             self._states = {}
             subscribe(self.node, contract.WM_STATE, self._on_state)
-        self.spin_until(lambda: domain in self._states, self.timeout if timeout is None else timeout,
-                        f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
+        wait = self.timeout if timeout is None else timeout
+        if not current:
+            self.spin_until(lambda: domain in self._states, wait,
+                            f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
+            return self._states[domain]
+        info = self.call(contract.consultant_service(domain), {"op": "info"}, timeout)
+        incarnation = int(str(info["version"]).split(":", 1)[0])
+        wanted = (incarnation, int(info["wm_version"]))
+
+        def caught_up() -> bool:
+            state = self._states.get(domain)
+            return state is not None and (state["incarnation"], state["wm_version"]) >= wanted
+
+        self.spin_until(caught_up, wait, f"no {contract.WM_STATE.name} of domain {domain!r} as of "
+                        f"incarnation {wanted[0]}, WM change {wanted[1]} in {self.where()}", "not-ready")
         return self._states[domain]
 
     def _on_state(self, data: dict) -> None:
@@ -515,10 +530,23 @@ class GraphClient:
     def watch(self, on_state: Callable[[dict], None], on_event: Optional[Callable[[dict], None]] = None) -> list:
         """Pass every ``wm/state`` and (with ``on_event``) ``wm/events`` message of this graph on; the subscriptions.
 
-        ``wm/state`` is latched: each domain's current state comes first.
+        Each domain's current state comes first (:meth:`state` with ``current``), then
+        each newer one as it is published (an older latched copy is not passed on).
 
         A message stamped by another graph raises ClientError ``foreign`` out of the spin.
         """
+        shown: dict[str, tuple[int, int]] = {}
+        for domain in self.domains():
+            state = self.state(domain, current=True)
+            shown[domain] = (state["incarnation"], state["wm_version"])
+            on_state(state)
+
+        def newer(state: dict) -> None:
+            version = (state["incarnation"], state["wm_version"])
+            if version > shown.get(state["domain"], (-1, -1)):
+                shown[state["domain"]] = version
+                on_state(state)
+
         def checked(handler: Callable[[dict], None]) -> Callable[[dict], None]:
             def take(data: dict) -> None:
                 graph = data.get(contract.GRAPH_FIELD) or ""
@@ -530,7 +558,7 @@ class GraphClient:
             return take
 
         self.foreign = None
-        subs = [subscribe(self.node, contract.WM_STATE, checked(on_state))]
+        subs = [subscribe(self.node, contract.WM_STATE, checked(newer))]
         if on_event is not None:
             subs.append(subscribe(self.node, contract.WM_EVENTS, checked(on_event)))
         return subs

@@ -6,7 +6,7 @@
     fsreg-ctl [--namespace NS] status                      readiness, memory per domain
     fsreg-ctl [--namespace NS] set KEY=VALUE...            change memory settings (or NODE:KEY=VALUE)
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
-    fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM (as last published on wm/state)
+    fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM now (the wm/state that shows every change)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
 
 Every command waits (``--timeout``) until the graph in the namespace is ready (its WM
@@ -306,7 +306,7 @@ class Ctl:
             return self._set(client)
         elif args.command == "wm":
             domain = args.domain or client.domain_of(args.entity)
-            state = client.state(domain)  # as the consultant last published it (wm/state): no debug service needed
+            state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
             queue = list((state.get("queues") or {}).get(args.entity, []))
             self.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},
                       f"{args.entity} ({domain}): {', '.join(queue) or '(empty)'}")
