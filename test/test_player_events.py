@@ -104,18 +104,36 @@ def test_the_player_does_not_start_until_its_event_subscription_is_matched(table
 
 
 @pytest.mark.graph
-def test_a_foreign_event_during_a_run_fails_it(table1_path, tmp_path):
+def _player_graph(g: Graph, table1_path, tmp_path) -> DialoguePlayer:
     scenario = load_scenario(table1_path)
     classes = {**node_classes(), "dialogue_player": DialoguePlayer}
+    player = None
+    for spec in graph_nodes(scenario, table1_path, Options(memory={"policy": "decay"}), tmp_path / "r.json",
+                            graph=GRAPH):
+        params = dict(spec.parameters)
+        node = g.add(classes[spec.executable], use_sim_time=params.pop("use_sim_time", False), name=spec.name,
+                     **params)
+        player = node if spec.executable == "dialogue_player" else player
+    return player
+
+
+def test_a_foreign_writer_on_the_event_topic_refuses_the_run(table1_path, tmp_path):
+    """A publisher of wm/events beyond the run's consultants: the run stops before its first turn."""
     with Graph() as g:
-        player = None
-        for spec in graph_nodes(scenario, table1_path, Options(memory={"policy": "decay"}), tmp_path / "r.json",
-                                graph=GRAPH):
-            params = dict(spec.parameters)
-            node = g.add(classes[spec.executable], use_sim_time=params.pop("use_sim_time", False), name=spec.name,
-                         **params)
-            player = node if spec.executable == "dialogue_player" else player
+        player = _player_graph(g, table1_path, tmp_path)
         g.publish(contract.WM_EVENTS.name, event(1, graph="intruder"), contract.EVENTS_QOS)
+        with pytest.raises(PlayerError) as err:
+            g.run(player.play(), timeout=60.0)
+        assert str(err.value) == ("wm/events has 2 publishers for this run's 1 consultant(s): another graph "
+                                  "publishes in this namespace")
+        assert player.ledger.events == []
+
+
+def test_a_foreign_event_heard_fails_the_run(table1_path, tmp_path):
+    """An event stamped by another graph (as the subscription delivers it): the run fails, naming it."""
+    with Graph() as g:
+        player = _player_graph(g, table1_path, tmp_path)
+        player._on_event(event(1, graph="intruder"))
         with pytest.raises(PlayerError) as err:
             g.run(player.play(), timeout=60.0)
         assert str(err.value).startswith("wm/events: an event from another graph ('intruder', this run is "

@@ -279,6 +279,10 @@ class DialoguePlayer(Node):
                         f"graph not ready: the {contract.WM_EVENTS.name} publisher of {', '.join(waiting)} is not "
                         f"matched with this player (its events would be lost)")
                 await wait_until(self, lambda: False, 0.05)
+        publishers = self._events_sub.get_publisher_count()
+        if publishers > len(domains):  # one per consultant: a writer more is not this graph's
+            raise PlayerError(f"{contract.WM_EVENTS.name} has {publishers} publishers for this run's {len(domains)} "
+                              "consultant(s): another graph publishes in this namespace")
 
     async def exchange(self, publisher, message: dict) -> dict:
         """Publish ``message`` and return the answer with its id.
