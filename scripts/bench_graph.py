@@ -1,32 +1,33 @@
 #!/usr/bin/env python3
-"""Latency of the multi-process node graph next to the same work done by the core, at three sizes.
+"""Latency of the node graph as users run it, next to the bare hop and the core, at three sizes.
 
-For each world -- Table 1 and random worlds of 1,000 and 10,000 entities
-(:mod:`fsreg_ros.worlds`, seeded) -- it starts the real graph (one process per node,
-as ``fsreg-graph`` does, without the player) and measures from this process:
+For each world -- Table 1 and the random worlds of ``scripts/make_world.py`` with 1,000
+and 10,000 entities (:mod:`fsreg_ros.worlds`, seeded, its default shape) -- it starts the
+graph ``fsreg-up`` starts, with every default: one process per node, persistence on (a
+state directory of its own), sim time, the scenario's memory settings, a namespace of
+its own (:class:`fsreg_ros.testing.LiveGraph` with ``processes=True``; the consultants'
+debug service off, as ``fsreg-up`` has it).  It waits until the graph says it is ready
+(``wm_manager/ready`` and every topic matched: :meth:`GraphClient.wait_ready`) and then,
+through the public :class:`~fsreg_ros.client.GraphClient`, measures per turn:
 
-* human turn -> ``/rr/result``: publish a description on ``/dialogue/human``, wait for
-  the result with its id (parser -> RR -> consultant service calls);
-* REG request -> ``/reg/expression``;
+* human turn -> ``rr/result`` (parser -> RR -> consultant calls);
+* ``reg/request`` -> ``reg/expression``;
+* the *bare hop*, interleaved with the turns (same graph, same machine load): one
+  consultant service call that does no work (``info`` of the entities past the last),
+  from this process.
 
 p50 / p95 over ``--rounds`` rounds of the world's first ``--turns`` turns (after one
-warm-up round), next to the same turns run in-process by the core (RR and REG through a
-:class:`LocalPort`, one continuous memory as in the graph), as ratios measured in the
-same run.  Each round shifts the turns' times by the dialogue's length, so time never
-runs backwards.
+warm-up round; each round shifts the turns' times by the dialogue's length, so time never
+runs backwards), next to the same turns run in-process by the core (RR and REG through
+a :class:`LocalPort`, one continuous memory, the same memory settings), which also counts
+the consultant calls per turn (each port call is one service call of the graph's).
 
-The fixed cost of the graph is measured in the same graph, interleaved with the turns:
-the p50 of one trivial consultant service round trip (``info`` of no entities) from this process (a
-*hop*), and of *null* requests that do no work -- a human turn with no known word (the
-parser -> RR -> result pipeline, no consultant call) and a REG request whose context is
-its target alone (open and close, no distractor).  Consultant calls per turn are
-counted in-process with a port that counts what a ``RemotePort`` sends (every port
-call is one service call; the preference order and the entity list are cached).  The
-verdict per path is ``graph p50 <= k x core p50 + fixed`` with k = 1.5 at 1,000
-entities and 3 at 10,000, and ``fixed`` = the null request's p50 + (this world's calls
-per turn - the null request's) x the cost of one call inside the pipeline, calibrated
-on Table 1 (where the core's work is tens of microseconds; a call from inside a node
-costs more than the bare hop: an awaited future, a deadline timer).
+Targets, checked per path: on Table 1 (where the core's work is tens of microseconds)
+the graph's p50 is within ``1.5 x (calls per turn + 2)`` bare hops (each call is a hop;
+the two more are the request and the reply); from Table 1 to 10,000 entities the graph's
+p50 grows by at most ``3 x`` what the core's grows (``(graph 10k - graph T1) / (core 10k
+- core T1) <= 3``: what the graph adds on top of the core's work must not grow with the
+world).
 
     scripts/bench_graph.py [--worlds table1,1000,10000] [--turns 40] [--rounds 3] [--json FILE]
 
@@ -50,10 +51,11 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
+from fsreg_ros.network import ros_environment  # noqa: E402
 
 os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
+from fsreg_ros import contract  # noqa: E402
 from fsreg_ros.core.consultant import LocalPort, run_sync  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
@@ -62,11 +64,12 @@ from fsreg_ros.core.simulation import Options, Simulation  # noqa: E402
 from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
 
 TABLE1 = REPO / "scenarios" / "guess_who_table1.yaml"
-#: Consultant calls of the null requests: a human turn with no known word (none), REG
-#: with no distractor (open and close).
-NULL_CALLS = {"human": 0, "robot": 2}
-#: Target ratio graph p50 / core p50 (on top of the fixed cost) by world size.
-TARGETS = {1_000: 1.5, 10_000: 3.0}
+#: A Table 1 turn's p50 may take this many bare hops per (calls per turn + 2).
+HOP_FACTOR = 1.5
+#: From Table 1 to 10,000 entities the graph's p50 may grow this many times what the core's grows.
+GROWTH_FACTOR = 3.0
+PATHS = (("human", "human turn -> rr/result"), ("robot", "reg/request -> reg/expression"))
+READY_TIMEOUT = 120.0  # a 10,000-entity consultant loads its KB and restores its state first
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -114,7 +117,8 @@ def core_latencies(scenario, options: Options, turns: list, rounds: int) -> dict
     sim = Simulation(scenario, options)
     ports = {d: CountingPort(c) for d, c in sim.consultants.items()}
     span = turns[-1].time + 1.0
-    human, robot, calls = [], [], {"human": [], "robot": []}
+    out: dict = {"human": [], "robot": []}
+    calls: dict = {"human": [], "robot": []}
     for rnd in range(rounds + 1):  # round 0 warms up
         for turn in turns:
             when = turn.time + rnd * span
@@ -122,245 +126,171 @@ def core_latencies(scenario, options: Options, turns: list, rounds: int) -> dict
             start = time.perf_counter()
             if turn.speaker == "human":
                 run_sync(resolve(list(turn.description), ports, domain=turn.domain, time=when, turn=turn.index))
-                kind, out = "human", human
             else:
                 domain = scenario.domain_of(turn.target)
                 run_sync(generate(turn.target, ports[domain], "sd-pia", time=when, turn=turn.index))
-                kind, out = "robot", robot
             elapsed = (time.perf_counter() - start) * 1e3
+            kind = "human" if turn.speaker == "human" else "robot"
             if rnd:
-                out.append(elapsed)
+                out[kind].append(elapsed)
                 calls[kind].append(CountingPort.calls - before)
-    return {"human": human, "robot": robot,
-            "calls": {k: statistics.fmean(v) if v else 0.0 for k, v in calls.items()}}
+    out["calls"] = {k: statistics.fmean(v) if v else 0.0 for k, v in calls.items()}
+    return out
 
 
-def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list, rounds: int) -> dict:
-    import rclpy
-    from diagnostic_msgs.srv import AddDiagnostics
-    from rclpy.executors import SingleThreadedExecutor
-    from std_msgs.msg import String
+def graph_latencies(scenario, path: Path, turns: list, rounds: int, domain_id) -> dict:
+    """Latencies (ms) of the turns through the live graph, the bare hop's, and the time to readiness."""
+    from fsreg_ros.testing import LiveGraph
 
-    from fsreg_ros import contract
-    from fsreg_ros.carrier import from_msg, qos_profile, to_msg
-
-    tmp = Path(tempfile.mkdtemp(prefix="fsreg-bench-"))
-    nodes = [n for n in graph_nodes(scenario, scenario_path, options, tmp / "unused.json")
-             if n.name != "dialogue_player"]
-    graph = Graph(nodes, tmp)
+    debug_off = {f"consultant_{d}": {"debug": False} for d in scenario.domains}  # as fsreg-up runs them
     started = time.perf_counter()
-    graph.start()
-    rclpy.init()
-    node = rclpy.create_node("bench_graph")
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    answers: dict[str, dict] = {}
+    with LiveGraph(path, processes=True, parameters=debug_off, ready_timeout=READY_TIMEOUT,
+                   domain_id=domain_id) as live:
+        ready_s = time.perf_counter() - started
+        client = live.client
+        executor = client.executor
+        hop_clients = {d: client.service(contract.consultant_service(d)) for d in scenario.domains}
 
-    def on_answer(msg):
-        data = from_msg(msg)
-        answers[str(data.get("id"))] = data
+        def hop(domain: str) -> float:
+            """One consultant call that does no work (``info`` of no entity), from this process."""
+            service = hop_clients[domain]
+            start = time.perf_counter()
+            future = service.send({"op": "info", "entities_from": 1 << 30})
+            while not future.done():
+                executor.spin_once(timeout_sec=0.001)
+                if time.perf_counter() - start > 10.0:
+                    raise RuntimeError(f"no answer from {service.name}")
+            reply = service.decode(future)
+            if "error" in reply:
+                raise RuntimeError(f"{service.name}: {reply['error']}")
+            return (time.perf_counter() - start) * 1e3
 
-    node.create_subscription(String, contract.RR_RESULT.name, on_answer, qos_profile(contract.RR_RESULT.qos))
-    node.create_subscription(String, contract.REG_EXPRESSION.name, on_answer,
-                             qos_profile(contract.REG_EXPRESSION.qos))
-    human_pub = node.create_publisher(String, contract.HUMAN.name, qos_profile(contract.HUMAN.qos))
-    reg_pub = node.create_publisher(String, contract.REG_REQUEST.name, qos_profile(contract.REG_REQUEST.qos))
-    domain = next(iter(scenario.domains))
-    hop_client = node.create_client(AddDiagnostics, contract.consultant_service(domain))
-
-    def exchange(publisher, message: dict, timeout: float = 60.0) -> float:
-        key = str(message["id"])
-        start = time.perf_counter()
-        publisher.publish(to_msg(message))
-        resend = start + 2.0
-        while key not in answers:
-            executor.spin_once(timeout_sec=0.001)
-            now = time.perf_counter()
-            if now - start > timeout:
-                raise RuntimeError(f"no answer to {key}")
-            if now > resend:  # discovery not complete yet: at-least-once, ids deduplicated
-                publisher.publish(to_msg(message))
-                resend = now + 2.0
-        if "error" in answers[key]:
-            raise RuntimeError(answers[key]["error"])
-        return (time.perf_counter() - start) * 1e3
-
-    status_client = node.create_client(AddDiagnostics, contract.STATUS.name)
-
-    def call(client, payload: dict, timeout: float = 10.0) -> dict:
-        future = client.call_async(AddDiagnostics.Request(load_namespace=json.dumps(payload)))
-        start = time.perf_counter()
-        while not future.done():
-            executor.spin_once(timeout_sec=0.001)
-            if time.perf_counter() - start > timeout:
-                raise RuntimeError(f"no answer from {client.srv_name}")
-        return json.loads(future.result().message)
-
-    def hop_info() -> dict:
-        return call(hop_client, {"op": "info", "entities_from": 1 << 30}, timeout=2.0)
-
-    def configured() -> bool:
-        return status_client.service_is_ready() and all(
-            call(status_client, {}, timeout=2.0).get("configured", {}).values())
-
-    def hop(timeout: float = 10.0) -> float:
-        # a production op with no work: info for the entities past the last (none)
-        request = AddDiagnostics.Request(load_namespace=json.dumps({"op": "info", "entities_from": 1 << 30}))
-        start = time.perf_counter()
-        future = hop_client.call_async(request)
-        while not future.done():
-            executor.spin_once(timeout_sec=0.001)
-            if time.perf_counter() - start > timeout:
-                raise RuntimeError("no answer to a consultant hop")
-        return (time.perf_counter() - start) * 1e3
-
-    try:
         human, robot, hops = [], [], []
         span = turns[-1].time + 1.0
-        ready = 0.0
-        deadline = time.monotonic() + 10.0
-        while not hop_client.service_is_ready() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-        while True:  # one real round trip, and the WM Manager has configured every consultant
-            try:
-                if hop_info() and configured():
-                    break
-            except RuntimeError:  # a first request to a server just discovered can be lost: ask again
-                pass
-            if time.monotonic() > deadline + 50.0:
-                raise RuntimeError("the consultants were not configured within 60 s")
-            executor.spin_once(timeout_sec=0.05)
-        null_human, null_robot = [], []
         for rnd in range(rounds + 1):  # round 0 warms up (first calls to new servers are slow)
             for turn in turns:
-                if rnd:  # one hop and one null request per turn, interleaved: the same machine load
-                    hops.append(hop())
-                    null = {"id": f"null/{rnd}/{turn.index}", "time": turn.time + rnd * span}
-                    if turn.speaker == "human":  # no known word: the pipeline, no consultant call
-                        null_human.append(exchange(human_pub, {**null, "text": "zzz"}))
-                    else:  # no distractor: open and close only
-                        null_robot.append(exchange(reg_pub, {**null, "target": turn.target, "context": [turn.target]}))
-                else:
-                    hop(30.0)
-                message = {"id": f"{rnd}/{turn.index}", "time": turn.time + rnd * span, "turn": turn.index}
+                when = turn.time + rnd * span
+                domain = scenario.domain_of(turn.target) if turn.speaker == "robot" else \
+                    turn.domain or next(iter(scenario.domains))
+                ms_hop = hop(domain)
+                start = time.perf_counter()
                 if turn.speaker == "human":
-                    ms = exchange(human_pub, {**message, "description": list(turn.description)})
-                    (human if rnd else []).append(ms)
+                    reply = client.say(description=list(turn.description), domain=turn.domain, time=when,
+                                       turn=turn.index, timeout=30.0)
                 else:
-                    ms = exchange(reg_pub, {**message, "target": turn.target})
-                    (robot if rnd else []).append(ms)
-            if rnd == 0:
-                ready = time.perf_counter() - started
+                    reply = client.describe(turn.target, time=when, turn=turn.index, timeout=30.0)
+                ms = (time.perf_counter() - start) * 1e3
+                if reply.get("error"):
+                    raise RuntimeError(f"turn {turn.index}: {reply['error']}")
+                if rnd:
+                    hops.append(ms_hop)
+                    (human if turn.speaker == "human" else robot).append(ms)
             print(f"    round {rnd} done", file=sys.stderr, flush=True)
-        return {"human": human, "robot": robot, "hop": statistics.median(hops), "ready_s": ready,
-                "null": {"human": statistics.median(null_human), "robot": statistics.median(null_robot)}}
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-        graph.stop()
+        return {"human": human, "robot": robot, "hop": hops, "ready_s": ready_s}
 
 
-def world_path(size: str, turns: int, tmp: Path) -> Path:
+def world_path(size: str, tmp: Path) -> Path:
+    """Return Table 1's scenario, or write the random world of ``size`` entities (make_world.py's shape)."""
     if size == "table1":
         return TABLE1
-    shape = WorldShape(entities=int(size), human_turns=turns // 2, robot_turns=turns - turns // 2)
     path = tmp / f"world-{size}.yaml"
-    path.write_text(dump_world(random_world(shape)), encoding="utf-8")
+    path.write_text(dump_world(random_world(WorldShape(entities=int(size)))), encoding="utf-8")
     return path
 
 
 def run_world(size: str, args, tmp: Path) -> dict:
-    path = world_path(size, args.turns, tmp)
-    t0 = time.perf_counter()
+    path = world_path(size, tmp)
     scenario = load_scenario(path)
-    load_s = time.perf_counter() - t0
-    options = Options(memory={"policy": args.policy})
     turns = turns_of(scenario, args.turns)
-    core = core_latencies(scenario, options, turns, args.rounds)
-    graph = graph_latencies(scenario, path, options, turns, args.rounds)
+    core = core_latencies(scenario, Options(), turns, args.rounds)
+    graph = graph_latencies(scenario, path, turns, args.rounds, args.domain_id)
     entities = sum(len(spec.entities) for spec in scenario.domains.values())
-    row = {"world": size, "entities": entities, "turns": len(turns), "load_s": load_s, "hop_ms": graph["hop"],
-           "ready_s": graph["ready_s"], "calls_per_turn": core["calls"], "null_ms": graph["null"], "paths": {}}
-    for kind, label in (("human", "human turn -> /rr/result"), ("robot", "REG -> /reg/expression")):
+    hop = statistics.median(graph["hop"])
+    row = {"world": size, "entities": entities, "turns": len(turns), "ready_s": graph["ready_s"],
+           "hop_p50": hop, "hop_p95": percentile(graph["hop"], 0.95), "paths": {}}
+    for kind, label in PATHS:
         g, c = graph[kind], core[kind]
-        row["paths"][kind] = {"label": label, "graph_p50": statistics.median(g), "graph_p95": percentile(g, 0.95),
-                              "core_p50": statistics.median(c), "core_p95": percentile(c, 0.95)}
+        calls = core["calls"][kind]
+        row["paths"][kind] = {
+            "label": label, "graph_p50": statistics.median(g), "graph_p95": percentile(g, 0.95),
+            "core_p50": statistics.median(c), "core_p95": percentile(c, 0.95), "calls": calls,
+            "hops": statistics.median(g) / hop, "hop_budget": HOP_FACTOR * (calls + 2)}
     return row
 
 
-def per_call_ms(rows: list[dict], kind: str) -> float:
-    """Return what one consultant call costs inside the pipeline, calibrated where the core's work is nil.
-
-    On Table 1 (tens of microseconds of core work): (graph p50 - core p50 - null p50) /
-    (calls per turn - the null request's calls); the bare hop from this process if
-    Table 1 was not run.
-    """
+def verdicts(rows: list[dict]) -> list[str]:
+    """Check the targets; return one line per check (and mark each row's path)."""
+    lines = []
     base = next((r for r in rows if r["world"] == "table1"), None)
-    if base is None:
-        return statistics.median(r["hop_ms"] for r in rows)
-    path = base["paths"][kind]
-    extra = base["calls_per_turn"][kind] - NULL_CALLS[kind]
-    return max(0.0, path["graph_p50"] - path["core_p50"] - base["null_ms"][kind]) / max(extra, 1.0)
+    big = next((r for r in rows if r["entities"] >= 10_000), None)
+    for kind, label in PATHS:
+        if base is not None:
+            p = base["paths"][kind]
+            met = p["hops"] <= p["hop_budget"]
+            p["verdict_hops"] = met
+            lines.append(f"Table 1 {label}: {p['hops']:.1f} bare hops, target <= {HOP_FACTOR:g} x "
+                         f"({p['calls']:.1f} calls + 2) = {p['hop_budget']:.1f}: {'met' if met else 'MISSED'}")
+        if base is not None and big is not None:
+            b, p = base["paths"][kind], big["paths"][kind]
+            graph_growth = p["graph_p50"] - b["graph_p50"]
+            core_growth = p["core_p50"] - b["core_p50"]
+            ratio = graph_growth / core_growth if core_growth > 0 else float("inf")
+            p["growth_ratio"] = ratio
+            met = ratio <= GROWTH_FACTOR
+            lines.append(f"Table 1 -> {big['entities']:,} {label}: graph p50 +{graph_growth:.2f} ms, core p50 "
+                         f"+{core_growth:.2f} ms: x{ratio:.2f} the core's growth, target <= x{GROWTH_FACTOR:g}: "
+                         f"{'met' if met else 'MISSED'}")
+    return lines
 
 
-def verdicts(rows: list[dict]) -> None:
-    """Add the fixed cost, the net ratio and the verdict to each world's paths."""
-    for row in rows:
-        for kind, path in row["paths"].items():
-            path["ratio_p50"] = path["graph_p50"] / path["core_p50"]
-            path["per_call_ms"] = per_call = per_call_ms(rows, kind)
-            fixed = row["null_ms"][kind] + max(0.0, row["calls_per_turn"][kind] - NULL_CALLS[kind]) * per_call
-            path["fixed_ms"] = fixed
-            path["net_ratio_p50"] = max(0.0, path["graph_p50"] - fixed) / path["core_p50"]
-            target = TARGETS.get(row["entities"])
-            if target is not None:
-                met = path["graph_p50"] <= target * path["core_p50"] + fixed
-                path["verdict"] = f"{'met' if met else 'MISSED'} (<= {target:g}x core + fixed)"
-
-
-def render(rows: list[dict], args) -> str:
-    lines = [f"bench_graph: {args.rounds} rounds of up to {args.turns} turns, policy {args.policy}"]
-    header = (f"{'world':<8} {'path':<26} {'graph p50':>9} {'p95':>7} {'core p50':>9} {'p95':>7} "
-              f"{'ratio':>7} {'fixed':>7} {'net':>6} {'calls':>5}  verdict")
+def render(rows: list[dict], checks: list[str], args) -> str:
+    load = os.getloadavg()
+    lines = [f"bench_graph: {args.rounds} rounds of up to {args.turns} turns, every default (persistence on, "
+             f"sim time, one process per node); load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
+             f"on {os.cpu_count()} cores"]
+    header = (f"{'world':<8} {'path':<30} {'graph p50':>9} {'p95':>7} {'core p50':>9} {'p95':>7} "
+              f"{'hop p50':>7} {'calls':>5} {'hops':>6} {'budget':>6}")
     lines += [header, "-" * len(header)]
     for row in rows:
         for kind, p in row["paths"].items():
             lines.append(
-                f"{row['world']:<8} {p['label']:<26} {p['graph_p50']:>9.2f} {p['graph_p95']:>7.2f} "
-                f"{p['core_p50']:>9.3f} {p['core_p95']:>7.3f} {p['ratio_p50']:>6.1f}x "
-                f"{p.get('fixed_ms', 0.0):>7.2f} {p.get('net_ratio_p50', 0.0):>5.2f}x "
-                f"{row['calls_per_turn'][kind]:>5.1f}  {p.get('verdict', '')}")
+                f"{row['world']:<8} {p['label']:<30} {p['graph_p50']:>9.2f} {p['graph_p95']:>7.2f} "
+                f"{p['core_p50']:>9.3f} {p['core_p95']:>7.3f} {row['hop_p50']:>7.2f} {p['calls']:>5.1f} "
+                f"{p['hops']:>6.1f} {p['hop_budget']:>6.1f}")
     lines.append("")
     for row in rows:
-        lines.append(f"{row['world']}: {row['entities']} entities, scenario loaded in {row['load_s']:.2f} s, "
-                     f"graph up + warm-up round {row['ready_s']:.1f} s, one consultant hop p50 {row['hop_ms']:.2f} ms, "
-                     f"null human turn p50 {row['null_ms']['human']:.2f} ms, "
-                     f"null REG p50 {row['null_ms']['robot']:.2f} ms")
-    per_call = {kind: p["per_call_ms"] for kind, p in rows[0]["paths"].items()} if rows else {}
-    lines.append("(ms; ratio = graph p50 / core p50; fixed = the null request's p50 + the calls it lacks x one call's "
-                 "cost in the pipeline, " + ", ".join(f"{k} {v:.2f}" for k, v in per_call.items()) +
-                 " ms; net = (graph p50 - fixed) / core p50)")
+        lines.append(f"{row['world']}: {row['entities']} entities, {row['turns']} turns, ready after "
+                     f"{row['ready_s']:.1f} s, bare hop p50 {row['hop_p50']:.2f} ms, p95 {row['hop_p95']:.2f} ms")
+    lines.append("(ms; hops = graph p50 / bare hop p50; budget = 1.5 x (calls per turn + 2))")
+    lines += [""] + checks
     return "\n".join(lines) + "\n"
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--worlds", default="table1,1000,10000",
-                        help="comma-separated: table1 and/or entity counts of random worlds")
+                        help="comma-separated: table1 and/or entity counts of make_world.py worlds")
     parser.add_argument("--turns", type=int, default=40, help="turns per round (a world's first N)")
     parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--policy", default="displacement", help="decay ticks need a clock; displacement does not")
+    parser.add_argument("--domain-id", type=int, help="ROS domain of the graphs (default: ROS_DOMAIN_ID)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
+    if args.turns < 1 or args.rounds < 1:
+        parser.error("--turns and --rounds must be >= 1")
+    sizes = [s.strip() for s in args.worlds.split(",") if s.strip()]
+    for size in sizes:
+        if size != "table1" and not (size.isdigit() and int(size) >= 1):
+            parser.error(f"--worlds: {size!r} is neither 'table1' nor an entity count")
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-worlds-"))
     rows = []
-    for size in args.worlds.split(","):
-        rows.append(run_world(size.strip(), args, tmp))
+    for size in sizes:
+        rows.append(run_world(size, args, tmp))
         print(f"  {size}: done", file=sys.stderr, flush=True)
-    verdicts(rows)
-    sys.stdout.write(render(rows, args))
+    checks = verdicts(rows)
+    sys.stdout.write(render(rows, checks, args))
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        args.json.write_text(json.dumps({"rows": rows, "checks": checks, "load": os.getloadavg()}, indent=2,
+                                        sort_keys=True) + "\n", encoding="utf-8")
     return 0
 
 
