@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""REG's resident memory over many requests: it must stay flat once its answer cache is full.
+"""Resident memory of each node over many REG requests: it must stay flat once REG's answer cache is full.
 
 Starts a consultant, the WM Manager and REG as their own processes (as ``fsreg-graph``
-does, policy displacement so WM stays bounded), then sends ``--requests`` REG requests
+does, persistence on, policy displacement so WM stays bounded), then sends ``--requests`` REG requests
 with distinct ids from this process, one at a time, waiting for each answer, and reads
-REG's RSS (``/proc/<pid>/status`` VmRSS) every ``--every`` requests.  It prints the RSS
-at each sample and the slope after the cache is full (default 1,024 entries), in bytes
+every node's RSS (``/proc/<pid>/status`` VmRSS) every ``--every`` requests.  It prints the RSS
+at each sample and, per node, the slope after REG's cache is full (default 1,024 entries), in bytes
 per request.  Before the fix, REG grew ~1.9 kB per request after the cache filled: every
 service call created a deadline timer, and rclpy's callback group kept a weak reference
 to each timer forever (see ``fsreg_ros.carrier.drop_timer``).
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         requests = publisher(node, contract.REG_REQUEST)
         try:
             graph.start()
-            reg_pid = next(p.pid for s, p in graph.procs if s.executable == "reg")
+            pids = {s.name: p.pid for s, p in graph.procs}
 
             def ask(rid: str, target: str, timeout: float = 30.0) -> dict:
                 deadline = time.monotonic() + timeout
@@ -102,27 +102,32 @@ def main(argv: list[str] | None = None) -> int:
                 return answers.pop(rid)
 
             ask("warm-up", targets[0], timeout=60.0)
-            samples = [(0, rss_kb(reg_pid))]
+            samples = [(0, {name: rss_kb(pid) for name, pid in pids.items()})]
             started = time.monotonic()
             for i in range(1, args.requests + 1):
                 reply = ask(f"r{i}", targets[i % len(targets)])
                 if "error" in reply:
                     raise RuntimeError(f"request r{i}: {reply['error']}")
                 if i % args.every == 0:
-                    samples.append((i, rss_kb(reg_pid)))
-                    print(f"{i:>6} requests  REG RSS {samples[-1][1] / 1024:7.1f} MB", flush=True)
+                    samples.append((i, {name: rss_kb(pid) for name, pid in pids.items()}))
+                    sizes = "  ".join(f"{name} {kb / 1024:7.1f}" for name, kb in sorted(samples[-1][1].items()))
+                    print(f"{i:>6} requests  RSS MB {sizes}", flush=True)
             seconds = time.monotonic() - started
         finally:
             graph.stop()
             node.destroy_node()
             rclpy.try_shutdown()
     full = [(n, kb) for n, kb in samples if n >= 1024 + args.every]
-    slope = (full[-1][1] - full[0][1]) * 1024 / (full[-1][0] - full[0][0]) if len(full) >= 2 else float("nan")
-    print(f"{args.requests} requests in {seconds:.1f} s; "
-          f"RSS {samples[0][1] / 1024:.1f} -> {samples[-1][1] / 1024:.1f} MB; "
-          f"slope after the cache filled ({full[0][0] if full else '-'}..{args.requests}): {slope:+.0f} bytes/request")
+    slopes = {}
+    print(f"{args.requests} requests in {seconds:.1f} s; slope after REG's cache filled "
+          f"({full[0][0] if full else '-'}..{args.requests}), per node:")
+    for name in sorted(pids):
+        first, last = samples[0][1][name], samples[-1][1][name]
+        slopes[name] = ((full[-1][1][name] - full[0][1][name]) * 1024 / (full[-1][0] - full[0][0])
+                        if len(full) >= 2 else float("nan"))
+        print(f"  {name:22} RSS {first / 1024:7.1f} -> {last / 1024:7.1f} MB  {slopes[name]:+.0f} bytes/request")
     if args.json:
-        args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slope, "seconds": seconds}))
+        args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slopes, "seconds": seconds}))
     return 0
 
 

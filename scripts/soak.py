@@ -1,26 +1,31 @@
 #!/usr/bin/env python3
-"""Soak the multi-process node graph: N human turns and N REG requests at a given rate.
+"""Soak the multi-process node graph OPEN-LOOP: human turns and REG requests sent on a schedule.
 
-Starts the live graph as one process per node (``fsreg_ros.testing.LiveGraph`` with
-``processes=True``, as ``fsreg-up`` runs it: sim time, a namespace of its own) and plays
-the player's part through the harness's client: for each message it advances the
-graph's clock by ``--step`` sim seconds, calls the WM Manager's ``sync`` barrier, then
-publishes a human turn on ``dialogue/human`` or a REG request on ``reg/request``,
-alternating, at ``--rate`` messages per wall-clock second, in order (a message waits for
-the previous one's reply, at most ``ORDER_WAIT`` after it was sent, so that two runs
-are comparable turn by turn).  The turns and targets cycle through the scenario's
-dialogue, each with a fresh id.
+Starts the live graph as users run it (``fsreg_ros.testing.LiveGraph`` with
+``processes=True``, as ``fsreg-up`` runs it: every default, persistence on, sim time, a
+namespace of its own; the consultants' debug service off) and plays a dialogue manager
+and a perception loop through the harness's public :class:`~fsreg_ros.client.GraphClient`:
+``--rate`` human turns per second on ``dialogue/human`` and ``--rate`` REG requests per
+second on ``reg/request`` (the REG schedule offset by half a period), each sent at its
+scheduled moment whatever the answers (open loop: nothing waits for a reply).  The
+graph's clock follows the wall clock (published with every message; the requests are
+stamped with it), so decay ticks as it would on a robot.  The turns and targets cycle
+through the scenario's dialogue, each with a fresh id.
 
-Prints: lost (no reply by the end) and duplicated (more than one reply) per kind,
-replies that are errors, p50/p95/p99 latency (publish -> reply, wall clock), and per
-node the RSS at start and end and its slope in MB per 1,000 requests (least squares
-over samples taken once a second).
+Latency is measured from each message's *scheduled* moment to its reply (a sender
+that falls behind its schedule is not hidden; the largest lateness is reported).
+Prints per path: sent, lost (no reply by the end), duplicated (more than one reply),
+error replies, p50/p95/p99/max latency; and per node the RSS at start and end and its
+slope in MB per 1,000 requests (least squares over samples taken once a second).
 
-``--kill-consultant-at K`` runs twice: once uninterrupted, once SIGKILLing the
-first domain's consultant just before message K and starting it again at once; it
-prints, besides the figures of both runs, the replies that differ between the runs.
+``--step``: after the first stage, run further stages at ``--rate`` x 2, x 3, ... (a new
+graph each, same counts) until REG's p99 passes 100 ms (or ``--max-rate``), and say at
+which rate it did.  ``--kill-consultant-at K``: also run once SIGKILLing the first
+domain's consultant just before message K and starting it again at once (as a
+supervisor would); prints, besides both runs' figures, the replies that differ.
 
     scripts/soak.py --turns 1000 --requests 1000 --rate 20
+    scripts/soak.py --turns 400 --requests 400 --rate 20 --step
     scripts/soak.py --turns 200 --requests 200 --rate 20 --kill-consultant-at 100
 """
 
@@ -50,73 +55,81 @@ from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.testing import LiveGraph  # noqa: E402
 
 READY_TIMEOUT = 60.0
-SYNC_TIMEOUT = 2.0
-ORDER_WAIT = 2.0  # at most this long after sending, wait for a message's reply before the next
 DRAIN = 15.0  # wall seconds to wait for the last replies (a dead consultant call costs 10 s)
+#: REG p99 (ms) that ends --step.
+STEP_LIMIT_MS = 100.0
+#: The client's request kind of each soak message kind.
+KINDS = {"human": "say", "reg": "describe"}
 
 
 @dataclass
 class Sent:
-    """One message sent: its kind, index, wall time, and the replies it got."""
+    """One message: its kind, index, scheduled and actual send times (monotonic), and the replies it got."""
 
     kind: str
     index: int
+    due: float
     sent: float
     replies: list[tuple[float, dict]] = field(default_factory=list)
 
 
 @dataclass
 class RunResult:
+    rate: float
     messages: dict[str, Sent]
-    rss: dict[str, list[tuple[int, float]]]  # node -> [(requests done, MB)]
+    rss: dict[str, list[tuple[int, float]]]  # node -> [(requests sent, MB)]
     seconds: float
-    sync_failures: int
+    late_ms: float  # the most a message left after its scheduled moment
     killed_at: Optional[int] = None
 
 
-def events(scenario: Scenario, turns: int, requests: int) -> list[tuple[str, dict]]:
-    """Return the messages to send, human turns and REG requests alternating, cycling through the dialogue."""
+def schedule(scenario: Scenario, turns: int, requests: int, rate: float) -> list[tuple[float, str, dict]]:
+    """Return (offset s, kind, message) in time order: human turns at ``rate``, REG at ``rate`` half a period later."""
     human = [t for t in scenario.dialogue if t.speaker == "human"]
     robot = [t for t in scenario.dialogue if t.speaker == "robot"]
+    if (turns and not human) or (requests and not robot):
+        raise SystemExit("soak.py: error: the scenario's dialogue needs human and robot turns to cycle through")
+    period = 1.0 / rate
     out = []
-    for i in range(max(turns, requests)):
-        if i < turns:
-            t = human[i % len(human)]
-            msg: dict = {"id": f"h{i}"}
-            msg.update({"text": t.text} if t.text is not None else {"description": list(t.description)})
-            if t.domain:
-                msg["domain"] = t.domain
-            out.append(("human", msg))
-        if i < requests:
-            t = robot[i % len(robot)]
-            msg = {"id": f"r{i}", "target": t.target}
-            if t.context:
-                msg["context"] = list(t.context)
-            out.append(("reg", msg))
-    return out
-
-
-#: The client's request kind of each soak message kind.
-KINDS = {"human": "say", "reg": "describe"}
+    for i in range(turns):
+        t = human[i % len(human)]
+        msg: dict = {"text": t.text} if t.text is not None else {"description": list(t.description)}
+        if t.domain:
+            msg["domain"] = t.domain
+        out.append((i * period, "human", msg))
+    for i in range(requests):
+        t = robot[i % len(robot)]
+        msg = {"target": t.target}
+        if t.context:
+            msg["context"] = list(t.context)
+        out.append((i * period + period / 2, "reg", msg))
+    return sorted(out, key=lambda item: item[0])
 
 
 def spin_until(live: LiveGraph, predicate, deadline: float) -> bool:
     """Spin the harness's executor until ``predicate()`` or the deadline; whether it came true."""
     while not predicate():
-        if time.monotonic() > deadline:
+        now = time.monotonic()
+        if now >= deadline:
             return False
-        live.session.executor.spin_once(timeout_sec=0.002)
+        live.session.executor.spin_once(timeout_sec=min(0.002, deadline - now))
     return True
 
 
-def warm_up(live: LiveGraph, messages: list[tuple[str, dict]]) -> None:
+def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
     """One real round trip per pipeline (the first call to a new server can be slow), at time 0."""
     live.client.set_clock(0.0, READY_TIMEOUT)
-    for kind, msg in messages:
+    for kind in KINDS:
+        msg = next((m for _, k, m in plan if k == kind), None)
+        if msg is None:
+            continue
         try:
-            live.client.exchange(KINDS[kind], {**msg, "id": f"warm-{msg['id']}", "time": 0.0}, READY_TIMEOUT)
+            reply = live.client.exchange(KINDS[kind], {**msg, "id": live.client.new_id("warm"), "time": 0.0},
+                                         READY_TIMEOUT)
         except ClientError as err:
             raise SystemExit(f"soak.py: error: no reply to the warm-up {kind} message: {err}") from None
+        if reply.get("error"):
+            raise SystemExit(f"soak.py: error: the warm-up {kind} message was refused: {reply['error']}")
 
 
 def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> None:
@@ -127,52 +140,57 @@ def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> Non
             pass
 
 
-def run(args: argparse.Namespace, kill_at: Optional[int]) -> RunResult:
+def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunResult:
     scenario = load_scenario(args.scenario)
-    plan = events(scenario, args.turns, args.requests)
-    with LiveGraph(args.scenario, processes=True, policy=args.policy, ready_timeout=READY_TIMEOUT) as live:
+    plan = schedule(scenario, args.turns, args.requests, rate)
+    memory = {"policy": args.policy} if args.policy else {}
+    debug_off = {f"consultant_{d}": {"debug": False} for d in scenario.domains}  # as fsreg-up runs them
+    with LiveGraph(args.scenario, processes=True, parameters=debug_off, ready_timeout=READY_TIMEOUT,
+                   **memory) as live:
         client, graph = live.client, live.graph
         rss: dict[str, list[tuple[int, float]]] = {}
-        sync_failures = 0
         messages: dict[str, Sent] = {}
-        warm_up(live, plan[:2])
+        warm_up(live, plan)
+        for kind in KINDS:
+            client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
-        period, start = 1.0 / args.rate, time.monotonic()
-        next_sample, previous = start, None
-        for i, (kind, msg) in enumerate(plan):
+        start = time.monotonic()
+        next_sample, late = start, 0.0
+        for i, (offset, kind, msg) in enumerate(plan):
             if kill_at is not None and i == kill_at:
                 graph.restart(consultant)  # SIGKILL, then start it again at once, as a supervisor would
-            slot = start + i * period
-            spin_until(live, lambda: False, slot)  # spin (collect replies) until this message's slot
-            if previous is not None:  # in order: a turn's WM changes land before the next request reads WM
-                spin_until(live, lambda: client.answers[previous], max(slot, messages[previous].sent + ORDER_WAIT))
-            if time.monotonic() >= next_sample:
+            due = start + offset
+            spin_until(live, lambda: False, due)  # collect replies until this message's moment
+            now = time.monotonic()
+            late = max(late, now - due)
+            if now >= next_sample:
                 rss_sample(graph, i, rss)
                 next_sample += 1.0
-            t = (i + 1) * args.step
-            client.publish_clock(t)
-            try:
-                client.sync(t, SYNC_TIMEOUT)
-            except ClientError:
-                sync_failures += 1
-            previous = msg["id"]
-            messages[previous] = Sent(kind, i, time.monotonic())
-            client.send(KINDS[kind], {**msg, "time": t})
+            stamp = now - start  # the robot's clock follows the wall clock
+            client.publish_clock(stamp)
+            key = client.new_id(kind)
+            messages[key] = Sent(kind, i, due, time.monotonic())
+            client.send(KINDS[kind], {**msg, "id": key, "time": stamp})
         spin_until(live, lambda: all(client.answers[k] for k in messages), time.monotonic() + DRAIN)
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
         for key, sent in messages.items():
-            sent.replies = [(a.received, a.data) for a in client.answers[key]]
+            sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         for spec, code in graph.dead():
             print(f"soak.py: node {spec.name} died (exit {code})\n{graph.tail(spec.name)}", file=sys.stderr)
-        return RunResult(messages, rss, seconds, sync_failures, kill_at)
+        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at)
 
 
 # ------------------------------------------------------------------- figures
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q / 100 * len(ordered)))] if ordered else float("nan")
+
+
+def latencies(result: RunResult, kind: str) -> list[float]:
+    """Milliseconds from each answered message's scheduled moment to its first reply."""
+    return [1000 * (s.replies[0][0] - s.due) for s in result.messages.values() if s.kind == kind and s.replies]
 
 
 def slope(points: list[tuple[int, float]]) -> float:
@@ -186,8 +204,10 @@ def slope(points: list[tuple[int, float]]) -> float:
 
 
 def report(result: RunResult, title: str) -> str:
-    lines = [f"== {title}: {len(result.messages)} messages in {result.seconds:.1f} s, "
-             f"{result.sync_failures} sync calls failed"]
+    load = os.getloadavg()
+    lines = [f"== {title}: open loop, {result.rate:g} human turns/s + {result.rate:g} REG requests/s, "
+             f"{len(result.messages)} messages in {result.seconds:.1f} s, sender at most {result.late_ms:.1f} ms "
+             f"behind schedule; load average {load[0]:.2f} on {os.cpu_count()} cores"]
     for kind in ("human", "reg"):
         sent = [s for s in result.messages.values() if s.kind == kind]
         if not sent:
@@ -195,7 +215,7 @@ def report(result: RunResult, title: str) -> str:
         lost = sum(1 for s in sent if not s.replies)
         dup = sum(1 for s in sent if len(s.replies) > 1)
         errors = sum(1 for s in sent if s.replies and s.replies[0][1].get("error"))
-        ms = [1000 * (s.replies[0][0] - s.sent) for s in sent if s.replies]
+        ms = latencies(result, kind)
         lines.append(f"{kind:6} sent {len(sent)}, lost {lost}, duplicated {dup}, errors {errors}; latency ms "
                      f"p50 {percentile(ms, 50):.1f} p95 {percentile(ms, 95):.1f} p99 {percentile(ms, 99):.1f} "
                      f"max {max(ms, default=float('nan')):.1f}")
@@ -224,15 +244,16 @@ def answer(sent: Sent) -> object:
 
 
 def compare(base: RunResult, killed: RunResult) -> str:
-    differ = [(k, answer(s), answer(killed.messages[k])) for k, s in base.messages.items()
-              if answer(s) != answer(killed.messages[k])]
-    after = [d for d in differ if base.messages[d[0]].index >= (killed.killed_at or 0)]
-    lines = [f"== kill at message {killed.killed_at}: {len(differ)} of {len(base.messages)} replies differ "
-             f"from the uninterrupted run ({len(after)} at or after the kill)"]
+    by_index = {s.index: s for s in killed.messages.values()}
+    pairs = [(s, by_index[s.index]) for s in base.messages.values() if s.index in by_index]
+    differ = [(a, answer(a), answer(b)) for a, b in pairs if answer(a) != answer(b)]
+    after = [d for d in differ if d[0].index >= (killed.killed_at or 0)]
+    lines = [f"== kill at message {killed.killed_at}: {len(differ)} of {len(pairs)} replies differ "
+             f"from the uninterrupted run ({len(after)} at or after the kill; timing differs between open-loop "
+             "runs, so decay can differ too)"]
     for kind in ("human", "reg"):
-        n = sum(1 for k, _, _ in differ if base.messages[k].kind == kind)
-        lines.append(f"  {kind}: {n} differ")
-    lines += [f"  {k}: {a!r} -> {b!r}" for k, a, b in differ[:15]]
+        lines.append(f"  {kind}: {sum(1 for s, _, _ in differ if s.kind == kind)} differ")
+    lines += [f"  #{s.index} {s.kind}: {a!r} -> {b!r}" for s, a, b in differ[:15]]
     return "\n".join(lines)
 
 
@@ -244,20 +265,39 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument("scenario", type=Path, nargs="?", default=default)
     parser.add_argument("--turns", type=int, default=1000, help="human turns (default 1000)")
     parser.add_argument("--requests", type=int, default=1000, help="REG requests (default 1000)")
-    parser.add_argument("--rate", type=float, default=20.0, help="messages per wall second (default 20)")
-    parser.add_argument("--step", type=float, default=1.0, help="sim seconds per message (default 1)")
-    parser.add_argument("--policy", default="decay", help="forgetting policy (default decay)")
+    parser.add_argument("--rate", type=float, default=20.0, help="human turns and REG requests per second, each "
+                        "(default 20)")
+    parser.add_argument("--step", action="store_true", help=f"raise the rate stage by stage until REG p99 passes "
+                        f"{STEP_LIMIT_MS:g} ms")
+    parser.add_argument("--max-rate", type=float, default=400.0, help="highest rate --step tries (default 400)")
+    parser.add_argument("--policy", help="forgetting policy (default: the scenario's)")
     parser.add_argument("--kill-consultant-at", type=int, metavar="K",
                         help="also run once SIGKILLing and restarting the consultant before message K")
     args = parser.parse_args(argv)
-    if args.rate <= 0 or args.turns < 0 or args.requests < 0 or args.step <= 0:
-        parser.error("--rate and --step must be positive, --turns and --requests not negative")
+    if not 0 < args.rate <= args.max_rate or args.turns < 0 or args.requests < 0 or args.turns + args.requests == 0:
+        parser.error("--rate must be positive and at most --max-rate; --turns and --requests not negative, "
+                     "not both 0")
     if not args.scenario.is_file():
         parser.error(f"scenario not found: {args.scenario}")
-    base = run(args, None)
+    base = run(args, args.rate, None)
     print(report(base, "uninterrupted"), flush=True)
+    if args.step:
+        stage, result = 1, base
+        while percentile(latencies(result, "reg"), 99) <= STEP_LIMIT_MS:
+            stage += 1
+            rate = args.rate * stage
+            if rate > args.max_rate:
+                print(f"== step: REG p99 stayed <= {STEP_LIMIT_MS:g} ms up to {args.rate * (stage - 1):g}/s "
+                      f"(--max-rate {args.max_rate:g})")
+                break
+            result = run(args, rate, None)
+            print(report(result, f"step {stage}"), flush=True)
+        else:
+            held = f"; it held at {result.rate - args.rate:g}/s" if stage > 1 else ""
+            print(f"== step: REG p99 passed {STEP_LIMIT_MS:g} ms at {result.rate:g} requests/s "
+                  f"({percentile(latencies(result, 'reg'), 99):.1f} ms){held}")
     if args.kill_consultant_at is not None:
-        killed = run(args, args.kill_consultant_at)
+        killed = run(args, args.rate, args.kill_consultant_at)
         print(report(killed, f"consultant SIGKILLed and restarted at message {args.kill_consultant_at}"))
         print(compare(base, killed))
     return 0
