@@ -58,8 +58,8 @@ class ConsultantNode(Node):
 
     NODE_NAME = "consultant"
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, **kwargs)
+    def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         domain = self._text("domain", "the domain this consultant owns (required)")
         kb = self._text("kb", "scenario/KB YAML file with the domain's LTM (required)")
         if not domain or not kb:
