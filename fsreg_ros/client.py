@@ -127,8 +127,7 @@ class GraphClient:
         if key in self.answers:
             self.answers[key].append(Answer(data, time.monotonic()))
 
-    def _on_ready(self, data: dict) -> None:
-        contract.check(contract.ManagerReady, data)
+    def _on_ready(self, data: dict) -> None:  # subscribe() has checked it against contract.ManagerReady
         key = (data.get(contract.GRAPH_FIELD) or "", data.get("pid"), data.get("host"))
         self.ready_messages[key] = data
         self._ready_heard[key] = time.monotonic()

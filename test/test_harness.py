@@ -120,8 +120,9 @@ def test_two_graphs_on_one_namespace_are_refused(table1_path):
                     assert err.startswith("fsreg-ctl: error: two graphs in namespace") or "another graph" in err, err
 
 
-def test_node_classes_take_a_name_and_a_namespace():
+def test_node_classes_take_a_name_and_a_namespace(tmp_path):
     from fsreg_ros.nodes.dialogue_player import DialoguePlayer
+    from fsreg_ros.nodes.consultant import ConsultantNode
     from fsreg_ros.nodes.parser import ParserNode
     from fsreg_ros.nodes.reference_resolution import ReferenceResolutionNode
     from fsreg_ros.nodes.reg import RegNode
@@ -131,6 +132,8 @@ def test_node_classes_take_a_name_and_a_namespace():
     with RosSession() as ros:
         params = {ReferenceResolutionNode: {"domains": ["faces"]}, RegNode: {"domains": ["faces"]},
                   WMManagerNode: {"domains": ["faces"]}, ParserNode: {},
+                  ConsultantNode: {"domain": "faces", "kb": str(REPO / "scenarios" / "guess_who_table1.yaml"),
+                                   "persist_wm": False, "state_dir": str(tmp_path)},
                   DialoguePlayer: {"scenario": str(REPO / "scenarios" / "guess_who_table1.yaml")}}
         for cls, values in params.items():
             node = cls(node_name="mine", namespace="/robot7", context=ros.context,

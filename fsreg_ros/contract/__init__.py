@@ -107,7 +107,7 @@ from .endpoints import (
     manage_service,
 )
 from .export import fields_of, json_schemas, message_table
-from .limits import LIMIT_RANGES, Limits, check_sizes
+from .limits import LIMIT_RANGES, Limits
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
@@ -129,7 +129,7 @@ __all__ = [
     "Request", "RequestRef", "RuleOutReply", "RuleOutRequest", "Semantics", "Service", "SizeReply", "SizeRequest",
     "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest", "StoredState",
     "SyncReply", "SyncRequest", "TickRun", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
-    "alive_topic", "attribution", "cache_key", "check", "check_sizes", "clock_remap", "consultant_service",
+    "alive_topic", "attribution", "cache_key", "check", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness

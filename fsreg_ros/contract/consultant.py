@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field
 
-from .base import Message, Number, Stamp
+from .base import Message, Name, Names, Number, Stamp
 from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
 
@@ -76,7 +76,7 @@ class InfoRequest(Message):
 class StepRequest(Stamp):
     """One narrowing step: keep the members ``property`` holds for, encoding it (``cause``; null: no encoding)."""
 
-    property: str
+    property: Name
     cause: Optional[Cause]
 
 
@@ -90,10 +90,10 @@ class OpenRequest(Message):
     """
 
     op: Literal["open"]
-    target: Optional[str] = None
-    context: Optional[list[str]] = None
+    target: Optional[Name] = None
+    context: Optional[Names] = None
     first: Optional[StepRequest] = None
-    client: Optional[str] = None
+    client: Optional[Name] = None
 
 
 class NarrowRequest(Stamp):
@@ -103,8 +103,8 @@ class NarrowRequest(Stamp):
     """
 
     op: Literal["narrow"]
-    session: str
-    property: str
+    session: Name
+    property: Name
     cause: Optional[Cause]
 
 
@@ -112,7 +112,7 @@ class RuleOutRequest(Message):
     """Op ``rule_out``: for each property holding for the session's target, the members it rules out."""
 
     op: Literal["rule_out"]
-    session: str
+    session: Name
 
 
 class CloseRequest(Stamp):
@@ -123,8 +123,8 @@ class CloseRequest(Stamp):
     """
 
     op: Literal["close"]
-    session: str
-    encode: Optional[list[str]] = None
+    session: Name
+    encode: Optional[Names] = None
 
 
 class Versioned(Message):
@@ -212,16 +212,16 @@ class HoldsRequest(Message):
     """Debug op ``holds``: for which of ``entities`` does ``property`` hold (nothing is encoded)."""
 
     op: Literal["holds"]
-    property: str
-    entities: list[str]
+    property: Name
+    entities: Names
 
 
 class AffirmRequest(Stamp):
     """Debug op ``affirm``: as ``holds``, and encode ``property`` for each entity it holds for."""
 
     op: Literal["affirm"]
-    property: str
-    entities: list[str]
+    property: Name
+    entities: Names
     cause: Cause
 
 
@@ -229,15 +229,15 @@ class WMRequest(Message):
     """Debug op ``wm``: one entity's WM queue, LRU first (reading never refreshes)."""
 
     op: Literal["wm"]
-    entity: str
+    entity: Name
 
 
 class EncodeRequest(Stamp):
     """Debug op ``encode``: encode ``properties`` for ``entity`` in WM (Algorithm 1)."""
 
     op: Literal["encode"]
-    entity: str
-    properties: list[str]
+    entity: Name
+    properties: Names
     cause: Cause
 
 

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
-
-from ..codec import MessageError
 
 
 @dataclass(frozen=True)
@@ -33,25 +30,3 @@ LIMIT_RANGES = {
     "answer_cache_entries": (0, 1_000_000),
     "answer_cache_bytes": (0, 1024 * 1024 * 1024),
 }
-
-
-def check_sizes(data: Any, limits: Limits, names: tuple[str, ...] = (), lists: tuple[str, ...] = ()) -> None:
-    """Raise :class:`MessageError` if a named field is too long a name or a list is too long.
-
-    ``names`` are fields holding one name; ``lists`` fields holding a list of names (or
-    an object whose keys are names); every item of those is a name too.
-    """
-    for field in names:
-        value = data.get(field)
-        if isinstance(value, str) and len(value) > limits.max_name_chars:
-            raise MessageError(f"field '{field}': a name of {len(value)} characters, over the limit of "
-                               f"{limits.max_name_chars}")
-    for field in lists:
-        value = data.get(field)
-        if isinstance(value, (list, dict)):
-            if len(value) > limits.max_list_items:
-                raise MessageError(f"field '{field}': {len(value)} items, over the limit of {limits.max_list_items}")
-            for item in value:
-                if isinstance(item, str) and len(item) > limits.max_name_chars:
-                    raise MessageError(f"field '{field}': a name of {len(item)} characters, over the limit of "
-                                       f"{limits.max_name_chars}")

@@ -22,6 +22,7 @@ docs/deployment.md ("State").
 from __future__ import annotations
 
 import gc
+from functools import partial
 from pathlib import Path
 from time import monotonic
 from typing import Any, Optional
@@ -44,9 +45,6 @@ from .common import StartupError, declare_number, descriptor, now_seconds, run_n
 
 #: Ops whose WM changes are published with the session's ``close``.
 SESSION_STEPS = ("open", "narrow", "rule_out")
-#: Name and list fields of a request, bounded by the size limits.
-NAMES = ("entity", "property", "cause", "target", "session", "client")
-LISTS = ("entities", "properties", "context", "encode")
 #: Longest a due /wm/state waits for open sessions to close, seconds.
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
@@ -58,8 +56,8 @@ class ConsultantNode(Node):
 
     NODE_NAME = "consultant"
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, **kwargs)
+    def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         domain = self._text("domain", "the domain this consultant owns (required)")
         kb = self._text("kb", "scenario/KB YAML file with the domain's LTM (required)")
         if not domain or not kb:
@@ -129,14 +127,12 @@ class ConsultantNode(Node):
         self._announced: Optional[tuple] = None
         self._announcement: dict = {}
         self._state_due, self._state_sent = False, float("-inf")
-        size = self.limits.max_message_bytes
-        services = [(contract.consultant_service, contract.CONSULTANT_OPS),
-                    (contract.manage_service, contract.MANAGE_OPS)]
+        services = [(contract.CONSULTANT, contract.CONSULTANT_OPS), (contract.MANAGE, contract.MANAGE_OPS)]
         if debug:
-            services.append((contract.debug_service, contract.DEBUG_OPS))
-        for name, ops in services:
-            serve(self, name(domain), lambda request, ops=ops: self._call(request, ops), max_bytes=size)
-        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size,
+            services.append((contract.DEBUG, contract.DEBUG_OPS))
+        for service, ops in services:  # each request validated once, by serve(), against its op's schema
+            serve(self, service, {op: partial(self._call, op) for op in ops}, limits=self.limits, domain=domain)
+        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, limits=self.limits,
                   accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
@@ -153,19 +149,8 @@ class ConsultantNode(Node):
                  f"properties, threshold {threshold:g}, from {kb}" + (" (debug service on)" if debug else ""))
 
     # ----------------------------------------------------------------- calls
-    def _call(self, request: dict, ops: dict) -> dict:
-        """Decode one request with the op's model, run it, publish what came of it; return the reply."""
-        op = request.get("op")
-        if "op" not in request:
-            raise MessageError("missing field 'op'")
-        if not isinstance(op, str):
-            raise MessageError(f"field 'op': expected a string, got {printable(repr(op), 80)}")
-        if op not in ops:
-            raise MessageError(f"unknown op {printable(repr(op), 80)} (known: {', '.join(ops)})")
-        contract.check(ops[op][0], request)
-        contract.check_sizes(request, self.limits, names=NAMES, lists=LISTS)
-        if isinstance(request.get("first"), dict):
-            contract.check_sizes(request["first"], self.limits, names=NAMES)
+    def _call(self, op: str, request: dict) -> dict:
+        """Run one validated request (its ``op``), publish what came of it; return the reply."""
         client = request.get("client") or ""
         outcome = self._guarded(lambda listening: self.service.apply(op, request, client, listening))
         if op == "info":
@@ -201,18 +186,12 @@ class ConsultantNode(Node):
         publish(self._assert_results, reply)
 
     def _on_assert(self, data: dict) -> None:
-        if not isinstance(data.get("domain"), str):
-            raise MessageError("missing field 'domain'" if "domain" not in data else
-                               "field 'domain': expected a string")
-        if data["domain"] != self.domain:
-            return  # another consultant's
+        """Apply one ``ltm/assert`` of this domain (routed by ``accept``, validated by subscribe()); answer it."""
         reply: dict[str, Any] = {"domain": self.domain, "entity": data.get("entity")}
         if "id" in data:
             reply["id"] = data["id"]
         log = self.get_logger()
         try:
-            contract.check(contract.LtmAssert, data)
-            contract.check_sizes(data, self.limits, names=("entity",), lists=("properties",))
             outcome = self._guarded(lambda listening: self.service.ltm_assert(
                 data["entity"], data["properties"], listening=listening))
         except StoreError as err:  # memory unchanged: nothing was applied
