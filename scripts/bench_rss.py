@@ -42,7 +42,7 @@ from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.carrier import publisher, to_msg  # noqa: E402
+from fsreg_ros.carrier import publisher, qos_profile, to_msg  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options  # noqa: E402
 
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         answers: dict[str, dict] = {}
         node.create_subscription(String, contract.REG_EXPRESSION.name,
                                  lambda m: answers.__setitem__(json.loads(m.data).get("id"), json.loads(m.data)),
-                                 contract.REG_EXPRESSION.subscriber_qos)
+                                 qos_profile(contract.REG_EXPRESSION.subscriber_qos))
         requests = publisher(node, contract.REG_REQUEST)
         try:
             graph.start()

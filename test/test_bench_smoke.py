@@ -1,4 +1,4 @@
-"""Smoke test of scripts/bench_core.py: it runs and prints its table (no timings asserted)."""
+"""Smoke tests of the benchmarks (bench_core, bench_graph, soak): they run and report (no timings asserted)."""
 
 from __future__ import annotations
 
@@ -32,3 +32,38 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
     assert data["decay"] and all(r["same_final_state"] for r in data["decay"])
     # SD-PIA under a retaining policy really has WM content to walk.
     assert any(r["config"] == "sd-pia" and r["from_wm_mean"] > 0 for r in data["reg"])
+
+
+# ------------------------------------------------------------------ the graph's benchmarks
+GRAPH_SCRIPT = SCRIPT.parent / "bench_graph.py"
+SOAK_SCRIPT = SCRIPT.parent / "soak.py"
+
+
+def test_bench_graph_runs_the_default_graph_and_checks_its_targets(tmp_path):
+    out = tmp_path / "graph.json"
+    proc = subprocess.run(
+        [sys.executable, str(GRAPH_SCRIPT), "--worlds", "table1", "--turns", "4", "--rounds", "1", "--json", str(out)],
+        capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    (row,) = data["rows"]
+    assert row["world"] == "table1" and row["entities"] == 16 and row["turns"] == 4
+    assert set(row["paths"]) == {"human", "robot"}
+    for path in row["paths"].values():
+        # every turn took consultant calls, so the graph's turn costs more than one bare hop
+        assert path["calls"] >= 1 and path["graph_p50"] > row["hop_p50"] > 0
+        assert path["hop_budget"] == 1.5 * (path["calls"] + 2)
+    assert [line.split(":")[0] for line in data["checks"]] == [
+        "Table 1 human turn -> rr/result", "Table 1 reg/request -> reg/expression"]
+    assert "every default (persistence on" in proc.stdout
+
+
+def test_soak_sends_open_loop_and_accounts_for_every_message():
+    proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), "--turns", "10", "--requests", "10", "--rate", "10"],
+                          capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("== uninterrupted: open loop, 10 human turns/s + 10 REG requests/s, 20 messages")
+    assert any(line.startswith("human  sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
+    assert any(line.startswith("reg    sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
+    assert any(line.strip().startswith("consultant_faces") for line in lines)
