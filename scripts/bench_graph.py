@@ -6,7 +6,9 @@ and 10,000 entities (:mod:`fsreg_ros.worlds`, seeded, its default shape) -- it s
 graph ``fsreg-up`` starts, with every default: one process per node, persistence on (a
 state directory of its own), sim time, the scenario's memory settings, a namespace of
 its own (:class:`fsreg_ros.testing.LiveGraph` with ``processes=True``; the consultants'
-debug service off, as ``fsreg-up`` has it).  It waits until the graph says it is ready
+debug service off, as ``fsreg-up`` has it).  Every world's graph is up at once and their
+turns are interleaved (turn i of each world before turn i + 1 of any), so every figure,
+across worlds too, is taken under the same machine load.  It waits until the graph says it is ready
 (``wm_manager/ready`` and every topic matched: :meth:`GraphClient.wait_ready`) and then,
 through the public :class:`~fsreg_ros.client.GraphClient`, measures per turn:
 
@@ -138,55 +140,87 @@ def core_latencies(scenario, options: Options, turns: list, rounds: int) -> dict
     return out
 
 
-def graph_latencies(scenario, path: Path, turns: list, rounds: int, domain_id) -> dict:
-    """Latencies (ms) of the turns through the live graph, the bare hop's, and the time to readiness."""
-    from fsreg_ros.testing import LiveGraph
+class WorldGraph:
+    """One world's live graph (as ``fsreg-up`` runs it) and its measurements, turn by turn."""
 
-    debug_off = {f"consultant_{d}": {"debug": False} for d in scenario.domains}  # as fsreg-up runs them
-    started = time.perf_counter()
-    with LiveGraph(path, processes=True, parameters=debug_off, ready_timeout=READY_TIMEOUT,
-                   domain_id=domain_id) as live:
-        ready_s = time.perf_counter() - started
-        client = live.client
-        executor = client.executor
-        hop_clients = {d: client.service(contract.consultant_service(d)) for d in scenario.domains}
+    def __init__(self, name: str, scenario, path: Path, turns: list, domain_id) -> None:
+        from fsreg_ros.testing import LiveGraph
 
-        def hop(domain: str) -> float:
-            """One consultant call that does no work (``info`` of no entity), from this process."""
-            service = hop_clients[domain]
-            start = time.perf_counter()
-            future = service.send({"op": "info", "entities_from": 1 << 30})
-            while not future.done():
-                executor.spin_once(timeout_sec=0.001)
-                if time.perf_counter() - start > 10.0:
-                    raise RuntimeError(f"no answer from {service.name}")
-            reply = service.decode(future)
-            if "error" in reply:
-                raise RuntimeError(f"{service.name}: {reply['error']}")
-            return (time.perf_counter() - start) * 1e3
+        self.name, self.scenario, self.turns = name, scenario, turns
+        debug_off = {f"consultant_{d}": {"debug": False} for d in scenario.domains}  # as fsreg-up runs them
+        started = time.perf_counter()
+        self.live = LiveGraph(path, processes=True, parameters=debug_off, ready_timeout=READY_TIMEOUT,
+                              domain_id=domain_id).start()  # returns once the graph says it is ready
+        self.ready_s = time.perf_counter() - started
+        self.client = self.live.client
+        self.hop_clients = {d: self.client.service(contract.consultant_service(d)) for d in scenario.domains}
+        self.span = turns[-1].time + 1.0
+        self.human: list[float] = []
+        self.robot: list[float] = []
+        self.hops: list[float] = []
 
-        human, robot, hops = [], [], []
-        span = turns[-1].time + 1.0
+    def hop(self, domain: str) -> float:
+        """One consultant call that does no work (``info`` of no entity), from this process; its ms."""
+        service, executor = self.hop_clients[domain], self.client.executor
+        start = time.perf_counter()
+        future = service.send({"op": "info", "entities_from": 1 << 30})
+        while not future.done():
+            executor.spin_once(timeout_sec=0.001)
+            if time.perf_counter() - start > 10.0:
+                raise RuntimeError(f"{self.name}: no answer from {service.name}")
+        reply = service.decode(future)
+        if "error" in reply:
+            raise RuntimeError(f"{self.name}: {service.name}: {reply['error']}")
+        return (time.perf_counter() - start) * 1e3
+
+    def step(self, rnd: int, index: int) -> None:
+        """Run turn ``index`` of round ``rnd`` (0 warms up) with one bare hop before it."""
+        if index >= len(self.turns):
+            return
+        turn, scenario = self.turns[index], self.scenario
+        when = turn.time + rnd * self.span
+        domain = scenario.domain_of(turn.target) if turn.speaker == "robot" else \
+            turn.domain or next(iter(scenario.domains))
+        ms_hop = self.hop(domain)
+        start = time.perf_counter()
+        if turn.speaker == "human":
+            reply = self.client.say(description=list(turn.description), domain=turn.domain, time=when,
+                                    turn=turn.index, timeout=30.0)
+        else:
+            reply = self.client.describe(turn.target, time=when, turn=turn.index, timeout=30.0)
+        ms = (time.perf_counter() - start) * 1e3
+        if reply.get("error"):
+            raise RuntimeError(f"{self.name}, turn {turn.index}: {reply['error']}")
+        if rnd:
+            self.hops.append(ms_hop)
+            (self.human if turn.speaker == "human" else self.robot).append(ms)
+
+    def close(self) -> None:
+        self.live.close()
+
+
+def graph_latencies(worlds: dict, rounds: int, domain_id) -> dict:
+    """Latencies (ms) of every world's turns through its live graph, all graphs up at once, turns interleaved.
+
+    Turn i of every world runs before turn i + 1 of any, so every world (and its bare
+    hop) is measured under the same machine load: the growth from one world to the
+    next is a ratio within one run.
+    """
+    graphs: dict[str, WorldGraph] = {}
+    try:
+        for name, (scenario, path, turns) in worlds.items():
+            graphs[name] = WorldGraph(name, scenario, path, turns, domain_id)
+        longest = max(len(g.turns) for g in graphs.values())
         for rnd in range(rounds + 1):  # round 0 warms up (first calls to new servers are slow)
-            for turn in turns:
-                when = turn.time + rnd * span
-                domain = scenario.domain_of(turn.target) if turn.speaker == "robot" else \
-                    turn.domain or next(iter(scenario.domains))
-                ms_hop = hop(domain)
-                start = time.perf_counter()
-                if turn.speaker == "human":
-                    reply = client.say(description=list(turn.description), domain=turn.domain, time=when,
-                                       turn=turn.index, timeout=30.0)
-                else:
-                    reply = client.describe(turn.target, time=when, turn=turn.index, timeout=30.0)
-                ms = (time.perf_counter() - start) * 1e3
-                if reply.get("error"):
-                    raise RuntimeError(f"turn {turn.index}: {reply['error']}")
-                if rnd:
-                    hops.append(ms_hop)
-                    (human if turn.speaker == "human" else robot).append(ms)
+            for index in range(longest):
+                for graph in graphs.values():
+                    graph.step(rnd, index)
             print(f"    round {rnd} done", file=sys.stderr, flush=True)
-        return {"human": human, "robot": robot, "hop": hops, "ready_s": ready_s}
+        return {name: {"human": g.human, "robot": g.robot, "hop": g.hops, "ready_s": g.ready_s}
+                for name, g in graphs.items()}
+    finally:
+        for graph in graphs.values():
+            graph.close()
 
 
 def world_path(size: str, tmp: Path) -> Path:
@@ -198,18 +232,16 @@ def world_path(size: str, tmp: Path) -> Path:
     return path
 
 
-def run_world(size: str, args, tmp: Path) -> dict:
-    path = world_path(size, tmp)
-    scenario = load_scenario(path)
-    turns = turns_of(scenario, args.turns)
-    core = core_latencies(scenario, Options(), turns, args.rounds)
-    graph = graph_latencies(scenario, path, turns, args.rounds, args.domain_id)
+def row_of(size: str, scenario, turns: list, core: dict, graph: dict) -> dict:
+    """Return one world's figures: graph and core p50/p95 per path, the bare hop, calls per turn."""
     entities = sum(len(spec.entities) for spec in scenario.domains.values())
     hop = statistics.median(graph["hop"])
     row = {"world": size, "entities": entities, "turns": len(turns), "ready_s": graph["ready_s"],
            "hop_p50": hop, "hop_p95": percentile(graph["hop"], 0.95), "paths": {}}
     for kind, label in PATHS:
         g, c = graph[kind], core[kind]
+        if not g:
+            continue
         calls = core["calls"][kind]
         row["paths"][kind] = {
             "label": label, "graph_p50": statistics.median(g), "graph_p95": percentile(g, 0.95),
@@ -224,13 +256,13 @@ def verdicts(rows: list[dict]) -> list[str]:
     base = next((r for r in rows if r["world"] == "table1"), None)
     big = next((r for r in rows if r["entities"] >= 10_000), None)
     for kind, label in PATHS:
-        if base is not None:
+        if base is not None and kind in base["paths"]:
             p = base["paths"][kind]
             met = p["hops"] <= p["hop_budget"]
             p["verdict_hops"] = met
             lines.append(f"Table 1 {label}: {p['hops']:.1f} bare hops, target <= {HOP_FACTOR:g} x "
                          f"({p['calls']:.1f} calls + 2) = {p['hop_budget']:.1f}: {'met' if met else 'MISSED'}")
-        if base is not None and big is not None:
+        if base is not None and big is not None and kind in base["paths"] and kind in big["paths"]:
             b, p = base["paths"][kind], big["paths"][kind]
             graph_growth = p["graph_p50"] - b["graph_p50"]
             core_growth = p["core_p50"] - b["core_p50"]
@@ -285,10 +317,16 @@ def main() -> int:
         if size != "table1" and not (size.isdigit() and int(size) >= 1):
             parser.error(f"--worlds: {size!r} is neither 'table1' nor an entity count")
     tmp = Path(tempfile.mkdtemp(prefix="fsreg-worlds-"))
-    rows = []
+    worlds, cores = {}, {}
     for size in sizes:
-        rows.append(run_world(size, args, tmp))
-        print(f"  {size}: done", file=sys.stderr, flush=True)
+        path = world_path(size, tmp)
+        scenario = load_scenario(path)
+        turns = turns_of(scenario, args.turns)
+        worlds[size] = (scenario, path, turns)
+        cores[size] = core_latencies(scenario, Options(), turns, args.rounds)  # the same memory settings
+        print(f"  {size}: core done", file=sys.stderr, flush=True)
+    graphs = graph_latencies(worlds, args.rounds, args.domain_id)
+    rows = [row_of(size, worlds[size][0], worlds[size][2], cores[size], graphs[size]) for size in sizes]
     checks = verdicts(rows)
     sys.stdout.write(render(rows, checks, args))
     if args.json:

@@ -257,6 +257,16 @@ def compare(base: RunResult, killed: RunResult) -> str:
     return "\n".join(lines)
 
 
+def write_csv(result: RunResult, path: Path) -> None:
+    """Write one line per message: index, kind, scheduled offset (s), latency (ms; empty if lost)."""
+    start = min(s.due for s in result.messages.values())
+    rows = ["index,kind,offset_s,latency_ms"]
+    for s in sorted(result.messages.values(), key=lambda s: s.index):
+        latency = f"{1000 * (s.replies[0][0] - s.due):.2f}" if s.replies else ""
+        rows.append(f"{s.index},{s.kind},{s.due - start:.3f},{latency}")
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+
+
 def main(argv: Optional[list[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="soak.py", description=__doc__.split("\n\n")[0])
     default = REPO / "scenarios" / "guess_who_table1.yaml"  # Table 1 (or $FSREG_SHARED_DATA/table1.yaml)
@@ -271,6 +281,8 @@ def main(argv: Optional[list[str]] = None) -> int:
                         f"{STEP_LIMIT_MS:g} ms")
     parser.add_argument("--max-rate", type=float, default=400.0, help="highest rate --step tries (default 400)")
     parser.add_argument("--policy", help="forgetting policy (default: the scenario's)")
+    parser.add_argument("--csv", type=Path, help="write every message of the first run here: index, kind, "
+                        "scheduled offset s, latency ms (empty: lost)")
     parser.add_argument("--kill-consultant-at", type=int, metavar="K",
                         help="also run once SIGKILLing and restarting the consultant before message K")
     args = parser.parse_args(argv)
@@ -281,6 +293,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         parser.error(f"scenario not found: {args.scenario}")
     base = run(args, args.rate, None)
     print(report(base, "uninterrupted"), flush=True)
+    if args.csv:
+        write_csv(base, args.csv)
     if args.step:
         stage, result = 1, base
         while percentile(latencies(result, "reg"), 99) <= STEP_LIMIT_MS:
