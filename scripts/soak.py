@@ -42,6 +42,10 @@ from typing import Optional
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+from venv_python import use_venv  # noqa: E402
+
+use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.network import require_loopback, ros_environment  # noqa: E402
 
