@@ -110,7 +110,7 @@ class QueueColumns:
         for done in range(int(counts.max(initial=0))):  # fewer than width rounds
             now = partial[counts > done]
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
-            self.prop.reshape(-1)[stamps.argmin(axis=0) * self.rows + now] = -1
+            self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
             self.length[now] -= 1
         return owed
 
@@ -120,17 +120,15 @@ class QueueColumns:
         The rows must be up to date with decay (:meth:`pop_owed`) and distinct.  A
         property present is refreshed (new stamp, same origin); otherwise it takes an
         empty slot or, in a full row, the front's (LRU displacement).  Returns, per row,
-        whether the queue grew and whether it was empty before.  (``np.take``, flat
-        indices and ``logical_or.reduce`` rather than 2-D fancy indexing and ``any``:
-        several times faster on these short columns.)
+        whether the queue grew and whether it was empty before.  The slot is found with
+        one key per slot (the property itself -2, an empty slot -1, else its stamp) and
+        its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
+        ``argmax`` along the short axis would each cost more than the whole encoding.
         """
         props = np.take(self.prop, rows, axis=1)
-        hit = props == prop
-        present = np.logical_or.reduce(hit, axis=0)
-        length = self.length[rows]
-        room = length < self.width
-        front = np.take(self.stamp, rows, axis=1).argmin(axis=0)  # meaningful for full rows only
-        slot = np.where(present, hit.argmax(axis=0), np.where(room, (props < 0).argmax(axis=0), front))
+        key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
+        slot, best = _first_minimum(key)
+        present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
         flat = slot * self.rows + rows
         stamps = np.arange(first_stamp, first_stamp + len(rows), dtype=np.int64)
         entries = self.entry.reshape(-1)
@@ -138,7 +136,7 @@ class QueueColumns:
         self.prop.reshape(-1)[flat] = prop
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
-        grew = room & ~present
+        length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
 
@@ -159,3 +157,22 @@ class QueueColumns:
         """Return every origin reference that is a stamp (> 0) held in any slot."""
         refs = self.entry[self.prop >= 0]
         return refs[refs > 0]
+
+
+#: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
+_LOOP_WIDTH = 16
+
+
+def _first_minimum(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return, per column of ``values`` (slots x rows), the first row holding the column's minimum, and the minimum.
+
+    ``np.minimum.reduce`` runs across the columns at once; ``argmin(axis=0)`` walks each
+    short column on its own and costs several times more for the few slots of a queue.
+    """
+    best = np.minimum.reduce(values, axis=0)
+    if values.shape[0] > _LOOP_WIDTH:
+        return (values == best).argmax(axis=0), best
+    slot = np.zeros(values.shape[1], dtype=np.intp)
+    for k in range(values.shape[0] - 1, 0, -1):  # the last assignment wins: the first such slot
+        slot[values[k] == best] = k
+    return slot, best
