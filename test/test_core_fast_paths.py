@@ -64,7 +64,8 @@ def reference_build(entities: dict, threshold: float) -> tuple:
     for entity, facts in entities.items():
         for prop, c in facts.items():
             if prop not in PROPS:
-                return f"domain 'd', entity '{entity}': unknown property '{prop}' (not in the domain's preference order)"
+                return (f"domain 'd', entity '{entity}': unknown property '{prop}' "
+                        "(not in the domain's preference order)")
             try:
                 check_certainty(f"certainty of '{prop}' for '{entity}'", c)
             except KnowledgeError as err:
