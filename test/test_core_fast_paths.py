@@ -9,6 +9,8 @@
 from __future__ import annotations
 
 import json
+import os
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -133,3 +135,108 @@ def test_rows_from_pairs_in_many_blocks(monkeypatch):
     rows = np.array([2, 0, 1, 2, 0], dtype=np.intp)
     columns = np.array([9, 0, 3, 1, 5], dtype=np.intp)
     assert bitset.rows_from_pairs(rows, columns, 3, 10) == [0b100001, 0b1000, 0b1000000010]
+
+
+# ------------------------------------------------ column queues, eagerly trimmed
+WM_ENTITIES = [f"e{i}" for i in range(8)]
+WM_PROPS = ["a", "b", "c", "d", "e"]
+WM_OPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("encode"), st.integers(0, 7), st.lists(st.sampled_from(WM_PROPS), min_size=1, max_size=3)),
+        st.tuples(st.just("decay_now"), st.integers(1, 4)),
+        st.tuples(st.just("decay_now"), st.integers(1, 4)),
+        st.tuples(st.just("lazy"), st.integers(1, 2)),
+        st.tuples(st.just("evict"), st.integers(0, 12)),
+        st.tuples(st.just("clear")),
+        st.tuples(st.just("limits"), st.sampled_from([None, 1, 2, 3])),
+        st.tuples(st.just("remove"), st.integers(0, 7), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("take")),
+    ),
+    max_size=40,
+)
+
+
+def _limits(capacity):
+    from fsreg_ros.core.memory import Limits
+
+    return Limits(retains=False) if capacity is None else Limits(capacity=capacity)
+
+
+@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
+@given(st.integers(1, 3), WM_OPS)
+def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
+    """Eager decay, a shared pool's eviction, clearing and new limits on column queues are the dict queues' own.
+
+    ``plain`` keeps dict queues; ``heard`` has column queues; both have an event sink except
+    while encoding members (as a consultant nobody listens to), so ``heard``'s pops are
+    reported from the columns; ``quiet`` and ``other`` have column queues and no sink, ``quiet`` decaying in
+    its column rows' own entity list (the fast path), ``other`` in an equal copy.  Events
+    (in order), queues, origins, sizes and the change record (in order) must be equal.
+    """
+    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory import WMBuffer
+
+    heard_events: list = []
+    plain_events: list = []
+    plain = WMBuffer("d", plain_events.append)
+    plain.column_min = 10**9
+    heard, quiet, other = WMBuffer("d", heard_events.append), WMBuffer("d"), WMBuffer("d")
+    buffers = (plain, heard, quiet, other)
+    for b in buffers[1:]:
+        b.column_min = 1
+    for b in buffers:
+        b.set_limits(_limits(capacity), 0.0)
+    ticks = seen = 0
+    trimmed = False
+    for t, op in enumerate(ops, start=1):
+        kind = op[0]
+        if kind == "members":
+            members = bitset.from_indices(sorted(op[1]), len(WM_ENTITIES))
+            heard.sink = plain.sink = None  # nobody listens to these encodings
+            for b in buffers:
+                b.encode_members(members, WM_ENTITIES, op[2], "reg-distractor", float(t), t)
+            heard.sink, plain.sink = heard_events.append, plain_events.append
+        elif kind == "encode":
+            for b in buffers:
+                b.encode(WM_ENTITIES[op[1]], op[2], "speaker", float(t), t)
+        elif kind in ("decay_now", "lazy"):
+            run = TickRun(0.0, 0.5, ticks + 1, op[1])
+            ticks += op[1]
+            for b in buffers:
+                if kind == "lazy":
+                    b.decay(run)
+                else:
+                    b.decay_now(run, list(WM_ENTITIES) if b is other else WM_ENTITIES)
+        elif kind == "evict":
+            for b in buffers:
+                b.evict_oldest(op[1], "shared-capacity", float(t))
+        elif kind == "clear":
+            for b in buffers:
+                b.clear("reset", float(t), t)
+        elif kind == "limits":
+            for b in buffers:
+                b.set_limits(_limits(op[1]), float(t))
+        elif kind == "remove":
+            for b in buffers:
+                b.remove(WM_ENTITIES[op[1]], op[2], "retract", float(t))
+        elif kind == "take":
+            changes = [b.take_changes() for b in buffers]
+            if trimmed:  # new limits trim queues in no specified order
+                assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
+            else:
+                assert all(c == changes[0] for c in changes), (op, changes)
+            trimmed = False
+        if kind == "limits":
+            assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
+            trimmed = True
+        else:
+            assert heard_events[seen:] == plain_events[seen:], op
+        seen = len(plain_events)
+        assert len(heard_events) == seen
+        state = [({e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}, len(b))
+                 for b in buffers]
+        assert all(s == state[0] for s in state), op
+    changes = [b.take_changes() for b in buffers]
+    assert all(set(c) == set(changes[0]) for c in changes)

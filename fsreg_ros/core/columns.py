@@ -98,10 +98,15 @@ class QueueColumns:
         """
         owed = np.minimum(ticks - self.synced[rows], self.length[rows])
         self.synced[rows] = ticks
-        if not owed.any():
-            return owed
-        popping = owed > 0
-        targets, counts = rows[popping], owed[popping]
+        self.pop_fronts(rows, owed)
+        return owed
+
+    def pop_fronts(self, rows: np.ndarray, counts: np.ndarray) -> None:
+        """Pop ``counts[i]`` fronts (oldest stamps first) of each held row ``rows[i]`` (at most its length)."""
+        if not counts.any():
+            return
+        popping = counts > 0
+        targets, counts = rows[popping], counts[popping]
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
         self.prop[:, gone] = -1
@@ -112,7 +117,23 @@ class QueueColumns:
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
             self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
             self.length[now] -= 1
-        return owed
+
+    def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
+        """Return the first ``depth`` property ids of each of ``rows``, LRU first (fewer for a shorter row)."""
+        stamps = np.where(np.take(self.prop, rows, axis=1) >= 0, np.take(self.stamp, rows, axis=1), _NO_STAMP)
+        order = np.argsort(stamps, axis=0, kind="stable")[:depth]
+        props = np.take_along_axis(np.take(self.prop, rows, axis=1), order, axis=0).T.tolist()
+        return [[p for p in row if p >= 0] for row in props]
+
+    def non_empty(self) -> np.ndarray:
+        """Return the held rows holding something (ascending)."""
+        return np.flatnonzero(self.held & (self.length > 0))
+
+    def entries(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return every entry of ``rows`` as parallel arrays: its stamp, its row and its property id."""
+        props = np.take(self.prop, rows, axis=1)
+        where = props >= 0
+        return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
 
     def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
