@@ -11,16 +11,23 @@ Services use ``diagnostic_msgs/srv/AddDiagnostics`` as a string-to-string carrie
 the reply JSON in ``message``; ``success=false`` means the reply is
 ``{"error": "...", "kind": "..."}``.
 
-Serving: :func:`serve` wraps a sync or async ``handler(dict) -> dict``.  A
-:class:`MessageError`, any other ``ValueError`` (e.g. the core's ``KnowledgeError``) or a
-:class:`CarrierError` from the handler becomes ``success=false`` plus a logged warning;
-anything else becomes ``kind: "internal"`` plus a logged error naming the service and the
-request id.  Every call is answered (the reply is built by :func:`~fsreg_ros.codec.error_json`,
-which cannot fail) and the server keeps serving.
+Serving: :func:`serve` serves a contract service: each request is decoded (bounded in
+size), validated once against the service's request schema (names and lists within the
+node's limits; :func:`fsreg_ros.contract.check`, one-line errors naming the field), and
+only then passed to the handler (one, or one per ``op``).  A :class:`MessageError`, any
+other ``ValueError`` (e.g. the core's ``KnowledgeError``) or a :class:`CarrierError`
+becomes ``success=false`` plus a logged warning; anything else becomes
+``kind: "internal"`` plus a logged error naming the service and the request id.  Every
+call is answered (the reply is built by :func:`~fsreg_ros.codec.error_json`, which cannot
+fail) and the server keeps serving.
 
 Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
-object within the size limit, or whose handler raises, is rejected (``reject(id, error)``
-publishes the reply the contract has for it, if any) and logged with the topic and id.
+object of the topic's schema within the limits, or whose handler raises, is rejected
+(``reject(id, error)`` publishes the reply the contract has for it, if any) and logged
+with the topic and id.
+
+Logging: :func:`log_warning` and :func:`log_error` never raise (rclpy raises when one call
+site logs with two severities, which a failing message after a malformed one did).
 
 Calling: :class:`JsonClient` (one per service) sends at once (:meth:`JsonClient.send`,
 so requests leave in program order) and awaits with a deadline enforced by a
@@ -33,11 +40,13 @@ its own :class:`~rclpy.callback_groups.ReentrantCallbackGroup`.
 from __future__ import annotations
 
 import inspect
+import sys
 import time
 import weakref
 from typing import Any, Awaitable, Callable, Mapping, Optional, Union
 
 from diagnostic_msgs.srv import AddDiagnostics
+from pydantic import BaseModel
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
@@ -45,8 +54,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.task import Future
 from std_msgs.msg import String
 
-from .codec import FieldSpec, MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
-from .contract import SERVICE_QOS, QosSpec, Topic
+from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from .contract import SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -96,49 +105,136 @@ def _context(where: str, rid: Any) -> str:
     return f"{where} (id {printable(repr(rid), 80)})" if rid is not None else where
 
 
-async def _run(handler, text: str, max_bytes: Limit, seen: dict) -> Any:
-    """Decode ``text`` (bounded), note its request id in ``seen``, run ``handler``; return its result."""
+def log_warning(logger, text: Any) -> None:
+    """Log one warning line that cannot raise (see :func:`log_error`)."""
+    try:
+        logger.warning(printable(text))
+    except Exception as err:  # noqa: BLE001 - a log line must never take a node down
+        _log_fallback("warning", text, err)
+
+
+def log_error(logger, text: Any) -> None:
+    """Log one error line that cannot raise.
+
+    rclpy remembers each logging call site and raises ``ValueError`` if one site logs
+    with another severity (or other filters) later, and the text may hold anything a
+    message carried.  So every severity has its own call site here, the text is made
+    printable, and a logger failure goes to stderr instead of out of the callback.
+    """
+    try:
+        logger.error(printable(text))
+    except Exception as err:  # noqa: BLE001 - a log line must never take a node down
+        _log_fallback("error", text, err)
+
+
+def _log_fallback(severity: str, text: Any, err: BaseException) -> None:
+    try:
+        print(printable(f"[{severity}] {text} (logger failed: {type(err).__name__}: {err})"), file=sys.stderr)
+    except Exception:  # noqa: BLE001 - stderr closed: nothing left to tell
+        pass
+
+
+def _checker(schema: Any, limits: LimitsSource) -> Callable[[dict], None]:
+    """Return the validation of a decoded message against ``schema`` (nothing without one)."""
+    if schema is None:
+        return lambda data: None
+    return lambda data: check(schema, data, _limit(limits))
+
+
+async def _run(handler, text: str, max_bytes: Limit, seen: dict, validate: Callable[[dict], None],
+               accept: Optional[Callable[[dict], bool]] = None) -> Any:
+    """Decode ``text`` (bounded), note its request id in ``seen``, validate it, run ``handler``; its result.
+
+    A message ``accept`` refuses is not for this node: ``seen["ignored"]`` is set and nothing runs.
+    """
     payload = parse(text, max_bytes=_limit(max_bytes))
     seen["id"] = request_id(payload)
+    if accept is not None and not accept(payload):
+        seen["ignored"] = True
+        return None
+    validate(payload)
     result = handler(payload)
     if inspect.isawaitable(result):
         result = await result
     return result
 
 
+def _reply_object(result: Any) -> Mapping[str, Any]:
+    """Return a handler's reply as a JSON object: a mapping as it is, a contract model dumped (fields set only)."""
+    if isinstance(result, BaseModel):
+        return result.model_dump(mode="json", exclude_unset=True)
+    if not isinstance(result, Mapping):
+        raise TypeError(f"handler returned {type(result).__name__}, not a JSON object")
+    return result
+
+
+def _check_op(handlers: Mapping[str, Any], request: dict) -> None:
+    """Refuse a request whose ``op`` has no handler (before its schema, which depends on the op)."""
+    if "op" not in request:
+        raise MessageError(f"missing field 'op' (one of {', '.join(handlers)})")
+    op = request["op"]
+    if not isinstance(op, str) or op not in handlers:
+        raise MessageError(f"field 'op': expected one of {', '.join(handlers)}, got {printable(repr(op), 60)}")
+
+
+def _dispatch(handlers: Mapping[str, Handler]) -> Handler:
+    """One handler per ``op``: the request's ``op`` chooses (checked by :func:`_check_op` first)."""
+    return lambda request: handlers[request["op"]](request)
+
+
 # ----------------------------------------------------------------- serving
-Handler = Callable[[dict], Union[Mapping[str, Any], Awaitable[Mapping[str, Any]]]]
+Handler = Callable[[dict], Union[Mapping[str, Any], BaseModel, Awaitable[Union[Mapping[str, Any], BaseModel]]]]
+LimitsSource = Union[None, Any, Callable[[], Any]]
 
 
-def serve(node, name: str, handler: Handler, callback_group: Optional[CallbackGroup] = None,
-          *, max_bytes: Limit = None):
-    """Serve ``handler`` as a JSON service ``name`` on ``node``; return the service.
+def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[str, Handler]],
+          callback_group: Optional[CallbackGroup] = None, *, max_bytes: Limit = None, limits: LimitsSource = None,
+          domain: Optional[str] = None):
+    """Serve a contract service on ``node``: every request validated once, then handled; return the service.
 
-    ``handler(request: dict) -> dict`` may be sync or ``async``.  Errors never escape:
-    see the module docstring.  ``max_bytes`` (a number or a callable giving one) bounds
-    the request size.  An async handler that awaits other services must use clients
-    outside ``callback_group`` (by default the node's mutually exclusive group).
+    ``service`` is a :class:`~fsreg_ros.contract.Service` (its ``<domain>`` filled in
+    with ``domain``): each request must fit its request schema, names and lists within
+    ``limits`` (a :class:`~fsreg_ros.contract.Limits`, also the default ``max_bytes``),
+    else it gets an error reply naming the field and the handler never sees it.  (A
+    plain name serves without a schema.)  ``handlers`` is one ``handler(request: dict)``
+    or a mapping op -> handler; a handler may be sync or ``async`` and returns a dict or
+    a contract model.  Errors never escape: see the module docstring.  An async handler
+    that awaits other services must use clients outside ``callback_group`` (by default
+    the node's mutually exclusive group).
     """
     logger = node.get_logger()
+    if isinstance(service, Service):
+        name, schema = service.name.replace("<domain>", domain or "<domain>"), service.request
+    else:
+        name, schema = service, None
+    validate = _checker(schema, limits)
+    handler = handlers
+    if isinstance(handlers, Mapping):
+        check_schema, handler = validate, _dispatch(handlers)
+
+        def validate(data: dict) -> None:
+            _check_op(handlers, data)
+            check_schema(data)
+    if max_bytes is None and limits is not None:
+        max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
 
     async def callback(request, response):
         seen: dict = {}
         try:
-            result = await _run(handler, request.load_namespace, max_bytes, seen)
-            if not isinstance(result, Mapping):
-                raise TypeError(f"handler returned {type(result).__name__}, not a JSON object")
-            text = dumps(result)
+            result = await _run(handler, request.load_namespace, max_bytes, seen, validate)
+            text = dumps(_reply_object(result))
         except (ValueError, CarrierError) as err:
             rid = seen.get("id")
-            logger.warning(printable(f"{_context(name, rid)}: {err}"))
+            log_warning(logger, f"{_context(name, rid)}: {printable(err)}")
             response.success = False
             response.message = error_json(err, error_kind(err), rid)
             return response
         except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
             rid = seen.get("id")
-            logger.error(printable(f"{_context(name, rid)}: internal error: {type(err).__name__}: {err}"))
+            text = f"internal error: {type(err).__name__}: {printable(err)}"
+            log_error(logger, f"{_context(name, rid)}: {text}")
             response.success = False
-            response.message = error_json(f"internal error: {type(err).__name__}: {err}", "internal", rid)
+            response.message = error_json(text, "internal", rid)
             return response
         response.success = True
         response.message = text
@@ -173,20 +269,9 @@ def to_msg(obj: Mapping[str, Any]) -> String:
     return String(data=dumps(obj))
 
 
-def from_msg(
-    msg: String,
-    required: Optional[Mapping[str, FieldSpec]] = None,
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-    *,
-    max_bytes: Optional[int] = None,
-) -> dict:
-    """Decode a ``std_msgs/String`` carrying one JSON object; check its fields.
-
-    ``required`` maps field names to specs; a missing or wrong-typed one raises
-    :class:`MessageError`.  ``optional`` fields are checked only when present.
-    Other fields are kept unchecked.
-    """
-    return parse(getattr(msg, "data", msg), required, optional, max_bytes=max_bytes)
+def from_msg(msg: String, *, max_bytes: Optional[int] = None) -> dict:
+    """Decode a ``std_msgs/String`` carrying one JSON object (its fields: :func:`fsreg_ros.contract.check`)."""
+    return parse(getattr(msg, "data", msg), max_bytes=max_bytes)
 
 
 # ----------------------------------------------------------------- topics
@@ -204,33 +289,44 @@ Reject = Callable[[Any, str], None]
 
 
 def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] = None,
-              callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None):
+              callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None, limits: LimitsSource = None,
+              accept: Optional[Callable[[dict], bool]] = None):
     """Subscribe ``handler(data: dict)`` (sync or async) to a contract topic; return the subscription.
 
-    A message that is not a JSON object (within ``max_bytes``), or whose handler raises
-    a ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and
-    id and passed to ``reject(id, error)``; any other exception is logged as an error
-    and rejected as an internal error.  The node keeps serving either way.
+    Every message is validated once against the topic's schema (names and lists within
+    ``limits``, a :class:`~fsreg_ros.contract.Limits`, also the default ``max_bytes``)
+    before the handler sees it.  ``accept(data)`` false (after decoding, before
+    validation) means the message is for another node: ignored, silently.  A message
+    that is not a JSON object of the schema, or whose handler raises a
+    ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and id
+    and passed to ``reject(id, error)``; any other exception is logged as an error and
+    rejected as an internal error.  The node keeps serving either way.
     """
     logger = node.get_logger()
+    validate = _checker(topic.schema, limits)
+    if max_bytes is None and limits is not None:
+        max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
 
     def refuse(rid: Any, error: str, internal: bool) -> None:
-        text = printable(f"{_context(topic.name, rid)}: {error}")
-        (logger.error if internal else logger.warning)(text)
+        text = f"{_context(topic.name, rid)}: {error}"
+        if internal:
+            log_error(logger, text)
+        else:
+            log_warning(logger, text)
         if reject is not None:
             try:
                 reject(rid, printable(error))
             except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
-                logger.error(printable(f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {err}"))
+                log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
 
     async def callback(msg: String) -> None:
         seen: dict = {}
         try:
-            await _run(handler, msg.data, max_bytes, seen)
+            await _run(handler, msg.data, max_bytes, seen, validate, accept)
         except (ValueError, CarrierError) as err:
-            refuse(seen.get("id"), str(err), internal=False)
+            refuse(seen.get("id"), printable(err), internal=False)
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
-            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {err}", internal=True)
+            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True)
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group)

@@ -27,7 +27,8 @@ from typing import Any, Callable, Optional, Sequence
 
 from .core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR, annotate, summarise
 from .core.consultant import KnowledgeError
-from .core.forgetting import PARAMETERS, RULES, PolicyError, check_parameter, parse_rules
+from .core import settings
+from .core.forgetting import PolicyError, check_setting, parse_rules
 from .core.generation import ALGORITHMS, WM_ORDERS, GenerationError
 from .core.lexicon import Lexicon
 from .core.resolution import ResolutionError
@@ -52,12 +53,8 @@ def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("scenario", type=Path, help="scenario YAML file (docs/scenario-format.md)")
     memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
-    memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
-    memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
-    memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
-    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
-    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
+    for row in settings.TABLE:  # one option per memory setting
+        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
@@ -94,14 +91,10 @@ def options_from_args(args: argparse.Namespace, policy: Optional[str] = None) ->
     which checks the effective setting of each domain.
     """
     memory: dict[str, Any] = {}
-    policy = policy if policy is not None else args.policy
-    if policy is not None:
-        parse_rules(policy)
-        memory["policy"] = policy
-    for name in PARAMETERS:
-        value = getattr(args, name)
+    for name in settings.names():
+        value = policy if name == "policy" and policy is not None else getattr(args, name)
         if value is not None:
-            check_parameter(name, value)
+            check_setting(name, value)
             memory[name] = value
     return Options(memory=memory, algorithm=args.algorithm, wm_order=args.wm_order)
 

@@ -1,11 +1,11 @@
 r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (docs/semantics.md §7).
 
-Decoding (:func:`parse`) is bounded (a text longer than
-``max_bytes`` is refused before it is parsed) and checks fields against a small spec
-(:func:`check_fields`: a type, a tuple of types with ``None`` for JSON ``null``, or
-``list[T]`` / ``dict[str, T]``); a problem raises :class:`MessageError` naming the field
-and what is wrong.  ``float`` accepts whole numbers; ``int`` never accepts
-``true``/``false``; NaN and infinities are never valid JSON here.
+Decoding (:func:`parse`) is bounded (a text longer than ``max_bytes`` is refused before it
+is parsed) and returns one JSON object, or raises :class:`MessageError` saying what is
+wrong: not JSON, not an object, too big.  NaN and infinities (``NaN``, ``Infinity``,
+``1e999``) are never valid JSON here, in any field (the error names the field).  What
+the object's fields must be is the contract's business (:func:`fsreg_ros.contract.check`,
+whose one-line errors use :func:`describe` for the expected types).
 
 Encoding (:func:`dumps`) refuses what is not JSON.  Error replies go
 through :func:`error_json`/:func:`safe_dumps`, which never raise: non-finite numbers,
@@ -23,8 +23,6 @@ import math
 import types
 from typing import Any, Mapping, Optional, Union
 
-#: Field spec for "any JSON number" (whole numbers included, booleans excluded).
-NUMBER = (int, float)
 #: Longest error text put in a reply or a log line (characters).
 MAX_ERROR_CHARS = 500
 
@@ -99,14 +97,22 @@ def _reject_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a JSON number")
 
 
-def parse(
-    text: str,
-    required: Optional[Mapping[str, "FieldSpec"]] = None,
-    optional: Optional[Mapping[str, "FieldSpec"]] = None,
-    *,
-    max_bytes: Optional[int] = None,
-) -> dict:
-    """Decode one JSON object from ``text`` and check its fields (see :func:`check_fields`).
+def _non_finite_path(value: Any, depth: int = 0) -> Optional[list]:
+    """Return the path to the first non-finite float in a decoded value (None if there is none)."""
+    if isinstance(value, float):
+        return [] if not math.isfinite(value) else None
+    if depth > 200:
+        return None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        found = _non_finite_path(item, depth + 1)
+        if found is not None:
+            return [key, *found]
+    return None
+
+
+def parse(text: str, *, max_bytes: Optional[int] = None) -> dict:
+    """Decode one JSON object from ``text``; MessageError if it is not one.
 
     A text of more than ``max_bytes`` UTF-8 bytes is refused before it is parsed.
     """
@@ -116,13 +122,25 @@ def parse(
         size = len(text.encode("utf-8", "surrogatepass"))
         if size > max_bytes:
             raise MessageError(f"message is {size} bytes, over the limit of {max_bytes}")
+    too_large: list[str] = []
+
+    def parse_float(number: str) -> float:
+        value = float(number)
+        if not math.isfinite(value):  # 1e999: JSON syntax, but no number; located below
+            too_large.append(number)
+        return value
+
     try:
-        obj = json.loads(text, parse_constant=_reject_constant)
+        obj = json.loads(text, parse_constant=_reject_constant, parse_float=parse_float)
     except (ValueError, RecursionError) as err:
         raise MessageError(f"not JSON ({printable(err, 120)}): {printable(text, 80)}") from None
     if not isinstance(obj, dict):
         raise MessageError(f"expected a JSON object, got {_json_kind(obj)}: {printable(text, 80)}")
-    return check_fields(obj, required or {}, optional)
+    if too_large:
+        path = _non_finite_path(obj) or ["?"]
+        where = f"field '{printable(path[0], 60)}'" + "".join(f"[{printable(repr(p), 40)}]" for p in path[1:])
+        raise MessageError(f"{where}: {_clip(too_large[0], 40)} is too large for a number (not finite)")
+    return obj
 
 
 def request_id(data: Any) -> Any:
@@ -143,23 +161,9 @@ def id_of(text: Any) -> Any:
         return None
 
 
+#: A type in the words of :func:`describe`: a type, a tuple of them (``None`` for JSON
+#: ``null``), or ``list[T]`` / ``dict[str, T]``.
 FieldSpec = Union[type, tuple, types.GenericAlias, None]
-
-
-def check_fields(
-    obj: Mapping[str, Any],
-    required: Mapping[str, FieldSpec],
-    optional: Optional[Mapping[str, FieldSpec]] = None,
-) -> dict:
-    """Check the fields of an already decoded object; return it as a dict."""
-    for name, spec in required.items():
-        if name not in obj:
-            raise MessageError(f"missing field '{name}' (expected {describe(spec)})")
-        _check_value(name, obj[name], spec)
-    for name, spec in (optional or {}).items():
-        if name in obj:
-            _check_value(name, obj[name], spec)
-    return dict(obj)
 
 
 def describe(spec: FieldSpec) -> str:
@@ -185,51 +189,11 @@ def describe(spec: FieldSpec) -> str:
 
 
 def _plural(spec: FieldSpec) -> str:
-    if spec == NUMBER or spec is float:
+    if spec == (int, float) or spec is float:
         return "numbers"
     return {str: "strings", int: "whole numbers", bool: "booleans", dict: "objects", list: "lists"}.get(
         spec, describe(spec)
     )
-
-
-def _matches(value: Any, spec: FieldSpec) -> bool:
-    if spec is None or spec is type(None):
-        return value is None
-    if isinstance(spec, tuple):
-        return any(_matches(value, s) for s in spec)
-    if isinstance(spec, types.GenericAlias):
-        origin, args = spec.__origin__, spec.__args__
-        if origin is list:
-            return isinstance(value, list) and all(_matches(v, args[0]) for v in value)
-        if origin is dict:
-            return isinstance(value, dict) and all(
-                _matches(k, args[0]) and _matches(v, args[1]) for k, v in value.items()
-            )
-        raise TypeError(f"unsupported field spec {spec!r}")
-    if spec is bool:
-        return isinstance(value, bool)
-    if isinstance(value, bool):
-        return False  # JSON true/false is not a number
-    if spec is float:
-        return isinstance(value, (int, float)) and math.isfinite(value)
-    return isinstance(value, spec)
-
-
-def _check_value(name: str, value: Any, spec: FieldSpec) -> None:
-    if _matches(value, spec):
-        return
-    where = f"field '{name}'"
-    if isinstance(spec, types.GenericAlias) and spec.__origin__ is list and isinstance(value, list):
-        for i, item in enumerate(value):
-            if not _matches(item, spec.__args__[0]):
-                raise MessageError(
-                    f"{where}[{i}]: expected {describe(spec.__args__[0])}, got {_show(item)}"
-                )
-    if isinstance(spec, types.GenericAlias) and spec.__origin__ is dict and isinstance(value, dict):
-        for key, item in value.items():
-            if not _matches(item, spec.__args__[1]):
-                raise MessageError(f"{where}['{key}']: expected {describe(spec.__args__[1])}, got {_show(item)}")
-    raise MessageError(f"{where}: expected {describe(spec)}, got {_show(value)}")
 
 
 def _json_kind(value: Any) -> str:
@@ -244,14 +208,6 @@ def _json_kind(value: Any) -> str:
     if isinstance(value, list):
         return "a list"
     return "an object"
-
-
-def _show(value: Any) -> str:
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError, RecursionError):
-        text = printable(value, 80)
-    return f"{_json_kind(value)} ({printable(text, 80)})"
 
 
 def _clip(text: str, limit: int = 80) -> str:

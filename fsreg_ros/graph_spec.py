@@ -17,12 +17,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
-from .core.forgetting import PARAMETERS
+from .core import settings
 
 #: The package whose executables the nodes are.
 PACKAGE = "fsreg_ros"
-#: Memory settings the WM Manager takes per domain (docs/semantics.md §5 names).
-POLICY_KEYS = PARAMETERS
 
 
 @dataclass
@@ -47,8 +45,9 @@ def node_specs(
 ) -> list[NodeSpec]:
     """Return the live graph's nodes (no player) for a knowledge base.
 
-    ``policies`` maps each domain to ``{"policy": name, "decay_period"?: ..., ...}``;
-    a setting that is ``None`` or absent is not passed (the WM Manager's default holds).
+    ``policies`` maps each domain to ``{"policy": name, "decay_period"?: ..., ...}`` (the
+    settings table's names); a setting that is ``None`` or absent is not passed (the WM
+    Manager's default holds).
     ``state_dir`` is the consultants' state directory (None: their default).
     """
     domains = list(domains)
@@ -56,11 +55,11 @@ def node_specs(
     language = {"lexicon": lexicon} if lexicon else {}
     manager: dict = {**sim, "domains": domains}
     for domain in domains:
-        settings = policies[domain]
-        manager[f"{domain}.policy"] = settings["policy"]
-        for key in POLICY_KEYS:
-            if settings.get(key) is not None:
-                manager[f"{domain}.{key}"] = settings[key]
+        given = policies[domain]
+        manager[f"{domain}.policy"] = given["policy"]
+        for row in settings.parameters():
+            if given.get(row.name) is not None:
+                manager[f"{domain}.{row.name}"] = given[row.name]
     reg: dict = {**sim, "domains": domains, "wm_order": wm_order, **language}
     if algorithm:
         reg["algorithm"] = algorithm
@@ -90,7 +89,7 @@ def player_spec(scenario: str, output: Optional[str] = None, trace: Optional[str
 
 def policy_settings(policy) -> dict:
     """Return a :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` as :func:`node_specs` settings."""
-    return {"policy": policy.name, **{key: getattr(policy, key) for key in POLICY_KEYS}}
+    return {"policy": policy.name, **{row.name: policy.given(row.name) for row in settings.parameters()}}
 
 
 def resolved(path: Optional[Path]) -> Optional[str]:

@@ -17,13 +17,15 @@ Outages are detected, not waited out.  The port listens to the consultant's latc
 1 s (kept by the DDS threads across processes, whatever the consultant's Python is
 doing; a reader in the consultant's own process needs its writes, every 0.25 s).  When
 the process dies its liveliness lapses: the calls it had not answered fail (kind
-``unavailable``, after a 0.25 s grace: a lease can lapse and recover under load) and new
-calls wait at most ``outage_wait`` seconds for a consultant to come back before failing
-the same way; so a query during an outage is answered within about 1.5 s, not after
-``timeout``.  A consultant that lives but is slow gets
-the full ``timeout``.  An ``open`` or ``info`` that failed only because the consultant
-restarted under it (its new incarnation is up) is sent again once, with the catalogue
-refreshed: the first request after a restart succeeds.  Each port has a client id
+``unavailable``, after a 0.25 s grace: a lease can lapse and recover under load), and a
+new call waits at most ``outage_wait`` seconds for a consultant to come back.  A lapse
+alone never fails a new call: a CPU-starved machine can miss a lease while the consultant
+lives.  The call is sent with a deadline of ``lapsed_deadline`` seconds instead of
+``timeout``; an answer in time is proof of life, no answer fails it the same way.  So a
+query during an outage is answered within about 1.5 s, not after ``timeout``, and a
+consultant that lives but is slow gets the full ``timeout``.  An ``open`` or ``info`` that
+failed only because the consultant restarted under it (its new incarnation is up) is sent
+again once, with the catalogue refreshed: the first request after a restart succeeds.  Each port has a client id
 (``open`` carries it: the consultant counts sessions per client) and keeps at most
 ``max_in_flight`` calls outstanding.
 """
@@ -49,6 +51,9 @@ from .core.consultant import KnowledgeError, Narrowed, Step, View
 OUTAGE_WAIT = 0.5
 #: Seconds a lapsed liveliness must stay lapsed before the calls in flight fail.
 LAPSE_GRACE = 0.25
+#: Deadline of a call sent while the consultant's liveliness is lapsed, seconds: an answer
+#: within it shows the consultant lives (a loaded machine can miss a lease); none fails the call.
+LAPSED_DEADLINE = 1.0
 #: Calls a port keeps outstanding at most (RR and REG make one at a time).
 MAX_IN_FLIGHT = 16
 #: Ops sent again once when the consultant restarted under them (they hold no session).
@@ -85,11 +90,13 @@ class RemotePort:
         timeout: float = DEFAULT_TIMEOUT,
         *,
         outage_wait: float = OUTAGE_WAIT,
+        lapsed_deadline: float = LAPSED_DEADLINE,
         max_in_flight: int = MAX_IN_FLIGHT,
     ) -> None:
         self.domain = domain
         self.timeout = timeout
         self.outage_wait = outage_wait
+        self.lapsed_deadline = lapsed_deadline
         self.max_in_flight = max(1, max_in_flight)
         self.client = JsonClient(node, contract.consultant_service(domain), callback_group, timeout)
         self.client_id = f"{node.get_fully_qualified_name()}#{secrets.token_hex(3)}"
@@ -155,26 +162,32 @@ class RemotePort:
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
+        deadline = self.timeout
         if not self._available():
             # Wait for a restart only within ``outage_wait`` of the outage's start: requests
             # queued behind a dead consultant are answered at once.
             wait = self._down_since + self.outage_wait - time.monotonic()
             if wait > 0:
                 await wait_until(self.client.node, self._available, wait, callback_group=self.client.callback_group)
-            if not self._available():
-                why = "its liveliness lapsed" if self.alive is False else "no server is matched"
-                raise CarrierError(f"consultant '{self.domain}' is not running ({why}); try again later",
-                                   kind="unavailable", service=self.client.name)
+            if not self.client.ready():
+                raise CarrierError(f"consultant '{self.domain}' is not running (no server is matched); try again "
+                                   "later", kind="unavailable", service=self.client.name)
+            if self.alive is False:  # a lapse alone is no proof of death: ask, briefly
+                deadline = min(self.timeout, self.lapsed_deadline)
         if len(self._inflight) >= self.max_in_flight:
             await wait_until(self.client.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
                              callback_group=self.client.callback_group)
         future = self.client.send(payload)
         self._inflight[future] = time.monotonic()
         try:
-            reply = await self.client.result(future, self.timeout)
+            reply = await self.client.result(future, deadline)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
+            if err.kind == "timeout" and deadline < self.timeout:
+                raise CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
+                                   f"answer within {deadline:g} s); try again later", kind="unavailable",
+                                   service=self.client.name) from None
             if retry and err.kind == "unavailable" and payload["op"] in RETRIED_OPS and self.alive:
                 self._latest = ""  # the new incarnation's catalogue may differ
                 return await self._call(payload, retry=False)

@@ -3,6 +3,10 @@
     ros2 launch fsreg_ros fsreg.launch.py kb:=/path/to/table1.yaml \
         domains:=faces policy:=decay decay_period:=10.0 capacity:=2 namespace:=robot1
 
+Every memory setting is an argument (policy, decay_period, capacity, global_capacity,
+seed, shared_capacity: the settings table, ``fsreg_ros/core/settings.py``), defaulting
+to the WM Manager's own default (policy ``none``).
+
 The nodes and their parameters come from :func:`fsreg_ros.graph_spec.node_specs`, the
 same definition ``fsreg-graph`` uses: one consultant per domain (named
 consultant_<domain>), the WM Manager, the parser stub, reference resolution and REG,
@@ -19,16 +23,15 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fsreg_ros.contract import CLOCK, normalise_namespace
+from fsreg_ros.core import settings
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.graph_spec import PACKAGE, node_specs, policy_settings
 
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM"),
     "domains": ("faces", "comma-separated consultant domains"),
-    "policy": ("decay", "none, or decay / displacement / global-capacity joined by +"),
-    "decay_period": ("10.0", "decay period delta in seconds"),
-    "capacity": ("2", "per-entity WM limit alpha"),
-    "global_capacity": ("6", "per-domain WM limit"),
+    # one argument per memory setting, with the WM Manager's default (core/settings.py)
+    **{row.name: (str(row.default), row.description) for row in settings.TABLE},
     "algorithm": ("auto", "auto, sd-pia, dist-pia, full-brevity or greedy"),
     "wm_order": ("lru-first", "lru-first, mru-first or preference"),
     "use_sim_time": ("false", "follow /clock"),
@@ -36,15 +39,18 @@ ARGUMENTS = {
 }
 
 
+def _setting(row, text):
+    """Return a launch argument's text as the setting's type; ValueError naming the argument."""
+    try:
+        return row.kind(text)
+    except ValueError:
+        raise ValueError(f"launch argument {row.name}:={text!r}: expected {row.kind_text}") from None
+
+
 def _nodes(context):
     arg = lambda name: LaunchConfiguration(name).perform(context)  # noqa: E731
     domains = [d.strip() for d in arg("domains").split(",") if d.strip()]
-    policy = ForgettingPolicy.parse(
-        arg("policy"),
-        decay_period=float(arg("decay_period")),
-        capacity=int(arg("capacity")),
-        global_capacity=int(arg("global_capacity")),
-    )
+    policy = ForgettingPolicy.from_settings({row.name: _setting(row, arg(row.name)) for row in settings.TABLE})
     specs = node_specs(
         arg("kb"),
         domains,

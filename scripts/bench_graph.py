@@ -157,7 +157,7 @@ def graph_latencies(scenario, scenario_path: Path, options: Options, turns: list
     answers: dict[str, dict] = {}
 
     def on_answer(msg):
-        data = from_msg(msg, {})
+        data = from_msg(msg)
         answers[str(data.get("id"))] = data
 
     node.create_subscription(String, contract.RR_RESULT.name, on_answer, qos_profile(contract.RR_RESULT.qos))

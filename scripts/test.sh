@@ -1,9 +1,25 @@
 #!/usr/bin/env bash
-# Run the whole test suite (core, nodes, in-process and multi-process graph, colcon
-# build) in .venv, creating or refreshing it first. Extra arguments go to pytest.
+# Run the test suite in .venv, creating or refreshing it first.  Extra arguments go to pytest.
+#
+#   scripts/test.sh                  everything: core, nodes, in-process and multi-process graphs, colcon build
+#   scripts/test.sh --quick          the quick suite, -m "not slow": no multi-process graphs, no colcon, no
+#                                    generated fuzzing (under a minute on a 2-core machine)
+#   scripts/test.sh -m slow          only the slow tests
+#   scripts/test.sh test/test_x.py -k name -q     (any pytest arguments)
+#
+# Tests that start a graph of node processes or run for more than a few seconds are marked slow
+# (pytest.ini).  Always set ROS_DOMAIN_ID to a domain of your own when other graphs run.
 set -euo pipefail
+if [[ " $* " == *" --help "* || "${1:-}" == "-h" ]]; then
+    sed -n '2,11s/^# \{0,1\}//p' "$0"
+    exit 0
+fi
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
 . "$root/scripts/rosenv.sh"
 cd "$root"
-exec "$root/.venv/bin/python" -m pytest "$@"
+args=()
+for arg in "$@"; do  # --quick anywhere stands for -m "not slow"
+    if [[ "$arg" == "--quick" ]]; then args+=(-m "not slow"); else args+=("$arg"); fi
+done
+exec "$root/.venv/bin/python" -m pytest "${args[@]}"

@@ -9,8 +9,12 @@ Every input is one of:
 * random JSON (any value, any object) or non-JSON text;
 * a structure-aware mutation of a valid message of that endpoint: a required field
   dropped or given the wrong type, a known name replaced by an unknown one, a number
-  replaced by a hostile one (``1e999``, ``NaN``, ``Infinity``, 1e308, 2**64), a lone
-  surrogate, a very long string, deep nesting, extra fields.
+  replaced by a hostile one (``1e999``, ``NaN``, ``Infinity``, 1e308, 2**64, a 401-digit
+  integer, also as a certainty in ``ltm/assert``), a lone surrogate, a very long string,
+  deep nesting, extra fields;
+* each hostile input right after a malformed message on the same endpoint
+  (:func:`fuzz_after_malformed`: a node once died when one logging call site saw a
+  warning and then an error).
 
 Each input carries whether it MUST be rejected (``invalid``) or may be accepted.  The
 checks (:meth:`Fuzzer.check`): the call or message is answered (topics: a message on
@@ -18,7 +22,9 @@ the reply topic; ``/ltm/assert`` naming no consultant's domain has no reply by
 contract), an invalid input is rejected with a reason (an ``error`` field), a
 rejected input leaves every domain's WM and LTM and the WM Manager's status exactly
 as they were, and no callback raised (an exception out of a callback is a node that
-dies in a real process).
+dies in a real process).  A message that has no reply by contract (``consultant/announce``,
+an ``ltm/assert`` for no consultant's domain) is followed by one that must be answered or
+seen after it on the same topic, so the check never waits on a silence.
 """
 
 from __future__ import annotations
@@ -53,19 +59,26 @@ LTM_ASSERT = "/" + contract.LTM_ASSERT.name
 RR_RESULT = "/" + contract.RR_RESULT.name
 REG_EXPRESSION = "/" + contract.REG_EXPRESSION.name
 LTM_RESULT = "/" + contract.LTM_ASSERT_RESULT.name
+ANNOUNCE = "/" + contract.ANNOUNCE.name
+ALIVE = "/" + contract.alive_topic("faces").name
 #: Every endpoint fuzzed, for Table 1's one domain.
 ENDPOINTS = [CONSULTANT.format(domain="faces"), MANAGE.format(domain="faces"), DEBUG.format(domain="faces"), SYNC,
-             STATUS, HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT]
-#: Topic -> the topic its answers (and rejections) come back on.
-REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT}
+             STATUS, HUMAN, SEMANTICS, REG_REQUEST, LTM_ASSERT, ANNOUNCE, ALIVE]
+#: Topic -> the topic its answers (and rejections) come back on (None: no answers by contract).
+REPLY_TOPIC = {HUMAN: RR_RESULT, SEMANTICS: RR_RESULT, REG_REQUEST: REG_EXPRESSION, LTM_ASSERT: LTM_RESULT,
+               ANNOUNCE: None, ALIVE: None}
 
 TIME = 1.0  # the sim time the graph stands at while fuzzed
 SESSION = "<session>"  # stands for the id of a consultant session the fuzzer keeps open
+INCARNATION = 424242  # stands for the consultant's current incarnation (replaced when sent)
 REPLY_TIMEOUT = 5.0
 LONG = 100_000  # characters in a "very long" string
 DEEP = 5_000  # nesting depth of a "deep" value
-HOSTILE_NUMBERS = ["1e999", "-1e999", "NaN", "Infinity", "-Infinity", "1e308", "-1e308", str(2**64), "-1"]
-NON_FINITE = {"1e999", "-1e999", "NaN", "Infinity", "-Infinity"}
+HUGE = "1" + "0" * 400  # an integer no float can hold
+HOSTILE_NUMBERS = ["1e999", "-1e999", "NaN", "Infinity", "-Infinity", "1e308", "-1e308", str(2**64), "-1", HUGE,
+                   "-" + HUGE]
+#: Hostile numbers every endpoint must refuse (not JSON numbers, or no float holds them).
+NON_FINITE = {"1e999", "-1e999", "NaN", "Infinity", "-Infinity", HUGE, "-" + HUGE}
 NOT_JSON = ["", "{", "}", "[1,", "null", "nul", "\x00", "{'a': 1}", '{"a": 1}}', "\\ud800", "{\"id\": 1,}"]
 
 
@@ -77,6 +90,8 @@ class Template:
     required: tuple[str, ...]
     names: tuple[str, ...] = ()  # fields holding names the graph must know (str or list of str)
     numbers: tuple[str, ...] = ()  # numeric fields
+    mapped_numbers: tuple[tuple[str, str], ...] = ()  # (field, key) of numbers inside a mapping field
+    valid_numbers: bool = True  # False: only numbers that must be refused are tried (any other is a change)
 
 
 @dataclass
@@ -159,7 +174,15 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         REG_REQUEST: [Template({"id": 0, "target": entity, "time": TIME}, ("id", "target"), ("target",),
                                ("time",))],
         LTM_ASSERT: [Template({"domain": domain, "entity": entity, "properties": {prop: 0.9}, "id": 0},
-                              ("domain", "entity", "properties"), ("domain", "properties"))],
+                              ("domain", "entity", "properties"), ("domain", "properties"),
+                              mapped_numbers=(("properties", prop),))],
+        # The consultant's current incarnation, ready: what a consultant announces after a configure.
+        ANNOUNCE: [Template({"domain": domain, "incarnation": INCARNATION, "ready": True,
+                             "memory": {"policy": "decay", "decay_period": 10.0}},
+                            ("domain", "incarnation", "ready"), (), ("incarnation",), valid_numbers=False)],
+        ALIVE: [Template({"domain": domain, "incarnation": INCARNATION, "ready": True,
+                          "memory": {"policy": "decay", "decay_period": 10.0}},
+                         ("domain", "incarnation", "ready"), (), ("incarnation",), valid_numbers=False)],
     }
 
 
@@ -230,7 +253,7 @@ def mutations(draw, template: Template, fresh_id: int) -> Input:
         return Input(json.dumps({**payload, key: value}), True, f"{key} {kind}")
     if kind == "hostile-number" and template.numbers:
         key = draw(st.sampled_from(template.numbers))
-        number = draw(st.sampled_from(HOSTILE_NUMBERS))
+        number = draw(st.sampled_from(hostile_numbers(template)))
         raw = f"[{number}]" if isinstance(payload[key], list) else number
         return Input(_with(payload, key, raw), number in NON_FINITE, f"{key} = {number}")
     if kind == "surrogate" or kind == "long":  # no name field: into any string field (may be accepted)
@@ -249,8 +272,31 @@ def mutations(draw, template: Template, fresh_id: int) -> Input:
     return Input(json.dumps(payload), False, "valid")
 
 
-def catalogue(template: Template, fresh_ids) -> list[Input]:
-    """Every hostile mutation of ``template`` once, field by field (the deterministic part of a run)."""
+def hostile_numbers(template: Template) -> list[str]:
+    """Return the hostile numbers to try on ``template``'s numeric fields."""
+    return HOSTILE_NUMBERS if template.valid_numbers else [n for n in HOSTILE_NUMBERS if n in NON_FINITE]
+
+
+def number_inputs(template: Template, payload) -> list[Input]:
+    """Every hostile number in every numeric field of ``template`` (``payload()`` gives a fresh valid one)."""
+    out = []
+    for key in template.numbers:
+        for number in hostile_numbers(template):
+            raw = f"[{number}]" if isinstance(template.payload[key], list) else number
+            out.append(Input(_with(payload(), key, raw), number in NON_FINITE, f"{key} = {number}"))
+    for key, inner in template.mapped_numbers:
+        for number in hostile_numbers(template):
+            mapping = _with(template.payload[key], inner, number)
+            out.append(Input(_with(payload(), key, mapping), number in NON_FINITE, f"{key}.{inner} = {number}"))
+    return out
+
+
+def catalogue(template: Template, fresh_ids, raw: bool = True) -> list[Input]:
+    """Every hostile mutation of ``template`` once, field by field (the deterministic part of a run).
+
+    ``raw``: also the texts that are not JSON (they do not depend on the template, so
+    an endpoint needs them once).
+    """
     base = dict(template.payload)
     out = []
 
@@ -266,10 +312,7 @@ def catalogue(template: Template, fresh_ids) -> list[Input]:
         for kind, name in (("unknown-name", "zz-unknown"), ("surrogate", "face\ud800"), ("long", "n" * LONG)):
             value = [name] if isinstance(base[key], list) else ({name: 0.9} if isinstance(base[key], dict) else name)
             out.append(Input(json.dumps({**payload(), key: value}), True, f"{key} {kind}"))
-    for key in template.numbers:
-        for number in HOSTILE_NUMBERS:
-            raw = f"[{number}]" if isinstance(base[key], list) else number
-            out.append(Input(_with(payload(), key, raw), number in NON_FINITE, f"{key} = {number}"))
+    out += number_inputs(template, payload)
     for key in base:
         if isinstance(base[key], str) and key not in template.names:
             out.append(Input(json.dumps({**payload(), key: "x\ud800"}), False, f"{key} surrogate (free text)"))
@@ -278,7 +321,29 @@ def catalogue(template: Template, fresh_ids) -> list[Input]:
         out.append(Input(_with(payload(), key, "[" * DEEP + "]" * DEEP), key in template.required,
                          f"{key} nested {DEEP} deep"))
     out.append(Input(json.dumps({**payload(), "zz-extra": {"a": [1, None]}}), False, "extra field"))
-    out += [Input(text, True, f"not JSON {text[:12]!r}") for text in NOT_JSON]
+    out += [Input(text, True, f"not JSON {text[:12]!r}") for text in NOT_JSON] if raw else []
+    return out
+
+
+def hostile(template: Template, fresh_ids, extra: bool = True) -> list[Input]:
+    """Return the hostile inputs of ``template``.
+
+    Numbers (in every numeric field, and with ``extra`` in an extra field), surrogate and
+    overlong names.
+    """
+    base = dict(template.payload)
+
+    def payload() -> dict:
+        return {**base, "id": next(fresh_ids)} if "id" in base else dict(base)
+
+    out = number_inputs(template, payload)
+    for number in HOSTILE_NUMBERS if extra else ():
+        out.append(Input(_with(payload(), "zz-extra", number), number in NON_FINITE - {HUGE, "-" + HUGE},
+                         f"extra field = {number}"))
+    for key in template.names:
+        for kind, name in (("surrogate", "face\ud800"), ("long", "n" * LONG)):
+            value = [name] if isinstance(base[key], list) else ({name: 0.9} if isinstance(base[key], dict) else name)
+            out.append(Input(json.dumps({**payload(), key: value}), True, f"{key} {kind}"))
     return out
 
 
@@ -306,6 +371,7 @@ class Fuzzer:
         self.domains = list(scenario.domains)
         self.outcomes: dict[str, Outcome] = {}
         self.restarts = 0
+        self._markers = itertools.count()
         self.state: Optional[dict] = None  # the last snapshot, while nothing has been accepted since
         self._open()
         spec = scenario.domains[self.domains[0]]
@@ -315,7 +381,7 @@ class Fuzzer:
     def _open(self) -> None:
         self.state = None
         self.g = self.start()
-        self.inboxes = {topic: self.g.listen(topic) for topic in set(REPLY_TOPIC.values())}
+        self.inboxes = {topic: self.g.listen(topic) for topic in set(REPLY_TOPIC.values()) if topic is not None}
 
     def restart(self) -> None:
         """Start a fresh graph after a callback raised (a real node process would have died)."""
@@ -334,14 +400,15 @@ class Fuzzer:
 
     # ----------------------------------------------------------- memory state
     def snapshot(self) -> dict:
-        """Every domain's WM queues and LTM (entities, what holds), and the WM Manager's status."""
+        """Every domain's WM queues and LTM, and the WM Manager's status.
+
+        LTM is seen through ``info``: its ``version`` changes whenever LTM does, and it
+        lists the entities, the preference order, the threshold and the events published.
+        """
         state: dict[str, Any] = {"status": self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)}
         for domain in self.domains:
             service, debug = CONSULTANT.format(domain=domain), DEBUG.format(domain=domain)
-            info = self.g.call(service, {"op": "info"}, timeout=REPLY_TIMEOUT)
-            holds = {p: self.g.call(debug, {"op": "holds", "property": p, "entities": info["entities"]})["holds"]
-                     for p in info["preference"]}
-            state[domain] = {"info": info, "holds": holds,
+            state[domain] = {"info": self.g.call(service, {"op": "info"}, timeout=REPLY_TIMEOUT),
                              "wm": self.g.call(debug, {"op": "snapshot"}, timeout=REPLY_TIMEOUT)}
         return state
 
@@ -375,18 +442,60 @@ class Fuzzer:
             return None, str(err)
 
     def publish(self, topic: str, text: str) -> tuple[Optional[dict], Optional[str]]:
-        """Publish raw text on ``topic``; (reply, None), (None, reason), or (None, None) if no reply is due."""
+        """Publish raw text on ``topic``; (reply, None), (None, reason), or (None, None) if no reply is due.
+
+        A message with no reply by contract is followed by one that must be answered
+        (or seen) after it, so that it has been handled when this returns.
+        """
+        if topic == ANNOUNCE:
+            self.g.publish(topic, text.replace(str(INCARNATION), str(self.incarnation())), contract.ANNOUNCE.qos)
+            self._announce_marker()
+            return None, None
+        if topic == ALIVE:  # read by RR's and REG's consultant ports: a REG answer comes after it
+            self.g.publish(topic, text.replace(str(INCARNATION), str(self.incarnation())), contract.ALIVE.qos)
+            self._reg_marker()
+            return None, None
         inbox = self.inboxes[REPLY_TOPIC[topic]]
         before = len(inbox)
         self.g.publish(topic, text)
         if topic == LTM_ASSERT and not self._names_a_consultant(text):
-            self.g.spin_for(0.05)
+            self._ltm_marker(inbox)
             return None, None
         self.g.spin_until(lambda: len(inbox) > before, REPLY_TIMEOUT, what=f"a reply on {REPLY_TOPIC[topic]}")
         reply = inbox[before]
         if reply.get("error"):
             return None, str(reply["error"])
         return reply, None
+
+    def incarnation(self) -> int:
+        """Return the current incarnation of the first domain's consultant (the WM Manager's view)."""
+        return self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)["incarnation"][self.domains[0]]
+
+    def _ltm_marker(self, inbox) -> None:
+        """Publish an assertion the consultant must refuse (no entity) and wait for its refusal."""
+        marker = f"fuzz-sync-{next(self._markers)}"
+        self.g.publish(LTM_ASSERT, {"domain": self.domains[0], "id": marker})
+        self.g.spin_until(lambda: inbox.latest(id=marker) is not None, REPLY_TIMEOUT, what=f"the reply to {marker}")
+
+    def _reg_marker(self) -> None:
+        """Ask REG for a description (through its consultant port) and wait for the answer."""
+        marker = f"fuzz-sync-{next(self._markers)}"
+        inbox = self.inboxes[REG_EXPRESSION]
+        entity = next(iter(self.scenario.domains[self.domains[0]].entities))
+        self.g.publish(REG_REQUEST, {"id": marker, "target": entity, "time": TIME})
+        self.g.spin_until(lambda: inbox.latest(id=marker) is not None, REPLY_TIMEOUT, what=f"the reply to {marker}")
+        self.state = None  # REG encoded what it said
+
+    def _announce_marker(self) -> None:
+        """Announce the current incarnation with a marked setting; wait until the WM Manager reports it."""
+        marker = next(self._markers)
+        domain = self.domains[0]
+        self.g.publish(ANNOUNCE, {"domain": domain, "incarnation": self.incarnation(), "ready": True,
+                                  "memory": {"policy": "none", "fuzz_marker": marker}}, contract.ANNOUNCE.qos)
+        self.g.spin_until(
+            lambda: (self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)["running"][domain] or {}).get("fuzz_marker")
+            == marker, REPLY_TIMEOUT, what=f"announce marker {marker}")
+        self.state = None  # the status now reports the marker
 
     def _names_a_consultant(self, text: str) -> bool:
         """Whether an ``/ltm/assert`` message is due a reply: malformed, or for a known domain."""
@@ -399,8 +508,12 @@ class Fuzzer:
         return data["domain"] in self.domains
 
     # ------------------------------------------------------------------ checking
-    def check(self, endpoint: str, given: Input) -> None:
-        """Send one input to ``endpoint`` and record what happened (never raises for a finding)."""
+    def check(self, endpoint: str, given: Input, verify_memory: bool = True) -> None:
+        """Send one input to ``endpoint`` and record what happened (never raises for a finding).
+
+        ``verify_memory`` false: a rejection is not compared with a snapshot (for inputs
+        whose effect on memory is checked elsewhere).
+        """
         outcome = self.outcomes.setdefault(endpoint, Outcome())
         outcome.tried += 1
         label = f"{given.how}: {_clip(given.text)}"
@@ -431,6 +544,8 @@ class Fuzzer:
         outcome.rejected += 1
         if not reason.strip():
             outcome.reasonless.append(label)
+        if not verify_memory:
+            return
         try:
             after = self.snapshot()
         except Exception as err:  # noqa: BLE001
@@ -495,13 +610,30 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
     return g
 
 
-def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 10_000) -> None:
-    """Send every catalogued hostile input, then ``examples`` generated ones (fixed seed), to ``endpoint``."""
+#: Sent before each hostile input by :func:`fuzz_after_malformed`.
+MALFORMED = Input("{", True, "malformed (before a hostile input)")
+
+
+def fuzz_after_malformed(fuzzer: Fuzzer, endpoint: str, first_id: int = 50_000) -> None:
+    """Send each hostile input of ``endpoint`` right after a malformed message."""
     ids = itertools.count(first_id)
-    for template in templates(fuzzer.scenario)[endpoint]:
-        for given_input in catalogue(template, ids):
+    for i, template in enumerate(templates(fuzzer.scenario)[endpoint]):
+        for given_input in hostile(template, ids, extra=i == 0):  # extra fields: the endpoint's, once
+            fuzzer.check(endpoint, MALFORMED, verify_memory=False)  # the catalogue checks it changes nothing
             fuzzer.check(endpoint, given_input)
-    strategy = inputs(templates(fuzzer.scenario)[endpoint], ids)
+
+
+def fuzz_catalogue(fuzzer: Fuzzer, endpoint: str, first_id: int = 10_000) -> None:
+    """Send every catalogued hostile input to ``endpoint``."""
+    ids = itertools.count(first_id)
+    for i, template in enumerate(templates(fuzzer.scenario)[endpoint]):
+        for given_input in catalogue(template, ids, raw=i == 0):
+            fuzzer.check(endpoint, given_input)
+
+
+def fuzz_generated(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 30_000) -> None:
+    """Send ``examples`` generated inputs (fixed seed) to ``endpoint``."""
+    strategy = inputs(templates(fuzzer.scenario)[endpoint], itertools.count(first_id))
 
     @settings(max_examples=examples, derandomize=True, deadline=None, database=None,
               suppress_health_check=list(HealthCheck))
@@ -510,3 +642,9 @@ def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 
         fuzzer.check(endpoint, given_input)
 
     fuzz()
+
+
+def fuzz_endpoint(fuzzer: Fuzzer, endpoint: str, examples: int, first_id: int = 10_000) -> None:
+    """Send every catalogued hostile input, then ``examples`` generated ones (fixed seed), to ``endpoint``."""
+    fuzz_catalogue(fuzzer, endpoint, first_id)
+    fuzz_generated(fuzzer, endpoint, examples, first_id + 500)

@@ -7,6 +7,7 @@ the consultant's snapshot); the node keeps serving afterwards.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -218,6 +219,69 @@ def test_a_reused_id_for_another_request_is_an_error_never_the_other_answer(grap
     assert fresh["resolved"] == "face3"
 
 
+class Client:
+    """A requester of its own (a node publishing requests and hearing every answer on the topic)."""
+
+    def __init__(self, graph: Graph, name: str, topic: str, answers: str) -> None:
+        from rclpy.node import Node
+        from std_msgs.msg import String
+
+        from fsreg_ros.carrier import qos_profile
+
+        self.node = Node(name, context=graph.context)
+        graph.executor.add_node(self.node)
+        graph.nodes.append(self.node)
+        self.heard: list[dict] = []
+        self.pub = self.node.create_publisher(String, topic, qos_profile(contract.PIPELINE_QOS))
+        self.node.create_subscription(String, answers, lambda m: self.heard.append(json.loads(m.data)),
+                                      qos_profile(contract.PIPELINE_QOS))
+        graph.spin_until(lambda: self.pub.get_subscription_count() > 0
+                         and self.node.count_publishers(answers) > 0, what=f"{name}'s peers")
+        self.sent: list[dict] = []
+
+    def send(self, request: dict) -> str:
+        from fsreg_ros.carrier import to_msg
+
+        self.sent.append(request)
+        self.pub.publish(to_msg(request))
+        return contract.fingerprint(request)
+
+    def mine(self, fingerprint: str) -> list[dict]:
+        return [a for a in self.heard if a.get("request") == fingerprint]
+
+
+@pytest.mark.parametrize("topic, answers, a, b", [
+    (contract.REG_REQUEST.name, contract.REG_EXPRESSION.name, {"target": "face1"}, {"target": "face2"}),
+    (contract.HUMAN.name, contract.RR_RESULT.name, {"description": ["female", "hoodie"]}, {"description": ["male"]}),
+])
+def test_two_clients_sending_one_id_at_once_can_each_tell_their_reply(graph, topic, answers, a, b):
+    """Both hear every answer on the shared topic.  Without a client name, one request
+    runs and the other gets IdConflict naming it; each tells its own reply by the
+    request fingerprint it echoes.  With client names, the ids are theirs: both run."""
+    first, second = Client(graph, "client_a", topic, answers), Client(graph, "client_b", topic, answers)
+    fa, fb = first.send({"id": 5, **a}), second.send({"id": 5, **b})  # at once: nothing spun in between
+    graph.spin_until(lambda: first.mine(fa) and second.mine(fb) and len(first.heard) >= 2, what="both answers")
+    (mine_a,), (mine_b,) = first.mine(fa), second.mine(fb)
+    winner, loser = (mine_a, mine_b) if "kind" not in mine_a else (mine_b, mine_a)
+    assert "error" not in winner and loser["kind"] == "IdConflict" and loser["id"] == 5
+    assert loser["conflicts_with"] == {"client": None, "request": winner["request"]}
+    assert winner["request"] in loser["error"] and loser["request"] in loser["error"]
+    assert {mine_a["request"], mine_b["request"]} == {fa, fb} and fa != fb
+    # The same id from two named clients is two requests: both answered, each echoing its client.
+    fa, fb = first.send({"id": 6, "client": "a", **a}), second.send({"id": 6, "client": "b", **b})
+    graph.spin_until(lambda: first.mine(fa) and second.mine(fb), what="both named answers")
+    (mine_a,), (mine_b,) = first.mine(fa), second.mine(fb)
+    assert "error" not in mine_a and "error" not in mine_b
+    assert (mine_a["client"], mine_b["client"]) == ("a", "b")
+    # A resend is answered from the cache, with the same attribution; a reuse names the holder.
+    fa_again = first.send({"id": 6, "client": "a", **a})
+    clash = first.send({"id": 6, "client": "a", **b})
+    graph.spin_until(lambda: len(first.mine(fa)) == 2 and first.mine(clash), what="the resend and the reuse")
+    assert first.mine(fa)[1] == mine_a and fa_again == fa
+    (conflict,) = first.mine(clash)
+    assert conflict["kind"] == "IdConflict" and conflict["conflicts_with"] == {"client": "a", "request": fa}
+
+
 def test_a_failed_answer_is_not_cached_and_a_retry_runs_again(table1_path):
     """REG with no consultant: the request fails (not ready); once the consultant is up,
     the same id is executed for real instead of getting the cached failure."""
@@ -275,18 +339,24 @@ def test_hostile_reg_requests_are_answered_and_change_nothing(graph, text, fragm
 
 
 def test_answer_cache_is_bounded_in_bytes():
+    from fsreg_ros.contract import cache_key, fingerprint
     from fsreg_ros.nodes.asking import AnswerCache
 
     cache = AnswerCache(max_entries=1000, max_bytes=10_000)
     for i in range(100):
-        cache.put({"id": i}, "x" * 500)
-    assert cache.bytes <= 10_000 and len(cache) == 10_000 // (500 + len("int:99") + AnswerCache.OVERHEAD)
-    assert cache.get({"id": 99}) == ("x" * 500, False) and cache.get({"id": 0}) == (None, False)
-    assert cache.get({"id": 99, "target": "other"}) == (None, True)
-    cache.put({"id": "big"}, "y" * 20_000)  # larger than the whole budget: not kept
-    assert cache.get({"id": "big"}) == (None, False) and cache.bytes <= 10_000
+        cache.put({"id": i}, fingerprint({"id": i}), "x" * 500)
+    per_entry = 500 + len(str(cache_key({"id": 99}))) + AnswerCache.OVERHEAD
+    assert cache.bytes <= 10_000 and len(cache) == 10_000 // per_entry
+    assert cache.get({"id": 99}, fingerprint({"id": 99})) == ("x" * 500, None)
+    assert cache.get({"id": 0}, fingerprint({"id": 0})) == (None, None)  # dropped, oldest first
+    cached, holder = cache.get({"id": 99, "target": "other"}, "f" * 16)
+    assert cached is None and holder.model_dump() == {"client": None, "request": fingerprint({"id": 99})}
+    assert cache.get({"id": 99, "client": "b"}, "f" * 16) == (None, None)  # ids are per client
+    cache.put({"id": "big"}, "0" * 16, "y" * 20_000)  # larger than the whole budget: not kept
+    assert cache.get({"id": "big"}, "0" * 16) == (None, None) and cache.bytes <= 10_000
 
 
+@pytest.mark.slow  # starts a node process
 def test_reference_resolution_without_domains_exits_2_in_one_line():
     import os
     import subprocess
@@ -304,7 +374,33 @@ def test_a_sim_time_node_without_clock_warns_once_naming_the_topic(capfd):
 
     with Graph(namespace="quiet") as g:
         node = g.add(ParserNode, use_sim_time=True, name="quiet_parser")
-        watch_clock(node, silence=0.3)
-        g.spin_for(1.6)
-    err = capfd.readouterr().err
-    assert err.count("nothing has moved /quiet/clock for 0.3 s") == 1
+        timer = watch_clock(node, silence=0.3)
+        checks = []
+        check = timer.callback
+        timer.callback = lambda: (check(), checks.append(1))  # count the watchdog's own checks
+        seen = []
+        g.spin_until(lambda: seen.append(capfd.readouterr().err) or "nothing has moved" in "".join(seen),
+                     what="the warning")
+        after = len(checks)
+        g.spin_until(lambda: len(checks) >= after + 10, what="ten more checks of a still clock")
+        seen.append(capfd.readouterr().err)
+    assert "".join(seen).count("nothing has moved /quiet/clock for 0.3 s") == 1
+
+
+def test_a_whole_number_for_a_real_parameter_is_taken_and_a_wrong_type_refused():
+    """``-p service_timeout:=2`` means 2.0 s; a text is refused by rclpy's static typing.
+
+    declare_number reads the given value with public rclpy API only (no private state)."""
+    import inspect
+
+    from rclpy.exceptions import InvalidParameterTypeException
+
+    from fsreg_ros.nodes import common
+
+    with Graph() as g:
+        reg = g.add(RegNode, domains=["faces"], service_timeout=2, ready_timeout=3)
+        assert reg.get_parameter("service_timeout").value == 2.0
+        assert reg.describe_parameter("service_timeout").type == 3  # DOUBLE, statically typed
+        with pytest.raises(InvalidParameterTypeException, match="ready_timeout"):
+            g.add(RegNode, domains=["faces"], ready_timeout="soon", name="reg2")
+    assert "_parameter_overrides" not in inspect.getsource(common)

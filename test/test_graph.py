@@ -97,6 +97,7 @@ def test_two_domains_each_keep_their_own_pool(tmp_path):
     assert robot[5]["domain"] == "objects"
 
 
+@pytest.mark.slow  # two whole graphs
 def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(table1_path, tmp_path):
     """Two whole graphs in one process and one executor, under /robot1 and /robot2 on the
     same ROS_DOMAIN_ID, each replaying a different dialogue with its own clock (the

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from fsreg_ros.cli import sim_main
 from fsreg_ros.core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR
 from fsreg_ros.core.scenario import load_scenario
@@ -145,6 +147,7 @@ def test_single_run_table_shows_alignment(table1_path, capsys):
     assert "is lower under displacement (-0.06)" in out
 
 
+@pytest.mark.slow  # draws three PNGs (matplotlib)
 def test_trace_dir_and_plot_dir_write_one_file_per_policy(table1_path, tmp_path, capsys):
     traces, plots = tmp_path / "traces", tmp_path / "plots" / "deep"
     runs, err = compare_json(table1_path, capsys, "--trace-dir", str(traces), "--plot-dir", str(plots))
@@ -159,6 +162,7 @@ def test_trace_dir_and_plot_dir_write_one_file_per_policy(table1_path, tmp_path,
     assert list(runs) == ["decay", "displacement", "none"]
 
 
+@pytest.mark.slow  # draws a PNG (matplotlib)
 def test_plot_dir_in_text_mode_says_where(table1_path, tmp_path, capsys):
     assert sim_main([str(table1_path), "--policy", "decay", "--plot-dir", str(tmp_path)]) == 0
     out = capsys.readouterr().out

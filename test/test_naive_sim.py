@@ -82,6 +82,7 @@ def worlds(draw):
     )
 
 
+@pytest.mark.slow  # 120 generated worlds
 @settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(shape=worlds(), wm_order=st.sampled_from(WM_ORDERS), algorithm=st.sampled_from((None, "sd-pia", "dist-pia")))
 def test_random_worlds_equal_naive_reference(shape, wm_order, algorithm):
@@ -126,6 +127,7 @@ def test_world_shape_rejects_bad_sizes(field, value):
         WorldShape(**{field: value}).check()
 
 
+@pytest.mark.slow  # runs the benchmark script as processes
 def test_bench_sim_small_worlds_run_and_agree(tmp_path):
     """bench_sim times both commands on both presets and finds their outputs byte-identical (no timing asserted)."""
     out = tmp_path / "bench.json"

@@ -92,7 +92,7 @@ def operations(policy_strategy):
 
 
 def naive_for(policy: ForgettingPolicy) -> NaiveWM:
-    return NaiveWM(policy.rules, policy.capacity, policy.global_capacity, seed=policy.seed or 0)
+    return NaiveWM(policy.rules, policy.value("capacity"), policy.value("global_capacity"), seed=policy.value("seed"))
 
 
 def run_lazy(initial: ForgettingPolicy, ops, check=None):
@@ -216,7 +216,8 @@ def check_against_naive(initial, ops, eager_decay: bool) -> None:
             policy = op[1]
             for manager in managers:
                 manager.set_policy("d", policy, t)
-            naive.set_policy(policy.rules, policy.capacity, policy.global_capacity, t, seed=policy.seed or 0)
+            naive.set_policy(policy.rules, policy.value("capacity"), policy.value("global_capacity"), t,
+                             seed=policy.value("seed"))
             trimmed = True
         elif kind == "take":
             expected = naive.take_changes()
@@ -238,7 +239,7 @@ def check_against_naive(initial, ops, eager_decay: bool) -> None:
                 round_trip(b)
                 assert b.take_changes() == []
                 assert {e: b.export_queue(e) for e in ENTITIES} == before
-            naive.rng = random.Random(managers[0].policies["d"].seed or 0)
+            naive.rng = random.Random(managers[0].policies["d"].value("seed"))
             trimmed = False
         new = [event_key(e) for e in events[seen:]]
         seen = len(events)
@@ -374,7 +375,7 @@ def test_shared_capacity_equals_naive_pools(limit, steps):
 @given(initial=policies("displacement"), ops=operations(policies("displacement")))
 def test_displacement_never_leaves_a_queue_above_capacity(initial, ops):
     def check(buffer, policy):
-        assert all(len(q) <= policy.capacity for q in buffer.snapshot().values())
+        assert all(len(q) <= policy.value("capacity") for q in buffer.snapshot().values())
 
     run_lazy(initial, ops, check)
 
@@ -383,8 +384,8 @@ def test_displacement_never_leaves_a_queue_above_capacity(initial, ops):
 @given(initial=policies("global-capacity"), ops=operations(policies("global-capacity")))
 def test_global_capacity_is_never_exceeded(initial, ops):
     def check(buffer, policy):
-        assert len(buffer) <= policy.global_capacity
-        assert sum(len(q) for q in buffer.snapshot().values()) <= policy.global_capacity
+        assert len(buffer) <= policy.value("global_capacity")
+        assert sum(len(q) for q in buffer.snapshot().values()) <= policy.value("global_capacity")
 
     run_lazy(initial, ops, check)
 

@@ -43,6 +43,7 @@ def small_run():
     shutil.rmtree(out, ignore_errors=True)
 
 
+@pytest.mark.slow  # every study of the docs, at small scale
 @pytest.mark.parametrize("figure", FIGURES, ids=lambda f: f.name)
 def test_each_figure_command_runs_at_small_scale(figure, small_run):
     tuna, out = small_run

@@ -77,6 +77,7 @@ def test_setting_memory_and_labels():
     assert scenario_of(make_game(1, 4)).domains["faces"].attributes["hoodie"] == "clothing"
 
 
+@pytest.mark.slow  # the same sweep in one process and in several
 def test_same_arguments_same_files_whatever_jobs(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert cli.sweep_main([*SMALL, "--out", str(a), "--jobs", "1"]) == 0
@@ -102,6 +103,7 @@ def test_same_arguments_same_files_whatever_jobs(tmp_path):
         assert float(r["entrainment_gain_low"]) <= float(r["entrainment_gain"]) <= float(r["entrainment_gain_high"])
 
 
+@pytest.mark.slow  # a sweep, then the same again from its manifest
 def test_manifest_reproduces_the_run(tmp_path):
     out = tmp_path / "m"
     argv = [*SMALL, "--out", str(out), "--board-size", "12"]
@@ -262,6 +264,7 @@ def test_belief_port_narrows_by_a_stale_property():
     assert not checked.distinguishing
 
 
+@pytest.mark.slow  # a sweep of every setting
 def test_recommendation_picks_the_most_entrainment_within_each_bound(tmp_path, capsys):
     args = ["--world", "faces+objects", "--changes", "30", "--retraction", "on,off", "--wm-belief",
             "--policies", "displacement,shared-capacity,none", "--capacities", "1,6", "--shared-capacities", "4,64",

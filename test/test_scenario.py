@@ -94,7 +94,8 @@ def error_of(text: str, lexicon: object = None) -> ScenarioError:
 def test_missing_parameter_is_not_a_load_error_so_the_command_line_can_give_it():
     scenario = parse_scenario(FACES + "memory: {policy: decay+global-capacity, decay_period: 5}\n", source="t.yaml")
     policy = scenario.policy_for("faces", {"global_capacity": 3})
-    assert (policy.name, policy.decay_period, policy.global_capacity) == ("decay+global-capacity", 5.0, 3)
+    got = (policy.name, policy.value("decay_period"), policy.value("global_capacity"))
+    assert got == ("decay+global-capacity", 5.0, 3)
     assert scenario.policy_for("faces", {"policy": "decay"}).name == "decay"
     with pytest.raises(
         ScenarioError, match=r"t\.yaml:\d+: memory: .*needs 'global_capacity' \(add --global-capacity N"
@@ -165,7 +166,7 @@ def test_table1_loads(table1_path):
 def test_table1_policy_is_decay_with_period_10(table1_path):
     policy = load_scenario(table1_path).policy_for("faces")
     assert policy.rules == ("decay",)
-    assert policy.decay_period == 10.0
+    assert policy.value("decay_period") == 10.0
     assert policy == ForgettingPolicy(("decay",), decay_period=10.0, capacity=2)
 
 
@@ -263,7 +264,7 @@ def test_ints_accepted_for_floats():
         )
     )
     assert scenario.domains["faces"].threshold == 1.0
-    assert scenario.policy_for("faces").decay_period == 3.0
+    assert scenario.policy_for("faces").value("decay_period") == 3.0
     assert scenario.dialogue[0].time == 2.0
 
 
@@ -291,7 +292,7 @@ def test_yaml_merge_keys_are_not_duplicates():
     )
     scenario = parse_scenario(merged)
     assert scenario.memory == {"policy": "decay", "decay_period": 8.0}
-    assert scenario.policy_for("faces").decay_period == 4.0
+    assert scenario.policy_for("faces").value("decay_period") == 4.0
 
 
 # ------------------------------------------------------------------ memory
@@ -316,17 +317,17 @@ def test_domain_memory_merges_key_by_key_over_top_level():
     scenario = parse_scenario(MEMORY)
     assert scenario.domains["objects"].memory == {"policy": "displacement"}
     faces = scenario.policy_for("faces")
-    assert (faces.name, faces.capacity) == ("displacement", 3)
+    assert (faces.name, faces.value("capacity")) == ("displacement", 3)
     objects = scenario.policy_for("objects")
-    assert (objects.name, objects.capacity) == ("displacement", 2)  # capacity from the top level
+    assert (objects.name, objects.value("capacity")) == ("displacement", 2)  # capacity from the top level
     places = scenario.policy_for("places")
-    assert (places.name, places.decay_period) == ("decay", 10.0)
+    assert (places.name, places.value("decay_period")) == ("decay", 10.0)
     assert places.to_json() == {"policy": "decay", "decay_period": 10.0}
 
 
 def test_overrides_win_over_both_layers():
     scenario = parse_scenario(MEMORY)
-    assert scenario.policy_for("faces", {"capacity": 1}).capacity == 1
+    assert scenario.policy_for("faces", {"capacity": 1}).value("capacity") == 1
     assert scenario.policy_for("objects", {"policy": "decay", "decay_period": 2}).to_json() == {
         "policy": "decay",
         "decay_period": 2.0,
@@ -335,7 +336,7 @@ def test_overrides_win_over_both_layers():
         decay_period=10.0, capacity=2, global_capacity=6
     )
     # None values (unset command-line options) change nothing.
-    assert scenario.policy_for("faces", {"policy": None, "capacity": None}).capacity == 3
+    assert scenario.policy_for("faces", {"policy": None, "capacity": None}).value("capacity") == 3
     assert scenario.policy_for("faces", {}) == scenario.policy_for("faces")
 
 
@@ -1085,6 +1086,7 @@ def test_json_schema_describes_the_format():
     json.dumps(schema)
 
 
+@pytest.mark.slow  # runs the script as a process
 def test_export_schemas_script(tmp_path):
     out = tmp_path / "scenario.schema.json"
     script = REPO / "scripts" / "export_schemas.py"

@@ -8,10 +8,13 @@ It imports no ROS package, so a tool that only needs names or schemas stays ROS-
 
 One module per job:
 
-* schemas (pydantic models): :mod:`.base` (``Message``, ``ErrorReply``, ``Stamp``),
-  :mod:`.dialogue` (the dialogue pipeline), :mod:`.wm` (``wm/state``, ``wm/events``),
-  :mod:`.ltm` (``ltm/assert``), :mod:`.consultant` (a consultant's announcement,
-  query ops and manage ops), :mod:`.manager` (the WM Manager's services);
+* schemas (pydantic models): :mod:`.base` (``Message``, ``ErrorReply``, ``Stamp``, the
+  shared field types ``Number``, ``Name``, ``Names``), :mod:`.dialogue` (the dialogue
+  pipeline), :mod:`.wm` (``wm/state``, ``wm/events``), :mod:`.ltm` (``ltm/assert``),
+  :mod:`.consultant` (a consultant's announcement, query ops and manage ops),
+  :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
+  generated from the memory settings table);
+* :mod:`.attribution`: request fingerprints, so every answer names its request;
 * :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.carrier.qos_profile`` makes the
   rclpy profile);
 * :mod:`.endpoints`: the registry of topics and services (relative names, who talks);
@@ -27,7 +30,8 @@ hearing each other.  ``/clock`` is the one absolute name (the ROS convention): a
 namespaced *sim-time* graph is given its own clock by remapping it (:func:`clock_remap`).
 """
 
-from .base import ErrorReply, Id, Message, Number, Stamp
+from .attribution import attribution, cache_key, fingerprint
+from .base import ErrorReply, Id, Message, Name, NameNumbers, Names, Number, RequestRef, Stamp
 from .checking import check
 from .consultant import (
     CONSULTANT_OPS,
@@ -60,7 +64,6 @@ from .consultant import (
     Narrowing,
     OpenReply,
     OpenRequest,
-    PolicySettings,
     QueueReply,
     RuleOutReply,
     RuleOutRequest,
@@ -74,7 +77,7 @@ from .consultant import (
     Versioned,
     WMRequest,
 )
-from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
+from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, Request, RRResult, Semantics
 from .endpoints import (
     ALIVE,
     ANNOUNCE,
@@ -107,23 +110,25 @@ from .limits import LIMIT_RANGES, Limits, check_sizes
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import clock_remap, normalise_namespace
+from .policy import PolicySettings
 from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
-    "ALIVE", "ALIVE_QOS", "DEBUG", "DEBUG_OPS", "MANAGE_OPS", "SERVICE_QOS", "ConfigureReply", "ConfigureRequest",
-    "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EvictReply", "EvictRequest", "ManageReply",
-    "PolicySettings", "SizeReply", "SizeRequest", "StoredState", "TickRun", "alive_topic", "debug_service",
-    "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEFAULT_QOS", "EVENTS_QOS", "HUMAN", "LIMIT_RANGES",
-    "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT",
-    "SEMANTICS", "SERVICES", "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE",
-    "AffirmRequest", "CloseReply", "CloseRequest", "ConsultantAnnounce", "ConsultantReply", "ConsultantRequest",
-    "EncodeReply", "EncodeRequest", "ErrorReply", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id",
-    "InfoReply", "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageRequest", "Message",
-    "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest", "Origin", "QosSpec",
-    "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest", "RuleOutReply", "RuleOutRequest", "Semantics",
-    "Service", "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest",
-    "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState", "check",
-    "check_sizes", "clock_remap", "consultant_service", "fields_of", "json_schemas", "manage_service",
-    "message_table", "normalise_namespace",
+    "ALIVE", "ALIVE_QOS", "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
+    "EVENTS_QOS", "HUMAN", "LIMIT_RANGES", "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "MANAGE_OPS",
+    "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
+    "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE", "AffirmRequest",
+    "CloseReply", "CloseRequest", "ConfigureReply", "ConfigureRequest", "ConsultantAnnounce", "ConsultantReply",
+    "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EncodeReply", "EncodeRequest",
+    "ErrorReply", "EvictReply", "EvictRequest", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id", "InfoReply",
+    "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageReply", "ManageRequest", "Message", "Name",
+    "NameNumbers", "Names", "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest",
+    "Origin", "PolicySettings", "QosSpec", "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest",
+    "Request", "RequestRef", "RuleOutReply", "RuleOutRequest", "Semantics", "Service", "SizeReply", "SizeRequest",
+    "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest", "StoredState",
+    "SyncReply", "SyncRequest", "TickRun", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
+    "alive_topic", "attribution", "cache_key", "check", "check_sizes", "clock_remap", "consultant_service",
+    "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
+    "normalise_namespace",
 ]

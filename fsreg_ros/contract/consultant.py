@@ -22,6 +22,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import Field
 
 from .base import Message, Number, Stamp
+from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
 
 #: Causes a request may give an encoding (docs/semantics.md section 2).
@@ -267,17 +268,6 @@ class SnapshotReply(Message):
 
 
 # ------------------------------------------------------------------ manage ops
-class PolicySettings(Message):
-    """A forgetting policy as a configure request carries it (docs/semantics.md section 7)."""
-
-    policy: str
-    decay_period: Optional[Number] = None
-    capacity: Optional[int] = None
-    global_capacity: Optional[int] = None
-    seed: Optional[int] = None
-    shared_capacity: Optional[int] = None
-
-
 class TickRun(Message):
     """Decay ticks at ``origin + k * period`` for k = ``first`` .. ``first + count - 1`` (Algorithm 2)."""
 

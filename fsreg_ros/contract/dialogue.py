@@ -1,4 +1,10 @@
-"""Schemas of the dialogue pipeline: human utterances, their semantics, RR results, REG requests and expressions."""
+"""Schemas of the dialogue pipeline: human utterances, their semantics, RR results, REG requests and expressions.
+
+Every request carries an ``id`` with one meaning and may carry a ``client`` (the
+requester's own name); every answer echoes both, and the request's fingerprint as
+``request`` (:mod:`fsreg_ros.contract.attribution`).  An error of kind ``IdConflict``
+names the request holding the id in ``conflicts_with``.
+"""
 
 from __future__ import annotations
 
@@ -6,17 +12,23 @@ from typing import Literal, Optional
 
 from pydantic import model_validator
 
-from .base import Id, Message, Number, Stamp
+from .base import Id, Message, Name, Names, Number, RequestRef, Stamp
 from .wm import Origin
 
 
-class HumanUtterance(Stamp):
-    """``dialogue/human``: what the human said, as text or as properties."""
+class Request(Stamp):
+    """A request of the pipeline: its ``id``, and optionally who sends it (``client``, echoed in the answer)."""
 
     id: Id
+    client: Optional[Name] = None
+
+
+class HumanUtterance(Request):
+    """``dialogue/human``: what the human said, as text or as properties."""
+
     text: Optional[str] = None
-    description: Optional[list[str]] = None
-    domain: Optional[str] = None
+    description: Optional[Names] = None
+    domain: Optional[Name] = None
 
     @model_validator(mode="after")
     def _one_form(self) -> "HumanUtterance":
@@ -25,18 +37,21 @@ class HumanUtterance(Stamp):
         return self
 
 
-class Semantics(Stamp):
-    """``dialogue/semantics``: the parser's reading of one utterance, for RR."""
+class Semantics(Request):
+    """``dialogue/semantics``: the parser's reading of one utterance, for RR.
 
-    id: Id
-    description: list[str]
-    domain: Optional[str] = None
+    ``request``: the fingerprint of the utterance it was read from (RR's answer echoes it).
+    """
+
+    description: Names
+    request: Optional[str] = None
+    domain: Optional[Name] = None
     text: Optional[str] = None
     unknown_words: Optional[list[str]] = None
 
 
 class RRResult(Message):
-    """``rr/result``: which entity the human meant (``status`` says how sure)."""
+    """``rr/result``: which entity the human meant (``status`` says how sure), or why not (``error``)."""
 
     id: Optional[Id] = None
     time: Optional[Number] = None
@@ -48,14 +63,17 @@ class RRResult(Message):
     text: Optional[str] = None
     unknown_words: Optional[list[str]] = None
     error: Optional[str] = None
+    kind: Optional[str] = None
+    conflicts_with: Optional[RequestRef] = None
+    client: Optional[str] = None
+    request: Optional[str] = None
 
 
-class RegRequest(Stamp):
+class RegRequest(Request):
     """``reg/request``: describe ``target`` (optionally against a context set)."""
 
-    id: Id
-    target: str
-    context: Optional[list[str]] = None
+    target: Name
+    context: Optional[Names] = None
 
 
 class RegExpression(Message):
@@ -77,6 +95,8 @@ class RegExpression(Message):
     wm_before: list[str]
     text: str
     origins: list[Optional[Origin]] = []
+    client: Optional[str] = None
+    request: Optional[str] = None
 
 
 class RegError(Message):
@@ -86,3 +106,7 @@ class RegError(Message):
     id: Optional[Id] = None
     target: Optional[str] = None
     time: Optional[Number] = None
+    kind: Optional[str] = None
+    conflicts_with: Optional[RequestRef] = None
+    client: Optional[str] = None
+    request: Optional[str] = None

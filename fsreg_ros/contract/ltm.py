@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .base import Id, Message, Number
+from .base import Id, Message, Name, NameNumbers, Number
 
 
 class LtmAssert(Message):
     """``ltm/assert``: facts (property -> certainty) about an entity, new or known."""
 
-    domain: str
-    entity: str
-    properties: dict[str, Number]
+    domain: Name
+    entity: Name
+    properties: NameNumbers
     id: Optional[Id] = None
 
 

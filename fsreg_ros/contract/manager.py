@@ -5,19 +5,25 @@ from __future__ import annotations
 from typing import Any, Optional
 
 from .base import Message, Number
+from .policy import PolicySettings
 
 
 class SyncRequest(Message):
-    """``wm_manager/sync``: apply every decay tick due at or before ``time``."""
+    """``wm_manager/sync``: apply every decay tick due at or before ``time`` (robot-clock seconds)."""
 
     time: Number
 
 
 class SyncReply(Message):
-    """``wm_manager/sync`` reply: the effective memory settings once all is applied."""
+    """``wm_manager/sync`` reply, once every consultant acknowledged everything due.
 
-    time: Optional[Number] = None
-    memory: Optional[dict[str, Any]] = None
+    ``memory``: each domain's effective setting; ``applied``: the decay ticks this call
+    applied per domain.
+    """
+
+    time: Number
+    memory: dict[str, PolicySettings]
+    applied: dict[str, int]
 
 
 class StatusRequest(Message):
@@ -25,6 +31,19 @@ class StatusRequest(Message):
 
 
 class StatusReply(Message):
-    """``wm_manager/status`` reply: effective memory settings per domain."""
+    """``wm_manager/status`` reply, per managed domain.
 
-    memory: Optional[dict[str, Any]] = None
+    ``memory``: the setting the parameters give; ``running``: what its consultant last
+    acknowledged or announced, as it reported it (null until known); ``configured``: the consultant's
+    current incarnation acknowledged the current setting; ``incarnation``: the
+    consultant's (null until known); ``next_tick``: the time of the next decay tick
+    (null without decay).
+    """
+
+    time: Number
+    domains: list[str]
+    memory: dict[str, PolicySettings]
+    configured: dict[str, bool]
+    running: dict[str, Optional[dict[str, Any]]]
+    incarnation: dict[str, Optional[int]]
+    next_tick: dict[str, Optional[Number]]

@@ -30,18 +30,23 @@ the one place policy names are parsed and validated):
 
 At most one displacement rule.  The size limits become data on the buffer
 (:meth:`ForgettingPolicy.limits`), enforced by :mod:`fsreg_ros.core.memory`.
+
+The settings (their types, bounds, defaults and which rule reads which) are the
+table of :mod:`fsreg_ros.core.settings`; this module holds the rules.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 from typing import Mapping, Optional
 
+from . import settings as table
 from .memory import Limits
+from .settings import MAX_DECAY_PERIOD, MIN_DECAY_PERIOD, Number, PolicyError
 
 #: Victim choice of each displacement rule.
 DISPLACEMENT = {"displacement": "lru", "displacement-lfu": "lfu", "displacement-random": "random"}
+#: Every rule, in canonical order (the order a policy name lists them in).
 RULES = (
     "decay",
     "displacement",
@@ -51,57 +56,46 @@ RULES = (
     "global-capacity",
     "shared-capacity",
 )
-#: The parameters each rule needs (``seed`` is optional: default 0).
+#: A policy name as a regular expression (for JSON Schemas; :func:`parse_rules` is the check).
+POLICY_PATTERN = "^(none|({rules})(\\+({rules}))*)$".format(rules="|".join(RULES))
+#: Every memory parameter (the table's numeric rows), and the settings of a ``memory:`` block.
+PARAMETERS = tuple(row.name for row in table.parameters())
+SETTINGS = table.names()
+#: The parameters each rule reads (from the table's ``rules`` column).
 RULE_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "decay": ("decay_period",),
-    "displacement": ("capacity",),
-    "displacement-lfu": ("capacity",),
-    "displacement-random": ("capacity", "seed"),
-    "similarity": (),
-    "global-capacity": ("global_capacity",),
-    "shared-capacity": ("shared_capacity",),
+    rule: tuple(row.name for row in table.parameters() if rule in row.rules) for rule in RULES
 }
-#: Every memory parameter, and the settings of a ``memory:`` block.
-PARAMETERS = ("decay_period", "capacity", "global_capacity", "seed", "shared_capacity")
-SETTINGS = ("policy",) + PARAMETERS
-#: Parameters a rule may leave unset, with their default.
-DEFAULTS = {"seed": 0}
+#: Parameters a rule may leave unset, with the value it then uses.
+DEFAULTS = {row.name: row.fallback for row in table.parameters() if row.fallback is not None}
+#: Bounds of every parameter (low, high), inclusive.
+BOUNDS: dict[str, tuple[Number, Number]] = {row.name: (row.low, row.high) for row in table.parameters()}
 
-#: Bounds of ``decay_period``, seconds.  Below 0.01 s a live graph would spend its
-#: CPU on decay (a timer and a consultant call per tick, at 100 Hz and more); above
-#: 1e6 s (11.6 days) decay never happens in practice, and with the clock bounded by
-#: ``decay.MAX_TIME`` (1e12 s) the tick index k = t / delta stays below 2**53, so
-#: ``origin + k * delta`` is exact in k and every time fits a ROS Duration.
-MIN_DECAY_PERIOD = 0.01
-MAX_DECAY_PERIOD = 1e6
-#: Bounds of the whole-number parameters (per-queue, per-domain, seed).
-BOUNDS: dict[str, tuple[float, float]] = {
-    "decay_period": (MIN_DECAY_PERIOD, MAX_DECAY_PERIOD),
-    "capacity": (1, 10_000),
-    "global_capacity": (1, 1_000_000),
-    "seed": (0, 2**31 - 1),
-    "shared_capacity": (1, 1_000_000),
-}
+__all__ = ["DISPLACEMENT", "RULES", "POLICY_PATTERN", "PARAMETERS", "SETTINGS", "RULE_PARAMETERS", "DEFAULTS", "BOUNDS",
+           "MIN_DECAY_PERIOD", "MAX_DECAY_PERIOD", "NONE", "PolicyError", "ForgettingPolicy", "parse_rules",
+           "check_parameter", "check_setting", "merge_settings"]
 
 
-class PolicyError(ValueError):
-    """An invalid forgetting policy or parameter; the message says which and why."""
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class ForgettingPolicy:
-    """One domain's forgetting settings.
+    """One domain's forgetting settings: its rules and the parameters that are set.
 
-    ``rules`` is empty for ``none``.  Parameters not needed by a rule may still be
-    set (they are kept, so switching rules at run time reuses them).
+    ``rules`` is empty for ``none``.  ``parameters`` holds the set parameters as
+    ``(name, value)`` pairs in table order; parameters not needed by a rule may still
+    be set (they are kept, so switching rules at run time reuses them).  Build one with
+    ``ForgettingPolicy(rules, decay_period=..., ...)``, :meth:`parse` or
+    :meth:`from_settings`; read a parameter with :meth:`value`.
     """
 
     rules: tuple[str, ...] = ()
-    decay_period: Optional[float] = None
-    capacity: Optional[int] = None
-    global_capacity: Optional[int] = None
-    seed: Optional[int] = None
-    shared_capacity: Optional[int] = None
+    parameters: tuple[tuple[str, Number], ...] = field(default=())
+
+    def __init__(self, rules: tuple[str, ...] = (), **parameters: Optional[Number]) -> None:
+        unknown = sorted(set(parameters) - set(PARAMETERS))
+        if unknown:
+            raise PolicyError(f"unknown memory setting '{unknown[0]}' (known: {', '.join(SETTINGS)})")
+        values = [(name, parameters[name]) for name in PARAMETERS if parameters.get(name) is not None]
+        object.__setattr__(self, "rules", tuple(rules))
+        object.__setattr__(self, "parameters", tuple(values))
 
     @property
     def name(self) -> str:
@@ -116,58 +110,50 @@ class ForgettingPolicy:
         return "decay" in self.rules
 
     @classmethod
-    def parse(
-        cls,
-        policy: str,
-        decay_period: Optional[float] = None,
-        capacity: Optional[int] = None,
-        global_capacity: Optional[int] = None,
-        seed: Optional[int] = None,
-        shared_capacity: Optional[int] = None,
-    ) -> "ForgettingPolicy":
-        """Build and validate a policy from its name and parameters."""
-        return cls(
-            parse_rules(policy),
-            decay_period=decay_period,
-            capacity=capacity,
-            global_capacity=global_capacity,
-            seed=seed,
-            shared_capacity=shared_capacity,
-        ).validated()
+    def parse(cls, policy: str, **parameters: Optional[Number]) -> "ForgettingPolicy":
+        """Build and validate a policy from its name and parameters (None = unset)."""
+        return cls(parse_rules(policy), **parameters).validated()
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, object]) -> "ForgettingPolicy":
         """Build and validate a policy from ``{"policy", parameter: value, ...}``.
 
         That is a ``memory:`` block or a configure request; PolicyError if invalid.
+        A whole number given for a ``float`` parameter becomes a float.
         """
         unknown = sorted(set(settings) - set(SETTINGS))
         if unknown:
             raise PolicyError(f"unknown memory setting '{unknown[0]}' (known: {', '.join(SETTINGS)})")
-        values = {k: settings.get(k) for k in PARAMETERS}
-        if isinstance(values["decay_period"], int) and not isinstance(values["decay_period"], bool):
-            values["decay_period"] = float(values["decay_period"])
+        values = {}
+        for row in table.parameters():
+            value = settings.get(row.name)
+            if row.kind is float and isinstance(value, int) and not isinstance(value, bool):
+                value = _as_float(row.name, value)
+            values[row.name] = value
         return cls.parse(str(settings.get("policy", "none")), **values)  # type: ignore[arg-type]
 
     def validated(self) -> "ForgettingPolicy":
         """Return self if every parameter is valid and present where needed."""
-        for name in PARAMETERS:
-            check_parameter(name, getattr(self, name))
+        for name, value in self.parameters:
+            check_parameter(name, value)
         for rule in self.rules:
             for param in RULE_PARAMETERS[rule]:
-                if getattr(self, param) is None and param not in DEFAULTS:
+                if self.given(param) is None and param not in DEFAULTS:
                     raise PolicyError(f"policy '{self.name}' needs '{param}' ({rule}) but it is not set")
         return self
 
     def with_changes(self, **changes: object) -> "ForgettingPolicy":
         """Return a validated copy with some settings changed (``policy`` is a rule string)."""
-        if "policy" in changes:
-            changes["rules"] = parse_rules(str(changes.pop("policy")))
-        return replace(self, **changes).validated()  # type: ignore[arg-type]
+        rules = parse_rules(str(changes.pop("policy"))) if "policy" in changes else self.rules
+        return ForgettingPolicy(rules, **{**dict(self.parameters), **changes}).validated()  # type: ignore[arg-type]
 
-    def value(self, param: str) -> object:
-        """Return the effective value of parameter ``param`` (its default if unset)."""
-        found = getattr(self, param)
+    def given(self, param: str) -> Optional[Number]:
+        """Return parameter ``param`` as set (None if unset)."""
+        return dict(self.parameters).get(param)
+
+    def value(self, param: str) -> Optional[Number]:
+        """Return the effective value of parameter ``param`` (its fallback if unset)."""
+        found = self.given(param)
         return DEFAULTS.get(param) if found is None else found
 
     def to_json(self) -> dict:
@@ -180,9 +166,7 @@ class ForgettingPolicy:
 
     def settings(self) -> dict:
         """Return every setting that is set (what a configure request carries)."""
-        out: dict = {"policy": self.name}
-        out.update({p: getattr(self, p) for p in PARAMETERS if getattr(self, p) is not None})
-        return out
+        return {"policy": self.name, **dict(self.parameters)}
 
     def limits(self) -> Limits:
         """Return the size limits this policy puts on a buffer (decay is the schedule's)."""
@@ -191,15 +175,22 @@ class ForgettingPolicy:
         displacing = [rule for rule in self.rules if rule in DISPLACEMENT]
         return Limits(
             retains=True,
-            capacity=self.capacity if displacing else None,
+            capacity=self.given("capacity") if displacing else None,  # type: ignore[arg-type]
             victim=DISPLACEMENT[displacing[0]] if displacing else "lru",
             similarity="similarity" in self.rules,
-            global_capacity=self.global_capacity if "global-capacity" in self.rules else None,
-            seed=int(self.value("seed")),  # type: ignore[call-overload]
+            global_capacity=self.given("global_capacity") if "global-capacity" in self.rules else None,  # type: ignore
+            seed=int(self.value("seed")),  # type: ignore[arg-type]
         )
 
 
 NONE = ForgettingPolicy()
+
+
+def _as_float(name: str, value: int) -> float:
+    try:
+        return float(value)
+    except OverflowError:
+        raise PolicyError(f"{name} must be a number, got an integer too large for one") from None
 
 
 def parse_rules(policy: str) -> tuple[str, ...]:
@@ -226,31 +217,12 @@ def parse_rules(policy: str) -> tuple[str, ...]:
 def check_parameter(name: str, value: object) -> None:
     """Raise PolicyError unless ``value`` is acceptable for parameter ``name`` (None = unset).
 
-    The bounds are :data:`BOUNDS`, shared by scenario files, the command line and the
-    ``wm_manager`` node's parameter descriptors.
+    The check and bounds are the settings table's (:func:`fsreg_ros.core.settings.check_value`),
+    shared by scenario files, the command line, node parameters and configure requests.
     """
-    if value is None:
-        return
-    if name not in BOUNDS:
-        raise PolicyError(f"unknown forgetting parameter '{name}'")
-    if name == "decay_period":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise PolicyError(f"decay_period must be a number of seconds, got {value!r}")
-        if value <= 0:
-            raise PolicyError(f"decay_period must be > 0 seconds (at least {MIN_DECAY_PERIOD:g}), got {value!r}")
-        _check_bounds(name, value, " seconds")
-        return
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise PolicyError(f"{name} must be a whole number, got {value!r}")
-    _check_bounds(name, value, "")
-
-
-def _check_bounds(name: str, value: float, unit: str) -> None:
-    low, high = BOUNDS[name]
-    if value < low:
-        raise PolicyError(f"{name} must be >= {low:g}{unit}, got {value!r}")
-    if value > high:
-        raise PolicyError(f"{name} must be <= {high:g}{unit}, got {value!r}")
+    if name not in PARAMETERS:
+        raise PolicyError(f"unknown memory setting '{name}' (known: {', '.join(SETTINGS)})")
+    table.check_value(name, value)
 
 
 def check_setting(name: str, value: object) -> None:

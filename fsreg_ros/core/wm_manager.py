@@ -223,7 +223,7 @@ class WMManager:
         sharing = self.sharing()
         if not sharing:
             return {}
-        limit = min(self.domains[d].policy.shared_capacity for d in sharing)  # type: ignore[type-var]
+        limit = min(self.domains[d].policy.value("shared_capacity") for d in sharing)  # type: ignore[type-var]
         left = {d: int(sizes.get(d, 0)) for d in sharing}
         evictions: dict[str, int] = {}
         excess = sum(left.values()) - limit  # type: ignore[operator]
@@ -269,7 +269,7 @@ class WMManager:
         elif state.schedule is None:
             # Decay switched on: ticks on the origin + k * delta grid; ticks before
             # now are not owed.
-            state.schedule = DecaySchedule(policy.decay_period, origin=self.origin)  # type: ignore[arg-type]
+            state.schedule = DecaySchedule(policy.value("decay_period"), origin=self.origin)  # type: ignore[arg-type]
             state.schedule.skip(now)
-        elif old is not None and old.decay_period != policy.decay_period:
-            state.schedule.restart(policy.decay_period, now)  # type: ignore[arg-type]
+        elif old is not None and old.value("decay_period") != policy.value("decay_period"):
+            state.schedule.restart(policy.value("decay_period"), now)  # type: ignore[arg-type]

@@ -7,19 +7,22 @@ exclusive group (the group stays busy until the coroutine returns), while the
 service clients live in a reentrant group so their responses can arrive meanwhile
 (ROS-NOTES: a client in the busy group deadlocks).
 
-Request ids have one meaning.  Delivery is at-least-once: a requester that heard no
-answer may send the same request again, and the node answers it from its cache
-instead of running the algorithm twice (which would encode into WM twice).  A
-request that reuses an id for a *different* request is answered with an error naming
-the conflict (kind ``IdConflict``), never with the other request's answer, and the
-cache keeps the first answer.  An answer that carries an error (a consultant timed out
-or is down, an unknown entity, ...) is not cached: a retry runs again.  The cache is
-bounded in entries and in bytes (answers are kept as their JSON text).
+Request ids have one meaning per client (a request's optional ``client`` field; see
+:mod:`fsreg_ros.contract.attribution`).  Delivery is at-least-once: a requester that
+heard no answer may send the same request again, and the node answers it from its cache
+instead of running the algorithm twice (which would encode into WM twice).  A request
+that reuses an id for a *different* request is answered with an error of kind
+``IdConflict`` whose ``conflicts_with`` names the request holding the id (its client and
+fingerprint), never with the other request's answer, and the cache keeps the first
+answer.  Every answer echoes the request's ``id``, ``client`` and fingerprint
+(``request``), so requesters sharing the answer topic can each tell theirs.  An answer
+that carries an error (a consultant timed out or is down, an unknown entity, ...) is not
+cached: a retry runs again.  The cache is bounded in entries and in bytes (answers are
+kept as their JSON text).
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
 from typing import Optional
 
@@ -32,7 +35,7 @@ from std_msgs.msg import String
 from .. import contract
 from ..carrier import DEFAULT_TIMEOUT, subscribe
 from ..codec import printable, safe_dumps
-from ..contract import LIMIT_RANGES, Limits
+from ..contract import LIMIT_RANGES, Limits, RequestRef, attribution, cache_key, fingerprint
 from ..remote import RemotePort
 from .common import StartupError, declare_number, descriptor, now_seconds, watch_clock
 
@@ -43,12 +46,12 @@ READY_TIMEOUT = 30.0
 class AnswerCache:
     """The answers to the latest request ids, bounded by entries and by bytes (oldest dropped).
 
-    Each entry is (fingerprint of the request, answer as JSON text); the fingerprint is
-    a SHA-256 of the request's canonical JSON, so a reused id is told apart from a
-    resent request without keeping the request.
+    Keyed by :func:`~fsreg_ros.contract.cache_key` (client, id); each entry is (the
+    request's client and fingerprint, the answer as JSON text), so a reused id is told
+    apart from a resent request without keeping the request.
     """
 
-    #: Bytes counted per entry on top of the answer text (key, digest, dict slot).
+    #: Bytes counted per entry on top of the answer text (key, fingerprint, dict slot).
     OVERHEAD = 200
 
     def __init__(self, max_entries: int = Limits.answer_cache_entries,
@@ -56,38 +59,30 @@ class AnswerCache:
         self.max_entries = max_entries
         self.max_bytes = max_bytes
         self.bytes = 0
-        self._answers: OrderedDict[str, tuple[bytes, str]] = OrderedDict()
+        self._answers: OrderedDict[tuple, tuple[RequestRef, str]] = OrderedDict()
 
     def __len__(self) -> int:
         return len(self._answers)
 
-    @staticmethod
-    def key(request_id: object) -> str:
-        return f"{type(request_id).__name__}:{request_id}"
-
-    @staticmethod
-    def fingerprint(request: dict) -> bytes:
-        return hashlib.sha256(safe_dumps(dict(sorted(request.items()))).encode("utf-8", "surrogatepass")).digest()
-
-    def get(self, request: dict) -> tuple[Optional[str], bool]:
-        """Return (cached answer text or None, True if the id was used for another request)."""
-        entry = self._answers.get(self.key(request["id"]))
+    def get(self, request: dict, fingerprint: str) -> tuple[Optional[str], Optional[RequestRef]]:
+        """Return (cached answer text or None, the request holding the id if it is another one)."""
+        entry = self._answers.get(cache_key(request))
         if entry is None:
-            return None, False
-        if entry[0] != self.fingerprint(request):
-            return None, True
-        return entry[1], False
+            return None, None
+        if entry[0].request != fingerprint:
+            return None, entry[0]
+        return entry[1], None
 
-    def put(self, request: dict, answer: str) -> None:
-        key = self.key(request["id"])
-        size = len(answer) + len(key) + self.OVERHEAD
+    def put(self, request: dict, fingerprint: str, answer: str) -> None:
+        key = cache_key(request)
+        size = len(answer) + len(str(key)) + self.OVERHEAD
         if key in self._answers or size > self.max_bytes or self.max_entries == 0:
             return
-        self._answers[key] = (self.fingerprint(request), answer)
+        self._answers[key] = (RequestRef(client=key[0], request=fingerprint), answer)
         self.bytes += size
         while len(self._answers) > self.max_entries or self.bytes > self.max_bytes:
             old_key, (_, old) = self._answers.popitem(last=False)
-            self.bytes -= len(old) + len(old_key) + self.OVERHEAD
+            self.bytes -= len(old) + len(str(old_key)) + self.OVERHEAD
 
 
 class AskingNode(Node):
@@ -121,9 +116,8 @@ class AskingNode(Node):
         self._ready = False
         self._clock_watch = watch_clock(self)
 
-    def _on_announce(self, data: dict) -> None:
+    def _on_announce(self, announce: dict) -> None:
         """Tell the port of a (re)started consultant, so it stops waiting on the previous incarnation."""
-        announce = contract.check(contract.ConsultantAnnounce, data)
         port = self.ports.get(announce["domain"])
         if port is not None:
             port.restarted(announce["incarnation"])
@@ -141,30 +135,43 @@ class AskingNode(Node):
         time = data.get("time")
         return float(time) if isinstance(time, (int, float)) and not isinstance(time, bool) else now_seconds(self)
 
+    def answer_once_on(self, publisher):
+        """Return the request handler that answers each (validated) request once on ``publisher``."""
+        return lambda data: self.answer_once(data, publisher)
+
+    def fingerprint(self, data: dict) -> str:
+        """Return the fingerprint of request ``data`` (what its answer echoes as ``request``)."""
+        return fingerprint(data)
+
     async def answer_once(self, data: dict, publisher) -> None:
-        """Publish the answer to request ``data``, computed once per (id, request).
+        """Publish the answer to request ``data``, computed once per (client, id, request).
 
         See the module docstring for what a repeated or reused id gets.
         """
-        cached, conflict = self.answers.get(data)
-        if conflict:
-            error = (f"request id {printable(repr(data['id']), 80)} was already used for a different request; "
-                     "use a new id for a new request")
+        request = self.fingerprint(data)
+        cached, holder = self.answers.get(data, request)
+        if holder is not None:
+            who = f" of client {printable(repr(data['client']), 80)}" if data.get("client") is not None else ""
+            error = (f"request id {printable(repr(data['id']), 80)}{who} was already used for a different request "
+                     f"(fingerprint {holder.request}; this one is {request}); use a new id for a new request")
             self.get_logger().warning(error)
-            publisher.publish(String(data=safe_dumps(self.conflict_reply(data, error))))
+            reply = {**attribution(data, request), "error": error, "kind": "IdConflict",
+                     "conflicts_with": holder.model_dump(), **self.error_fields(data)}
+            publisher.publish(String(data=safe_dumps(reply)))
             return
         if cached is None:
-            reply = await self.answer(data)
+            reply = {**attribution(data, request), **await self.answer(data)}
             cached = safe_dumps(reply)
             if "error" not in reply:
-                self.answers.put(data, cached)
+                self.answers.put(data, request, cached)
         publisher.publish(String(data=cached))
 
-    def conflict_reply(self, data: dict, error: str) -> dict:
-        """Return the reply to a request whose id is taken (subclasses add their topic's fields)."""
-        return {"id": data["id"], "error": error, "kind": "IdConflict"}
+    def error_fields(self, data: dict) -> dict:
+        """Return the fields an error answer on this node's topic needs besides ``error`` (subclasses add theirs)."""
+        return {}
 
     async def answer(self, data: dict) -> dict:  # pragma: no cover - abstract
+        """Return the answer to one request (without its attribution, which :meth:`answer_once` adds)."""
         raise NotImplementedError
 
 

@@ -34,6 +34,7 @@ from typing import Any, Awaitable, Callable, Optional
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
@@ -126,13 +127,27 @@ def declare_number(
     )
     if integer:
         desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=0)]
-    else:
-        desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-        overrides = getattr(node, "_parameter_overrides", {})
-        given = overrides.get(name)
-        if given is not None and given.type_ == Parameter.Type.INTEGER:
-            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
-    return node.declare_parameter(name, int(default) if integer else float(default), desc).value
+        return node.declare_parameter(name, int(default), desc).value
+    desc.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+    try:
+        return node.declare_parameter(name, float(default), desc).value
+    except InvalidParameterTypeException:
+        given = _given_value(node, name, float(default))
+        if isinstance(given, bool) or not isinstance(given, int):
+            raise
+    # A whole number for a DOUBLE parameter (``-p x:=10``): declare it as that number.
+    return node.declare_parameter(name, float(given), desc, ignore_override=True).value
+
+
+def _given_value(node, name: str, default: float) -> Any:
+    """Return the value given for ``name`` (override or default), whatever its type.
+
+    Public API only: declare it dynamically typed (which takes any override), read it,
+    and undeclare it again, so that the caller can declare it statically typed.
+    """
+    value = node.declare_parameter(name, default, ParameterDescriptor(dynamic_typing=True)).value
+    node.undeclare_parameter(name)
+    return value
 
 
 def accepted() -> SetParametersResult:

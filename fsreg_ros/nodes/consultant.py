@@ -136,7 +136,8 @@ class ConsultantNode(Node):
             services.append((contract.debug_service, contract.DEBUG_OPS))
         for name, ops in services:
             serve(self, name(domain), lambda request, ops=ops: self._call(request, ops), max_bytes=size)
-        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size)
+        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, max_bytes=size,
+                  accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -2,7 +2,8 @@
 
 Subscribes ``dialogue/human`` (:class:`~fsreg_ros.contract.HumanUtterance`: text or a
 property list) and publishes the semantics on ``dialogue/semantics`` for reference
-resolution (:class:`~fsreg_ros.contract.Semantics`).  Text is mapped to
+resolution (:class:`~fsreg_ros.contract.Semantics`, with the utterance's fingerprint as
+``request``).  Text is mapped to
 properties with the lexicon (:mod:`fsreg_ros.core.lexicon`), restricted to the
 properties of the knowledge base given as ``kb`` (every lexicon property if
 empty).  Text with no known property is forwarded with an empty description, so
@@ -13,11 +14,11 @@ an error result on ``rr/result``, the human channel's reply topic.  Size limits:
 
 from __future__ import annotations
 
-
 from rclpy.node import Node
 
 from .. import contract
 from ..carrier import publish, publisher, subscribe
+from ..contract import fingerprint
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
 from .asking import declare_limits
@@ -44,7 +45,7 @@ class ParserNode(Node):
         self.properties: set[str] = set(known)
         self._semantics = publisher(self, contract.SEMANTICS)
         self._errors = publisher(self, contract.RR_RESULT)
-        subscribe(self, contract.HUMAN, self._on_human, reject=self._reject, max_bytes=self.limits.max_message_bytes)
+        subscribe(self, contract.HUMAN, self._on_human, reject=self._reject, limits=self.limits)
         self._clock_watch = watch_clock(self)
         self.get_logger().info(f"parser ready for {len(self.properties)} properties")
 
@@ -55,10 +56,13 @@ class ParserNode(Node):
         publish(self._semantics, self.parse(data))
 
     def parse(self, data: dict) -> dict:
-        """Return the semantics message for one human utterance (raises MessageError)."""
-        contract.check(contract.HumanUtterance, data)
-        contract.check_sizes(data, self.limits, names=("domain",), lists=("description",))
-        out = {key: data[key] for key in ("id", "time", "turn") if key in data}
+        """Return the semantics message for one (validated) human utterance.
+
+        It carries the utterance's ``id``, ``time``, ``turn`` and ``client``, and its
+        fingerprint as ``request``, which reference resolution's answer echoes.
+        """
+        out = {key: data[key] for key in ("id", "time", "turn", "client") if key in data}
+        out["request"] = fingerprint(data)
         if data.get("domain") is not None:
             out["domain"] = data["domain"]
         if data.get("description") is not None:

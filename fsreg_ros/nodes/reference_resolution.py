@@ -2,7 +2,8 @@
 
 Subscribes ``dialogue/semantics`` (from the parser) and publishes ``rr/result``
 (schemas :class:`~fsreg_ros.contract.Semantics`, :class:`~fsreg_ros.contract.RRResult`;
-``text`` and ``unknown_words`` are passed on when the utterance was text).  It runs the
+``text`` and ``unknown_words`` are passed on when the utterance was text; the answer's
+``request`` is the fingerprint of the utterance the parser read).  It runs the
 core's :func:`~fsreg_ros.core.resolution.resolve` against the consultants over
 the graph, so RR's affirmations are encoded in the consultants' WM (rule 2) and a
 resolved description is encoded for its referent (rule 1).  Errors (unknown
@@ -26,20 +27,20 @@ class ReferenceResolutionNode(AskingNode):
     def __init__(self, **kwargs) -> None:
         super().__init__("reference_resolution", **kwargs)
         self._results = publisher(self, contract.RR_RESULT)
-        subscribe(self, contract.SEMANTICS, self._on_semantics, reject=self._reject,
-                  callback_group=self.request_group, max_bytes=self.limits.max_message_bytes)
+        subscribe(self, contract.SEMANTICS, self.answer_once_on(self._results), reject=self._reject,
+                  callback_group=self.request_group, limits=self.limits)
         self.get_logger().info(f"reference resolution over domains {sorted(self.ports)}")
 
     def _reject(self, request_id, error: str) -> None:
         publish(self._results, rr_error(request_id, error))
 
-    def conflict_reply(self, data: dict, error: str) -> dict:
-        return {**super().conflict_reply(data, error), "status": "error"}
+    def fingerprint(self, data: dict) -> str:
+        """Return the fingerprint of the utterance the parser read (``request``), else of the semantics message."""
+        given = data.get("request")
+        return given if isinstance(given, str) else super().fingerprint(data)
 
-    async def _on_semantics(self, data: dict) -> None:
-        contract.check(contract.Semantics, data)
-        contract.check_sizes(data, self.limits, names=("domain",), lists=("description",))
-        await self.answer_once(data, self._results)
+    def error_fields(self, data: dict) -> dict:
+        return {"status": "error"}
 
     async def answer(self, data: dict) -> dict:
         """Return the ``rr/result`` for one utterance's semantics."""

@@ -43,8 +43,8 @@ class RegNode(AskingNode):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.lexicon = Lexicon.load(self.get_parameter("lexicon").value or None)
         self._expressions = publisher(self, contract.REG_EXPRESSION)
-        subscribe(self, contract.REG_REQUEST, self._on_request, reject=self._reject,
-                  callback_group=self.request_group, max_bytes=self.limits.max_message_bytes)
+        subscribe(self, contract.REG_REQUEST, self.answer_once_on(self._expressions), reject=self._reject,
+                  callback_group=self.request_group, limits=self.limits)
         self.get_logger().info(f"REG over domains {sorted(self.ports)}")
 
     @staticmethod
@@ -66,11 +66,6 @@ class RegNode(AskingNode):
     def _reject(self, request_id, error: str) -> None:
         reply = {"error": error} if request_id is None else {"id": request_id, "error": error}
         publish(self._expressions, reply)
-
-    async def _on_request(self, data: dict) -> None:
-        contract.check(contract.RegRequest, data)
-        contract.check_sizes(data, self.limits, names=("target",), lists=("context",))
-        await self.answer_once(data, self._expressions)
 
     async def answer(self, data: dict) -> dict:
         """Return the ``reg/expression`` for one request."""

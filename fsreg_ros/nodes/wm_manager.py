@@ -24,50 +24,33 @@ armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
 a clock that does not move is reported (``common.watch_clock``).
 
-Parameters (all but ``domains`` changeable at run time; every numeric one has a
-declared range, so ``ros2 param describe`` shows it; a change is validated as the
+Parameters (all but ``domains`` changeable at run time; a change is validated as the
 effective policy of every domain and rejected with a reason if any is invalid;
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
-    ``domains`` (string array, required, read-only): the consultant domains managed;
-    ``policy`` (default ``none``), ``decay_period`` (10.0 s, in [0.01, 1e6]),
-    ``capacity`` (2, in [1, 10000]), ``global_capacity`` (6, in [1, 1e6]),
-    ``seed`` (0, in [0, 2**31 - 1]), ``shared_capacity`` (12, in [1, 1e6]):
-    defaults for every domain (bounds:
-    :data:`fsreg_ros.core.forgetting.BOUNDS`);
-    ``<domain>.policy`` (``""`` = inherit), ``<domain>.decay_period`` (0 = inherit,
-    else in [0.01, 1e6]), ``<domain>.capacity``, ``<domain>.global_capacity``,
-    ``<domain>.shared_capacity`` (0 = inherit), ``<domain>.seed`` (-1 = inherit):
-    the ranges include the inherit marker;
-    ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of each consultant call.
+``domains`` (string array, required, read-only): the consultant domains managed; the
+memory settings, node-wide and per domain (:mod:`fsreg_ros.nodes.memory_parameters`,
+from the settings table); ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of
+each consultant call, and of sync's wait for the consultants to be configured.
 
-Services (JSON in ``AddDiagnostics``):
-    ``/wm_manager/sync`` ``{"time": t}`` -> ``{"time", "memory": {domain: policy},
-    "applied": {domain: n_ticks}}``: the race-free hand-off of a scripted player.
-    Applies every tick due at or before t in every domain (t from the request: no
-    waiting on ``/clock``), waits until every consultant has acknowledged everything
-    sent to it so far; then, if any domain has ``shared-capacity``, asks the pool's
-    consultants their sizes and sends the evictions the core decides (``evict``),
-    and waits for those too; then replies.  A t that is not finite, beyond 1e12 s, or more
-    than a day (``core.wm_manager.SYNC_AHEAD``) ahead of the node's clock is rejected
-    with a reason and changes nothing.  Before the consultants are configured it
-    waits for them (up to ``service_timeout``), then replies an error.
-    ``/wm_manager/status`` -> ``{"time", "domains", "memory", "configured", "running",
-    "incarnation", "next_tick"}``: ``memory`` is each domain's setting from the
-    parameters; ``running`` what its consultant last acknowledged (configure reply) or
-    announced, null until known; ``configured`` true once the consultant's current
-    incarnation has acknowledged the current setting.
-
-Topics: in ``consultant/announce`` (latched) from every consultant.
+Services (schemas: :class:`~fsreg_ros.contract.SyncRequest`/``SyncReply``,
+``StatusRequest``/``StatusReply``): ``wm_manager/sync`` is the race-free hand-off of a
+scripted player (docs/design.md, "Forgetting without races"): it applies every tick due
+at or before the request's time in every domain (no waiting on ``/clock``), waits until
+every consultant acknowledged everything sent to it so far, then trims the shared pool
+if a domain has ``shared-capacity``, and replies; a time that is not finite, beyond
+1e12 s, or more than a day ahead of the node's clock is refused and changes nothing.
+``wm_manager/status`` reports each domain's setting, what its consultant runs, whether
+its current incarnation is configured, and the next tick.  Topic in:
+``consultant/announce`` (latched), from every consultant.
 """
 
 from __future__ import annotations
 
 import time as wallclock
-from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Optional
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -79,113 +62,24 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.task import Future
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, serve, subscribe, wait_until
-from ..codec import NUMBER, check_fields
+from ..carrier import CarrierError, log_error, log_warning, serve, subscribe, wait_until
 from ..contract import manage_service
-from ..core.decay import TIME_EPSILON, TickError, TickRun
-from ..core.forgetting import BOUNDS, ForgettingPolicy, PolicyError, check_setting
+from ..core.decay import TIME_EPSILON, TickError
+from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
 from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
+from .manage_link import ConsultantLink, ManageLinks, ManagePort
+from .memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
 
-#: Defaults for every domain (docs/semantics.md section 5 names).
-DEFAULTS: dict[str, Any] = {
-    "policy": "none",
-    "decay_period": 10.0,
-    "capacity": 2,
-    "global_capacity": 6,
-    "seed": 0,
-    "shared_capacity": 12,
-}
-#: Per-domain "inherit" markers (each inside its parameter's declared range).
-INHERIT: dict[str, Any] = {
-    "policy": "",
-    "decay_period": 0.0,
-    "capacity": 0,
-    "global_capacity": 0,
-    "seed": -1,
-    "shared_capacity": 0,
-}
-SETTINGS = tuple(DEFAULTS)
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
 #: How often unconfigured consultants are looked for and stale calls expired (s).
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
-
-DESCRIPTIONS = {
-    "policy": "forgetting policy: none, or rules joined by + (decay, displacement, displacement-lfu, "
-    "displacement-random, similarity, global-capacity, shared-capacity)",
-    "decay_period": "decay period delta, seconds",
-    "capacity": "per-entity queue limit alpha",
-    "global_capacity": "per-domain total limit",
-    "seed": "seed of displacement-random",
-    "shared_capacity": "limit of the pool shared by every domain with shared-capacity",
-}
-
-
-def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
-    """Return a memory setting's descriptor, with the core's bounds as its range.
-
-    A per-domain setting's range is widened to include its inherit marker.
-    """
-    text = DESCRIPTIONS[key]
-    if domain is not None:
-        text = f"domain '{domain}' {text}; {INHERIT[key]!r} = inherit '{key}'"
-    out = ParameterDescriptor(description=text)
-    if key == "policy":
-        return out
-    low, high = BOUNDS[key]
-    if domain is not None:
-        low = INHERIT[key]
-    if key == "decay_period":
-        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-        if domain is not None:
-            out.additional_constraints = f"0 (inherit) or in [{BOUNDS[key][0]:g}, {high:g}]"
-    else:
-        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-    return out
-
-
-@dataclass
-class _Domain:
-    """The transport state of one domain's consultant."""
-
-    name: str
-    client: JsonClient
-    timer: Any = None
-    configured: bool = False  # a configure has been acknowledged by the current incarnation
-    configuring: Optional[Future] = None
-    inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
-    incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
-    running: Optional[dict] = None  # the policy it acknowledged or announced
-
-
-class _ManagePort:
-    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph.
-
-    Each decision becomes a request to the consultant's manage service.
-    """
-
-    def __init__(self, node: "WMManagerNode") -> None:
-        self.node = node
-
-    def configure(self, domain: str, policy: ForgettingPolicy, time: float) -> None:
-        dom = self.node._domains[domain]
-        dom.configuring = self.node._send(dom, {"op": "configure", "policy": policy.settings(), "time": time})
-
-    def decay(self, domain: str, ticks: TickRun) -> None:
-        self.node._send(self.node._domains[domain], {"op": "decay", "ticks": ticks.to_json()})
-
-    def evict(self, domain: str, count: int, time: float) -> None:
-        self.node._send(self.node._domains[domain], {"op": "evict", "count": count, "time": time})
-
-    def sizes(self, domains: list[str]) -> None:
-        return None  # needs service calls: the sync barrier asks, then calls manager.share
 
 
 class WMManagerNode(Node):
@@ -217,17 +111,13 @@ class WMManagerNode(Node):
                 raise StartupError(f"domain {name!r} clashes with a parameter name")
 
         self._names = names
-        self._param_names = list(SETTINGS) + [f"{d}.{k}" for d in names for k in SETTINGS] + ["service_timeout"]
+        self._param_names = parameter_names(names) + ["service_timeout"]
         timeout = ParameterDescriptor(
             description="deadline of each consultant call, and of sync's wait for configuration, s",
             floating_point_range=[FloatingPointRange(from_value=TIMEOUT_RANGE[0], to_value=TIMEOUT_RANGE[1], step=0.0)],
         )
         try:
-            for key in SETTINGS:
-                self.declare_parameter(key, DEFAULTS[key], setting_descriptor(key))
-            for name in names:
-                for key in SETTINGS:
-                    self.declare_parameter(f"{name}.{key}", INHERIT[key], setting_descriptor(key, name))
+            declare_memory_parameters(self, names)
             self.declare_parameter("service_timeout", 10.0, timeout)
             policies = self._effective(self._values())
         except (InvalidParameterTypeException, InvalidParameterValueException) as err:
@@ -244,18 +134,18 @@ class WMManagerNode(Node):
         now = self.now()
         self._latest = now
         self._warned_backwards = False
-        self._domains: dict[str, _Domain] = {}
-        self.manager = WMManager(_ManagePort(self), origin=now)
+        self._links = ManageLinks(self, names, self._client_group, lambda: self.timeout)
+        self._domains: dict[str, ConsultantLink] = self._links.links
+        self.manager = self._links.manager = WMManager(ManagePort(self._links), origin=now)
         for name in names:
-            self._domains[name] = _Domain(name, JsonClient(self, manage_service(name), self._client_group))
             self.manager.manage_domain(name, policies[name], now)
             self._domains[name].timer = self.create_timer(1.0, partial(self._on_decay_timer, name), autostart=False)
             self._arm(name)
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
-        serve(self, contract.SYNC.name, self._sync, self._barrier_group)
-        serve(self, contract.STATUS.name, self._status)
+        serve(self, contract.SYNC, self._sync, self._barrier_group)
+        serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
         self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -291,27 +181,7 @@ class WMManagerNode(Node):
 
     def _effective(self, values: dict[str, Any]) -> dict[str, ForgettingPolicy]:
         """Every domain's effective policy from parameter values; ValueError if invalid."""
-        try:
-            for key in SETTINGS:
-                check_setting(key, values[key])
-        except PolicyError as err:
-            raise ValueError(str(err)) from None
-        policies = {}
-        for d in self._names:
-            merged = {}
-            for key in SETTINGS:
-                own = values[f"{d}.{key}"]
-                if own != INHERIT[key]:
-                    try:
-                        check_setting(key, own)
-                    except PolicyError as err:
-                        raise ValueError(f"{d}.{key}: {err} ({INHERIT[key]!r} inherits '{key}')") from None
-                merged[key] = values[key] if own == INHERIT[key] else own
-            try:
-                policies[d] = ForgettingPolicy.from_settings(merged)
-            except PolicyError as err:
-                raise ValueError(f"domain '{d}': {err}") from None
-        return policies
+        return effective_policies(values, self._names)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = self._values()
@@ -326,7 +196,7 @@ class WMManagerNode(Node):
         try:
             self._effective(values)
         except ValueError as err:
-            self.get_logger().warning(f"rejected parameter change: {err}")
+            log_warning(self.get_logger(), f"rejected parameter change: {err}")
             return rejected(str(err))
         return accepted()
 
@@ -343,7 +213,7 @@ class WMManagerNode(Node):
                     self._arm(name)
                     self.get_logger().info(f"domain '{name}': memory {policy.to_json()}")
         except (ValueError, TickError) as err:  # validated above: only a clock fault gets here
-            self.get_logger().error(f"parameter change not applied: {err}")
+            log_error(self.get_logger(), f"parameter change not applied: {err}")
 
     # ----------------------------------------------------------------- decay
     def _arm(self, name: str) -> None:
@@ -366,44 +236,8 @@ class WMManagerNode(Node):
         self._arm(name)
 
     # ------------------------------------------------------------ consultants
-    def _send(self, dom: _Domain, payload: dict) -> Future:
-        future = dom.client.send(payload)
-        entry = (future, payload, wallclock.monotonic() + self.timeout)
-        dom.inflight.append(entry)
-        future.add_done_callback(partial(self._on_reply, dom, entry))
-        return future
-
-    def _on_reply(self, dom: _Domain, entry: tuple, future: Future) -> None:
-        if entry in dom.inflight:
-            dom.inflight.remove(entry)
-        payload = entry[1]
-        op = payload["op"]
-        try:
-            reply = dom.client.decode(future)
-        except CarrierError as err:
-            self.get_logger().error(f"consultant '{dom.name}' failed '{op}': {err}")
-            if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
-                self.manager.owe(dom.name, TickRun.from_json(payload["ticks"]))
-            if op in ("decay", "configure"):
-                # Start over: attach again when the consultant answers or announces itself.
-                self.manager.detach(dom.name)
-                dom.configured = False
-                dom.configuring = None
-            return
-        policy = self.manager.domains[dom.name].policy
-        if op == "configure" and future is dom.configuring:
-            dom.running = reply.get("memory")
-            if isinstance(reply.get("incarnation"), int):
-                dom.incarnation = reply["incarnation"]
-            if not dom.configured:
-                self.get_logger().info(
-                    f"consultant '{dom.name}' (incarnation {dom.incarnation}) configured: {dom.running}")
-            dom.configured = dom.running == policy.to_json()
-            dom.configuring = None
-
-    def _on_announce(self, data: dict) -> None:
+    def _on_announce(self, announce: dict) -> None:
         """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
-        announce = contract.check(contract.ConsultantAnnounce, data)
         dom = self._domains.get(announce["domain"])
         if dom is None:
             return  # not managed here
@@ -422,7 +256,7 @@ class WMManagerNode(Node):
         self.manager.detach(dom.name)
         self._attach(dom)
 
-    def _attach(self, dom: _Domain) -> None:
+    def _attach(self, dom: ConsultantLink) -> None:
         try:
             self.manager.attach(dom.name, None, self.now())
         except TickError as err:
@@ -431,11 +265,8 @@ class WMManagerNode(Node):
 
     def _supervise(self) -> None:
         """Attach consultants that became reachable; expire unanswered calls."""
-        now_wall = wallclock.monotonic()
+        self._links.expire()
         for dom in self._domains.values():
-            for future, _, deadline in list(dom.inflight):
-                if now_wall > deadline and not future.done():
-                    dom.client.expire(future, self.timeout)
             if not self.manager.domains[dom.name].attached and dom.client.ready():
                 self._attach(dom)
 
@@ -443,8 +274,7 @@ class WMManagerNode(Node):
         return all(dom.configured for dom in self._domains.values())
 
     # --------------------------------------------------------------- services
-    async def _sync(self, request: dict) -> dict:
-        check_fields(request, {"time": NUMBER})
+    async def _sync(self, request: dict) -> contract.SyncReply:
         t = self.manager.check_sync_time(request["time"], self.now())  # TickError -> error reply
         timeout = self.timeout
         deadline = wallclock.monotonic() + timeout
@@ -458,41 +288,28 @@ class WMManagerNode(Node):
         applied = {name: self._advance(name, t) for name in self._domains}
         for name in self._domains:
             self._arm(name)
-        await self._settle(deadline)
+        await self._links.settle(deadline)
         sharing = self.manager.sharing()
         if sharing:  # the shared pool, after the ticks (as core WMManager.advance)
             sizes = {}
             for name in sharing:
                 dom = self._domains[name]
-                reply = await self._await(dom, self._send(dom, {"op": "size"}), deadline)
+                reply = await self._links.result(dom, self._links.send(dom, {"op": "size"}), deadline)
                 sizes[name] = reply["size"]
             self.manager.share(sizes, t)
-            await self._settle(deadline)
-        return {"time": t, "memory": self.memory(), "applied": applied}
+            await self._links.settle(deadline)
+        return contract.SyncReply(time=t, memory=self.memory(), applied=applied)
 
-    async def _settle(self, deadline: float) -> None:
-        """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
-        pending = [(dom, entry[0]) for dom in self._domains.values() for entry in list(dom.inflight)]
-        for dom, future in pending:
-            await self._await(dom, future, deadline)
-
-    async def _await(self, dom: _Domain, future: Future, deadline: float) -> dict:
-        remaining = max(deadline - wallclock.monotonic(), 0.05)
-        try:
-            return await dom.client.result(future, remaining)
-        except CarrierError as err:
-            raise CarrierError(f"consultant '{dom.name}' did not apply the change: {err}", kind=err.kind) from None
-
-    def _status(self, request: dict) -> dict:
-        return {
-            "time": self.now(),
-            "domains": list(self._names),
-            "memory": self.memory(),
-            "configured": {d: dom.configured for d, dom in self._domains.items()},
-            "running": {d: dom.running for d, dom in self._domains.items()},
-            "incarnation": {d: dom.incarnation for d, dom in self._domains.items()},
-            "next_tick": {d: self.manager.next_tick(d) for d in self._domains},
-        }
+    def _status(self, request: dict) -> contract.StatusReply:
+        return contract.StatusReply(
+            time=self.now(),
+            domains=list(self._names),
+            memory=self.memory(),
+            configured={d: dom.configured for d, dom in self._domains.items()},
+            running={d: dom.running for d, dom in self._domains.items()},
+            incarnation={d: dom.incarnation for d, dom in self._domains.items()},
+            next_tick={d: self.manager.next_tick(d) for d in self._domains},
+        )
 
     def memory(self) -> dict[str, dict]:
         """Each domain's effective setting (docs/semantics.md section 6 ``memory``), sorted by domain."""

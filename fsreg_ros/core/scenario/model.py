@@ -8,10 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
+from .. import settings
 from ..consultant import DEFAULT_THRESHOLD, Consultant
 from ..forgetting import (
     DEFAULTS,
-    PARAMETERS,
     RULE_PARAMETERS,
     ForgettingPolicy,
     PolicyError,
@@ -26,8 +26,8 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 #: Path used for errors in command-line overrides of the ``memory:`` settings.
 COMMAND_LINE = "<command line>"
-#: The keys of a ``memory:`` block.
-MEMORY_KEYS = ("policy",) + PARAMETERS
+#: The keys of a ``memory:`` block (the settings table's names).
+MEMORY_KEYS = settings.names()
 
 
 class ScenarioError(SourceError):
@@ -114,7 +114,8 @@ class Scenario:
             message = f"domain '{domain}': {err}"
             if missing:
                 message = f"domain '{domain}': policy '{policy}' needs " + " and ".join(
-                    f"'{name}' (add --{name.replace('_', '-')} N, or {name}: in a memory block)" for name in missing
+                    f"'{name}' (add {settings.setting(name).option} {settings.setting(name).metavar}, or {name}: in a "
+                    "memory block)" for name in missing
                 )
             raise ScenarioError(self.source, path, message, self.lines.get(path)) from None
 

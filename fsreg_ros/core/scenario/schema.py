@@ -1,7 +1,8 @@
 """The structure of a scenario file as pydantic models, and its JSON Schema.
 
 ``extra="forbid"`` and strict types (``capacity: true`` is not a number while
-``decay_period: 10`` is).  The models check shapes only; meaning (unknown
+``decay_period: 10`` is).  ``MemoryBlock`` is generated from the memory settings
+table (:mod:`fsreg_ros.core.settings`).  The models check shapes only; meaning (unknown
 properties, times, ...) is :mod:`.checks`'s job.
 """
 
@@ -9,10 +10,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Optional, Sequence, Union
 
-from pydantic import ConfigDict, Discriminator, Field, Tag
+from pydantic import ConfigDict, Discriminator, Field, Tag, create_model
 
+from .. import settings
 from ..consultant import DEFAULT_THRESHOLD
-from ..forgetting import RULES
+from ..forgetting import POLICY_PATTERN
 from ..validation import Strict
 
 Name = Annotated[str, Field(min_length=1)]
@@ -44,32 +46,17 @@ Facts = Annotated[
     ),
 ]
 
-_POLICY_PATTERN = "^(none|({rules})(\\+({rules}))*)$".format(rules="|".join(RULES))
-
-
-class MemoryBlock(Strict):
-    """A ``memory:`` block: forgetting settings."""
-
-    policy: Optional[str] = Field(
-        None,
-        description="none, or decay / displacement / global-capacity joined by +",
-        json_schema_extra={"pattern": _POLICY_PATTERN},
-    )
-    decay_period: Optional[float] = Field(
-        None, description="decay: seconds between ticks (delta), > 0", json_schema_extra={"exclusiveMinimum": 0}
-    )
-    capacity: Optional[int] = Field(
-        None, description="displacement: per-entity queue limit (alpha), >= 1", json_schema_extra={"minimum": 1}
-    )
-    global_capacity: Optional[int] = Field(
-        None, description="global-capacity: per-domain total limit, >= 1", json_schema_extra={"minimum": 1}
-    )
-    seed: Optional[int] = Field(
-        None, description="displacement-random: random seed (default 0), >= 0", json_schema_extra={"minimum": 0}
-    )
-    shared_capacity: Optional[int] = Field(
-        None, description="shared-capacity: limit of the pool shared by domains, >= 1", json_schema_extra={"minimum": 1}
-    )
+MemoryBlock = create_model(
+    "MemoryBlock",
+    __base__=Strict,
+    __doc__="A ``memory:`` block: forgetting settings, one field per row of the settings table "
+    "(:mod:`fsreg_ros.core.settings`); each value is checked by the table's rules.",
+    **{
+        row.name: (Optional[row.kind], Field(None, description=row.description,
+                                             json_schema_extra=row.json_schema_extra(POLICY_PATTERN)))
+        for row in settings.TABLE
+    },
+)
 
 
 class DomainBlock(Strict):
