@@ -14,8 +14,9 @@ that process):
   borrowed, to say the descriptions).
 
 Their outputs must be byte-identical (exit status 1 otherwise, with the first
-differences).  The ratio naive / fsreg is the figure (target: at least x5 on both
-worlds).  The split -- start-up, loading, the game, the ``none`` game with the
+differences).  The ratio naive / fsreg of wall times is the figure (target: at least
+x5 on both worlds); the ratio of CPU times (user + system) is printed beside it, as it
+suffers less from other load on the machine.  The split -- start-up, loading, the game, the ``none`` game with the
 alignment, the JSON text -- is measured by running the same steps in-process in
 another fresh process per side (``fsreg_ros.cli``'s own functions for fsreg).
 
@@ -74,23 +75,39 @@ def command(which: str, world: str) -> list[str]:
     return [sys.executable, str(NAIVE), world, "--json"]
 
 
-def run_timed(argv: list[str], out: Path) -> dict:
-    """Run ``argv`` with stdout to ``out``; return its wall time and peak RSS (that process alone).
+#: Starts one measured command and reports its own wall time and resources (run as ``python -I -S -c``).
+LAUNCHER = """
+import json, os, sys, time
+report, argv = sys.argv[1], sys.argv[2:]
+start = time.perf_counter()
+pid = os.posix_spawn(argv[0], argv, os.environ)
+_, status, usage = os.wait4(pid, 0)
+wall = time.perf_counter() - start
+with open(report, "w") as out:
+    json.dump({"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_rss_mb": usage.ru_maxrss / 1024,
+               "code": os.waitstatus_to_exitcode(status)}, out)
+"""
 
-    ``os.wait4`` reports the child's own resource usage: its peak RSS is its own,
-    not the maximum over every child so far.
+
+def run_timed(argv: list[str], out: Path) -> dict:
+    """Run ``argv`` with stdout to ``out``; return its wall time, CPU time and peak RSS (that process alone).
+
+    The command is started by a tiny launcher process (no site packages): a
+    process's peak RSS starts from that of the process it was forked from (Linux
+    keeps the high-water mark across exec), so started from this script, which holds
+    a generated world, every command would report at least this script's size.
+    ``os.wait4`` gives the command's own usage.
     """
+    report = out.with_suffix(".usage.json")
     with open(out, "wb") as stdout, tempfile.TemporaryFile() as stderr:
-        start = time.perf_counter()
-        proc = subprocess.Popen(argv, stdout=stdout, stderr=stderr)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - start
-        proc.returncode = os.waitstatus_to_exitcode(status)
+        proc = subprocess.run([sys.executable, "-I", "-S", "-c", LAUNCHER, str(report), *argv],
+                              stdout=stdout, stderr=stderr, check=False)
         stderr.seek(0)
         errors = stderr.read().decode("utf-8", "replace").strip()
-    if proc.returncode != 0:
-        raise SystemExit(f"bench_sim: {' '.join(argv)} failed ({proc.returncode}): {errors.splitlines()[-1:]}")
-    return {"wall_s": wall, "peak_rss_mb": usage.ru_maxrss / 1024}  # kB on Linux
+    figures = json.loads(report.read_text(encoding="utf-8")) if report.exists() else {"code": proc.returncode}
+    if proc.returncode != 0 or figures["code"] != 0:
+        raise SystemExit(f"bench_sim: {' '.join(argv)} failed ({figures['code']}): {errors.splitlines()[-1:]}")
+    return figures
 
 
 # ------------------------------------------------------------ split (child processes)
@@ -213,9 +230,10 @@ def bench_world(label: str, world: str, note: str, repeat: int, split: bool, wor
             if which in texts and text != texts[which]:
                 report["differences"].append(f"{which}: the output changed between runs")
             texts.setdefault(which, text)
-            kept = report["end_to_end"].setdefault(which, {"wall_s": figures["wall_s"], "peak_rss_mb": 0.0, "runs": []})
+            kept = report["end_to_end"].setdefault(which, {**figures, "runs": []})
             kept["runs"].append(figures)
             kept["wall_s"] = min(kept["wall_s"], figures["wall_s"])  # fastest: least disturbed
+            kept["cpu_s"] = min(kept["cpu_s"], figures["cpu_s"])
             kept["peak_rss_mb"] = max(kept["peak_rss_mb"], figures["peak_rss_mb"])  # highest: the bound
         if split:
             for which in SIDES:
@@ -230,6 +248,7 @@ def bench_world(label: str, world: str, note: str, repeat: int, split: bool, wor
     report["turns"] = len(json.loads(texts["naive"]).get("turns", []))
     e2e = report["end_to_end"]
     report["ratio_total"] = e2e["naive"]["wall_s"] / e2e["fsreg"]["wall_s"]
+    report["ratio_cpu"] = e2e["naive"]["cpu_s"] / e2e["fsreg"]["cpu_s"]
     report["ratio_rss"] = e2e["naive"]["peak_rss_mb"] / e2e["fsreg"]["peak_rss_mb"]
     return report
 
@@ -240,9 +259,11 @@ def render(report: dict, repeat: int) -> str:
     lines = [
         f"world {report['world']}: {report['note']}",
         f"end to end, as users run it (fastest of {repeat} alternating run(s), each a fresh process):",
-        f"  {'fsreg-sim WORLD --json':<38} {f['wall_s']:>8.3f} s   peak RSS {f['peak_rss_mb']:>7.1f} MB",
-        f"  {'python test/naive_sim.py WORLD --json':<38} {n['wall_s']:>8.3f} s   peak RSS {n['peak_rss_mb']:>7.1f} MB",
-        f"  {'naive / fsreg':<38} {report['ratio_total']:>8.2f} x   RSS      {report['ratio_rss']:>7.2f} x",
+        f"  {'command':<38} {'wall s':>8} {'CPU s':>8} {'peak RSS MB':>12}",
+        *(f"  {label:<38} {side['wall_s']:>8.3f} {side['cpu_s']:>8.3f} {side['peak_rss_mb']:>12.1f}"
+          for label, side in (("fsreg-sim WORLD --json", f), ("python test/naive_sim.py WORLD --json", n))),
+        f"  {'naive / fsreg':<38} {'x' + format(report['ratio_total'], '.2f'):>8} "
+        f"{'x' + format(report['ratio_cpu'], '.2f'):>8} {'x' + format(report['ratio_rss'], '.2f'):>12}",
     ]
     same = not report["differences"]
     lines.append(f"  output: {'byte-identical' if same else 'DIFFERENT'} ({report['output_bytes']:,} bytes, "

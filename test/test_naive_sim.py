@@ -148,7 +148,8 @@ def test_bench_sim_small_worlds_run_and_agree(tmp_path):
     for world in data["worlds"]:
         assert world["differences"] == [] and world["turns"] == 12
         for side in ("fsreg", "naive"):
-            assert world["end_to_end"][side]["wall_s"] > 0 and world["end_to_end"][side]["peak_rss_mb"] > 0
+            figures = world["end_to_end"][side]
+            assert figures["wall_s"] > 0 and figures["cpu_s"] > 0 and figures["peak_rss_mb"] > 5
             assert all(world["split"][side][key] > 0 for key in ("start_s", "load_s", "play_s", "output_s"))
         assert world["ratio_total"] == world["end_to_end"]["naive"]["wall_s"] / world["end_to_end"]["fsreg"]["wall_s"]
 
