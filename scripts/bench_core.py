@@ -307,7 +307,7 @@ def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dic
                           "held": len(buffer), "in_columns": len(buffer._in_columns)}
         del buffer
         gc.collect()
-    naive = NaiveWM(policy.rules, policy.capacity, record=False)
+    naive = NaiveWM(policy.rules, policy.value("capacity"), record=False)
     for k, (bursts, burst_props, target, said) in enumerate(plan, start=1):
         for members, prop in zip(bursts, burst_props):
             for i in range(n_entities):

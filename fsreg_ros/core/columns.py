@@ -83,6 +83,13 @@ class QueueColumns:
         self.synced[row] = synced
         self.held[row] = True
 
+    def start_empty(self, rows: np.ndarray, synced: int) -> None:
+        """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
+        self.prop[:, rows] = -1
+        self.length[rows] = 0
+        self.synced[rows] = synced
+        self.held[rows] = True
+
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
         self.prop[:, row] = -1

@@ -933,23 +933,25 @@ class WMBuffer:
         return True
 
     def _adopt(self, rows: np.ndarray) -> bool:
-        """Move the queues of ``rows`` into the columns (those not there yet); False, moving none, if one is longer."""
+        """Move the queues of ``rows`` into the columns (those not there yet); False, moving none, if one is longer.
+
+        Rows whose entity has no dict queue start empty, all at once; the few that have
+        one take its entries.
+        """
         columns = self._columns
-        fresh = rows[~columns.held[rows]].tolist()
-        if not fresh:
+        fresh = rows[~columns.held[rows]]
+        if not len(fresh):
             return True
-        names = [self._bound[row] for row in fresh]
+        names = list(map(self._bound.__getitem__, fresh.tolist()))
         queues = self._queues
-        if any(len(queues.get(name, ())) > columns.width for name in names):
+        moving = sorted(queues.keys() & names, key=self._row.__getitem__)  # in entity order
+        if any(len(queues[name]) > columns.width for name in moving):
             return False
-        ticks = self.ticks.count
-        for row, name in zip(fresh, names):
-            q = queues.pop(name, None)
-            if q is None:  # a new queue: ticks before it existed are not owed
-                columns.write(row, [], ticks)
-            else:
-                columns.write(row, [self._column_item(prop, value) for prop, value in q.items()], q.synced)
-            self._in_columns.add(name)
+        columns.start_empty(fresh, self.ticks.count)  # ticks before a queue existed are not owed
+        for name in moving:
+            q = queues.pop(name)
+            columns.write(self._row[name], [self._column_item(prop, value) for prop, value in q.items()], q.synced)
+        self._in_columns.update(names)
         return True
 
     def _column_item(self, prop: str, value: Union[int, tuple]) -> tuple[int, int, int]:
