@@ -662,7 +662,6 @@ class WMBuffer:
         dict queues.
         """
         now = self.ticks.count
-        popped_rows = rows
         if len(rows):
             popped = self._columns.pop_owed(rows, now)
             self._size -= int(popped.sum())
@@ -670,12 +669,14 @@ class WMBuffer:
                 self._nonempty.pop(name, None)
         rank = self._ranks(entity_order)
         last = len(rank)
+        ordered = sorted(pending, key=lambda item: rank.get(item[0], last))
+        # Where each dict queue falls among the column rows (in entity order).
+        cuts = np.searchsorted(rows, [rank.get(e, last) for e, _ in ordered]).tolist() if len(rows) else []
         start = 0
-        for entity, q in sorted(pending, key=lambda item: rank.get(item[0], last)):
-            cut = int(np.searchsorted(popped_rows, rank.get(entity, last)))
-            if cut > start:
-                self._mark_changed(popped_rows[start:cut])
-                start = cut
+        for i, (entity, q) in enumerate(ordered):
+            if cuts and cuts[i] > start:
+                self._mark_changed(rows[start:cuts[i]])
+                start = cuts[i]
             owed = min(count, len(q))
             for _ in range(owed):
                 del q[next(iter(q))]
@@ -684,7 +685,7 @@ class WMBuffer:
             self._record(entity, q)
             if not q:
                 del self._nonempty[entity]
-        self._mark_changed(popped_rows[start:])
+        self._mark_changed(rows[start:])
 
     def _decay_in_order(self, ticks: TickRun, entity_order: Sequence[str], rows: np.ndarray,
                         pending: list[tuple[str, "_Queue"]]) -> None:
