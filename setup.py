@@ -18,6 +18,8 @@ NODES = {
 TOOLS = {
     "fsreg-sim": "fsreg_ros.cli:sim_main",
     "fsreg-graph": "fsreg_ros.graph:main",
+    "fsreg-up": "fsreg_ros.up:main",
+    "fsreg-ctl": "fsreg_ros.ctl:main",
     "fsreg-eval": "fsreg_ros.research.cli:eval_main",
     "fsreg-sweep": "fsreg_ros.research.cli:sweep_main",
     "fsreg-plot": "fsreg_ros.research.cli:plot_main",
@@ -44,5 +46,7 @@ setup(
     python_requires=">=3.10",
     entry_points={
         "console_scripts": [f"{name}={target}" for name, target in {**NODES, **TOOLS}.items()],
+        # The public test harness's fixtures (fsreg_ros.testing), for any pytest run where fsreg is installed.
+        "pytest11": ["fsreg = fsreg_ros.testing.plugin"],
     },
 )

@@ -21,6 +21,12 @@ becomes ``success=false`` plus a logged warning; anything else becomes
 call is answered (the reply is built by :func:`~fsreg_ros.codec.error_json`, which cannot
 fail) and the server keeps serving.
 
+Graph identity: a node's read-only ``graph`` parameter (declared here, by :func:`publisher`,
+when the node has not declared it) names the graph it belongs to; every JSON object it
+publishes through :func:`publish` then carries it as ``graph``
+(:data:`fsreg_ros.contract.GRAPH_FIELD`), so a listener can tell another graph's messages
+from its own.  An empty ``graph`` (a node started by hand) stamps nothing.
+
 Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
 object of the topic's schema within the limits, or whose handler raises, is rejected
 (``reject(id, error)`` publishes the reply the contract has for it, if any) and logged
@@ -54,8 +60,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.task import Future
 from std_msgs.msg import String
 
+from rcl_interfaces.msg import ParameterDescriptor
+
 from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
-from .contract import SERVICE_QOS, QosSpec, Service, Topic, check
+from .contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -275,14 +283,44 @@ def from_msg(msg: String, *, max_bytes: Optional[int] = None) -> dict:
 
 
 # ----------------------------------------------------------------- topics
+#: Publisher -> the graph identity its messages are stamped with.
+_STAMPS: "weakref.WeakKeyDictionary[Any, str]" = weakref.WeakKeyDictionary()
+
+
+def graph_identity(node) -> str:
+    """Return the identity of the graph ``node`` belongs to: its ``graph`` parameter ('' if none).
+
+    The parameter is declared (read-only, default '') if the node has not declared it.
+    """
+    if not node.has_parameter(GRAPH_PARAMETER):
+        node.declare_parameter(GRAPH_PARAMETER, "", ParameterDescriptor(
+            description="identity of the graph this node belongs to, stamped on what it publishes "
+                        "('' = none); set by fsreg-up, fsreg-graph and fsreg_ros.testing", read_only=True))
+    value = node.get_parameter(GRAPH_PARAMETER).value
+    return value if isinstance(value, str) else ""
+
+
 def publisher(node, topic: Topic):
-    """Return a ``std_msgs/String`` publisher of a contract topic, with its QoS."""
-    return node.create_publisher(String, topic.name, qos_profile(topic.qos))
+    """Return a ``std_msgs/String`` publisher of a contract topic, with its QoS.
+
+    What :func:`publish` sends through it is stamped with the node's graph identity.
+    """
+    pub = node.create_publisher(String, topic.name, qos_profile(topic.qos))
+    graph = graph_identity(node)
+    if graph:
+        _STAMPS[pub] = graph
+    return pub
+
+
+def stamped(pub, obj: Mapping[str, Any]) -> Mapping[str, Any]:
+    """Return ``obj`` with the graph identity of ``pub``'s node (``obj`` itself when it has none)."""
+    graph = _STAMPS.get(pub)
+    return {**obj, GRAPH_FIELD: graph} if graph else obj
 
 
 def publish(pub, obj: Mapping[str, Any]) -> None:
-    """Publish one JSON object (sanitised if it is not JSON as it stands: never raises on content)."""
-    pub.publish(String(data=safe_dumps(obj)))
+    """Publish one JSON object, stamped (sanitised if it is not JSON as it stands: never raises on content)."""
+    pub.publish(String(data=safe_dumps(stamped(pub, obj))))
 
 
 Reject = Callable[[Any, str], None]

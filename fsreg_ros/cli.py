@@ -30,7 +30,7 @@ from .core.consultant import KnowledgeError
 from .core import settings
 from .core.forgetting import PolicyError, check_setting, parse_rules
 from .core.generation import ALGORITHMS, WM_ORDERS, GenerationError
-from .core.lexicon import Lexicon
+from .core.lexicon import Lexicon, coverage_warning, lexicon_template, unsayable
 from .core.resolution import ResolutionError
 from .core.scenario import load_scenario
 from .core.simulation import Options, Simulation, dumps
@@ -81,6 +81,8 @@ def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
         help="check the robot's descriptions per policy against this YAML; alone, compares the policies it lists",
     )
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
+    parser.add_argument("--lexicon-template", type=Path, metavar="OUT",
+                        help="write a lexicon skeleton for the properties the lexicon cannot say to OUT, and stop")
     return parser
 
 
@@ -212,6 +214,8 @@ def run_cli(
     """
     args = build_parser(prog, description).parse_args(argv)
     try:
+        if args.lexicon_template is not None:
+            return write_lexicon_template(prog, args)
         check_usage(args)
         for directory in (args.trace_dir, args.plot_dir):
             if directory is not None:
@@ -253,6 +257,27 @@ def one_line(err: BaseException) -> str:
     return " ".join(str(err).split())
 
 
+_WARNED: set[str] = set()
+
+
+def warn_unsayable(prog: str, lexicon: Lexicon, scenario) -> None:
+    """Print, once per scenario, the one-line warning naming the properties the lexicon cannot say."""
+    warning = coverage_warning(lexicon, scenario)
+    if warning and scenario.name not in _WARNED:
+        _WARNED.add(scenario.name)
+        print(f"{prog}: warning: {warning}", file=sys.stderr)
+
+
+def write_lexicon_template(prog: str, args: argparse.Namespace) -> int:
+    """Write ``--lexicon-template``'s lexicon skeleton for the scenario; say where (exit 0)."""
+    lexicon, scenario = loaded(args)
+    count = sum(len(props) for props in unsayable(lexicon, scenario).values())
+    args.lexicon_template.write_text(lexicon_template(lexicon, scenario, str(args.scenario)), encoding="utf-8")
+    plural = "property" if count == 1 else "properties"
+    print(f"{prog}: wrote {args.lexicon_template}: a lexicon skeleton for {count} {plural}")
+    return EXIT_OK
+
+
 def loaded(args: argparse.Namespace) -> tuple[Lexicon, Any]:
     """Return the lexicon and scenario of ``args``, loaded once per command (every run and the baseline share them)."""
     if getattr(args, "loaded", None) is None:
@@ -271,6 +296,7 @@ def play_core(args: argparse.Namespace, options: Options, trace: bool) -> tuple[
 
 def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, Optional[list[dict]]]:
     """Play the scenario of ``args`` with the core; return (result, WM event trace when an option writes it)."""
+    warn_unsayable("fsreg-sim", *loaded(args))
     return play_core(args, options, needs_trace(args))
 
 

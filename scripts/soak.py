@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """Soak the multi-process node graph: N human turns and N REG requests at a given rate.
 
-Starts every node of ``fsreg-graph`` as its own process (``graph.Graph``, the player
-left out) on sim time and plays the player's part itself: for each message it
-advances ``/clock`` by ``--step`` sim seconds, calls the WM Manager's ``sync`` barrier,
-then publishes a human turn on ``/dialogue/human`` or a REG request on
-``/reg/request``, alternating, at ``--rate`` messages per wall-clock second, in
-order (a message waits for the previous one's reply, at most ``ORDER_WAIT`` after it
-was sent, so that two runs are comparable turn by turn).  The
-turns and targets cycle through the scenario's dialogue, each with a fresh id.
+Starts the live graph as one process per node (``fsreg_ros.testing.LiveGraph`` with
+``processes=True``, as ``fsreg-up`` runs it: sim time, a namespace of its own) and plays
+the player's part through the harness's client: for each message it advances the
+graph's clock by ``--step`` sim seconds, calls the WM Manager's ``sync`` barrier, then
+publishes a human turn on ``dialogue/human`` or a REG request on ``reg/request``,
+alternating, at ``--rate`` messages per wall-clock second, in order (a message waits for
+the previous one's reply, at most ``ORDER_WAIT`` after it was sent, so that two runs
+are comparable turn by turn).  The turns and targets cycle through the scenario's
+dialogue, each with a fresh id.
 
 Prints: lost (no reply by the end) and duplicated (more than one reply) per kind,
 replies that are errors, p50/p95/p99 latency (publish -> reply, wall clock), and per
@@ -26,12 +27,8 @@ prints, besides the figures of both runs, the replies that differ between the ru
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import signal
-import subprocess
 import sys
-import tempfile
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -47,23 +44,13 @@ require_loopback("soak.py")
 os.environ.update(ros_environment())  # before rclpy loads
 
 import psutil  # noqa: E402
-import rclpy  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.carrier import CarrierError, JsonClient, to_msg  # noqa: E402
+from fsreg_ros.client import ClientError  # noqa: E402
 from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
-from fsreg_ros.core.simulation import Options  # noqa: E402
-from fsreg_ros.graph import Graph, _die_with_parent, command, graph_nodes  # noqa: E402
-from fsreg_ros.nodes.dialogue_player import clock_message  # noqa: E402
+from fsreg_ros.testing import LiveGraph  # noqa: E402
 
-HUMAN, REG_REQUEST, RR_RESULT, REG_EXPRESSION, SYNC = (
-    "/dialogue/human", "/reg/request", "/rr/result", "/reg/expression", "/wm_manager/sync")
 READY_TIMEOUT = 60.0
 SYNC_TIMEOUT = 2.0
-WARM_UP_RETRY = 2.0
 ORDER_WAIT = 2.0  # at most this long after sending, wait for a message's reply before the next
 DRAIN = 15.0  # wall seconds to wait for the last replies (a dead consultant call costs 10 s)
 
@@ -109,103 +96,30 @@ def events(scenario: Scenario, turns: int, requests: int) -> list[tuple[str, dic
     return out
 
 
-class Driver:
-    """The soak's own ROS node: drives /clock and sync, publishes, collects replies."""
+#: The client's request kind of each soak message kind.
+KINDS = {"human": "say", "reg": "describe"}
 
-    def __init__(self) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node("soak", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.clock = self.node.create_publisher(Clock, "/clock", 10)
-        self.pubs = {"human": self.node.create_publisher(String, HUMAN, 100),
-                     "reg": self.node.create_publisher(String, REG_REQUEST, 100)}
-        self.sync = JsonClient(self.node, SYNC)
-        self.messages: dict[str, Sent] = {}
-        for topic in (RR_RESULT, REG_EXPRESSION):
-            self.node.create_subscription(String, topic, self._on_reply, 1000)
 
-    def _on_reply(self, msg: String) -> None:
-        now = time.monotonic()
-        try:
-            data = json.loads(msg.data)
-        except ValueError:
-            return
-        if os.environ.get("SOAK_DEBUG"):
-            print("reply", msg.data[:200], file=sys.stderr)
-        sent = self.messages.get(str(data.get("id")))
-        if sent is not None:
-            sent.replies.append((now, data))
-
-    def spin_until(self, predicate, deadline: float) -> bool:
-        while not predicate():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=0.002)
-        return True
-
-    def call_sync(self, t: float, timeout: float) -> bool:
-        """Call the WM Manager's barrier ``sync(t)``; whether it answered without error in time."""
-        async def call() -> bool:
-            try:
-                await self.sync.call({"time": t}, timeout)
-                return True
-            except CarrierError:
-                return False
-
-        task = self.executor.create_task(call())
-        if not self.spin_until(task.done, time.monotonic() + timeout + 0.5):
-            task.cancel()
+def spin_until(live: LiveGraph, predicate, deadline: float) -> bool:
+    """Spin the harness's executor until ``predicate()`` or the deadline; whether it came true."""
+    while not predicate():
+        if time.monotonic() > deadline:
             return False
-        return task.result()
-
-    def set_time(self, t: float) -> None:
-        self.clock.publish(clock_message(t))
-
-    def wait_ready(self, warm_up: list[tuple[str, dict]]) -> None:
-        """Wait until every pipeline answers: one real round trip each (sync, a turn, a request)."""
-        deadline = time.monotonic() + READY_TIMEOUT
-        for pub in self.pubs.values():
-            if not self.spin_until(lambda: pub.get_subscription_count() > 0, deadline):
-                raise SystemExit("soak.py: error: the graph's subscribers did not appear in time")
-        for topic in (RR_RESULT, REG_EXPRESSION):
-            if not self.spin_until(lambda: self.node.count_publishers(topic) > 0, deadline):
-                raise SystemExit(f"soak.py: error: nothing publishes {topic}")
-        self.set_time(0.0)
-        if not self.call_sync(0.0, READY_TIMEOUT):
-            raise SystemExit("soak.py: error: the WM Manager's sync did not answer in time")
-        for kind, msg in warm_up:  # resent until answered: a pipeline link may not be matched yet
-            for attempt in range(int(READY_TIMEOUT / WARM_UP_RETRY)):
-                key = f"warm-{attempt}-{msg['id']}"
-                self.messages[key] = Sent(kind, -1, time.monotonic())
-                self.pubs[kind].publish(to_msg({**msg, "id": key, "time": 0.0}))
-                if self.spin_until(lambda: self.messages[key].replies, time.monotonic() + WARM_UP_RETRY):
-                    break
-            else:
-                raise SystemExit(f"soak.py: error: no reply to the warm-up {kind} message")
-        self.spin_until(lambda: False, time.monotonic() + 1.0)
-        self.messages.clear()
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        live.session.executor.spin_once(timeout_sec=0.002)
+    return True
 
 
-def restart(graph: Graph, name: str) -> None:
-    """SIGKILL node ``name`` and start it again, as a supervisor would."""
-    index = next(i for i, (spec, _) in enumerate(graph.procs) if spec.name == name)
-    spec, proc = graph.procs[index]
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    with open(graph.log_dir / f"{spec.name}.restarted.log", "wb") as log:
-        new = subprocess.Popen(command(spec, graph.namespace), env=graph.env, stdin=subprocess.DEVNULL, stdout=log,
-                               stderr=subprocess.STDOUT, preexec_fn=_die_with_parent, process_group=graph.group)
-    graph.procs[index] = (spec, new)
+def warm_up(live: LiveGraph, messages: list[tuple[str, dict]]) -> None:
+    """One real round trip per pipeline (the first call to a new server can be slow), at time 0."""
+    live.client.set_clock(0.0, READY_TIMEOUT)
+    for kind, msg in messages:
+        try:
+            live.client.exchange(KINDS[kind], {**msg, "id": f"warm-{msg['id']}", "time": 0.0}, READY_TIMEOUT)
+        except ClientError as err:
+            raise SystemExit(f"soak.py: error: no reply to the warm-up {kind} message: {err}") from None
 
 
-def rss_sample(graph: Graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> None:
+def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> None:
     for spec, proc in graph.procs:
         try:
             rss.setdefault(spec.name, []).append((done, psutil.Process(proc.pid).memory_info().rss / 2**20))
@@ -215,49 +129,44 @@ def rss_sample(graph: Graph, done: int, rss: dict[str, list[tuple[int, float]]])
 
 def run(args: argparse.Namespace, kill_at: Optional[int]) -> RunResult:
     scenario = load_scenario(args.scenario)
-    options = Options(memory={"policy": args.policy})
     plan = events(scenario, args.turns, args.requests)
-    with tempfile.TemporaryDirectory(prefix="fsreg-soak-") as tmp:
-        nodes = graph_nodes(scenario, args.scenario, options, Path(tmp) / "unused.json")[:-1]
-        graph = Graph(nodes, Path(tmp))
-        driver = Driver()
+    with LiveGraph(args.scenario, processes=True, policy=args.policy, ready_timeout=READY_TIMEOUT) as live:
+        client, graph = live.client, live.graph
         rss: dict[str, list[tuple[int, float]]] = {}
         sync_failures = 0
-        try:
-            graph.start()
-            driver.wait_ready(plan[:2])
-            consultant = f"consultant_{next(iter(scenario.domains))}"
-            period, start = 1.0 / args.rate, time.monotonic()
-            next_sample, previous = start, None
-            for i, (kind, msg) in enumerate(plan):
-                if kill_at is not None and i == kill_at:
-                    restart(graph, consultant)
-                slot = start + i * period
-                driver.spin_until(lambda: False, slot)  # spin (collect replies) until this message's slot
-                if previous is not None:  # in order: a turn's WM changes land before the next request reads WM
-                    driver.spin_until(lambda: previous.replies, max(slot, previous.sent + ORDER_WAIT))
-                if time.monotonic() >= next_sample:
-                    rss_sample(graph, i, rss)
-                    next_sample += 1.0
-                t = (i + 1) * args.step
-                driver.set_time(t)
-                if not driver.call_sync(t, SYNC_TIMEOUT):
-                    sync_failures += 1
-                msg = {**msg, "time": t}
-                previous = driver.messages[msg["id"]] = Sent(kind, i, time.monotonic())
-                driver.pubs[kind].publish(to_msg(msg))
-            driver.spin_until(lambda: all(s.replies for s in driver.messages.values()), time.monotonic() + DRAIN)
-            driver.spin_until(lambda: False, time.monotonic() + 0.5)  # late duplicates
-            rss_sample(graph, len(plan), rss)
-            seconds = time.monotonic() - start
-            for spec, proc in graph.procs:
-                if proc.poll() is not None:
-                    print(f"soak.py: node {spec.name} died (exit {proc.returncode})\n{graph.tail(spec.name)}",
-                          file=sys.stderr)
-            return RunResult(driver.messages, rss, seconds, sync_failures, kill_at)
-        finally:
-            driver.close()
-            graph.stop()
+        messages: dict[str, Sent] = {}
+        warm_up(live, plan[:2])
+        consultant = f"consultant_{next(iter(scenario.domains))}"
+        period, start = 1.0 / args.rate, time.monotonic()
+        next_sample, previous = start, None
+        for i, (kind, msg) in enumerate(plan):
+            if kill_at is not None and i == kill_at:
+                graph.restart(consultant)  # SIGKILL, then start it again at once, as a supervisor would
+            slot = start + i * period
+            spin_until(live, lambda: False, slot)  # spin (collect replies) until this message's slot
+            if previous is not None:  # in order: a turn's WM changes land before the next request reads WM
+                spin_until(live, lambda: client.answers[previous], max(slot, messages[previous].sent + ORDER_WAIT))
+            if time.monotonic() >= next_sample:
+                rss_sample(graph, i, rss)
+                next_sample += 1.0
+            t = (i + 1) * args.step
+            client.publish_clock(t)
+            try:
+                client.sync(t, SYNC_TIMEOUT)
+            except ClientError:
+                sync_failures += 1
+            previous = msg["id"]
+            messages[previous] = Sent(kind, i, time.monotonic())
+            client.send(KINDS[kind], {**msg, "time": t})
+        spin_until(live, lambda: all(client.answers[k] for k in messages), time.monotonic() + DRAIN)
+        spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
+        rss_sample(graph, len(plan), rss)
+        seconds = time.monotonic() - start
+        for key, sent in messages.items():
+            sent.replies = [(a.received, a.data) for a in client.answers[key]]
+        for spec, code in graph.dead():
+            print(f"soak.py: node {spec.name} died (exit {code})\n{graph.tail(spec.name)}", file=sys.stderr)
+        return RunResult(messages, rss, seconds, sync_failures, kill_at)
 
 
 # ------------------------------------------------------------------- figures

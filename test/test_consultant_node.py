@@ -71,6 +71,7 @@ def test_info_and_latched_start_state(graph: Graph):
         "policy": "none",
         "memory": {"policy": "none"},
         "events": 0,
+        "wm_version": 0,
         "event_listeners": 0,
         "state": {"wm": "empty", "persisted": True},
     }
@@ -126,7 +127,8 @@ def test_query_ops_round_trip(graph: Graph):
         for seq, e in ((1, "face1"), (2, "face3"))
     ]
     graph.spin_until(lambda: len(states) == 2, what="state after affirm")
-    assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2}
+    assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2,
+                          "incarnation": 1, "wm_version": 2}
 
     # encode (Algorithm 1: re-encoding moves to the back); displacement at capacity 3
     graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],

@@ -29,8 +29,9 @@ def fuzzer(table1_path, tmp_path_factory):
 
 
 #: Topics the graph only publishes (its answers and state): nothing in the graph (the player aside) reads them.
+# What the graph publishes for others (its clients); the fuzzer attacks what the graph reads.
 OUTPUTS = {contract.RR_RESULT, contract.REG_EXPRESSION, contract.WM_STATE, contract.WM_EVENTS,
-           contract.LTM_ASSERT_RESULT}
+           contract.LTM_ASSERT_RESULT, contract.READY}
 
 
 def test_the_fuzzed_endpoints_are_every_endpoint(table1_path):

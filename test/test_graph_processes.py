@@ -7,6 +7,7 @@ and a runner that is SIGKILLed leave no processes behind.
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -20,6 +21,7 @@ from fsreg_ros.graph import Graph, GraphError, NodeSpec
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 BIN = Path(sys.executable).parent
+REPO = Path(__file__).resolve().parents[1]
 
 
 def children_of(pid: int) -> set[int]:
@@ -102,6 +104,46 @@ def test_two_namespaced_fsreg_graphs_run_side_by_side_on_one_domain(table1_path,
         assert sim_main([str(table1_path), "--policy", policy, "--json"]) == 0
         assert outputs[ns] == capsys.readouterr().out
     assert outputs["robot1"] != outputs["robot2"]
+
+
+def test_two_fsreg_graphs_started_together_without_a_namespace_each_run_a_graph_of_their_own(table1_path, capsys):
+    """Issue 15: two scripted runs on one ROS domain, no --namespace: each is a graph of its own (its own
+    namespace and identity), so both finish and equal the simulator."""
+    procs = [subprocess.Popen([str(BIN / "fsreg-graph"), str(table1_path), "--policy", "decay", "--json"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outputs = []
+    for proc in procs:
+        out, err = proc.communicate(timeout=240)
+        assert proc.returncode == 0, err
+        outputs.append(out)
+    assert sim_main([str(table1_path), "--policy", "decay", "--json"]) == 0
+    assert outputs == [capsys.readouterr().out] * 2
+
+
+def test_every_node_of_a_run_gets_the_runs_identity_and_namespace(table1_path, tmp_path):
+    from fsreg_ros.core.scenario import load_scenario
+    from fsreg_ros.core.simulation import Options
+    from fsreg_ros.graph import command, graph_nodes, new_graph_id, unique_namespace
+
+    graph, namespace = new_graph_id("fsreg-graph"), unique_namespace()
+    assert re.fullmatch(r"fsreg-graph-[0-9a-f]{8}", graph) and re.fullmatch(r"/fsreg_[0-9a-f]{12}", namespace)
+    nodes = graph_nodes(load_scenario(table1_path), table1_path, Options(), tmp_path / "r.json", graph=graph)
+    for spec in nodes:
+        cmd = command(spec, namespace)
+        assert f"graph:={graph}" in cmd and f"__ns:={namespace}" in cmd and f"/clock:={namespace}/clock" in cmd
+
+
+def test_stress_graph_small_n():
+    """scripts/stress_graph.sh with a small N (the benchmark runs N=200): alone, two at once, beside a CPU hog;
+    every run byte-identical to fsreg-sim."""
+    proc = subprocess.run([str(REPO / "scripts" / "stress_graph.sh"), "4"], capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[:4] == ["run 1/4 (alone): identical", "run 2/4 (pair): identical", "run 3/4 (pair): identical",
+                         "run 4/4 (hog): identical"]
+    assert lines[-1].startswith("stress_graph: 4/4 runs identical to fsreg-sim (alone 1/1, two at once 2/2, "
+                                "beside a CPU hog 1/1); 0 differ, 0 failed;")
 
 
 def test_fsreg_graph_rejects_a_bad_namespace():

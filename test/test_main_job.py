@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import secrets
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -175,3 +179,39 @@ def test_unwritable_plot_dir_is_one_line_exit_2(table1_path, tmp_path, capsys):
     assert sim_main([str(table1_path), "--plot-dir", str(blocker / "sub")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("fsreg-sim: error: ") and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------------- exit code (the graph runner)
+def test_the_main_job_fails_loudly_when_its_event_stream_is_not_its_own(table1_path):
+    """A run that hears another graph's events exits non-zero and prints no table, no "18/18" (issue 20): its
+    origins, alignment and timelines would be built from data that is not its own."""
+    from std_msgs.msg import String
+
+    from fsreg_ros import contract
+    from fsreg_ros.carrier import qos_profile, to_msg
+    from fsreg_ros.testing import RosSession
+
+    namespace = f"mainjob_{secrets.token_hex(4)}"
+    foreign = {"op": "encode", "domain": "faces", "entity": "face1", "property": "male", "cause": "rr", "time": 0.0,
+               "turn": 0, "seq": 1, "incarnation": 1, "graph": "someone-else"}
+    job = None
+    try:
+        with RosSession(namespace) as ros:  # the intruder is there before the job starts
+            pub = ros.probe.create_publisher(String, contract.WM_EVENTS.name, qos_profile(contract.EVENTS_QOS))
+            job = subprocess.Popen([str(Path(sys.executable).parent / "fsreg-graph"), str(table1_path), "--namespace",
+                                    namespace, "--compare-policies", "decay,displacement,none", "--expect",
+                                    str(PAPER)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            deadline = time.monotonic() + 240
+            while job.poll() is None:  # the player sees a writer too many, or hears its event
+                assert time.monotonic() < deadline, "the main job did not end"
+                if pub.get_subscription_count():
+                    pub.publish(to_msg(foreign))
+                ros.spin_for(0.1)
+        out, err = job.communicate(timeout=60)
+    finally:
+        if job is not None and job.poll() is None:
+            job.kill()
+    assert job.returncode == 1
+    assert "18/18" not in out and " ok " not in out
+    assert err.startswith("fsreg-graph: failed: dialogue_player failed (exit 1)")
+    assert "another graph publishes in this namespace" in err, err

@@ -169,3 +169,72 @@ def test_the_scripts_refuse_a_widening_environment(script):
     assert proc.stderr == (f"{script}: error: ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET' would send DDS discovery off "
                            "this machine (fsreg needs LOCALHOST); unset it, or set FSREG_ALLOW_NETWORK=1 to use "
                            "the network deliberately (docs/deployment.md)\n")
+
+
+# ------------------------------------------------------------------ node processes
+def node_env(**changes: str) -> dict:
+    """The environment ``ros2 run`` would give a node: the user's, with no fsreg variables set for it."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in (*PROFILE_VARIABLES, "ROS_AUTOMATIC_DISCOVERY_RANGE", ALLOW_NETWORK)}
+    env.update(changes)
+    return env
+
+
+@pytest.mark.parametrize(
+    "variable, value, said",
+    [
+        ("FASTDDS_ENVIRONMENT_FILE", "/tmp/fastdds_env.json",
+         "FASTDDS_ENVIRONMENT_FILE='/tmp/fastdds_env.json' lets Fast DDS read a discovery server or peers"),
+        ("ROS_DISCOVERY_SERVER", "127.0.0.1:11811", "ROS_DISCOVERY_SERVER='127.0.0.1:11811' would connect DDS"),
+        ("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET", "ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET' would send"),
+    ],
+)
+def test_a_node_started_by_hand_refuses_a_widening_environment(tmp_path, variable, value, said):
+    """The node itself enforces the policy (``ros2 run`` and the launch file start it without any runner)."""
+    proc = subprocess.run([str(BIN / "parser")], env=node_env(**{variable: value}), cwd=tmp_path,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith(f"parser: error: {said}") and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"{ALLOW_NETWORK}=1" in proc.stderr
+
+
+@pytest.mark.parametrize("name", ["DEFAULT_FASTRTPS_PROFILES.xml", "DEFAULT_FASTDDS_PROFILES.xml"])
+def test_a_profile_in_the_working_directory_is_refused_by_nodes_and_runners(tmp_path, name):
+    """Fast DDS loads such a file after ours, replacing the loopback profile."""
+    (tmp_path / name).write_text("<profiles/>\n")
+    node = subprocess.run([str(BIN / "parser")], env=node_env(), cwd=tmp_path, capture_output=True, text=True,
+                          timeout=60)
+    runner = subprocess.run([str(BIN / "fsreg-graph"), "never-read.yaml"], env=node_env(), cwd=tmp_path,
+                            capture_output=True, text=True, timeout=60)
+    for proc, prog in ((node, "parser"), (runner, "fsreg-graph")):
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr == (f"{prog}: error: {tmp_path / name} (a Fast DDS profile in the working directory) "
+                               "replaces fsreg's loopback profile; move it, run from another directory, or set "
+                               f"{ALLOW_NETWORK}=1 to use the network deliberately (docs/deployment.md)\n")
+    with pytest.raises(NetworkRefused):
+        check_loopback(CLEAN, cwd=str(tmp_path))
+    check_loopback(CLEAN, cwd=str(REPO))
+
+
+@pytest.mark.graph
+def test_a_node_started_without_any_fsreg_environment_listens_on_loopback_only(tmp_path):
+    """As ``ros2 run fsreg_ros parser`` starts it: no profile variable, no discovery range; the node loads the
+    loopback profile itself, so every socket it receives on is bound to 127.0.0.1."""
+    log = tmp_path / "parser.log"
+    with open(log, "wb") as out:
+        proc = subprocess.Popen([str(BIN / "parser")], env=node_env(), cwd=tmp_path, stdout=out,
+                                stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 30
+        while b"parser ready" not in log.read_bytes():
+            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.05)
+        domain = int(os.environ["ROS_DOMAIN_ID"])
+        sockets = psutil.Process(proc.pid).net_connections(kind="inet")
+        receiving = [s.laddr for s in sockets if s.laddr.port in dds_ports(domain)]
+        assert len(receiving) == 2 and all(a.ip == LOOPBACK for a in receiving), sockets
+        assert all(s.laddr.ip in {LOOPBACK, "0.0.0.0"} | interface_addresses() for s in sockets)
+        assert all(s.laddr.ip == LOOPBACK or s.laddr.port in ephemeral_range() for s in sockets), sockets
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

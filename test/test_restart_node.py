@@ -347,8 +347,10 @@ def _consultant_process(state_dir: Path) -> subprocess.Popen:
 
 
 @pytest.mark.slow
-def test_an_outage_is_answered_within_a_second_and_a_half_not_after_the_timeout(graph: Graph, tmp_path):
-    """A consultant frozen mid-call (SIGSTOP: its DDS threads too) and then killed: calls fail in ~1 s, not 10 s."""
+def test_an_outage_is_answered_by_liveliness_not_after_the_timeout(graph: Graph, tmp_path):
+    """A consultant frozen mid-call (SIGSTOP: its DDS threads too): the call in flight fails because its
+    liveliness lapsed, and calls while it is down fail as 'not running', never by the 10 s timeout (the
+    test gives each call 8 s; how fast this is, ~1 s lease + grace, is not a test's business)."""
     proc = _consultant_process(tmp_path)
     try:
         port = RemotePort(graph.probe, "procfaces", ReentrantCallbackGroup(), timeout=10.0)
@@ -362,15 +364,11 @@ def test_an_outage_is_answered_within_a_second_and_a_half_not_after_the_timeout(
                 return err
 
         os.kill(proc.pid, signal.SIGSTOP)
-        started = time.monotonic()
         err = graph.run(info(), timeout=8.0)
-        in_flight = time.monotonic() - started
         assert isinstance(err, CarrierError) and err.kind == "unavailable", err
-        assert in_flight < 1.5 + 1.0, in_flight  # lease 1 s; generous bound for a loaded machine (timeout: 10 s)
-        started = time.monotonic()
-        err = graph.run(info(), timeout=8.0)  # while it is down: answered at once
-        assert isinstance(err, CarrierError) and err.kind == "unavailable" and "not running" in err.error
-        assert time.monotonic() - started < 1.0 + 1.0
+        assert "liveliness lapsed" in err.error, err.error  # not the timeout
+        err = graph.run(info(), timeout=8.0)  # while it is down
+        assert isinstance(err, CarrierError) and err.kind == "unavailable" and "not running" in err.error, err
     finally:
         proc.kill()
         proc.wait()

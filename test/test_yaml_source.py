@@ -1,6 +1,10 @@
 """The fast YAML path gives exactly PyYAML's safe loader's values and the strict loader's errors."""
 
 import gc
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 import yaml
@@ -72,3 +76,29 @@ def test_the_collector_is_restored():
     with pytest.raises(SourceError):
         load_yaml("a: [\n", "doc.yaml")
     assert gc.isenabled()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+def test_a_path_that_is_not_a_regular_file_is_one_error_and_never_blocks(tmp_path, kind):
+    """A named pipe nobody writes to would block a plain open() forever (issue 19, item 3)."""
+    from fsreg_ros.core.yaml_source import read_yaml
+
+    path = {"fifo": tmp_path / "pipe.yaml", "device": "/dev/zero", "directory": tmp_path}[kind]
+    if kind == "fifo":
+        os.mkfifo(path)
+    said = {"fifo": "is a named pipe (FIFO), not a regular file", "device": "is a character device, not a regular file",
+            "directory": "is a directory, not a file"}[kind]
+    with pytest.raises(SourceError) as caught:
+        read_yaml(path)
+    assert str(caught.value) == f"{path}: {said}"
+
+
+@pytest.mark.parametrize("option", ["scenario", "--expect", "--lexicon"])
+def test_fsreg_sim_refuses_a_fifo_in_one_line(tmp_path, table1_path, option):
+    pipe = tmp_path / "pipe.yaml"
+    os.mkfifo(pipe)
+    args = [str(pipe)] if option == "scenario" else [str(table1_path), option, str(pipe)]
+    proc = subprocess.run([str(Path(sys.executable).parent / "fsreg-sim"), *args], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == f"fsreg-sim: error: {pipe}: is a named pipe (FIFO), not a regular file\n"

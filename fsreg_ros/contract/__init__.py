@@ -96,6 +96,7 @@ from .endpoints import (
     STATUS,
     SYNC,
     TOPICS,
+    READY,
     WM_EVENTS,
     WM_STATE,
     Service,
@@ -108,8 +109,8 @@ from .endpoints import (
 from .export import fields_of, json_schemas, message_table
 from .limits import LIMIT_RANGES, Limits, check_sizes
 from .ltm import LtmAssert, LtmAssertResult
-from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
-from .naming import clock_remap, normalise_namespace
+from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
+from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .policy import PolicySettings
 from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import Origin, WMEventMessage, WMState
@@ -131,4 +132,5 @@ __all__ = [
     "alive_topic", "attribution", "cache_key", "check", "check_sizes", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace",
+    "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
 ]

@@ -142,6 +142,8 @@ class InfoReply(Versioned):
 
     ``entities`` from ``entities_from`` on; ``entity_count`` in all; ``events`` the
     ``seq`` of the last ``wm/events`` message published in this incarnation;
+    ``wm_version`` how many calls of this incarnation changed WM (``wm/state`` carries
+    the count it shows, so a client can wait for the state as of now);
     ``event_listeners`` how many subscriptions the ``wm/events`` publisher is matched
     with now (events are published only while there is one); ``state`` the stored state.
     """
@@ -154,6 +156,7 @@ class InfoReply(Versioned):
     policy: str
     memory: dict[str, Any]
     events: int
+    wm_version: int
     event_listeners: int
     state: StoredState
 

@@ -22,7 +22,7 @@ from .consultant import (
 )
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .ltm import LtmAssert, LtmAssertResult
-from .manager import StatusReply, StatusRequest, SyncReply, SyncRequest
+from .manager import ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
 from .wm import WMEventMessage, WMState
 
@@ -65,6 +65,8 @@ WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialo
 ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants", "wm_manager",
                  reader_qos=STATE_QOS)
 ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant", "reference_resolution, reg")
+READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "clients (fsreg-up, fsreg-ctl, "
+              "fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
                           "asserter")
@@ -77,7 +79,7 @@ SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogu
 STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")
 
 TOPICS: tuple[Topic, ...] = (HUMAN, SEMANTICS, RR_RESULT, REG_REQUEST, REG_EXPRESSION, WM_STATE, WM_EVENTS,
-                             ANNOUNCE, ALIVE, LTM_ASSERT, LTM_ASSERT_RESULT)
+                             ANNOUNCE, ALIVE, READY, LTM_ASSERT, LTM_ASSERT_RESULT)
 SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, DEBUG, SYNC, STATUS)
 
 #: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.

@@ -37,7 +37,8 @@ class StatusReply(Message):
     acknowledged or announced, as it reported it (null until known); ``configured``: the consultant's
     current incarnation acknowledged the current setting; ``incarnation``: the
     consultant's (null until known); ``next_tick``: the time of the next decay tick
-    (null without decay).
+    (null without decay); ``ready``: every domain configured (as on ``wm_manager/ready``);
+    ``graph``: the WM Manager's graph identity.
     """
 
     time: Number
@@ -47,3 +48,31 @@ class StatusReply(Message):
     running: dict[str, Optional[dict[str, Any]]]
     incarnation: dict[str, Optional[int]]
     next_tick: dict[str, Optional[Number]]
+    ready: Optional[bool] = None
+    graph: Optional[str] = None
+
+
+class DomainReadiness(Message):
+    """One domain on ``wm_manager/ready``: is its consultant's current incarnation configured, and with what."""
+
+    configured: bool
+    incarnation: Optional[int] = None
+    running: Optional[dict[str, Any]] = None
+
+
+class ManagerReady(Message):
+    """``wm_manager/ready`` (latched): whether the graph serves requests now.
+
+    ``ready`` is true once every managed domain's consultant (its current incarnation)
+    has been configured by the WM Manager, so a query is answered instead of refused
+    with kind ``not-ready``; it turns false while a restarted consultant waits for its
+    configuration.  Published at start and at every change.  ``graph``, ``pid`` and
+    ``host`` say whose WM Manager it is (two on one name are a clash).
+    """
+
+    ready: bool
+    domains: dict[str, DomainReadiness]
+    time: Number
+    graph: Optional[str] = None
+    pid: Optional[int] = None
+    host: Optional[str] = None

@@ -6,6 +6,11 @@ from typing import Optional
 
 from .endpoints import CLOCK
 
+#: The field in which every published message names its graph (``fsreg_ros.carrier.publish`` stamps it).
+GRAPH_FIELD = "graph"
+#: The node parameter that gives a node its graph's identity ('' = none: nothing is stamped).
+GRAPH_PARAMETER = "graph"
+
 
 def clock_remap(namespace: str) -> list[str]:
     """Return the ``--ros-args`` remapping that gives a namespaced graph its own ``/clock``.

@@ -15,12 +15,19 @@ class Origin(Message):
 
 
 class WMState(Message):
-    """``wm/state``: one domain's non-empty WM queues (LRU first) and its event count."""
+    """``wm/state``: one domain's non-empty WM queues (LRU first) and its event count.
+
+    ``incarnation`` and ``wm_version`` say which state it is: the consultant's
+    incarnation and how many of its calls had changed WM (``info`` reports the count
+    now; a state with the same incarnation and at least that count is current).
+    """
 
     domain: str
     time: Number
     queues: dict[str, list[str]]
     events: int
+    incarnation: int
+    wm_version: int
 
 
 class WMEventMessage(Message):

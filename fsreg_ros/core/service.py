@@ -174,6 +174,7 @@ class ConsultantService:
         self.time = 0.0  # the latest request time (the time /wm/state reports)
         self.latest = -math.inf  # the latest time WM reflects (clock epochs)
         self.seq = 0  # events numbered so far
+        self.wm_version = 0  # calls of this incarnation that changed WM (wm/state and info report it)
         self.wm_state = "empty"  # restored | dropped | empty | not-persisted
         self.wm_note = ""
         self.persisted = True
@@ -435,6 +436,8 @@ class ConsultantService:
             self.buffer.sink = sink
             queues = self._take_changes() if counted else []
             changes = Changes(self._touched or bool(queues), queues, self._records)
+            if changes.wm:
+                self.wm_version += 1
             self._finish(changes)
         if counted:
             reply["queues_changed"] = len(changes.queues)
@@ -683,7 +686,8 @@ class ConsultantService:
         c = self.consultant
         return {"domain": self.domain, "entities": c.entities[start:], "entity_count": len(c.entities),
                 "preference": list(c.preference), "threshold": c.threshold, "policy": self.policy.name,
-                "memory": self.policy.to_json(), "events": self.seq, "state": self.status()}
+                "memory": self.policy.to_json(), "events": self.seq, "wm_version": self.wm_version,
+                "state": self.status()}
 
     def _open(self, req: dict, client: str) -> dict:
         step, first = req.get("first"), None

@@ -2,9 +2,10 @@
 
 Every file is read the same way:
 
-1. :func:`read_text` reads it as UTF-8 text; a missing file, a directory, an
-   unreadable or oversized file, a NUL byte or invalid UTF-8 is one
-   :class:`SourceError` naming the file.
+1. :func:`read_text` reads it as UTF-8 text; a missing file, a directory or anything
+   else that is not a regular file (a named pipe, which would block the reader until a
+   writer came, a device), an unreadable or oversized file, a NUL byte or invalid UTF-8
+   is one :class:`SourceError` naming the file.
 2. :func:`load_yaml` parses it with libyaml's C parser (:class:`FastLoader`) and
    keeps the node tree, whose nodes carry their line, so a path inside the
    document (``dialogue[3].text``) can be mapped to a line (:func:`find_line`).
@@ -29,6 +30,7 @@ from __future__ import annotations
 import gc
 import operator
 import os
+import stat
 import types
 from contextlib import contextmanager
 from operator import attrgetter
@@ -143,18 +145,39 @@ class FastLoader(StrictConstruction, getattr(yaml, "CSafeLoader", yaml.SafeLoade
         return super().resolve(kind, value, implicit)
 
 
+#: What a path that is not a regular file is, by ``stat`` test.
+_NOT_REGULAR = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
+                (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
 def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceError) -> str:
-    """Return the text of ``path``; raise ``error`` naming the file if it cannot be text."""
+    """Return the text of ``path``; raise ``error`` naming the file if it cannot be text.
+
+    The file is opened without blocking and must be a regular file: reading a named
+    pipe would wait for a writer forever.
+    """
     source = os.fspath(path)
     try:
-        with open(path, "rb") as handle:
-            data = handle.read(MAX_FILE_BYTES + 1)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except FileNotFoundError:
         raise error(source, "", "file not found") from None
-    except IsADirectoryError:
-        raise error(source, "", "is a directory, not a file") from None
     except OSError as err:
         raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise error(source, "", "is a directory, not a file")
+        for test, kind in _NOT_REGULAR:
+            if test(mode):
+                raise error(source, "", f"is {kind}, not a regular file")
+        with os.fdopen(fd, "rb") as handle:
+            fd = -1  # the handle owns it now
+            data = handle.read(MAX_FILE_BYTES + 1)
+    except OSError as err:
+        raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
+    finally:
+        if fd >= 0:
+            os.close(fd)
     if len(data) > MAX_FILE_BYTES:
         raise error(source, "", f"too large: over {MAX_FILE_BYTES:,} bytes")
     nul = data.find(b"\0")

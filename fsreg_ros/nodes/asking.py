@@ -33,7 +33,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
 from .. import contract
-from ..carrier import DEFAULT_TIMEOUT, subscribe
+from ..carrier import DEFAULT_TIMEOUT, stamped, subscribe
 from ..codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits, RequestRef, attribution, cache_key, fingerprint
 from ..remote import RemotePort
@@ -157,11 +157,11 @@ class AskingNode(Node):
             self.get_logger().warning(error)
             reply = {**attribution(data, request), "error": error, "kind": "IdConflict",
                      "conflicts_with": holder.model_dump(), **self.error_fields(data)}
-            publisher.publish(String(data=safe_dumps(reply)))
+            publisher.publish(String(data=safe_dumps(stamped(publisher, reply))))
             return
         if cached is None:
             reply = {**attribution(data, request), **await self.answer(data)}
-            cached = safe_dumps(reply)
+            cached = safe_dumps(stamped(publisher, reply))  # the answer as published, graph identity included
             if "error" not in reply:
                 self.answers.put(data, request, cached)
         publisher.publish(String(data=cached))

@@ -2,9 +2,12 @@
 
 ``main()`` of each node is ``return run_node(NodeClass, args, ...)``:
 
+* the network policy of :mod:`fsreg_ros.network`, applied to the process's own
+  environment before ROS starts (:func:`~fsreg_ros.network.enforce_loopback`): DDS stays on
+  this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and the loopback profile) however
+  the node was started (``ros2 run``, the launch file, a runner), and an environment that would
+  widen it is refused with one line and exit 2, unless ``FSREG_ALLOW_NETWORK=1``;
 * ``rclpy.init(args)`` (so ``--ros-args --params-file F -p x:=y -r __ns:=/robot1`` work as usual);
-* a warning if ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is not ``LOCALHOST`` (the project's
-  scripts set it; a node does not refuse to run on a real robot network);
 * the node is built; any problem while building it (a missing or out-of-range
   parameter, an unreadable file, ...) is logged as one error line and the process
   exits 2, without a traceback;
@@ -26,9 +29,12 @@ change or NOT_SET is refused by rclpy) with a ``floating_point_range`` /
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 import traceback
+import weakref
+from dataclasses import dataclass
 from typing import Any, Awaitable, Callable, Optional
 
 import rclpy
@@ -40,6 +46,7 @@ from rclpy.parameter import Parameter
 
 from ..codec import id_of, printable
 from ..contract import CLOCK
+from ..network import NetworkRefused, enforce_loopback
 
 #: Exit codes.
 EXIT_OK, EXIT_FAILED, EXIT_STARTUP = 0, 1, 2
@@ -51,31 +58,70 @@ class StartupError(Exception):
     """The node cannot start (bad configuration); the message says why, in one line."""
 
 
-# ------------------------------------------------------------------ environment
-def check_discovery_range(logger) -> bool:
-    """Warn unless DDS discovery is limited to this machine; return True when it is."""
-    value = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
-    if value != "LOCALHOST":
-        logger.warning(
-            f"ROS_AUTOMATIC_DISCOVERY_RANGE is {value!r}, not 'LOCALHOST': discovery may "
-            "reach other machines (scripts/rosenv.sh sets it)"
-        )
-        return False
-    return True
-
-
+# ------------------------------------------------------------------ clock
 def now_seconds(node) -> float:
     """Return the node's clock in seconds (sim time when ``use_sim_time`` is set)."""
     return node.get_clock().now().nanoseconds / 1e9
 
 
-def watch_clock(node, silence: float = CLOCK_SILENCE):
-    """Warn once if a sim-time node's clock has not moved for ``silence`` seconds; return the timer.
+@dataclass
+class ClockGuard:
+    """What :func:`guard_clock` did for one node: how many ``/clock`` messages it ignored."""
 
-    The warning names the clock topic as this node resolves it (``/clock``, or the
-    namespaced clock a remapping gave it).  It re-arms when the clock moves again.
-    Nothing is watched on the wall clock.
+    ignored: int = 0
+
+
+_GUARDS: "weakref.WeakKeyDictionary[Any, ClockGuard]" = weakref.WeakKeyDictionary()
+
+
+def clock_guard(node) -> Optional[ClockGuard]:
+    """Return the node's :class:`ClockGuard` (None if its clock is not guarded)."""
+    return _GUARDS.get(node)
+
+
+def guard_clock(node) -> None:
+    """Make the node's ``/clock`` subscription survive any ``/clock`` message.
+
+    rclpy's time source turns each message into a ``Time``, which raises for negative
+    seconds ("Seconds value must not be negative"); raised out of a callback, that
+    would stop the node.  Such a message is ignored (the clock stays where it was) and
+    reported as a warning, at most every 10 s.  The guard replaces the node's time
+    source's callback, so a clock subscription created later (``use_sim_time`` set at
+    run time) is guarded too.
     """
+    source = getattr(node, "_time_source", None)  # rclpy keeps the node's TimeSource here
+    if source is None:  # pragma: no cover - every rclpy Node has one
+        return
+    convert = source.clock_callback
+    topic = node.resolve_topic_name(CLOCK)
+    logger = node.get_logger()
+    guard = _GUARDS.setdefault(node, ClockGuard())
+
+    def clock_callback(msg) -> None:
+        try:
+            convert(msg)
+        except (ValueError, OverflowError, TypeError) as err:
+            guard.ignored += 1
+            stamp = getattr(msg, "clock", None)
+            sec, nanosec = getattr(stamp, "sec", "?"), getattr(stamp, "nanosec", "?")
+            logger.warning(printable(f"ignored a {topic} message (sec={sec}, nanosec={nanosec}): {err}; "
+                                     f"the clock stays at {now_seconds(node):g} s"), throttle_duration_sec=10.0)
+
+    source.clock_callback = clock_callback
+    subscription = getattr(source, "_clock_sub", None)
+    if subscription is not None:
+        subscription.callback = clock_callback
+
+
+def watch_clock(node, silence: float = CLOCK_SILENCE):
+    """Guard the clock (:func:`guard_clock`) and warn once if a sim-time node's clock stands still; return the timer.
+
+    The warning comes when the clock has not moved for ``silence`` seconds and names the
+    clock topic as this node resolves it (``/clock``, or the namespaced clock a
+    remapping gave it).  It re-arms when the clock moves again.  Nothing is watched on
+    the wall clock.
+    """
+    guard_clock(node)
     state = {"last": None, "since": None, "warned": False}
     steady = Clock(clock_type=ClockType.STEADY_TIME)
     topic = node.resolve_topic_name(CLOCK)
@@ -173,7 +219,15 @@ def error_reply(source: Any, error: str) -> dict:
 
 # ------------------------------------------------------------------ runner
 def _node_name(node_cls) -> str:
-    return getattr(node_cls, "NODE_NAME", None) or node_cls.__name__
+    """Return the default name of a node class: ``NODE_NAME``, else its ``node_name`` argument's default."""
+    named = getattr(node_cls, "NODE_NAME", None)
+    if named:
+        return named
+    try:
+        default = inspect.signature(node_cls).parameters["node_name"].default
+    except (KeyError, TypeError, ValueError):
+        default = None
+    return default if isinstance(default, str) and default else node_cls.__name__
 
 
 def run_node(
@@ -187,11 +241,15 @@ def run_node(
     """Run one node until Ctrl-C / shutdown (or until its ``job`` is done); return the exit code."""
     logger = rclpy.logging.get_logger(_node_name(node_cls))
     try:
+        enforce_loopback(os.environ)  # before ROS reads the environment (docs/deployment.md)
+    except NetworkRefused as err:
+        print(printable(f"{_node_name(node_cls)}: error: {err}"), file=sys.stderr)
+        return EXIT_STARTUP
+    try:
         rclpy.init(args=args)
     except Exception as err:  # noqa: BLE001 - e.g. a bad --ros-args or params file
         print(printable(f"{_node_name(node_cls)}: cannot initialise ROS: {err}"), file=sys.stderr)
         return EXIT_STARTUP
-    check_discovery_range(logger)
     node = None
     executor = None
     code = EXIT_OK

@@ -58,8 +58,8 @@ class ConsultantNode(Node):
 
     NODE_NAME = "consultant"
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, **kwargs)
+    def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         domain = self._text("domain", "the domain this consultant owns (required)")
         kb = self._text("kb", "scenario/KB YAML file with the domain's LTM (required)")
         if not domain or not kb:
@@ -261,7 +261,8 @@ class ConsultantNode(Node):
         """``/wm/state``: this domain's non-empty queues, LRU first."""
         self._state_due, self._state_sent = False, monotonic()
         s = self.service
-        publish(self._state, {"domain": self.domain, "time": s.time, "queues": s.buffer.snapshot(), "events": s.seq})
+        publish(self._state, {"domain": self.domain, "time": s.time, "queues": s.buffer.snapshot(), "events": s.seq,
+                              "incarnation": s.incarnation, "wm_version": s.wm_version})
 
     def _publish_due(self, waiting: bool = False) -> None:
         """Publish a due /wm/state unless one went out less than ``state_period`` ago (or nobody reads it).

@@ -17,13 +17,27 @@ For each turn at time T, in file order:
 The collected records are exactly those of ``fsreg-sim`` (see
 :mod:`fsreg_ros.core.simulation`), written as JSON to ``output`` or printed as a
 table.  Encode/forget events heard on ``wm/events`` go to ``trace`` (JSON lines).
+
+Completeness (issue 20): a consultant publishes ``wm/events`` only while its
+publisher is matched with a subscriber, so before turn 1 the player waits until every
+consultant reports ``event_listeners >= 1`` (its ``info``) and the player's own
+subscription is matched with every consultant.  Every event carries ``seq`` (1, 2, 3,
+... per consultant incarnation) and ``incarnation``; the player notes each
+consultant's last ``seq`` before turn 1 and, after the last turn, checks that it heard
+exactly the events that followed, without a gap, from the incarnation it started with
+(:class:`EventLedger`).  A gap, a restarted consultant, or anything stamped by another
+graph (``graph``, the ``graph`` parameter of every node; see
+:func:`fsreg_ros.carrier.graph_identity`) on an answer or an event fails the run
+(exit 1) with one line saying what was missing or foreign: a result is never written
+from an incomplete event stream.
 """
 
 from __future__ import annotations
 
 import json
 import time as wallclock
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Optional
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -32,7 +46,9 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from ..carrier import CarrierError, JsonClient, drop_timer, publisher, subscribe, to_msg, wait_until
+from ..carrier import (CarrierError, JsonClient, drop_timer, graph_identity, publish, publisher, subscribe,
+                       wait_until)
+from ..client import clock_message, describe_graph
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
@@ -46,15 +62,104 @@ PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
 }
 
 
+#: Fields a consultant adds to an event for transport; the trace keeps the event itself (docs/semantics.md §2).
+TRANSPORT_FIELDS = ("seq", "incarnation", contract.GRAPH_FIELD)
+
+
 class PlayerError(RuntimeError):
-    """The graph did not answer in time or answered with an error."""
+    """The graph did not answer in time, answered with an error, or its event stream was incomplete or foreign."""
+
+
+@dataclass
+class EventLedger:
+    """Every ``wm/events`` message of one run, checked for completeness and origin.
+
+    :meth:`start` notes, per domain, the consultant's incarnation and the last ``seq``
+    it had published before the run; :meth:`hear` takes every message (a foreign or
+    malformed one is the ledger's ``fault``); :meth:`check` says, given the last
+    ``seq`` the consultant reports after the run, whether exactly the events in
+    between were heard.
+    """
+
+    graph: str
+    domains: tuple[str, ...]
+    base: dict[str, int] = field(default_factory=dict)
+    incarnation: dict[str, int] = field(default_factory=dict)
+    seqs: dict[str, list[int]] = field(default_factory=dict)
+    events: list[dict] = field(default_factory=list)
+    fault: Optional[str] = None
+
+    def start(self, domain: str, incarnation: Optional[int], base: int) -> None:
+        """Note the consultant of ``domain`` before the first turn: its incarnation (if known) and last ``seq``."""
+        if incarnation is not None:
+            self.incarnation[domain] = incarnation
+        self.base[domain] = base
+        early = [s for s in self.seqs.get(domain, []) if s > base]
+        self.seqs[domain] = early
+        self.events = [e for e in self.events if e["domain"] != domain or e["_seq"] > base]
+
+    def _fail(self, problem: str) -> None:
+        if self.fault is None:
+            self.fault = problem
+
+    def hear(self, data: dict) -> None:
+        """Take one ``wm/events`` message."""
+        graph = data.get(contract.GRAPH_FIELD) or ""
+        if graph != self.graph:
+            self._fail(f"{contract.WM_EVENTS.name}: an event from another graph ({describe_graph(graph)}, this run is "
+                       f"{describe_graph(self.graph)}): another graph publishes in this namespace")
+            return
+        domain, seq, incarnation = data.get("domain"), data.get("seq"), data.get("incarnation")
+        if domain not in self.domains:
+            self._fail(f"{contract.WM_EVENTS.name}: an event of domain {domain!r}, which this run does not have")
+            return
+        if not isinstance(seq, int) or isinstance(seq, bool) or not isinstance(incarnation, int):
+            self._fail(f"{contract.WM_EVENTS.name}: an event of '{domain}' without 'seq' and 'incarnation': "
+                       "its completeness cannot be checked")
+            return
+        if self.incarnation.setdefault(domain, incarnation) != incarnation:
+            self._fail(f"consultant '{domain}' restarted during the run (incarnation {self.incarnation[domain]} -> "
+                       f"{incarnation}): its earlier events may be missing")
+            return
+        if domain in self.base and seq <= self.base[domain]:
+            return  # published before the run began
+        event = {k: v for k, v in data.items() if k not in TRANSPORT_FIELDS}
+        event["_seq"] = seq
+        self.seqs.setdefault(domain, []).append(seq)
+        self.events.append(event)
+
+    def heard(self, domain: str) -> int:
+        return len(self.seqs.get(domain, ()))
+
+    def check(self, domain: str, last: int) -> Optional[str]:
+        """Return what is wrong with ``domain``'s events given its last ``seq`` after the run (None: complete)."""
+        base = self.base[domain]
+        expected = list(range(base + 1, last + 1))
+        got = self.seqs.get(domain, [])
+        if got == expected:
+            return None
+        missing = sorted(set(expected) - set(got))
+        extra = len(got) - len(set(got)) + len(set(got) - set(expected))
+        what = []
+        if missing:
+            shown = ", ".join(str(s) for s in missing[:10]) + (", ..." if len(missing) > 10 else "")
+            what.append(f"{len(missing)} of its {len(expected)} events missing (seq {shown})")
+        if extra:
+            what.append(f"{extra} unexpected or repeated")
+        if not what:
+            what.append("its events arrived out of order")
+        return f"consultant '{domain}': " + "; ".join(what)
+
+    def trace_events(self) -> list[dict]:
+        """Return the events heard in the run, without their transport fields, in arrival order."""
+        return [{k: v for k, v in e.items() if k != "_seq"} for e in self.events]
 
 
 class DialoguePlayer(Node):
     """Plays one scenario and collects the robot's and RR's answers."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__("dialogue_player", **kwargs)
+    def __init__(self, node_name: str = "dialogue_player", *, namespace: Optional[str] = None, **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         describe = ParameterDescriptor
         self.declare_parameter("scenario", "", describe(description="scenario YAML to play", read_only=True))
         self.declare_parameter(
@@ -77,23 +182,41 @@ class DialoguePlayer(Node):
         self._clock_pub = self.create_publisher(Clock, contract.CLOCK, 10)
         self._human = publisher(self, contract.HUMAN)
         self._request = publisher(self, contract.REG_REQUEST)
+        self.graph = graph_identity(self)
         self._sync = JsonClient(self, contract.SYNC.name, group)
+        self._status = JsonClient(self, contract.STATUS.name, group)
+        self._consultants = {d: JsonClient(self, contract.consultant_service(d), group) for d in self.scenario.domains}
         self._pending: dict[str, Future] = {}
-        self.events: list[dict] = []
+        self.ledger = EventLedger(self.graph, tuple(self.scenario.domains))
         self.memory: dict[str, Any] = {}
         subscribe(self, contract.RR_RESULT, self._on_answer, callback_group=group)
         subscribe(self, contract.REG_EXPRESSION, self._on_answer, callback_group=group)
-        subscribe(self, contract.WM_EVENTS, self._on_event, callback_group=group)
+        self._events_sub = subscribe(self, contract.WM_EVENTS, self._on_event, callback_group=group)
 
     # ------------------------------------------------------------ callbacks
     def _on_answer(self, data: dict) -> None:
         future = self._pending.get(str(data.get("id")))
-        if future is not None and not future.done():
-            future.set_result(data)
+        if future is None or future.done():
+            return
+        graph = data.get(contract.GRAPH_FIELD) or ""
+        if graph != self.graph:
+            future.set_exception(PlayerError(
+                f"the answer to {data.get('id')!r} came from another graph ({describe_graph(graph)}, this run is "
+                f"{describe_graph(self.graph)}): another graph answers in this namespace"))
+            return
+        future.set_result(data)
 
     def _on_event(self, data: dict) -> None:
-        event = contract.check(contract.WMEventMessage, data)
-        self.events.append({k: v for k, v in event.items() if k not in ("seq", "incarnation")})  # the trace's fields
+        self.ledger.hear(data)  # subscribe() has checked it against contract.WMEventMessage
+
+    @property
+    def events(self) -> list[dict]:
+        """The run's events heard so far (without transport fields), in arrival order."""
+        return self.ledger.trace_events()
+
+    def _check_fault(self) -> None:
+        if self.ledger.fault is not None:
+            raise PlayerError(self.ledger.fault)
 
     # -------------------------------------------------------------- waiting
     def _missing_peers(self) -> list[str]:
@@ -115,10 +238,51 @@ class DialoguePlayer(Node):
             raise PlayerError(f"graph not ready within {timeout} s: no peers on {', '.join(self._missing_peers())}")
         remaining = max(1.0, timeout - (wallclock.monotonic() - started))
         try:
+            # wait_ready: a first request to a server just discovered can be lost, so it is sent again
             reply = await self._sync.wait_ready({"time": 0.0}, remaining)
+            status = await self._status.wait_ready({}, remaining)
         except CarrierError as err:
             raise PlayerError(f"graph not ready: {err}") from None
         self.memory = reply.get("memory", {})
+        graph = status.get("graph") or ""
+        if graph != self.graph:
+            raise PlayerError(f"{contract.STATUS.name} is answered by another graph ({describe_graph(graph)}, this "
+                              f"run is {describe_graph(self.graph)}): another graph runs in this namespace")
+        await self.wait_for_event_sources(status, max(1.0, timeout - (wallclock.monotonic() - started)))
+
+    async def wait_for_event_sources(self, status: dict, timeout: float) -> None:
+        """Wait until every consultant's ``wm/events`` publisher is matched with this player; note where each stands.
+
+        A consultant sends events only while its publisher sees a subscriber, so turn 1
+        must not start before each one sees this player's (``event_listeners`` in its
+        ``info``) and this player's subscription sees each consultant.
+        """
+        domains = list(self.scenario.domains)
+        clients = self._consultants
+        deadline = wallclock.monotonic() + timeout
+        waiting = list(domains)
+        while waiting:
+            matched = self._events_sub.get_publisher_count() >= len(domains)
+            for domain in list(waiting):
+                try:
+                    info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
+                except CarrierError as err:
+                    raise PlayerError(f"graph not ready: {err}") from None
+                if matched and info.get("event_listeners", 0) >= 1:
+                    incarnation = (status.get("incarnation") or {}).get(domain)
+                    self.ledger.start(domain, incarnation if isinstance(incarnation, int) else None,
+                                      int(info.get("events", 0)))
+                    waiting.remove(domain)
+            if waiting:
+                if wallclock.monotonic() > deadline:
+                    raise PlayerError(
+                        f"graph not ready: the {contract.WM_EVENTS.name} publisher of {', '.join(waiting)} is not "
+                        f"matched with this player (its events would be lost)")
+                await wait_until(self, lambda: False, 0.05)
+        publishers = self._events_sub.get_publisher_count()
+        if publishers > len(domains):  # one per consultant: a writer more is not this graph's
+            raise PlayerError(f"{contract.WM_EVENTS.name} has {publishers} publishers for this run's {len(domains)} "
+                              "consultant(s): another graph publishes in this namespace")
 
     async def exchange(self, publisher, message: dict) -> dict:
         """Publish ``message`` and return the answer with its id.
@@ -137,9 +301,9 @@ class DialoguePlayer(Node):
             if wallclock.monotonic() - started > timeout:
                 future.set_exception(PlayerError(f"no answer to {key} within {timeout} s"))
                 return
-            publisher.publish(to_msg(message))
+            publish(publisher, message)
 
-        publisher.publish(to_msg(message))
+        publish(publisher, message)
         timer = self.create_timer(self.get_parameter("retry_after").value, resend)
         try:
             return await future
@@ -149,27 +313,42 @@ class DialoguePlayer(Node):
 
     # ---------------------------------------------------------------- play
     async def play(self) -> dict:
-        """Play every turn; return the docs/semantics.md section 6 result object."""
+        """Play every turn; return the docs/semantics.md section 6 result object.
+
+        Raises :class:`PlayerError` if the run's event stream is incomplete or foreign.
+        """
         await self.wait_ready()
-        records = [await self.play_turn(turn) for turn in self.scenario.dialogue]
-        if self.get_parameter("trace").value:
-            await self.drain_events()
+        records = []
+        for turn in self.scenario.dialogue:
+            records.append(await self.play_turn(turn))
+            self._check_fault()
+        await self.drain_events()
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
 
     async def drain_events(self) -> None:
-        """Wait until every event each consultant has published has been heard.
+        """Wait until every event each consultant published during the run has been heard; check it.
 
-        An answer can overtake the last events, which come from another process.
+        An answer can overtake the last events, which come from another process.  Then
+        each consultant's events must be exactly those numbered after where it stood
+        before turn 1, up to its last ``seq`` now, from the same incarnation.
         """
         timeout = self.get_parameter("turn_timeout").value
         for domain in self.scenario.domains:
-            client = JsonClient(self, contract.consultant_service(domain), self._group)
-            published = (await client.call({"op": "info"}, timeout))["events"]
-            heard = lambda: sum(1 for e in self.events if e.get("domain") == domain) >= published  # noqa: E731
-            if not await wait_until(self, heard, timeout):
-                raise PlayerError(f"heard fewer than the {published} /wm/events of '{domain}'")
+            try:
+                last = int((await self._consultants[domain].wait_ready({"op": "info"}, timeout))["events"])
+            except CarrierError as err:
+                raise PlayerError(f"cannot check the events of '{domain}': {err}") from None
+            wanted = last - self.ledger.base[domain]
+            done = lambda: self.ledger.fault is not None or self.ledger.heard(domain) >= wanted  # noqa: E731
+            await wait_until(self, done, timeout)
+            self._check_fault()
+            problem = self.ledger.check(domain, last)
+            if problem is not None:
+                raise PlayerError(f"incomplete {contract.WM_EVENTS.name}: {problem}; the run's trace, origins and "
+                                  "alignment would be wrong")
 
     async def play_turn(self, turn: Turn) -> dict:
+        self._check_fault()
         reply = await self._sync.call({"time": turn.time}, self.get_parameter("turn_timeout").value)
         self.memory = reply.get("memory", self.memory)
         if self.get_parameter("drive_clock").value:
@@ -196,13 +375,6 @@ class DialoguePlayer(Node):
     def trace(self) -> list[dict]:
         """Events heard, in the simulator's canonical trace order."""
         return trace_order(self.scenario, self.events)
-
-
-def clock_message(seconds: float) -> Clock:
-    """Return a ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
-    stamp = Clock()
-    stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
-    return stamp
 
 
 def _raise_error(answer: dict, turn: Turn) -> None:

@@ -14,6 +14,8 @@ an error result on ``rr/result``, the human channel's reply topic.  Size limits:
 
 from __future__ import annotations
 
+from typing import Optional
+
 from rclpy.node import Node
 
 from .. import contract
@@ -29,8 +31,8 @@ from .reference_resolution import rr_error
 class ParserNode(Node):
     """Text -> property list, as the TLDL parser would hand semantics to RR."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__("parser", **kwargs)
+    def __init__(self, node_name: str = "parser", *, namespace: Optional[str] = None, **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         self.declare_parameter(
             "kb", "",
             descriptor("scenario/KB YAML whose properties may be parsed ('' = all in lexicon)", read_only=True),

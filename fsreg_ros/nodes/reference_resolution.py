@@ -13,6 +13,8 @@ property, domain not determined, a consultant not answering) are published as
 
 from __future__ import annotations
 
+from typing import Optional
+
 from .. import contract
 from ..carrier import CarrierError, publish, publisher, subscribe
 from ..codec import printable
@@ -24,8 +26,8 @@ from .common import run_node
 class ReferenceResolutionNode(AskingNode):
     """RR as a thin adapter over the core algorithm."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__("reference_resolution", **kwargs)
+    def __init__(self, node_name: str = "reference_resolution", *, namespace: Optional[str] = None, **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         self._results = publisher(self, contract.RR_RESULT)
         subscribe(self, contract.SEMANTICS, self.answer_once_on(self._results), reject=self._reject,
                   callback_group=self.request_group, limits=self.limits)

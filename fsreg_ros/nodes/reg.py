@@ -15,6 +15,8 @@ get ``{"id", "error"}`` on ``reg/expression`` and a logged warning.
 
 from __future__ import annotations
 
+from typing import Optional
+
 from rcl_interfaces.msg import SetParametersResult
 
 from .. import contract
@@ -29,8 +31,8 @@ from .common import descriptor, run_node
 class RegNode(AskingNode):
     """SD-PIA / DIST-PIA (and baselines) as a thin adapter over the core."""
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__("reg", **kwargs)
+    def __init__(self, node_name: str = "reg", *, namespace: Optional[str] = None, **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         self.declare_parameter(
             "algorithm", AUTO,
             descriptor(f"{AUTO} (sd-pia, dist-pia under policy none) or one of {', '.join(ALGORITHMS)}"),

@@ -40,12 +40,18 @@ every consultant acknowledged everything sent to it so far, then trims the share
 if a domain has ``shared-capacity``, and replies; a time that is not finite, beyond
 1e12 s, or more than a day ahead of the node's clock is refused and changes nothing.
 ``wm_manager/status`` reports each domain's setting, what its consultant runs, whether
-its current incarnation is configured, and the next tick.  Topic in:
-``consultant/announce`` (latched), from every consultant.
+its current incarnation is configured, the next tick, ``ready`` (every domain configured)
+and this node's ``graph`` identity.  Topic in: ``consultant/announce`` (latched), from every
+consultant.  Topic out: ``wm_manager/ready`` (latched, :class:`~fsreg_ros.contract.ManagerReady`):
+``ready`` and each domain's ``configured``/``incarnation``/``running``, at start and at every
+change, so a client waits for readiness instead of retrying (``fsreg-up``, ``fsreg-ctl``,
+``fsreg_ros.testing``).
 """
 
 from __future__ import annotations
 
+import os
+import socket
 import time as wallclock
 from functools import partial
 from typing import Any, Optional
@@ -65,7 +71,8 @@ from rclpy.parameter import Parameter
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, log_error, log_warning, serve, subscribe, wait_until
+from ..carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
+                       wait_until)
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
@@ -87,8 +94,8 @@ class WMManagerNode(Node):
 
     NODE_NAME = "wm_manager"
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, **kwargs)
+    def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
         self.declare_parameter(
             "domains",
             Parameter.Type.STRING_ARRAY,
@@ -144,6 +151,8 @@ class WMManagerNode(Node):
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._ready = publisher(self, contract.READY)
+        self._ready_sent: Optional[dict] = None
         serve(self, contract.SYNC, self._sync, self._barrier_group)
         serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
@@ -255,6 +264,7 @@ class WMManagerNode(Node):
         dom.configured = False
         self.manager.detach(dom.name)
         self._attach(dom)
+        self._publish_ready()
 
     def _attach(self, dom: ConsultantLink) -> None:
         try:
@@ -269,9 +279,20 @@ class WMManagerNode(Node):
         for dom in self._domains.values():
             if not self.manager.domains[dom.name].attached and dom.client.ready():
                 self._attach(dom)
+        self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
 
     def _all_configured(self) -> bool:
         return all(dom.configured for dom in self._domains.values())
+
+    def _publish_ready(self) -> None:
+        """Publish ``wm_manager/ready`` when readiness or a domain's configuration changed."""
+        state = {"ready": self._all_configured(),
+                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running}
+                             for d, dom in self._domains.items()}}
+        if state == self._ready_sent:
+            return
+        self._ready_sent = state
+        publish(self._ready, {**state, "time": self.now(), "pid": os.getpid(), "host": socket.gethostname()})
 
     # --------------------------------------------------------------- services
     async def _sync(self, request: dict) -> contract.SyncReply:
@@ -309,6 +330,8 @@ class WMManagerNode(Node):
             running={d: dom.running for d, dom in self._domains.items()},
             incarnation={d: dom.incarnation for d, dom in self._domains.items()},
             next_tick={d: self.manager.next_tick(d) for d in self._domains},
+            ready=self._all_configured(),
+            graph=graph_identity(self),
         )
 
     def memory(self) -> dict[str, dict]:

@@ -10,8 +10,18 @@ Realisation of robot descriptions and parsing of the human's ``text:`` turns.
   ``order`` (ties keep description order); all others become post-modifiers after
   "with", in description (selection) order, joined as "A", "A and B", "A, B and C".
   A second noun property is said as its adjective if it has one, else as a
-  post-modifier.  A property the lexicon does not know is said as its name with
-  ``-`` read as a space, as a post-modifier.
+  post-modifier.
+* A property the lexicon does not list is said by a documented default
+  (:func:`attribute_entry`): an ``attribute=value`` name whose value is a word is said
+  as its value, as the head noun when the attribute is ``type``, ``kind``, ``shape``,
+  ``category`` or ``class`` (``shape=cube`` -> "the ... cube"), else as an adjective in
+  conventional English order by attribute (:data:`ATTRIBUTE_ORDER`: size before age
+  before shape before colour before origin and material, so ``size=small``,
+  ``colour=red``, ``shape=cube`` is "the small red cube").  Anything else (a plain
+  name, a numeric or boolean value) is said as its name with ``-``, ``_`` and ``=``
+  read as spaces, as a post-modifier; :meth:`Lexicon.can_say` is false for it, and
+  :mod:`.coverage` lists such properties in one warning and writes a lexicon skeleton
+  for them.
 * :meth:`Lexicon.parse` is the TLDL parser stub: it maps text to the properties of a
   given collection, longest phrase first, in order of appearance (first occurrence
   wins), and reports the words it does not know.  Every property's name (with ``-``
@@ -47,6 +57,45 @@ DEFAULT_DOMAIN_NOUNS = {"faces": "person", "objects": "object", "locations": "pl
 FALLBACK_NOUN = "thing"
 #: Kept compiled phrase tables (one per property collection parsed against).
 TABLE_CACHE_SIZE = 128
+#: Attributes whose value names the thing itself: said as the head noun (``shape=cube`` -> "cube").
+HEAD_ATTRIBUTES = ("type", "kind", "shape", "category", "class")
+#: Adjective order of ``attribute=value`` properties the lexicon does not list, by attribute (conventional
+#: English order: opinion, size, age, shape, colour, origin, material; position words first).  Attributes are
+#: compared lower-cased; a name ending in ``colour``/``color`` counts as colour.  Others: :data:`OTHER_ORDER`.
+ATTRIBUTE_ORDER = {
+    "position": 5, "side": 5, "location": 5,
+    "quality": 10, "opinion": 10, "condition": 10, "state": 10,
+    "size": 20, "height": 20, "length": 20, "width": 20, "weight": 20,
+    "age": 30,
+    "texture": 40, "pattern": 40, "finish": 40,
+    "colour": 50, "color": 50, "hue": 50, "shade": 50,
+    "orientation": 60, "direction": 60,
+    "origin": 65, "material": 70, "purpose": 75,
+}
+OTHER_ORDER = 45
+#: Values that are not words to say (flags and counts).
+FLAG_VALUES = frozenset({"true", "false", "yes", "no", "on", "off", "none", "null"})
+
+
+def attribute_entry(prop: str) -> Optional["Entry"]:
+    """Return the default entry of an ``attribute=value`` property (None if ``prop`` is not one with a word value).
+
+    See the module docstring: the value is the head noun for :data:`HEAD_ATTRIBUTES`,
+    else an adjective ordered by :data:`ATTRIBUTE_ORDER`.
+    """
+    attribute, sep, value = prop.partition("=")
+    words = " ".join(tokenize(value.replace("_", " ")))
+    if not sep or not attribute.strip() or not words or words in FLAG_VALUES:
+        return None
+    if any(ch.isdigit() for ch in words):  # counts and codes are not words to say
+        return None
+    key = attribute.strip().lower()
+    if key in HEAD_ATTRIBUTES:
+        return Entry(prop, noun=words)
+    order = ATTRIBUTE_ORDER.get(key)
+    if order is None:
+        order = ATTRIBUTE_ORDER["colour"] if key.endswith(("colour", "color")) else OTHER_ORDER
+    return Entry(prop, adjective=words, order=order)
 
 
 @dataclass(frozen=True)
@@ -77,8 +126,11 @@ class Entry:
         )
 
     def post_modifier(self) -> str:
-        """Return the text after "with": article and words ("a lab coat", "glasses")."""
-        words = self.words or self.noun or self.name.replace("-", " ")
+        """Return the text after "with": article and words ("a lab coat", "glasses").
+
+        Without words or a noun: the name, with ``-``, ``_`` and ``=`` read as spaces.
+        """
+        words = self.words or self.noun or " ".join(self.name.replace("_", " ").replace("=", " ").split("-"))
         return f"{self.article} {words}" if self.article else words
 
     def own_phrases(self) -> list[Phrase]:
@@ -194,11 +246,15 @@ class Lexicon:
         return entry.properties if entry else ()
 
     def entry(self, prop: str) -> Entry:
-        """Return the lexical entry of ``prop`` (a default one if the lexicon lacks it)."""
-        return self._entries.get(prop) or Entry(prop)
+        """Return the lexical entry of ``prop``: the lexicon's, else the default (:func:`attribute_entry`; its name)."""
+        return self._entries.get(prop) or attribute_entry(prop) or Entry(prop)
 
     def __contains__(self, prop: object) -> bool:
         return prop in self._entries
+
+    def can_say(self, prop: str) -> bool:
+        """Return whether ``prop`` is said in words of its own: listed, or an ``attribute=value`` with a word value."""
+        return prop in self._entries or attribute_entry(prop) is not None
 
     def noun_for(self, domain: str) -> str:
         """Return the domain's default head noun.

@@ -86,12 +86,24 @@ def _known_keys(loc: list) -> tuple:
 
 
 class LexiconSource:
-    """A validated lexicon file: the model, and where it came from (for messages)."""
+    """A validated lexicon file: the model, and where it came from (for messages).
 
-    def __init__(self, model: LexiconFile, source: str, root: Optional[yaml.Node] = None) -> None:
+    After :meth:`extended_by`, ``model`` is the merged lexicon while ``own`` is the
+    extending file's own content, so an error in it is reported at its own line and
+    item (``domains.faces.properties[0]``), not at the merged list's index.
+    """
+
+    def __init__(self, model: LexiconFile, source: str, root: Optional[yaml.Node] = None,
+                 own: Optional[LexiconFile] = None) -> None:
         self.model = model
         self.source = source
         self.root = root
+        self.own = own if own is not None else model
+
+    def own_members(self, domain: str) -> list[str]:
+        """Return the members of ``domain`` as this file lists them (its own list, its own order)."""
+        block = (self.own.domains or {}).get(domain)
+        return list(block.properties or []) if block else []
 
     def fail(self, loc: PathLoc, message: str) -> LexiconError:
         """Return the error ``message`` at ``loc`` in this file."""
@@ -115,7 +127,7 @@ class LexiconSource:
             domains=domains,
             properties={**(base.properties or {}), **(more.properties or {})},
         )
-        return LexiconSource(merged, extra.source, extra.root)
+        return LexiconSource(merged, extra.source, extra.root, own=more)
 
 
 def _union(first: Optional[list[str]], second: Optional[list[str]]) -> Optional[list[str]]:
@@ -174,9 +186,9 @@ def check(lexicon: "Lexicon", where: LexiconSource) -> None:
             if set(phrase) <= glue:
                 said = " ".join(phrase)
                 raise where.fail(("properties", name), f"phrase '{said}' uses only the realiser's own words")
-    for domain, block in (where.model.domains or {}).items():
+    for domain in where.model.domains or {}:
         seen: set[str] = set()
-        for i, prop in enumerate((block.properties or []) if block else []):
+        for i, prop in enumerate(where.own_members(domain)):  # the file's own list: errors name its own items
             if prop not in lexicon:
                 raise where.fail(("domains", domain, "properties", i), f"'{prop}' is not in properties")
             if prop in seen:
@@ -192,10 +204,10 @@ def _check_domain_phrases(lexicon: "Lexicon", domain: str, where: LexiconSource)
         for phrase in dict.fromkeys((*entry.own_phrases(), *entry.other_phrases())):
             other = owner.setdefault(phrase, prop)
             if other != prop:
-                raise where.fail(
-                    ("domains", domain, "properties"),
-                    f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'",
-                )
+                own = where.own_members(domain)
+                culprit = prop if prop in own else other
+                loc: PathLoc = ("domains", domain, "properties") + ((own.index(culprit),) if culprit in own else ())
+                raise where.fail(loc, f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'")
     noun = tuple(tokenize(lexicon.noun_for(domain)))
     if noun in owner:
         message = f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'"
