@@ -260,6 +260,69 @@ def bench_decay(n_queues: int, ticks: int, seed: int) -> dict:
     }
 
 
+# ========================================================== eager decay
+def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dict:
+    """One eager decay tick (``decay_now``, as the consultant node applies it) over a domain after rule-3 bursts.
+
+    Each cycle: two rule-3 encodings of a property into ``burst`` random members
+    (``encode_members``, as ``Consultant.narrow`` calls it), a rule-1 description of one
+    entity, then one tick timed.  Three buffers play the same plan in turn: column
+    queues with no event sink (nobody listens), column queues reporting every pop to
+    a sink, and dict queues (``column_min`` above the domain: how the buffer worked
+    before column queues, and still works for a domain under ``memory.COLUMN_MIN``).
+    The naive eager reference plays it too: every final state must be its.
+    """
+    from fsreg_ros.core.bitset import from_indices
+    from fsreg_ros.core.decay import TickRun
+
+    rng = random.Random(seed + n_entities)
+    names = [f"e{i}" for i in range(n_entities)]
+    props = [f"p{j}" for j in range(12)]
+    plan = [([from_indices(sorted(rng.sample(range(n_entities), burst)), n_entities) for _ in range(2)],
+             [rng.choice(props) for _ in range(2)], rng.choice(names), rng.sample(props, 2)) for _ in range(ticks)]
+    policy = policy_of("wm")
+    results: dict = {}
+    states = {}
+    for label, columns, sink in (("columns", True, False), ("columns+sink", True, True), ("dicts", False, False)):
+        events: list = []
+        buffer = WMBuffer("d", events.append if sink else None)
+        # Column queues at any size (the default from memory.COLUMN_MIN entities on), or never.
+        buffer.column_min = min(buffer.column_min, n_entities) if columns else n_entities + 1
+        buffer.set_limits(policy.limits(), 0.0)
+        times = []
+        gc.collect()
+        for k, (bursts, burst_props, target, said) in enumerate(plan, start=1):
+            t = float(k)
+            mute, buffer.sink = buffer.sink, None  # rule-3 bursts: nobody listens (the quiet path)
+            for members, prop in zip(bursts, burst_props):
+                buffer.encode_members(members, names, prop, "reg-distractor", t - 0.5, k)
+            buffer.sink = mute
+            buffer.encode(target, said, "speaker", t - 0.5, k)
+            start = time.perf_counter()
+            buffer.decay_now(TickRun(0.0, 1.0, k, 1), names)
+            times.append(time.perf_counter() - start)
+            events.clear()
+        states[label] = buffer.snapshot()
+        results[label] = {"median_ms": statistics.median(times) * 1e3, "max_ms": max(times) * 1e3,
+                          "held": len(buffer), "in_columns": len(buffer._in_columns)}
+        del buffer
+        gc.collect()
+    naive = NaiveWM(policy.rules, policy.value("capacity"), record=False)
+    for k, (bursts, burst_props, target, said) in enumerate(plan, start=1):
+        for members, prop in zip(bursts, burst_props):
+            for i in range(n_entities):
+                if members >> i & 1:
+                    naive.encode(names[i], [prop], "reg-distractor", k - 0.5, k)
+        naive.encode(target, said, "speaker", k - 0.5, k)
+        naive.tick(float(k))
+    return {
+        "entities": n_entities, "ticks": ticks, "burst": burst, "detail": results,
+        **{f"{label}_ms": figures["median_ms"] for label, figures in results.items()},
+        "dicts_over_columns": results["dicts"]["median_ms"] / results["columns"]["median_ms"],
+        "same_final_state": all(state == naive.snapshot() for state in states.values()),
+    }
+
+
 # ================================================================ output
 def render(result: dict) -> str:
     lines = []
@@ -300,6 +363,15 @@ def render(result: dict) -> str:
             f"{str(r['same_final_state']):>5}"
         )
     lines.append("")
+    eager = result.get("eager_decay")
+    if eager:
+        lines.append(f"Eager decay tick (decay_now, as the consultant node applies it) over {eager['entities']:,} "
+                     f"entities after two rule-3 bursts of {eager['burst']:,} members each; median of "
+                     f"{eager['ticks']} ticks, ms")
+        lines.append(f"  column queues {eager['columns_ms']:.3f}   column queues + event sink "
+                     f"{eager['columns+sink_ms']:.3f}   dict queues {eager['dicts_ms']:.3f}   "
+                     f"dicts / columns x{eager['dicts_over_columns']:.1f}   same as naive: {eager['same_final_state']}")
+        lines.append("")
     floor = result.get("encode_floor")
     if floor:
         lines.append(f"Encoding floor, one property into {floor['entities']:,} entities: encode_members "
@@ -410,6 +482,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         for n in queue_counts:
             result["decay"].append(bench_decay(n, ticks, args.seed))
             log(f"  {n} queues done")
+        log("eager decay tick")
+        eager = (2_000, 5, 600) if args.quick else (10_000, 20, 3_000)
+        result["eager_decay"] = bench_eager_decay(*eager, args.seed)
     result["targets"] = targets(result)
     sys.stdout.write(render(result))
     if args.json:

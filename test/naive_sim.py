@@ -12,19 +12,36 @@ shares no algorithm code with :mod:`fsreg_ros.core`:
 * a property holds iff its certainty >= the domain's threshold, looked up in the
   entity's facts on every check.
 
-Only text turns borrow from the project: the lexicon's parser turns their text into
-properties.  :func:`simulate_naive` returns the turns as the simulator's records, with
-the keys both compute (no realised text).
+Only words borrow from the project: the lexicon's parser turns text turns into
+properties, and its realiser says the robot's descriptions.  :func:`simulate_naive`
+returns the turns as the simulator's records (docs/semantics.md section 6, with the
+raw WM origin of each property REG took from WM).
+
+:func:`annotate_naive` adds what ``fsreg-sim --json`` prints beyond them, written out
+from the definitions in README.md and docs/research.md section 3 (alignment per robot
+turn, the pooled figures, the gains over the same game under policy ``none``), and
+:func:`run_command` is that whole command: ``python test/naive_sim.py WORLD --json``
+prints the same bytes as ``fsreg-sim WORLD --json`` (scripts/bench_sim.py times both).
 """
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
 from typing import Any, Optional
 
 import yaml
 from naive_wm import NaiveClock, NaiveWM
 
 DEFAULT_THRESHOLD = 0.5
+#: Forgetting rules in the order a policy name lists them, and the parameters each reads.
+RULE_ORDER = ("decay", "displacement", "global-capacity")
+RULE_READS = {"decay": ("decay_period",), "displacement": ("capacity",), "global-capacity": ("global_capacity",)}
+#: What had put a property in WM, as the alignment report names it.
+ORIGIN_NAMES = ("human-speech", "rr", "reg-distractor", "robot-speech")
+NONE_FROM_SIMULATOR = "the core simulator under policy none"
+NONE_FROM_THIS_RUN = "this run"
 
 
 def load_naive(path) -> dict:
@@ -47,11 +64,22 @@ class NaiveDomain:
         self.entities: list[str] = list(self.facts)
         self.policy = memory.get("policy", "none")
         rules = [] if self.policy.strip() == "none" else [r.strip() for r in self.policy.split("+")]
+        self.rules = rules
+        self.memory = memory
         self.wm = NaiveWM(rules, memory.get("capacity"), memory.get("global_capacity"), record=False)
         self.clock = NaiveClock(memory["decay_period"]) if "decay" in rules else None
 
     def holds(self, entity: str, prop: str) -> bool:
         return self.facts[entity].get(prop, 0.0) >= self.threshold
+
+    def effective(self) -> dict:
+        """Return the domain's memory setting as the result's ``memory`` block reports it: what its rules read."""
+        rules = [r for r in RULE_ORDER if r in self.rules]
+        out: dict[str, Any] = {"policy": "+".join(rules) if rules else "none"}
+        for rule in rules:
+            for key in RULE_READS[rule]:
+                out[key] = float(self.memory[key]) if key == "decay_period" else self.memory[key]
+        return out
 
 
 def memory_settings(document: dict, domain: str, overrides: Optional[dict]) -> dict:
@@ -85,6 +113,10 @@ class NaiveSimulator:
     def run(self) -> list[dict]:
         return [self.play(index, turn) for index, turn in enumerate(self.document.get("dialogue") or [])]
 
+    def memory(self) -> dict:
+        """Every domain's effective memory setting, by domain name."""
+        return {name: self.domains[name].effective() for name in sorted(self.domains)}
+
     def play(self, index: int, turn: dict) -> dict:
         for domain in self.domains.values():  # every tick at or before T comes first
             if domain.clock is not None:
@@ -96,9 +128,11 @@ class NaiveSimulator:
 
     # ------------------------------------------------------------- docs/semantics.md §3
     def hear(self, index: int, turn: dict) -> dict:
+        unknown: list[str] = []
         if "text" in turn:
             known = {p for d in self.domains.values() for p in d.preference}
-            description = list(self.get_lexicon().parse(turn["text"], known).properties)
+            parsed = self.get_lexicon().parse(turn["text"], known)
+            description, unknown = list(parsed.properties), list(parsed.unknown_words)
         else:
             description = list(turn["description"])
         name = turn.get("domain")
@@ -118,8 +152,9 @@ class NaiveSimulator:
         status = "resolved" if len(candidates) == 1 else "ambiguous" if candidates else "no-match"
         if status == "resolved":
             domain.wm.encode(candidates[0], description, "speaker", turn["time"], index)  # rule 1
-        return {
+        record = {
             "turn": index,
+            "time": turn["time"],
             "speaker": "human",
             "description": description,
             "status": status,
@@ -127,6 +162,12 @@ class NaiveSimulator:
             "candidates": candidates,
             "domain": name,
         }
+        if "target" in turn:
+            record["target"] = turn["target"]
+        if "text" in turn:
+            record["text"] = turn["text"]
+            record["unknown_words"] = unknown
+        return record
 
     # ------------------------------------------------------------- docs/semantics.md §4
     def describe(self, index: int, turn: dict) -> dict:
@@ -137,12 +178,13 @@ class NaiveSimulator:
         else:
             remaining = [e for e in domain.entities if e in turn["context"] and e != target]
         wm_before = domain.wm.queue(target)
+        entered = dict(zip(wm_before, domain.wm.origins_of(target)))  # as REG starts
         algorithm = self.algorithm or ("dist-pia" if domain.policy.strip() == "none" else "sd-pia")
         order: list[tuple[str, str]] = []
         if algorithm == "sd-pia":
             order += [(p, "wm") for p in self.phase1(wm_before, domain.preference)]
         order += [(p, "ltm") for p in domain.preference]
-        description, sources, considered = [], [], []
+        description, sources, origins, considered = [], [], [], []
         for prop, source in order:
             if not remaining:
                 break
@@ -159,11 +201,14 @@ class NaiveSimulator:
             if len(kept) < len(remaining):
                 description.append(prop)
                 sources.append(source)
+                cause_turn = entered[prop] if source == "wm" else None
+                origins.append(None if cause_turn is None else {"cause": cause_turn[0], "turn": cause_turn[1]})
                 remaining = kept
         if description:
             domain.wm.encode(target, description, "speaker", turn["time"], index)  # rule 1
-        return {
+        record = {
             "turn": index,
+            "time": turn["time"],
             "speaker": "robot",
             "target": target,
             "wm_before": wm_before,
@@ -173,7 +218,12 @@ class NaiveSimulator:
             "distractors_left": remaining,
             "domain": domain.name,
             "algorithm": algorithm,
+            "origins": origins,
+            "text": self.get_lexicon().realise(description, domain.name),
         }
+        if turn.get("context") is not None:
+            record["context"] = list(turn["context"])
+        return record
 
     def phase1(self, wm_before: list[str], preference: list[str]) -> list[str]:
         if self.wm_order == "mru-first":
@@ -193,3 +243,164 @@ class NaiveSimulator:
 def simulate_naive(document: dict, **options) -> list[dict]:
     """Play ``document`` (a scenario file's dict) with the naive reference; return its turns."""
     return NaiveSimulator(document, **options).run()
+
+
+def result_naive(document: dict, name: str, **options) -> dict:
+    """Play ``document`` and return the whole result object: scenario name, memory settings, turns."""
+    simulator = NaiveSimulator(document, **options)
+    turns = simulator.run()
+    return {"scenario": document.get("name") or name, "memory": simulator.memory(), "turns": turns}
+
+
+# ------------------------------------------------------------------ alignment
+def _dice(a: list, b: list) -> float:
+    a, b = set(a), set(b)
+    return 1.0 if not a and not b else 2 * len(a & b) / (len(a) + len(b))
+
+
+def _mean(values: list) -> float:
+    return sum(values) / len(values) if values else 0.0
+
+
+def _round(value: Optional[float]) -> Optional[float]:
+    return None if value is None else round(value, 4)
+
+
+def robot_alignment(turns: list[dict]) -> dict[int, dict]:
+    """Each robot turn's alignment figures, by turn index, from the records alone.
+
+    For the referent R of a robot turn: every property the human had used for R in an
+    earlier turn (R of a human turn: its ``target``, else what RR resolved), the human's
+    most recent description of R, Dice and recall against it, and what had put each
+    property taken from WM there (``human-speech``: the human said it, including RR
+    affirming the human's own words for the referent of that turn; ``rr``: RR affirming
+    it for another candidate; ``reg-distractor``; ``robot-speech``).
+    """
+    by_turn = {t["turn"]: t for t in turns}
+    used: dict[str, list[str]] = {}
+    last: dict[str, tuple[int, list[str]]] = {}
+    out = {}
+    for record in turns:
+        if record["speaker"] == "human":
+            referent = record.get("target") or record.get("resolved")
+            if referent is not None and record["description"]:
+                used.setdefault(referent, [])
+                for prop in record["description"]:
+                    if prop not in used[referent]:
+                        used[referent].append(prop)
+                last[referent] = (record["turn"], list(record["description"]))
+            continue
+        target, description = record["target"], record["description"]
+        origins = {}
+        for prop, source, raw in zip(description, record["sources"], record["origins"]):
+            if source != "wm":
+                continue
+            then = by_turn.get(raw["turn"], {})
+            name = raw["cause"]
+            if name == "speaker":
+                name = "robot-speech" if then.get("speaker") == "robot" else "human-speech"
+            elif (name == "rr" and then.get("speaker") == "human"
+                  and (then.get("target") or then.get("resolved")) == target and prop in then["description"]):
+                name = "human-speech"
+            origins[prop] = name
+        human = used.get(target, [])
+        last_turn, last_said = last.get(target, (None, None))
+        out[record["turn"]] = {
+            "description": description,
+            "aligned": [p for p in description if p in human],
+            "human_last": last_said,
+            "human_last_turn": last_turn,
+            "dice": None if last_said is None else _dice(description, last_said),
+            "recall": None if not last_said else len(set(description) & set(last_said)) / len(set(last_said)),
+            "wm_origins": origins,
+        }
+    return out
+
+
+def pooled(figures: dict[int, dict]) -> dict:
+    """Return the game's pooled alignment figures (the ``alignment`` block without the gains)."""
+    rows = list(figures.values())
+    said = sum(len(r["description"]) for r in rows)
+    aligned = sum(len(r["aligned"]) for r in rows)
+    described = [r for r in rows if r["human_last"] is not None]
+    named = [name for r in rows for name in r["wm_origins"].values()]
+    return {
+        "robot_turns": len(rows),
+        "properties": said,
+        "aligned": aligned,
+        "alignment": aligned / said if said else 0.0,
+        "described_turns": len(described),
+        "entrainment": _mean([r["dice"] for r in described]),
+        "recall": _mean([r["recall"] for r in described]),
+        "from_wm": len(named),
+        "wm_origins": {name: named.count(name) for name in ORIGIN_NAMES},
+    }
+
+
+def annotate_naive(result: dict, baseline: dict, baseline_source: str) -> dict:
+    """Return ``result`` with the alignment keys ``fsreg-sim`` adds, against ``baseline`` (the game under none)."""
+    mine, theirs = robot_alignment(result["turns"]), robot_alignment(baseline["turns"])
+    turns = []
+    for record in result["turns"]:
+        record = dict(record)
+        if record["speaker"] == "robot":
+            figures = mine[record["turn"]]
+            record.update(aligned=figures["aligned"], human_last=figures["human_last"],
+                          human_last_turn=figures["human_last_turn"], dice_last=_round(figures["dice"]),
+                          recall_last=_round(figures["recall"]), wm_origins=figures["wm_origins"])
+        turns.append(record)
+    block, base = pooled(mine), pooled(theirs)
+    paired = [(mine[t], theirs[t]) for t in mine if t in theirs]
+    dice_pairs = [(a["dice"], b["dice"]) for a, b in paired if a["dice"] is not None and b["dice"] is not None]
+    same_length = [(a, b) for a, b in paired if len(a["description"]) == len(b["description"])]
+    block.update(
+        alignment=round(block["alignment"], 4),
+        entrainment=round(block["entrainment"], 4),
+        recall=round(block["recall"], 4),
+        none_alignment=round(base["alignment"], 4),
+        gain_over_none=round(block["alignment"] - base["alignment"], 4),
+        none_entrainment=round(base["entrainment"], 4),
+        entrainment_gain=round(_mean([a - b for a, b in dice_pairs]), 4),
+        paired_turns=len(dice_pairs),
+        length_matched_gain=round(_mean([len(a["aligned"]) - len(b["aligned"]) for a, b in same_length]), 4),
+        length_matched_turns=len(same_length),
+        none_baseline=baseline_source,
+    )
+    return {**result, "turns": turns, "alignment": block}
+
+
+def with_baseline(document: dict, result: dict, **options) -> dict:
+    """Return ``result`` annotated against the same game under policy none (itself, if it was played so)."""
+    if all(m["policy"] == "none" for m in result["memory"].values()):
+        return annotate_naive(result, result, NONE_FROM_THIS_RUN)
+    memory = {**(options.pop("memory", None) or {}), "policy": "none"}
+    return annotate_naive(result, {"turns": simulate_naive(document, memory=memory, **options)}, NONE_FROM_SIMULATOR)
+
+
+def run_command(path: str, lexicon=None) -> dict:
+    """Compute what ``fsreg-sim PATH --json`` prints, naively: the game, the same game under none, alignment."""
+    document = load_naive(path)
+    if lexicon is None:
+        from fsreg_ros.core.lexicon import Lexicon
+
+        lexicon = Lexicon.load()
+    return with_baseline(document, result_naive(document, Path(path).stem, lexicon=lexicon), lexicon=lexicon)
+
+
+def dumps_naive(result: dict) -> str:
+    """Return the result as ``fsreg-sim --json`` prints it."""
+    return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """``python test/naive_sim.py SCENARIO.yaml --json``: print what ``fsreg-sim SCENARIO.yaml --json`` prints."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 2 or args[1] != "--json":
+        print("usage: naive_sim.py SCENARIO.yaml --json", file=sys.stderr)
+        return 2
+    sys.stdout.write(dumps_naive(run_command(args[0])))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -20,7 +20,7 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     text = proc.stdout
-    assert "REG latency" in text and "Decay tick" in text and "Targets" in text
+    assert "REG latency" in text and "Decay tick" in text and "Eager decay tick" in text and "Targets" in text
     for config in ("sd-pia", "dist-pia", "dist-pia/none"):
         assert f"\n{config} " in text
     data = json.loads(out.read_text())
@@ -30,6 +30,11 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
     assert all(0 < r["median_ms"] <= r["p95_ms"] for r in data["reg"])
     # The lazy buffer and the naive reference end in the same state.
     assert data["decay"] and all(r["same_final_state"] for r in data["decay"])
+    # Eager decay over column queues, with an event sink and over dict queues: the same final state.
+    eager = data["eager_decay"]
+    assert eager["same_final_state"] is True and eager["detail"]["columns"]["in_columns"] > 0
+    assert eager["detail"]["dicts"]["in_columns"] == 0
+    assert all(eager[f"{label}_ms"] > 0 for label in ("columns", "columns+sink", "dicts"))
     # SD-PIA under a retaining policy really has WM content to walk.
     assert any(r["config"] == "sd-pia" and r["from_wm_mean"] > 0 for r in data["reg"])
 

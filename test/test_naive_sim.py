@@ -3,11 +3,14 @@
 On Table 1 under each policy, and on small random worlds (fsreg_ros.worlds) drawn by
 hypothesis under every policy: the robot's descriptions, their sources, WM before
 each robot turn and the RR results are the same.  Also: the world generator makes
-what it promises, and scripts/bench_sim.py runs and compares (no timing asserted).
+what it promises; the naive command prints what ``fsreg-sim --json`` prints (alignment and
+the none baseline included); and scripts/bench_sim.py runs and compares (no timing asserted).
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import subprocess
 import sys
@@ -17,7 +20,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from naive_sim import load_naive, simulate_naive
+from naive_sim import dumps_naive, load_naive, run_command, simulate_naive
 
 from fsreg_ros.core.generation import WM_ORDERS
 from fsreg_ros.core.scenario import load_scenario, parse_scenario
@@ -124,23 +127,80 @@ def test_world_shape_rejects_bad_sizes(field, value):
         WorldShape(**{field: value}).check()
 
 
-@pytest.mark.slow  # runs the benchmark script as a process
-def test_bench_sim_small_world_runs_and_agrees(tmp_path):
+@pytest.mark.slow  # runs the benchmark script as processes
+def test_bench_sim_small_worlds_run_and_agree(tmp_path):
+    """bench_sim times both commands on both presets and finds their outputs byte-identical (no timing asserted)."""
     out = tmp_path / "bench.json"
     proc = subprocess.run(
         [sys.executable, str(BENCH), "--entities", "200", "--human", "6", "--robot", "6", "--seed", "3",
          "--json", str(out)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=240,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "same answers: yes (12 turns compared" in proc.stdout
-    assert "naive/fsreg" in proc.stdout and "peak RSS (MB)" in proc.stdout
+    assert proc.stdout.count("output: byte-identical") == 2
+    for line in ("world sparse: 200 entities, 200 properties", "world dense: 200 entities, 6 properties",
+                 "fsreg-sim WORLD --json", "python test/naive_sim.py WORLD --json", "none game + alignment"):
+        assert line in proc.stdout
     data = json.loads(out.read_text())
-    assert data["differences"] == [] and data["turns"] == 12
-    for side in ("fsreg", "naive"):
-        assert data[side]["load_s"] > 0 and data[side]["sim_s"] > 0 and data[side]["peak_rss_mb"] > 0
+    assert [w["world"] for w in data["worlds"]] == ["sparse", "dense"]
+    for world in data["worlds"]:
+        assert world["differences"] == [] and world["turns"] == 12
+        for side in ("fsreg", "naive"):
+            figures = world["end_to_end"][side]
+            assert figures["wall_s"] > 0 and figures["cpu_s"] > 0 and figures["peak_rss_mb"] > 5
+            assert all(world["split"][side][key] > 0 for key in ("start_s", "load_s", "play_s", "output_s"))
+        assert world["ratio_total"] == world["end_to_end"]["naive"]["wall_s"] / world["end_to_end"]["fsreg"]["wall_s"]
+
+
+def test_bench_sim_reports_different_outputs(tmp_path, monkeypatch):
+    """A naive reference that disagrees is reported, turn and key, and fails the run."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_sim_module", BENCH)
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.syspath_prepend(str(BENCH.parent))
+    spec.loader.exec_module(bench)
+    ours = {"scenario": "s", "turns": [{"speaker": "robot", "description": ["a"], "text": "x"}]}
+    theirs = {"scenario": "s", "turns": [{"speaker": "robot", "description": ["b"], "text": "x"}]}
+    assert bench.differences(json.dumps(ours), json.dumps(ours)) == []
+    assert bench.differences(json.dumps(ours), json.dumps(theirs)) == [
+        "turn 0 (robot): description: fsreg ['a'] != naive ['b']"
+    ]
+    assert bench.differences(json.dumps(ours), json.dumps(ours, indent=1)) == [
+        "the texts differ but parse to equal objects (formatting)"
+    ]
+
+
+@pytest.mark.parametrize("policy", ["none", "decay", "displacement", "decay+displacement"])
+def test_naive_command_prints_what_fsreg_sim_prints(table1_path, policy, tmp_path):
+    """The naive reference computes the whole printed result: alignment, the none baseline, the text."""
+    from fsreg_ros.cli import sim_main
+
+    scenario = tmp_path / "table1.yaml"
+    document = yaml.safe_load(Path(table1_path).read_text(encoding="utf-8"))
+    document["memory"] = {"policy": policy, "decay_period": 10.0, "capacity": 2}
+    scenario.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert sim_main([str(scenario), "--json"]) == 0
+    assert printed.getvalue() == dumps_naive(run_command(str(scenario)))
+    assert '"none_baseline": "' in printed.getvalue() and '"wm_origins": {' in printed.getvalue()
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(shape=worlds())
+def test_random_worlds_print_what_the_naive_command_prints(shape, tmp_path_factory):
+    """``fsreg-sim WORLD --json``'s whole output equals the naive reference's, byte for byte."""
+    from fsreg_ros.cli import sim_main
+
+    path = tmp_path_factory.mktemp("world") / "world.yaml"
+    path.write_text(dump_world(random_world(shape)), encoding="utf-8")
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert sim_main([str(path), "--json"]) == 0
+    assert printed.getvalue() == dumps_naive(run_command(str(path)))
 
 
 @pytest.mark.parametrize(

@@ -23,6 +23,34 @@ def from_indices(indices: Iterable[int], size: int) -> int:
     return int.from_bytes(np.packbits(flags, bitorder="little").tobytes(), "little")
 
 
+def rows_from_pairs(rows: np.ndarray, columns: np.ndarray, nrows: int, size: int) -> list[int]:
+    """Return ``nrows`` bitsets over ``range(size)``: bitset r has bit c for every pair (rows[k], columns[k]) = (r, c).
+
+    E.g. each property's holders from (property, entity) pairs.  The pairs are packed
+    a block of rows at a time, at most :data:`BLOCK_BYTES` of flags per block.
+    """
+    out: list[int] = []
+    per_block = max(1, BLOCK_BYTES // max(size, 1))
+    if nrows > per_block:  # several blocks: each one's pairs in one slice
+        order = np.argsort(rows, kind="stable")
+        rows, columns = rows[order], columns[order]
+    for first in range(0, nrows, per_block):
+        last = min(first + per_block, nrows)
+        flags = np.zeros((last - first, max(size, 1)), dtype=bool)
+        if nrows > per_block:
+            start, end = np.searchsorted(rows, [first, last])
+            flags[rows[start:end] - first, columns[start:end]] = True
+        else:
+            flags[rows, columns] = True
+        packed = np.packbits(flags, axis=1, bitorder="little")
+        out.extend(int.from_bytes(row.tobytes(), "little") for row in packed)
+    return out
+
+
+#: Most bytes of flags :func:`rows_from_pairs` builds at once.
+BLOCK_BYTES = 1 << 24
+
+
 def indices(bits: int) -> list[int]:
     """Return the indices of the set bits of ``bits``, ascending."""
     return index_array(bits).tolist()

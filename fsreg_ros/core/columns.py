@@ -83,6 +83,13 @@ class QueueColumns:
         self.synced[row] = synced
         self.held[row] = True
 
+    def start_empty(self, rows: np.ndarray, synced: int) -> None:
+        """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
+        self.prop[:, rows] = -1
+        self.length[rows] = 0
+        self.synced[rows] = synced
+        self.held[rows] = True
+
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
         self.prop[:, row] = -1
@@ -98,10 +105,15 @@ class QueueColumns:
         """
         owed = np.minimum(ticks - self.synced[rows], self.length[rows])
         self.synced[rows] = ticks
-        if not owed.any():
-            return owed
-        popping = owed > 0
-        targets, counts = rows[popping], owed[popping]
+        self.pop_fronts(rows, owed)
+        return owed
+
+    def pop_fronts(self, rows: np.ndarray, counts: np.ndarray) -> None:
+        """Pop ``counts[i]`` fronts (oldest stamps first) of each held row ``rows[i]`` (at most its length)."""
+        if not counts.any():
+            return
+        popping = counts > 0
+        targets, counts = rows[popping], counts[popping]
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
         self.prop[:, gone] = -1
@@ -110,9 +122,25 @@ class QueueColumns:
         for done in range(int(counts.max(initial=0))):  # fewer than width rounds
             now = partial[counts > done]
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
-            self.prop.reshape(-1)[stamps.argmin(axis=0) * self.rows + now] = -1
+            self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
             self.length[now] -= 1
-        return owed
+
+    def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
+        """Return the first ``depth`` property ids of each of ``rows``, LRU first (fewer for a shorter row)."""
+        stamps = np.where(np.take(self.prop, rows, axis=1) >= 0, np.take(self.stamp, rows, axis=1), _NO_STAMP)
+        order = np.argsort(stamps, axis=0, kind="stable")[:depth]
+        props = np.take_along_axis(np.take(self.prop, rows, axis=1), order, axis=0).T.tolist()
+        return [[p for p in row if p >= 0] for row in props]
+
+    def non_empty(self) -> np.ndarray:
+        """Return the held rows holding something (ascending)."""
+        return np.flatnonzero(self.held & (self.length > 0))
+
+    def entries(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return every entry of ``rows`` as parallel arrays: its stamp, its row and its property id."""
+        props = np.take(self.prop, rows, axis=1)
+        where = props >= 0
+        return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
 
     def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
@@ -120,17 +148,15 @@ class QueueColumns:
         The rows must be up to date with decay (:meth:`pop_owed`) and distinct.  A
         property present is refreshed (new stamp, same origin); otherwise it takes an
         empty slot or, in a full row, the front's (LRU displacement).  Returns, per row,
-        whether the queue grew and whether it was empty before.  (``np.take``, flat
-        indices and ``logical_or.reduce`` rather than 2-D fancy indexing and ``any``:
-        several times faster on these short columns.)
+        whether the queue grew and whether it was empty before.  The slot is found with
+        one key per slot (the property itself -2, an empty slot -1, else its stamp) and
+        its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
+        ``argmax`` along the short axis would each cost more than the whole encoding.
         """
         props = np.take(self.prop, rows, axis=1)
-        hit = props == prop
-        present = np.logical_or.reduce(hit, axis=0)
-        length = self.length[rows]
-        room = length < self.width
-        front = np.take(self.stamp, rows, axis=1).argmin(axis=0)  # meaningful for full rows only
-        slot = np.where(present, hit.argmax(axis=0), np.where(room, (props < 0).argmax(axis=0), front))
+        key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
+        slot, best = _first_minimum(key)
+        present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
         flat = slot * self.rows + rows
         stamps = np.arange(first_stamp, first_stamp + len(rows), dtype=np.int64)
         entries = self.entry.reshape(-1)
@@ -138,7 +164,7 @@ class QueueColumns:
         self.prop.reshape(-1)[flat] = prop
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
-        grew = room & ~present
+        length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
 
@@ -159,3 +185,22 @@ class QueueColumns:
         """Return every origin reference that is a stamp (> 0) held in any slot."""
         refs = self.entry[self.prop >= 0]
         return refs[refs > 0]
+
+
+#: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
+_LOOP_WIDTH = 16
+
+
+def _first_minimum(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return, per column of ``values`` (slots x rows), the first row holding the column's minimum, and the minimum.
+
+    ``np.minimum.reduce`` runs across the columns at once; ``argmin(axis=0)`` walks each
+    short column on its own and costs several times more for the few slots of a queue.
+    """
+    best = np.minimum.reduce(values, axis=0)
+    if values.shape[0] > _LOOP_WIDTH:
+        return (values == best).argmax(axis=0), best
+    slot = np.zeros(values.shape[1], dtype=np.intp)
+    for k in range(values.shape[0] - 1, 0, -1):  # the last assignment wins: the first such slot
+        slot[values[k] == best] = k
+    return slot, best

@@ -296,7 +296,7 @@ async def _finish(
     baselines never narrow the view: bit i = the i-th member).
     """
     members = await port.close(view, expression.description, time, turn)
-    left = [d for i, d in enumerate(members) if not ruled_out >> i & 1]
+    left = [d for i, d in enumerate(members) if not ruled_out >> i & 1] if ruled_out else list(members)
     expression.distractors_left = left
     expression.distinguishing = not left
     return expression

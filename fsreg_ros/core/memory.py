@@ -39,6 +39,7 @@ encoding call instead of Python work per entity, with exactly the same results.
 
 from __future__ import annotations
 
+import heapq
 import random
 import sys
 from dataclasses import dataclass
@@ -71,6 +72,8 @@ COLUMN_MAX_WIDTH = 64
 COLUMN_MAX_SLOTS = 2**22
 #: The change record is compacted when it holds this many column-operation marks.
 _CHANGE_MARKS_MAX = 4096
+#: No column rows.
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 
 
 class WMEvent(NamedTuple):
@@ -376,7 +379,8 @@ class WMBuffer:
         """
         if limits.victim not in VICTIMS:
             raise ValueError(f"unknown displacement victim {limits.victim!r} (known: {', '.join(VICTIMS)})")
-        self._drop_columns()
+        if not self._columns_fit(limits):
+            self._drop_columns()
         self.limits = limits
         self._rng = random.Random(limits.seed)
         self._victim = {"lru": self._lru_victim, "lfu": self._lfu_victim, "random": self._random_victim}[limits.victim]
@@ -387,9 +391,7 @@ class WMBuffer:
                     self._record(entity, q)
                 q.hits = None
         if not limits.retains:
-            for entity in self.nonempty_entities():
-                while self._pop(entity, "reset", time, None) is not None:
-                    pass
+            self._forget_all("reset", time, None)
             return
         if limits.capacity is not None:
             self.flush()
@@ -399,9 +401,19 @@ class WMBuffer:
             self._evict_global(limits.global_capacity, time, None)
 
     def evict_oldest(self, count: int, cause: str, time: float) -> None:
-        """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
-        self._drop_columns()
-        self._evict_global(max(len(self) - count, 0), time, None, cause)
+        """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim).
+
+        One at a time, the front with the oldest stamp goes: since every queue is in
+        stamp order, those are the ``count`` oldest entries of the whole domain, so
+        column queues are trimmed as a column operation (:meth:`_evict_columns`).
+        """
+        total = len(self)  # flushes
+        if count <= 0 or not total:
+            return
+        if not self._in_columns:
+            self._evict_global(max(total - count, 0), time, None, cause)
+            return
+        self._evict_columns(min(count, total), cause, time)
 
     # ---------------------------------------------------------------- writes
     def encode(
@@ -619,36 +631,118 @@ class WMBuffer:
         """Apply decay ticks (Algorithm 2) at once, in the canonical event order.
 
         Tick by tick, and within a tick in ``entity_order`` (the domain's entity
-        order, docs/semantics.md section 2), not in the order the queues happened to fill.  Costs
-        O(properties held), however many ticks: after as many ticks as the longest
-        queue holds, WM is empty and the remaining ticks pop nothing.
+        order, docs/semantics.md section 2; entities it does not list come last), not in
+        the order the queues happened to fill: that is the order of the events and of
+        the change record.  Costs O(properties held) however many ticks: after as many
+        ticks as the longest queue holds, WM is empty and the remaining ticks pop
+        nothing.  Column queues decay as a column operation (their pops are only
+        listed one by one when an event sink must hear them), so a tick over a large
+        domain after rule 3 bursts moves no queue out of the columns.
         """
-        self._drop_columns()
         self.flush()
-        rank = {entity: i for i, entity in enumerate(entity_order)}
-        pending = sorted(self._nonempty, key=lambda e: rank.get(e, len(rank)))
+        if ticks.count <= 0:
+            return
         self.ticks.add(ticks)
-        for entity in pending:
-            self._queues[entity].synced = self.ticks.count
-        i = 0
-        while pending and i < ticks.count:
+        now = self.ticks.count
+        rows = self._columns.non_empty() if self._in_columns else _NO_ROWS
+        pending = [(entity, q) for entity, q in self._queues.items() if q]
+        if self.sink is None and (entity_order is self._bound or not len(rows)):
+            self._decay_quietly(ticks.count, entity_order, rows, pending)
+        else:
+            self._decay_in_order(ticks, entity_order, rows, pending)
+        self.ticks.drop_before(now)
+        self._settled = now
+
+    def _decay_quietly(self, count: int, entity_order: Sequence[str], rows: np.ndarray,
+                       pending: list[tuple[str, "_Queue"]]) -> None:
+        """Pop ``count`` ticks' fronts with no events: columns at once, dict queues one by one.
+
+        ``rows`` are numbered in ``entity_order`` (or there are none), so the change
+        record follows entity order with one column mark per run of rows between two
+        dict queues.
+        """
+        now = self.ticks.count
+        if len(rows):
+            popped = self._columns.pop_owed(rows, now)
+            self._size -= int(popped.sum())
+            for name in map(self._bound.__getitem__, rows[self._columns.length[rows] == 0].tolist()):
+                self._nonempty.pop(name, None)
+        rank = self._ranks(entity_order)
+        last = len(rank)
+        ordered = sorted(pending, key=lambda item: rank.get(item[0], last))
+        # Where each dict queue falls among the column rows (in entity order).
+        cuts = np.searchsorted(rows, [rank.get(e, last) for e, _ in ordered]).tolist() if len(rows) else []
+        start = 0
+        for i, (entity, q) in enumerate(ordered):
+            if cuts and cuts[i] > start:
+                self._mark_changed(rows[start:cuts[i]])
+                start = cuts[i]
+            owed = min(count, len(q))
+            for _ in range(owed):
+                del q[next(iter(q))]
+            q.synced = now
+            self._size -= owed
+            self._record(entity, q)
+            if not q:
+                del self._nonempty[entity]
+        self._mark_changed(rows[start:])
+
+    def _decay_in_order(self, ticks: TickRun, entity_order: Sequence[str], rows: np.ndarray,
+                        pending: list[tuple[str, "_Queue"]]) -> None:
+        """Pop the ticks' fronts tick by tick, in ``entity_order``, reporting each (the general path).
+
+        The fronts each queue loses are listed first (a column queue's by one sort of
+        its slots); the column queues then lose theirs at once, and the events, the
+        change record and the dict queues' pops follow tick by tick in entity order.
+        """
+        now = self.ticks.count
+        rank = self._ranks(entity_order)
+        last = len(rank)
+        # (rank, tie, entity, fronts it loses LRU first, its dict queue or None for a column queue)
+        plan: list[tuple[int, int, str, list[str], Optional[_Queue]]] = []
+        for tie, (entity, q) in enumerate(pending):
+            plan.append((rank.get(entity, last), tie, entity, list(islice(q, ticks.count)), q))
+        if len(rows):
+            columns, names, bound = self._columns, self._prop_name, self._bound
+            fronts = columns.in_order(rows, min(ticks.count, columns.width))
+            for row, ids in zip(rows.tolist(), fronts):
+                name = bound[row]
+                plan.append((rank.get(name, last), len(pending) + row, name, [names[i] for i in ids], None))
+            self._size -= int(columns.pop_owed(rows, now).sum())
+            for name in map(bound.__getitem__, rows[columns.length[rows] == 0].tolist()):
+                self._nonempty.pop(name, None)
+        plan.sort(key=lambda step: step[:2])
+        for i in range(max((len(step[3]) for step in plan), default=0)):
             time = ticks.time(i)
-            for entity in pending:
-                self._pop(entity, "decay", time, None)
-            pending = [entity for entity in pending if self._queues[entity]]
-            i += 1
-        self.ticks.drop_before(self.ticks.count)
-        self._settled = self.ticks.count
+            for _, _, entity, fronts, q in plan:
+                if i >= len(fronts):
+                    continue
+                if q is None:  # popped already, with the other column queues
+                    if i == 0:
+                        self._changed.append(entity)
+                else:
+                    del q[fronts[i]]
+                    self._size -= 1
+                    self._record(entity, q)
+                if self.sink is not None:
+                    self.sink(WMEvent("forget", self.domain, entity, fronts[i], "decay", time, None))
+        for entity, q in pending:
+            q.synced = now
+            if not q:
+                del self._nonempty[entity]
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
-        self._drop_columns()
-        for entity in self.nonempty_entities():
-            while self._pop(entity, cause, time, turn) is not None:
-                pass
+        self._forget_all(cause, time, turn)
 
     def flush(self) -> None:
-        """Bring every queue up to date with the decay ticks applied so far."""
+        """Bring every queue up to date with the decay ticks applied so far.
+
+        Nothing to do when no tick arrived since the last flush (every queue is then up
+        to date): a large domain is not walked for nothing.
+        """
+        if self.ticks.count == self._settled:
+            return
         if self._in_columns:
             columns = self._columns
             owing = np.flatnonzero(columns.held & (columns.length > 0) & (columns.synced != self.ticks.count))
@@ -666,6 +760,89 @@ class WMBuffer:
         # tick's time, so older runs can go (bounded memory for long runs).
         self.ticks.drop_before(self.ticks.count)
         self._settled = self.ticks.count
+
+    def _forget_all(self, cause: str, time: float, turn: Optional[int]) -> None:
+        """Forget every property: queue by queue as :meth:`nonempty_entities` lists them, LRU first.
+
+        Column queues are emptied at once; their properties are listed one by one only
+        when an event sink must hear them.
+        """
+        order = self.nonempty_entities()  # flushes
+        rows = self._columns.non_empty() if self._in_columns else _NO_ROWS
+        fronts: dict[int, list[int]] = {}
+        if len(rows) and self.sink is not None:
+            fronts = dict(zip(rows.tolist(), self._columns.in_order(rows, self._columns.width)))
+        for entity in order:
+            q = self._queues.get(entity)
+            if q is not None:
+                while self._pop(entity, cause, time, turn) is not None:
+                    pass
+                continue
+            self._changed.append(entity)  # a column queue
+            for pid in fronts.get(self._row[entity], ()):
+                self.sink(WMEvent("forget", self.domain, entity, self._prop_name[pid], cause, time, turn))
+        if len(rows):
+            columns = self._columns
+            self._size -= int(columns.length[rows].sum())
+            columns.pop_fronts(rows, columns.length[rows].copy())
+            for name in map(self._bound.__getitem__, rows.tolist()):
+                self._nonempty.pop(name, None)
+
+    def _evict_columns(self, count: int, cause: str, time: float) -> None:
+        """Forget the ``count`` oldest entries of the domain, oldest first (:meth:`evict_oldest`, with column queues).
+
+        Each is the front of its queue when it goes.  The column queues' oldest are
+        found by one partial sort of their stamps, the dict queues' by a heap.
+        """
+        columns = self._columns
+        rows = columns.non_empty()
+        stamps, owners, props = columns.entries(rows)
+        if len(stamps) > count:
+            oldest = np.argpartition(stamps, count - 1)[:count]
+            stamps, owners, props = stamps[oldest], owners[oldest], props[oldest]
+        victims: list[tuple] = [(stamp, row, pid, None) for stamp, row, pid in
+                                zip(stamps.tolist(), owners.tolist(), props.tolist())]
+        victims += heapq.nsmallest(count, ((value if value.__class__ is int else value[0], entity, prop, q)
+                                           for entity, q in self._queues.items() for prop, value in q.items()),
+                                   key=lambda victim: victim[0])
+        victims.sort(key=lambda victim: victim[0])  # stamps are unique
+        popped: dict[int, int] = {}  # column row -> fronts it loses
+        for _, where, prop, q in victims[:count]:
+            if q is not None:  # a dict queue's front
+                self._forget(where, q, prop, cause, time, None)
+                continue
+            name = self._bound[where]
+            if where not in popped:
+                self._changed.append(name)
+            popped[where] = popped.get(where, 0) + 1
+            if self.sink is not None:
+                self.sink(WMEvent("forget", self.domain, name, self._prop_name[prop], cause, time, None))
+        if popped:
+            touched = np.fromiter(popped, dtype=np.intp, count=len(popped))
+            columns.pop_fronts(touched, np.fromiter(popped.values(), dtype=np.int64, count=len(popped)))
+            self._size -= sum(popped.values())
+            for name in map(self._bound.__getitem__, touched[columns.length[touched] == 0].tolist()):
+                self._nonempty.pop(name, None)
+
+    def _columns_fit(self, limits: Limits) -> bool:
+        """Tell whether the column queues can stay under ``limits``: nothing kept, or an LRU capacity of their width.
+
+        Under any other limits a queue may have to lose another property than its
+        front, or more than one, which only a dict queue does.
+        """
+        columns = self._columns
+        if columns is None or not limits.retains:
+            return True
+        return (limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
+                and limits.capacity == columns.width)
+
+    def _ranks(self, entity_order: Sequence[str]) -> Mapping[str, int]:
+        """Return entity -> rank in ``entity_order`` (the column rows' own numbering when that is their list)."""
+        if entity_order is self._bound:
+            for i in range(len(self._row), len(entity_order)):  # entities appended since the last bind
+                self._row[entity_order[i]] = i
+            return self._row
+        return {entity: i for i, entity in enumerate(entity_order)}
 
     # ------------------------------------------------------- trimming primitives
     def _enforce(self, entity: str, q: _Queue, prop: str, time: float, turn: Optional[int]) -> None:
@@ -757,23 +934,25 @@ class WMBuffer:
         return True
 
     def _adopt(self, rows: np.ndarray) -> bool:
-        """Move the queues of ``rows`` into the columns (those not there yet); False, moving none, if one is longer."""
+        """Move the queues of ``rows`` into the columns (those not there yet); False, moving none, if one is longer.
+
+        Rows whose entity has no dict queue start empty, all at once; the few that have
+        one take its entries.
+        """
         columns = self._columns
-        fresh = rows[~columns.held[rows]].tolist()
-        if not fresh:
+        fresh = rows[~columns.held[rows]]
+        if not len(fresh):
             return True
-        names = [self._bound[row] for row in fresh]
+        names = list(map(self._bound.__getitem__, fresh.tolist()))
         queues = self._queues
-        if any(len(queues.get(name, ())) > columns.width for name in names):
+        moving = sorted(queues.keys() & names, key=self._row.__getitem__)  # in entity order
+        if any(len(queues[name]) > columns.width for name in moving):
             return False
-        ticks = self.ticks.count
-        for row, name in zip(fresh, names):
-            q = queues.pop(name, None)
-            if q is None:  # a new queue: ticks before it existed are not owed
-                columns.write(row, [], ticks)
-            else:
-                columns.write(row, [self._column_item(prop, value) for prop, value in q.items()], q.synced)
-            self._in_columns.add(name)
+        columns.start_empty(fresh, self.ticks.count)  # ticks before a queue existed are not owed
+        for name in moving:
+            q = queues.pop(name)
+            columns.write(self._row[name], [self._column_item(prop, value) for prop, value in q.items()], q.synced)
+        self._in_columns.update(names)
         return True
 
     def _column_item(self, prop: str, value: Union[int, tuple]) -> tuple[int, int, int]:

@@ -15,6 +15,7 @@ the ROS ``dialogue_player`` emits, so ``fsreg-graph --json`` and ``fsreg-sim
 from __future__ import annotations
 
 import json
+from json.encoder import encode_basestring as _string
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
@@ -178,5 +179,84 @@ def simulate(scenario: Scenario, options: Optional[Options] = None, lexicon: Opt
 
 
 def dumps(result: Mapping[str, Any]) -> str:
-    """Return the canonical JSON text of a result: byte-identical for equal results."""
-    return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
+    """Return the canonical JSON text of a result: byte-identical for equal results.
+
+    The text is exactly what ``json.dumps(result, sort_keys=True, indent=2,
+    ensure_ascii=False)`` returns, and a line break.  The standard library writes an indented text with
+    its pure-Python encoder, one generator step per value; a large world's result holds
+    hundreds of thousands of entity names (candidate and distractor lists), so
+    :func:`_indented` writes the same bytes with each list of strings joined at once.
+    Anything it does not know (a key that is not a string, a value of another type)
+    goes to ``json.dumps`` whole.
+    """
+    try:
+        parts: list[str] = []
+        _indented(result, "\n", parts)
+    except _Unusual:
+        return json.dumps(result, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
+    parts.append("\n")
+    return "".join(parts)
+
+
+class _Unusual(Exception):
+    """A value :func:`_indented` leaves to ``json.dumps``."""
+
+
+_FLOAT_WORDS = {float("inf"): "Infinity", float("-inf"): "-Infinity"}
+
+
+def _indented(value: Any, newline: str, out: list[str]) -> None:
+    """Append ``value`` as ``json.dumps(sort_keys=True, indent=2, ensure_ascii=False)`` writes it.
+
+    ``newline`` is the line break and indentation of the value's own level.
+    """
+    kind = value.__class__
+    if kind is str:
+        out.append(_string(value))
+    elif kind is dict:
+        if not value:
+            out.append("{}")
+            return
+        inner = newline + "  "
+        for key in value:
+            if key.__class__ is not str:
+                raise _Unusual
+        opened = "{"
+        for key in sorted(value):
+            out.append(opened + inner + _string(key) + ": ")
+            _indented(value[key], inner, out)
+            opened = ","
+        out.append(newline + "}")
+    elif kind is list or kind is tuple:
+        if not value:
+            out.append("[]")
+            return
+        inner = newline + "  "
+        try:  # the common case: a list of names, joined at C speed
+            out.append("[" + inner + ("," + inner).join(map(_string, value)) + newline + "]")
+            return
+        except TypeError:
+            pass
+        opened = "["
+        for item in value:
+            out.append(opened + inner)
+            _indented(item, inner, out)
+            opened = ","
+        out.append(newline + "]")
+    elif value is None:
+        out.append("null")
+    elif value is True:
+        out.append("true")
+    elif value is False:
+        out.append("false")
+    elif kind is int:
+        out.append(int.__repr__(value))
+    elif kind is float:
+        if value != value:
+            out.append("NaN")
+        elif value in _FLOAT_WORDS:
+            out.append(_FLOAT_WORDS[value])
+        else:
+            out.append(float.__repr__(value))
+    else:
+        raise _Unusual

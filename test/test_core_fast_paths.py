@@ -1,0 +1,242 @@
+"""The core's fast paths equal their plain definitions.
+
+* ``simulation.dumps`` writes exactly ``json.dumps(sort_keys=True, indent=2, ensure_ascii=False)``;
+* a :class:`Consultant` built from facts (checked by set operations, holders packed from
+  (property, entity) pairs) holds and refuses exactly what a fact-by-fact build would;
+* ``bitset.rows_from_pairs`` equals one ``from_indices`` per row, in one block or many.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections import Counter
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fsreg_ros.core import bitset
+from fsreg_ros.core.consultant import Consultant, KnowledgeError, check_certainty
+from fsreg_ros.core.simulation import dumps
+
+# ------------------------------------------------------------------ dumps
+LEAVES = st.none() | st.booleans() | st.integers() | st.floats() | st.text()
+TREES = st.recursive(
+    LEAVES, lambda inner: st.lists(inner) | st.tuples(inner, inner) | st.dictionaries(st.text(), inner), max_leaves=40
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(TREES)
+def test_dumps_is_the_standard_librarys_indented_sorted_text(value):
+    assert dumps(value) == json.dumps(value, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
+
+
+@pytest.mark.parametrize("value", [
+    {"turns": [{"candidates": ["e1", "é2", "a\"b\\c\n"], "x": [1, 2.5, None, True]}]},
+    {"a": [float("nan"), float("inf"), -float("inf"), -0.0, 10**30, 1e-300]},
+    {"empty": [], "nested": {}, "tuple": ("a", 1), "mixed": ["a", {"b": ["c"]}, ["d", "e"]]},
+    {1: "int key", 2: None},  # not string keys: the standard library writes them
+    {"sub": type("S", (str,), {})("subclass")},  # a str subclass, likewise
+])
+def test_dumps_of_edge_values(value):
+    assert dumps(value) == json.dumps(value, sort_keys=True, indent=2, ensure_ascii=False) + "\n"
+
+
+@pytest.mark.parametrize("value", [{"a": {1, 2}}, {1: "a", "b": 2}])
+def test_dumps_refuses_what_json_refuses(value):
+    with pytest.raises(TypeError):
+        dumps(value)
+
+
+# --------------------------------------------------------------- consultant
+PROPS = ["p0", "p1", "p2", "p3"]
+CERTAINTIES = (
+    st.sampled_from([1.0, 0.5, 0.0, -0.0, 0.25, 0.75, 1, 0, True, False, float("nan"), float("inf"), 1.5, -0.1, 2])
+    | st.floats(0.0, 1.0)
+)
+FACTS = st.dictionaries(st.sampled_from(PROPS + ["unknown"]), CERTAINTIES, max_size=5)
+
+
+def reference_build(entities: dict, threshold: float) -> tuple:
+    """The consultant's LTM as a fact-by-fact build defines it: (certainties, holders) or the error's text."""
+    certainty = {}
+    for entity, facts in entities.items():
+        for prop, c in facts.items():
+            if prop not in PROPS:
+                return (f"domain 'd', entity '{entity}': unknown property '{prop}' "
+                        "(not in the domain's preference order)")
+            try:
+                check_certainty(f"certainty of '{prop}' for '{entity}'", c)
+            except KnowledgeError as err:
+                return str(err)
+        certainty[entity] = {p: float(c) for p, c in facts.items() if c > 0}
+    names = list(entities)
+    holders = {}
+    for prop in PROPS:
+        held = [i for i, e in enumerate(names) if threshold <= 0.0 or certainty[e].get(prop, 0.0) >= threshold]
+        holders[prop] = sum(1 << i for i in held)
+    return certainty, holders
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.dictionaries(st.sampled_from([f"e{i}" for i in range(12)]), FACTS, max_size=12),
+       st.sampled_from([0.5, 0.0, 1.0, 0.3]))
+def test_consultant_build_equals_fact_by_fact(entities, threshold):
+    expected = reference_build(entities, threshold)
+    if isinstance(expected, str):
+        with pytest.raises(KnowledgeError) as err:
+            Consultant("d", entities, PROPS, threshold)
+        assert str(err.value) == expected
+        return
+    consultant = Consultant("d", entities, PROPS, threshold)
+    certainty, holders = expected
+    assert consultant.entities == list(entities)
+    assert consultant._certainty == certainty
+    for entity, facts in certainty.items():  # floats, not ints or bools
+        assert all(type(c) is float for c in facts.values()), entity
+    assert consultant._holders == holders
+    for prop in PROPS:
+        assert consultant.holders(prop) == {e for i, e in enumerate(entities) if holders[prop] >> i & 1}
+    assert consultant.members(consultant.open_set()) == list(entities)
+
+
+def test_consultant_build_keeps_its_own_copy_of_the_facts():
+    facts = {"e1": {"p0": 1.0, "p1": 0.0}, "e2": {"p1": 1.0}}
+    consultant = Consultant("d", facts, PROPS)
+    consultant.assert_facts("e1", {"p0": 0.0}, 0.0)
+    assert facts["e1"] == {"p0": 1.0, "p1": 0.0}  # the caller's mapping is not changed
+    assert consultant.holders("p0") == set() and consultant.holders("p1") == {"e2"}
+
+
+def test_names_follow_entities_appended_later():
+    consultant = Consultant("d", {"e1": {"p0": 1.0}}, PROPS)
+    assert consultant.members(consultant.open_set()) == ["e1"]
+    consultant.assert_facts("e2", {"p0": 1.0}, 0.0)
+    assert consultant.members(consultant.open_set()) == ["e1", "e2"]
+    assert consultant.holders("p0") == {"e1", "e2"}
+
+
+# ------------------------------------------------------------------ bitsets
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 70), st.integers(1, 9), st.data())
+def test_rows_from_pairs_equals_one_bitset_per_row(size, nrows, data):
+    pairs = data.draw(st.lists(st.tuples(st.integers(0, nrows - 1), st.integers(0, size - 1)), max_size=200))
+    rows = np.array([r for r, _ in pairs], dtype=np.intp)
+    columns = np.array([c for _, c in pairs], dtype=np.intp)
+    expected = [bitset.from_indices([c for r, c in pairs if r == k], size) for k in range(nrows)]
+    assert bitset.rows_from_pairs(rows, columns, nrows, size) == expected
+
+
+def test_rows_from_pairs_in_many_blocks(monkeypatch):
+    monkeypatch.setattr(bitset, "BLOCK_BYTES", 16)  # 16 flags per block: one row per block at size 10
+    rows = np.array([2, 0, 1, 2, 0], dtype=np.intp)
+    columns = np.array([9, 0, 3, 1, 5], dtype=np.intp)
+    assert bitset.rows_from_pairs(rows, columns, 3, 10) == [0b100001, 0b1000, 0b1000000010]
+
+
+# ------------------------------------------------ column queues, eagerly trimmed
+WM_ENTITIES = [f"e{i}" for i in range(8)]
+WM_PROPS = ["a", "b", "c", "d", "e"]
+WM_OPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("encode"), st.integers(0, 7), st.lists(st.sampled_from(WM_PROPS), min_size=1, max_size=3)),
+        st.tuples(st.just("decay_now"), st.integers(1, 4)),
+        st.tuples(st.just("decay_now"), st.integers(1, 4)),
+        st.tuples(st.just("lazy"), st.integers(1, 2)),
+        st.tuples(st.just("evict"), st.integers(0, 12)),
+        st.tuples(st.just("clear")),
+        st.tuples(st.just("limits"), st.sampled_from([None, 1, 2, 3])),
+        st.tuples(st.just("remove"), st.integers(0, 7), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("take")),
+    ),
+    max_size=40,
+)
+
+
+def _limits(capacity):
+    from fsreg_ros.core.memory import Limits
+
+    return Limits(retains=False) if capacity is None else Limits(capacity=capacity)
+
+
+@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
+@given(st.integers(1, 3), WM_OPS)
+def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
+    """Eager decay, a shared pool's eviction, clearing and new limits on column queues are the dict queues' own.
+
+    ``plain`` keeps dict queues; ``heard`` has column queues; both have an event sink except
+    while encoding members (as a consultant nobody listens to), so ``heard``'s pops are
+    reported from the columns; ``quiet`` and ``other`` have column queues and no sink, ``quiet`` decaying in
+    its column rows' own entity list (the fast path), ``other`` in an equal copy.  Events
+    (in order), queues, origins, sizes and the change record (in order) must be equal.
+    """
+    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory import WMBuffer
+
+    heard_events: list = []
+    plain_events: list = []
+    plain = WMBuffer("d", plain_events.append)
+    plain.column_min = 10**9
+    heard, quiet, other = WMBuffer("d", heard_events.append), WMBuffer("d"), WMBuffer("d")
+    buffers = (plain, heard, quiet, other)
+    for b in buffers[1:]:
+        b.column_min = 1
+    for b in buffers:
+        b.set_limits(_limits(capacity), 0.0)
+    ticks = seen = 0
+    trimmed = False
+    for t, op in enumerate(ops, start=1):
+        kind = op[0]
+        if kind == "members":
+            members = bitset.from_indices(sorted(op[1]), len(WM_ENTITIES))
+            heard.sink = plain.sink = None  # nobody listens to these encodings
+            for b in buffers:
+                b.encode_members(members, WM_ENTITIES, op[2], "reg-distractor", float(t), t)
+            heard.sink, plain.sink = heard_events.append, plain_events.append
+        elif kind == "encode":
+            for b in buffers:
+                b.encode(WM_ENTITIES[op[1]], op[2], "speaker", float(t), t)
+        elif kind in ("decay_now", "lazy"):
+            run = TickRun(0.0, 0.5, ticks + 1, op[1])
+            ticks += op[1]
+            for b in buffers:
+                if kind == "lazy":
+                    b.decay(run)
+                else:
+                    b.decay_now(run, list(WM_ENTITIES) if b is other else WM_ENTITIES)
+        elif kind == "evict":
+            for b in buffers:
+                b.evict_oldest(op[1], "shared-capacity", float(t))
+        elif kind == "clear":
+            for b in buffers:
+                b.clear("reset", float(t), t)
+        elif kind == "limits":
+            for b in buffers:
+                b.set_limits(_limits(op[1]), float(t))
+        elif kind == "remove":
+            for b in buffers:
+                b.remove(WM_ENTITIES[op[1]], op[2], "retract", float(t))
+        elif kind == "take":
+            changes = [b.take_changes() for b in buffers]
+            if trimmed:  # new limits trim queues in no specified order
+                assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
+            else:
+                assert all(c == changes[0] for c in changes), (op, changes)
+            trimmed = False
+        if kind == "limits":
+            assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
+            trimmed = True
+        else:
+            assert heard_events[seen:] == plain_events[seen:], op
+        seen = len(plain_events)
+        assert len(heard_events) == seen
+        state = [({e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}, len(b))
+                 for b in buffers]
+        assert all(s == state[0] for s in state), op
+    changes = [b.take_changes() for b in buffers]
+    assert all(set(c) == set(changes[0]) for c in changes)
