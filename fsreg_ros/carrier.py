@@ -328,7 +328,7 @@ Reject = Callable[[Any, str], None]
 
 def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] = None,
               callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None, limits: LimitsSource = None,
-              accept: Optional[Callable[[dict], bool]] = None):
+              accept: Optional[Callable[[dict], bool]] = None, event_callbacks=None):
     """Subscribe ``handler(data: dict)`` (sync or async) to a contract topic; return the subscription.
 
     Every message is validated once against the topic's schema (names and lists within
@@ -339,6 +339,8 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
     ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and id
     and passed to ``reject(id, error)``; any other exception is logged as an error and
     rejected as an internal error.  The node keeps serving either way.
+    ``event_callbacks``: rclpy's ``SubscriptionEventCallbacks`` (e.g. the liveliness of
+    the topic's writers).
     """
     logger = node.get_logger()
     validate = _checker(topic.schema, limits)
@@ -367,7 +369,7 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
             refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True)
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
-                                    callback_group=callback_group)
+                                    callback_group=callback_group, event_callbacks=event_callbacks)
 
 
 # ----------------------------------------------------------------- timers

@@ -40,11 +40,10 @@ from typing import Any, Mapping, Optional, Sequence
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
-from std_msgs.msg import String
 
 from . import contract
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, qos_profile, wait_until
-from .codec import MessageError, parse
+from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
+from .codec import MessageError
 from .core.consultant import KnowledgeError, Narrowed, Step, View
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
@@ -109,21 +108,16 @@ class RemotePort:
         self._appeared_at = 0.0  # monotonic time the newest writer of the alive topic appeared
         self._down_since = time.monotonic()  # when it was last seen to go (or the port started)
         topic = contract.alive_topic(domain)
-        self._alive_sub = node.create_subscription(
-            String, topic.name, self._on_alive, qos_profile(topic.subscriber_qos),
-            callback_group=callback_group or ReentrantCallbackGroup(),
-            event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
+        self._alive_sub = subscribe(node, topic, self._on_alive,
+                                    callback_group=callback_group or ReentrantCallbackGroup(),
+                                    event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
 
     # ------------------------------------------------------------ liveness
     def restarted(self, incarnation: int) -> None:
         """Note the consultant's announced incarnation (from ``consultant/announce`` or its alive topic)."""
         self.incarnation = incarnation
 
-    def _on_alive(self, msg: String) -> None:
-        try:
-            data = contract.check(contract.ConsultantAnnounce, parse(msg.data))
-        except MessageError:
-            return  # not ours to answer: a malformed announcement changes nothing
+    def _on_alive(self, data: dict) -> None:  # subscribe() checked it (a malformed one changes nothing)
         self.restarted(data["incarnation"])
         self.ready = data["ready"]
         self.alive = True
