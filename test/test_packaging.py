@@ -191,3 +191,18 @@ def test_readme_topic_pub_examples_fit_the_contract():
         contract.check(models[0], message)
         ids.append(message["id"])
     assert len(ids) == len(set(ids))
+
+
+def test_every_script_the_docs_run_is_executable():
+    """``scripts/x`` in the README or docs/ runs as written: the file exists, has a shebang and is executable
+    (``rosenv.sh``, which says it is sourced, excepted)."""
+    text = "\n".join(p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))])
+    named = sorted(set(re.findall(r"(?<![\w/.])scripts/([\w.-]+\.(?:py|sh))", text)))
+    assert "bench_store.py" in named and "table1.sh" in named
+    for name in named:
+        path = REPO / "scripts" / name
+        assert path.is_file(), name
+        if path.read_text().startswith("# Sourced"):
+            continue
+        assert path.read_text().startswith("#!"), name
+        assert os.access(path, os.X_OK), f"scripts/{name} is not executable"
