@@ -18,7 +18,8 @@ from fsreg_ros.carrier import publisher, serve
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options
 from fsreg_ros.graph import graph_nodes
-from fsreg_ros.nodes.dialogue_player import DialoguePlayer, EventLedger, PlayerError
+from fsreg_ros.nodes.dialogue_player import DialoguePlayer, PlayerError
+from fsreg_ros.nodes.event_ledger import EventLedger
 from fsreg_ros.testing.live import node_classes
 
 GRAPH = "test-1234abcd"
