@@ -116,9 +116,10 @@ def ready_line(report: dict) -> str:
     memory = "; ".join(f"{d}: " + ", ".join(f"{k} {v}" for k, v in m.items()) for d, m in report["memory"].items())
     clock = f"sim time on {report['clock']}" if report["clock"] else "wall-clock time"
     ctl = "fsreg-ctl" + (f" --namespace {ns}" if ns != "/" else "")
+    endpoints = ", ".join(list(report["topics"].values()) + list(report["services"].values()))
     return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
-            f"{memory}; {clock}; talk to it with: {ctl} say TEXT | describe ENTITY | status | watch; "
-            f"logs in {report['logs']}")
+            f"{memory}; {clock}; endpoints {endpoints}; "
+            f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch; logs in {report['logs']}")
 
 
 class Stop(Exception):

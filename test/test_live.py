@@ -99,6 +99,7 @@ def test_fsreg_up_and_fsreg_ctl_as_a_user_runs_them(table1_up):
     assert up.ready.startswith("fsreg-up: ready: graph fsreg-up-") and f"in namespace /{ns} on ROS domain" in up.ready
     assert f"faces: policy decay, decay_period 10.0; sim time on /{ns}/clock" in up.ready
     assert up.ready.count("\n") == 0
+    assert f"; endpoints /{ns}/dialogue/human, /{ns}/rr/result, " in up.ready and f"/{ns}/consultant/faces;" in up.ready
     names = sorted(p.cmdline()[1].rsplit("/", 1)[-1] for p in up.descendants)
     assert names == ["consultant", "parser", "reference_resolution", "reg", "wm_manager"]
 
