@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "bench_core.py"
 
 
@@ -44,6 +46,7 @@ GRAPH_SCRIPT = SCRIPT.parent / "bench_graph.py"
 SOAK_SCRIPT = SCRIPT.parent / "soak.py"
 
 
+@pytest.mark.slow  # starts node processes
 def test_bench_graph_runs_the_default_graph_and_checks_its_targets(tmp_path):
     out = tmp_path / "graph.json"
     proc = subprocess.run(
@@ -63,6 +66,7 @@ def test_bench_graph_runs_the_default_graph_and_checks_its_targets(tmp_path):
     assert "every default (persistence on" in proc.stdout
 
 
+@pytest.mark.slow  # starts node processes
 def test_soak_sends_open_loop_and_accounts_for_every_message():
     proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), "--turns", "10", "--requests", "10", "--rate", "10"],
                           capture_output=True, text=True, timeout=180)

@@ -44,6 +44,7 @@ def test_the_readme_integration_test_runs_as_it_stands(tmp_path):
     assert "2 passed" in proc.stdout
 
 
+@pytest.mark.slow  # a pytest process of its own
 def test_the_fixture_comes_from_the_installed_plugin():
     proc = subprocess.run([sys.executable, "-m", "pytest", "--fixtures", "-q", "-p", "no:cacheprovider",
                            str(REPO / "test" / "test_lint.py")], capture_output=True, text=True, timeout=120)

@@ -193,6 +193,7 @@ def _long_table1(table1_path: Path, out: Path, rounds: int = 25) -> Path:
     return out
 
 
+@pytest.mark.slow  # starts node processes
 def test_the_main_job_fails_loudly_when_its_event_stream_is_not_its_own(table1_path, tmp_path):
     """A run that hears another graph's events exits non-zero and prints no table (issue 20): its origins,
     alignment and timelines would be built from data that is not its own.  (The dialogue is long, so the
