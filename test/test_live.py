@@ -180,7 +180,9 @@ def test_ctrl_c_stops_every_node_and_a_second_graph_in_the_namespace_is_refused(
         refusal(second.stderr, ns, report["graph"])
         graph = subprocess.run([str(BIN / "fsreg-graph"), str(table1_path), "--namespace", ns], capture_output=True,
                                text=True, timeout=120)
-        assert graph.returncode == 1 and ("already has a graph" in graph.stderr or "two graphs in" in graph.stderr)
+        assert graph.returncode == 1  # refused at start, or (slow discovery) on meeting the first graph's answers
+        refused = ("already has a graph", "two graphs in", "another graph")
+        assert any(text in graph.stderr for text in refused), graph.stderr
         assert json.loads(ctl(ns, "status", "--json").stdout)["ready"] is True  # the first one is unharmed
     finally:
         code = up.stop(signal.SIGINT)
