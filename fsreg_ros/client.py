@@ -462,8 +462,7 @@ class GraphClient:
                             f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
             return self._states[domain]
         info = self.call(contract.consultant_service(domain), {"op": "info"}, timeout)
-        incarnation = int(str(info["version"]).split(":", 1)[0])
-        wanted = (incarnation, int(info["wm_version"]))
+        wanted = (contract.version_incarnation(info["version"]), info["wm_version"])
 
         def caught_up() -> bool:
             state = self._states.get(domain)

@@ -69,8 +69,8 @@ class Catalogue:
     known: set[str] = field(default_factory=set)
 
     @property
-    def incarnation(self) -> str:
-        return self.version.split(":", 1)[0]
+    def incarnation(self) -> int:
+        return contract.version_incarnation(self.version)
 
 
 class RemotePort:
@@ -220,7 +220,7 @@ class RemotePort:
             return cat
         start = len(cat.entities) if cat is not None else 0
         reply = await self._call({"op": "info", "entities_from": start})
-        if cat is None or reply["version"].split(":", 1)[0] != cat.incarnation:
+        if cat is None or contract.version_incarnation(reply["version"]) != cat.incarnation:
             if start:  # restarted: its entities may differ from the first one on
                 reply = await self._call({"op": "info"})
             cat = Catalogue(reply["version"], list(reply["preference"]), [], set())

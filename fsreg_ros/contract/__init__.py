@@ -76,6 +76,7 @@ from .consultant import (
     TickRun,
     Versioned,
     WMRequest,
+    version_incarnation,
 )
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, Request, RRResult, Semantics
 from .endpoints import (
@@ -131,6 +132,6 @@ __all__ = [
     "SyncReply", "SyncRequest", "TickRun", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
     "alive_topic", "attribution", "cache_key", "check", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
-    "normalise_namespace",
+    "normalise_namespace", "version_incarnation",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
 ]

@@ -137,6 +137,11 @@ class Versioned(Message):
     version: str
 
 
+def version_incarnation(version: str) -> int:
+    """Return the consultant incarnation a :class:`Versioned` reply's ``version`` names."""
+    return int(version.split(":", 1)[0])
+
+
 class InfoReply(Versioned):
     """Reply to ``info``.
 
