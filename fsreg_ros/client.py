@@ -118,6 +118,7 @@ class GraphClient:
         self._entities: dict[str, set[str]] = {}
         self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
         self._states: Optional[dict[str, dict]] = None  # domain -> latest wm/state (once :meth:`state` is used)
+        self._state_watcher: Optional[Callable[[dict], None]] = None  # :meth:`watch`'s, once it runs
         self._ids = itertools.count(1)
         self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
 
@@ -466,7 +467,7 @@ class GraphClient:
 
         def caught_up() -> bool:
             state = self._states.get(domain)
-            return state is not None and (state["incarnation"], state["wm_version"]) >= wanted
+            return state is not None and state_version(state) >= wanted
 
         self.spin_until(caught_up, wait, f"no {contract.WM_STATE.name} of domain {domain!r} as of "
                         f"incarnation {wanted[0]}, WM change {wanted[1]} in {self.where()}", "not-ready")
@@ -474,8 +475,17 @@ class GraphClient:
 
     def _on_state(self, data: dict) -> None:
         graph = data.get(contract.GRAPH_FIELD) or ""
-        if self.graph is None or graph == self.graph:
-            self._states[data["domain"]] = data
+        if self.graph is not None and graph != self.graph:
+            if self._state_watcher is not None:
+                self.foreign = self._foreign(graph)
+            return
+        self._states[data["domain"]] = data
+        if self._state_watcher is not None:
+            self._state_watcher(data)
+
+    def _foreign(self, graph: str) -> str:
+        return (f"a message from another graph ({describe_graph(graph)}, expected "
+                f"{describe_graph(self.graph)}) in {self.where()}")
 
     # ------------------------------------------------------------ parameters
     def _param_client(self, node_name: str, srv_type, suffix: str):
@@ -526,40 +536,43 @@ class GraphClient:
 
     # ---------------------------------------------------------------- watching
     def watch(self, on_state: Callable[[dict], None], on_event: Optional[Callable[[dict], None]] = None) -> list:
-        """Pass every ``wm/state`` and (with ``on_event``) ``wm/events`` message of this graph on; the subscriptions.
+        """Pass every ``wm/state`` and (with ``on_event``) ``wm/events`` message of this graph on.
 
         Each domain's current state comes first (:meth:`state` with ``current``), then
-        each newer one as it is published (an older latched copy is not passed on).
+        each newer one as it is published (an older latched copy is not passed on); the
+        states come through :meth:`state`'s subscription.  Returns the subscriptions made
+        (``wm/events``'s, if ``on_event`` is given).
 
         A message stamped by another graph raises ClientError ``foreign`` out of the spin.
         """
         shown: dict[str, tuple[int, int]] = {}
-        for domain in self.domains():
-            state = self.state(domain, current=True)
-            shown[domain] = (state["incarnation"], state["wm_version"])
-            on_state(state)
 
         def newer(state: dict) -> None:
-            version = (state["incarnation"], state["wm_version"])
+            version = state_version(state)
             if version > shown.get(state["domain"], (-1, -1)):
                 shown[state["domain"]] = version
                 on_state(state)
 
-        def checked(handler: Callable[[dict], None]) -> Callable[[dict], None]:
-            def take(data: dict) -> None:
-                graph = data.get(contract.GRAPH_FIELD) or ""
-                if self.graph is not None and graph != self.graph:
-                    self.foreign = (f"a message from another graph ({describe_graph(graph)}, expected "
-                                    f"{describe_graph(self.graph)}) in {self.where()}")
-                    return
-                handler(data)
-            return take
-
+        for domain in self.domains():
+            newer(self.state(domain, current=True))
         self.foreign = None
-        subs = [subscribe(self.node, contract.WM_STATE, checked(newer))]
-        if on_event is not None:
-            subs.append(subscribe(self.node, contract.WM_EVENTS, checked(on_event)))
-        return subs
+        self._state_watcher = newer  # wm/state keeps coming through state()'s subscription
+        if on_event is None:
+            return []
+
+        def checked_event(data: dict) -> None:
+            graph = data.get(contract.GRAPH_FIELD) or ""
+            if self.graph is not None and graph != self.graph:
+                self.foreign = self._foreign(graph)
+                return
+            on_event(data)
+
+        return [subscribe(self.node, contract.WM_EVENTS, checked_event)]
+
+
+def state_version(state: Mapping[str, Any]) -> tuple[int, int]:
+    """Return which state a ``wm/state`` message shows: ``(incarnation, wm_version)``, later compares greater."""
+    return state["incarnation"], state["wm_version"]
 
 
 def parameter_value(name: str, value: Any, kind: int) -> ParameterValue:
