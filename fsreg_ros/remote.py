@@ -178,14 +178,15 @@ class RemotePort:
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
-            if err.kind == "timeout" and deadline < self.timeout:
-                raise CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
+            if err.kind == "timeout" and deadline < self.timeout:  # asked briefly after a lapse: no answer
+                err = CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
                                    f"answer within {deadline:g} s); try again later", kind="unavailable",
-                                   service=self.client.name) from None
+                                   service=self.client.name)
+            # Alive again (a restart: a request to a server just matched can be lost): ask the new one once.
             if retry and err.kind == "unavailable" and payload["op"] in RETRIED_OPS and self.alive:
                 self._latest = ""  # the new incarnation's catalogue may differ
                 return await self._call(payload, retry=False)
-            raise
+            raise err from None
         finally:
             self._inflight.pop(future, None)
         try:
