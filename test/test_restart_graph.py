@@ -69,6 +69,7 @@ def replay(table1_path: Path, policy: str, tmp: Path, kill: bool) -> dict:
                    log_dir=tmp / "logs") as live:
         client = live.client
         client.set_clock(0.0)
+        served: set = set()  # the kinds of turn served since the restart
         for turn in scenario.dialogue:
             kind, message = turn_message(turn)
             if kill and turn.index == KILL_AFTER + 1:
@@ -76,7 +77,10 @@ def replay(table1_path: Path, policy: str, tmp: Path, kill: bool) -> dict:
             sync_to(client, turn.time)
             client.publish_clock(turn.time)
             reply = client.exchange(kind, message, 30.0)
-            if kill and turn.index == KILL_AFTER + 1:  # the retry of the failed turn: fail fast until served
+            # The failed turn, and the first turn of each other pipeline after the restart (RR and REG each
+            # discover the new consultant on their own): they fail fast, with a clear error, until served.
+            if kill and turn.index > KILL_AFTER and kind not in served:
+                served.add(kind)
                 deadline = time.monotonic() + 30.0
                 while "error" in reply:
                     assert any(words in reply["error"] for words in OUTAGE_ERRORS), reply
