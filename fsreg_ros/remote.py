@@ -1,7 +1,8 @@
 """A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
-call is one awaited JSON call to ``consultant/<domain>`` (ops and replies:
+call (a :meth:`~RemotePort.walk` included: the consultant runs it) is one awaited JSON
+call to ``consultant/<domain>`` (ops and replies:
 :mod:`fsreg_ros.contract.consultant`; the preference order and the entity list are
 cached while the consultant's LTM ``version`` stays the same).  Await port methods
 only from a callback outside ``callback_group`` (give the port a reentrant group of its own).
@@ -25,7 +26,19 @@ lives.  The call is sent with a deadline of ``lapsed_deadline`` seconds instead 
 query during an outage is answered within about 1.5 s, not after ``timeout``, and a
 consultant that lives but is slow gets the full ``timeout``.  An ``open`` or ``info`` that
 failed only because the consultant restarted under it (its new incarnation is up) is sent
-again once, with the catalogue refreshed: the first request after a restart succeeds.  Each port has a client id
+again once, with the catalogue refreshed.  Any answer is proof of life: after one, the port
+serves as usual even before its own subscription has seen the new liveliness.
+
+Restarts are known, not guessed.  The WM Manager, which every asking node discovered long
+before, reports each consultant's incarnation on ``wm_manager/ready``
+(:meth:`RemotePort.reported`).  When it names an incarnation newer than the one this port
+was last answered by, the consultant restarted: :meth:`RemotePort.needs_round_trip` turns
+true and the node waits, within its ``ready_timeout``, until the manager has configured the
+new incarnation and one call to it was answered (:meth:`RemotePort.wait_ready`; a first
+request to a server this process has only just discovered can be lost, so it is sent again).
+DDS discovers a restarted process in each node separately, seconds apart under load; this
+wait is what makes "the WM Manager reports the graph ready" mean "the next request
+succeeds" in RR and REG too.  An outage the manager reports no restart for still fails fast.  Each port has a client id
 (``open`` carries it: the consultant counts sessions per client) and keeps at most
 ``max_in_flight`` calls outstanding.
 """
@@ -44,7 +57,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from . import contract
 from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
 from .codec import MessageError
-from .core.consultant import KnowledgeError, Narrowed, Step, View
+from .core.consultant import KnowledgeError, Narrowed, Step, View, Walked, WalkStep
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5
@@ -107,6 +120,10 @@ class RemotePort:
         self.alive: Optional[bool] = None  # its liveliness (None: not heard of yet)
         self._appeared_at = 0.0  # monotonic time the newest writer of the alive topic appeared
         self._down_since = time.monotonic()  # when it was last seen to go (or the port started)
+        self._answered_at = 0.0  # monotonic time of the latest answer (proof of life)
+        self._answered_by: Optional[int] = None  # the incarnation that gave it
+        #: The consultant's incarnation and whether it is configured, as the WM Manager reports it (None: no report).
+        self.manager_report: Optional[tuple[int, bool]] = None
         topic = contract.alive_topic(domain)
         self._alive_sub = subscribe(node, topic, self._on_alive,
                                     callback_group=callback_group or ReentrantCallbackGroup(),
@@ -151,8 +168,24 @@ class RemotePort:
         timer = client.node.create_timer(LAPSE_GRACE, confirm, client.callback_group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
+    def reported(self, incarnation: Optional[int], configured: bool) -> None:
+        """Note what the WM Manager reports of this consultant (``wm_manager/ready``)."""
+        if incarnation is not None:
+            self.manager_report = (incarnation, configured)
+
+    def needs_round_trip(self) -> bool:
+        """Return True until a call was answered, and again when the manager reports a newer incarnation."""
+        if self._answered_by is None:
+            return True
+        return self.manager_report is not None and self.manager_report[0] > self._answered_by
+
+    def _answered(self, version: str) -> None:
+        self._answered_at = time.monotonic()
+        self._answered_by = contract.version_incarnation(version)
+
     def _available(self) -> bool:
-        return self.alive is not False and self.client.ready()
+        proven = self._answered_at > self._down_since  # answered since its liveliness was last seen to go
+        return (self.alive is not False or proven) and self.client.ready()
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
@@ -196,20 +229,41 @@ class RemotePort:
                                service=self.client.name) from None
         if "version" in reply:
             self._latest = reply["version"]
+            self._answered(reply["version"])
         return reply
 
     async def wait_ready(self, timeout: float) -> dict:
         """Make one real round trip (an ``info`` call) within ``timeout`` seconds; return the info reply.
 
-        Retries while the service is not discovered or the first call is lost; raises
-        :class:`CarrierError` (kind ``timeout``) when the deadline passes.
+        When the WM Manager reports an incarnation it has not configured yet, first wait
+        until it has; then ask until the reply comes from that incarnation (or a newer
+        one).  Retries while the service is not discovered or the first call is lost;
+        raises :class:`CarrierError` (kind ``timeout``) when the deadline passes.
         """
-        reply = await self.client.wait_ready({"op": "info"}, timeout)
-        try:
-            contract.check(contract.InfoReply, reply)
-        except MessageError as err:
-            raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol", service=self.client.name) from None
+        deadline = time.monotonic() + timeout
+        node, group = self.client.node, self.client.callback_group
+
+        def configured() -> bool:
+            return self.manager_report is None or self.manager_report[1]
+
+        if not await wait_until(node, configured, timeout, callback_group=group):
+            raise CarrierError(f"consultant '{self.domain}' restarted (incarnation {self.manager_report[0]}) and the "
+                               f"WM Manager did not configure it within {timeout:g} s", kind="timeout",
+                               service=self.client.name)
+        while True:
+            reply = await self.client.wait_ready({"op": "info"}, max(deadline - time.monotonic(), 1e-3))
+            try:
+                contract.check(contract.InfoReply, reply)
+            except MessageError as err:
+                raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol",
+                                   service=self.client.name) from None
+            wanted = self.manager_report[0] if self.manager_report is not None else 0
+            if contract.version_incarnation(reply["version"]) >= wanted:
+                break
+            await wait_until(node, lambda: False, min(0.1, max(deadline - time.monotonic(), 0.0)),
+                             callback_group=group)  # an older incarnation answered: ask again shortly
         self._latest = reply["version"]
+        self._answered(reply["version"])
         self._catalogue = Catalogue(reply["version"], list(reply["preference"]), list(reply["entities"]),
                                     set(reply["entities"]))
         return reply
@@ -268,6 +322,19 @@ class RemotePort:
         reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,
                                   "time": time, "turn": turn})
         return Narrowed(reply["target_holds"], reply["size"])
+
+    async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+                   turn: Optional[int], size: Optional[int] = None) -> Walked:
+        """Send the steps in one call; the consultant walks them, knowing ``size`` itself."""
+        payload = {"op": "walk", "session": view.handle, "cause": cause, "time": time, "turn": turn,
+                   "steps": [{"property": s.prop} if s.group is None else {"property": s.prop, "group": s.group}
+                             for s in steps]}
+        reply = await self._call(payload)
+        taken = reply["taken"]
+        if any(not 0 <= i < len(steps) for i in taken) or taken != sorted(set(taken)):
+            raise CarrierError("malformed reply to 'walk': 'taken' is not increasing step indices",
+                               kind="protocol", service=self.client.name)
+        return Walked(tuple(taken), reply["size"], reply["narrowed"])
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
         reply = await self._call({"op": "rule_out", "session": view.handle})

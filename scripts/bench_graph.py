@@ -92,6 +92,10 @@ class CountingPort(LocalPort):
         CountingPort.calls += 1
         return await super().narrow(view, prop, cause, time, turn)
 
+    async def walk(self, view, steps, cause, time, turn, size=None):
+        CountingPort.calls += 1  # one call: the consultant runs the walk, as the node does
+        return self.service.walk(view.handle, steps, cause, time, turn)
+
     async def rule_out(self, view):
         CountingPort.calls += 1
         return await super().rule_out(view)

@@ -44,7 +44,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.core.consultant import Consultant, Narrowed, View, run_sync  # noqa: E402
+from fsreg_ros.core.consultant import Consultant, Narrowed, View, Walked, run_sync  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.service import ConsultantService  # noqa: E402
@@ -89,6 +89,11 @@ class ApplyPort:
         reply = self._apply("narrow", {"session": view.handle, "property": prop, "cause": cause, "time": time,
                                        "turn": turn})
         return Narrowed(reply["target_holds"], reply["size"])
+
+    async def walk(self, view: View, steps, cause, time, turn, size=None) -> Walked:
+        reply = self._apply("walk", {"session": view.handle, "cause": cause, "time": time, "turn": turn,
+                                     "steps": [{"property": step.prop, "group": step.group} for step in steps]})
+        return Walked(tuple(reply["taken"]), reply["size"], reply["narrowed"])
 
     async def rule_out(self, view: View):
         reply = self._apply("rule_out", {"session": view.handle})

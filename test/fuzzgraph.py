@@ -149,6 +149,8 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         # 'cause' must be present but may be null (check without encoding): not "required" here.
         Template({"op": "narrow", "session": SESSION, "property": prop, "cause": "reg-distractor", "time": TIME},
                  ("op", "session", "property"), ("session", "property", "cause"), ("time",)),
+        Template({"op": "walk", "session": SESSION, "steps": [{"property": prop, "group": prop}],
+                  "cause": "reg-distractor", "time": TIME}, ("op", "session", "steps"), ("session",), ("time",)),
         Template({"op": "rule_out", "session": SESSION}, ("op", "session"), ("session",)),
         Template({"op": "close", "session": SESSION, "encode": [prop], "time": TIME}, ("op", "session"),
                  ("session", "encode"), ("time",)),

@@ -220,7 +220,8 @@ BAD_REQUESTS = [
     (Q, "[1, 2]", "MessageError", "JSON object"),
     (Q, {}, "MessageError", "missing field 'op'"),
     (Q, {"op": 3}, "MessageError", "field 'op'"),
-    (Q, {"op": "fly"}, "MessageError", "field 'op': expected one of info, open, narrow, rule_out, close, got 'fly'"),
+    (Q, {"op": "fly"}, "MessageError",
+     "field 'op': expected one of info, open, narrow, walk, rule_out, close, got 'fly'"),
     (D, {"op": "holds", "entities": ["face1"]}, "MessageError", "missing field 'property'"),
     (D, {"op": "holds", "property": "wings", "entities": ["face1"]}, "KnowledgeError", "no property 'wings'"),
     (D, {"op": "holds", "property": "male", "entities": ["face1", "face9"]}, "KnowledgeError", "no entity 'face9'"),
@@ -638,7 +639,7 @@ def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
     assert "/" + D not in names()
     err = graph.call_error(Q, {"op": "snapshot"})  # nor are its ops on the production service
     assert err.kind == "MessageError"
-    assert "field 'op': expected one of info, open, narrow, rule_out, close, got 'snapshot'" in err.error
+    assert "field 'op': expected one of info, open, narrow, walk, rule_out, close, got 'snapshot'" in err.error
 
 
 def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(graph: Graph):

@@ -11,7 +11,8 @@ import math
 import pytest
 
 from fsreg_ros.core import journal
-from fsreg_ros.core.consultant import Consultant, KnowledgeError, LocalPort, run_sync
+from fsreg_ros.core.consultant import (Consultant, KnowledgeError, LocalPort, Walked, WalkStep, run_sync,
+                                       walk_by_narrowing)
 from fsreg_ros.core.forgetting import PolicyError
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.service import CHECKPOINT_RECORDS, ConsultantService, NotReady, RequestError
@@ -146,6 +147,50 @@ def test_refused_requests_change_nothing():
         assert service.buffer.snapshot() == before, request
         assert service.buffer.take_changes() == []
     assert len(service.sessions) == 0  # the refused opens stored no session
+
+
+WALK = [{"property": "glasses"}, {"property": "dark-hair", "group": "hair"},
+        {"property": "light-hair", "group": "hair"}, {"property": "male"}, {"property": "lab-coat"}]
+
+
+def test_a_walk_is_one_call_doing_what_its_narrows_do(tmp_path):
+    # face3's distractors face1 and face2: 'glasses' does not hold for face3 (not taken), 'dark-hair' rules out
+    # face1 (taken: its group 'hair' is done, so 'light-hair' is skipped unasked), 'male' rules out face2 (taken),
+    # and with no distractor left 'lab-coat' is never asked.
+    walked, by_narrows = make(tmp_path), make()
+    for service in (walked, by_narrows):
+        configure(service)
+        encode(service, "face2", ["female"], 1.0)
+    session = walked.apply("open", {"op": "open", "target": "face3"}).reply["session"]
+    out = walked.apply("walk", {"op": "walk", "session": session, "steps": WALK, "cause": "reg-distractor",
+                                "time": 2.0, "turn": 4}, listening=True)
+    assert out.reply == {"taken": [1, 3], "size": 0, "narrowed": 3, "version": "1:0"}
+    assert [(e["entity"], e["property"], e["cause"], e["turn"]) for e in out.events] == [
+        ("face2", "dark-hair", "reg-distractor", 4)]
+    # The same walk as one narrow per step (how ports without a walk of their own run it): the same answer, WM, events.
+    port = LocalPort(by_narrows.consultant)
+    port.service = by_narrows
+    view = run_sync(port.open("face3"))
+    steps = [WalkStep(step["property"], step.get("group")) for step in WALK]
+    assert run_sync(walk_by_narrowing(port, view, steps, "reg-distractor", 2.0, 4)) == Walked((1, 3), 0, 3)
+    assert walked.buffer.snapshot() == by_narrows.buffer.snapshot() == {"face2": ["female", "dark-hair"]}
+    assert walked.apply("close", {"op": "close", "session": session}).reply["members"] == []
+    # One call, one commit: what it encoded survives a restart.
+    assert replayed(tmp_path, walked).buffer.snapshot() == {"face2": ["female", "dark-hair"]}
+
+
+def test_a_walk_naming_an_unknown_property_changes_nothing():
+    service = make()
+    configure(service)
+    session = service.apply("open", {"op": "open", "target": "face3"}).reply["session"]
+    before = service.buffer.snapshot()
+    service.buffer.take_changes()
+    with pytest.raises(KnowledgeError, match="knows no property 'wings' \\(step 2 of the walk\\)"):
+        service.apply("walk", {"op": "walk", "session": session, "cause": "reg-distractor", "time": 1.0,
+                               "steps": [{"property": "dark-hair"}, {"property": "male"}, {"property": "wings"}]})
+    assert service.buffer.snapshot() == before and service.buffer.take_changes() == []
+    # The session was not narrowed either: both distractors are still in it.
+    assert service.apply("close", {"op": "close", "session": session}).reply["members"] == ["face1", "face2"]
 
 
 def test_sessions_are_counted_per_client():

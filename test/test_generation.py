@@ -586,6 +586,11 @@ class RecordingPort(LocalPort):
         self.calls.append(("narrow", prop))
         return await super().narrow(view, prop, cause, time, turn)
 
+    async def walk(self, view, steps, cause, time, turn, size=None):
+        walked = self.service.walk(view.handle, steps, cause, time, turn)  # one call, as the consultant node runs it
+        self.calls.append(("walk", tuple(step.prop for step in steps), walked.narrowed))
+        return walked
+
     async def close(self, view, encode=(), time=0.0, turn=None):
         self.calls.append(("close", tuple(encode)))
         return await super().close(view, encode, time, turn)
@@ -599,12 +604,13 @@ def test_reg_and_rr_ask_once_per_considered_property_and_nothing_twice():
     port = RecordingPort(c)
     expression = run_sync(generate("t", port, "dist-pia", time=1.0))
     assert expression.description == ["red", "big"]
-    # 'blue' and 'small' do not hold for t: skipped without a call; 'cup' is never reached
-    assert port.calls == [("open", "t"), ("narrow", "red"), ("narrow", "big"), ("close", ("red", "big"))]
+    # 'blue' and 'small' do not hold for t: not even sent; one walk narrows by 'red' and 'big' ('cup' is never
+    # reached: no distractor is left), so the request costs three calls however many properties it considers
+    assert port.calls == [("open", "t"), ("walk", ("red", "big", "cup"), 2), ("close", ("red", "big"))]
     assert keys(events) == [("encode", "a", "red", "reg-distractor", 1.0, None),
                             ("encode", "t", "red", "speaker", 1.0, None), ("encode", "t", "big", "speaker", 1.0, None)]
     port.calls.clear()
     result = run_sync(resolve(["red", "big"], {"d": port}, time=2.0))
     assert result.status == RESOLVED and result.resolved == "t"
-    # RR: opening checks the first property; one call per further property; close (rule 1)
-    assert port.calls == [("open", None, "red"), ("narrow", "big"), ("close", ("red", "big"))]
+    # RR: opening checks the first property; one walk the others; close (rule 1)
+    assert port.calls == [("open", None, "red"), ("walk", ("big",), 1), ("close", ("red", "big"))]

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from fsreg_ros.core import bitset
 from fsreg_ros.core.decay import TickRun
-from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
+from fsreg_ros.core.consultant import Consultant, LocalPort, WalkStep, run_sync, walk_by_narrowing
 from fsreg_ros.core.forgetting import DISPLACEMENT, RULES, ForgettingPolicy
 from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate
@@ -518,3 +518,29 @@ def test_reg_is_deterministic(kb, algorithm):
         e = run_sync(generate(kb[2], port, algorithm, context=kb[3], time=3.0))
         runs.append((e.to_json(), [event_key(x) for x in events], c.wm.snapshot()))
     assert runs[0] == runs[1]
+
+
+@FAST
+@given(kb=knowledge_bases(), with_target=st.booleans(), data=st.data())
+def test_the_consultants_walk_equals_one_narrow_per_step(kb, with_target, data):
+    """The consultant's one-call walk (as the graph runs it) and one narrow per step agree exactly."""
+    entities, preference, target, context, prefill = kb
+    groups = data.draw(st.lists(st.sampled_from(["g0", "g1", None]), min_size=len(preference),
+                                max_size=len(preference)))
+    order = data.draw(st.permutations(list(zip(preference, groups))))
+    steps = [WalkStep(p, g) for p, g in order]
+    results, snapshots, events = [], [], []
+    for batched in (True, False):
+        c, port, seen = prefilled(kb)
+        view = run_sync(port.open(target if with_target else None, context if with_target else None))
+        if batched:
+            results.append(port.service.walk(view.handle, steps, "reg-distractor", 1.0, 3))
+        else:
+            results.append(run_sync(walk_by_narrowing(port, view, steps, "reg-distractor", 1.0, 3)))
+        snapshots.append(c.wm.snapshot())
+        events.append([event_key(e) for e in seen])
+    assert results[0] == results[1]
+    assert snapshots[0] == snapshots[1] and events[0] == events[1]
+    walked = results[0]
+    assert all(steps[i].group is None or [steps[j].group for j in walked.taken].count(steps[i].group) == 1
+               for i in walked.taken)  # never two steps of one group

@@ -75,6 +75,9 @@ from .consultant import (
     StoredState,
     TickRun,
     Versioned,
+    WalkReply,
+    WalkRequest,
+    WalkStepRequest,
     WMRequest,
     version_incarnation,
 )
@@ -132,6 +135,6 @@ __all__ = [
     "SyncReply", "SyncRequest", "TickRun", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
     "alive_topic", "attribution", "cache_key", "check", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
-    "normalise_namespace", "version_incarnation",
+    "normalise_namespace", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
 ]

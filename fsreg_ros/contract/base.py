@@ -63,6 +63,11 @@ Names = Annotated[list[Name], BeforeValidator(_list_within_limits)]
 NameNumbers = Annotated[dict[Name, Number], BeforeValidator(_list_within_limits)]
 
 
+def bounded_list(item: Any) -> Any:
+    """Return the type of a list of ``item`` bounded by ``max_list_items`` (checked before its items)."""
+    return Annotated[list[item], BeforeValidator(_list_within_limits)]
+
+
 class Message(BaseModel):
     """Base of every schema: strict types, no NaN/Infinity, extra fields allowed."""
 

@@ -2,8 +2,8 @@
 
 Three services per domain (``<domain>`` filled in):
 
-* ``consultant/<domain>`` -- RR's and REG's: ``info``, ``open``, ``narrow``, ``rule_out``,
-  ``close`` (:data:`CONSULTANT_OPS`);
+* ``consultant/<domain>`` -- RR's and REG's: ``info``, ``open``, ``narrow``, ``walk``,
+  ``rule_out``, ``close`` (:data:`CONSULTANT_OPS`);
 * ``consultant/<domain>/manage`` -- the WM Manager's: ``configure``, ``decay``,
   ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
 * ``consultant/<domain>/debug`` -- tests' and tools': ``holds``, ``affirm``, ``wm``,
@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field
 
-from .base import Message, Name, Names, Number, Stamp
+from .base import Message, Name, Names, Number, Stamp, bounded_list
 from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
 
@@ -105,6 +105,29 @@ class NarrowRequest(Stamp):
     op: Literal["narrow"]
     session: Name
     property: Name
+    cause: Optional[Cause]
+
+
+class WalkStepRequest(Message):
+    """One step of a walk: a property, and the group (attribute) it belongs to (null: none)."""
+
+    property: Name
+    group: Optional[Name] = None
+
+
+class WalkRequest(Stamp):
+    """Op ``walk``: narrow the session by ``steps`` in order, as the Incremental Algorithm walks.
+
+    A step is taken when it holds for the target (always, without one) and leaves fewer
+    members; a step whose ``group`` was taken already is skipped; nothing is asked once
+    no member is left (:class:`fsreg_ros.core.consultant.Walk`).  Each narrowing encodes as
+    ``narrow`` does (``cause``; null: no encoding).  One call for what would be one
+    ``narrow`` per step.  A step naming an unknown property refuses the call, changing nothing.
+    """
+
+    op: Literal["walk"]
+    session: Name
+    steps: bounded_list(WalkStepRequest)
     cause: Optional[Cause]
 
 
@@ -194,6 +217,14 @@ class OpenReply(Versioned):
 
 class NarrowReply(Narrowing, Versioned):
     """Reply to ``narrow``."""
+
+
+class WalkReply(Versioned):
+    """Reply to ``walk``: the indices of the steps taken (in order), the members left, the steps narrowed by."""
+
+    taken: list[int]
+    size: int
+    narrowed: int
 
 
 class RuleOutReply(Versioned):
@@ -347,6 +378,7 @@ CONSULTANT_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "info": (InfoRequest, InfoReply),
     "open": (OpenRequest, OpenReply),
     "narrow": (NarrowRequest, NarrowReply),
+    "walk": (WalkRequest, WalkReply),
     "rule_out": (RuleOutRequest, RuleOutReply),
     "close": (CloseRequest, CloseReply),
 }
@@ -364,9 +396,9 @@ MANAGE_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "size": (SizeRequest, SizeReply),
 }
 
-ConsultantRequest = Annotated[Union[InfoRequest, OpenRequest, NarrowRequest, RuleOutRequest, CloseRequest],
-                              Field(discriminator="op")]
-ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, RuleOutReply, CloseReply]
+ConsultantRequest = Annotated[Union[InfoRequest, OpenRequest, NarrowRequest, WalkRequest, RuleOutRequest,
+                                    CloseRequest], Field(discriminator="op")]
+ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, WalkReply, RuleOutReply, CloseReply]
 DebugRequest = Annotated[Union[HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest],
                          Field(discriminator="op")]
 DebugReply = Union[HoldsReply, QueueReply, EncodeReply, SnapshotReply]

@@ -62,11 +62,12 @@ REG_REQUEST = Topic("reg/request", RegRequest, PIPELINE_QOS, "dialogue manager",
 REG_EXPRESSION = Topic("reg/expression", Union[RegExpression, RegError], PIPELINE_QOS, "reg", "dialogue manager")
 WM_STATE = Topic("wm/state", WMState, STATE_PUB_QOS, "consultants", "anyone", reader_qos=STATE_QOS)
 WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialogue_player (trace)")
-ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants", "wm_manager",
+ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants",
+                 "wm_manager, reference_resolution, reg",
                  reader_qos=STATE_QOS)
 ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant", "reference_resolution, reg")
-READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "clients (fsreg-up, fsreg-ctl, "
-              "fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
+READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "reference_resolution, reg (restarts), "
+              "clients (fsreg-up, fsreg-ctl, fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
                           "asserter")

@@ -448,12 +448,90 @@ class Narrowed:
     size: int
 
 
+@dataclass(frozen=True)
+class WalkStep:
+    """One property a :class:`Walk` may narrow by; ``group`` (its attribute) is skipped once a step of it was taken."""
+
+    prop: str
+    group: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class Walked:
+    """What a walk did: the indices of the steps taken (in order), members left, and steps narrowed by."""
+
+    taken: tuple[int, ...]
+    size: int
+    narrowed: int
+
+
+class Walk:
+    """The incremental walk: narrow a view by candidate properties in order until no member is left.
+
+    The loop of the Incremental Algorithm as SD-PIA runs it over a consultant (its Phase 1
+    and Phase 2 are one walk over WM's properties, then LTM's in preference order) and as
+    reference resolution runs it over a heard description.  A step is *taken* when the
+    target holds (always, without one) and it left fewer members; a step whose ``group``
+    was taken already is skipped, asking nothing (a description never holds two values of
+    one attribute); nothing is asked once no member is left.  The walk only decides; its
+    driver narrows (:meth:`~fsreg_ros.core.service.ConsultantService.walk` in the
+    consultant, :func:`walk_by_narrowing` over any port), so both run the same rules.
+    """
+
+    def __init__(self, steps: Sequence[WalkStep], size: int) -> None:
+        self.steps = steps
+        self.size = size
+        self._next = 0
+        self._taken: list[int] = []
+        self._groups: set[str] = set()
+        self._narrowed = 0
+
+    def next(self) -> Optional[WalkStep]:
+        """Return the next step to narrow by, or None when the walk is over."""
+        while self.size and self._next < len(self.steps):
+            step = self.steps[self._next]
+            if step.group is None or step.group not in self._groups:
+                return step
+            self._next += 1
+        return None
+
+    def record(self, narrowed: Narrowed) -> None:
+        """Take in what narrowing by the step :meth:`next` returned did."""
+        step = self.steps[self._next]
+        if narrowed.target_holds and narrowed.size < self.size:
+            self._taken.append(self._next)
+            if step.group is not None:
+                self._groups.add(step.group)
+        self.size = narrowed.size
+        self._narrowed += 1
+        self._next += 1
+
+    def result(self) -> Walked:
+        return Walked(tuple(self._taken), self.size, self._narrowed)
+
+
+async def walk_by_narrowing(
+    port: "ConsultantPort", view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+    turn: Optional[int], size: Optional[int] = None,
+) -> Walked:
+    """Run a :class:`Walk` as one :meth:`ConsultantPort.narrow` per step (ports without a walk of their own).
+
+    ``size``: the view's members now (default: when it was opened).
+    """
+    walk = Walk(steps, view.size if size is None else size)
+    while (step := walk.next()) is not None:
+        walk.record(await port.narrow(view, step.prop, cause, time, turn))
+    return walk.result()
+
+
 class ConsultantPort(Protocol):
     """What reference resolution and REG may ask of a domain's consultant.
 
     A request opens a :class:`View` (the consultant keeps the candidate or
-    distractor set), narrows it once per considered property, and closes it; so
-    each considered property costs one call, and no entity list travels per call.
+    distractor set), narrows it by the properties it considers, and closes it; no
+    entity list travels per call.  :meth:`walk` narrows by several properties in one
+    call (the graph's consultant runs the :class:`Walk` itself), so a request costs
+    three calls however many properties it considers.
     """
 
     domain: str
@@ -475,6 +553,10 @@ class ConsultantPort(Protocol):
 
         With a target, only if ``prop`` holds for the target (see :meth:`Consultant.narrow`).
         """
+
+    async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+                   turn: Optional[int], size: Optional[int] = None) -> Walked:
+        """Run a :class:`Walk` over ``steps`` (each narrowing as :meth:`narrow` does); ``size``: members now."""
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
         """Return each property holding for the target and the members it rules out (by member rank)."""
@@ -514,6 +596,11 @@ class LocalPort:
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         return self.service.narrow(view.handle, prop, cause, time, turn)
+
+    async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+                   turn: Optional[int], size: Optional[int] = None) -> Walked:
+        # Through self.narrow, so a port that refines narrow (research/games.py) walks by its own.
+        return await walk_by_narrowing(self, view, steps, cause, time, turn, size)
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
         return self.service.rule_out(view.handle)

@@ -20,7 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Mapping, Optional, Sequence, Union
 
-from .consultant import Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, run_sync
+from .consultant import (Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, Walked, WalkStep,
+                         run_sync)
 from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
@@ -124,6 +125,10 @@ class ViewPort:
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         return await self.port.narrow(view, prop, cause if self.writes else None, time, turn)
+
+    async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+                   turn: Optional[int], size: Optional[int] = None) -> Walked:
+        return await self.port.walk(view, steps, cause if self.writes else None, time, turn, size)
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
         props, masks = await self.port.rule_out(view)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError, View
+from .consultant import ConsultantPort, KnowledgeError, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
@@ -117,11 +117,15 @@ async def sd_pia(
 ) -> Expression:
     """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  docs/semantics.md section 4.
 
-    The consultant keeps the distractor set (``view``, opened here unless given):
-    each considered property is one :meth:`~ConsultantPort.narrow`, which checks the
-    target and encodes the property for every remaining distractor it holds for
-    (rule 3).  Once a value of an attribute is selected, other values of it are
-    skipped (a description never holds two values of one attribute).
+    The consultant keeps the distractor set (``view``, opened here unless given).
+    Phase 1 (Q[target] in ``wm_order``) and Phase 2 (the preference order, minus what
+    Phase 1 considered) are one :class:`~fsreg_ros.core.consultant.Walk` over the
+    properties that hold for the target (the others are skipped, nothing asked): each
+    considered property narrows the distractors, encoding it for every remaining
+    distractor it holds for (rule 3), and is selected when it rules one out; once a
+    value of an attribute is selected, other values of it are skipped (a description
+    never holds two values of one attribute); the walk ends when no distractor is
+    left.  The port runs the walk in one call (:meth:`~ConsultantPort.walk`).
     """
     algorithm = "sd-pia" if use_wm else "dist-pia"
     if view is None:
@@ -129,37 +133,19 @@ async def sd_pia(
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
     entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
-    remaining = view.size
-    considered: set[str] = set()
-    selected_attributes: set[str] = set()
-
-    async def consider(prop: str, source: str) -> None:
-        nonlocal remaining
-        considered.add(prop)
-        if attribute_of(prop, attributes) in selected_attributes:
-            return
-        if view.holding is not None and prop not in view.holding:
-            return  # p does not hold for t (as read when the view opened): skipped, nothing asked
-        # Skipped unless p holds for t; else p is encoded for each remaining
-        # distractor it cannot rule out (rule 3), and those stay.
-        step = await port.narrow(view, prop, "reg-distractor", time, turn)
-        if step.target_holds and step.size < remaining:
+    phase1 = phase1_order(view.queue, wm_order, preference) if use_wm else []
+    walked_wm = set(phase1)
+    candidates = [(p, "wm") for p in phase1] + [(p, "ltm") for p in preference if p not in walked_wm]
+    if view.holding is not None:  # p does not hold for t (as read when the view opened): skipped, nothing asked
+        candidates = [(p, source) for p, source in candidates if p in view.holding]
+    steps = [WalkStep(p, attribute_of(p, attributes)) for p, _ in candidates]
+    if steps and view.size:
+        walked = await port.walk(view, steps, "reg-distractor", time, turn)
+        for i in walked.taken:
+            prop, source = candidates[i]
             expression.description.append(prop)
             expression.sources.append(source)
             expression.origins.append(entered.get(prop) if source == "wm" else None)
-            selected_attributes.add(attribute_of(prop, attributes))
-            remaining = step.size
-
-    if use_wm:
-        for prop in phase1_order(view.queue, wm_order, preference):  # Phase 1: WM
-            if not remaining:
-                break
-            await consider(prop, "wm")
-    for prop in preference:  # Phase 2: LTM, lazily
-        if not remaining:
-            break
-        if prop not in considered:
-            await consider(prop, "ltm")
     return await _finish(expression, view, port, time, turn)
 
 

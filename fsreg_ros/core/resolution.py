@@ -1,8 +1,9 @@
 """Reference resolution (RR): find the entity a heard description refers to.
 
 docs/semantics.md section 3.  The description's properties are checked in utterance order
-against every candidate still in play (the consultant keeps the candidate set: one
-call per property, see :class:`~fsreg_ros.core.consultant.ConsultantPort`).  Each time a property is affirmed for a
+against every candidate still in play (the consultant keeps the candidate set: opening it
+checks the first property, one :class:`~fsreg_ros.core.consultant.Walk` the others, see
+:class:`~fsreg_ros.core.consultant.ConsultantPort`).  Each time a property is affirmed for a
 candidate it is encoded into that candidate's WM (rule 2), even if the candidate
 is ruled out by a later property.  A description that resolves to exactly one
 entity is then encoded, whole and in utterance order, for its referent (rule 1).
@@ -13,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Collection, Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError, Step
+from .consultant import ConsultantPort, KnowledgeError, Step, WalkStep
 
 RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
 
@@ -97,13 +98,12 @@ async def resolve(
     domain = await choose_domain(description, ports, domain)
     port = ports[domain]
     try:
-        # The consultant keeps the candidate set; opening it checks the first property.
+        # The consultant keeps the candidate set; opening it checks the first property, one walk the rest.
         view = await port.open(first=Step(description[0], "rr", time, turn))  # rule 2
         remaining = view.first.size if view.first is not None else view.size
-        for prop in description[1:]:
-            if not remaining:
-                break
-            remaining = (await port.narrow(view, prop, "rr", time, turn)).size  # rule 2
+        if remaining and len(description) > 1:
+            steps = [WalkStep(prop) for prop in description[1:]]  # no target: every step narrows until none is left
+            remaining = (await port.walk(view, steps, "rr", time, turn, size=remaining)).size  # rule 2
         # Rule 1 for a resolved description, in utterance order.
         candidates = await port.close(view, description if remaining == 1 else (), time, turn)
     except KnowledgeError as err:  # raced with an LTM change; report, never guess

@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from . import journal
-from .consultant import CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, close_view, open_view
+from .consultant import (CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, Walk, Walked, WalkStep,
+                         close_view, open_view)
 from .decay import TickError, TickRun, check_time
 from .forgetting import NONE, ForgettingPolicy, PolicyError
 from .memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMEvent
@@ -54,13 +55,13 @@ from .store import Batch, Checkpoint, DomainStore, StoreError, StoredState, dama
 from .wm_manager import apply_ticks, configure_buffer, unapplied
 
 #: Query ops (RR and REG), debug ops (tests and tools, served only on request) and the WM Manager's.
-QUERY_OPS = ("info", "open", "narrow", "rule_out", "close")
+QUERY_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
 DEBUG_OPS = ("holds", "affirm", "wm", "encode", "snapshot")
 MANAGE_OPS = ("configure", "decay", "evict", "size")
 #: Ops whose change set is listed exactly (their replies say how many queues changed).
 COUNTED_OPS = ("configure", "decay", "evict")
 #: Ops whose replies carry the LTM ``version``.
-VERSIONED_OPS = ("info", "open", "narrow", "rule_out", "close")
+VERSIONED_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
 #: Journal length (records, names) at which :meth:`ConsultantService.maintain` writes a checkpoint ...
 CHECKPOINT_RECORDS, CHECKPOINT_NAMES = 256, 200_000
 #: ... and at which a call writes one itself.
@@ -195,9 +196,9 @@ class ConsultantService:
         self._clear_stored = False  # the next checkpoint deletes every stored queue first
         self._runtime: list[str] = []  # runtime-added entities, in order (restored)
         self._handlers: dict[str, Callable[[dict, str], dict]] = {
-            "info": self._info, "open": self._open, "narrow": self._narrow, "rule_out": self._rule_out,
-            "close": self._close, "holds": self._holds, "affirm": self._affirm, "wm": self._wm,
-            "encode": self._encode, "snapshot": self._snapshot, "configure": self._configure,
+            "info": self._info, "open": self._open, "narrow": self._narrow, "walk": self._walk,
+            "rule_out": self._rule_out, "close": self._close, "holds": self._holds, "affirm": self._affirm,
+            "wm": self._wm, "encode": self._encode, "snapshot": self._snapshot, "configure": self._configure,
             "decay": self._decay, "evict": self._evict, "size": self._size,
         }
 
@@ -278,6 +279,20 @@ class ConsultantService:
         if holds:
             self._narrowed(candidates, prop, cause, time, turn)
         return Narrowed(holds, candidates.size)
+
+    def walk(self, candidates: CandidateSet, steps: Sequence[WalkStep], cause: Optional[str], time: float,
+             turn: Optional[int]) -> Walked:
+        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.consultant.Walk` decides, in this one call.
+
+        Every step's property is checked first: an unknown one changes nothing (KnowledgeError).
+        """
+        for i, step in enumerate(steps):
+            if not self.consultant.knows_property(step.prop):
+                raise KnowledgeError(f"domain '{self.domain}' knows no property '{step.prop}' (step {i} of the walk)")
+        walk = Walk(steps, candidates.size)
+        while (step := walk.next()) is not None:
+            walk.record(self.narrow(candidates, step.prop, cause, time, turn))
+        return walk.result()
 
     def close(self, candidates: CandidateSet, encode: Sequence[str] = (), time: float = 0.0,
               turn: Optional[int] = None) -> list[str]:
@@ -712,6 +727,15 @@ class ConsultantService:
         step = self.narrow(candidates, req["property"], cause, when, req.get("turn"))
         self._touch(when, wm=False)
         return {"target_holds": step.target_holds, "size": step.size}
+
+    def _walk(self, req: dict, client: str) -> dict:
+        cause = _cause(req.get("cause"), optional=True)
+        when = self._time(req.get("time"))
+        candidates = self.sessions.get(req["session"], self.steady())
+        steps = [WalkStep(step["property"], step.get("group")) for step in req["steps"]]
+        walked = self.walk(candidates, steps, cause, when, req.get("turn"))
+        self._touch(when, wm=False)
+        return {"taken": list(walked.taken), "size": walked.size, "narrowed": walked.narrowed}
 
     def _rule_out(self, req: dict, client: str) -> dict:
         props, masks = self.rule_out(self.sessions.get(req["session"], self.steady()))

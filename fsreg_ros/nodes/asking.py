@@ -113,7 +113,7 @@ class AskingNode(Node):
         self.ports = {d: RemotePort(self, d, self.client_group, timeout) for d in domains}
         self.answers = AnswerCache(self.limits.answer_cache_entries, self.limits.answer_cache_bytes)
         subscribe(self, contract.ANNOUNCE, self._on_announce, callback_group=self.client_group)
-        self._ready = False
+        subscribe(self, contract.READY, self._on_manager_ready, callback_group=self.client_group)
         self._clock_watch = watch_clock(self)
 
     def _on_announce(self, announce: dict) -> None:
@@ -122,13 +122,23 @@ class AskingNode(Node):
         if port is not None:
             port.restarted(announce["incarnation"])
 
+    def _on_manager_ready(self, ready: dict) -> None:
+        """Tell each port the incarnation the WM Manager reports (and whether it configured it)."""
+        for domain, state in ready["domains"].items():
+            port = self.ports.get(domain)
+            if port is not None:
+                port.reported(state.get("incarnation"), bool(state.get("configured")))
+
     async def ensure_ready(self) -> None:
-        """Wait (with a deadline) until every consultant has answered a round trip; once."""
-        if self._ready:
-            return
+        """Wait (with the ``ready_timeout`` deadline) for a round trip with each consultant that needs one.
+
+        At start, and after the WM Manager reported a consultant's restart (see
+        :mod:`fsreg_ros.remote`): then the next request waits for the new incarnation
+        instead of failing while this process has not discovered it yet.
+        """
         for port in self.ports.values():
-            await port.wait_ready(self.ready_timeout)
-        self._ready = True
+            if port.needs_round_trip():
+                await port.wait_ready(self.ready_timeout)
 
     def request_time(self, data: dict) -> float:
         """Return the request's ``time`` (the robot-clock time of the utterance), else now."""

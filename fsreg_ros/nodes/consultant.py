@@ -44,7 +44,7 @@ from .asking import declare_limits
 from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 #: Ops whose WM changes are published with the session's ``close``.
-SESSION_STEPS = ("open", "narrow", "rule_out")
+SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 #: Longest a due /wm/state waits for open sessions to close, seconds.
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
