@@ -5,9 +5,10 @@ Starts a consultant, the WM Manager and REG as their own processes (as ``fsreg-g
 does, persistence on, policy displacement so WM stays bounded), then sends ``--requests`` REG requests
 with distinct ids from this process, one at a time, waiting for each answer, and reads
 every node's RSS (``/proc/<pid>/status`` VmRSS) every ``--every`` requests.  It prints the RSS
-at each sample and, per node, the slope after REG's cache is full (default 1,024 entries), in bytes
-per request.  Before the fix, REG grew ~1.9 kB per request after the cache filled: every
-service call created a deadline timer, and rclpy's callback group kept a weak reference
+at each sample and, per node, the slope after REG's cache is full (default 1,024 entries), in
+bytes per request: fitted by least squares over the samples, with its 95 % interval. Before the
+fix, REG grew ~1.9 kB per request after the cache filled: every service call created a deadline
+timer, and rclpy's callback group kept a weak reference
 to each timer forever (see ``fsreg_ros.carrier.drop_timer``).
 
     scripts/bench_rss.py [SCENARIO.yaml] [--requests 6000] [--every 500]
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -36,6 +38,7 @@ from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
 
 os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
+import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -56,6 +59,23 @@ def rss_kb(pid: int) -> int:
         if line.startswith("VmRSS:"):
             return int(line.split()[1])
     raise RuntimeError(f"no VmRSS for pid {pid}")
+
+
+def fit_slope(points: list[tuple[int, float]]) -> tuple[float, tuple[float, float]]:
+    """Return the least-squares slope of (requests, bytes) and its 95 % interval (nan without 3 points).
+
+    RSS moves in pages and the allocator's arenas, so two samples' difference says little;
+    the fitted slope over many samples, with its interval, says whether memory grows.
+    """
+    if len(points) < 3:
+        return float("nan"), (float("nan"), float("nan"))
+    x = np.array([n for n, _ in points], dtype=float)
+    y = np.array([b for _, b in points], dtype=float)
+    slope, intercept = np.polyfit(x, y, 1)
+    residuals = y - (slope * x + intercept)
+    se = math.sqrt(float(residuals @ residuals) / (len(x) - 2) / float(((x - x.mean()) ** 2).sum()))
+    margin = 1.96 * se
+    return float(slope), (float(slope - margin), float(slope + margin))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -101,7 +121,11 @@ def main(argv: list[str] | None = None) -> int:
                     executor.spin_once(timeout_sec=0.01)
                 return answers.pop(rid)
 
-            ask("warm-up", targets[0], timeout=60.0)
+            deadline = time.monotonic() + 60.0  # ready: the WM Manager configured the consultant
+            while "error" in ask(f"warm-up-{time.monotonic()}", targets[0], timeout=60.0):
+                if time.monotonic() > deadline:
+                    raise RuntimeError("the graph did not serve within 60 s")
+                time.sleep(0.2)
             samples = [(0, {name: rss_kb(pid) for name, pid in pids.items()})]
             started = time.monotonic()
             for i in range(1, args.requests + 1):
@@ -118,16 +142,18 @@ def main(argv: list[str] | None = None) -> int:
             node.destroy_node()
             rclpy.try_shutdown()
     full = [(n, kb) for n, kb in samples if n >= 1024 + args.every]
-    slopes = {}
-    print(f"{args.requests} requests in {seconds:.1f} s; slope after REG's cache filled "
-          f"({full[0][0] if full else '-'}..{args.requests}), per node:")
+    slopes, intervals = {}, {}
+    print(f"{args.requests} requests in {seconds:.1f} s; RSS slope after REG's cache filled "
+          f"({full[0][0] if full else '-'}..{args.requests}), least squares over {len(full)} samples with "
+          "its 95 % interval, per node:")
     for name in sorted(pids):
         first, last = samples[0][1][name], samples[-1][1][name]
-        slopes[name] = ((full[-1][1][name] - full[0][1][name]) * 1024 / (full[-1][0] - full[0][0])
-                        if len(full) >= 2 else float("nan"))
-        print(f"  {name:22} RSS {first / 1024:7.1f} -> {last / 1024:7.1f} MB  {slopes[name]:+.0f} bytes/request")
+        slopes[name], intervals[name] = fit_slope([(n, kb[name] * 1024) for n, kb in full])
+        print(f"  {name:22} RSS {first / 1024:7.1f} -> {last / 1024:7.1f} MB  "
+              f"{slopes[name]:+.1f} bytes/request [{intervals[name][0]:+.1f}, {intervals[name][1]:+.1f}]")
     if args.json:
-        args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slopes, "seconds": seconds}))
+        args.json.write_text(json.dumps({"samples": samples, "slope_bytes_per_request": slopes,
+                                         "interval_95": intervals, "seconds": seconds}))
     return 0
 
 
