@@ -63,8 +63,9 @@ def test_a_graph_of_processes_keeps_its_facts_across_a_consultant_restart(table1
         status = robot.status()
         assert status["incarnation"] == {"faces": 2} and status["ready"] is True
         assert robot.wm("face17") == ["female", "light-hair"]  # WM persisted
-        described = robot.describe("face17")  # the runtime facts too, and WM first (SD-PIA)
+        described = robot.describe("face17")  # the runtime facts too, and WM first (SD-PIA); first send succeeds
         assert described["description"] == ["female", "light-hair"] and described["sources"] == ["wm", "wm"]
+        assert robot.say(description=["female", "light-hair"])["resolved"] == "face17"  # RR's first, too
 
 
 def test_a_graph_on_a_ros_domain_of_its_own(table1_path):
