@@ -124,6 +124,7 @@ class RemotePort:
         self._answered_by: Optional[int] = None  # the incarnation that gave it
         #: The consultant's incarnation and whether it is configured, as the WM Manager reports it (None: no report).
         self.manager_report: Optional[tuple[int, bool]] = None
+        self._waited_for: Optional[int] = None  # a reported incarnation waited for in vain (not waited for again)
         topic = contract.alive_topic(domain)
         self._alive_sub = subscribe(node, topic, self._on_alive,
                                     callback_group=callback_group or ReentrantCallbackGroup(),
@@ -177,7 +178,8 @@ class RemotePort:
         """Return True until a call was answered, and again when the manager reports a newer incarnation."""
         if self._answered_by is None:
             return True
-        return self.manager_report is not None and self.manager_report[0] > self._answered_by
+        report = self.manager_report
+        return report is not None and report[0] > self._answered_by and report[0] != self._waited_for
 
     def _answered(self, version: str) -> None:
         self._answered_at = time.monotonic()
@@ -238,8 +240,18 @@ class RemotePort:
         When the WM Manager reports an incarnation it has not configured yet, first wait
         until it has; then ask until the reply comes from that incarnation (or a newer
         one).  Retries while the service is not discovered or the first call is lost;
-        raises :class:`CarrierError` (kind ``timeout``) when the deadline passes.
+        raises :class:`CarrierError` (kind ``timeout``) when the deadline passes.  A
+        restart waited for in vain is not waited for again: the requests after it
+        fail fast (e.g. ``not-ready``) instead of each waiting ``timeout``.
         """
+        try:
+            return await self._wait_ready(timeout)
+        except CarrierError:
+            if self._answered_by is not None and self.manager_report is not None:
+                self._waited_for = self.manager_report[0]  # once: later requests fail fast as in an outage
+            raise
+
+    async def _wait_ready(self, timeout: float) -> dict:
         deadline = time.monotonic() + timeout
         node, group = self.client.node, self.client.callback_group
 

@@ -372,3 +372,31 @@ def test_an_outage_is_answered_by_liveliness_not_after_the_timeout(graph: Graph,
     finally:
         proc.kill()
         proc.wait()
+
+
+def test_a_restart_the_manager_reports_is_waited_for_once(graph: Graph, tmp_path):
+    """RR's and REG's port learns a restart from the WM Manager's report (``wm_manager/ready``), waits for that
+    incarnation to be configured and to answer, and waits in vain at most once per incarnation."""
+    port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())
+    node = start(graph, tmp_path)
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
+    assert port.needs_round_trip()  # nothing answered yet
+    graph.run(port.wait_ready(5.0))
+    port.reported(1, True)
+    assert not port.needs_round_trip()  # the manager reports the incarnation that answered
+    graph.remove(node)
+    node = start(graph, tmp_path)  # incarnation 2 ...
+    port.reported(2, False)  # ... which the manager has seen but not configured yet
+    assert port.needs_round_trip()
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 1.0})
+    port.reported(2, True)
+    assert graph.run(port.wait_ready(5.0))["version"].startswith("2:")  # answered by the new incarnation
+    assert not port.needs_round_trip()
+    expression = graph.run(generate("face2", port, "sd-pia", time=1.0, turn=0))
+    assert expression.description == ["dark-hair", "female"]
+    # A restart the manager reports but never configures is waited for once, then no more.
+    port.reported(3, False)
+    assert port.needs_round_trip()
+    with pytest.raises(CarrierError, match="restarted \\(incarnation 3\\) and the WM Manager did not configure it"):
+        graph.run(port.wait_ready(0.3))
+    assert not port.needs_round_trip()
