@@ -76,9 +76,10 @@ def replay(table1_path: Path, policy: str, tmp: Path, kill: bool) -> dict:
                 answers["outage"] = outage(live, kind, message)
             sync_to(client, turn.time)
             client.publish_clock(turn.time)
-            # Once the WM Manager says the restarted consultant is configured (sync answered), the next
-            # request succeeds: the failed turn's retry and the first turn of each pipeline included, although
-            # RR and REG each discover the new consultant on their own (they wait for it, see remote.py).
+            # Once the WM Manager reports the restarted consultant configured (outage() waits for that on
+            # wm_manager/ready; sync alone does not show it), the next request succeeds: the failed turn's retry
+            # and the first turn of each pipeline included, although RR and REG each discover the new consultant
+            # on their own (they wait for it, see remote.py).
             reply = client.exchange(kind, message, 30.0)
             assert "error" not in reply, (turn.index, reply.get("error"), reply.get("kind"))
             answers[message["id"]] = answer(reply)
