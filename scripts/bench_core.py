@@ -304,7 +304,7 @@ def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dic
             events.clear()
         states[label] = buffer.snapshot()
         results[label] = {"median_ms": statistics.median(times) * 1e3, "max_ms": max(times) * 1e3,
-                          "held": len(buffer), "in_columns": len(buffer._in_columns)}
+                          "held": len(buffer), "in_columns": len(buffer.columns.entities)}
         del buffer
         gc.collect()
     naive = NaiveWM(policy.rules, policy.value("capacity"), record=False)

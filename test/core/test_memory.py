@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core import memory
+from fsreg_ros.core.memory import changes
 from fsreg_ros.core.decay import TickRun
 from fsreg_ros.core.memory import (
     ENCODE_CAUSES, FORGET_CAUSES, UNKNOWN_ORIGIN, UNLIMITED, QueueItem, WMBuffer, WMEvent,
@@ -434,7 +434,7 @@ def test_origin_log_stays_bounded_over_many_turns():
     buffer.set_limits(lru(capacity=2), 0.0)
     for turn in range(20_000):
         buffer.encode_each([f"e{turn % 50}"], f"p{turn % 3}", ENCODE_CAUSES[turn % 3], float(turn), turn)
-    assert len(buffer._origin_starts) <= 2_048  # one run per call would be 20,000
+    assert len(buffer.origin_log.starts) <= 2_048  # one run per call would be 20,000
     expected = []  # e49's queue by hand: (property, origin), capacity 2
     for turn in range(20_000):
         if turn % 50 == 49:
@@ -473,13 +473,13 @@ def test_encode_members_with_column_queues_is_encode_each_in_entity_order():
     for prop, members, turn in [("a", 0b1011, 1), ("b", 0b0011, 2), ("a", 0b0110, 3), ("c", 0b1111, 4)]:
         columns.encode_members(members, NAMES, prop, "rr", 1.0, turn)
         plain.encode_each([e for i, e in enumerate(NAMES) if members >> i & 1], prop, "rr", 1.0, turn)
-    assert columns._in_columns == set(NAMES)  # the queues live in the columns
+    assert columns.columns.entities == set(NAMES)  # the queues live in the columns
     assert [columns.export_queue(e) for e in NAMES] == [plain.export_queue(e) for e in NAMES]
     assert columns.snapshot() == plain.snapshot() and len(columns) == len(plain) == 8
     assert columns.counters() == plain.counters()
     assert columns.take_changes() == plain.take_changes() == NAMES[:2] + ["e3", "e2"]
     assert columns.origins("e1") == [("rr", 1), ("rr", 4)]  # a refreshed in turn 3 kept turn 1
-    assert columns._in_columns == set(NAMES)  # reads leave them there
+    assert columns.columns.entities == set(NAMES)  # reads leave them there
 
 
 def test_column_queue_owing_decay_reports_its_pops_once_a_sink_listens():
@@ -503,11 +503,11 @@ def test_column_queues_come_back_as_dicts_when_another_path_needs_them():
     buffer.encode_members(0b0101, NAMES, "b", "reg-distractor", 2.0, 2)
     buffer.sink = events.append
     buffer.encode("e0", ["c", "a"], "speaker", 3.0, 3)  # rule 1, with events: a dict queue again
-    assert "e0" not in buffer._in_columns
+    assert "e0" not in buffer.columns.entities
     assert buffer.export_queue("e0") == [("b", 4, 1, "reg-distractor", 2), ("c", 6, 1, "speaker", 3),
                                          ("a", 7, 1, "rr", 1)]
     buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=1).limits(), 4.0)  # all become dicts
-    assert buffer._in_columns == set() and buffer.snapshot() == {"e0": ["a"], "e1": ["a"], "e2": ["b"]}
+    assert buffer.columns.entities == set() and buffer.snapshot() == {"e0": ["a"], "e1": ["a"], "e2": ["b"]}
     assert [k[2] for k in keys(events) if k[3] == "displacement"] == ["b", "c", "a"]
 
 
@@ -515,7 +515,7 @@ def test_column_queues_restore_and_round_trip():
     buffer = column_buffer()
     buffer.restore({"e1": [("x", 3, 1, "speaker", 0), ("y", 4, 1)]}, 4, 0, buffer.limits)
     buffer.encode_members(0b0011, NAMES, "x", "rr", 1.0, 1)  # e1's x: a refresh, origin kept
-    assert buffer._in_columns == {"e0", "e1"}
+    assert buffer.columns.entities == {"e0", "e1"}
     assert buffer.export_queue("e1") == [("y", 4, 1, "unknown", None), ("x", 6, 1, "speaker", 0)]
     assert buffer.export_queue("e0") == [("x", 5, 1, "rr", 1)]
     copy = column_buffer()
@@ -527,12 +527,12 @@ def test_columns_only_for_large_domains_and_the_bound_entity_list():
     buffer = WMBuffer("d")
     buffer.set_limits(ForgettingPolicy.parse("displacement", capacity=2).limits(), 0.0)
     buffer.encode_members(0b11, NAMES, "a", "rr", 0.0)
-    assert buffer._in_columns == set()  # four entities: queue by queue
+    assert buffer.columns.entities == set()  # four entities: queue by queue
     buffer.column_min = 1
     buffer.encode_members(0b11, NAMES, "b", "rr", 0.0)
-    assert buffer._in_columns == {"e0", "e1"}
+    assert buffer.columns.entities == {"e0", "e1"}
     buffer.encode_members(0b100, list(NAMES), "c", "rr", 0.0)  # another list: queue by queue
-    assert buffer._in_columns == {"e0", "e1"} and buffer.queue("e2") == ("c",)
+    assert buffer.columns.entities == {"e0", "e1"} and buffer.queue("e2") == ("c",)
     NAMES_GROWN = NAMES + ["e4"]
     grown = WMBuffer("d")
     grown.column_min = 1
@@ -551,17 +551,17 @@ def test_restored_queue_longer_than_the_columns_goes_queue_by_queue():
         b.restore(stored, 3, 0, b.limits)
     buffer.encode_members(0b0011, NAMES, "a", "rr", 1.0, 1)
     plain.encode_each(["e0", "e1"], "a", "rr", 1.0, 1)
-    assert buffer._in_columns == set()  # nothing moved: e0 does not fit in two slots
+    assert buffer.columns.entities == set()  # nothing moved: e0 does not fit in two slots
     assert [buffer.export_queue(e) for e in NAMES] == [plain.export_queue(e) for e in NAMES]
 
 
 def test_change_record_keeps_its_order_when_compacted(monkeypatch):
-    monkeypatch.setattr(memory, "_CHANGE_MARKS_MAX", 2)
+    monkeypatch.setattr(changes, "CHANGE_MARKS_MAX", 2)
     buffer = column_buffer(capacity=3)
     for members, prop in [(0b1000, "a"), (0b0001, "b"), (0b0110, "c"), (0b1001, "d"), (0b0100, "e")]:
         buffer.encode_members(members, NAMES, prop, "rr", 1.0, 1)
     buffer.encode("e1", ["f"], "speaker", 2.0, 2)  # by name, between column operations
     buffer.encode_members(0b0010, NAMES, "g", "rr", 3.0, 3)
-    assert buffer._marks <= 2
+    assert buffer.changes.marks <= 2
     assert buffer.take_changes() == ["e3", "e0", "e1", "e2"]
     assert buffer.take_changes() == []

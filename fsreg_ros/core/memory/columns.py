@@ -1,4 +1,4 @@
-"""WM queues as numpy columns: rule 2 and 3 encodings into thousands of queues at once.
+"""Column queues: WM queues as numpy columns, and the bridge that moves queues in and out.
 
 Reference resolution and REG encode one affirmed property for every candidate or
 distractor it holds for (docs/semantics.md section 2, rules 2 and 3): thousands of
@@ -7,8 +7,8 @@ touches a few scattered objects, and at 10,000 entities the cache misses make ev
 encoding about three times dearer than at 1,000 (measured with a bare dict loop).
 :class:`QueueColumns` keeps such queues as arrays instead, so one call of
 :meth:`QueueColumns.encode` is Encode(e, [p]) (Algorithm 1) with displacement
-(Algorithm 3, LRU) for every row at once, and :meth:`QueueColumns.pop_owed` applies
-owed decay ticks (Algorithm 2) to many rows at once.
+(Algorithm 3, LRU) for every row at once; owed decay ticks (Algorithm 2) are popped
+from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`.
 
 Row r holds the queue of the r-th entity of the buffer's entity list in ``width``
 slots (the displacement capacity).  A slot holds a property id (-1: empty), the
@@ -16,14 +16,41 @@ entry's stamp and its origin reference: the stamp of the encoding that made the
 property enter the queue, or ``-(i + 1)`` for the buffer's i-th explicit origin (one
 restored from a store).  Slots are unordered: stamps are unique and grow, so a
 queue's order, LRU first, is its stamps' order, and an encoding writes one slot and
-shifts nothing.  :class:`fsreg_ros.core.memory.WMBuffer` decides which queues live
-here and moves a queue to a plain dict whenever anything else touches it; this
-module knows nothing about names, events or limits beyond the width.
+shifts nothing.  :class:`QueueColumns` knows nothing about names, events or limits
+beyond the width.
+
+:class:`ColumnQueues` is the buffer's side: which entities' queues live in the
+columns (each queue lives in exactly one place, a dict :class:`Queue` or a row), the
+entity list the rows are numbered by, property ids and restored origins, and the
+moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
+rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
+no event sink listens and the limits are at most an LRU capacity; anything else that
+touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
+so every other code path only ever sees dicts.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Mapping, Optional, Sequence
+
 import numpy as np
+
+from .limits import Limits
+from .queue import Entry, Origin, Queue
+
+if TYPE_CHECKING:
+    from .buffer import WMBuffer
+
+#: :meth:`WMBuffer.encode_members` keeps the queues of a domain of at least this many
+#: entities as columns; smaller domains go queue by queue.  A column operation costs
+#: tens of microseconds however few its members, and a queue moved between the two
+#: forms costs more than an encoding, so the choice is made per domain, not per call
+#: (bench_core, scripts/bench_encode.py).
+COLUMN_MIN = 4096
+#: Column queues are used up to this displacement capacity (their width), and while
+#: width x entities stays within this many slots (20 bytes each, held for every entity).
+COLUMN_MAX_WIDTH = 64
+COLUMN_MAX_SLOTS = 2**22
 
 #: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
@@ -97,17 +124,6 @@ class QueueColumns:
         self.held[row] = False
 
     # ---------------------------------------------------------- many rows
-    def pop_owed(self, rows: np.ndarray, ticks: int) -> np.ndarray:
-        """Apply the decay ticks the held ``rows`` owe, up to ``ticks`` (Algorithm 2, deferred).
-
-        Each owed tick pops the row's front (its oldest stamp); returns the number of
-        properties popped per row.
-        """
-        owed = np.minimum(ticks - self.synced[rows], self.length[rows])
-        self.synced[rows] = ticks
-        self.pop_fronts(rows, owed)
-        return owed
-
     def pop_fronts(self, rows: np.ndarray, counts: np.ndarray) -> None:
         """Pop ``counts[i]`` fronts (oldest stamps first) of each held row ``rows[i]`` (at most its length)."""
         if not counts.any():
@@ -145,8 +161,8 @@ class QueueColumns:
     def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
 
-        The rows must be up to date with decay (:meth:`pop_owed`) and distinct.  A
-        property present is refreshed (new stamp, same origin); otherwise it takes an
+        The rows must be up to date with decay (:func:`~fsreg_ros.core.memory.decay.pop_owed`)
+        and distinct.  A property present is refreshed (new stamp, same origin); otherwise it takes an
         empty slot or, in a full row, the front's (LRU displacement).  Returns, per row,
         whether the queue grew and whether it was empty before.  The slot is found with
         one key per slot (the property itself -2, an empty slot -1, else its stamp) and
@@ -204,3 +220,169 @@ def _first_minimum(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for k in range(values.shape[0] - 1, 0, -1):  # the last assignment wins: the first such slot
         slot[values[k] == best] = k
     return slot, best
+
+
+class ColumnQueues:
+    """The buffer's column queues: where each lives, and the moves to and from dict queues.
+
+    ``store`` is None until :meth:`bind` first sizes it; ``bound`` is the entity list its
+    rows are numbered by (the first list :meth:`WMBuffer.encode_members` got; it may only
+    grow by appending), ``row`` entity -> row, ``entities`` the entities whose queue
+    lives in the store.  Property ids and the origins restored from a store (referred
+    to as ``-(i + 1)``) are numbered here.
+    """
+
+    def __init__(self, wm: "WMBuffer") -> None:
+        self.wm = wm
+        self.clear()
+        self.bound: Optional[list[str]] = None
+        self.row: dict[str, int] = {}
+        self.prop_id: dict[str, int] = {}
+        self.prop_name: list[str] = []
+
+    def clear(self) -> None:
+        """Hold no queue (a restore); the entity list and property ids stay."""
+        self.store: Optional[QueueColumns] = None
+        self.entities: set[str] = set()
+        self.explicit: list[Origin] = []
+        self.explicit_id: dict[Origin, int] = {}
+
+    def fits(self, limits: Limits) -> bool:
+        """Tell whether the column queues can stay under ``limits``: nothing kept, or an LRU capacity of their width.
+
+        Under any other limits a queue may have to lose another property than its
+        front, or more than one, which only a dict queue does.
+        """
+        if self.store is None or not limits.retains:
+            return True
+        return limits.lru_only and limits.capacity == self.store.width
+
+    def usable(self, entities: Sequence[str], limits: Limits) -> bool:
+        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``."""
+        capacity = limits.capacity
+        return (
+            len(entities) >= self.wm.column_min
+            and self.wm.sink is None
+            and limits.lru_only
+            and capacity is not None
+            and capacity <= COLUMN_MAX_WIDTH
+            and capacity * len(entities) <= COLUMN_MAX_SLOTS
+            and self.bind(entities, capacity)
+        )
+
+    def bind(self, entities: Sequence[str], width: int) -> bool:
+        """Bind rows to ``entities`` (the first list given) and size the store; False for another list."""
+        if self.bound is None:
+            self.bound = entities  # type: ignore[assignment]
+        elif entities is not self.bound:
+            return False
+        if self.store is not None and self.store.width != width:
+            self.drop()
+        if len(self.row) < len(entities):  # new entities were appended
+            for i in range(len(self.row), len(entities)):
+                self.row[entities[i]] = i
+        if self.store is None:
+            self.store = QueueColumns(width, len(entities))
+        self.store.grow(len(entities))
+        return True
+
+    def adopt(self, rows: np.ndarray) -> bool:
+        """Move the queues of ``rows`` into the store (those not there yet); False, moving none, if one is longer.
+
+        Rows whose entity has no dict queue start empty, all at once; the few that have
+        one take its entries.
+        """
+        store = self.store
+        fresh = rows[~store.held[rows]]
+        if not len(fresh):
+            return True
+        names = list(map(self.bound.__getitem__, fresh.tolist()))
+        queues = self.wm._queues
+        moving = sorted(queues.keys() & names, key=self.row.__getitem__)  # in entity order
+        if any(len(queues[name]) > store.width for name in moving):
+            return False
+        store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
+        for name in moving:
+            q = queues.pop(name)
+            store.write(self.row[name], [self.item(prop, value) for prop, value in q.items()], q.synced)
+        self.entities.update(names)
+        return True
+
+    def prop(self, name: str) -> int:
+        """Return the id of property ``name`` (numbered on first use)."""
+        pid = self.prop_id.get(name)
+        if pid is None:
+            pid = self.prop_id[name] = len(self.prop_name)
+            self.prop_name.append(name)
+        return pid
+
+    def item(self, prop: str, value: Entry) -> tuple[int, int, int]:
+        """Return a dict queue's entry as a column item ``(property id, stamp, origin reference)``."""
+        pid = self.prop(prop)
+        if value.__class__ is int:
+            return pid, value, value
+        stamp, ref = value
+        if ref.__class__ is not int:  # an origin restored from a store
+            index = self.explicit_id.get(ref)
+            if index is None:
+                index = self.explicit_id[ref] = len(self.explicit)
+                self.explicit.append(ref)
+            ref = -(index + 1)
+        return pid, stamp, ref
+
+    def row_dict(self, row: int) -> dict:
+        """Return a row's queue as a dict queue's entries (property -> entry), LRU first."""
+        names, explicit = self.prop_name, self.explicit
+        return {
+            names[pid]: stamp if ref == stamp else (stamp, ref if ref > 0 else explicit[-ref - 1])
+            for pid, stamp, ref in self.store.read(row)
+        }
+
+    def readable(self, entity: str) -> Mapping:
+        """Return the column queue of ``entity`` up to date with decay, for reading.
+
+        A copy of its row; with an event sink listening, owed pops must be reported, so
+        it becomes a dict queue (caught up, returned).
+        """
+        row, store, wm = self.row[entity], self.store, self.wm
+        if store.synced[row] != wm.lazy_decay.ticks.count and store.length[row]:
+            if wm.sink is not None:
+                wm.lazy_decay.catch_up(entity)
+                return wm._queues[entity]
+            wm.lazy_decay.settle_columns(np.array([row]))
+        return self.row_dict(row)
+
+    def to_dict(self, entity: str) -> Queue:
+        """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
+        row, store = self.row[entity], self.store
+        q = self.wm._queues[entity] = Queue(self.row_dict(row))
+        q.synced = int(store.synced[row])
+        q.hits = None
+        q.marked = False  # if it changed since the last take, a column mark says so
+        store.release(row)
+        self.entities.discard(entity)
+        return q
+
+    def drop(self) -> None:
+        """Move every column queue back to a dict queue (before any code path that only knows dicts)."""
+        if self.store is None:
+            return
+        self.wm.changes.compact()
+        for entity in [e for e in self.bound if e in self.entities]:
+            self.to_dict(entity)
+        self.store = None
+        self.entities = set()
+
+    def ranks(self, entity_order: Sequence[str]) -> Mapping[str, int]:
+        """Return entity -> rank in ``entity_order`` (the rows' own numbering when that is their list)."""
+        if entity_order is self.bound:
+            for i in range(len(self.row), len(entity_order)):  # entities appended since the last bind
+                self.row[entity_order[i]] = i
+            return self.row
+        return {entity: i for i, entity in enumerate(entity_order)}
+
+    def emptied(self, rows: np.ndarray) -> None:
+        """Take the ``rows`` left empty out of the buffer's non-empty queues."""
+        nonempty, bound = self.wm._nonempty, self.bound
+        for row in rows[self.store.length[rows] == 0].tolist():
+            nonempty.pop(bound[row], None)
