@@ -432,8 +432,9 @@ def git_state(exclude: Sequence[Path] = (), where: Optional[Path] = None) -> dic
     untracked, not ignored file under the repository (name and content), whatever
     directory the package sits in; ``changed_files`` and ``untracked_files`` name them.
     Untracked files under ``exclude`` (a sweep's own output directory) are left out.
-    ``where``: a directory of the checkout (default: this package's).  A hash that cannot be taken is null with the reason in ``diff_absent``: a clean
-    tree, no git checkout, or git failing.
+    ``where``: a directory of the checkout (default: this package's).  A hash that
+    cannot be taken is null with the reason in ``diff_absent``: a clean tree, no git
+    checkout, or git failing.
     """
     top_text = _git("rev-parse", "--show-toplevel", cwd=where)
     if top_text is None:
@@ -553,8 +554,10 @@ class Shard:
 
 
 def write_results(config: SweepConfig, out: Path, rows: list[dict], curves: dict, plots: bool) -> tuple[list, list]:
-    """Write runs.csv, divergence.csv, summary.csv, recommendation.csv (dynamic games) and the plots; return
-    the summary and the files written."""
+    """Write the result files and plots of a sweep's rows; return the summary and the files written.
+
+    runs.csv, divergence.csv, summary.csv, recommendation.csv (dynamic games), the PNGs.
+    """
     summary = summarise_runs(rows)
     write_runs(out / "runs.csv", rows)
     write_curves(out / "divergence.csv", curves)
