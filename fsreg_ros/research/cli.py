@@ -226,9 +226,9 @@ def retraction_list(text: str) -> tuple:
     return tuple(dict.fromkeys(v == "on" for v in values))
 
 
-def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
-    from .ledger import GAMES
-    from .sweep import Shard, SweepConfig, recommend, run
+def sweep_config(args: argparse.Namespace):
+    """Return the checked SweepConfig, engine and shard (or None) of fsreg-sweep's arguments."""
+    from .sweep import Shard, SweepConfig
 
     policies = tuple(dict.fromkeys(p.strip() for p in args.policies.split(",") if p.strip()))
     if not policies:
@@ -269,6 +269,14 @@ def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None
         retraction=retraction_list(args.retraction),
         wm_belief=args.wm_belief,
     )
+    return config, engine, shard
+
+
+def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
+    from .ledger import GAMES
+    from .sweep import recommend, run
+
+    config, engine, shard = sweep_config(args)
     try:
         rows, summary, execution = run(config, args.out, progress=not args.no_progress, plots=not args.no_plots,
                                        argv=argv, engine=engine, resume=args.resume, shard=shard)
