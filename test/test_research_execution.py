@@ -71,6 +71,15 @@ def test_dask_engine_returns_results_in_task_order_and_raises_a_task_error(clust
         run_tasks(fails_on_three, [1, 2, 3, 4], engine, progress=False, client=client)
 
 
+def test_a_worker_with_other_code_fails_the_job_audibly(cluster):
+    _, client = cluster
+    assert execution.SameCode(square, execution.code_fingerprint())(3) == 9
+    future = client.submit(execution.SameCode(square, "0" * 64), 3, pure=False)
+    with pytest.raises(EngineError, match=r"^worker \S+ runs other fsreg_ros code \(files [0-9a-f]{12}, the caller's "
+                                          r"000000000000\): install the same commit on every worker$"):
+        future.result()
+
+
 def test_workers_never_import_rclpy(cluster):
     _, client = cluster
     config = SweepConfig(("decay", "none"), (5.0,), (1,), (0, 1), 8)

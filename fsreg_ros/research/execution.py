@@ -20,7 +20,9 @@ scheduling, queueing and rescheduling a task whose worker died are Dask's own.  
 number of tasks Dask rescheduled because a worker was lost is read from the
 scheduler's ``remove-worker`` events and reported (:attr:`TaskRun.retried`).  Worker
 processes import only what the job's function imports (the research layer is pure
-Python: never rclpy).  A callback sees each result as it arrives, in the calling
+Python: never rclpy).  Over Dask each task first checks that its worker runs the
+same fsreg_ros source as the caller (:func:`code_fingerprint`), so a worker host with
+other code fails the job audibly instead of changing results.  A callback sees each result as it arrives, in the calling
 process, so a tool can persist finished work before the job ends (``fsreg-sweep
 --resume``).  The same tqdm bar (tasks done / total, rate, ETA) is drawn for every engine.
 """
@@ -28,14 +30,18 @@ process, so a tool can persist finished work before the job ends (``fsreg-sweep
 from __future__ import annotations
 
 import argparse
+import functools
+import hashlib
 import logging
 import multiprocessing
 import re
+import socket
 import uuid
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, Iterator, Optional, Sequence
 
 #: Most workers an engine may be asked for on one machine (``--jobs``, ``--cluster local:N``).
@@ -126,6 +132,31 @@ def engine_from_args(args: argparse.Namespace) -> Engine:
     if not 1 <= jobs <= MAX_LOCAL_WORKERS:
         raise EngineError(f"--jobs must be in [1, {MAX_LOCAL_WORKERS}], got {jobs}")
     return Engine("local", jobs)
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """Return the SHA-256 of the installed fsreg_ros package's files (paths and contents, caches left out)."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class SameCode:
+    """A task function that first checks its worker runs the caller's fsreg_ros (:func:`code_fingerprint`)."""
+
+    fn: Callable[[Any], Any]
+    fingerprint: str
+
+    def __call__(self, task: Any) -> Any:
+        mine = code_fingerprint()
+        if mine != self.fingerprint:
+            raise EngineError(f"worker {socket.gethostname()} runs other fsreg_ros code (files {mine[:12]}, the "
+                              f"caller's {self.fingerprint[:12]}): install the same commit on every worker")
+        return self.fn(task)
 
 
 @dataclass
@@ -258,7 +289,7 @@ def _run_dask(fn: Callable, tasks: Sequence, engine: Engine, finish: Callable, r
     keys = [f"{prefix}-{i}" for i in range(len(tasks))]
     index_of = {key: i for i, key in enumerate(keys)}
     workers = len(client.scheduler_info(n_workers=-1).get("workers", {}))
-    futures = client.map(fn, tasks, key=keys, pure=False)
+    futures = client.map(SameCode(fn, code_fingerprint()), tasks, key=keys, pure=False)
     try:
         for future, result in as_completed(futures, with_results=True, raise_errors=False):
             if future.status == "error":
