@@ -14,6 +14,7 @@ from typing import Callable, Optional, Sequence
 
 from ..core.forgetting import PolicyError
 from ..core.generation import GenerationError
+from .execution import add_engine_arguments, engine_from_args
 from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
 from .tuna import ALGORITHMS, DOMAINS, TunaError, evaluate, load_trials
 
@@ -183,10 +184,38 @@ def sweep_parser() -> argparse.ArgumentParser:
     parser.add_argument("--human-memory", action="append", default=[], metavar="KEY=VALUE",
                         help="give the human a WM of its own (e.g. policy=decay, decay_period=10)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (results do not depend on it)")
+    parser.add_argument("--resume", action="store_true",
+                        help="play only the games missing from --out's games.jsonl (same command, same code)")
+    parser.add_argument("--shard", metavar="K/N",
+                        help="play only shard K of N (every N-th seed from the K-th); combine the shards with "
+                             "'fsreg-sweep merge OUT SHARD_DIR...'")
+    add_engine_arguments(parser, "games")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     return parser
+
+
+def merge_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fsreg-sweep merge",
+        description="Combine finished sweeps of one configuration and commit (the shards of --shard K/N, or sweeps "
+                    "of disjoint seeds) into OUT, with the files one sweep over all their seeds writes.",
+    )
+    parser.add_argument("out", type=Path, metavar="OUT", help="output directory")
+    parser.add_argument("shards", type=Path, nargs="+", metavar="SHARD_DIR", help="a finished sweep's --out")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    return parser
+
+
+def parse_shard(text: str) -> tuple[int, int]:
+    """Parse ``--shard K/N`` (1 <= K <= N <= 100000)."""
+    k, sep, n = text.partition("/")
+    if not sep or not k.strip().isdigit() or not n.strip().isdigit():
+        raise UsageError(f"--shard: expected K/N (shard K of N, e.g. 2/4), got '{text}'")
+    index, count = int(k), int(n)
+    if not 1 <= index <= count <= 100_000:
+        raise UsageError(f"--shard {text}: K must be in [1, N] and N in [1, 100000]")
+    return index, count
 
 
 def retraction_list(text: str) -> tuple:
@@ -197,8 +226,9 @@ def retraction_list(text: str) -> tuple:
     return tuple(dict.fromkeys(v == "on" for v in values))
 
 
-def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
-    from .sweep import SweepConfig, recommend, run
+def sweep_config(args: argparse.Namespace):
+    """Return the checked SweepConfig, engine and shard (or None) of fsreg-sweep's arguments."""
+    from .sweep import Shard, SweepConfig
 
     policies = tuple(dict.fromkeys(p.strip() for p in args.policies.split(",") if p.strip()))
     if not policies:
@@ -213,15 +243,23 @@ def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None
         raise UsageError(f"--board-size must be in [2, {MAX_BOARD_SIZE}], got {args.board_size}")
     if not 0 <= args.changes <= 100 or args.changes != args.changes:
         raise UsageError(f"--changes must be in [0, 100] (per 100 turns), got {args.changes}")
-    if not 1 <= args.jobs <= 256:
-        raise UsageError(f"--jobs must be in [1, 256], got {args.jobs}")
+    engine = engine_from_args(args)
+    seeds = tuple(range(args.seed_base, args.seed_base + args.seeds))
+    shard = None
+    if args.shard is not None:
+        index, count = parse_shard(args.shard)
+        if count > len(seeds):
+            raise UsageError(f"--shard {args.shard}: {count} shards of {len(seeds)} games leave some empty "
+                             f"(give at most --seeds shards)")
+        shard = Shard(index, count, seeds)
+        seeds = shard.mine()
     config = SweepConfig(
         policies=policies,
         decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-2, 1e6),
         capacities=number_list("--capacities", args.capacities, int, 1, 10_000),
         global_capacities=number_list("--global-capacities", args.global_capacities, int, 1, 1_000_000),
         shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
-        seeds=tuple(range(args.seed_base, args.seed_base + args.seeds)),
+        seeds=seeds,
         turns=args.turns,
         memory=memory_settings(args.memory),
         human_memory=memory_settings(args.human_memory, "--human-memory") if args.human_memory else None,
@@ -231,11 +269,66 @@ def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None
         retraction=retraction_list(args.retraction),
         wm_belief=args.wm_belief,
     )
-    rows, summary = run(config, args.out, args.jobs, progress=not args.no_progress, plots=not args.no_plots,
-                        argv=argv)
+    return config, engine, shard
+
+
+def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
+    from .ledger import GAMES
+    from .sweep import recommend, run
+
+    config, engine, shard = sweep_config(args)
+    try:
+        rows, summary, execution = run(config, args.out, progress=not args.no_progress, plots=not args.no_plots,
+                                       argv=argv, engine=engine, resume=args.resume, shard=shard)
+    except KeyboardInterrupt:
+        kept = _games_kept(args.out / GAMES)
+        print(f"fsreg-sweep: interrupted; {kept} of {len(config.seeds)} games are kept in {args.out / GAMES}: "
+              "the same command with --resume plays the rest", file=sys.stderr)
+        return 130
     settings_run = len(summary)
     print(f"fsreg-sweep: {len(rows)} distinct runs ({settings_run} settings x {len(config.seeds)} games) "
           f"written to {args.out / 'runs.csv'}")
+    for line in headline(summary, dynamic=config.changes > 0):
+        print(line)
+    if config.changes > 0:
+        for line in recommendation_lines(recommend(summary)):
+            print(line)
+    for line in execution_lines(execution):
+        print(line)
+    return 0
+
+
+def _games_kept(path: Path) -> int:
+    try:
+        with path.open("rb") as games:
+            return max(sum(1 for line in games if line.endswith(b"\n")) - 1, 0)
+    except OSError:
+        return 0
+
+
+def execution_lines(execution: dict) -> list[str]:
+    """Return what the sweep says of where it ran: games resumed, the shard, the cluster and its retried tasks."""
+    lines = []
+    if execution.get("resumed_games"):
+        lines.append(f"fsreg-sweep: resumed: {execution['resumed_games']} games were already done, "
+                     f"{execution['played_games']} played now")
+    if execution.get("shard"):
+        shard = execution["shard"]
+        lines.append(f"fsreg-sweep: shard {shard['shard']} of seeds {shard['all_seeds'][0]}-"
+                     f"{shard['all_seeds'][1] - 1}; combine the shards with 'fsreg-sweep merge OUT SHARD_DIR...'")
+    if execution.get("engine") in ("cluster", "scheduler"):
+        retried = execution["retried"]
+        lines.append(f"fsreg-sweep: ran on {execution['label']} ({execution['workers']} workers at the start); "
+                     f"{retried} task{'' if retried == 1 else 's'} retried after a worker was lost")
+    return lines
+
+
+def merge_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
+    from .sweep import merge, recommend
+
+    rows, summary, config = merge(args.out, args.shards, plots=not args.no_plots, argv=argv)
+    print(f"fsreg-sweep merge: {len(args.shards)} sweeps, {len(rows)} distinct runs ({len(summary)} settings x "
+          f"{len(config.seeds)} games) written to {args.out / 'runs.csv'}")
     for line in headline(summary, dynamic=config.changes > 0):
         print(line)
     if config.changes > 0:
@@ -295,7 +388,10 @@ def recommendation_lines(table: list) -> list[str]:
 
 
 def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of ``fsreg-sweep``."""
+    """Entry point of ``fsreg-sweep`` (and of ``fsreg-sweep merge``)."""
+    given = list(sys.argv[1:] if argv is None else argv)
+    if given[:1] == ["merge"]:
+        return _run(lambda args: merge_command(args, given[1:]), merge_parser(), given[1:])
     return _run(lambda args: sweep_command(args, argv), sweep_parser(), argv)
 
 

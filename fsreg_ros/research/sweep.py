@@ -5,9 +5,12 @@ once under policy ``none`` (the No-WM baseline) and once per setting.  Each poli
 runs over the grid of the parameters *it reads* and no other (``decay`` over decay
 periods, ``displacement`` over capacities, ``decay+displacement`` over both, ...),
 so no two runs of a sweep are the same run; with fact changes (``changes`` > 0) the
-robot's WM is either told of them or not (``retraction``).  Seeds run in parallel
-worker processes; a seed's rows depend only on the seed and the settings, so
-``runs.csv`` is the same for any ``--jobs``.
+robot's WM is either told of them or not (``retraction``).  Seeds are independent
+tasks run on any engine of :mod:`fsreg_ros.research.execution` (local processes or a
+Dask cluster); a seed's rows depend only on the seed and the settings, and each
+finished game is kept in ``games.jsonl`` (:mod:`fsreg_ros.research.ledger`) as it
+arrives, so ``runs.csv`` is the same for any engine, after ``--resume``, and for
+shards combined by :func:`merge`.
 
 Metrics per game and setting (:data:`METRICS`; over the robot's turns):
 
@@ -40,21 +43,22 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import multiprocessing
 import platform
 import shlex
 import subprocess
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime, timezone
 from itertools import product
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any, Mapping, Optional, Sequence
 
 from ..core.alignment import ORIGINS, entrainment_gain, length_matched
 from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
+from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
+from .ledger import GAMES, GameRecord, Ledger, LedgerError, code_label, difference, header
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
@@ -269,34 +273,43 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
     return rows, curves, game.kb_hash()
 
 
-def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True) -> tuple[list[dict], dict, dict]:
-    """Run every seed (in ``jobs`` processes); return rows, curves and KB hashes, in seed order.
+def record_of(seed: int, result: tuple) -> GameRecord:
+    """Return :func:`run_seed`'s result as a game record (per row, its divergence flags as ``0``/``1``)."""
+    rows, curves, kb_hash = result
+    return GameRecord(seed, kb_hash, tuple(rows), tuple("".join(map(str, flags)) for flags in curves.values()))
 
-    ``curves`` maps (setting, seed) to the per-robot-turn divergence flags.
-    """
-    from tqdm import tqdm
 
-    tasks = [(config, seed) for seed in config.seeds]
-    bar = tqdm(total=len(tasks), desc="fsreg-sweep", unit="game", disable=not progress)
+def assemble(records: Mapping[int, GameRecord], seeds: Sequence[int]) -> tuple[list[dict], dict, dict]:
+    """Return rows, divergence curves and KB hashes of the games of ``seeds``, in that order."""
     rows, curves, hashes = [], {}, {}
-    try:
-        if jobs <= 1:
-            results = map(run_seed, tasks)
-            pool = None
-        else:
-            pool = multiprocessing.get_context("fork").Pool(jobs)
-            results = pool.imap(run_seed, tasks)  # ordered: seed order whatever the worker timing
-        for (seed_rows, seed_curves, kb_hash), (_, seed) in zip(results, tasks):
-            rows += seed_rows
-            curves.update({(setting, seed): flags for setting, flags in seed_curves.items()})
-            hashes[seed] = kb_hash
-            bar.update(1)
-        if pool is not None:
-            pool.close()
-            pool.join()
-    finally:
-        bar.close()
+    for seed in seeds:
+        record = records[seed]
+        for row, flags in zip(record.rows, record.flags):
+            rows.append(dict(row))
+            curves[(setting_of(row), seed)] = [int(flag) for flag in flags]
+        hashes[seed] = record.kb_sha256
     return rows, curves, hashes
+
+
+def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True, ledger: Optional[Ledger] = None,
+          engine: Optional[Engine] = None) -> tuple[list[dict], dict, dict, TaskRun]:
+    """Play every seed not yet in ``ledger`` (on ``engine``, else ``jobs`` local processes).
+
+    Returns rows, curves and KB hashes in seed order, and the job's :class:`TaskRun`.
+    ``curves`` maps (setting, seed) to the per-robot-turn divergence flags.  Each game
+    is appended to ``ledger`` as it finishes and used as read back from it.
+    """
+    engine = engine or Engine("local", jobs)
+    records: dict[int, GameRecord] = dict(ledger.games) if ledger is not None else {}
+    todo = [seed for seed in config.seeds if seed not in records]
+
+    def keep(index: int, result: tuple) -> None:
+        record = record_of(todo[index], result)
+        records[record.seed] = ledger.append(record) if ledger is not None else record
+
+    job = run_tasks(run_seed, [(config, seed) for seed in todo], engine, progress=progress, desc="fsreg-sweep",
+                    unit="game", done=len(config.seeds) - len(todo), on_result=keep)
+    return (*assemble(records, config.seeds), job)
 
 
 # ------------------------------------------------------------------ summaries
@@ -404,35 +417,63 @@ def write_curves(path: Path, curves: dict) -> None:
                 writer.writerow((*cells, j, flag))
 
 
-def _git(*args: str) -> Optional[bytes]:
+def _git(*args: str, cwd: Optional[Path] = None) -> Optional[bytes]:
     try:
-        done = subprocess.run(["git", *args], cwd=Path(__file__).parent, capture_output=True, timeout=20)
+        done = subprocess.run(["git", *args], cwd=cwd or Path(__file__).parent, capture_output=True, timeout=60)
     except (OSError, subprocess.SubprocessError):
         return None
     return done.stdout if done.returncode == 0 else None
 
 
-def git_state() -> dict:
-    """Return the checkout's commit, whether the tree is dirty and the SHA-256 of its changes.
+def git_state(exclude: Sequence[Path] = (), where: Optional[Path] = None) -> dict:
+    """Return the checkout's commit, whether the tree is dirty, the SHA-256 of its changes and what changed.
 
-    The changes are ``git diff HEAD`` plus every untracked, not ignored file (name and
-    content); ``null`` values outside a git checkout.
+    The changes are the whole repository's ``git diff HEAD --binary`` plus every
+    untracked, not ignored file under the repository (name and content), whatever
+    directory the package sits in; ``changed_files`` and ``untracked_files`` name them.
+    Untracked files under ``exclude`` (a sweep's own output directory) are left out.
+    ``where``: a directory of the checkout (default: this package's).  A hash that
+    cannot be taken is null with the reason in ``diff_absent``: a clean tree, no git
+    checkout, or git failing.
     """
-    commit = _git("rev-parse", "HEAD")
-    if commit is None:
-        return {"commit": None, "dirty": None, "diff_sha256": None}
-    status = _git("status", "--porcelain") or b""
-    digest = hashlib.sha256(_git("diff", "HEAD", "--binary") or b"")
-    top = Path((_git("rev-parse", "--show-toplevel") or b".").decode().strip())
-    for name in sorted((_git("ls-files", "--others", "--exclude-standard", "-z") or b"").split(b"\0")):
-        if name:
-            digest.update(b"\0untracked\0" + name + b"\0")
-            try:
-                digest.update((top / name.decode()).read_bytes())
-            except OSError:
-                pass
-    dirty = bool(status.strip())
-    return {"commit": commit.decode().strip(), "dirty": dirty, "diff_sha256": digest.hexdigest() if dirty else None}
+    top_text = _git("rev-parse", "--show-toplevel", cwd=where)
+    if top_text is None:
+        return {"commit": None, "dirty": None, "diff_sha256": None,
+                "diff_absent": "not a git checkout (or git is not installed)"}
+    top = Path(top_text.decode().strip())
+    commit = _git("rev-parse", "HEAD", cwd=top)
+    diff = _git("diff", "HEAD", "--binary", cwd=top)
+    names = _git("diff", "HEAD", "--name-only", "-z", cwd=top)
+    others = _git("ls-files", "--others", "--exclude-standard", "-z", cwd=top)
+    if commit is None or diff is None or names is None or others is None:
+        return {"commit": commit.decode().strip() if commit else None, "dirty": None, "diff_sha256": None,
+                "diff_absent": "git failed to report the changes"}
+    skip = []
+    for path in exclude:
+        try:
+            skip.append(Path(path).resolve().relative_to(top.resolve()).as_posix().rstrip("/") + "/")
+        except ValueError:
+            pass  # outside the repository: never listed
+    untracked = sorted(n.decode(errors="surrogateescape") for n in others.split(b"\0") if n)
+    untracked = [n for n in untracked if not any((n + "/").startswith(p) or n.startswith(p) for p in skip)]
+    changed = sorted(n.decode(errors="surrogateescape") for n in names.split(b"\0") if n)
+    dirty = bool(diff) or bool(untracked)
+    state: dict[str, Any] = {"commit": commit.decode().strip(), "dirty": dirty, "diff_sha256": None,
+                             "changed_files": changed, "untracked_files": untracked}
+    if not dirty:
+        state["diff_absent"] = "clean tree: no tracked change and no untracked file"
+        return state
+    digest = hashlib.sha256(diff)
+    for name in untracked:
+        digest.update(b"\0untracked\0" + name.encode(errors="surrogateescape") + b"\0")
+        try:
+            with (top / name).open("rb") as data:
+                for chunk in iter(lambda: data.read(1 << 20), b""):
+                    digest.update(chunk)
+        except OSError as err:
+            digest.update(f"<unreadable: {err.strerror}>".encode())
+    state["diff_sha256"] = digest.hexdigest()
+    return state
 
 
 def git_commit() -> Optional[str]:
@@ -464,22 +505,28 @@ def environment() -> dict:
     }
 
 
-def manifest(config: SweepConfig, hashes: dict, jobs: int, files: Sequence[str], runs: int,
-             started: str, argv: Optional[Sequence[str]] = None) -> dict:
-    """Return manifest.json's content: what ran, where, with what, every parameter, seeds, KB hashes, files."""
+def manifest(config: SweepConfig, hashes: dict, jobs: Optional[int], files: Sequence[str], runs: int,
+             started: str, argv: Optional[Sequence[str]] = None, git: Optional[dict] = None,
+             execution: Optional[dict] = None, command: str = "fsreg-sweep") -> dict:
+    """Return manifest.json's content: what ran, where, with what, every parameter, seeds, KB hashes, files.
+
+    ``execution`` records where the games ran (engine, workers, tasks retried, games
+    found done by ``--resume``, the shard) or, for a merge, every shard.
+    """
     return {
         "tool": "fsreg-sweep",
         "version": package_version(),
-        "command": shlex.join(["fsreg-sweep", *(sys.argv[1:] if argv is None else argv)]),
+        "command": shlex.join([*command.split(), *(sys.argv[1:] if argv is None else argv)]),
         "started": started,
         "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "git": git_state(),
+        "git": git_state() if git is None else git,
         "environment": environment(),
         "parameters": {**asdict(config), "seeds": list(config.seeds), "jobs": jobs,
                        "checkpoints": list(CHECKPOINTS)},
         "game": {"generator": "fsreg_ros.research.games.make_game", "world": config.world,
                  "board_size": config.board_size, "turns": config.turns, "gap_range": list(config.gap_range),
                  "changes_per_100_turns": config.changes},
+        "execution": execution or {},
         "intervals": METHOD,
         "distinct_runs": runs,
         "seeds": list(config.seeds),
@@ -488,16 +535,29 @@ def manifest(config: SweepConfig, hashes: dict, jobs: int, files: Sequence[str],
     }
 
 
-def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, plots: bool = True,
-        argv: Optional[Sequence[str]] = None) -> tuple[list[dict], list[dict]]:
-    """Run a sweep and write runs.csv, divergence.csv, summary.csv, manifest.json and the plots into ``out``.
+@dataclass(frozen=True)
+class Shard:
+    """Shard K of N of a sweep's seeds: every N-th seed from the K-th (``--shard K/N``)."""
 
-    Returns the rows and the per-setting summary.
+    index: int
+    count: int
+    seeds: tuple  # every seed of the whole sweep
+
+    def mine(self) -> tuple:
+        """Return this shard's seeds."""
+        return tuple(self.seeds[self.index - 1::self.count])
+
+    def record(self) -> dict:
+        """Return the manifest's record of the shard."""
+        return {"shard": f"{self.index}/{self.count}", "index": self.index, "count": self.count,
+                "all_seeds": [self.seeds[0], self.seeds[-1] + 1] if self.seeds else []}
+
+
+def write_results(config: SweepConfig, out: Path, rows: list[dict], curves: dict, plots: bool) -> tuple[list, list]:
+    """Write the result files and plots of a sweep's rows; return the summary and the files written.
+
+    runs.csv, divergence.csv, summary.csv, recommendation.csv (dynamic games), the PNGs.
     """
-    check(config)
-    started = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    out.mkdir(parents=True, exist_ok=True)
-    rows, curves, hashes = sweep(config, jobs, progress)
     summary = summarise_runs(rows)
     write_runs(out / "runs.csv", rows)
     write_curves(out / "divergence.csv", curves)
@@ -510,6 +570,148 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
         from .plot import sweep_plots
 
         files += sweep_plots(rows, summary, curves, out, dynamic=config.changes > 0)
-    (out / "manifest.json").write_text(
-        json.dumps(manifest(config, hashes, jobs, files, len(rows), started, argv), indent=2) + "\n")
-    return rows, summary
+    return summary, files + [GAMES]
+
+
+def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, plots: bool = True,
+        argv: Optional[Sequence[str]] = None, engine: Optional[Engine] = None, resume: bool = False,
+        shard: Optional[Shard] = None) -> tuple[list[dict], list[dict], dict]:
+    """Run a sweep and write runs.csv, divergence.csv, summary.csv, games.jsonl, manifest.json and the plots.
+
+    Every game goes to ``out/games.jsonl`` as it finishes; ``resume`` plays only the
+    games missing there (the same sweep, same code, else :class:`LedgerError`), and
+    without it an earlier games file in ``out`` is replaced.  manifest.json is written
+    last (a directory with one holds a finished sweep).  Returns the rows, the
+    per-setting summary and the manifest's execution record.
+    """
+    check(config)
+    started = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    out.mkdir(parents=True, exist_ok=True)
+    code = git_state(exclude=[out])
+    head = header(config, COLUMNS, code)
+    if resume and (out / GAMES).exists():
+        book = Ledger.resume(out, head)
+    else:
+        book = Ledger.start(out, head)
+    (out / "manifest.json").unlink(missing_ok=True)  # written again when this sweep has finished
+    resumed = len(book.games)
+    try:
+        rows, curves, hashes, job = sweep(config, jobs, progress, book, engine)
+    finally:
+        book.close()
+    summary, files = write_results(config, out, rows, curves, plots)
+    execution = {**job.describe(), "resumed_games": resumed, "played_games": len(config.seeds) - resumed,
+                 "shard": shard.record() if shard is not None else None}
+    (out / "manifest.json").write_text(json.dumps(
+        manifest(config, hashes, job.engine.workers if job.engine.kind == "local" else None, files, len(rows),
+                 started, argv, code, execution), indent=2) + "\n")
+    return rows, summary, execution
+
+
+# ---------------------------------------------------------------------- merge
+def _config_from(configuration: Mapping[str, Any], seeds: Sequence[int]) -> SweepConfig:
+    """Rebuild a SweepConfig from a games file's configuration (JSON lists back to tuples)."""
+    values = {}
+    for f in fields(SweepConfig):
+        if f.name == "seeds":
+            continue
+        value = configuration[f.name]
+        values[f.name] = tuple(value) if isinstance(value, list) else value
+    return SweepConfig(seeds=tuple(seeds), **values)
+
+
+def merge(out: Path, shards: Sequence[Path], plots: bool = True,
+          argv: Optional[Sequence[str]] = None) -> tuple[list[dict], list[dict], SweepConfig]:
+    """Combine finished sweeps of one configuration and code into ``out``, as if run as one sweep.
+
+    The inputs are shards (``--shard K/N``: every K of one N) or sweeps of disjoint seeds;
+    LedgerError names the first input that is unfinished, of another configuration,
+    another code or columns, or whose seeds overlap another's.  Writes the same files
+    as :func:`run` (runs.csv, summary.csv and the intervals byte-identical to one
+    sweep's), games.jsonl and a manifest recording every shard.
+    """
+    if not shards:
+        raise LedgerError("merge: give at least one sweep directory")
+    resolved = [Path(d).resolve() for d in shards]
+    if Path(out).resolve() in resolved:
+        raise LedgerError(f"merge: the output {out} is one of the inputs")
+    if len(set(resolved)) != len(resolved):
+        raise LedgerError("merge: a directory is given twice")
+    books, manifests = [], []
+    for directory in shards:
+        try:
+            done = json.loads((Path(directory) / "manifest.json").read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise LedgerError(f"merge: {directory} is not a finished sweep (no manifest.json); finish it with its "
+                              "command and --resume") from None
+        except json.JSONDecodeError:
+            raise LedgerError(f"merge: {directory}/manifest.json is not JSON") from None
+        book = Ledger.read(Path(directory))
+        if book.missing():
+            raise LedgerError(f"merge: {directory} is not finished ({len(book.missing())} of "
+                              f"{len(book.header['seeds'])} games missing); finish it with --resume")
+        books.append(book)
+        manifests.append(done)
+    first, name0 = books[0].header, shards[0]
+    owner: dict[int, Path] = {}
+    for book, directory in zip(books, shards):
+        head = book.header
+        if head["configuration"] != first["configuration"]:
+            raise LedgerError(f"merge: {directory} and {name0} are sweeps of different configurations: "
+                              f"{difference(head['configuration'], first['configuration'])}")
+        if head["code"] != first["code"]:
+            raise LedgerError(f"merge: {directory} and {name0} ran different code: {code_label(head['code'])} vs "
+                              f"{code_label(first['code'])}")
+        if head["columns"] != first["columns"]:
+            raise LedgerError(f"merge: {directory} and {name0} have different runs.csv columns")
+        overlap = sorted(s for s in head["seeds"] if s in owner)
+        if overlap:
+            shown = ", ".join(map(str, overlap[:5])) + (", ..." if len(overlap) > 5 else "")
+            raise LedgerError(f"merge: {directory} and {owner[overlap[0]]} overlap: both have seed"
+                              f"{'s' if len(overlap) > 1 else ''} {shown}")
+        owner.update({s: directory for s in head["seeds"]})
+    _check_split([m.get("execution", {}).get("shard") for m in manifests], shards)
+    seeds = sorted(owner)
+    config = _config_from(first["configuration"], seeds)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "manifest.json").unlink(missing_ok=True)
+    merged = Ledger.start(out, {**first, "seeds": seeds})
+    try:
+        for seed in seeds:
+            merged.append(next(b.games[seed] for b in books if seed in b.games))
+    finally:
+        merged.close()
+    rows, curves, hashes = assemble(merged.games, seeds)
+    summary, files = write_results(config, out, rows, curves, plots)
+    execution = {"engine": "merge", "shards": [
+        {"directory": str(directory), "shard": (m.get("execution") or {}).get("shard"),
+         "execution": {k: v for k, v in (m.get("execution") or {}).items() if k != "shard"},
+         "games": len(b.header["seeds"]), "seeds": [min(b.header["seeds"]), max(b.header["seeds"])],
+         "command": m.get("command"), "started": m.get("started"), "finished": m.get("finished"),
+         "git": m.get("git"), "environment": m.get("environment")}
+        for directory, b, m in zip(shards, books, manifests)]}
+    started = min((m.get("started") or "") for m in manifests)
+    (out / "manifest.json").write_text(json.dumps(
+        manifest(config, hashes, 0, files, len(rows), started, argv, manifests[0].get("git"), execution,
+                 command="fsreg-sweep merge"), indent=2) + "\n")
+    return rows, summary, config
+
+
+def _check_split(records: Sequence[Optional[dict]], shards: Sequence[Path]) -> None:
+    """Refuse shards of different splits, or a split with a shard missing (sweeps that are no shards pass)."""
+    split = [r for r in records if r]
+    if not split:
+        return
+    if len(split) != len(records):
+        loose = next(d for d, r in zip(shards, records) if not r)
+        raise LedgerError(f"merge: {loose} is no shard (no --shard) but other inputs are; merge shards of one "
+                          "split, or sweeps without --shard")
+    kinds = {(r["count"], tuple(r["all_seeds"])) for r in split}
+    if len(kinds) > 1:
+        raise LedgerError("merge: shards of different splits: " + ", ".join(
+            f"{d} is {r['shard']} of seeds {r['all_seeds'][0]}-{r['all_seeds'][1] - 1}" for d, r in zip(shards, split)))
+    count = split[0]["count"]
+    missing = sorted(set(range(1, count + 1)) - {r["index"] for r in split})
+    if missing:
+        raise LedgerError(f"merge: shard{'s' if len(missing) > 1 else ''} "
+                          f"{', '.join(f'{k}/{count}' for k in missing)} missing")

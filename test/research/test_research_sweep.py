@@ -116,9 +116,10 @@ def test_manifest_reproduces_the_run(tmp_path):
     assert manifest["game"]["board_size"] == 12 and manifest["game"]["world"] == "faces"
     assert manifest["distinct_runs"] == 15
     git = manifest["git"]
-    assert set(git) == {"commit", "dirty", "diff_sha256"}
+    assert {"commit", "dirty", "diff_sha256"} <= set(git)
     assert git["commit"] is None or (len(git["commit"]) == 40 and isinstance(git["dirty"], bool))
-    assert git["dirty"] is not True or len(git["diff_sha256"]) == 64
+    assert len(git["diff_sha256"]) == 64 if git["dirty"] else git["diff_sha256"] is None and git["diff_absent"]
+    assert manifest["execution"]["engine"] == "local" and manifest["execution"]["workers"] == 1
     assert manifest["environment"]["python"].count(".") == 2
     assert set(manifest["environment"]["libraries"]) == {"numpy", "matplotlib", "tqdm", "pyyaml", "pydantic"}
     assert manifest["started"] <= manifest["finished"] and manifest["started"].endswith("+00:00")
@@ -140,14 +141,16 @@ def test_printed_summary_counts_distinct_runs(tmp_path, capsys):
 def test_dirty_tree_changes_the_manifest(tmp_path, monkeypatch):
     from fsreg_ros.research import sweep
 
-    outputs = {("rev-parse", "HEAD"): b"a" * 40 + b"\n", ("status", "--porcelain"): b" M games.py\n",
-               ("diff", "HEAD", "--binary"): b"diff --git a/games.py ...", ("rev-parse", "--show-toplevel"): b"/x\n",
-               ("ls-files", "--others", "--exclude-standard", "-z"): b""}
-    monkeypatch.setattr(sweep, "_git", lambda *args: outputs[args])
+    outputs = {("rev-parse", "--show-toplevel"): b"/x\n", ("rev-parse", "HEAD"): b"a" * 40 + b"\n",
+               ("diff", "HEAD", "--binary"): b"diff --git a/games.py ...", ("diff", "HEAD", "--name-only", "-z"):
+               b"games.py\0", ("ls-files", "--others", "--exclude-standard", "-z"): b""}
+    monkeypatch.setattr(sweep, "_git", lambda *args, cwd=None: outputs[args])
     state = sweep.git_state()
     assert state["dirty"] is True and state["commit"] == "a" * 40 and len(state["diff_sha256"]) == 64
-    outputs[("status", "--porcelain")] = b""
-    assert sweep.git_state()["dirty"] is False and sweep.git_state()["diff_sha256"] is None
+    assert state["changed_files"] == ["games.py"] and state["untracked_files"] == []
+    outputs[("diff", "HEAD", "--binary")] = outputs[("diff", "HEAD", "--name-only", "-z")] = b""
+    clean = sweep.git_state()
+    assert clean["dirty"] is False and clean["diff_sha256"] is None and clean["diff_absent"].startswith("clean tree")
 
 
 @pytest.mark.parametrize(
