@@ -305,7 +305,7 @@ def build_events(games: Sequence[Game]) -> Events:
                 desc.reference(m.tangram, m.trial, m.time)
             if m.role == "director" and m.trial not in asked:
                 asked.add(m.trial)
-                desc.description(m.repetition, director_words[m.trial], said.get(m.tangram, {}))
+                desc.description(g, m.repetition, director_words[m.trial], said.get(m.tangram, {}))
                 earlier = said.get(m.tangram, {})
                 if m.repetition >= 2 and earlier:
                     previous = trials[-2] if len(trials) >= 2 else None
@@ -343,7 +343,7 @@ class _Descriptives:
     """Running counts for the corpus descriptives (see :func:`build_events`)."""
 
     def __init__(self) -> None:
-        self.per_rep: dict[int, list[tuple[int, int, int]]] = {}  # rep -> (types, types said earlier, trials)
+        self.rows: list[tuple[int, int, int, int]] = []  # (game, repetition, word types, of them said earlier)
         self.gap_seconds: list[float] = []
         self.gap_references: list[int] = []
         self._last: dict[str, tuple[int, float]] = {}
@@ -357,25 +357,26 @@ class _Descriptives:
             self.gap_references.append(trial - trial0 - 1)
         self._last[tangram] = (trial, time)
 
-    def description(self, repetition: int, used: set, earlier: Mapping[str, object]) -> None:
-        self.per_rep.setdefault(repetition, []).append((len(used), sum(1 for w in used if w in earlier)))
+    def description(self, game: int, repetition: int, used: set, earlier: Mapping[str, object]) -> None:
+        self.rows.append((game, repetition, len(used), sum(1 for w in used if w in earlier)))
 
     def game_done(self) -> None:
         self._last = {}
 
     def summary(self) -> dict:
         reps = {}
-        for rep in sorted(self.per_rep):
-            rows = self.per_rep[rep]
-            types = sum(r[0] for r in rows)
-            reps[rep] = {"descriptions": len(rows), "words_per_description": types / len(rows),
-                         "share_said_earlier": (sum(r[1] for r in rows) / types) if types else 0.0}
+        rows = np.asarray(self.rows, dtype=np.int64).reshape(-1, 4)
+        for rep in sorted(set(rows[:, 1].tolist())):
+            mine = rows[rows[:, 1] == rep]
+            types = int(mine[:, 2].sum())
+            reps[rep] = {"descriptions": len(mine), "words_per_description": types / len(mine),
+                         "share_said_earlier": (int(mine[:, 3].sum()) / types) if types else 0.0}
         gaps = np.asarray(self.gap_seconds)
         refs = np.asarray(self.gap_references)
         quart = (lambda a: [float(x) for x in np.percentile(a, [25, 50, 75])]) if len(gaps) else (lambda a: [0.0] * 3)
         return {"by_repetition": reps, "gap_seconds_quartiles": quart(gaps),
                 "gap_references_quartiles": quart(refs), "gaps": len(gaps),
-                "_gap_seconds": gaps, "_gap_references": refs}
+                "_gap_seconds": gaps, "_gap_references": refs, "_descriptions": rows}
 
 
 # ------------------------------------------------------------------ models
