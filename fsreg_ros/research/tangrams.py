@@ -34,7 +34,8 @@ fitted on the training games).  Recency models (``recency-seconds``, ``-words``,
 the word was last said about the tangram), log(1 + content words said in the game since, by
 either player about any tangram), log(references to any tangram since: trials, >= 1) and
 log(references to this tangram since: 1 = its previous one), fitted by Newton's method with a
-tiny ridge (numpy, standardised predictors): they compare time-based and interference-based
+small ridge (numpy; penalty 1 on the weights of the standardised predictors, none on the
+intercept, so a perfectly separable toy stays finite): they compare time-based and interference-based
 accounts directly.
 
 **Scoring.**  Held-out log-likelihood per candidate (natural log) under K-fold
@@ -80,8 +81,8 @@ ROLES = ("director", "matcher")
 CAUSES = {"director": "speaker", "matcher": "rr"}
 DOMAIN = "tangrams"
 
-#: An English stop list (function words, auxiliaries, pronouns, chat fillers), written for
-#: fsreg: what is left are the content words.  Tokens are lower-case runs of letters, with an
+#: An English stop list (function words, auxiliaries, pronouns -- "one" too, as in "this one" --
+#: and chat fillers), written for fsreg: what is left are the content words.  Tokens are lower-case runs of letters, with an
 #: apostrophe inside (``he's``); digits and punctuation separate tokens.
 STOP_WORDS = frozenset("""
 a about above across after again against all almost also am an and another any anything are
@@ -90,7 +91,7 @@ could d did do does doing done don't down during e each either else etc even eve
 from further g get gets getting go going got h had has have having he he'd he'll he's her here
 hers herself him himself his how i i'd i'll i'm i've if in into is isn't it it's its itself j
 just k l let's m maybe me might more most much must my myself n no nor not now o of off ok
-okay on once only onto or other our ours ourselves out over own p perhaps q r really s same
+okay on once one one's ones only onto or other our ours ourselves out over own p perhaps q r really s same
 she she'd she'll she's should so some something such t than that that's the their theirs them
 themselves then there there's these they they'd they'll they're they've thing things this
 those though through to too u under until up upon us v very w was wasn't we we'd we'll we're
@@ -394,7 +395,7 @@ EXCLUDED = {"similarity": "words have no attributes, so it forgets nothing (it i
 #: Rule combinations fitted beside the single rules (the paper's both).
 COMBINATIONS = (("decay", "displacement"),)
 #: A combination's grid takes at most this many values of each parameter (ends kept).
-COMBINED_VALUES = 10
+COMBINED_VALUES = 8
 BASELINES = ("none", "no-forgetting", "last-description", "constant")
 RECENCY = {"recency-seconds": ("seconds",), "recency-words": ("words",), "recency-references": ("references",),
            "recency-descriptions": ("descriptions",), "recency-all": ("seconds", "words", "references", "descriptions")}
@@ -476,10 +477,13 @@ def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.
     if policy is not None:
         manager = WMManager()
         manager.manage(buffer, policy, 0.0)
+    # Rules the buffer enforces at each encoding need no clock: the manager is asked to catch
+    # up only for the others (decay, the shared pool, and any rule this module does not know).
+    clocked = manager is not None and bool(set(policy.rules) - ENCODING_RULES)  # type: ignore[union-attr]
     for turn, step in enumerate(stream):
         kind, time, tangram, words, extra = step
-        if manager is not None:
-            manager.advance(time)
+        if clocked:
+            manager.advance(time)  # type: ignore[union-attr]
         if kind == "ask":
             held = buffer.queue(tangram)
             if held:
@@ -490,6 +494,9 @@ def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.
             buffer.encode(tangram, words, extra, time, turn)
 
 
+#: Rules enforced by the buffer after each encoding event (:class:`~fsreg_ros.core.memory.Limits`),
+#: which the WM Manager's clock never triggers.
+ENCODING_RULES = frozenset(("displacement", "displacement-lfu", "displacement-random", "similarity", "global-capacity"))
 _SHARED: dict = {}
 
 
@@ -617,7 +624,7 @@ def recency_features(events: Events, names: Sequence[str]) -> np.ndarray:
     return np.column_stack([columns[n] for n in names])
 
 
-def logistic_fit(x: np.ndarray, y: np.ndarray, ridge: float = 1e-4, steps: int = 50) -> np.ndarray:
+def logistic_fit(x: np.ndarray, y: np.ndarray, ridge: float = 1.0, steps: int = 50) -> np.ndarray:
     """Logistic regression by Newton's method: returns (intercept, weights...) on ``x`` as given."""
     design = np.column_stack([np.ones(len(x)), x])
     w = np.zeros(design.shape[1])
@@ -743,6 +750,41 @@ def evaluate(source: Union[str, Path, Sequence[Game]], tokeniser: Union[str, Tok
     return Evaluation(tok.name, folds, events, fits, differences, best)
 
 
+# ------------------------------------------------------------------ a small example
+#: The example corpus's descriptions: per tangram, the director's words at repetitions 1, 2, 3 ...
+_EXAMPLE = {"A": ("a ghost with arms raised", "ghost arms raised", "ghost"),
+            "B": ("a kneeling man holding a bowl", "kneeling man bowl", "kneeling bowl"),
+            "C": ("a bunny with long ears sitting", "bunny ears", "bunny")}
+
+
+def write_example(path: Union[str, Path], games: int = 4) -> Path:
+    """Write a tiny hand-made corpus in the corpus's format (``games`` games, 3 tangrams x 3 repetitions).
+
+    For demonstrations and the figures' small runs, not for conclusions.  The director
+    shortens each description over the repetitions; in odd games the matcher echoes a word.
+    Returns the file written (``path`` is its directory).
+    """
+    directory = Path(path)
+    directory.mkdir(parents=True, exist_ok=True)
+    out = directory / FILE
+    with out.open("w", encoding="utf-8", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(COLUMNS)
+        for g in range(games):
+            time, trial = 1_500_000_000_000 + g * 10_000_000, 0
+            for rep in range(3):
+                order = ("A", "B", "C") if (g + rep) % 2 == 0 else ("C", "A", "B")
+                for tangram in order:
+                    trial += 1
+                    time += 4_000 + 1_000 * ((g + trial) % 5)
+                    writer.writerow((f"game{g}", time, trial, rep + 1, "director", tangram, _EXAMPLE[tangram][rep]))
+                    if g % 2 and rep == 0:
+                        time += 2_000
+                        writer.writerow((f"game{g}", time, trial, rep + 1, "matcher", tangram,
+                                         _EXAMPLE[tangram][1].split()[0] + "?"))
+    return out
+
+
 # ------------------------------------------------------------------ report
 def report(result: Evaluation) -> list[str]:
     """The printed report: descriptives, every model's held-out fit, the differences."""
@@ -804,4 +846,4 @@ def setting_text(fit: Fit) -> str:
 __all__ = ["TangramsError", "Tokeniser", "TOKENISATIONS", "STOP_WORDS", "Message", "Game", "load_games",
            "build_events", "Events", "Model", "wm_models", "GRIDS", "EXCLUDED", "COMBINATIONS", "BASELINES",
            "RECENCY", "replay", "memberships", "folds_of", "fit_membership", "fit_recency", "logistic_fit", "Fit",
-           "Evaluation", "evaluate", "report", "default_grid", "Estimate", "bootstrap_ci"]
+           "Evaluation", "evaluate", "report", "default_grid", "write_example", "Estimate", "bootstrap_ci"]
