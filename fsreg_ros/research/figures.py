@@ -314,8 +314,8 @@ FIGURES += (
            {"tangrams-stems": ("docs/research.md", verbatim)}, small=TANGRAM_SMALL),
     # The robot with the parameters fitted to people (above) beside the paper's delta = 10, alpha = 2.
     Figure("sweep-human-fitted", "fsreg-sweep",
-           ("--policies", "decay,displacement,decay+displacement,none", "--decay-periods", "10,180,360",
-            "--capacities", "2,4,5", "--seeds", "30", "--turns", "200", "--jobs", "2", "--no-progress",
+           ("--policies", "decay,displacement,decay+displacement,none", "--decay-periods", "10,180,480",
+            "--capacities", "2,4,6", "--seeds", "30", "--turns", "200", "--jobs", "2", "--no-progress",
             "--out", f"{OUT}/sweep-human-fitted"),
            {"sweep-human-fitted": ("docs/research.md", summary_table),
             "sweep-human-fitted-readme": ("README.md", summary_table)}, small=SMALL, writes=True),

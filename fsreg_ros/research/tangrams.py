@@ -400,6 +400,10 @@ BASELINES = ("none", "no-forgetting", "last-description", "constant")
 RECENCY = {"recency-seconds": ("seconds",), "recency-words": ("words",), "recency-references": ("references",),
            "recency-descriptions": ("descriptions",), "recency-all": ("seconds", "words", "references", "descriptions")}
 FOLDS = 10
+#: Differences reported beside those from the best model and from ``constant``: the paper's
+#: rules against each other and against the referent's last description.
+PAIRS = (("displacement", "decay"), ("decay+displacement", "displacement"), ("decay+displacement", "decay"),
+         ("last-description", "decay+displacement"), ("last-description", "displacement"))
 #: The paper's settings (Williams et al. 2020, Table 1), reported beside the fitted ones.
 PAPER = {"decay_period": 10.0, "capacity": 2}
 
@@ -741,9 +745,13 @@ def evaluate(source: Union[str, Path, Sequence[Game]], tokeniser: Union[str, Tok
     n = np.bincount(events.game, minlength=len(games)).astype(float)
     best = max(fits, key=lambda name: fits[name].game_ll.sum())
     differences = []
+    pairs = [(a, b) for a, b in PAIRS if a in fits and b in fits]
+    for name, reference in pairs:
+        est = ratio_bootstrap_ci(fits[name].game_ll - fits[reference].game_ll, n, resamples)
+        differences.append({"a": name, "b": reference, "mean": est.mean, "ci": [est.low, est.high]})
     for reference in dict.fromkeys((best, "constant")):
         for name, fit in fits.items():
-            if name == reference:
+            if name == reference or (name, reference) in pairs:
                 continue
             est = ratio_bootstrap_ci(fit.game_ll - fits[reference].game_ll, n, resamples)
             differences.append({"a": name, "b": reference, "mean": est.mean, "ci": [est.low, est.high]})
@@ -812,6 +820,13 @@ def report(result: Evaluation) -> list[str]:
         diff = next((x for x in result.differences if x["a"] == fit.name and x["b"] == "constant"), None)
         text = "" if diff is None else f"{diff['mean']:+.4f} [{diff['ci'][0]:+.4f}, {diff['ci'][1]:+.4f}]"
         lines.append(f"{fit.name:{width}}  {fit.game_ll.sum() / n:11.4f}  {text:>26}  {setting_text(fit)}")
+    lines += ["", "the paper's rules against each other and against the last description (held-out LL per "
+                  "candidate, 95% CI):"]
+    for a, b in PAIRS:
+        diff = next((x for x in result.differences if (x["a"], x["b"]) == (a, b)), None)
+        if diff is not None:
+            lines.append(f"  {a + ' - ' + b:{2 * width}}  {diff['mean']:+.4f} [{diff['ci'][0]:+.4f}, "
+                         f"{diff['ci'][1]:+.4f}]")
     lines += ["", f"best: {result.best}; differences from it (held-out LL per candidate, 95% CI):"]
     for diff in result.differences:
         if diff["b"] == result.best:
@@ -845,5 +860,5 @@ def setting_text(fit: Fit) -> str:
 
 __all__ = ["TangramsError", "Tokeniser", "TOKENISATIONS", "STOP_WORDS", "Message", "Game", "load_games",
            "build_events", "Events", "Model", "wm_models", "GRIDS", "EXCLUDED", "COMBINATIONS", "BASELINES",
-           "RECENCY", "replay", "memberships", "folds_of", "fit_membership", "fit_recency", "logistic_fit", "Fit",
+           "RECENCY", "PAIRS", "replay", "memberships", "folds_of", "fit_membership", "fit_recency", "logistic_fit", "Fit",
            "Evaluation", "evaluate", "report", "default_grid", "write_example", "Estimate", "bootstrap_ci"]
