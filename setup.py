@@ -16,10 +16,10 @@ NODES = {
     "dialogue_player": "fsreg_ros.nodes.dialogue_player:main",
 }
 TOOLS = {
-    "fsreg-sim": "fsreg_ros.cli:sim_main",
-    "fsreg-graph": "fsreg_ros.graph:main",
-    "fsreg-up": "fsreg_ros.up:main",
-    "fsreg-ctl": "fsreg_ros.ctl:main",
+    "fsreg-sim": "fsreg_ros.tools.sim:sim_main",
+    "fsreg-graph": "fsreg_ros.tools.graph:main",
+    "fsreg-up": "fsreg_ros.tools.up:main",
+    "fsreg-ctl": "fsreg_ros.tools.ctl:main",
     "fsreg-eval": "fsreg_ros.research.cli:eval_main",
     "fsreg-sweep": "fsreg_ros.research.cli:sweep_main",
     "fsreg-plot": "fsreg_ros.research.cli:plot_main",

@@ -19,4 +19,4 @@ if [ $# -gt 0 ] && [ "${1#-}" = "$1" ]; then
   shift
 fi
 cd "$root"
-exec "$root/.venv/bin/python" -m fsreg_ros.research.figures "${args[@]}" "$@"
+exec "$root/.venv/bin/python" -m fsreg_ros.tools.figures "${args[@]}" "$@"

@@ -4,7 +4,7 @@
 Starts the live graph as users run it (``fsreg_ros.testing.LiveGraph`` with
 ``processes=True``, as ``fsreg-up`` runs it: every default, persistence on, sim time, a
 namespace of its own; the consultants' debug service off) and plays a dialogue manager
-and a perception loop through the harness's public :class:`~fsreg_ros.client.GraphClient`:
+and a perception loop through the harness's public :class:`~fsreg_ros.ros.client.GraphClient`:
 ``--rate`` human turns per second on ``dialogue/human`` and ``--rate`` REG requests per
 second on ``reg/request`` (the REG schedule offset by half a period), each sent at its
 scheduled moment whatever the answers (open loop: nothing waits for a reply).  The
@@ -47,14 +47,14 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.network import require_loopback, ros_environment  # noqa: E402
+from fsreg_ros.ros.network import require_loopback, ros_environment  # noqa: E402
 
 require_loopback("soak.py")
 os.environ.update(ros_environment())  # before rclpy loads
 
 import psutil  # noqa: E402
 
-from fsreg_ros.client import ClientError  # noqa: E402
+from fsreg_ros.ros.client import ClientError  # noqa: E402
 from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.testing import LiveGraph  # noqa: E402
 

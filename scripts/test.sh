@@ -5,7 +5,7 @@
 #   scripts/test.sh --quick          the quick suite, -m "not slow": no multi-process graphs, no colcon, no
 #                                    generated fuzzing (987 tests in 81 s on this project's 2-core machine)
 #   scripts/test.sh -m slow          only the slow tests
-#   scripts/test.sh test/test_x.py -k name -q     (any pytest arguments)
+#   scripts/test.sh test/core/test_x.py -k name -q     (any pytest arguments)
 #
 # Tests that start a graph of node processes or run for more than a few seconds are marked slow
 # (pytest.ini).  Always set ROS_DOMAIN_ID to a domain of your own when other graphs run.

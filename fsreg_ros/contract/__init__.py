@@ -15,7 +15,7 @@ One module per job:
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
-* :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.carrier.qos_profile`` makes the
+* :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);
 * :mod:`.endpoints`: the registry of topics and services (relative names, who talks);
 * :mod:`.naming`: namespaces and the per-graph ``/clock`` remapping;

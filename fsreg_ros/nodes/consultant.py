@@ -33,15 +33,15 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, serve, subscribe
-from ..codec import MessageError, printable
+from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe
+from ..ros.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
 from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
-from .asking import declare_limits
-from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
+from ..ros.asking import declare_limits
+from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 #: Ops whose WM changes are published with the session's ``close``.
 SESSION_STEPS = ("open", "narrow", "walk", "rule_out")

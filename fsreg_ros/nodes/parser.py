@@ -19,12 +19,12 @@ from typing import Optional
 from rclpy.node import Node
 
 from .. import contract
-from ..carrier import publish, publisher, subscribe
+from ..ros.carrier import publish, publisher, subscribe
 from ..contract import fingerprint
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
-from .asking import declare_limits
-from .common import descriptor, run_node, watch_clock
+from ..ros.asking import declare_limits
+from ..ros.node_base import descriptor, run_node, watch_clock
 from .reference_resolution import rr_error
 
 

@@ -16,11 +16,11 @@ from __future__ import annotations
 from typing import Optional
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import printable
+from ..ros.carrier import CarrierError, publish, publisher, subscribe
+from ..ros.codec import printable
 from ..core.resolution import NO_MATCH, resolve
-from .asking import AskingNode
-from .common import run_node
+from ..ros.asking import AskingNode
+from ..ros.node_base import run_node
 
 
 class ReferenceResolutionNode(AskingNode):

@@ -9,7 +9,7 @@ the final description (rule 1) are encoded in that consultant's WM.
 Parameters: ``algorithm`` (``auto`` = SD-PIA, or DIST-PIA for a domain whose
 policy is ``none``; or one of sd-pia, dist-pia, full-brevity, greedy),
 ``wm_order`` (lru-first, mru-first, preference), ``lexicon`` (path, '' = default), and
-the limits and timeouts of :class:`~fsreg_ros.nodes.asking.AskingNode`.  Bad requests
+the limits and timeouts of :class:`~fsreg_ros.ros.asking.AskingNode`.  Bad requests
 get ``{"id", "error"}`` on ``reg/expression`` and a logged warning.
 """
 
@@ -20,12 +20,12 @@ from typing import Optional
 from rcl_interfaces.msg import SetParametersResult
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import printable
+from ..ros.carrier import CarrierError, publish, publisher, subscribe
+from ..ros.codec import printable
 from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
 from ..core.lexicon import Lexicon
-from .asking import AskingNode
-from .common import descriptor, run_node
+from ..ros.asking import AskingNode
+from ..ros.node_base import descriptor, run_node
 
 
 class RegNode(AskingNode):

@@ -28,7 +28,7 @@ Parameters (all but ``domains`` changeable at run time; a change is validated as
 effective policy of every domain and rejected with a reason if any is invalid;
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
 ``domains`` (string array, required, read-only): the consultant domains managed; the
-memory settings, node-wide and per domain (:mod:`fsreg_ros.nodes.memory_parameters`,
+memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
 from the settings table); ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of
 each consultant call, and of sync's wait for the consultants to be configured.
 
@@ -71,15 +71,15 @@ from rclpy.parameter import Parameter
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
-                       wait_until)
+from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
+                           wait_until)
 from ..contract import manage_service
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
-from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
-from .manage_link import ConsultantLink, ManageLinks, ManagePort
-from .memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
+from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
+from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
+from ..ros.memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
 
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)

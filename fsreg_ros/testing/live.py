@@ -28,15 +28,15 @@ import tempfile
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence, Union
 
-from ..client import ClientError, GraphClient
+from ..ros.client import ClientError, GraphClient
 from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
 from ..core.simulation import Options
-from ..graph import Graph, live_nodes, new_graph_id, unique_namespace
-from ..network import ros_environment
-from .session import RosSession, Timeout
+from ..tools.graph import Graph, live_nodes, new_graph_id, unique_namespace
+from ..ros.network import ros_environment
+from .ros_session import RosSession, Timeout
 
 PathLike = Union[str, os.PathLike]
 
