@@ -67,7 +67,8 @@ def eval_parser() -> argparse.ArgumentParser:
     tuna.add_argument("--per-trial", type=Path, metavar="FILE.csv", help="write one row per trial and algorithm")
     tuna.add_argument("--json", action="store_true", help="print the results as JSON")
     tangrams = sub.add_parser(
-        "tangrams", help="the tangram games of Hawkins, Frank & Goodman (2020): forgetting rules against people's reuse")
+        "tangrams",
+        help="the tangram games of Hawkins, Frank & Goodman (2020): forgetting rules against people's reuse")
     tangrams.add_argument("path", type=Path, help="directory holding tangramsSequential.csv (or the file)")
     tangrams.add_argument("--tokens", default="content", metavar="NAME",
                           help="tokenisation: content (stop list), stems (stop list + Snowball stems) or all "
@@ -141,7 +142,8 @@ def tangram_grids(entries: Sequence[str]) -> dict:
         name, sep, text = entry.partition("=")
         name = name.strip()
         if not sep or name not in fitted:
-            raise UsageError(f"--grid '{entry}': expected PARAM=V1,V2,... with PARAM one of {', '.join(sorted(fitted))}")
+            known = ", ".join(sorted(fitted))
+            raise UsageError(f"--grid '{entry}': expected PARAM=V1,V2,... with PARAM one of {known}")
         row = table.setting(name)
         grids[name] = tuple(sorted(number_list(f"--grid {name}", text, row.kind, row.low, row.high)))
     return grids

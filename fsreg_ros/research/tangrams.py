@@ -57,13 +57,12 @@ forgets nothing.  Parameters with a fallback (the random victim's ``seed``) are 
 from __future__ import annotations
 
 import csv
-import math
 import multiprocessing
 import re
 from dataclasses import dataclass, field
 from itertools import product
 from pathlib import Path
-from typing import Iterable, Mapping, Optional, Sequence, Union
+from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -82,8 +81,8 @@ CAUSES = {"director": "speaker", "matcher": "rr"}
 DOMAIN = "tangrams"
 
 #: An English stop list (function words, auxiliaries, pronouns -- "one" too, as in "this one" --
-#: and chat fillers), written for fsreg: what is left are the content words.  Tokens are lower-case runs of letters, with an
-#: apostrophe inside (``he's``); digits and punctuation separate tokens.
+#: and chat fillers), written for fsreg: what is left are the content words.  Tokens are
+#: lower-case runs of letters, with an apostrophe inside (``he's``); digits and punctuation separate tokens.
 STOP_WORDS = frozenset("""
 a about above across after again against all almost also am an and another any anything are
 around as at b be because been before being below beside besides between both but by c can
@@ -281,8 +280,9 @@ class Events:
 def build_events(games: Sequence[Game]) -> Events:
     """Turn games into event streams and candidate arrays (once per tokenisation; every replay reuses it)."""
     streams, words = [], []
-    cols: dict[str, list] = {k: [] for k in ("game", "event", "repetition", "used", "seconds", "words_since",
-                                              "references", "descriptions", "mentions", "last")}
+    names = ("game", "event", "repetition", "used", "seconds", "words_since", "references", "descriptions",
+             "mentions", "last")
+    cols: dict[str, list] = {k: [] for k in names}
     desc = _Descriptives()
     event = 0
     for g, game in enumerate(games):
@@ -409,7 +409,7 @@ PAPER = {"decay_period": 10.0, "capacity": 2}
 
 
 def default_grid(name: str, values: int = 12) -> tuple:
-    """A grid for a parameter of the settings table without one in :data:`GRIDS`: from its bounds.
+    """Return a grid for a parameter of the settings table without one in :data:`GRIDS`: from its bounds.
 
     Log-spaced when the bounds are positive and span two decades or more (capped at 1e4 times
     the lower bound), else evenly spaced; whole numbers for an ``int`` parameter.
@@ -426,7 +426,7 @@ def default_grid(name: str, values: int = 12) -> tuple:
 
 
 def fitted_parameters(rules: Sequence[str]) -> list[str]:
-    """The parameters a policy's rules read that are fitted (those without a fallback)."""
+    """Return the parameters a policy's rules read that are fitted (those without a fallback)."""
     names = []
     for rule in rules:
         for param in RULE_PARAMETERS[rule]:
@@ -466,7 +466,7 @@ def wm_models(grids: Optional[Mapping[str, Sequence]] = None) -> list[Model]:
 
 
 def policy_of(setting: Mapping[str, object]) -> ForgettingPolicy:
-    """The core's policy for a grid point (validated by the core)."""
+    """Return the core's policy for a grid point (validated by the core)."""
     return ForgettingPolicy.from_settings(dict(setting))
 
 
@@ -620,7 +620,7 @@ def _choose(train: np.ndarray) -> tuple[int, float, float]:
 
 
 def recency_features(events: Events, names: Sequence[str]) -> np.ndarray:
-    """The recency predictors: log1p(seconds), log1p(words since), log(references since), log(descriptions since)."""
+    """Return the recency predictors: log1p(seconds), log1p(words since), log(references), log(descriptions)."""
     columns = {"seconds": np.log1p(np.maximum(events.seconds, 0.0)),
                "words": np.log1p(events.words_since.astype(float)),
                "references": np.log(np.maximum(events.references, 1).astype(float)),
@@ -795,11 +795,12 @@ def write_example(path: Union[str, Path], games: int = 4) -> Path:
 
 # ------------------------------------------------------------------ report
 def report(result: Evaluation) -> list[str]:
-    """The printed report: descriptives, every model's held-out fit, the differences."""
+    """Return the printed report: descriptives, every model's held-out fit, the differences."""
     e, d = result.events, result.events.descriptives
+    described = TOKENISATIONS[result.tokenisation].description if result.tokenisation in TOKENISATIONS else ""
     lines = [f"tangram games (Hawkins, Frank & Goodman 2020): {result.games} games, {e.events} director "
              f"re-references, {e.candidates} candidate words ({int(e.used.sum())} reused); tokenisation "
-             f"'{result.tokenisation}' ({TOKENISATIONS[result.tokenisation].description if result.tokenisation in TOKENISATIONS else ''})",
+             f"'{result.tokenisation}' ({described})",
              "",
              "repetition  descriptions  content words per description  share said earlier  reuse of earlier words"]
     for rep, row in d["by_repetition"].items():
@@ -811,7 +812,6 @@ def report(result: Evaluation) -> list[str]:
     qs, qr = d["gap_seconds_quartiles"], d["gap_references_quartiles"]
     lines += [f"gaps between references to a tangram ({d['gaps']}): {qs[1]:.0f} s (quartiles {qs[0]:.0f}-{qs[2]:.0f}),"
               f" {qr[1]:.0f} intervening references (quartiles {qr[0]:.0f}-{qr[2]:.0f})", ""]
-    constant = result.fits["constant"].game_ll
     n = e.candidates
     width = max(len(name) for name in result.fits)
     lines.append(f"{'model':{width}}  {'held-out LL':>11}  {'vs constant [95% CI]':>26}  setting (fitted on all games)")
@@ -838,7 +838,7 @@ def report(result: Evaluation) -> list[str]:
               "queue, else p_out.",
               f"intervals: paired by game, {METHOD} of the ratio (summed difference / candidates).",
               "chosen value at a grid edge: " + (", ".join(f"{n} ({', '.join(result.fits[n].edge)})" for n in edges)
-                                                  if edges else "none (every fitted value lies inside its grid)")]
+                                                 if edges else "none (every fitted value lies inside its grid)")]
     return lines
 
 
@@ -860,5 +860,6 @@ def setting_text(fit: Fit) -> str:
 
 __all__ = ["TangramsError", "Tokeniser", "TOKENISATIONS", "STOP_WORDS", "Message", "Game", "load_games",
            "build_events", "Events", "Model", "wm_models", "GRIDS", "EXCLUDED", "COMBINATIONS", "BASELINES",
-           "RECENCY", "PAIRS", "replay", "memberships", "folds_of", "fit_membership", "fit_recency", "logistic_fit", "Fit",
+           "RECENCY", "PAIRS", "replay", "memberships", "folds_of", "fit_membership", "fit_recency", "logistic_fit",
+           "Fit",
            "Evaluation", "evaluate", "report", "default_grid", "write_example", "Estimate", "bootstrap_ci"]

@@ -147,7 +147,8 @@ def data_figure(result: Evaluation, out: Path, stem: str = "tangrams-data") -> l
         axes[0].set_ylabel("distinct content words\nper description (words)")
         axes[0].set_ylim(0, None)
         later = [r for r in reps if r > 1]
-        _bars(axes[1], later, earlier[len(reps) - len(later):], "tab:blue", "middle: share of a description's words said earlier")
+        _bars(axes[1], later, earlier[len(reps) - len(later):], "tab:blue",
+              "middle: share of a description's words said earlier")
         _bars(axes[1], later, reuse[len(reps) - len(later):], "tab:red", "middle: share of the earlier words reused")
         axes[1].set_ylabel("share")
         axes[1].set_ylim(0, 1)
@@ -190,5 +191,5 @@ def _save(fig, plt, out: Path, stem: str) -> list[str]:
 
 
 def figures(result: Evaluation, out: Path) -> list[str]:
-    """Write both figures (PNG and PDF) into ``out``; return the file names."""
+    """Write both tangram figures (PNG and PDF) into ``out``; return the file names."""
     return reuse_figure(result, out) + data_figure(result, out)
