@@ -166,9 +166,9 @@ def eval_tangrams(args: argparse.Namespace) -> int:
     result = evaluate(args.path, args.tokens, args.folds, grids, args.jobs, args.resamples)
     written = []
     if args.plots is not None:
-        from .tangrams_plot import figures
+        from .tangrams_plot import write_figures
 
-        written = figures(result, args.plots)
+        written = write_figures(result, args.plots)
     if args.json:
         print(json.dumps(result.to_json(), indent=2))
         return 0

@@ -190,6 +190,6 @@ def _save(fig, plt, out: Path, stem: str) -> list[str]:
     return names
 
 
-def figures(result: Evaluation, out: Path) -> list[str]:
+def write_figures(result: Evaluation, out: Path) -> list[str]:
     """Write both tangram figures (PNG and PDF) into ``out``; return the file names."""
     return reuse_figure(result, out) + data_figure(result, out)
