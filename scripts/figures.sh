@@ -4,8 +4,10 @@
 # (fsreg-eval, fsreg-sim, fsreg-sweep at their documented size; outputs and PNGs in out/figures/).
 # Creates or refreshes .venv first, like the other scripts.
 #
-# Usage: scripts/figures.sh [TUNA_DIR] [--check] [--only NAME ...]
+# Usage: scripts/figures.sh [TUNA_DIR] [--tangrams DIR] [--check] [--only NAME ...]
 #   TUNA_DIR   the TUNA corpus (its trial XML files); default: $FSREG_TUNA_DIR. Not shipped (licence).
+#   --tangrams the tangram games of Hawkins, Frank & Goodman (2020), the directory holding
+#              tangramsSequential.csv; default: $FSREG_TANGRAMS_DIR. Not shipped (no licence file).
 #   --check    re-run every command and compare with the documents instead of rewriting them
 #              (exit 1 and a diff if any block differs; the "Run time:" lines are not compared).
 set -euo pipefail

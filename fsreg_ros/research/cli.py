@@ -53,7 +53,8 @@ def parse_orders(entries: Sequence[str]) -> dict[str, list[str]]:
 
 def eval_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="fsreg-eval", description="Score REG algorithms against human referring expressions."
+        prog="fsreg-eval",
+        description="Score REG algorithms (tuna) and forgetting rules (tangrams) against human referring expressions."
     )
     sub = parser.add_subparsers(dest="corpus", required=True)
     tuna = sub.add_parser("tuna", help="the TUNA corpus (singular trials)")
@@ -66,6 +67,22 @@ def eval_parser() -> argparse.ArgumentParser:
     tuna.add_argument("--folds", type=int, default=10, help="k for cross-validated order learning (default 10)")
     tuna.add_argument("--per-trial", type=Path, metavar="FILE.csv", help="write one row per trial and algorithm")
     tuna.add_argument("--json", action="store_true", help="print the results as JSON")
+    tangrams = sub.add_parser(
+        "tangrams",
+        help="the tangram games of Hawkins, Frank & Goodman (2020): forgetting rules against people's reuse")
+    tangrams.add_argument("path", type=Path, help="directory holding tangramsSequential.csv (or the file)")
+    tangrams.add_argument("--tokens", default="content", metavar="NAME",
+                          help="tokenisation: content (stop list), stems (stop list + Snowball stems) or all "
+                               "(default content)")
+    tangrams.add_argument("--folds", type=int, default=10, help="k of the cross-validation by game (default 10)")
+    tangrams.add_argument("--grid", action="append", default=[], metavar="PARAM=V1,V2,...",
+                          help="replace a parameter's grid (e.g. decay_period=5,10,20)")
+    tangrams.add_argument("--resamples", type=int, default=10_000,
+                          help="bootstrap resamples for the intervals (default 10000)")
+    tangrams.add_argument("--jobs", type=int, default=1, help="worker processes for the replays (results do not "
+                                                              "depend on it)")
+    tangrams.add_argument("--plots", type=Path, metavar="DIR", help="write the figures (PNG and PDF) into DIR")
+    tangrams.add_argument("--json", action="store_true", help="print the results as JSON")
     return parser
 
 
@@ -115,9 +132,61 @@ def write_per_trial(path: Path, results: list) -> None:
                 ])
 
 
+def tangram_grids(entries: Sequence[str]) -> dict:
+    """``["capacity=1,2,3"]`` -> ``{"capacity": (1, 2, 3)}``, each value checked against the settings table."""
+    from ..core import settings as table
+    from .tangrams import fitted_parameters, wm_models
+
+    fitted = {p for model in wm_models() for p in fitted_parameters(model.name.split("+"))}
+    grids: dict = {}
+    for entry in entries:
+        name, sep, text = entry.partition("=")
+        name = name.strip()
+        if not sep or name not in fitted:
+            known = ", ".join(sorted(fitted))
+            raise UsageError(f"--grid '{entry}': expected PARAM=V1,V2,... with PARAM one of {known}")
+        row = table.setting(name)
+        grids[name] = tuple(sorted(number_list(f"--grid {name}", text, row.kind, row.low, row.high)))
+    return grids
+
+
+def eval_tangrams(args: argparse.Namespace) -> int:
+    from .tangrams import TOKENISATIONS, evaluate, report
+
+    if args.tokens not in TOKENISATIONS:
+        raise UsageError(f"--tokens: unknown tokenisation '{args.tokens}' (known: {', '.join(TOKENISATIONS)})")
+    if not 2 <= args.folds <= 1000:
+        raise UsageError(f"--folds must be in [2, 1000], got {args.folds}")
+    if not 100 <= args.resamples <= 1_000_000:
+        raise UsageError(f"--resamples must be in [100, 1000000], got {args.resamples}")
+    if not 1 <= args.jobs <= 64:
+        raise UsageError(f"--jobs must be in [1, 64], got {args.jobs}")
+    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
+        raise UsageError(f"--plots {args.plots}: not a directory")
+    grids = tangram_grids(args.grid)
+    result = evaluate(args.path, args.tokens, args.folds, grids, args.jobs, args.resamples)
+    written = []
+    if args.plots is not None:
+        from .tangrams_plot import write_figures
+
+        written = write_figures(result, args.plots)
+    if args.json:
+        print(json.dumps(result.to_json(), indent=2))
+        return 0
+    for line in report(result):
+        print(line)
+    if written:
+        print(f"figures written to {args.plots}: {', '.join(written)}")
+    return 0
+
+
+def eval_command(args: argparse.Namespace) -> int:
+    return eval_tangrams(args) if args.corpus == "tangrams" else eval_tuna(args)
+
+
 def eval_main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``fsreg-eval``."""
-    return _run(eval_tuna, eval_parser(), argv)
+    return _run(eval_command, eval_parser(), argv)
 
 
 # ----------------------------------------------------------------- fsreg-sweep

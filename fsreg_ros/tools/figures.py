@@ -6,8 +6,9 @@ In a document a block sits between ``<!-- figure NAME -->`` and ``<!-- /figure -
 and starts with the command itself, so every number in it sits next to the command
 that regenerates it; a ``Run time:`` line says how long the command took.
 
-``python -m fsreg_ros.tools.figures --tuna DIR`` (what ``scripts/figures.sh``
-runs) plays every command at its documented size, from the repository root, and
+``python -m fsreg_ros.tools.figures --tuna DIR --tangrams DIR`` (what ``scripts/figures.sh``
+runs; the tangram corpus also from ``$FSREG_TANGRAMS_DIR``) plays every command at its documented
+size, from the repository root, and
 rewrites the blocks; ``--check`` plays them again and fails, showing the difference,
 if any block other than its run time differs from the documents.  ``--only NAME``
 restricts either to some figures; :func:`run_small` plays a figure at a small scale
@@ -32,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DOCS = ("README.md", "docs/research.md")
 OUT = "out/figures"
 TUNA = "$FSREG_TUNA_DIR"
+TANGRAMS = "$FSREG_TANGRAMS_DIR"
 PEOPLE_ORDER = "type,hasBeard,hasGlasses,hairColour,hasHair,age,orientation,hasSuit,hasTie,hasShirt"
 ORDERS = ("--order", "furniture=type,colour,orientation,size", "--order", f"people={PEOPLE_ORDER}")
 BEGIN, END = "<!-- figure {} -->", "<!-- /figure -->"
@@ -133,6 +135,25 @@ def origin_table(figure: "Figure", output: Output) -> str:
     return "\n".join(lines)
 
 
+def tangram_table(figure: "Figure", output: Output) -> str:
+    """Render the model table of ``fsreg-eval tangrams`` as markdown: held-out LL, difference from constant, setting."""
+    import re
+
+    lines = output.stdout.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("model "))
+    rows = ["| model | held-out log-likelihood per candidate | difference from constant [95 % CI] "
+            "| fitted on all games |", "|---|---|---|---|"]
+    for line in lines[start + 1:]:
+        if not line.strip():
+            break
+        found = re.match(r"^(\S+)\s+(-?\d+\.\d+)\s+([+-]\d\.\d+ \[[^\]]+\])?\s*(.*)$", line)
+        if found:
+            name, ll, diff, setting = found.groups()
+            rows.append(f"| {name} | {ll} | {diff or '(reference)'} | {setting} |")
+    summary = next((line for line in lines if line.startswith("tangram games")), "")
+    return "\n".join(rows) + f"\n\n{summary.split(': ', 1)[-1]}."
+
+
 def _read(output: Output, name: str) -> list[dict]:
     assert output.directory is not None
     with (output.directory / name).open(encoding="utf-8") as handle:
@@ -218,7 +239,7 @@ class Figure:
         """Return the command as the documents show it."""
         import shlex
 
-        args = [a if a == TUNA else shlex.quote(a) for a in self.argv]
+        args = [a if a in (TUNA, TANGRAMS) else shlex.quote(a) for a in self.argv]
         words = [f".venv/bin/{self.tool}"]
         for arg in args:  # an option and its value stay on one line
             if words[-1].startswith("--") and not arg.startswith("--") and " " not in words[-1]:
@@ -284,6 +305,26 @@ FIGURES = (
 )
 
 
+TANGRAM_SMALL = {"--folds": "2"}
+FIGURES += (
+    Figure("tangrams", "fsreg-eval",
+           ("tangrams", TANGRAMS, "--folds", "10", "--jobs", "2", "--plots", f"{OUT}/tangrams"),
+           {"tangrams": ("docs/research.md", verbatim), "tangrams-readme": ("README.md", tangram_table)},
+           small=TANGRAM_SMALL),
+    Figure("tangrams-stems", "fsreg-eval",
+           ("tangrams", TANGRAMS, "--tokens", "stems", "--folds", "10", "--jobs", "2", "--plots",
+            f"{OUT}/tangrams-stems"),
+           {"tangrams-stems": ("docs/research.md", verbatim)}, small=TANGRAM_SMALL),
+    # The robot with the parameters fitted to people (above) beside the paper's delta = 10, alpha = 2.
+    Figure("sweep-human-fitted", "fsreg-sweep",
+           ("--policies", "decay,displacement,decay+displacement,none", "--decay-periods", "10,180,480",
+            "--capacities", "2,4,6", "--seeds", "30", "--turns", "200", "--jobs", "2", "--no-progress",
+            "--out", f"{OUT}/sweep-human-fitted"),
+           {"sweep-human-fitted": ("docs/research.md", summary_table),
+            "sweep-human-fitted-readme": ("README.md", summary_table)}, small=SMALL, writes=True),
+)
+
+
 def tool_main(tool: str) -> Callable[[Sequence[str]], int]:
     """Return the entry point of one of the workbench's commands."""
     from .sim import sim_main
@@ -292,19 +333,24 @@ def tool_main(tool: str) -> Callable[[Sequence[str]], int]:
     return {"fsreg-eval": eval_main, "fsreg-sweep": sweep_main, "fsreg-sim": sim_main}[tool]
 
 
-def _argv(figure: Figure, tuna: Optional[Path], overrides: dict, small: bool = False) -> list:
+def _argv(figure: Figure, tuna: Optional[Path], overrides: dict, small: bool = False,
+          tangrams: Optional[Path] = None) -> list:
     argv = list(figure.small_argv if small and figure.small_argv else figure.argv)
     for option, value in overrides.items():
         if option in argv:
             argv[argv.index(option) + 1] = value
-    return [str(tuna) if a == TUNA else a for a in argv]
+    return [str(tuna) if a == TUNA else str(tangrams) if a == TANGRAMS else a for a in argv]
 
 
-def run(figure: Figure, tuna: Optional[Path], overrides: Optional[dict] = None, small: bool = False) -> Output:
+def run(figure: Figure, tuna: Optional[Path], overrides: Optional[dict] = None, small: bool = False,
+        tangrams: Optional[Path] = None) -> Output:
     """Run a figure's command in this process (from the repository root); return what it printed and wrote."""
-    argv = _argv(figure, tuna, overrides or {}, small)
+    argv = _argv(figure, tuna, overrides or {}, small, tangrams)
     if TUNA in figure.argv and tuna is None:
         raise SystemExit(f"figures: {figure.name} needs the TUNA corpus: give --tuna DIR or set FSREG_TUNA_DIR")
+    if TANGRAMS in figure.argv and tangrams is None:
+        raise SystemExit(f"figures: {figure.name} needs the tangram corpus: give --tangrams DIR or set "
+                         "FSREG_TANGRAMS_DIR")
     directory = ROOT / argv[argv.index("--out") + 1] if "--out" in argv else None
     printed = io.StringIO()
     cwd = Path.cwd()
@@ -324,10 +370,15 @@ def run(figure: Figure, tuna: Optional[Path], overrides: Optional[dict] = None, 
 def run_small(figure: Figure, tuna: Path, out: Path) -> dict:
     """Run a figure at small scale (its ``small`` overrides, outputs under ``out``); return its rendered blocks."""
     overrides = dict(figure.small)
-    for option in ("--out", "--plot-dir"):
+    for option in ("--out", "--plot-dir", "--plots"):
         if option in figure.argv:
             overrides[option] = str(out / figure.name)
-    return render(figure, run(figure, tuna, overrides, small=True))
+    tangrams = None
+    if TANGRAMS in figure.argv:  # a tiny hand-made corpus in the corpus's format
+        from ..research.tangrams import write_example
+
+        tangrams = write_example(out / "tangrams-example").parent
+    return render(figure, run(figure, tuna, overrides, small=True, tangrams=tangrams))
 
 
 def render(figure: Figure, output: Output) -> dict:
@@ -362,6 +413,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="figures", description=__doc__.splitlines()[0])
     parser.add_argument("--tuna", type=Path, default=os.environ.get("FSREG_TUNA_DIR") or None,
                         help="the TUNA corpus directory (default: $FSREG_TUNA_DIR)")
+    parser.add_argument("--tangrams", type=Path, default=os.environ.get("FSREG_TANGRAMS_DIR") or None,
+                        help="the tangram corpus directory (default: $FSREG_TANGRAMS_DIR)")
     parser.add_argument("--check", action="store_true", help="compare with the documents instead of rewriting them")
     parser.add_argument("--only", action="append", default=[], metavar="NAME", help="only these figures")
     args = parser.parse_args(argv)
@@ -371,11 +424,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.tuna is None:
         parser.error("give the TUNA corpus directory: --tuna DIR or FSREG_TUNA_DIR (it is not shipped)")
     chosen = [f for f in FIGURES if not args.only or f.name in args.only]
+    if args.tangrams is None and any(TANGRAMS in f.argv for f in chosen):
+        parser.error("give the tangram corpus directory: --tangrams DIR or FSREG_TANGRAMS_DIR (it is not shipped)")
+    tangrams = args.tangrams.resolve() if args.tangrams is not None else None
     documents = {doc: (ROOT / doc).read_text(encoding="utf-8") for doc in DOCS}
     differ = []
     total = 0.0
     for figure in chosen:
-        output = run(figure, args.tuna.resolve())
+        output = run(figure, args.tuna.resolve(), tangrams=tangrams)
         total += output.seconds
         print(f"figures: {figure.name}: {output.seconds:.1f} s", file=sys.stderr)
         for name, content in render(figure, output).items():
