@@ -30,8 +30,9 @@ from its LTM (what holds for the target now), as a new attempt of the same turn:
   (the Incremental Algorithm's) that holds for the target, is not in the
   description, and rules out at least one of the named candidates other than the
   target (in the robot's LTM).
-* *none fits* -- the listener names the first property of the description that left
-  it no candidate, and the candidates it had before that property.  The robot drops
+* *none fits* -- the listener names the property it cannot match: the first of the
+  description (utterance order) without which some candidate fits (else the one at
+  which its candidates ran out), and the candidates the rest leaves.  The robot drops
   that property and adds, as above, the first property that rules out one of those
   candidates other than the target (none if only the target was left).  A property
   the listener said fits no one is not said again in the same turn.
@@ -208,19 +209,29 @@ class Listener:
         resolution = run_sync(resolve(description, ports, domain=domain, time=time, turn=turn))
         return resolution.status, list(resolution.candidates)
 
-    def blocker(self, description: Sequence[str], domain: str) -> tuple[Optional[str], list[str]]:
-        """Return the first property of a description that leaves the listener no candidate, and those before it.
-
-        Read-only (the listener explaining "none fits"; nothing is encoded).
-        """
+    def matching(self, description: Sequence[str], domain: str) -> list[str]:
+        """Return the entities every property of ``description`` holds for, in the listener's knowledge (read-only)."""
         consultant = self.consultants[domain]
         left = list(consultant.entities)
         for prop in description:
-            narrowed = consultant.holds(prop, left)
-            if not narrowed:
+            left = consultant.holds(prop, left)
+        return left
+
+    def blame(self, description: Sequence[str], domain: str) -> tuple[str, list[str]]:
+        """Return the property the listener says fits no one, and the candidates the rest of the description leaves.
+
+        The first property (utterance order) without which some candidate fits; if
+        none, the one at which the candidates ran out.  Read-only (the listener
+        explaining "none fits"; nothing is encoded).
+        """
+        for prop in description:
+            left = self.matching([p for p in description if p != prop], domain)
+            if left:
                 return prop, left
-            left = narrowed
-        return None, left
+        for i, prop in enumerate(description):
+            if not self.matching(description[:i + 1], domain):
+                return prop, self.matching(description[:i], domain)
+        return description[-1], []
 
     def hear(self, description: Sequence[str], target: str, domain: str, robot: Consultant, time: float,
              turn: int) -> Heard:
@@ -242,7 +253,7 @@ class Listener:
                 return heard
             dropped = None
             if status == NO_MATCH:
-                dropped, candidates = self.blocker(said, domain)
+                dropped, candidates = self.blame(said, domain)
                 said = [p for p in said if p != dropped]
                 disputed.append(dropped)  # type: ignore[arg-type]
             added = next_property(robot, target, said, candidates, exclude=disputed)
