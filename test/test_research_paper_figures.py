@@ -30,6 +30,10 @@ def drawn(monkeypatch):
     return figures
 
 
+def _metric(title: str) -> str:
+    return next(m for m, t, _ in plot.LISTENER_PANELS if t == title)
+
+
 def _overlaps(a, b) -> bool:
     return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
 
@@ -77,13 +81,13 @@ def test_divergence_plot_draws_every_setting_with_legends_outside_and_bands_unde
     # decay, and decay+displacement once per capacity: 3 panels.
     assert [ax.get_title() for ax in axes] == ["decay", "decay+displacement: α = 1", "decay+displacement: α = 2"]
     settings = {s for s, _ in curves if s.policy != "none"}
-    drawn_lines = sum(len([line for line in ax.get_lines() if not line.get_label().startswith("_")]) for ax in axes)
+    drawn_lines = sum(len(ax.get_lines()) for ax in axes)
     assert drawn_lines == len(settings) == 18  # 3 periods x (1 + 2 capacities) x told or not
     for ax in axes:
         assert ax.get_ylabel() == "share of descriptions\ndiffering from none" and ax.get_xlabel()
         legend = ax.get_legend()
         assert legend.get_window_extent().x0 >= ax.get_window_extent().x1  # outside, to the right
-        assert [t.get_text() for t in legend.get_texts()][:2] == ["δ = 5", "δ = 5 (not told)"]
+        assert [t.get_text() for t in legend.get_texts()] == ["δ = 5", "δ = 10", "δ = 80"]  # dashed: not told
         bands = ax.collections
         assert bands and max(b.get_zorder() for b in bands) < min(line.get_zorder() for line in ax.get_lines())
 
@@ -95,9 +99,9 @@ def test_listener_plot_shows_success_turns_length_and_entrainment(swept, drawn, 
     fig = drawn["listener.png"]
     assert [ax.get_title() for ax in fig.axes] == ["communicative success", "turns to success", "length",
                                                    "entrainment"]
+    assert [t.get_text() for t in fig.axes[0].get_yticklabels()] == [e["setting"].label() for e in summary]
     for ax in fig.axes:
-        assert [t.get_text() for t in ax.get_yticklabels()] == [e["setting"].label() for e in summary]
-        assert ax.get_xlabel()
+        assert ax.get_xlabel() == dict((m, x) for m, _, x in plot.LISTENER_PANELS)[_metric(ax.get_title())]
 
 
 def test_timeline_names_the_humans_words_human_speech_as_the_alignment_table_does(tmp_path):

@@ -49,16 +49,16 @@ INTEGER = ("capacity", "global_capacity", "shared_capacity")
 PANELS = (
     ("entrainment_gain", "entrainment gain over none", "Δ Dice with the human's\nlast description"),
     ("length_change", "length change over none", "Δ length\n(properties per description)"),
-    ("mean_wm_occupancy", "WM occupancy before the robot speaks", "WM occupancy (properties)"),
+    ("mean_wm_occupancy", "WM occupancy", "properties in WM before\nthe robot speaks"),
     ("divergence", "divergence from none", "share of descriptions\ndiffering from none"),
 )
 DYNAMIC_PANELS = (("outdated_rate", "outdated information", "share of properties said\nno longer true"),)
 #: The listener's panels (sweeps with a listener): metric, title, y-axis label with its unit.
 LISTENER_PANELS = (
-    ("success", "communicative success", "share of robot turns\nidentified (with repairs)"),
-    ("turns_to_success", "turns to success", "attempts per identified\nreference (1 = at once)"),
-    ("said_length", "length", "properties said per robot\nturn (with repairs)"),
-    ("entrainment", "entrainment", "Dice with the human's\nlast description"),
+    ("success", "success", "share of robot turns"),
+    ("turns_to_success", "turns to success", "attempts (1 = at once)"),
+    ("said_length", "length said", "properties per turn"),
+    ("entrainment", "entrainment", "Dice"),
 )
 #: A two-column paper's full text width and its font sizes (points).
 PAGE_WIDTH = 7.0
@@ -121,6 +121,12 @@ def _x_axis(ax, x_param: Optional[str], xs_all: Sequence[float]) -> None:
     ax.set_xlabel(label)
 
 
+def _layout(fig, bottom: float = 0.45, top: float = 0.0) -> None:
+    """Tight layout leaving ``bottom`` inches for the caption (and legend), ``top`` more above the title."""
+    height = fig.get_size_inches()[1]
+    fig.tight_layout(rect=(0, bottom / height, 1, 1 - top / height))
+
+
 def _panel_grid(count: int, columns: int, height: float):
     plt = _pyplot()
     rows = (count + columns - 1) // columns
@@ -145,7 +151,7 @@ def policy_plot(policy: str, entries: Sequence[dict], none: Optional[dict], out:
     n = max(e["n"] for e in entries)
     colours = {values: f"C{i % 10}" for i, values in enumerate(dict.fromkeys(v for v, _ in groups))}
     with _style():
-        fig, axes = _panel_grid(len(panels), 3 if len(panels) > 4 else 2, 1.9)
+        fig, axes = _panel_grid(len(panels), 2, 1.8)
         for ax, (metric, title, ylabel) in zip(axes.flat, panels):
             for (line_values, told), group in groups.items():
                 group = sorted(group, key=lambda e: getattr(e["setting"], x_param) if x_param else 0)
@@ -172,14 +178,13 @@ def policy_plot(policy: str, entries: Sequence[dict], none: Optional[dict], out:
                 handles.setdefault(label, handle)
         columns = min(len(handles), 4)
         rows = (len(handles) + columns - 1) // max(columns, 1)
-        bottom = 0.06 + 0.035 * rows
         if len(handles) > 1:
             fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=columns,
-                       bbox_to_anchor=(0.5, 0.045), frameon=False)
+                       bbox_to_anchor=(0.5, 0.33 / fig.get_size_inches()[1]), frameon=False)
         fig.suptitle(f"{policy}: each metric against its own parameters")
         _caption(fig, f"Points: mean over n = {n} games; bars: {METHOD}. Gains and changes are paired by game "
                       "against the same game under policy none.")
-        fig.tight_layout(rect=(0, bottom if len(handles) > 1 else 0.05, 1, 1))
+        _layout(fig, 0.45 + (0.16 * rows if len(handles) > 1 else 0))
         return _save(fig, out, name or _file_name(policy))
 
 
@@ -261,7 +266,8 @@ def divergence_plot(curves: Mapping[tuple, Sequence[int]], out: Path) -> list[st
                 if setting.retraction:  # bands for the told family only, under every line
                     ax.fill_between(xs, [lo for _, _, lo, _ in curve], [hi for _, _, _, hi in curve], alpha=0.12,
                                     color=c, linewidth=0, zorder=1)
-                ax.plot(xs, [m for _, m, _, _ in curve], label=_line_label(setting), color=c, zorder=3,
+                ax.plot(xs, [m for _, m, _, _ in curve], color=c, zorder=3,
+                        label=_line_label(setting) if setting.retraction else "_not told",  # dashed: caption
                         linestyle="-" if setting.retraction else "--")
             ax.set_title(title)
             ax.set_xlabel(f"robot turn (blocks of {window})")
@@ -276,7 +282,7 @@ def divergence_plot(curves: Mapping[tuple, Sequence[int]], out: Path) -> list[st
             else ""
         _caption(fig, f"Lines: mean over n = {games} games of each game's share of differing descriptions in the "
                       f"block; bands: {METHOD}.{untold} Every setting is drawn.")
-        fig.tight_layout(rect=(0, 0.06, 1, 1))
+        _layout(fig)
         return _save(fig, out, "divergence_by_turn.png")
 
 
@@ -312,7 +318,7 @@ def tradeoff_plot(summary: Sequence[dict], out: Path, bounds: Sequence[float]) -
                 ax.text(bound, 0.02, f" {bound:.0%}", fontsize=6, va="bottom", transform=ax.get_xaxis_transform())
             ax.set_title(f"WM: {wm}")
             ax.set_xlim(-0.002, max(worst, max(bounds)) * 1.1)
-            ax.set_xlabel("outdated rate (share of properties said no longer true)")
+            ax.set_xlabel("outdated rate (share of properties\nsaid no longer true)")
             ax.set_ylabel("entrainment (Dice with the\nhuman's last description)")
             ax.grid(alpha=0.3)
         handles: dict = {}
@@ -320,37 +326,42 @@ def tradeoff_plot(summary: Sequence[dict], out: Path, bounds: Sequence[float]) -
             for handle, label in zip(*ax.get_legend_handles_labels()):
                 handles.setdefault(label, handle)
         fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=min(len(handles), 4),
-                   bbox_to_anchor=(0.5, 0.045), frameon=False)
+                   bbox_to_anchor=(0.5, 0.33 / fig.get_size_inches()[1]), frameon=False)
         rows = (len(handles) + 3) // 4
         fig.suptitle("Entrainment against outdated information, one point per setting")
         _caption(fig, f"Points: means over n = {n} games; bars: {METHOD}; dotted lines: the recommendation's "
                       "bounds.")
-        fig.tight_layout(rect=(0, 0.07 + 0.035 * rows, 1, 1))
+        _layout(fig, 0.45 + 0.16 * rows)
         return _save(fig, out, "tradeoff.png")
 
 
 def listener_plot(summary: Sequence[dict], out: Path) -> list[str]:
     """Draw the listener's success, turns to success, length and entrainment per setting, with intervals."""
+    plt = _pyplot()
     labels = [e["setting"].label() for e in summary]
     n = max(e["n"] for e in summary)
     with _style():
-        fig, axes = _panel_grid(len(LISTENER_PANELS), 2, 0.9 + 0.16 * len(summary))
+        fig, axes = plt.subplots(1, len(LISTENER_PANELS), sharey=True, squeeze=False,
+                                 figsize=(PAGE_WIDTH, 1.5 + 0.16 * len(summary)))
+        ys = list(range(len(summary)))
         for ax, (metric, title, xlabel) in zip(axes.flat, LISTENER_PANELS):
             est = [e["estimates"][metric] for e in summary]
-            ys = list(range(len(summary)))
             ax.errorbar([e.mean for e in est], ys, xerr=[[e.mean - e.low for e in est], [e.high - e.mean for e in est]],
                         marker="o", linestyle="", color="C0")
-            ax.set_yticks(ys)
-            ax.set_yticklabels(labels)
-            ax.set_ylim(len(summary) - 0.5, -0.5)
-            ax.set_ylabel("setting")
-            ax.set_xlabel(xlabel.replace("\n", " "))
+            ax.set_xlabel(xlabel)
             ax.set_title(title)
             ax.grid(alpha=0.3, axis="x")
+        first = axes.flat[0]
+        first.set_yticks(ys)
+        first.set_yticklabels(labels)
+        first.set_ylim(len(summary) - 0.5, -0.5)
+        first.set_ylabel("robot memory setting")
         fig.suptitle("The listener: success, turns to success, length and entrainment per setting")
-        _caption(fig, f"Points: means over n = {n} games (turns to success: over the games with a success); "
-                      f"bars: {METHOD}.")
-        fig.tight_layout(rect=(0, 0.05, 1, 1))
+        _caption(fig, "Success: share of robot turns whose referent the listener identified, repairs included; "
+                      "turns to success: attempts over the identified ones; length said: properties the robot said "
+                      "per turn, repairs included; entrainment: Dice with the human's last description of the "
+                      f"referent. Points: means over n = {n} games; bars: {METHOD}.")
+        _layout(fig)
         return _save(fig, out, "listener.png")
 
 
