@@ -97,8 +97,7 @@ def test_listener_plot_shows_success_turns_length_and_entrainment(swept, drawn, 
     summary, _ = swept
     assert plot.listener_plot(summary, tmp_path) == ["listener.png", "listener.pdf"]
     fig = drawn["listener.png"]
-    assert [ax.get_title() for ax in fig.axes] == ["communicative success", "turns to success", "length",
-                                                   "entrainment"]
+    assert [ax.get_title() for ax in fig.axes] == ["success", "turns to success", "length said", "entrainment"]
     assert [t.get_text() for t in fig.axes[0].get_yticklabels()] == [e["setting"].label() for e in summary]
     for ax in fig.axes:
         assert ax.get_xlabel() == dict((m, x) for m, _, x in plot.LISTENER_PANELS)[_metric(ax.get_title())]
