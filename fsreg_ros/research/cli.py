@@ -16,6 +16,7 @@ from ..core.forgetting import PolicyError
 from ..core.generation import GenerationError
 from .execution import add_engine_arguments, engine_from_args
 from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
+from .listener import MAX_REPAIRS, ORDERS, PARTNERS, ListenerOptions
 from .tuna import ALGORITHMS, DOMAINS, TunaError, evaluate, load_trials
 
 
@@ -252,6 +253,23 @@ def sweep_parser() -> argparse.ArgumentParser:
                         help="extra memory setting for every non-none run (fixes that parameter)")
     parser.add_argument("--human-memory", action="append", default=[], metavar="KEY=VALUE",
                         help="give the human a WM of its own (e.g. policy=decay, decay_period=10)")
+    listener = parser.add_argument_group(
+        "listener", "who resolves the robot's descriptions (any of these adds the listener's metrics; "
+                    "see docs/research.md)")
+    listener.add_argument("--listener-missing", metavar="RATE",
+                          help="share of facts the listener does not know, in [0, 1] (default 0)")
+    listener.add_argument("--listener-noise", metavar="RATE",
+                          help="share of known facts the listener misperceives, in [0, 1] (default 0)")
+    listener.add_argument("--listener-order", metavar="ORDER",
+                          help=f"the listener's preference order, with --partner robot: {', '.join(ORDERS)} "
+                               "(default: robot)")
+    listener.add_argument("--max-repairs", metavar="N",
+                          help=f"repairs per robot turn before the reference counts as failed (default {MAX_REPAIRS})")
+    listener.add_argument("--partner", metavar="WHO",
+                          help="who plays the human's role: human (the game's Incremental-Algorithm human, default) "
+                               "or robot (a second fsreg agent with its own WM; robot-robot mode)")
+    listener.add_argument("--partner-memory", action="append", default=[], metavar="KEY=VALUE",
+                          help="with --partner robot: its WM settings (default: the same as the robot's in each run)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--resume", action="store_true",
                         help="play only the games missing from --out's games.jsonl (same command, same code)")
@@ -295,6 +313,55 @@ def retraction_list(text: str) -> tuple:
     return tuple(dict.fromkeys(v == "on" for v in values))
 
 
+def rate(option: str, text: str) -> float:
+    """Parse a probability for ``option``: a finite number in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{option}: '{text}' is not a number") from None
+    if not 0.0 <= value <= 1.0:  # also refuses nan
+        raise UsageError(f"{option} must be in [0, 1], got {text}")
+    return value
+
+
+def listener_options(args: argparse.Namespace) -> Optional[ListenerOptions]:
+    """Return the listener the options describe, or None when none of them is given (no listener, as before)."""
+    given = [args.listener_missing, args.listener_noise, args.listener_order, args.max_repairs, args.partner]
+    if all(v is None for v in given) and not args.partner_memory:
+        return None
+    partner = args.partner if args.partner is not None else "human"
+    if partner not in PARTNERS:
+        raise UsageError(f"--partner: expected {' or '.join(PARTNERS)}, got '{partner}'")
+    robot = partner == "robot"
+    if args.listener_order is not None:
+        if args.listener_order not in ORDERS:
+            raise UsageError(f"--listener-order: expected one of {', '.join(ORDERS)}, got '{args.listener_order}'")
+        if not robot:
+            raise UsageError("--listener-order needs --partner robot (the order decides what the listener says; "
+                             "resolution checks every property in any order)")
+    if args.partner_memory and not robot:
+        raise UsageError("--partner-memory needs --partner robot")
+    if robot and args.human_memory:
+        raise UsageError("--human-memory and --partner robot both give the human's role a WM: "
+                         "use --partner-memory")
+    repairs = MAX_REPAIRS
+    if args.max_repairs is not None:
+        try:
+            repairs = int(args.max_repairs)
+        except ValueError:
+            raise UsageError(f"--max-repairs: '{args.max_repairs}' is not an integer") from None
+        if not 0 <= repairs <= 20:
+            raise UsageError(f"--max-repairs must be in [0, 20], got {repairs}")
+    return ListenerOptions(
+        missing=rate("--listener-missing", args.listener_missing) if args.listener_missing is not None else 0.0,
+        noise=rate("--listener-noise", args.listener_noise) if args.listener_noise is not None else 0.0,
+        order=args.listener_order,
+        max_repairs=repairs,
+        partner=partner,
+        partner_memory=memory_settings(args.partner_memory, "--partner-memory") if args.partner_memory else None,
+    )
+
+
 def sweep_config(args: argparse.Namespace):
     """Return the checked SweepConfig, engine and shard (or None) of fsreg-sweep's arguments."""
     from .sweep import Shard, SweepConfig
@@ -322,6 +389,7 @@ def sweep_config(args: argparse.Namespace):
                              f"(give at most --seeds shards)")
         shard = Shard(index, count, seeds)
         seeds = shard.mine()
+    listener = listener_options(args)
     config = SweepConfig(
         policies=policies,
         decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-2, 1e6),
@@ -337,6 +405,7 @@ def sweep_config(args: argparse.Namespace):
         changes=args.changes,
         retraction=retraction_list(args.retraction),
         wm_belief=args.wm_belief,
+        listener=listener,
     )
     return config, engine, shard
 
@@ -359,6 +428,9 @@ def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None
           f"written to {args.out / 'runs.csv'}")
     for line in headline(summary, dynamic=config.changes > 0):
         print(line)
+    if config.listener is not None:
+        for line in listener_lines(summary, config.listener):
+            print(line)
     if config.changes > 0:
         for line in recommendation_lines(recommend(summary)):
             print(line)
@@ -435,6 +507,36 @@ def headline(summary: list, dynamic: bool = False) -> list[str]:
         "  every description was distinguishing." if rate == 1.0 else
         f"  lowest distinguishing rate of a setting: {rate:.3f}.",
     ]
+    return lines
+
+
+def listener_lines(summary: list, listener: ListenerOptions) -> list[str]:
+    """Return one line per setting: the listener's success, turns to success, length and entrainment, with intervals."""
+    from .stats import METHOD
+
+    robot = listener.partner == "robot"
+    who = (f"a second fsreg agent (order {listener.order_name()}, WM "
+           + (", ".join(f"{k}={v}" for k, v in listener.partner_memory.items()) if listener.partner_memory
+              else "as the robot's") + ")") if robot else "the human"
+    lines = [f"listener: {who}, facts missing {listener.missing:g}, misperceived {listener.noise:g}, "
+             f"at most {listener.max_repairs} repairs"]
+    labels = [e["setting"].label() for e in summary]
+    width = max([len(label) for label in labels] + [7])
+    lines.append(f"  {'setting':{width}}  {'success [95% CI]':>22}  {'1st try':>7}  {'turns to success [95% CI]':>25}  "
+                 f"{'length':>6}  {'heard':>5}  {'entrainment [95% CI]':>22}" + ("  robot resolved" if robot else ""))
+    for label, entry in zip(labels, summary):
+        e = entry["estimates"]
+        line = (f"  {label:{width}}  {e['success'].text(3):>22}  {e['first_success'].mean:7.3f}  "
+                f"{e['turns_to_success'].text(3):>25}  {e['mean_length'].mean:6.2f}  {e['final_length'].mean:5.2f}  "
+                f"{e['entrainment'].text(3):>22}")
+        if robot:
+            line += f"  {e['partner_resolved'].mean:14.3f}"
+        lines.append(line)
+    lines.append("  success: share of robot turns whose referent the listener identified (repairs included); 1st try: "
+                 "at once; turns to success: attempts, over the turns that succeeded; length: properties per robot "
+                 "description; heard: in the description the listener resolved last"
+                 + ("; robot resolved: share of the partner's descriptions the robot resolved to their referent"
+                    if robot else "") + f"; {METHOD}.")
     return lines
 
 

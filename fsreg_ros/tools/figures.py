@@ -180,6 +180,22 @@ def summary_table(figure: "Figure", output: Output) -> str:
     return "\n".join(lines) + f"\n\nMeans over {rows[0]['games']} games; intervals: {_method()}."
 
 
+def listener_table(figure: "Figure", output: Output) -> str:
+    """Per setting: the listener's success, turns to success, length and entrainment with intervals (summary.csv)."""
+    rows = _read(output, "summary.csv")
+    robot = "partner_resolved" in rows[0]
+    lines = ["| setting | success [95 % CI] | at once | turns to success [95 % CI] | length | said, repairs incl. "
+             "[95 % CI] | entrainment [95 % CI] |" + (" robot resolved |" if robot else ""),
+             "|---|---|---|---|---|---|---|" + ("---|" if robot else "")]
+    for row in rows:
+        lines.append(
+            f"| {_setting_label(row)} | {_interval(row, 'success', 3)} | {float(row['first_success']):.3f} | "
+            f"{_interval(row, 'turns_to_success', 2)} | {float(row['mean_length']):.2f} | "
+            f"{_interval(row, 'said_length', 2)} | {_interval(row, 'entrainment', 3)} |"
+            + (f" {float(row['partner_resolved']):.3f} |" if robot else ""))
+    return "\n".join(lines) + f"\n\nMeans over {rows[0]['games']} games; intervals: {_method()}."
+
+
 def recommendation_table(figure: "Figure", output: Output) -> str:
     """Render the follow-up's recommendation (recommendation.csv): per WM configuration and bound, the best."""
     rows = _read(output, "recommendation.csv")
@@ -262,6 +278,8 @@ FOLLOWUP = ("--world", "faces+objects", "--changes", "20", "--retraction", "on,o
             "--decay-periods", "5,10,20,40,80", "--capacities", "1,2,3,4,6", "--shared-capacities", "8,16,32,64,128",
             "--seeds", "30", "--turns", "200", "--jobs", "2", "--no-progress")
 SMALL = {"--seeds": "2", "--turns": "12"}
+LISTENER = ("--policies", "decay,displacement,none", "--decay-periods", "10,40", "--capacities", "2,4",
+            "--seeds", "30", "--turns", "100", "--jobs", "2", "--no-progress")
 
 FIGURES = (
     Figure("tuna", "fsreg-eval", ("tuna", TUNA, *ORDERS),
@@ -292,6 +310,12 @@ FIGURES = (
             "--capacities", "1,2,3", "--global-capacities", "8,16,32", "--seeds", "30", "--turns", "200",
             "--jobs", "2", "--no-progress", "--out", f"{OUT}/sweep-rules"),
            {"sweep-rules": ("docs/research.md", verbatim)}, small=SMALL, writes=True),
+    Figure("listener", "fsreg-sweep", LISTENER + ("--listener-missing", "0.1", "--listener-noise", "0.05",
+                                                  "--out", f"{OUT}/listener"),
+           {"listener": ("docs/research.md", listener_table)}, small=SMALL, writes=True),
+    Figure("robot-robot", "fsreg-sweep", LISTENER + ("--partner", "robot", "--listener-noise", "0.05",
+                                                     "--out", f"{OUT}/robot-robot"),
+           {"robot-robot": ("docs/research.md", listener_table)}, small=SMALL, writes=True),
     Figure("followup", "fsreg-sweep", FOLLOWUP + ("--out", f"{OUT}/followup"),
            {"followup": ("docs/research.md", recommendation_table),
             "followup-readme": ("README.md", recommendation_table),

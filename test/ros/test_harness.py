@@ -47,7 +47,8 @@ def test_the_readme_integration_test_runs_as_it_stands(tmp_path):
 @pytest.mark.slow  # a pytest process of its own
 def test_the_fixture_comes_from_the_installed_plugin():
     proc = subprocess.run([sys.executable, "-m", "pytest", "--fixtures", "-q", "-p", "no:cacheprovider",
-                           str(REPO / "test" / "project" / "test_lint.py")], capture_output=True, text=True, timeout=120)
+                           str(REPO / "test" / "project" / "test_lint.py")],
+                          capture_output=True, text=True, timeout=120)
     assert "fsreg_graph" in proc.stdout and "fsreg_ros/testing/plugin.py" in proc.stdout
 
 
