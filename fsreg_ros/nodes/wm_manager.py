@@ -13,6 +13,12 @@ sends each decision to ``/consultant/<domain>/manage``:
   of any ``decay`` it never acknowledged (the consultant skips ticks it had applied,
   so none is applied twice).  A restarted consultant refuses query ops (kind
   ``not-ready``) until that configure arrives.
+* Reachability, under every policy: the node follows each consultant's liveliness on
+  ``consultant/<domain>/alive`` (a 1 s DDS lease, kept by the consultant's DDS threads).
+  When it lapses, the domain stops counting as configured (``ready`` turns false, the
+  domain is detached so decay ticks are owed, not lost) until the consultant is back
+  and has acknowledged a configure again: without it, a policy that sends nothing on
+  its own (displacement, none) never noticed an outage.
 * ``decay`` sends a run of ticks ``{"origin", "period", "first", "count"}``: a few
   numbers however many ticks, so a clock far ahead costs what one tick costs.
 
@@ -59,6 +65,7 @@ from typing import Any, Optional
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -156,6 +163,10 @@ class WMManagerNode(Node):
         serve(self, contract.SYNC, self._sync, self._barrier_group)
         serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
+        for name, dom in self._domains.items():
+            dom.alive_sub = subscribe(
+                self, contract.alive_topic(name), partial(self._on_alive, dom),
+                event_callbacks=SubscriptionEventCallbacks(liveliness=partial(self._on_liveliness, dom)))
         self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -262,8 +273,41 @@ class WMManagerNode(Node):
         dom.incarnation = incarnation
         dom.running = announce.get("memory")
         dom.configured = False
+        dom.alive = True  # it just spoke
         self.manager.detach(dom.name)
         self._attach(dom)
+        self._publish_ready()
+
+    def _on_alive(self, dom: ConsultantLink, announce: dict) -> None:
+        """An alive message is proof of life (in one process DDS liveliness shows only through writes)."""
+        if dom.alive is False:
+            self._reachable(dom, True)
+        dom.alive = True
+
+    def _on_liveliness(self, dom: ConsultantLink, info) -> None:
+        """Follow a consultant's liveliness: a lapse makes its domain unconfigured until it is back."""
+        alive = info.alive_count > 0
+        if alive != dom.alive and (dom.alive is not None or not alive):
+            self._reachable(dom, alive)
+        dom.alive = alive
+
+    def _reachable(self, dom: ConsultantLink, alive: bool) -> None:
+        log = self.get_logger()
+        if alive:
+            log.info(f"consultant '{dom.name}' is reachable again (liveliness back): configuring it")
+            dom.alive = True
+            attached = self.manager.domains[dom.name].attached
+            if attached and not dom.configured and dom.configuring is None:
+                self.manager.detach(dom.name)  # acknowledged while it seemed gone: configure it again
+                attached = False
+            if not attached and dom.client.ready():
+                self._attach(dom)
+            return
+        log.warning(f"consultant '{dom.name}' is unreachable (its liveliness lapsed): the graph is not ready "
+                    "until it is back and configured")
+        dom.alive = False
+        self.manager.detach(dom.name)
+        dom.lost()
         self._publish_ready()
 
     def _attach(self, dom: ConsultantLink) -> None:
@@ -277,7 +321,7 @@ class WMManagerNode(Node):
         """Attach consultants that became reachable; expire unanswered calls."""
         self._links.expire()
         for dom in self._domains.values():
-            if not self.manager.domains[dom.name].attached and dom.client.ready():
+            if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.client.ready():
                 self._attach(dom)
         self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
 
@@ -287,8 +331,8 @@ class WMManagerNode(Node):
     def _publish_ready(self) -> None:
         """Publish ``wm_manager/ready`` when readiness or a domain's configuration changed."""
         state = {"ready": self._all_configured(),
-                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running}
-                             for d, dom in self._domains.items()}}
+                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running,
+                                 "reachable": dom.alive} for d, dom in self._domains.items()}}
         if state == self._ready_sent:
             return
         self._ready_sent = state
@@ -332,6 +376,7 @@ class WMManagerNode(Node):
             next_tick={d: self.manager.next_tick(d) for d in self._domains},
             ready=self._all_configured(),
             graph=graph_identity(self),
+            reachable={d: dom.alive for d, dom in self._domains.items()},
         )
 
     def memory(self) -> dict[str, dict]:
