@@ -81,6 +81,7 @@ from .. import contract
 from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
                            wait_until)
 from ..contract import manage_service
+from ..ros.codec import printable
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
@@ -163,6 +164,13 @@ class WMManagerNode(Node):
         serve(self, contract.SYNC, self._sync, self._barrier_group)
         serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
+        # An ltm/assert for a domain no consultant serves would go unanswered: the WM Manager, which knows
+        # the configured domains, answers it (kind unknown-domain; malformed ones as bad-request).
+        # A message no consultant can read (not JSON, too large) is answered by every consultant, not here.
+        self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
+        self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
+        subscribe(self, contract.LTM_ASSERT, self._on_foreign_assert, reject=self._reject_assert,
+                  accept=self._foreign_domain, limits=contract.Limits())
         for name, dom in self._domains.items():
             dom.alive_sub = subscribe(
                 self, contract.alive_topic(name), partial(self._on_alive, dom),
@@ -278,8 +286,31 @@ class WMManagerNode(Node):
         self._attach(dom)
         self._publish_ready()
 
+    def _foreign_domain(self, data: dict) -> bool:
+        domain = data.get("domain")
+        self._foreign = domain if isinstance(domain, str) and domain not in self._domains else None
+        return self._foreign is not None
+
+    def _on_foreign_assert(self, data: dict) -> None:
+        """Answer an ``ltm/assert`` naming a domain this graph does not have (no consultant would)."""
+        self._reject_assert(data.get("id"), printable(
+            f"no consultant serves domain {data['domain']!r} (this graph's domains: {', '.join(self._names)}); "
+            "nothing was stored"), "unknown-domain", data["domain"])
+
+    def _reject_assert(self, request_id: Any, error: str, kind: str = "bad-request",
+                       domain: Optional[str] = None) -> None:
+        foreign, self._foreign = self._foreign, None
+        if foreign is None:
+            return  # unreadable before its domain was known: the consultants answer it
+        reply: dict[str, Any] = {"domain": domain or foreign, "entity": None, "ok": False, "error": error,
+                                 "kind": kind}
+        if request_id is not None:
+            reply["id"] = request_id
+        log_warning(self.get_logger(), f"{contract.LTM_ASSERT.name}: {error}")
+        publish(self._assert_results, reply)
+
     def _on_alive(self, dom: ConsultantLink, announce: dict) -> None:
-        """An alive message is proof of life (in one process DDS liveliness shows only through writes)."""
+        """Take an alive message as proof of life (in one process DDS liveliness shows only through writes)."""
         if dom.alive is False:
             self._reachable(dom, True)
         dom.alive = True
