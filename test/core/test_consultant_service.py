@@ -15,7 +15,8 @@ from fsreg_ros.core.consultant import (Consultant, KnowledgeError, LocalPort, Wa
                                        walk_by_narrowing)
 from fsreg_ros.core.forgetting import PolicyError
 from fsreg_ros.core.generation import generate
-from fsreg_ros.core.service import CHECKPOINT_RECORDS, ConsultantService, NotReady, RequestError
+from fsreg_ros.core.persistence import CHECKPOINT_RECORDS
+from fsreg_ros.core.service import ConsultantService, NotReady, RequestError
 from fsreg_ros.core.sessions import SessionError, SessionTable
 from fsreg_ros.core.store import DomainStore, StateDamaged, StoreError, fingerprint
 
@@ -237,7 +238,7 @@ def test_one_call_is_one_journal_record_and_a_restore_replays_to_the_same_wm(tmp
     again = replayed(tmp_path, service)
     assert {e: again.buffer.export_queue(e) for e in again.buffer.nonempty_entities()} == expected
     assert again.buffer.counters() == counters and again.decay_until == 10.0
-    assert again.policy.to_json() == POLICY and again.incarnation == 2 and again.wm_state == "restored"
+    assert again.policy.to_json() == POLICY and again.incarnation == 2 and again.persistence.wm_state == "restored"
     again.maintain()  # the replayed journal is compacted into a checkpoint
     assert again.store.journal_length() == 0
     third = replayed(tmp_path, again)
@@ -310,7 +311,7 @@ def test_stored_wm_of_another_run_is_dropped_at_the_first_configure(tmp_path):
     third.shutdown()
     other = make(tmp_path, clock="system")
     configure(other, time=2000.0)
-    assert other.wm_state == "empty"
+    assert other.persistence.wm_state == "empty"
 
 
 def test_a_clock_of_another_kind_drops_wm_and_a_later_clock_keeps_it(tmp_path):
