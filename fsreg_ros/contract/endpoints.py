@@ -65,7 +65,8 @@ WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialo
 ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "consultants",
                  "wm_manager, reference_resolution, reg",
                  reader_qos=STATE_QOS)
-ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant", "reference_resolution, reg")
+ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant",
+              "wm_manager (readiness), reference_resolution, reg")
 READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "reference_resolution, reg (restarts), "
               "clients (fsreg-up, fsreg-ctl, fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")

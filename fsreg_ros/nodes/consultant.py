@@ -33,7 +33,7 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, serve, subscribe
 from ..ros.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
@@ -179,8 +179,8 @@ class ConsultantNode(Node):
         self.announce(only_if_changed=True)
 
     # ------------------------------------------------------------- LTM topic
-    def _reject_assert(self, request_id: Any, error: str) -> None:
-        reply = {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": error}
+    def _reject_assert(self, request_id: Any, error: str, kind: str = "bad-request") -> None:
+        reply = {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": error, "kind": kind}
         if request_id is not None:
             reply["id"] = request_id
         publish(self._assert_results, reply)
@@ -196,10 +196,10 @@ class ConsultantNode(Node):
                 data["entity"], data["properties"], listening=listening))
         except StoreError as err:  # memory unchanged: nothing was applied
             log.error(printable(f"{contract.LTM_ASSERT.name}: not stored: {err}"))
-            reply.update(ok=False, error=printable(f"not stored: {err}"))
+            reply.update(ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
         except ValueError as err:  # MessageError, KnowledgeError: nothing changed
             log.warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
-            reply.update(ok=False, error=printable(err))
+            reply.update(ok=False, error=printable(err), kind=reply_kind(err))
         else:
             result = outcome.reply
             reply.update(ok=True, new_entity=result["new_entity"], updated=result["updated"],

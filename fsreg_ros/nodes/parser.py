@@ -51,8 +51,8 @@ class ParserNode(Node):
         self._clock_watch = watch_clock(self)
         self.get_logger().info(f"parser ready for {len(self.properties)} properties")
 
-    def _reject(self, request_id, error: str) -> None:
-        publish(self._errors, rr_error(request_id, error))
+    def _reject(self, request_id, error: str, kind: str = "bad-request") -> None:
+        publish(self._errors, rr_error(request_id, error, kind))
 
     def _on_human(self, data: dict) -> None:
         publish(self._semantics, self.parse(data))

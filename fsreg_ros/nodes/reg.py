@@ -20,7 +20,7 @@ from typing import Optional
 from rcl_interfaces.msg import SetParametersResult
 
 from .. import contract
-from ..ros.carrier import CarrierError, publish, publisher, subscribe
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
 from ..ros.codec import printable
 from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
 from ..core.lexicon import Lexicon
@@ -65,8 +65,10 @@ class RegNode(AskingNode):
         problem = self._check(values["algorithm"], values["wm_order"])
         return SetParametersResult(successful=not problem, reason=problem)
 
-    def _reject(self, request_id, error: str) -> None:
-        reply = {"error": error} if request_id is None else {"id": request_id, "error": error}
+    def _reject(self, request_id, error: str, kind: str = "bad-request") -> None:
+        reply = {"error": error, "kind": kind}
+        if request_id is not None:
+            reply["id"] = request_id
         publish(self._expressions, reply)
 
     async def answer(self, data: dict) -> dict:
@@ -88,6 +90,7 @@ class RegNode(AskingNode):
         except (ValueError, CarrierError) as err:  # GenerationError, KnowledgeError, MessageError
             self.get_logger().warning(printable(f"{contract.REG_REQUEST.name} (id {data['id']!r}): {err}"))
             out["error"] = str(err)
+            out["kind"] = reply_kind(err)
             return out
         expression.text = self.lexicon.realise(expression.description, domain)
         out.update(expression.to_json())
@@ -103,7 +106,8 @@ class RegNode(AskingNode):
             for domain, port in self.ports.items():
                 if await port.knows(target, refresh):
                     return domain
-        raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})")
+        raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})",
+                              kind="unknown-entity")
 
 
 def main(args=None) -> int:

@@ -29,7 +29,7 @@ from its own.  An empty ``graph`` (a node started by hand) stamps nothing.
 
 Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
 object of the topic's schema within the limits, or whose handler raises, is rejected
-(``reject(id, error)`` publishes the reply the contract has for it, if any) and logged
+(``reject(id, error, kind)`` publishes the reply the contract has for it, if any) and logged
 with the topic and id.
 
 Logging: :func:`log_warning` and :func:`log_error` never raise (rclpy raises when one call
@@ -62,7 +62,7 @@ from std_msgs.msg import String
 
 from rcl_interfaces.msg import ParameterDescriptor
 
-from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from .codec import MessageError, TooLarge, dumps, error_json, leading_id, parse, printable, request_id, safe_dumps
 from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
@@ -102,6 +102,23 @@ def error_kind(err: BaseException) -> str:
     """Return the ``kind`` an error reply carries: the exception's class name, or a CarrierError's kind."""
     if isinstance(err, CarrierError):
         return err.kind
+    if isinstance(err, TooLarge):
+        return err.kind
+    return type(err).__name__
+
+
+def reply_kind(err: BaseException) -> str:
+    """Return the ``kind`` of an error answered on a topic (``rr/result``, ``reg/expression``, ``ltm/assert/result``).
+
+    The error's own ``kind`` when it names one (``unknown-entity``, ``unknown-property``,
+    ``unknown-domain``, ``too-large``, ``not-ready``, ...), ``bad-request`` for a message
+    that is not of its schema, else the exception's class name (docs/semantics.md §7).
+    """
+    kind = getattr(err, "kind", None)
+    if isinstance(kind, str) and kind:
+        return kind
+    if isinstance(err, MessageError):
+        return "bad-request"
     return type(err).__name__
 
 
@@ -155,7 +172,11 @@ async def _run(handler, text: str, max_bytes: Limit, seen: dict, validate: Calla
 
     A message ``accept`` refuses is not for this node: ``seen["ignored"]`` is set and nothing runs.
     """
-    payload = parse(text, max_bytes=_limit(max_bytes))
+    try:
+        payload = parse(text, max_bytes=_limit(max_bytes))
+    except TooLarge:
+        seen["id"] = leading_id(text)  # so the sender hears which of its messages was refused
+        raise
     seen["id"] = request_id(payload)
     if accept is not None and not accept(payload):
         seen["ignored"] = True
@@ -235,7 +256,9 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
             rid = seen.get("id")
             log_warning(logger, f"{_context(name, rid)}: {printable(err)}")
             response.success = False
-            response.message = error_json(err, error_kind(err), rid)
+            detail = reply_kind(err)  # a specific kind (unknown-entity, ...) beside the class name
+            response.message = error_json(err, error_kind(err), rid,
+                                          **({"detail": detail} if detail != error_kind(err) else {}))
             return response
         except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
             rid = seen.get("id")
@@ -337,7 +360,7 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
     validation) means the message is for another node: ignored, silently.  A message
     that is not a JSON object of the schema, or whose handler raises a
     ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and id
-    and passed to ``reject(id, error)``; any other exception is logged as an error and
+    and passed to ``reject(id, error, kind)`` (:func:`reply_kind`); any other exception is logged as an error and
     rejected as an internal error.  The node keeps serving either way.
     ``event_callbacks``: rclpy's ``SubscriptionEventCallbacks`` (e.g. the liveliness of
     the topic's writers).
@@ -347,7 +370,7 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
     if max_bytes is None and limits is not None:
         max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
 
-    def refuse(rid: Any, error: str, internal: bool) -> None:
+    def refuse(rid: Any, error: str, internal: bool, kind: str) -> None:
         text = f"{_context(topic.name, rid)}: {error}"
         if internal:
             log_error(logger, text)
@@ -355,7 +378,7 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
             log_warning(logger, text)
         if reject is not None:
             try:
-                reject(rid, printable(error))
+                reject(rid, printable(error), kind)
             except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
                 log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
 
@@ -364,9 +387,10 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
         try:
             await _run(handler, msg.data, max_bytes, seen, validate, accept)
         except (ValueError, CarrierError) as err:
-            refuse(seen.get("id"), printable(err), internal=False)
+            refuse(seen.get("id"), printable(err), internal=False, kind=reply_kind(err))
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
-            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True)
+            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
+                   kind="internal")
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group, event_callbacks=event_callbacks)

@@ -35,6 +35,12 @@ class MessageError(ValueError):
     """
 
 
+class TooLarge(MessageError):
+    """A message over the receiver's ``max_message_bytes`` (error kind ``too-large``)."""
+
+    kind = "too-large"
+
+
 # ----------------------------------------------------------------- encoding
 def dumps(obj: Mapping[str, Any]) -> str:
     """Return the compact JSON text of one object (NaN/Infinity refused: they are not JSON)."""
@@ -121,7 +127,7 @@ def parse(text: str, *, max_bytes: Optional[int] = None) -> dict:
     if max_bytes is not None and len(text) > max_bytes // 4:
         size = len(text.encode("utf-8", "surrogatepass"))
         if size > max_bytes:
-            raise MessageError(f"message is {size} bytes, over the limit of {max_bytes}")
+            raise TooLarge(f"message is {size} bytes, over the limit of {max_bytes}")
     too_large: list[str] = []
 
     def parse_float(number: str) -> float:
@@ -159,6 +165,49 @@ def id_of(text: Any) -> Any:
         return request_id(json.loads(getattr(text, "data", text)))
     except (TypeError, ValueError, RecursionError):
         return None
+
+
+#: Characters of an oversized message searched for its top-level ``id`` (it is never parsed whole).
+ID_SCAN_CHARS = 65_536
+
+
+def leading_id(text: Any, limit: int = ID_SCAN_CHARS) -> Any:
+    """Return the top-level ``id`` of JSON object text found within its first ``limit`` characters, else None.
+
+    For a message refused as too large: its answer can still name the request (a
+    client writes ``id`` before the bulk), without parsing the whole text.
+    """
+    if not isinstance(text, str) or not text.lstrip().startswith("{"):
+        return None
+    head, depth, i, n = text[:limit], 0, 0, min(len(text), limit)
+    decoder = json.JSONDecoder()
+    while i < n:
+        ch = head[i]
+        if ch == '"':
+            try:
+                key, end = decoder.raw_decode(head, i)
+            except ValueError:
+                return None
+            j = end
+            while j < n and head[j] in " \t\r\n":
+                j += 1
+            if depth == 1 and key == "id" and j < n and head[j] == ":":
+                j += 1
+                while j < n and head[j] in " \t\r\n":
+                    j += 1
+                try:
+                    value, _ = decoder.raw_decode(head, j)
+                except ValueError:
+                    return None
+                return request_id({"id": value})
+            i = end
+            continue
+        if ch in "{[":
+            depth += 1
+        elif ch in "}]":
+            depth -= 1
+        i += 1
+    return None
 
 
 #: A type in the words of :func:`describe`: a type, a tuple of them (``None`` for JSON

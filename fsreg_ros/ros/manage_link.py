@@ -38,6 +38,14 @@ class ConsultantLink:
     inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
     incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
     running: Optional[dict] = None  # the policy it acknowledged or announced
+    #: Its liveliness on ``consultant/<domain>/alive`` (1 s lease): None until heard of, False while lapsed.
+    alive: Optional[bool] = None
+    alive_sub: Any = None
+
+    def lost(self) -> None:
+        """Forget that the consultant is configured (it went away): it is configured again when it is back."""
+        self.configured = False
+        self.configuring = None
 
 
 class ManageLinks:
@@ -70,8 +78,7 @@ class ManageLinks:
                 self.manager.owe(link.name, TickRun.from_json(payload["ticks"]))
             if op in ("decay", "configure"):  # start over: attach again when it answers or announces itself
                 self.manager.detach(link.name)
-                link.configured = False
-                link.configuring = None
+                link.lost()
             return
         if op == "configure" and future is link.configuring:
             link.running = reply.get("memory")
@@ -80,7 +87,10 @@ class ManageLinks:
             if not link.configured:
                 self.node.get_logger().info(
                     f"consultant '{link.name}' (incarnation {link.incarnation}) configured: {link.running}")
-            link.configured = link.running == self.manager.domains[link.name].policy.to_json()
+            # Configured only while it lives: an acknowledgement that arrives after its liveliness lapsed
+            # (a reply in flight) is the dead incarnation's; it is configured again when it is back.
+            link.configured = (link.alive is not False
+                               and link.running == self.manager.domains[link.name].policy.to_json())
             link.configuring = None
 
     def expire(self) -> None:

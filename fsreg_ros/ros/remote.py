@@ -212,7 +212,8 @@ class RemotePort:
             reply = await self.client.result(future, deadline)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
-                raise KnowledgeError(err.error) from None
+                detail = err.reply.get("detail") if isinstance(err.reply, dict) else None
+                raise KnowledgeError(err.error, kind=detail if isinstance(detail, str) else None) from None
             if err.kind == "timeout" and deadline < self.timeout:  # asked briefly after a lapse: no answer
                 err = CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
                                    f"answer within {deadline:g} s); try again later", kind="unavailable",

@@ -5,7 +5,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import socket
 import sqlite3
+import subprocess
+import sys
 
 import pytest
 
@@ -125,6 +128,69 @@ def test_a_second_live_opener_is_refused_naming_the_file_and_the_holders_pid(tmp
     second = store(tmp_path)
     assert second.open().incarnation == 2
     second.close()
+
+
+def test_a_holder_in_another_process_is_named_by_the_kernel_not_by_the_pid_in_the_lock_file(tmp_path):
+    path = store(tmp_path).path
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom fsreg_ros.core.store import DomainStore\n"
+         f"s = DomainStore({str(path)!r}, {KB!r}); s.open(); print('open', flush=True); time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        lock = path.with_name(path.name + ".lock")
+        lock.write_text("424242\n")  # a lie: only the kernel knows who holds the lock
+        with pytest.raises(StateInUse) as err:
+            store(tmp_path).open()
+        text = str(err.value)
+        assert f"in use by process {holder.pid} (" in text and "424242" not in text and "\n" not in text, text
+    finally:
+        holder.kill()
+        holder.wait()
+    again = store(tmp_path)  # the holder died: its locks went with it
+    assert again.open().incarnation == 2
+    again.close()
+
+
+def test_a_holder_with_only_a_flock_is_found_in_proc_locks(tmp_path):
+    path = store(tmp_path).path
+    path.parent.mkdir(parents=True)
+    lock = path.with_name(path.name + ".lock")
+    holder = subprocess.Popen(
+        [sys.executable, "-c", f"import fcntl, os, time\nfd = os.open({str(lock)!r}, os.O_RDWR | os.O_CREAT)\n"
+         "fcntl.flock(fd, fcntl.LOCK_EX)\nprint('locked', flush=True)\ntime.sleep(60)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(StateInUse, match=f"in use by process {holder.pid} \\("):
+            store(tmp_path).open()
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+@pytest.mark.parametrize("make, kind", [
+    (os.mkfifo, "a FIFO (named pipe)"),
+    (os.mkdir, "a directory"),
+    (lambda p: socket.socket(socket.AF_UNIX).bind(str(p)), "a socket"),
+])
+def test_a_state_path_that_is_not_a_regular_file_is_refused_as_what_it_is(tmp_path, make, kind):
+    path = store(tmp_path).path
+    path.parent.mkdir(parents=True)
+    make(path)
+    with pytest.raises(StateDamaged) as err:
+        store(tmp_path).open()
+    text = str(err.value)
+    assert text.startswith(f"state database {path}: it is {kind}, not a database file;"), text
+    assert "empty" not in text and "\n" not in text
+
+
+def test_a_lock_file_that_is_a_fifo_is_refused_as_one(tmp_path):
+    path = store(tmp_path).path
+    path.parent.mkdir(parents=True)
+    os.mkfifo(path.with_name(path.name + ".lock"))
+    with pytest.raises(StateDamaged, match="the lock file is a FIFO \\(named pipe\\), not a regular file"):
+        store(tmp_path).open()
 
 
 def test_the_state_path_holds_the_ros_domain_id_and_the_namespace(tmp_path):

@@ -276,7 +276,7 @@ def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(grap
 
     # A topic whose schema takes any object, so the handler sees the hostile number.
     topic = contract.Topic("carrier/any", contract.Message, contract.DEFAULT_QOS, "test", "test")
-    subscribe(node, topic, handler, reject=lambda rid, error: rejected.append((rid, error)))
+    subscribe(node, topic, handler, reject=lambda rid, error, kind: rejected.append((rid, error)))
     huge = "1" + "0" * 400
     for text in ["not json", '{"id": 1, "time": ' + huge + "}", "{", '{"id": 2, "time": -' + huge + "}",
                  '{"id": 3, "time": 1.5}']:
@@ -294,7 +294,7 @@ def test_a_contract_topic_refuses_a_number_no_float_holds_before_the_handler(gra
     graph.executor.add_node(node)
     graph.nodes.append(node)
     handled, rejected = [], []
-    subscribe(node, contract.REG_REQUEST, handled.append, reject=lambda rid, error: rejected.append((rid, error)),
+    subscribe(node, contract.REG_REQUEST, handled.append, reject=lambda rid, error, kind: rejected.append((rid, error)),
               limits=contract.Limits(max_name_chars=8))
     huge = "1" + "0" * 400
     for text in ['{"id": 1, "target": "f", "time": ' + huge + "}", '{"id": 2, "target": "far-too-long"}',
@@ -386,7 +386,7 @@ def test_subscribe_ignores_what_accept_refuses_before_validating_it(graph: Graph
     graph.nodes.append(node)
     handled, rejected = [], []
     subscribe(node, contract.LTM_ASSERT, lambda data: handled.append(data["id"]),
-              reject=lambda rid, error: rejected.append(rid),
+              reject=lambda rid, error, kind: rejected.append(rid),
               accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == "faces")
     for text in ['{"domain": "objects", "id": 1, "properties": "bad"}', '{"domain": 7, "id": 2}',
                  '{"domain": "faces", "id": 3, "properties": "bad"}',

@@ -600,7 +600,7 @@ def test_run_node_exit_codes():
         ('{"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": 1e999}',
          "MessageError", "time"),
         ('{"op": "holds", "property": "male", "entities": [' + "9" * 5000 + "]}", "MessageError", "not JSON"),
-        ('{"op": "' + "q" * 100_000 + '"}', "MessageError", "over the limit of 65536"),
+        ('{"op": "' + "q" * 100_000 + '"}', "too-large", "over the limit of 65536"),
     ],
     ids=["long-list", "long-name", "surrogate", "unknown-property", "infinite-time", "huge-int", "huge-message"],
 )

@@ -88,6 +88,9 @@ def test_repeated_id_is_answered_from_cache_without_encoding_twice(graph):
     assert snapshot(graph) == before
 
 
+HUMAN_KINDS = {"b5": "unknown-property", "b6": "unknown-domain", "b8": "too-large"}
+
+
 @pytest.mark.parametrize(
     "message, fragment",
     [
@@ -100,6 +103,7 @@ def test_repeated_id_is_answered_from_cache_without_encoding_twice(graph):
         ({"id": "b4", "description": "male"}, "description"),
         ({"id": "b5", "description": ["purple-hair"]}, "purple-hair"),
         ({"id": "b6", "description": ["male"], "domain": "kitchen"}, "kitchen"),
+        ({"id": "b8", "text": "the man " + "x" * 70_000}, "over the limit of 65536"),
         ({"id": "b7", "description": [3]}, "description"),
     ],
 )
@@ -110,9 +114,9 @@ def test_bad_human_turns_get_an_error_and_change_nothing(graph, message, fragmen
     graph.spin_until(lambda: any(fragment in (r.get("error") or "") for r in graph.results), 10.0,
                      what=f"error {fragment!r}")
     error = next(r for r in graph.results if fragment in (r.get("error") or ""))
-    assert error.get("id") == key
-    if "status" in error:
-        assert error["status"] == "error"
+    assert error.get("id") == key  # an oversized message too: its id is read off its head
+    assert error["status"] == "error"
+    assert error["kind"] == HUMAN_KINDS.get(key, "bad-request"), error  # every error reply carries a kind
     assert snapshot(graph) == before
     # still serving
     ok = ask(graph, contract.HUMAN.name, graph.results, {"id": "after", "description": ["female", "hoodie"]}, "after")
@@ -138,6 +142,8 @@ def test_bad_reg_requests_get_an_error_and_change_nothing(graph, message, fragme
                      what=f"error {fragment!r}")
     error = next(r for r in graph.expressions if fragment in (r.get("error") or ""))
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
+    # Every error reply carries a kind (REG's unknown-entity error had none).
+    assert error["kind"] == {"x3": "unknown-entity", "x4": "unknown-entity"}.get(error.get("id"), "bad-request"), error
     assert snapshot(graph) == before
     ok = ask(graph, contract.REG_REQUEST.name, graph.expressions, {"id": "fine", "target": "face2"}, "fine")
     assert ok["description"] == ["glasses", "female"]
@@ -404,3 +410,27 @@ def test_a_whole_number_for_a_real_parameter_is_taken_and_a_wrong_type_refused()
         with pytest.raises(InvalidParameterTypeException, match="ready_timeout"):
             g.add(RegNode, domains=["faces"], ready_timeout="soon", name="reg2")
     assert "_parameter_overrides" not in inspect.getsource(common)
+
+
+def test_an_assert_for_a_domain_no_consultant_serves_is_answered_by_the_wm_manager(graph):
+    """Issue 28.3: ``ltm/assert`` for an unknown domain went unanswered (the client waited its full timeout)."""
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name)
+    graph.publish(contract.LTM_ASSERT.name, {"id": "p1", "domain": "planets", "entity": "face1",
+                                             "properties": {"male": 1.0}})
+    graph.spin_until(lambda: results.latest(id="p1") is not None, 10.0, what="the unknown-domain reply")
+    reply = results.latest(id="p1")
+    assert reply["ok"] is False and reply["kind"] == "unknown-domain" and reply["domain"] == "planets"
+    assert "no consultant serves domain 'planets' (this graph's domains: faces)" in reply["error"]
+    graph.spin_for(0.3)
+    assert len(results.where(id="p1")) == 1  # answered once: by the WM Manager, not by any consultant
+    # Refusals of the consultant carry a kind too; a known domain is not answered by the WM Manager.
+    graph.publish(contract.LTM_ASSERT.name, {"id": "p2", "domain": "faces", "entity": "face1",
+                                             "properties": {"wings": 1.0}})
+    graph.spin_until(lambda: results.latest(id="p2") is not None, 10.0, what="the unknown-property reply")
+    assert results.latest(id="p2")["kind"] == "unknown-property"
+    graph.publish(contract.LTM_ASSERT.name, {"id": "p3", "domain": "faces", "entity": "face1",
+                                             "properties": {"male": 1.0}, "x": "y" * 70_000})
+    graph.spin_until(lambda: results.latest(id="p3") is not None, 10.0, what="the too-large reply")
+    graph.spin_for(0.3)
+    assert [r["kind"] for r in results.where(id="p3")] == ["too-large"]
+    assert snapshot(graph) == {}

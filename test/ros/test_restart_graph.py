@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from fsreg_ros import contract
 from fsreg_ros.ros.client import ClientError, GraphClient
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.testing import LiveGraph
@@ -105,6 +106,11 @@ def outage(live: LiveGraph, kind: str, message: dict) -> dict:
     process = live.graph.process(CONSULTANT)
     process.kill()
     process.wait()
+    # Readiness is true (issue 28.5): under every policy the WM Manager follows the consultant's liveliness
+    # (1 s lease), so it stops reporting the graph ready, also under displacement, which sends nothing.
+    live.client.spin_until(lambda: (live.client.readiness() or {}).get("ready") is False, 15.0,
+                           "readiness lost after the SIGKILL")
+    assert live.client.status(5.0)["configured"]["faces"] is False
     live.client.publish_clock(message["time"])
     started = time.monotonic()
     failed = live.client.exchange(kind, message, 30.0)
@@ -116,6 +122,9 @@ def outage(live: LiveGraph, kind: str, message: dict) -> dict:
         return state.get("incarnation") == before + 1 and bool(state.get("configured"))
 
     live.client.spin_until(ready, 30.0, "the restarted consultant configured")
+    # Any client, not only RR and REG: the first call of a plain client is answered, by the new incarnation.
+    info = live.client.call(contract.consultant_service("faces"), {"op": "info"}, 10.0)
+    assert info["version"].startswith(f"{before + 1}:"), info["version"]
     return {"reply": failed, "seconds": seconds}
 
 

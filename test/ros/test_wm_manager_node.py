@@ -367,3 +367,28 @@ def test_shared_pool_ops_of_the_consultant(graph: Graph):
         err = graph.call_error(manage, request)
         assert err.kind == "MessageError" and text in err.error, err.error
     assert queues(graph) == {"face2": ["female"]}
+
+
+@pytest.mark.parametrize("policy", [{"policy": "none"}, {"policy": "decay", "decay_period": 5.0},
+                                    {"policy": "displacement", "capacity": 2},
+                                    {"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}])
+def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy(graph: Graph, policy):
+    """Issue 28.5: under displacement (which sends the consultant nothing on its own) status said ready and
+    configured seconds into an outage; the manager now follows each consultant's liveliness."""
+    ready = graph.listen(contract.READY.name, contract.STATE_QOS)
+    node = consultant(graph)
+    manager(graph, **policy)
+    configured(graph)
+    status = graph.call(STATUS, {})
+    assert status["ready"] is True and status["configured"] == {"faces": True}
+    assert status["reachable"] == {"faces": True}
+    graph.remove(node)  # the consultant goes away; nothing is sent to it under displacement or none
+    graph.spin_until(lambda: graph.call(STATUS, {})["ready"] is False, what="readiness lost")
+    status = graph.call(STATUS, {})
+    assert status["configured"] == {"faces": False} and status["reachable"] == {"faces": False}
+    assert ready.latest(ready=False)["domains"]["faces"]["reachable"] is False
+    consultant(graph)  # back (a new process would have a new incarnation; here the same one)
+    graph.spin_until(lambda: graph.call(STATUS, {})["ready"] is True, what="readiness back")
+    assert memory(graph) == policy
+    status = graph.call(STATUS, {})
+    assert status["configured"] == {"faces": True} and status["reachable"] == {"faces": True}
