@@ -23,13 +23,15 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Optional
 
 from .view_model import ViewModel
-from .view_page import PAGE
+from .view_page import PAGE, SNAPSHOT_SLOT
 
 #: Where the page is served by default (``--port 0`` takes a free port).
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 #: How often the WM Manager's status (next decay tick, settings) is asked for, seconds.
 STATUS_EVERY = 0.5
+#: How long the view waits for its subscriptions to match the graph's publishers before serving, seconds.
+MATCH_WAIT = 5.0
 #: An idle event stream sends a comment this often, so proxies and browsers keep it open.
 HEARTBEAT = 5.0
 
@@ -81,7 +83,8 @@ class _Handler(BaseHTTPRequestHandler):
     def do_GET(self) -> None:  # noqa: N802 - the base class's name
         path = self.path.split("?", 1)[0]
         if path in ("/", "/index.html"):
-            self._send(200, PAGE.encode("utf-8"), "text/html; charset=utf-8")
+            snapshot = json.dumps(self.server.model.snapshot(), sort_keys=True).replace("</", "<\\/")
+            self._send(200, PAGE.replace(SNAPSHOT_SLOT, snapshot).encode("utf-8"), "text/html; charset=utf-8")
         elif path == "/snapshot":
             self._send(200, json.dumps(self.server.model.snapshot(), sort_keys=True).encode(), "application/json")
         elif path == "/events":
@@ -124,6 +127,10 @@ def feed(client, model: ViewModel) -> list:
             subscribe(client.node, contract.READY, model.on_ready)]
     for ready in list(client.ready_messages.values()):
         model.on_ready(ready)
+    wanted = [contract.RR_RESULT.name, contract.REG_EXPRESSION.name]  # the graph's own publishers: hear them first
+    deadline = time.monotonic() + MATCH_WAIT
+    while time.monotonic() < deadline and not all(client.node.count_publishers(name) for name in wanted):
+        client.executor.spin_once(timeout_sec=0.05)
     return mine
 
 

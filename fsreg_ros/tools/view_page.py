@@ -1,9 +1,13 @@
 """The live view's page: one HTML document with its style and script (no external resources).
 
-The script opens ``/events`` (Server-Sent Events, see :mod:`fsreg_ros.tools.view`) and
+The page carries the snapshot it was served with (drawn at once), and the script opens
+``/events`` (Server-Sent Events, see :mod:`fsreg_ros.tools.view`) and
 redraws on every snapshot.  Elements carry ``data-*`` attributes (entity, domain,
 property, origin, source) so a browser test can read what the page shows.
 """
+
+#: Where the server puts the snapshot the page draws first (JSON, ``</`` escaped).
+SNAPSHOT_SLOT = "/*SNAPSHOT*/null"
 
 PAGE = """<!DOCTYPE html>
 <html lang="en">
@@ -42,6 +46,7 @@ PAGE = """<!DOCTYPE html>
 </main>
 <script>
 "use strict";
+const INITIAL = /*SNAPSHOT*/null;
 const $ = (id) => document.getElementById(id);
 function el(tag, attrs, text) {
   const e = document.createElement(tag);
@@ -110,9 +115,12 @@ function render(s) {
   }
   document.body.setAttribute("data-version", s.version);
 }
-function connect() {
+let shown = -1;
+function show(s) { if (s && s.version !== shown) { shown = s.version; render(s); } }
+show(INITIAL);  // the state when the page was served, drawn before anything else loads
+function connect() {  // then every change as it happens
   const source = new EventSource("events");
-  source.onmessage = (m) => render(JSON.parse(m.data));
+  source.onmessage = (m) => show(JSON.parse(m.data));
   source.onerror = () => { $("ready").textContent = "view disconnected"; $("ready").className = "no"; };
 }
 connect();
