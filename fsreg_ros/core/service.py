@@ -420,6 +420,18 @@ class ConsultantService:
         report.queues = len(self.buffer.nonempty_entities())
         return report
 
+    def health(self) -> dict:
+        """The store's health, for ``/diagnostics``.
+
+        The state file, the journal records since the last checkpoint, whether the last write
+        succeeded (false after a refused write, e.g. a full disk, until a retry succeeds), and how
+        many entities' queues are not saved yet.
+        """
+        store = self.store
+        return {"state_file": str(store.path) if store is not None else "", "journal_records": self._journal_rows,
+                "last_write_ok": bool(self.persisted), "store_error": "" if self.persisted else self.store_error,
+                "unsaved_entities": len(self._unsaved)}
+
     def maintain(self) -> None:
         """Write a checkpoint when the journal has grown long, or retry a failed write (call when idle)."""
         if not self._recording:

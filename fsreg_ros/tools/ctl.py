@@ -37,6 +37,7 @@ from ..ros.codec import printable
 from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
+from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .view import check_port, serve_view
 
 PROG = "fsreg-ctl"
@@ -310,7 +311,10 @@ class Ctl:
             self.emit(answer, show_assert(answer))
         elif args.command == "status":
             status = client.status()
-            self.emit(status, show_status(status))
+            # every node's /diagnostics (at 1 Hz: one period and a little more hears each node once)
+            status["diagnostics"] = read_statuses(client.node, client.spin_for, client.node.get_namespace(),
+                                                  wait=DIAGNOSTICS_PERIOD * 1.5)
+            self.emit(status, "\n".join([show_status(status), *summary(status["diagnostics"])]))
         elif args.command == "set":
             return self._set(client)
         elif args.command == "wm":
