@@ -16,6 +16,17 @@ if [[ " $* " == *" --help "* || "${1:-}" == "-h" ]]; then
 fi
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
+# The live view's browser test needs Debian's chromium (test/tools/test_view.py); install it where missing.
+if ! command -v chromium >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        echo "fsreg: installing chromium (the live view's browser test) ..." >&2
+        (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) >/dev/null 2>&1 \
+            || { echo "fsreg: apt-get install chromium failed" >&2; exit 2; }
+    else
+        echo "fsreg: the tests need Debian's chromium: sudo apt-get install chromium" >&2
+        exit 2
+    fi
+fi
 . "$root/scripts/rosenv.sh"
 cd "$root"
 args=()

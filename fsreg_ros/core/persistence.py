@@ -120,6 +120,18 @@ class Persistence:
             out["error"] = self.store_error
         return out
 
+    def health(self) -> dict:
+        """The store's health, for ``/diagnostics``.
+
+        The state file, the journal records since the last checkpoint, whether the last write
+        succeeded (false after a refused write, e.g. a full disk, until a retry succeeds), and how
+        many entities' queues are not saved yet.
+        """
+        return {"state_file": str(self.store.path) if self.store is not None else "",
+                "journal_records": self._journal_rows, "last_write_ok": bool(self.persisted),
+                "store_error": "" if self.persisted else (self.store_error or ""),
+                "unsaved_entities": len(self._unsaved)}
+
     def note(self, key: str, value: Any) -> None:
         """Mark a setting as changed and unsaved (``policy`` settings or the ``decay_until`` mark)."""
         self._unsaved_meta[key] = value

@@ -321,6 +321,10 @@ class ConsultantService:
         """Take up what the store held (:meth:`~fsreg_ros.core.persistence.Persistence.restore`)."""
         return self.persistence.restore(state)
 
+    def health(self) -> dict:
+        """The store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
+        return self.persistence.health()
+
     def maintain(self) -> None:
         """Write a checkpoint when the journal has grown long, or retry a failed write (call when idle)."""
         self.persistence.maintain()

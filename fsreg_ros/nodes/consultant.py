@@ -41,6 +41,7 @@ from ..core.service import ConsultantService, NotReady, Outcome, RequestError
 from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..ros.asking import declare_limits
+from ..ros.diagnostics import ERROR, OK, WARN
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 #: Ops whose WM changes are published with the session's ``close``.
@@ -221,6 +222,18 @@ class ConsultantNode(Node):
                 self._published(outcome)
 
     # ----------------------------------------------------------- publishing
+    def diagnostic_values(self) -> tuple[int, str, dict]:
+        """``/diagnostics``: readiness, WM sizes and the state database's health."""
+        health = self.service.health()
+        buffer = self.service.buffer
+        values = {"domain": self.domain, "ready": self.service.ready, "entities_in_wm": len(buffer.nonempty_entities()),
+                  "wm_properties": len(buffer), **health}
+        if not health["last_write_ok"]:
+            return ERROR, f"the last write to the state database failed, retrying: {health['store_error']}", values
+        if not self.service.ready:
+            return WARN, "not configured by the WM Manager yet", values
+        return OK, "ready", values
+
     def now(self) -> float:
         return now_seconds(self)
 

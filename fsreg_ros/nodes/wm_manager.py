@@ -85,6 +85,7 @@ from ..ros.codec import printable
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
+from ..ros.diagnostics import OK, WARN
 from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
 from ..ros.memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
@@ -355,6 +356,15 @@ class WMManagerNode(Node):
             if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.client.ready():
                 self._attach(dom)
         self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
+
+    def diagnostic_values(self) -> tuple[int, str, dict]:
+        """``/diagnostics``: readiness, and each domain's consultant (configured, incarnation)."""
+        missing = sorted(d for d, dom in self._domains.items() if not dom.configured)
+        values = {f"{d}.configured": dom.configured for d, dom in sorted(self._domains.items())}
+        values.update({f"{d}.incarnation": dom.incarnation for d, dom in sorted(self._domains.items())})
+        if missing:
+            return WARN, f"not ready: {', '.join(missing)} not configured", {"ready": False, **values}
+        return OK, "ready", {"ready": True, **values}
 
     def _all_configured(self) -> bool:
         return all(dom.configured for dom in self._domains.values())

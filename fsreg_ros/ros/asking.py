@@ -37,6 +37,7 @@ from .carrier import DEFAULT_TIMEOUT, stamped, subscribe
 from .codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits, RequestRef, attribution, cache_key, fingerprint
 from .remote import RemotePort
+from .diagnostics import OK, WARN
 from .node_base import StartupError, declare_number, descriptor, now_seconds, watch_clock
 
 #: Deadline for the consultants to answer their first round trip (seconds).
@@ -128,6 +129,15 @@ class AskingNode(Node):
             port = self.ports.get(domain)
             if port is not None:
                 port.reported(state.get("incarnation"), bool(state.get("configured")))
+
+    def diagnostic_values(self) -> tuple[int, str, dict]:
+        """``/diagnostics``: each consultant this node asks, alive or not (its liveliness)."""
+        values = {f"{d}.alive": port.alive for d, port in sorted(self.ports.items())}
+        values.update({f"{d}.incarnation": port.incarnation for d, port in sorted(self.ports.items())})
+        lost = sorted(d for d, port in self.ports.items() if port.alive is False)
+        if lost:
+            return WARN, f"consultant(s) unreachable: {', '.join(lost)}", values
+        return OK, "running", values
 
     async def ensure_ready(self) -> None:
         """Wait (with the ``ready_timeout`` deadline) for a round trip with each consultant that needs one.

@@ -63,6 +63,7 @@ from std_msgs.msg import String
 from rcl_interfaces.msg import ParameterDescriptor
 
 from .codec import MessageError, TooLarge, dumps, error_json, leading_id, parse, printable, request_id, safe_dumps
+from .diagnostics import request_stats
 from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
@@ -247,7 +248,15 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
     if max_bytes is None and limits is not None:
         max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
 
+    stats = request_stats(node)
+
     async def callback(request, response):
+        started = time.monotonic()
+        response = await answer(request, response)
+        stats.record(time.monotonic() - started, refused=not response.success)
+        return response
+
+    async def answer(request, response):
         seen: dict = {}
         try:
             result = await _run(handler, request.load_namespace, max_bytes, seen, validate)
@@ -382,15 +391,21 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
             except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
                 log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
 
+    stats = request_stats(node) if reject is not None else None  # an answered topic carries requests
+
     async def callback(msg: String) -> None:
         seen: dict = {}
+        started, refused = time.monotonic(), True
         try:
             await _run(handler, msg.data, max_bytes, seen, validate, accept)
+            refused = False
         except (ValueError, CarrierError) as err:
             refuse(seen.get("id"), printable(err), internal=False, kind=reply_kind(err))
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
             refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
                    kind="internal")
+        if stats is not None and not seen.get("ignored"):  # a message for another node (accept) is not counted
+            stats.record(time.monotonic() - started, refused=refused)
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group, event_callbacks=event_callbacks)

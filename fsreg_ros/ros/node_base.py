@@ -46,6 +46,7 @@ from rclpy.parameter import Parameter
 
 from .codec import id_of, printable
 from ..contract import CLOCK
+from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback
 
 #: Exit codes.
@@ -264,6 +265,7 @@ def run_node(
             logger.debug(printable("".join(traceback.format_exception(err)), 20000))
             return EXIT_STARTUP
         logger = node.get_logger()
+        diagnostics = Diagnostics(node)  # noqa: F841 - publishes on /diagnostics while the node runs
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         if job is None:

@@ -37,6 +37,8 @@ from ..ros.codec import printable
 from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
+from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
+from .view import check_port, serve_view
 
 PROG = "fsreg-ctl"
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NO_ANSWER = 0, 1, 2, 3
@@ -83,6 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
     wm = commands.add_parser("wm", parents=[common], help="one entity's WM, least recently used first")
     wm.add_argument("entity")
     wm.add_argument("--domain")
+    view = commands.add_parser("view", parents=[common],
+                               help="serve a live web page of the graph's WM on 127.0.0.1 (Ctrl-C ends)")
+    view.add_argument("--port", type=int, default=None, metavar="N",
+                      help="TCP port of the page (default 8765; 0 takes a free port)")
+    view.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                      help="address to bind (default 127.0.0.1: this machine only)")
     clock = commands.add_parser("clock", parents=[common], help="set a sim-time graph's clock to SECONDS")
     clock.add_argument("seconds", type=float)
     return parser
@@ -213,6 +221,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         facts = parse_facts(args.properties) if args.command == "assert" else None
         if args.command == "say" and bool(args.text) == bool(args.description):
             raise UsageError("say: give the words to say, or --description P1,P2 (not both)")
+        if args.command == "view":
+            args.port = check_port(args.port)
         if args.command == "watch" and args.count is not None and args.count < 1:
             raise UsageError("watch: --count must be at least 1")
     except (UsageError, ValueError) as err:
@@ -278,7 +288,7 @@ class Ctl:
         from ..ros.client import ClientError
 
         args = self.args
-        if args.command in ("status", "watch"):  # these work on a graph that is not ready (yet)
+        if args.command in ("status", "watch", "view"):  # these work on a graph that is not ready (yet)
             self._find(client)
         else:  # say, describe and assert wait for their own topics to match (GraphClient.exchange)
             client.wait_ready(self.timeout, pipeline=False)
@@ -301,7 +311,10 @@ class Ctl:
             self.emit(answer, show_assert(answer))
         elif args.command == "status":
             status = client.status()
-            self.emit(status, show_status(status))
+            # every node's /diagnostics (at 1 Hz: one period and a little more hears each node once)
+            status["diagnostics"] = read_statuses(client.node, client.spin_for, client.node.get_namespace(),
+                                                  wait=DIAGNOSTICS_PERIOD * 1.5)
+            self.emit(status, "\n".join([show_status(status), *summary(status["diagnostics"])]))
         elif args.command == "set":
             return self._set(client)
         elif args.command == "wm":
@@ -315,6 +328,12 @@ class Ctl:
             self.emit(reply, f"clock at {args.seconds:g} s; the forgetting due by then is applied")
         elif args.command == "watch":
             return self._watch(client)
+        elif args.command == "view":
+            try:
+                return serve_view(client, args.host, args.port, announce=lambda text: print(text, flush=True))
+            except OSError as err:
+                raise ClientError(f"view: cannot serve on {args.host}:{args.port}: {err.strerror or err}",
+                                  "usage") from None
         return EXIT_OK
 
     def _find(self, client) -> None:

@@ -47,6 +47,7 @@ from ..core.scenario import load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
+from .view import DEFAULT_HOST, DEFAULT_PORT, LiveView
 
 PROG = "fsreg-up"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -87,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="seconds to wait for the graph to be ready (default 60)")
     parser.add_argument("--respawn", action="store_true", help="start a node that exits again (default: stop all)")
     parser.add_argument("--json", action="store_true", help="print the ready line as one JSON object")
+    parser.add_argument("--view", nargs="?", type=int, const=DEFAULT_PORT, default=None, metavar="PORT",
+                        help=f"also serve the live web view on 127.0.0.1:PORT (default {DEFAULT_PORT}; 0: a free port)")
     return parser
 
 
@@ -119,7 +122,8 @@ def ready_line(report: dict) -> str:
     endpoints = ", ".join(list(report["topics"].values()) + list(report["services"].values()))
     return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
             f"{memory}; {clock}; endpoints {endpoints}; "
-            f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch; logs in {report['logs']}")
+            f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch"
+            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}")
 
 
 class Stop(Exception):
@@ -138,6 +142,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         namespace = normalise_namespace(args.namespace)
     except ValueError as err:
         print(f"{PROG}: error: --namespace: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.view is not None and not 0 <= args.view <= 65535:
+        print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.ready_timeout <= 0:
         print(f"{PROG}: error: --ready-timeout must be positive, got {args.ready_timeout:g}", file=sys.stderr)
@@ -226,12 +233,24 @@ class Up:
             self._wait_ready(client)
             report = ready_report(self.graph_id, self.namespace, context.get_domain_id(), self.memory, self.clock,
                                   self.log_dir, node.resolve_topic_name)
+            view = self._start_view(client)
+            if view is not None:
+                report["view"] = view.url
             print(json.dumps(report, sort_keys=True) if self.args.json else ready_line(report), flush=True)
             while True:
                 self._supervise()
-                client.spin_for(POLL)
+                if view is None:
+                    client.spin_for(POLL)
+                else:
+                    stop = time.monotonic() + POLL
+                    while time.monotonic() < stop:
+                        view.step()
         except (UpError, ClientError) as err:
             print(f"{PROG}: error: {err}", file=sys.stderr)
+            return EXIT_FAILED
+        except OSError as err:  # --view's port
+            print(f"{PROG}: error: --view: cannot serve on {DEFAULT_HOST}:{self.args.view}: {err.strerror or err}",
+                  file=sys.stderr)
             return EXIT_FAILED
         finally:
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # stopping is not interrupted
@@ -243,6 +262,14 @@ class Up:
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)
+
+    def _start_view(self, client):
+        """Serve the live view (``--view``) from this process; None without the option."""
+        if self.args.view is None:
+            return None
+        view = LiveView(client, DEFAULT_HOST, self.args.view)  # OSError: the port is taken
+        view.start()
+        return view
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError
