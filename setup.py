@@ -37,7 +37,7 @@ setup(
     ],
     # ROS wheels are deliberately not listed: a real ROS install provides rclpy and
     # the message packages itself (requirements-ros.txt pins them for a venv).
-    install_requires=["setuptools", "pyyaml>=6", "pydantic>=2.5", "numpy>=1.24"],
+    install_requires=["setuptools", "pyyaml>=6", "pydantic>=2.5", "numpy>=1.24", "rosbags>=0.11.9"],
     zip_safe=True,
     maintainer="fsreg developers",
     maintainer_email="fsreg@example.org",
