@@ -217,7 +217,9 @@ class TurnReport:
 
 def replay(session: Session) -> list[TurnReport]:
     """Play the session through the core; return one report per turn (LTM assertions are applied, not reported)."""
-    domains = {d: replace(spec, memory=session.memory[d]) for d, spec in session.scenario.domains.items()}
+    # each domain's entities copied: an asserted new entity joins this replay's scenario (REG looks targets up there)
+    domains = {d: replace(spec, memory=session.memory[d], entities=dict(spec.entities))
+               for d, spec in session.scenario.domains.items()}
     turns = [_turn(i, s) for i, s in enumerate(s for s in session.steps if s.kind != "assert")]
     scenario = replace(session.scenario, memory=None, domains=domains, dialogue=tuple(turns))
     sim = Simulation(scenario, session.options, session.lexicon, trace=True)
@@ -226,7 +228,9 @@ def replay(session: Session) -> list[TurnReport]:
     for step in session.steps:
         if step.kind == "assert":
             data = step.request
-            sim.consultants[data["domain"]].assert_facts(data["entity"], data["properties"], step.time)
+            if data["domain"] in sim.consultants:
+                sim.consultants[data["domain"]].assert_facts(data["entity"], data["properties"], step.time)
+                scenario.domains[data["domain"]].entities.setdefault(data["entity"], dict(data["properties"]))
             continue
         turn = turns[index]
         index += 1
