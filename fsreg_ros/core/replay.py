@@ -123,7 +123,7 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
         when = (answer or {}).get("time", data.get("time", clock))
         steps.append(Step(kind, data, answer, float(when if isinstance(when, (int, float)) else clock)))
     events = [d for d in _data(recording.on("wm/events")) if ours(d)]
-    _check_events(where, events)
+    check_events(where, events)
     algorithm = recording.custom.get("fsreg.algorithm")
     options = Options(algorithm=None if algorithm in (None, "", "auto") else algorithm,
                       wm_order=recording.custom.get("fsreg.wm_order") or "lru-first")
@@ -157,7 +157,8 @@ def _check_empty_start(where: str, recording: Recording) -> None:
                               "knowledge base: record from the graph's start (fsreg-up --record)")
 
 
-def _check_events(where: str, events: list[dict]) -> None:
+def check_events(where: str, events: list[dict]) -> None:
+    """Raise ReplayError if a consultant's recorded ``wm/events`` have a gap in ``seq`` (messages lost)."""
     last: dict[tuple, int] = {}
     for event in events:
         key = (event.get("domain"), event.get("incarnation"))
