@@ -120,7 +120,7 @@ class BagWriter:
             raise RecordingError(f"{self.path}: cannot create it ({err.strerror or err})") from None
 
     def attach(self, key: str, source: Path) -> None:
-        """Copy file ``source`` into the recording (``fsreg/<name>``) and name it in ``custom_data`` as ``fsreg.<key>``."""
+        """Copy file ``source`` into the recording (``fsreg/<name>``), named in ``custom_data`` as ``fsreg.<key>``."""
         target = self.path / ATTACHED / Path(source).name
         target.parent.mkdir(exist_ok=True)
         if target.exists():

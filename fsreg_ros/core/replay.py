@@ -1,4 +1,4 @@
-"""A recorded live session replayed through the simulator, turn by turn: did the graph say what the model says?
+"""A recorded live session replayed through the simulator, turn by turn: the graph against the model.
 
 :func:`session_of` turns a recording (:mod:`fsreg_ros.core.recording`) into the simulator's
 input: the knowledge base the graph ran with (copied into the recording, or given), each
@@ -284,7 +284,8 @@ def _wm_differences(live: dict, sim: dict) -> list[str]:
         a, b = live.get(domain, {}), sim.get(domain, {})
         for entity in sorted(set(a) | set(b)):
             if a.get(entity, []) != b.get(entity, []):
-                out.append(f"WM {domain}/{entity}: live {_short(a.get(entity, []))}, replay {_short(b.get(entity, []))}")
+                live_q, sim_q = _short(a.get(entity, [])), _short(b.get(entity, []))
+                out.append(f"WM {domain}/{entity}: live {live_q}, replay {sim_q}")
     return out
 
 

@@ -136,7 +136,8 @@ class DialoguePlayer(Node):
         return [
             topic
             for topic, (sub, pub) in PIPELINE_TOPICS.items()
-            if (sub and self.count_subscribers(topic) < 1 + self.listeners) or (pub and self.count_publishers(topic) == 0)
+            if (sub and self.count_subscribers(topic) < 1 + self.listeners)
+            or (pub and self.count_publishers(topic) == 0)
         ]
 
     async def wait_ready(self) -> None:

@@ -43,7 +43,7 @@ class Ticks:
 
 
 def mcap_summary(path: Path) -> tuple[dict, dict, dict]:
-    """Read an .mcap with the mcap package: (topic -> message count, topic -> schema name, topic -> channel metadata)."""
+    """Read an .mcap with the mcap package: topic -> (message count, schema name, channel metadata)."""
     counts: dict[str, int] = {}
     with path.open("rb") as handle:
         reader = make_reader(handle)
@@ -88,7 +88,8 @@ def test_a_recording_never_closed_keeps_its_closed_segments_and_says_what_is_los
     # the process dies here: no close, the open segment has no index
     recording = open_recording(tmp_path / "cut")
     assert [m.data["id"] for m in recording.on("rr/result")] == ["m0", "m1"]  # the closed segment (0 to 1.4 s)
-    assert "cut short" in recording.lost and "in 000001" in recording.lost and "1 closed segment(s) with 2 messages" in recording.lost
+    assert "cut short" in recording.lost and "in 000001" in recording.lost
+    assert "1 closed segment(s) with 2 messages" in recording.lost
     assert plot_main([str(tmp_path / "cut"), "-o", str(tmp_path / "cut.png")]) == 0
 
 
