@@ -304,7 +304,7 @@ def recording_report(result: RunResult, path: Path) -> str:
     lines = [f"== recording {path}: {len(recording.messages)} messages"
              + (f"; {recording.lost}" if recording.lost else "")]
     dropped = 0
-    for kind, request, reply in (("human", "dialogue/human", "rr/result"), ("reg", "reg/request", "reg/expression")):
+    for kind, request, reply in (("human", "human", "rr"), ("reg", "request", "expression")):
         sent = {k for k, s in result.messages.items() if s.kind == kind}
         answered = {k for k in sent if result.messages[k].replies}
         got_requests = {m.data.get("id") for m in recording.on(request) if isinstance(m.data, dict)}
@@ -313,7 +313,7 @@ def recording_report(result: RunResult, path: Path) -> str:
         dropped += missing
         lines.append(f"  {request}: {len(sent & got_requests)} of {len(sent)} sent; {reply}: "
                      f"{len(answered & got_replies)} of {len(answered)} answers")
-    events = [m.data for m in recording.on("wm/events") if isinstance(m.data, dict)]
+    events = [m.data for m in recording.on("events") if isinstance(m.data, dict)]
     try:
         check_events(str(path), events)
         lines.append(f"  wm/events: {len(events)}, numbered without a gap")

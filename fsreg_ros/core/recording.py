@@ -44,6 +44,11 @@ ATTACHED = "fsreg"
 SEGMENT_SECONDS = 1.0
 #: Prefix of the ``custom_data`` keys fsreg writes.
 CUSTOM_PREFIX = "fsreg."
+#: What each recorded topic is: the recorder writes ``{topic name: role}`` as JSON under this
+#: ``custom_data`` key, so a reader finds the topics of a namespaced or remapped graph by role.
+TOPICS_KEY = "fsreg.topics"
+ROLES = ("human", "semantics", "rr", "request", "expression", "state", "events", "announce", "ready", "assert",
+         "assert_result", "clock")
 #: RMW's "infinite" duration as ``ros2 bag`` writes it into QoS profiles.
 _INFINITE = (9223372036, 854775807)
 
@@ -231,10 +236,16 @@ class Recording:
     counts: dict[str, int] = field(default_factory=dict)  # name -> messages
     lost: Optional[str] = None  # a cut-short recording: what is missing, in words
     undecodable: int = 0  # String messages whose data is not a JSON object (kept with data None)
+    roles: dict[str, str] = field(default_factory=dict)  # topic name -> role (:data:`ROLES`)
 
-    def on(self, suffix: str) -> list[Message]:
-        """Return the messages of the topic whose name ends with ``/suffix`` (any namespace)."""
-        return [m for m in self.messages if m.topic.endswith("/" + suffix.lstrip("/"))]
+    def on(self, role: str) -> list[Message]:
+        """Return the messages of the topic(s) of ``role`` (:data:`ROLES`), in time order."""
+        names = {name for name, r in self.roles.items() if r == role}
+        return [m for m in self.messages if m.topic in names]
+
+    def role(self, message: Message) -> Optional[str]:
+        """Return the role of a message's topic (None: not an fsreg topic)."""
+        return self.roles.get(message.topic)
 
     def attached(self, key: str) -> Optional[Path]:
         """Return the file attached as ``fsreg.<key>`` (None if the recording has none)."""
@@ -262,7 +273,15 @@ def _recording(path: Path, messages: list[Message], topics: dict, custom: dict, 
     counts = {name: 0 for name in topics}
     for message in messages:
         counts[message.topic] = counts.get(message.topic, 0) + 1
-    return Recording(path if path.is_dir() else path.parent, messages, custom, topics, counts, lost, bad)
+    try:
+        roles = json.loads(custom[TOPICS_KEY])
+        if not isinstance(roles, dict):
+            raise ValueError
+    except (KeyError, ValueError):
+        raise RecordingError(f"{path}: not an fsreg recording (its metadata's custom_data has no {TOPICS_KEY})") \
+            from None
+    return Recording(path if path.is_dir() else path.parent, messages, custom, topics, counts, lost, bad,
+                     {str(k): str(v) for k, v in roles.items()})
 
 
 def _open_segments(path: Path) -> Recording:

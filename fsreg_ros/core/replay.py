@@ -34,8 +34,8 @@ from .simulation import Options, Simulation, trace_order
 #: The answer fields compared per kind of turn.
 HUMAN_FIELDS = ("status", "resolved", "candidates", "description")
 ROBOT_FIELDS = ("description", "text", "sources", "wm_before", "distinguishing", "distractors_left")
-#: Each kind of step and the (namespaced) topic its requests are recorded on.
-REQUESTS = (("human", "/dialogue/human"), ("robot", "/reg/request"), ("assert", "/ltm/assert"))
+#: Each kind of step: the role of the topic its requests are recorded on, and of its answers'.
+REQUESTS = {"human": ("human", "rr"), "robot": ("request", "expression"), "assert": ("assert", "assert_result")}
 
 
 class ReplayError(ValueError):
@@ -82,7 +82,7 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
     lexicon_path = lexicon_path or recording.attached("lexicon")
     lexicon = Lexicon.load(lexicon_path)
     scenario = load_scenario(scenario_path, lexicon)
-    ready = [d for d in _data(recording.on("wm_manager/ready")) if d.get("ready")]
+    ready = [d for d in _data(recording.on("ready")) if d.get("ready")]
     graphs = {d.get("graph") for d in ready if d.get("graph")} | (
         {recording.custom["fsreg.graph"]} if recording.custom.get("fsreg.graph") else set())
     if len(graphs) > 1:
@@ -96,18 +96,19 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
     memory = _memory(where, ready, scenario)
     _check_empty_start(where, recording)
     answers: dict[tuple[str, str], dict] = {}
-    for kind, topic in (("human", "rr/result"), ("robot", "reg/expression"), ("assert", "ltm/assert/result")):
-        for data in _data(recording.on(topic)):
+    for kind, (_, answered_on) in REQUESTS.items():
+        for data in _data(recording.on(answered_on)):
             if "id" in data and ours(data):
                 answers.setdefault((kind, str(data["id"])), data)
     steps: list[Step] = []
     seen: set[tuple[str, str]] = set()
     clock = 0.0
     for message in recording.messages:
-        if message.msgtype.endswith("/Clock") and isinstance(message.data, float):
+        role = recording.role(message)
+        if role == "clock" and isinstance(message.data, float):
             clock = message.data
             continue
-        kind = next((k for k, suffix in REQUESTS if message.topic.endswith(suffix)), None)
+        kind = next((k for k, (asked_on, _) in REQUESTS.items() if asked_on == role), None)
         data = message.data
         if kind is None or not isinstance(data, dict):
             continue
@@ -122,7 +123,7 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
             continue
         when = (answer or {}).get("time", data.get("time", clock))
         steps.append(Step(kind, data, answer, float(when if isinstance(when, (int, float)) else clock)))
-    events = [d for d in _data(recording.on("wm/events")) if ours(d)]
+    events = [d for d in _data(recording.on("events")) if ours(d)]
     check_events(where, events)
     algorithm = recording.custom.get("fsreg.algorithm")
     options = Options(algorithm=None if algorithm in (None, "", "auto") else algorithm,
@@ -148,7 +149,7 @@ def _memory(where: str, ready: list[dict], scenario: Scenario) -> dict[str, dict
 
 def _check_empty_start(where: str, recording: Recording) -> None:
     first: dict[str, dict] = {}
-    for data in _data(recording.on("wm/state")):
+    for data in _data(recording.on("state")):
         first.setdefault(str(data.get("domain")), data)
     for domain, state in first.items():
         if state.get("queues"):

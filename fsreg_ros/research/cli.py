@@ -354,12 +354,11 @@ def read_recording(path: Path) -> tuple[list[dict], dict]:
     recording = open_recording(path)
     if recording.lost:
         print(f"fsreg-plot: note: {recording.lost}", file=sys.stderr)
-    events = [{k: v for k, v in m.data.items() if k not in TRANSPORT} for m in recording.on("wm/events")
+    events = [{k: v for k, v in m.data.items() if k not in TRANSPORT} for m in recording.on("events")
               if isinstance(m.data, dict)]
     turns, seen = [], set()
     for message in recording.messages:
-        speaker = "human" if message.topic.endswith("/rr/result") else \
-            "robot" if message.topic.endswith("/reg/expression") else None
+        speaker = {"rr": "human", "expression": "robot"}.get(recording.role(message) or "")
         data = message.data
         if speaker is None or not isinstance(data, dict) or (speaker, data.get("id")) in seen:
             continue

@@ -20,6 +20,7 @@ carries what a replay needs.
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
@@ -31,13 +32,19 @@ from std_msgs.msg import String
 
 from .. import contract
 from ..contract import QosSpec
-from ..core.recording import SEGMENT_SECONDS, BagWriter, Channel
+from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel
 from .carrier import qos_profile
 
 #: Reader depth of every recorded topic at least (the contract's writers keep 1 to 1,000).
 RECORD_DEPTH = 1000
 #: Seconds between two checks whether the open segment is due to close.
 POLL = 0.1
+#: The role each contract topic has in a recording (:data:`fsreg_ros.core.recording.ROLES`); ``/clock``: ``clock``.
+ROLE_OF = {contract.HUMAN.name: "human", contract.SEMANTICS.name: "semantics", contract.RR_RESULT.name: "rr",
+           contract.REG_REQUEST.name: "request", contract.REG_EXPRESSION.name: "expression",
+           contract.WM_STATE.name: "state", contract.WM_EVENTS.name: "events", contract.ANNOUNCE.name: "announce",
+           contract.READY.name: "ready", contract.LTM_ASSERT.name: "assert",
+           contract.LTM_ASSERT_RESULT.name: "assert_result"}
 
 
 def channels(namespace: str = "", clock: Optional[str] = None) -> list[tuple[contract.GraphTopic, Channel]]:
@@ -60,8 +67,10 @@ class Recorder:
         self.node = node
         clock = node.resolve_topic_name(contract.CLOCK)
         pairs = channels(node.get_namespace(), clock)
+        roles = {t.name: ROLE_OF[t.topic.name] if t.topic is not None else "clock" for t, _ in pairs}
         self.bag = BagWriter(Path(path), [c for _, c in pairs], segment_seconds=segment_seconds,
-                             custom={k: str(v) for k, v in (custom or {}).items()})
+                             custom={**{k: str(v) for k, v in (custom or {}).items()},
+                                     TOPICS_KEY: json.dumps(roles, sort_keys=True)})
         for key, source in (attach or {}).items():
             self.bag.attach(key, Path(source))
         self.topics = [t for t, _ in pairs]

@@ -375,13 +375,13 @@ def check_recording(path: Path, scenario: Scenario) -> None:
     from ..core.replay import ReplayError, check_events
 
     recording = open_recording(path)
-    for speaker, topic in (("human", "rr/result"), ("robot", "reg/expression")):
+    for speaker, role in (("human", "rr"), ("robot", "expression")):
         wanted = sum(1 for t in scenario.dialogue if t.speaker == speaker)
-        heard = len({m.data.get("id") for m in recording.on(topic) if isinstance(m.data, dict)})
+        heard = len({m.data.get("id") for m in recording.on(role) if isinstance(m.data, dict)})
         if heard < wanted:
-            raise GraphError(f"recording {path} is incomplete: {heard} of {wanted} answers on {topic}")
+            raise GraphError(f"recording {path} is incomplete: {heard} of {wanted} answers to {speaker} turns")
     try:
-        check_events(str(path), [m.data for m in recording.on("wm/events") if isinstance(m.data, dict)])
+        check_events(str(path), [m.data for m in recording.on("events") if isinstance(m.data, dict)])
     except ReplayError as err:
         raise GraphError(f"recording incomplete: {err}") from None
 

@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from fsreg_ros.core.recording import (CLOCK, STRING, BagWriter, Channel, RecordingError, encode_clock, encode_string,
-                                      open_recording)
+from fsreg_ros.core.recording import (CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, RecordingError, encode_clock,
+                                      encode_string, open_recording)
 from fsreg_ros.research.cli import plot_main
 from fsreg_ros.tools.sim import sim_main
 
@@ -30,6 +30,7 @@ SCENARIO = REPO / "scenarios" / "guess_who_table1.yaml"
 BIN = Path(sys.executable).parent
 CHANNELS = [Channel("/r/rr/result", STRING, 100), Channel("/r/wm/state", STRING, 1, latched=True),
             Channel("/r/clock", CLOCK, 10)]
+ROLES = {TOPICS_KEY: json.dumps({"/r/rr/result": "rr", "/r/wm/state": "state", "/r/clock": "clock"})}
 
 
 class Ticks:
@@ -57,7 +58,7 @@ def mcap_summary(path: Path) -> tuple[dict, dict, dict]:
 
 def test_a_bag_written_by_rosbags_reads_back_with_the_mcap_package(tmp_path):
     ticks = Ticks()
-    bag = BagWriter(tmp_path / "bag", CHANNELS, segment_seconds=1.0, now=ticks)
+    bag = BagWriter(tmp_path / "bag", CHANNELS, segment_seconds=1.0, now=ticks, custom=ROLES)
     for i in range(5):
         ticks.ns = i * 600_000_000  # segments close every second: three segments, merged at close
         bag.write("/r/rr/result", 10 + i, encode_string({"id": f"x{i}", "status": "resolved"}))
@@ -72,7 +73,7 @@ def test_a_bag_written_by_rosbags_reads_back_with_the_mcap_package(tmp_path):
     assert "depth: 100" in metadata["/r/rr/result"]["offered_qos_profiles"]
     recording = open_recording(tmp_path / "bag")
     assert recording.counts == {"/r/rr/result": 5, "/r/wm/state": 0, "/r/clock": 5}
-    assert [m.data for m in recording.on("rr/result")][2] == {"id": "x2", "status": "resolved"}
+    assert [m.data for m in recording.on("rr")][2] == {"id": "x2", "status": "resolved"}
     assert [m.data for m in recording.on("clock")] == [0.5, 1.5, 2.5, 3.5, 4.5]
     assert recording.lost is None
     with pytest.raises(RecordingError, match="exists already"):
@@ -81,20 +82,20 @@ def test_a_bag_written_by_rosbags_reads_back_with_the_mcap_package(tmp_path):
 
 def test_a_recording_never_closed_keeps_its_closed_segments_and_says_what_is_lost(tmp_path):
     ticks = Ticks()
-    bag = BagWriter(tmp_path / "cut", CHANNELS, segment_seconds=1.0, now=ticks)
+    bag = BagWriter(tmp_path / "cut", CHANNELS, segment_seconds=1.0, now=ticks, custom=ROLES)
     for i in range(4):
         ticks.ns = i * 700_000_000
         bag.write("/r/rr/result", 1_700_000_000_000_000_000 + i, encode_string({"id": f"m{i}"}))
     # the process dies here: no close, the open segment has no index
     recording = open_recording(tmp_path / "cut")
-    assert [m.data["id"] for m in recording.on("rr/result")] == ["m0", "m1"]  # the closed segment (0 to 1.4 s)
+    assert [m.data["id"] for m in recording.on("rr")] == ["m0", "m1"]  # the closed segment (0 to 1.4 s)
     assert "cut short" in recording.lost and "in 000001" in recording.lost
     assert "1 closed segment(s) with 2 messages" in recording.lost
     assert plot_main([str(tmp_path / "cut"), "-o", str(tmp_path / "cut.png")]) == 0
 
 
 def test_a_damaged_recording_gets_one_line_naming_the_file(tmp_path, capsys):
-    bag = BagWriter(tmp_path / "bad", CHANNELS)
+    bag = BagWriter(tmp_path / "bad", CHANNELS, custom=ROLES)
     bag.write("/r/rr/result", 1, encode_string({"id": "a"}))
     bag.close()
     mcap = tmp_path / "bad" / "bad.mcap"
@@ -188,7 +189,7 @@ def test_a_live_session_is_recorded_with_nothing_dropped(live):
     assert schemas[f"{ns}/clock"] == CLOCK
     assert metadata[f"{ns}/rr/result"]["offered_qos_profiles"].count("reliability: reliable") == 1
     recording = open_recording(path)
-    seqs = [m.data["seq"] for m in recording.on("wm/events")]
+    seqs = [m.data["seq"] for m in recording.on("events")]
     assert seqs == list(range(1, sent["events"] + 1))  # no gap, nothing twice
     # the type hash in the bag is the one the live publisher announces
     meta = (path / "metadata.yaml").read_text()
