@@ -8,6 +8,7 @@
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
     fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM now (the wm/state that shows every change)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
+    fsreg-ctl [--namespace NS] record DIR [--duration S]   record every fsreg topic as a rosbag2 folder (MCAP)
 
 Every command waits (``--timeout``) until the graph in the namespace is ready (its WM
 Manager's ``wm_manager/ready``), so a first request is not refused; refuses to go on when
@@ -93,6 +94,12 @@ def build_parser() -> argparse.ArgumentParser:
                       help="address to bind (default 127.0.0.1: this machine only)")
     clock = commands.add_parser("clock", parents=[common], help="set a sim-time graph's clock to SECONDS")
     clock.add_argument("seconds", type=float)
+    record = commands.add_parser("record", parents=[common],
+                                 help="record every fsreg topic to a new rosbag2 folder DIR (MCAP) until Ctrl-C")
+    record.add_argument("directory", metavar="DIR", help="the recording's folder (must not exist)")
+    record.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (wall clock)")
+    record.add_argument("--segment", type=float, default=1.0, metavar="S",
+                        help="close a segment every S seconds: what a killed recorder can lose at most (default 1)")
     return parser
 
 
@@ -225,6 +232,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             args.port = check_port(args.port)
         if args.command == "watch" and args.count is not None and args.count < 1:
             raise UsageError("watch: --count must be at least 1")
+        if args.command == "record":
+            check_record(args)
     except (UsageError, ValueError) as err:
         print(f"{PROG}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
@@ -288,6 +297,8 @@ class Ctl:
         from ..ros.client import ClientError
 
         args = self.args
+        if args.command == "record":  # records whatever comes, graph or not (yet)
+            return self._record(client)
         if args.command in ("status", "watch", "view"):  # these work on a graph that is not ready (yet)
             self._find(client)
         else:  # say, describe and assert wait for their own topics to match (GraphClient.exchange)
@@ -381,6 +392,71 @@ class Ctl:
             if client.foreign is not None:
                 raise ClientError(client.foreign, "foreign")
         return EXIT_OK
+
+    def _record(self, client) -> int:
+        """``record``: every fsreg topic of the namespace to a rosbag2 folder until Ctrl-C, SIGTERM or --duration."""
+        import signal
+        import time
+        from pathlib import Path
+
+        from ..core.recording import RecordingError
+        from ..ros.client import ClientError
+        from ..ros.recorder import Recorder, graph_knowledge
+
+        args = self.args
+        try:  # recording starts at once: nothing that comes while the graph is looked for is lost
+            recorder = Recorder(client.node, Path(args.directory), segment_seconds=args.segment,
+                                custom={"fsreg.namespace": self.namespace or "/"})
+        except (RecordingError, OSError) as err:
+            raise UsageError(f"record: {err}") from None
+
+        def stop(signum, frame) -> None:
+            raise KeyboardInterrupt
+
+        previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+        print(f"{PROG}: recording {len(recorder.topics)} topics of {client.where()} to {args.directory}"
+              + (f" for {args.duration:g} s" if args.duration else " (Ctrl-C ends)"), file=sys.stderr, flush=True)
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+        try:
+            try:  # a graph up: note what it runs with (knowledge base, lexicon, REG options) for a replay
+                client.spin_until(lambda: client.ready_messages, self.timeout, "readiness", "not-ready")
+                client.check_clash()
+                if client.graph is None:
+                    (client.graph, _, _), = client.ready_messages
+                custom, attach = graph_knowledge(client, self.timeout)
+                recorder.bag.custom.update(custom)
+                for key, source in attach.items():
+                    recorder.bag.attach(key, source)
+            except ClientError as err:
+                if err.kind == "clash":
+                    raise
+                print(f"{PROG}: note: no graph answered in {client.where()} within {self.timeout:g} s; recording "
+                      "whatever comes (a replay will need --scenario)", file=sys.stderr, flush=True)
+            while deadline is None or time.monotonic() < deadline:
+                client.executor.spin_once(timeout_sec=0.05)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for sig in previous:  # closing the bag is not interrupted
+                signal.signal(sig, signal.SIG_IGN)
+            path = recorder.close()
+        counts = recorder.counts
+        self.emit({"recorded": str(path), "messages": sum(counts.values()), "counts": counts},
+                  f"recorded {recorder.summary()}")
+        return EXIT_OK
+
+
+def check_record(args: argparse.Namespace) -> None:
+    """Refuse a ``record`` command line that cannot be recorded (one line, exit 2)."""
+    import math
+    from pathlib import Path
+
+    for name in ("duration", "segment"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and 0 < value <= 7 * 86400):
+            raise UsageError(f"record: --{name} must be a positive number of seconds, got {value:g}")
+    if Path(args.directory).exists():
+        raise UsageError(f"record: {args.directory} exists already; a recording goes to a new folder")
 
 
 if __name__ == "__main__":  # pragma: no cover

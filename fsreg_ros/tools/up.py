@@ -1,6 +1,6 @@
 """``fsreg-up``: start the live node graph of a scenario's domains and keep it up.
 
-    fsreg-up SCENARIO [--namespace NS] [memory options] [--state-dir DIR] [--wall-time]
+    fsreg-up SCENARIO [--namespace NS] [memory options] [--state-dir DIR] [--wall-time] [--record DIR]
 
 Starts one process per node, as ``fsreg-graph`` does (a ``consultant`` per domain of
 the scenario, the ``wm_manager`` with the scenario's memory settings and the command
@@ -13,6 +13,10 @@ line containing ``ready`` (the namespace, the graph's identity, the ROS domain, 
 clock and where to talk to it; ``--json``: one JSON object), and stays up.  Ctrl-C or
 SIGTERM stops every node (SIGTERM to the process group, SIGKILL after a grace period;
 every node also dies with this process) and leaves no process behind; exit 0.
+
+``--record DIR`` records every fsreg topic to a new rosbag2 folder from before the first
+node starts until the graph stops (:mod:`fsreg_ros.ros.recorder`), with a copy of the
+scenario (and lexicon) for ``fsreg-sim --replay DIR``.
 
 A node that exits is reported with the tail of its log and everything is stopped
 (exit 1), or, with ``--respawn``, it is started again (at most ``MAX_RESPAWNS`` times
@@ -90,6 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--json", action="store_true", help="print the ready line as one JSON object")
     parser.add_argument("--view", nargs="?", type=int, const=DEFAULT_PORT, default=None, metavar="PORT",
                         help=f"also serve the live web view on 127.0.0.1:PORT (default {DEFAULT_PORT}; 0: a free port)")
+    parser.add_argument("--record", type=Path, metavar="DIR",
+                        help="record every fsreg topic from the start to a new rosbag2 folder DIR (MCAP)")
     return parser
 
 
@@ -123,7 +129,8 @@ def ready_line(report: dict) -> str:
     return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
             f"{memory}; {clock}; endpoints {endpoints}; "
             f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch"
-            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}")
+            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}"
+            + (f"; recording to {report['recording']}" if report.get("recording") else ""))
 
 
 class Stop(Exception):
@@ -145,6 +152,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return EXIT_BAD_INPUT
     if args.view is not None and not 0 <= args.view <= 65535:
         print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.record is not None and args.record.exists():
+        print(f"{PROG}: error: --record: {args.record} exists already; a recording goes to a new folder",
+              file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.ready_timeout <= 0:
         print(f"{PROG}: error: --ready-timeout must be positive, got {args.ready_timeout:g}", file=sys.stderr)
@@ -221,6 +232,7 @@ class Up:
         remaps += clock_arguments(self.namespace, self.clock)
         node = rclpy.create_node("fsreg_up", context=context, cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
+        recorder = None
         try:
             client = GraphClient(node, executor, graph=self.graph_id)
             running = client.find_running(DISCOVERY_WAIT)
@@ -228,6 +240,8 @@ class Up:
                 print(f"{PROG}: error: {running}; stop it, or choose another --namespace or ROS_DOMAIN_ID",
                       file=sys.stderr)
                 return EXIT_FAILED
+            if self.args.record is not None:  # subscribed before any node starts: the recording starts with the graph
+                recorder = self._recorder(node)
             self.graph = Graph(self.specs, self.log_dir, self.env, self.namespace, clock=self.clock)
             self.graph.start()
             self._wait_ready(client)
@@ -236,6 +250,8 @@ class Up:
             view = self._start_view(client)
             if view is not None:
                 report["view"] = view.url
+            if recorder is not None:
+                report["recording"] = str(self.args.record)
             print(json.dumps(report, sort_keys=True) if self.args.json else ready_line(report), flush=True)
             while True:
                 self._supervise()
@@ -259,6 +275,9 @@ class Up:
                 self.graph.stop()
                 print(f"{PROG}: stopped graph {self.graph_id} ({len(self.graph.procs)} nodes); logs in {self.log_dir}",
                       file=sys.stderr)
+            if recorder is not None:
+                recorder.close()
+                print(f"{PROG}: recorded {recorder.summary()}", file=sys.stderr)
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)
@@ -270,6 +289,19 @@ class Up:
         view = LiveView(client, DEFAULT_HOST, self.args.view)  # OSError: the port is taken
         view.start()
         return view
+
+    def _recorder(self, node):
+        """Start recording every fsreg topic on ``node`` (:mod:`fsreg_ros.ros.recorder`), with what a replay needs."""
+        from ..core.recording import RecordingError
+        from ..ros.recorder import Recorder
+
+        custom = {"fsreg.graph": self.graph_id, "fsreg.namespace": self.namespace or "/",
+                  "fsreg.algorithm": self.args.algorithm or "auto", "fsreg.wm_order": self.args.wm_order}
+        attach = {"scenario": self.args.scenario, **({"lexicon": self.args.lexicon} if self.args.lexicon else {})}
+        try:
+            return Recorder(node, self.args.record, custom=custom, attach=attach)
+        except (RecordingError, OSError) as err:
+            raise UpError(f"--record: {err}") from None
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError
