@@ -390,9 +390,9 @@ GRIDS: dict[str, tuple] = {
     "global_capacity": (2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024),
     "shared_capacity": (2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024),
     # ACT-R base-level activation (when the core has it): d, and tau, with which one encoding
-    # stays exp(-tau / d) seconds (about 2 s to 3 h at d = 0.5).
-    "activation_decay": (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99),
-    "activation_threshold": (-5.0, -4.0, -3.5, -3.0, -2.5, -2.0, -1.5, -1.0, -0.5, 0.0, 0.5, 1.0),
+    # stays exp(-tau / d) seconds (1 s to 6 h at d = 0.8).
+    "activation_decay": (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99),
+    "activation_threshold": (-10.0, -9.0, -8.0, -7.0, -6.0, -5.0, -4.0, -3.0, -2.0, -1.0, 0.0),
 }
 #: Parameters held at their table value, not fitted: they are no property of forgetting.
 NOT_FITTED = {"seed": "the random victim's seed (its fallback, 0)"}
