@@ -322,7 +322,7 @@ class ConsultantService:
         return self.persistence.restore(state)
 
     def health(self) -> dict:
-        """The store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
+        """Return the store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
         return self.persistence.health()
 
     def maintain(self) -> None:
