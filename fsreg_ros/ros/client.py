@@ -25,6 +25,7 @@ project's own tests use one client.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import itertools
 import secrets
@@ -59,6 +60,8 @@ GONE_AFTER = 1.5
 CLOCK_DISCOVERY = 2.5
 #: Seconds between two ``/clock`` messages while ``set_clock`` waits for the graph's clock to reach the time.
 CLOCK_RESEND = 0.25
+#: Seconds a client waits after its request and reply topics first match before sending (see wait_matched).
+MATCH_SETTLE = 0.25
 #: The node names of a graph (besides ``consultant_<domain>``).
 GRAPH_NODES = ("wm_manager", "parser", "reference_resolution", "reg", "dialogue_player")
 #: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
@@ -124,7 +127,9 @@ class GraphClient:
         self._ready_heard: dict[tuple, float] = {}  # when each was heard (monotonic)
         self._publishers = {kind: publisher(node, topics[0]) for kind, topics in KIND_TOPICS.items()}
         self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()}
-        self._ready_sub = subscribe(node, contract.READY, self._on_ready,
+        # The reader asks the writer's liveliness lease: only then does Fast DDS report the writer's death.
+        ready_topic = dataclasses.replace(contract.READY, reader_qos=contract.READY_QOS)
+        self._ready_sub = subscribe(node, ready_topic, self._on_ready,
                                     event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
         self._ready_alive: Optional[int] = None  # live writers of wm_manager/ready (None: no liveliness event yet)
         self.notice_leaving = False  # every wait checks that the graph is still there (:meth:`gone`)
@@ -331,8 +336,18 @@ class GraphClient:
         needed = len(self.domains()) if kind == "assert" else 1
         pub, sub = self._publishers[kind], self._reply_subs[kind]
         request, reply = KIND_TOPICS[kind]
-        self.spin_until(lambda: pub.get_subscription_count() >= needed and sub.get_publisher_count() >= needed,
-                        timeout, f"{request.name} -> {reply.name} is not connected in {self.where()}", "not-ready")
+
+        def matched() -> bool:
+            return pub.get_subscription_count() >= needed and sub.get_publisher_count() >= needed
+
+        if matched():
+            return
+        self.spin_until(matched, timeout, f"{request.name} -> {reply.name} is not connected in {self.where()}",
+                        "not-ready")
+        # This side sees the other; the other side's discovery of this one usually completes within this
+        # settle time.  Without it, a first request or answer was sometimes lost to the half-made match
+        # and the request went out twice (the second copy answered from the node's cache).
+        self.spin_for(MATCH_SETTLE)
 
     # ---------------------------------------------------------------- topics
     def new_id(self, kind: str) -> str:
@@ -635,14 +650,22 @@ class GraphClient:
         return sorted(name for name, ns in self.node.get_node_names_and_namespaces()
                       if ns == self.namespace and (name in GRAPH_NODES or name.startswith("consultant_")))
 
+    def node_names(self) -> list[str]:
+        """Return the names of the graph's nodes, from its readiness (its domains' consultants and the rest)."""
+        return sorted([*GRAPH_NODES[:-1], *(f"consultant_{d}" for d in self.domains())])
+
     def require_node(self, node_name: str, timeout: Optional[float] = None) -> None:
-        """Raise ClientError ``usage`` naming the graph's nodes unless node ``node_name`` is seen (in ``timeout``)."""
-        wait = min(DISCOVERY_WAIT, self.timeout if timeout is None else timeout)
-        try:
-            self.spin_until(lambda: node_name in self.graph_nodes(), wait, f"node {node_name}")
-        except ClientError:
-            raise ClientError(f"no node {printable(repr(node_name), 80)} in {self.where()} (its nodes: "
-                              f"{', '.join(self.graph_nodes()) or 'none seen'})", "usage") from None
+        """Raise ClientError unless ``node_name`` is a node of the graph whose parameter services answer.
+
+        ``usage`` at once for a name the graph does not have (:meth:`node_names`);
+        ``not-ready`` if its parameter services are not found within ``timeout``.
+        """
+        if node_name not in self.node_names():
+            raise ClientError(f"no node {printable(repr(node_name), 80)} in graph {describe_graph(self.graph)} (its "
+                              f"nodes: {', '.join(self.node_names())})", "usage")
+        client = self._param_client(node_name, ListParameters, "list_parameters")
+        self.spin_until(client.service_is_ready, self.timeout if timeout is None else timeout,
+                        f"{node_name}: service {client.srv_name} is not available", "not-ready")
 
     def list_parameters(self, node_name: str, timeout: Optional[float] = None) -> list[str]:
         """Return the names of node ``node_name``'s parameters, sorted."""

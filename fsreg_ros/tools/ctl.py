@@ -64,6 +64,8 @@ MEMORY_KEYS = settings.names()
 MAX_TIMEOUT = 86_400.0
 #: What argparse takes for a negative number rather than an option.
 NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+#: Seconds without an answer after which a request is sent again (the node answers a repeated id from its cache).
+RETRY_AFTER = 4.0
 #: Most WM updates ``watch --count`` waits for.
 MAX_COUNT = 10**9
 
@@ -361,7 +363,8 @@ class Ctl:
                                  cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
         try:
-            client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout)
+            client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout,
+                                 retry_after=RETRY_AFTER)
             spec = COMMANDS[self.args.command]
             if spec.needs == "graph":  # works on a graph that is not ready (yet)
                 self.find(client)
@@ -500,8 +503,7 @@ def set_(ctl: Ctl, client) -> int:
             if name not in known:
                 close = difflib.get_close_matches(name, known, n=1)
                 hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
-                raise UsageError(f"set {printable(name, 80)}: node {node_name} has no parameter "
-                                 f"{printable(repr(name), 80)} ({hint})")
+                raise UsageError(f"set: node {node_name} has no parameter {printable(repr(name), 80)} ({hint})")
     now: dict[str, dict[str, Any]] = {}
     for node_name, values in changes.items():
         try:
@@ -509,8 +511,16 @@ def set_(ctl: Ctl, client) -> int:
         except ClientError as err:
             done = f" (already set: {_assignments(now)})" if now else ""
             raise ClientError(f"set: {err}{done}", err.kind) from None
-    ctl.emit({"set": now}, f"set {_assignments(now)}")
+    shown = {node: {k: "inherit" if node == "wm_manager" and _inherits(k, v, client.domains()) else v
+                    for k, v in vals.items()} for node, vals in now.items()}
+    ctl.emit({"set": now}, f"set {_assignments(shown)}")
     return EXIT_OK
+
+
+def _inherits(name: str, value: Any, domains: Sequence[str]) -> bool:
+    """True for a domain's memory setting at its inherit marker (it follows the node-wide value)."""
+    domain, dot, key = name.rpartition(".")
+    return bool(dot) and domain in domains and key in MEMORY_KEYS and value == settings.setting(key).inherit
 
 
 def _assignments(values: dict[str, dict[str, Any]]) -> str:
@@ -540,7 +550,7 @@ def params(ctl: Ctl, client) -> int:
 
     args = ctl.args
     wanted: dict[str, Optional[list[str]]] = {}
-    for item in args.items or client.graph_nodes():
+    for item in args.items or client.node_names():
         node, colon, key = item.rpartition(":")
         if not colon and _memory_key(item, client.domains()):
             node, key = "wm_manager", item
