@@ -404,12 +404,13 @@ class Ctl:
         return client.graph_time()
 
 
-def _error(answer: dict, what: str) -> None:
-    """Raise ClientError (exit 1) with the graph's error reply, one line, its ``kind`` named if it has one."""
+def _error(ctl: Ctl, answer: dict, what: str) -> None:
+    """Raise ClientError (exit 1) with the graph's error reply in one line (``--json``: the reply on stdout too)."""
     from ..ros.client import ClientError
 
-    kind = answer.get("kind")
-    raise ClientError(f"{what}: {answer.get('error')}" + (f" (kind {kind})" if kind else ""), "error")
+    if ctl.json:
+        ctl.emit(answer, "")
+    raise ClientError(f"{what}: {answer.get('error')}", "error")
 
 
 # ------------------------------------------------------------------ commands
@@ -433,9 +434,9 @@ def say(ctl: Ctl, client) -> int:
     description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
     answer = client.say(" ".join(args.text) if args.text else None, description=description, domain=args.domain,
                         time=ctl.now(client))
-    ctl.emit(answer, show_say(answer))
     if answer.get("status") == "error" or "error" in answer:
-        _error(answer, "say")
+        _error(ctl, answer, "say")
+    ctl.emit(answer, show_say(answer))
     return EXIT_OK
 
 
@@ -449,7 +450,7 @@ def describe(ctl: Ctl, client) -> int:
     args = ctl.args
     answer = client.describe(args.entity, context=args.context, time=ctl.now(client))
     if "error" in answer:
-        _error(answer, f"describe {printable(args.entity, 80)}")
+        _error(ctl, answer, f"describe {printable(args.entity, 80)}")
     ctl.emit(answer, show_describe(answer))
     return EXIT_OK
 
@@ -466,7 +467,7 @@ def assert_(ctl: Ctl, client) -> int:
     args = ctl.args
     answer = client.assert_facts(args.entity, parse_facts(args.properties), domain=args.domain)
     if not answer.get("ok"):
-        _error(answer, f"assert {printable(args.entity, 80)}")
+        _error(ctl, answer, f"assert {printable(args.entity, 80)}")
     ctl.emit(answer, show_assert(answer))
     return EXIT_OK
 
