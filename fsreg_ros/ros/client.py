@@ -728,14 +728,15 @@ class GraphClient:
             if problem:
                 raise ClientError(f"{node_name}: {name}: {problem}", "usage")
             messages.append(ParameterMsg(name=name, value=value))
+        executable = "consultant" if node_name.startswith("consultant_") else node_name
+        catalogue = node_parameters.node_parameters(executable, self.domains())
+        for name in names:  # the node's own checks (choices, the settings table), as data
+            if name in catalogue:
+                try:
+                    node_parameters.check_parameter(catalogue[name], typed[name])
+                except node_parameters.ParameterError as err:
+                    raise ClientError(f"{node_name}: {name}: {err}", "usage") from None
         if node_name == "wm_manager" and any(n in parameter_names(self.domains()) for n in names):
-            catalogue = node_parameters.node_parameters("wm_manager", self.domains())
-            for name in names:
-                if name in catalogue:
-                    try:
-                        node_parameters.check_parameter(catalogue[name], typed[name])
-                    except node_parameters.ParameterError as err:
-                        raise ClientError(f"{node_name}: {name}: {err}", "usage") from None
             current = self.get_parameters(node_name, parameter_names(self.domains()), timeout)
             try:
                 effective_policies({**current, **typed}, self.domains())

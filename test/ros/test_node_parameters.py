@@ -64,7 +64,8 @@ def test_params_files_as_ros2_param_dump_writes_them(tmp_path):
                     "/robot1/reg:\n  ros__parameters: {algorithm: greedy}\n")
     entries = read_params_file(path)
     assert [(e.pattern, e.parameters) for e in entries] == [
-        ("/**", {"threshold": 0.6}), ("/robot1/wm_manager", {"faces.capacity": 3}), ("/robot1/reg", {"algorithm": "greedy"})]
+        ("/**", {"threshold": 0.6}), ("/robot1/wm_manager", {"faces.capacity": 3}),
+        ("/robot1/reg", {"algorithm": "greedy"})]
     assert for_node(entries, "/robot1/wm_manager") == {"threshold": 0.6, "faces.capacity": 3}
     assert matches("/**/reg", "/a/b/reg") and matches("/*/reg", "/a/reg") and not matches("/*/reg", "/a/b/reg")
     assert matches("/**", "/reg") and not matches("/robot1/reg", "/robot2/reg") and matches("reg", "/reg")

@@ -321,7 +321,8 @@ def test_numeric_parameters_declare_their_ranges(graph: Graph):
     }
     # per domain: the rule in words, no range (a range reaching down to the inherit marker read "Min: 0")
     capacity = node.describe_parameter("faces.capacity")
-    assert not capacity.integer_range and capacity.additional_constraints == "0 (inherit) or a whole number in [1, 10000]"
+    assert not capacity.integer_range
+    assert capacity.additional_constraints == "0 (inherit) or a whole number in [1, 10000]"
     refused = node.set_parameters([Parameter("faces.capacity", value=-1)])[0]
     assert not refused.successful and "capacity must be >= 1, got -1" in refused.reason and "Min" not in refused.reason
 
