@@ -62,7 +62,7 @@ class ParamSpec:
     setting: Optional[str] = None
 
     def rule(self) -> str:
-        """The values allowed, in words: ``a whole number in [1, 10000]``."""
+        """Return the values allowed, in words: ``a whole number in [1, 10000]``."""
         if self.setting is not None and self.low is None and self.kind == "str":
             text = "a forgetting policy (none, or rules joined by +)"
         elif self.choices:

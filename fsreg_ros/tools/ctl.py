@@ -400,7 +400,7 @@ class Ctl:
             raise ClientError(f"graph {client.graph!r} is not in {client.where()}", "not-ready")
 
     def now(self, client) -> float:
-        """The graph's clock: what a request is stamped with, so it is never earlier than a ``clock`` that returned."""
+        """Return the graph's clock: a request is stamped with it, never earlier than a ``clock`` that returned."""
         return client.graph_time()
 
 
@@ -519,7 +519,7 @@ def set_(ctl: Ctl, client) -> int:
 
 
 def _inherits(name: str, value: Any, domains: Sequence[str]) -> bool:
-    """True for a domain's memory setting at its inherit marker (it follows the node-wide value)."""
+    """Return whether a domain's memory setting is at its inherit marker (it follows the node-wide value)."""
     domain, dot, key = name.rpartition(".")
     return bool(dot) and domain in domains and key in MEMORY_KEYS and value == settings.setting(key).inherit
 

@@ -168,7 +168,7 @@ def test_live_parameter_changes(graph: Graph):
         ("decay_period", "soon", "Wrong parameter type"),  # refused by rclpy (static typing)
         ("decay_period", 10, "Wrong parameter type"),
         ("decay_period", None, "cannot be undeclared"),  # NOT_SET: refused by rclpy
-        ("faces.capacity", -2, "faces.capacity out of range"),
+        ("faces.capacity", -2, "faces.capacity: capacity must be >= 1, got -2 (0 inherits 'capacity')"),
         ("faces.decay_period", 0.001, "faces.decay_period: decay_period must be >= 0.01"),
         ("faces.policy", "sometimes", "faces.policy"),
         ("global_capacity", 0, "global_capacity out of range"),
