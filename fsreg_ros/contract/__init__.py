@@ -121,13 +121,14 @@ from .ltm import LtmAssert, LtmAssertResult
 from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .policy import PolicySettings
-from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .qos import (ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS,
+                  QosSpec)
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
     "ALIVE", "ALIVE_QOS", "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
     "EVENTS_QOS", "HUMAN", "LIMIT_RANGES", "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "MANAGE_OPS",
-    "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
+    "PIPELINE_QOS", "READY_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
     "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE", "AffirmRequest",
     "CloseReply", "CloseRequest", "ConfigureReply", "ConfigureRequest", "ConsultantAnnounce", "ConsultantReply",
     "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EncodeReply", "EncodeRequest",

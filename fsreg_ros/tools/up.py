@@ -1,6 +1,7 @@
 """``fsreg-up``: start the live node graph of a scenario's domains and keep it up.
 
-    fsreg-up SCENARIO [--namespace NS] [memory options] [--state-dir DIR] [--wall-time] [--record DIR]
+    fsreg-up SCENARIO [--namespace NS] [memory options] [--params-file FILE] [--state-dir DIR] [--wall-time]
+             [--view [PORT]] [--record DIR]
 
 Starts one process per node, as ``fsreg-graph`` does (a ``consultant`` per domain of
 the scenario, the ``wm_manager`` with the scenario's memory settings and the command
@@ -21,6 +22,11 @@ scenario (and lexicon) for ``fsreg-sim --replay DIR``.
 A node that exits is reported with the tail of its log and everything is stopped
 (exit 1), or, with ``--respawn``, it is started again (at most ``MAX_RESPAWNS`` times
 per node); its state survives in its state database.
+
+``--params-file FILE`` gives the nodes parameters in the YAML ``ros2 param dump``
+writes (``/**`` wildcards, node names, namespaces), each key and value checked against
+the node's parameters before anything starts (:mod:`fsreg_ros.tools.params_file`); the
+memory options on the command line win over the file, the file over the scenario.
 
 Time: sim time by default (the nodes follow ``/clock``, under a namespace
 ``<namespace>/clock``, or ``--clock TOPIC``; ``fsreg-ctl clock T`` or a simulator drives
@@ -90,6 +96,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--log-dir", type=Path, metavar="DIR", help="node logs (default: a new temporary directory)")
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="seconds to wait for the graph to be ready (default 60)")
+    parser.add_argument("--params-file", type=Path, metavar="FILE",
+                        help="node parameters in the YAML 'ros2 param dump' writes ('/**' wildcards, node names); "
+                             "checked before anything starts; memory options on the command line win over it")
     parser.add_argument("--respawn", action="store_true", help="start a node that exits again (default: stop all)")
     parser.add_argument("--json", action="store_true", help="print the ready line as one JSON object")
     parser.add_argument("--view", nargs="?", type=int, const=DEFAULT_PORT, default=None, metavar="PORT",
@@ -169,6 +178,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                                             else contract.CLOCK))
         if clock is not None:
             _check_topic(clock)
+        file_params, memory = {}, None
+        if args.params_file is not None:
+            file_params, memory = params_from_file(args.params_file, policies, namespace, options)
     except INPUT_ERRORS as err:
         print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -183,12 +195,24 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     os.environ.update(env)
     previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return Up(args, scenario, options, policies, namespace, clock, env).run()
+        return Up(args, scenario, options, policies, namespace, clock, env, file_params, memory).run()
     except Stop:
         return EXIT_OK
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def params_from_file(path: Path, policies: dict, namespace: str, options) -> tuple[dict, dict]:
+    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid."""
+    from ..ros.graph_spec import policy_settings
+    from .params_file import check_memory, overrides
+
+    domains = list(policies)
+    given = overrides(path, domains, namespace, options.memory)
+    manager = {f"{d}.{k}": v for d, p in policies.items() for k, v in policy_settings(p).items() if v is not None}
+    manager.update(given.get("wm_manager", {}))
+    return given, check_memory(path, manager, domains)
 
 
 def _check_topic(name: str) -> None:
@@ -203,7 +227,8 @@ class Up:
     """One fsreg-up run: the probe that checks and waits, the node processes, the loop that keeps them up."""
 
     def __init__(self, args: argparse.Namespace, scenario, options, policies: dict, namespace: str,
-                 clock: Optional[str], env: dict) -> None:
+                 clock: Optional[str], env: dict, file_params: Optional[dict] = None,
+                 memory: Optional[dict] = None) -> None:
         self.args = args
         self.namespace = namespace
         self.clock = clock
@@ -214,6 +239,10 @@ class Up:
         self.specs = live_nodes(scenario, args.scenario, options, graph=self.graph_id, lexicon=args.lexicon,
                                 state_dir=str(args.state_dir.resolve()) if args.state_dir else None,
                                 use_sim_time=not args.wall_time)
+        for spec in self.specs:  # --params-file (checked): over the scenario's, under the command line's
+            spec.parameters.update((file_params or {}).get(spec.name, {}))
+        if memory is not None:
+            self.memory = memory
         self.graph: Optional[Graph] = None
         self.respawns: dict[str, int] = {}
 
