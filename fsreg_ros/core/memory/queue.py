@@ -19,7 +19,8 @@ from typing import Callable, NamedTuple, Optional, Union
 
 #: Causes an event can have (docs/semantics.md section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
-FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract")
+FORGET_CAUSES = ("decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset",
+                 "retract")
 
 
 class WMEvent(NamedTuple):

@@ -1,0 +1,249 @@
+"""ACT-R base-level activation as a forgetting rule (rule ``activation``): traces, crossing times, lazy pops.
+
+An entry (e, p) of WM keeps the times t_1 <= ... <= t_n of the encodings of p into
+Q[e] since p entered Q[e] (the entering encoding and every refresh; a forgotten
+property's history goes with it).  Its base-level activation at time t > t_n is
+
+    A(t) = ln sum_j (t - t_j)^(-d)
+
+(Anderson & Lebiere 1998; d = ``activation_decay``).  A(t) decreases strictly from
++inf to -inf between encodings, so it crosses the threshold tau
+(``activation_threshold``) exactly once: at the *crossing time* c, the unique
+t > t_n with A(t) = tau.  The entry is forgotten at c (cause ``activation``, event
+time c), before any event stamped c, as a decay tick is.  With one encoding,
+c = t_1 + exp(-tau / d) (:func:`lifetime`).
+
+A :class:`Trace` keeps the count n, the first time t_1 and the last
+:data:`HISTORY` times exactly; beyond that, the older presentations are
+approximated as spread evenly between t_1 and the oldest time kept (Petrov 2006,
+"Computationally efficient approximation of the base-level learning equation in
+ACT-R", eq. 4; exact while n <= HISTORY).  c is solved once per encoding
+(:func:`crossing`), never per tick: a buffer pops an entry lazily, when its queue is
+next touched at or after c (:class:`LazyActivation`), the way lazy decay pops owed
+fronts, so the clock costs nothing while no queue is touched.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Optional
+
+from ..decay import TIME_EPSILON
+from .queue import Queue
+
+if TYPE_CHECKING:
+    from .buffer import WMBuffer
+
+#: Encoding times an entry keeps exactly (the Petrov approximation covers older ones).
+HISTORY = 8
+#: No crossing (an entry that never falls below the threshold within the clock's range).
+NEVER = math.inf
+#: Crossings further than this after the last encoding are :data:`NEVER` (decay.MAX_TIME).
+_LONGEST = 1e12
+#: The crossing time is solved to this relative precision.
+_PRECISION = 1e-13
+
+
+class Trace:
+    """One entry's encoding history: count ``n``, ``first`` time, the last :data:`HISTORY` times; crossing ``due``."""
+
+    __slots__ = ("n", "first", "recent", "due")
+
+    def __init__(self, time: float) -> None:
+        self.n = 1
+        self.first = time
+        self.recent = [time]
+        self.due = NEVER
+
+    def add(self, time: float) -> None:
+        """Note one more encoding at ``time`` (not before the last one)."""
+        self.n += 1
+        self.recent.append(time)
+        if len(self.recent) > HISTORY:
+            del self.recent[0]
+
+    def strength(self, t: float, d: float) -> float:
+        """Return sum_j (t - t_j)^(-d) at ``t`` (> every encoding time), older presentations approximated."""
+        total = 0.0
+        for r in self.recent:
+            total += (t - r) ** -d
+        older = self.n - len(self.recent)
+        if older > 0:
+            oldest = self.recent[0]
+            span = oldest - self.first
+            if span <= 0.0:
+                total += older * (t - self.first) ** -d
+            else:
+                total += older * ((t - self.first) ** (1.0 - d) - (t - oldest) ** (1.0 - d)) / ((1.0 - d) * span)
+        return total
+
+    def to_json(self) -> list:
+        """Return ``[n, first, recent...]`` (what a store keeps)."""
+        return [self.n, self.first, *self.recent]
+
+    @classmethod
+    def from_json(cls, data: object) -> "Trace":
+        """Rebuild a trace from :meth:`to_json`'s list; ValueError if malformed."""
+        if (not isinstance(data, (list, tuple)) or len(data) < 3 or len(data) > HISTORY + 2
+                or isinstance(data[0], bool) or not isinstance(data[0], int) or data[0] < len(data) - 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                           for x in data[1:])
+                or any(a > b for a, b in zip(data[1:], data[2:]))):
+            raise ValueError(f"activation trace {data!r} is not [count, first time, recent times...] in order")
+        trace = cls(float(data[1]))
+        trace.n, trace.recent = data[0], [float(x) for x in data[2:]]
+        return trace
+
+
+def activation(trace: Trace, t: float, d: float) -> float:
+    """Return the entry's base-level activation ln sum_j (t - t_j)^(-d) at ``t`` (+inf at an encoding time)."""
+    if t <= trace.recent[-1]:
+        return math.inf
+    return math.log(trace.strength(t, d))
+
+
+def lifetime(d: float, tau: float) -> float:
+    """Return how long one encoding stays above the threshold: exp(-tau / d) (inf if it overflows)."""
+    try:
+        return math.exp(-tau / d)
+    except OverflowError:
+        return math.inf
+
+
+def crossing(trace: Trace, d: float, tau: float) -> float:
+    """Return the time activation falls to ``tau`` after the last encoding (:data:`NEVER` past ``MAX_TIME``).
+
+    With one encoding it is ``t_1 + lifetime``.  Otherwise the root of
+    ``strength(t) = exp(tau)`` on ``(t_n, inf)``: strength decreases strictly there, is
+    at least ``exp(tau)`` at ``t_n + lifetime`` (its last term alone is) and at most
+    ``n (t - t_n)^(-d)``, so the root lies in ``[t_n + L, t_n + n^(1/d) L]``; it is
+    found by regula falsi (Illinois) on ``strength^(-1/d)``, nearly linear in t.
+    """
+    last, span = trace.recent[-1], lifetime(d, tau)
+    if span > _LONGEST:
+        return NEVER
+    if trace.n == 1:
+        return last + span
+    target = span  # strength(t)^(-1/d) == exp(-tau/d) at the crossing
+    lo = last + span
+    try:
+        hi = last + span * trace.n ** (1.0 / d)
+    except OverflowError:
+        return NEVER
+    if hi - last > _LONGEST:
+        hi = last + _LONGEST
+        if trace.strength(hi, d) ** (-1.0 / d) < target:
+            return NEVER
+    f_lo = trace.strength(lo, d) ** (-1.0 / d) - target
+    f_hi = trace.strength(hi, d) ** (-1.0 / d) - target
+    if f_lo >= 0.0:
+        return lo
+    if f_hi <= 0.0:
+        return hi
+    side = 0
+    for _ in range(200):
+        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not lo < t < hi:
+            t = 0.5 * (lo + hi)
+        f = trace.strength(t, d) ** (-1.0 / d) - target
+        if f == 0.0:
+            return t
+        if f < 0.0:
+            lo, f_lo = t, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        else:
+            hi, f_hi = t, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        if hi - lo <= _PRECISION * max(1.0, abs(hi)):
+            break
+    return hi
+
+
+class LazyActivation:
+    """One buffer's activation rule: the clock, each entry's :class:`Trace`, lazy pops at crossing times.
+
+    ``clock`` is the latest time the buffer was told (:meth:`WMBuffer.advance`, and
+    every encoding's or forgetting's own time).  ``traces[entity][prop]`` is the trace
+    of each entry of Q[entity]; ``due[entity]`` the earliest crossing among them (so
+    a touched queue with nothing due costs one lookup).  Kept here, not in the
+    queues, so the other rules' hot paths carry nothing for it.
+    """
+
+    def __init__(self, wm: "WMBuffer", decay: float, threshold: float, clock: float) -> None:
+        self.wm = wm
+        self.decay, self.threshold = decay, threshold
+        self.clock = clock
+        self.settled = -math.inf  # the clock every queue was last brought up to (flush)
+        self.traces: dict[str, dict[str, Trace]] = {}
+        self.due: dict[str, float] = {}
+
+    def advance(self, time: float) -> None:
+        """Note that the clock reached ``time`` (it never goes back)."""
+        if time > self.clock:
+            self.clock = time
+
+    def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
+        """Take Q[entity] under the rule: ``traces`` kept (e.g. restored), one encoding at ``time`` for the others."""
+        mine = self.traces[entity] = {}
+        for prop in q:
+            trace = (traces or {}).get(prop)
+            mine[prop] = trace if trace is not None else Trace(time)
+            mine[prop].due = crossing(mine[prop], self.decay, self.threshold)
+        self._refresh(entity)
+
+    def record(self, entity: str, prop: str, time: float, present: bool) -> None:
+        """Note an encoding of ``prop`` into Q[entity] at ``time`` (``present``: a refresh)."""
+        traces = self.traces.get(entity)
+        if traces is None:
+            traces = self.traces[entity] = {}
+        trace = traces.get(prop) if present else None
+        if trace is None:
+            trace = traces[prop] = Trace(time)
+        else:
+            trace.add(time)
+        due = trace.due = crossing(trace, self.decay, self.threshold)
+        if due < self.due.get(entity, NEVER):
+            self.due[entity] = due
+        elif present:
+            self._refresh(entity)
+
+    def forget(self, entity: str, prop: str) -> None:
+        """Drop the trace of an entry that left Q[entity] (any cause); ``due`` may stay early (harmless)."""
+        traces = self.traces.get(entity)
+        if traces is not None:
+            traces.pop(prop, None)
+
+    def sync(self, entity: str, q: Queue) -> None:
+        """Forget the entries of ``q`` whose crossing is at or before the clock, in crossing order (ties: LRU first)."""
+        now = self.clock + TIME_EPSILON
+        if self.due.get(entity, NEVER) > now:
+            return
+        traces = self.traces[entity]
+        gone = sorted((traces[prop].due, i, prop) for i, prop in enumerate(q) if traces[prop].due <= now)
+        for due, _, prop in gone:
+            self.wm._forget(entity, q, prop, "activation", due, None)
+        self._refresh(entity)
+
+    def flush(self) -> None:
+        """Bring every queue up to the clock (nothing to do when it has not moved since the last flush)."""
+        if self.settled == self.clock:
+            return
+        now = self.clock + TIME_EPSILON
+        queues = self.wm._queues
+        for entity in [e for e, due in self.due.items() if due <= now]:
+            q = queues.get(entity)
+            if q is not None:
+                self.sync(entity, q)
+        self.settled = self.clock
+
+    def _refresh(self, entity: str) -> None:
+        traces = self.traces.get(entity)
+        if traces:
+            self.due[entity] = min(t.due for t in traces.values())
+        else:
+            self.traces.pop(entity, None)
+            self.due.pop(entity, None)
