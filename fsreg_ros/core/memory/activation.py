@@ -17,10 +17,16 @@ A :class:`Trace` keeps the count n, the first time t_1 and the last
 :data:`HISTORY` times exactly; beyond that, the older presentations are
 approximated as spread evenly between t_1 and the oldest time kept (Petrov 2006,
 "Computationally efficient approximation of the base-level learning equation in
-ACT-R", eq. 4; exact while n <= HISTORY).  c is solved once per encoding
-(:func:`crossing`), never per tick: a buffer pops an entry lazily, when its queue is
-next touched at or after c (:class:`LazyActivation`), the way lazy decay pops owed
-fronts, so the clock costs nothing while no queue is touched.
+ACT-R", eq. 4; exact while n <= HISTORY).
+
+Nothing is computed per tick: a buffer pops an entry lazily, when its queue is next
+touched at or after c (:class:`LazyActivation`), the way lazy decay pops owed fronts,
+so the clock costs nothing while no queue is touched.  Nor is c solved at every
+encoding: an encoding at t only sets the lower bound ``t + exp(-tau / d)`` (the last
+term alone keeps activation above tau until then; for one encoding it is c itself),
+and c is solved (:func:`crossing`, a few Newton steps) once the clock passes that
+bound, if the entry was not encoded again meanwhile.  An entry refreshed more often
+than its lifetime is never solved for.
 """
 
 from __future__ import annotations
@@ -47,13 +53,14 @@ _PRECISION = 1e-13
 class Trace:
     """One entry's encoding history: count ``n``, ``first`` time, the last :data:`HISTORY` times; crossing ``due``."""
 
-    __slots__ = ("n", "first", "recent", "due")
+    __slots__ = ("n", "first", "recent", "due", "exact")
 
     def __init__(self, time: float) -> None:
         self.n = 1
         self.first = time
         self.recent = [time]
         self.due = NEVER
+        self.exact = False  # due is the crossing itself (else a lower bound of it)
 
     def add(self, time: float) -> None:
         """Note one more encoding at ``time`` (not before the last one)."""
@@ -76,6 +83,28 @@ class Trace:
             else:
                 total += older * ((t - self.first) ** (1.0 - d) - (t - oldest) ** (1.0 - d)) / ((1.0 - d) * span)
         return total
+
+    def strength_and_slope(self, t: float, d: float) -> tuple[float, float]:
+        """Return :meth:`strength` at ``t`` and its derivative there (negative), in one pass."""
+        total = slope = 0.0
+        for r in self.recent:
+            age = t - r
+            term = age ** -d
+            total += term
+            slope -= d * term / age
+        older = self.n - len(self.recent)
+        if older > 0:
+            oldest = self.recent[0]
+            span = oldest - self.first
+            first_term = (t - self.first) ** -d
+            if span <= 0.0:
+                total += older * first_term
+                slope -= older * d * first_term / (t - self.first)
+            else:
+                oldest_term = (t - oldest) ** -d
+                total += older * ((t - self.first) * first_term - (t - oldest) * oldest_term) / ((1.0 - d) * span)
+                slope += older * (first_term - oldest_term) / span
+        return total, slope
 
     def to_json(self) -> list:
         """Return ``[n, first, recent...]`` (what a store keeps)."""
@@ -114,53 +143,37 @@ def crossing(trace: Trace, d: float, tau: float) -> float:
     """Return the time activation falls to ``tau`` after the last encoding (:data:`NEVER` past ``MAX_TIME``).
 
     With one encoding it is ``t_1 + lifetime``.  Otherwise the root of
-    ``strength(t) = exp(tau)`` on ``(t_n, inf)``: strength decreases strictly there, is
-    at least ``exp(tau)`` at ``t_n + lifetime`` (its last term alone is) and at most
-    ``n (t - t_n)^(-d)``, so the root lies in ``[t_n + L, t_n + n^(1/d) L]``; it is
-    found by regula falsi (Illinois) on ``strength^(-1/d)``, nearly linear in t.
+    ``F(t) = strength(t)^(-1/d) - exp(-tau/d)`` on ``(t_n, inf)``.  F increases and is
+    concave there (``strength^(-1/d)`` is n^(-1/d) times the power mean of order -d of
+    the ages, concave in t; linear for one encoding), and ``F(t_n + lifetime) <= 0``
+    (the last term alone reaches the threshold there).  So Newton's method started
+    from the left climbs to the root without overshooting, quadratically near it;
+    started from the right (at the bound ``t_n + n^(1/d) lifetime``: ``strength`` is at
+    most n times its last term), its first step lands left of the root, closer than
+    ``t_n + lifetime`` is.  Three or four steps per encoding.
     """
     last, span = trace.recent[-1], lifetime(d, tau)
     if span > _LONGEST:
         return NEVER
     if trace.n == 1:
         return last + span
-    target = span  # strength(t)^(-1/d) == exp(-tau/d) at the crossing
-    lo = last + span
     try:
-        hi = last + span * trace.n ** (1.0 / d)
+        t = last + span * trace.n ** (1.0 / d)
     except OverflowError:
         return NEVER
-    if hi - last > _LONGEST:
-        hi = last + _LONGEST
-        if trace.strength(hi, d) ** (-1.0 / d) < target:
+    if t - last > _LONGEST:
+        t = last + _LONGEST
+        if trace.strength(t, d) ** (-1.0 / d) < span:
             return NEVER
-    f_lo = trace.strength(lo, d) ** (-1.0 / d) - target
-    f_hi = trace.strength(hi, d) ** (-1.0 / d) - target
-    if f_lo >= 0.0:
-        return lo
-    if f_hi <= 0.0:
-        return hi
-    side = 0
-    for _ in range(200):
-        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        if not lo < t < hi:
-            t = 0.5 * (lo + hi)
-        f = trace.strength(t, d) ** (-1.0 / d) - target
-        if f == 0.0:
-            return t
-        if f < 0.0:
-            lo, f_lo = t, f
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
-        else:
-            hi, f_hi = t, f
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-        if hi - lo <= _PRECISION * max(1.0, abs(hi)):
+    for _ in range(100):
+        total, slope = trace.strength_and_slope(t, d)
+        value = total ** (-1.0 / d) - span
+        # F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
+        step = -value / (-(1.0 / d) * total ** (-1.0 / d - 1.0) * slope)
+        t = max(t + step, last + span)  # from the right, never left of the lower bound
+        if abs(step) <= _PRECISION * max(1.0, abs(t)):
             break
-    return hi
+    return t
 
 
 class LazyActivation:
@@ -168,14 +181,15 @@ class LazyActivation:
 
     ``clock`` is the latest time the buffer was told (:meth:`WMBuffer.advance`, and
     every encoding's or forgetting's own time).  ``traces[entity][prop]`` is the trace
-    of each entry of Q[entity]; ``due[entity]`` the earliest crossing among them (so
-    a touched queue with nothing due costs one lookup).  Kept here, not in the
+    of each entry of Q[entity]; ``due[entity]`` is at most the earliest crossing among
+    them (so a touched queue with nothing due costs one lookup).  Kept here, not in the
     queues, so the other rules' hot paths carry nothing for it.
     """
 
     def __init__(self, wm: "WMBuffer", decay: float, threshold: float, clock: float) -> None:
         self.wm = wm
         self.decay, self.threshold = decay, threshold
+        self.span = lifetime(decay, threshold)  # one encoding's stay; NEVER-long spans give inf
         self.clock = clock
         self.settled = -math.inf  # the clock every queue was last brought up to (flush)
         self.traces: dict[str, dict[str, Trace]] = {}
@@ -191,8 +205,8 @@ class LazyActivation:
         mine = self.traces[entity] = {}
         for prop in q:
             trace = (traces or {}).get(prop)
-            mine[prop] = trace if trace is not None else Trace(time)
-            mine[prop].due = crossing(mine[prop], self.decay, self.threshold)
+            mine[prop] = trace = trace if trace is not None else Trace(time)
+            trace.due, trace.exact = trace.recent[-1] + self.span, trace.n == 1
         self._refresh(entity)
 
     def record(self, entity: str, prop: str, time: float, present: bool) -> None:
@@ -203,13 +217,13 @@ class LazyActivation:
         trace = traces.get(prop) if present else None
         if trace is None:
             trace = traces[prop] = Trace(time)
+            trace.exact = True
         else:
             trace.add(time)
-        due = trace.due = crossing(trace, self.decay, self.threshold)
+            trace.exact = False
+        due = trace.due = time + self.span  # the crossing (one encoding) or a lower bound of it
         if due < self.due.get(entity, NEVER):
             self.due[entity] = due
-        elif present:
-            self._refresh(entity)
 
     def forget(self, entity: str, prop: str) -> None:
         """Drop the trace of an entry that left Q[entity] (any cause); ``due`` may stay early (harmless)."""
@@ -223,7 +237,15 @@ class LazyActivation:
         if self.due.get(entity, NEVER) > now:
             return
         traces = self.traces[entity]
-        gone = sorted((traces[prop].due, i, prop) for i, prop in enumerate(q) if traces[prop].due <= now)
+        gone = []
+        for i, prop in enumerate(q):
+            trace = traces[prop]
+            if trace.due <= now:
+                if not trace.exact:  # only a lower bound passed: solve for the crossing itself
+                    trace.due, trace.exact = crossing(trace, self.decay, self.threshold), True
+                if trace.due <= now:
+                    gone.append((trace.due, i, prop))
+        gone.sort()
         for due, _, prop in gone:
             self.wm._forget(entity, q, prop, "activation", due, None)
         self._refresh(entity)
