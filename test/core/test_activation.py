@@ -1,27 +1,23 @@
 """ACT-R base-level activation as a forgetting rule (core/memory/activation.py, docs/semantics.md section 5).
 
 Hand-computed crossing times and WM contents, pyactr's ``baselevel_learning`` as an
-independent implementation of the activation values, and the lazy buffer against the
-naive eager reference (test/support/naive_wm.py) on random operation sequences.
+independent implementation of the activation values, and a restart.  The lazy buffer
+against the naive eager reference on random operation sequences is in
+test_properties.py.
 """
 
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from pyactr.utilities import baselevel_learning
 
 from fsreg_ros.core.forgetting import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import WMBuffer, WMEvent
 from fsreg_ros.core.memory.activation import HISTORY, Trace, activation, crossing, lifetime
 from fsreg_ros.core.wm_manager import WMManager
-
-from naive_wm import NaiveWM, event_key  # test/support is on sys.path (conftest)
 
 
 def trace_of(times):
@@ -157,60 +153,46 @@ def test_activation_with_displacement_and_an_encoding_after_a_crossing():
     assert buffer.queue("e") == ("d", "f") and events[-1].cause == "displacement"
 
 
-# ------------------------------------------------------ lazy == eager (naive)
-PARAMS = [(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]  # lifetimes 6.05, 3.79, 5.08, 0.67 s: never whole
-ENTITIES = ["e0", "e1", "e2"]
-PROPS = ["p0", "p1", "c=red", "c=blue"]
+# ------------------------------------------------------------ persistence
+def test_a_restart_restores_the_encoding_histories(tmp_path):
+    """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
+    the histories: the restarted consultant forgets at the same crossing times."""
+    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.service import ConsultantService
+    from fsreg_ros.core.store import DomainStore, fingerprint
 
+    pref = ["male", "glasses", "hat"]
+    facts = {"f1": {"male": 1.0, "glasses": 1.0, "hat": 1.0}, "f2": {"glasses": 1.0}}
+    tau = math.log(5 ** -0.5 + 4 ** -0.5)  # as above: once -> 1.115 s; at 0 and 1 -> crosses at 5
+    settings = {"policy": "activation", "activation_decay": 0.5, "activation_threshold": tau}
 
-@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "150")), deadline=None)
-@given(
-    st.sampled_from(PARAMS),
-    st.sampled_from(["activation", "activation+displacement", "activation+similarity",
-                     "activation+global-capacity", "activation+displacement-lfu"]),
-    st.lists(st.one_of(
-        st.tuples(st.just("encode"), st.sampled_from(ENTITIES),
-                  st.lists(st.sampled_from(PROPS), min_size=1, max_size=3)),
-        st.tuples(st.just("each"), st.lists(st.sampled_from(ENTITIES), min_size=1, max_size=3),
-                  st.sampled_from(PROPS)),
-        st.tuples(st.just("wait"), st.floats(0.1, 8.0)),
-        st.tuples(st.just("read"), st.sampled_from(ENTITIES)),
-        st.tuples(st.just("remove"), st.sampled_from(ENTITIES), st.sampled_from(PROPS)),
-    ), max_size=30),
-)
-def test_lazy_activation_equals_the_naive_eager_reference(params, rules, ops):
-    d, tau = params
-    p = policy(tau, d=d, rules=rules, capacity=2, global_capacity=3)
-    buffer, manager, events = managed(p)
-    naive = NaiveWM(set(p.rules), 2, 3, activation=(d, tau))
-    now = 0.0
-    for op in ops:
-        if op[0] == "wait":
-            now += op[1]
-            manager.advance(now)
-            naive.advance(now)
-        elif op[0] == "encode":
-            buffer.encode(op[1], op[2], "speaker", now, 0)
-            naive.encode(op[1], op[2], "speaker", now, 0)
-        elif op[0] == "each":
-            buffer.encode_each(op[1], op[2], "rr", now, 0)
-            for entity in op[1]:
-                naive.encode(entity, [op[2]], "rr", now, 0)
-        elif op[0] == "read":
-            buffer.queue(op[1])
-        else:
-            naive.advance(now)
-            assert buffer.remove(op[1], op[2], "retract", now) == naive.remove(op[1], op[2], "retract", now)
-        assert buffer.snapshot() == naive.snapshot(), op
-    if any(len(times) > HISTORY for times in naive.times.values()):
-        return  # beyond HISTORY the buffer approximates (Petrov): the naive sum is exact
-    rank = {e: i for i, e in enumerate(ENTITIES)}
+    def make():
+        store = DomainStore(tmp_path / "faces.sqlite3", fingerprint(pref, facts, 0.5, {}))
+        service = ConsultantService(Consultant("faces", facts, pref), store=store, clock="sim", now=lambda: 0.0)
+        service.restore(store.open())
+        return service
 
-    def canonical(keys):  # clock-driven first at equal times, then entity order (simulation.trace_order)
-        def key(i):
-            k = keys[i]
-            clock = k[3] == "activation"
-            return round(k[4], 6), not clock, rank[k[1]] if clock else 0, i
-        return [keys[i][:4] + (round(keys[i][4], 6),) for i in sorted(range(len(keys)), key=key)]
+    def call(service, op, **fields):
+        return service.apply(op, {"op": op, **fields}).reply
 
-    assert canonical([event_key(e) for e in events]) == canonical(naive.events)
+    service = make()
+    call(service, "configure", policy=settings, time=0.0)
+    for time, props in ((0.0, ["male", "glasses"]), (1.0, ["male"])):
+        call(service, "encode", entity="f1", properties=props, cause="speaker", time=time)
+    call(service, "advance", time=1.2)  # glasses (once, at 0) crossed at 1.115
+    live = {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()}
+    assert live == {"f1": [("male", 3, 1, "speaker", None, [2, 0.0, 0.0, 1.0])]}
+    assert service.store.journal_length() == 4  # configure, two encodes, advance
+    service.store.close()  # abruptly: no checkpoint
+    service = make()  # from the journal
+    assert service.store.journal_length() == 4
+    assert {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()} == live
+    service.maintain()  # the replayed journal becomes a checkpoint
+    assert service.store.journal_length() == 0
+    service.store.close()
+    service = make()  # from the checkpoint
+    assert {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()} == live
+    call(service, "configure", policy=settings, time=4.0)
+    assert call(service, "advance", time=4.999)["queues_changed"] == 0
+    assert call(service, "advance", time=5.001)["queues_changed"] == 1
+    assert service.buffer.snapshot() == {}

@@ -71,6 +71,17 @@ class QueueItem(NamedTuple):
     turn: Optional[int]
 
 
+class TracedItem(NamedTuple):
+    """A :class:`QueueItem` with its activation trace (rule ``activation``: ``[n, first, recent times...]``)."""
+
+    property: str
+    stamp: int
+    hits: int
+    cause: str
+    turn: Optional[int]
+    trace: list
+
+
 def is_origin(cause: object, turn: object) -> bool:
     """Tell whether ``(cause, turn)`` can be an origin: a cause name and a turn index or None."""
     return isinstance(cause, str) and (turn is None or isinstance(turn, int) and not isinstance(turn, bool))
