@@ -28,6 +28,7 @@ CAUSE_COLOURS = {
     "rr": "tab:green",
     "reg-distractor": "tab:orange",
     "decay": "tab:red",
+    "activation": "tab:gray",
     "displacement": "tab:purple",
     "similarity": "tab:pink",
     "global-capacity": "tab:brown",
@@ -39,7 +40,8 @@ TURN_STYLE = {"human": ("dimgray", ":"), "robot": ("darkgray", "--"), None: ("si
 #: Names of the grid parameters on plot axes.
 AXIS = {"decay_period": "decay period delta (s)", "capacity": "capacity alpha (properties per entity)",
         "global_capacity": "global capacity (properties per domain)",
-        "shared_capacity": "shared pool (properties, all domains)"}
+        "shared_capacity": "shared pool (properties, all domains)",
+        "activation_threshold": "activation threshold tau (ACT-R; d = activation_decay)"}
 INTEGER = ("capacity", "global_capacity", "shared_capacity")
 #: What each policy plot shows, panel by panel (dynamic games add two).
 PANELS = (
