@@ -35,6 +35,7 @@ import math
 from typing import TYPE_CHECKING, Optional
 
 from ..decay import TIME_EPSILON
+from .limits import Limits
 from .queue import Queue
 
 if TYPE_CHECKING:
@@ -269,3 +270,17 @@ class LazyActivation:
         else:
             self.traces.pop(entity, None)
             self.due.pop(entity, None)
+
+
+def install_activation(wm: "WMBuffer", limits: Limits, time: float) -> None:
+    """Start, change or stop ``wm``'s activation rule per ``limits``; entries without a trace get one at ``time``."""
+    old = wm.activation
+    if limits.activation is None:
+        wm.activation = None
+        return
+    wm.flush()
+    decay, threshold = limits.activation
+    act = LazyActivation(wm, decay, threshold, max(time, old.clock) if old is not None else time)
+    for entity in wm._nonempty:
+        act.adopt(entity, wm._queues[entity], time, old.traces.get(entity) if old is not None else None)
+    wm.activation = act

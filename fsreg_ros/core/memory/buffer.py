@@ -26,7 +26,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from .. import bitset
 from ..decay import TickLedger, TickRun
-from .activation import LazyActivation
+from .activation import LazyActivation, install_activation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import NO_ROWS, LazyDecay, pop_owed, pop_quietly
@@ -163,7 +163,7 @@ class WMBuffer:
             self.columns.drop()
         self.limits = limits
         self.interference.install(limits)
-        self._install_activation(limits, time)
+        install_activation(self, limits, time)
         for entity, q in self._queues.items():
             hits = q.hits
             if hits is not None:  # the LFU counts restart: an exported count may change
@@ -184,19 +184,6 @@ class WMBuffer:
         """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
         self.advance(time)
         self.interference.evict_oldest(count, cause, time)
-
-    def _install_activation(self, limits: Limits, time: float) -> None:
-        """Start, change or stop the activation rule; entries without a trace get one encoding at ``time``."""
-        old = self.activation
-        if limits.activation is None:
-            self.activation = None
-            return
-        self.flush()
-        decay, threshold = limits.activation
-        act = LazyActivation(self, decay, threshold, max(time, old.clock) if old is not None else time)
-        for entity in self._nonempty:
-            act.adopt(entity, self._queues[entity], time, old.traces.get(entity) if old is not None else None)
-        self.activation = act
 
     def advance(self, time: float) -> None:
         """Note that the clock reached ``time``: entries whose activation fell below the threshold go (lazily).
