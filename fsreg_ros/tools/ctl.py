@@ -657,7 +657,7 @@ def clock(ctl: Ctl, client) -> int:
 
 
 def _view_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--port", type=number(0, 65535, integer=True, unit="port"), default=None, metavar="N",
+    parser.add_argument("--port", type=number(0, 65535, integer=True), default=None, metavar="N",
                         help="TCP port of the page (default 8765; 0 takes a free port)")
     parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
                         help="address to bind (default 127.0.0.1: this machine only)")

@@ -53,6 +53,13 @@ def run(capsys, *argv: str) -> tuple[int, str, str]:
     (["frobnicate"], "argument COMMAND: invalid choice: 'frobnicate'"),
     (["--namespace", "9x", "status"], "9x"),
     ([], "the following arguments are required: COMMAND"),
+    (["view", "--port", "70000"], "argument --port: expected a whole number in [0, 65535], got 70000"),
+    (["view", "--port", "-1"], "got -1"),
+    (["view", "--port", "http"], "got 'http'"),
+    (["record", "/tmp", "--duration", "nan"], "argument --duration: expected a finite number of seconds in (0,"),
+    (["record", "/tmp", "--segment", "0"], "argument --segment: expected a finite number of seconds in (0, 3600]"),
+    (["record", "/"], "record: / exists already; a recording goes to a new folder"),
+    (["record"], "the following arguments are required: DIR"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(capsys, argv, said):
     code, out, err = run(capsys, *argv)
@@ -65,7 +72,7 @@ def test_every_command_is_one_entry_of_the_table():
     parser = ctl.build_parser()
     commands = next(a for a in parser._actions if a.dest == "command")
     assert list(commands.choices) == list(ctl.COMMANDS) == [
-        "say", "describe", "assert", "status", "set", "params", "watch", "wm", "clock"]
+        "say", "describe", "assert", "status", "set", "params", "watch", "wm", "clock", "view", "record"]
     assert {spec.needs for spec in ctl.COMMANDS.values()} <= {"ready", "graph", "none"}
 
 
