@@ -44,7 +44,8 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.core.consultant import Consultant, Narrowed, View, Walked, run_sync  # noqa: E402
+from fsreg_ros.core.consultant import Consultant  # noqa: E402
+from fsreg_ros.core.port import Narrowed, View, Walked, run_sync  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.service import ConsultantService  # noqa: E402

@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origi
 
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from ..ros.codec import MessageError, describe, printable
+from .codec import MessageError, describe, printable
 
 
 def check(model: Any, data: dict, limits: Optional[Any] = None) -> dict:

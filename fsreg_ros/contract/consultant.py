@@ -120,7 +120,7 @@ class WalkRequest(Stamp):
 
     A step is taken when it holds for the target (always, without one) and leaves fewer
     members; a step whose ``group`` was taken already is skipped; nothing is asked once
-    no member is left (:class:`fsreg_ros.core.consultant.Walk`).  Each narrowing encodes as
+    no member is left (:class:`fsreg_ros.core.port.Walk`).  Each narrowing encodes as
     ``narrow`` does (``cause``; null: no encoding).  One call for what would be one
     ``narrow`` per step.  A step naming an unknown property refuses the call, changing nothing.
     """

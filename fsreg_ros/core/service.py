@@ -2,11 +2,11 @@
 
 :class:`ConsultantService` holds a :class:`~fsreg_ros.core.consultant.Consultant` (LTM
 and its WM buffer) and everything that lives beside it while it serves: the open
-sessions of RR and REG (:mod:`fsreg_ros.core.sessions`), the forgetting policy the WM
+views of RR and REG (:mod:`fsreg_ros.core.views`), the forgetting policy the WM
 Manager installed, readiness (configured in this incarnation), the decay high-water
 mark (the last tick applied: a tick is never applied twice), the numbering of the
 events it publishes, and its persistence (below).  The ROS node is wiring around it; the in-process
-:class:`~fsreg_ros.core.consultant.LocalPort` uses its typed methods, so the simulator
+:class:`~fsreg_ros.core.local_port.LocalPort` uses its typed methods, so the simulator
 and the graph run the same code.
 
 One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contract.consultant`):
@@ -39,13 +39,14 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from . import journal
-from .consultant import (CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, Walk, Walked, WalkStep,
-                         close_view, open_view)
+from .consultant import CandidateSet, Consultant, KnowledgeError
+from .port import Narrowed, Step, View, Walk, Walked, WalkStep
+from .views import close_view, open_view
 from .decay import TickError, TickRun, check_time
 from .forgetting import NONE, ForgettingPolicy
 from .memory import ENCODE_CAUSES, WMEvent
 from .persistence import Persistence, Restored
-from .sessions import SessionTable
+from .views import ViewTable
 from .store import DomainStore, StoredState
 from .wm_manager import apply_ticks, configure_buffer, unapplied
 
@@ -105,7 +106,7 @@ class ConsultantService:
         consultant: Consultant,
         *,
         incarnation: int = 1,
-        sessions: Optional[SessionTable[CandidateSet]] = None,
+        sessions: Optional[ViewTable[CandidateSet]] = None,
         store: Optional[DomainStore] = None,
         persist_wm: bool = True,
         clock: str = "system",
@@ -125,7 +126,7 @@ class ConsultantService:
         self.buffer = consultant.wm
         self.domain = consultant.domain
         self.incarnation = incarnation
-        self.sessions: SessionTable[CandidateSet] = sessions if sessions is not None else SessionTable()
+        self.sessions: ViewTable[CandidateSet] = sessions if sessions is not None else ViewTable()
         self.now = now or (lambda: 0.0)
         self.steady = steady
         self.ready = ready
@@ -206,7 +207,7 @@ class ConsultantService:
     # ============================================================ typed ops
     def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None,
              first: Optional[Step] = None) -> View:
-        """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.consultant.ConsultantPort.open`."""
+        """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.port.ConsultantPort.open`."""
         view = open_view(self.consultant, target, context, first)
         if first is not None and view.first.target_holds:
             self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
@@ -222,7 +223,7 @@ class ConsultantService:
 
     def walk(self, candidates: CandidateSet, steps: Sequence[WalkStep], cause: Optional[str], time: float,
              turn: Optional[int]) -> Walked:
-        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.consultant.Walk` decides, in this one call.
+        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.port.Walk` decides, in this one call.
 
         Every step's property is checked first: an unknown one changes nothing (KnowledgeError).
         """

@@ -16,8 +16,9 @@ WM is kept as a *checkpoint* (every queue as of some moment) plus a *journal* of
 buffer operations since (one row per consultant call: a rule-3 burst over thousands
 of distractors is one row, not thousands): a restarted consultant loads the
 checkpoint and replays the journal (:mod:`fsreg_ros.core.journal` defines the records
-and their replay; :mod:`fsreg_ros.core.persistence` writes and restores them).  A checkpoint rewrites the queues changed since the
-previous one and empties the journal, in one transaction.
+and their replay; :mod:`fsreg_ros.core.persistence` writes and restores them).  A
+checkpoint rewrites the queues changed since the previous one and empties the
+journal, in one transaction.
 
 Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
 

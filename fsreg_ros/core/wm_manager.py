@@ -2,7 +2,7 @@
 
 It owns each domain's :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` and
 :class:`~fsreg_ros.core.decay.DecaySchedule` and decides what to send, through a
-small :class:`MemoryPort` (as :class:`~fsreg_ros.core.consultant.ConsultantPort`
+small :class:`MemoryPort` (as :class:`~fsreg_ros.core.port.ConsultantPort`
 does for the algorithms):
 
 * ``configure(domain, policy, time)``: install a policy in the domain's buffer (its

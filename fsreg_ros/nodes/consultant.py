@@ -34,11 +34,11 @@ from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
 from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe
-from ..ros.codec import MessageError, printable
+from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
-from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
+from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..ros.asking import declare_limits
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
@@ -76,7 +76,7 @@ class ConsultantNode(Node):
         threshold = declare_number(self, "threshold", float(spec.threshold), 0.0, 1.0,
                                    "a property holds iff its certainty >= threshold (default: the KB's)")
         self.limits = declare_limits(self)
-        sessions = SessionTable(
+        sessions = ViewTable(
             declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000, "open RR/REG sessions kept at most",
                            integer=True, read_only=True),
             declare_number(self, "session_timeout", DEFAULT_TIMEOUT, 0.01, 3600.0,

@@ -55,11 +55,10 @@ from ..core.alignment import ORIGINS, entrainment_gain, length_matched
 from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
+from .grid import BOUNDS, GRID
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
-#: The grid parameters, in column order (a policy reads some of them).
-GRID = ("decay_period", "capacity", "global_capacity", "shared_capacity")
 METRICS = (
     "entrainment",
     "entrainment_gain",
@@ -85,8 +84,6 @@ COLUMNS = (
     + ("from_wm_share",) + tuple(f"from_{o}" for o in ORIGINS)
     + ("gap", "human_order")
 )
-#: The outdated-rate bounds of the recommendation table.
-BOUNDS = (0.01, 0.05)
 #: Parameters each grid policy reads come from the rules (``seed`` is drawn per game).
 WORLD_DEFAULT = "faces"
 

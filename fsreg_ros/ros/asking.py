@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from .. import contract
 from .carrier import DEFAULT_TIMEOUT, stamped, subscribe
-from .codec import printable, safe_dumps
+from ..contract.codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits, RequestRef, attribution, cache_key, fingerprint
 from .remote import RemotePort
 from .node_base import StartupError, declare_number, descriptor, now_seconds, watch_clock

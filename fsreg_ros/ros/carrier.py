@@ -62,7 +62,7 @@ from std_msgs.msg import String
 
 from rcl_interfaces.msg import ParameterDescriptor
 
-from .codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
+from ..contract.codec import MessageError, dumps, error_json, parse, printable, request_id, safe_dumps
 from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.

@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock
 
 from .. import contract
 from .carrier import CarrierError, JsonClient, publish, publisher, subscribe
-from .codec import printable
+from ..contract.codec import printable
 
 #: Seconds a client waits for an answer, by default.
 DEFAULT_TIMEOUT = 10.0

@@ -1,4 +1,4 @@
-"""A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
+"""A :class:`~fsreg_ros.core.port.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
 call (a :meth:`~RemotePort.walk` included: the consultant runs it) is one awaited JSON
@@ -10,7 +10,7 @@ only from a callback outside ``callback_group`` (give the port a reentrant group
 Errors: a request the consultant rejects because it names an unknown entity or
 property (or a session it no longer holds) raises
 :class:`~fsreg_ros.core.consultant.KnowledgeError`, as the in-process
-:class:`~fsreg_ros.core.consultant.LocalPort` would; everything else (timeouts, a
+:class:`~fsreg_ros.core.local_port.LocalPort` would; everything else (timeouts, a
 malformed reply, other rejections, an outage) raises :class:`~fsreg_ros.ros.carrier.CarrierError`.
 
 Outages are detected, not waited out.  The port listens to the consultant's latched
@@ -56,8 +56,9 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 
 from .. import contract
 from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
-from .codec import MessageError
-from ..core.consultant import KnowledgeError, Narrowed, Step, View, Walked, WalkStep
+from ..contract.codec import MessageError
+from ..core.consultant import KnowledgeError
+from ..core.port import Narrowed, Step, View, Walked, WalkStep
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5

@@ -33,7 +33,7 @@ import secrets
 import sys
 from typing import Any, Optional, Sequence
 
-from ..ros.codec import printable
+from ..contract.codec import printable
 from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback

@@ -30,9 +30,9 @@ from ..core.consultant import KnowledgeError
 from ..core import settings
 from ..core.forgetting import PolicyError, check_setting, parse_rules
 from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError
-from ..core.lexicon import Lexicon, coverage_warning, lexicon_template, unsayable
+from ..core.lexicon import Lexicon
 from ..core.resolution import ResolutionError
-from ..core.scenario import load_scenario
+from ..core.scenario import coverage_warning, lexicon_template, load_scenario, unsayable
 from ..core.simulation import Options, Simulation, dumps
 from ..core.yaml_source import SourceError, find_line, read_yaml
 from ..core.report import render_comparison, render_table, run_label

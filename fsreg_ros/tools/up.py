@@ -42,8 +42,8 @@ from .sim import INPUT_ERRORS, UsageError, one_line, options_from_args
 from ..contract import normalise_namespace
 from ..core.forgetting import RULES
 from ..core.generation import ALGORITHMS, WM_ORDERS
-from ..core.lexicon import Lexicon, coverage_warning
-from ..core.scenario import load_scenario
+from ..core.lexicon import Lexicon
+from ..core.scenario import coverage_warning, load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback

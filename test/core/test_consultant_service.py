@@ -11,13 +11,14 @@ import math
 import pytest
 
 from fsreg_ros.core import journal
-from fsreg_ros.core.consultant import (Consultant, KnowledgeError, LocalPort, Walked, WalkStep, run_sync,
-                                       walk_by_narrowing)
+from fsreg_ros.core.consultant import Consultant, KnowledgeError
+from fsreg_ros.core.local_port import LocalPort
+from fsreg_ros.core.port import Walked, WalkStep, run_sync, walk_by_narrowing
 from fsreg_ros.core.forgetting import PolicyError
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.persistence import CHECKPOINT_RECORDS
 from fsreg_ros.core.service import ConsultantService, NotReady, RequestError
-from fsreg_ros.core.sessions import SessionError, SessionTable
+from fsreg_ros.core.views import SessionError, ViewTable
 from fsreg_ros.core.store import DomainStore, StateDamaged, StoreError, fingerprint
 
 PREF = ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"]
@@ -46,7 +47,7 @@ def make(tmp_path=None, clock: str = "system", persist_wm: bool = True, steady=N
     store = DomainStore(tmp_path / "faces.sqlite3", KB) if tmp_path is not None else None
     service = ConsultantService(consultant, store=store, clock=clock, persist_wm=persist_wm,
                                 now=lambda: 50.0, steady=steady or Steady(),
-                                sessions=SessionTable(capacity=8, per_client=2))
+                                sessions=ViewTable(capacity=8, per_client=2))
     if store is not None:
         service.restore(store.open())
     return service

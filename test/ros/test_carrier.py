@@ -17,7 +17,7 @@ from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from fsreg_ros.ros.carrier import CarrierError, JsonClient, from_msg, serve, to_msg, wait_until  # noqa: E402
-from fsreg_ros.ros.codec import MessageError  # noqa: E402
+from fsreg_ros.contract.codec import MessageError  # noqa: E402
 from fsreg_ros.contract import STATE_QOS, Message, check  # noqa: E402
 from fsreg_ros.ros.node_base import error_reply  # noqa: E402
 from rosutil import Graph, call, ros_graph  # noqa: E402
@@ -229,7 +229,7 @@ def test_wait_until(graph: Graph):
 def test_error_replies_are_json_whatever_they_carry(value):
     import json
 
-    from fsreg_ros.ros.codec import error_json, printable, safe_dumps
+    from fsreg_ros.contract.codec import error_json, printable, safe_dumps
 
     text = error_json(value, "MessageError", value if isinstance(value, (str, int)) else None, extra=value)
     reply = json.loads(text)
@@ -240,7 +240,7 @@ def test_error_replies_are_json_whatever_they_carry(value):
 
 
 def test_parse_refuses_oversized_text_before_parsing():
-    from fsreg_ros.ros.codec import parse
+    from fsreg_ros.contract.codec import parse
 
     with pytest.raises(MessageError, match="over the limit of 1000"):
         parse('{"a": "' + "x" * 2000 + '"}', max_bytes=1000)

@@ -15,7 +15,8 @@ from rclpy.parameter import Parameter
 
 from fsreg_ros import contract
 from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
-from fsreg_ros.core.consultant import KnowledgeError, LocalPort
+from fsreg_ros.core.consultant import KnowledgeError
+from fsreg_ros.core.local_port import LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.wm_manager import configure_buffer

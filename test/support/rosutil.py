@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from fsreg_ros.ros.carrier import DEFAULT_TIMEOUT, SERVICE_TYPE, CarrierError, JsonClient
-from fsreg_ros.ros.codec import dumps
+from fsreg_ros.contract.codec import dumps
 from fsreg_ros.testing.ros_session import Inbox, Timeout
 from fsreg_ros.testing.ros_session import RosSession as Graph
 
