@@ -12,7 +12,8 @@ Three services per domain (``<domain>`` filled in):
 
 Every request is one of the models below, chosen by its ``op``; a reply is the op's
 reply model.  Semantics: docs/semantics.md sections 2-4 (encoding rules 1-3, RR, REG),
-:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).
+:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).  Encoding and decoding
+them, for the consultant and its callers alike: :mod:`fsreg_ros.contract.consultant_codec`.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """``consultant``: one domain's LTM and WM buffer behind its services (DIARC's consultant pattern).
 
 One process per domain (``--ros-args -r __node:=consultant_faces -p domain:=faces -p kb:=kb.yaml``).
-The node is wiring: it decodes each request with the contract's models
-(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it on the core
+The node is wiring: it validates each request with the contract's models
+(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it through the
+protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
@@ -33,14 +34,15 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe
+from ..contract import consultant_codec
 from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
-from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
+from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
+from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 #: Ops whose WM changes are published with the session's ``close``.
@@ -152,7 +154,7 @@ class ConsultantNode(Node):
     def _call(self, op: str, request: dict) -> dict:
         """Run one validated request (its ``op``), publish what came of it; return the reply."""
         client = request.get("client") or ""
-        outcome = self._guarded(lambda listening: self.service.apply(op, request, client, listening))
+        outcome = self._guarded(lambda listening: consultant_codec.apply(self.service, op, request, client, listening))
         if op == "info":
             outcome.reply["event_listeners"] = self._events.get_subscription_count()
         self._published(outcome, wait=op in SESSION_STEPS)

@@ -2,8 +2,8 @@
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
 call (a :meth:`~RemotePort.walk` included: the consultant runs it) is one awaited JSON
-call to ``consultant/<domain>`` (ops and replies:
-:mod:`fsreg_ros.contract.consultant`; the preference order and the entity list are
+call to ``consultant/<domain>`` (ops and replies: :mod:`fsreg_ros.contract.consultant`,
+encoded and decoded by :mod:`fsreg_ros.contract.consultant_codec`; the preference order and the entity list are
 cached while the consultant's LTM ``version`` stays the same).  Await port methods
 only from a callback outside ``callback_group`` (give the port a reentrant group of its own).
 
@@ -55,6 +55,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 
 from .. import contract
+from ..contract import consultant_codec as codec
 from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
 from ..contract.codec import MessageError
 from ..core.consultant import KnowledgeError
@@ -264,7 +265,7 @@ class RemotePort:
                                f"WM Manager did not configure it within {timeout:g} s", kind="timeout",
                                service=self.client.name)
         while True:
-            reply = await self.client.wait_ready({"op": "info"}, max(deadline - time.monotonic(), 1e-3))
+            reply = await self.client.wait_ready(codec.info_request(), max(deadline - time.monotonic(), 1e-3))
             try:
                 contract.check(contract.InfoReply, reply)
             except MessageError as err:
@@ -287,10 +288,10 @@ class RemotePort:
         if cat is not None and not refresh and cat.version == self._latest:
             return cat
         start = len(cat.entities) if cat is not None else 0
-        reply = await self._call({"op": "info", "entities_from": start})
+        reply = await self._call(codec.info_request(start))
         if cat is None or contract.version_incarnation(reply["version"]) != cat.incarnation:
             if start:  # restarted: its entities may differ from the first one on
-                reply = await self._call({"op": "info"})
+                reply = await self._call(codec.info_request())
             cat = Catalogue(reply["version"], list(reply["preference"]), [], set())
         cat.entities += reply["entities"]
         cat.known.update(reply["entities"])
@@ -301,7 +302,7 @@ class RemotePort:
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
         """Return the ``info`` reply (entities, preference, policy, events, event listeners, stored state, ...)."""
-        return await self._call({"op": "info"})
+        return await self._call(codec.info_request())
 
     async def knows(self, entity: str, refresh: bool = False) -> bool:
         """Return True if ``entity`` is one of this domain's (entities never leave a domain)."""
@@ -313,55 +314,29 @@ class RemotePort:
     async def open(
         self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
     ) -> View:
-        payload: dict[str, Any] = {"op": "open", "client": self.client_id}
-        if target is not None:
-            payload["target"] = target
-        if context is not None:
-            payload["context"] = list(context)
-        if first is not None:
-            payload["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
-        reply = await self._call(payload)
-        holding = reply.get("holding")
-        view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
-                    frozenset(holding) if holding is not None else None,
-                    origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
-        if first is not None:
-            if reply.get("first") is None:
-                raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)
-            view.first = Narrowed(reply["first"]["target_holds"], reply["first"]["size"])
-        return view
+        reply = await self._call(codec.open_request(target, context, first, self.client_id))
+        return self._decoded("open", codec.view_of, reply, first is not None)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
-        reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,
-                                  "time": time, "turn": turn})
-        return Narrowed(reply["target_holds"], reply["size"])
+        return codec.narrowed_of(await self._call(codec.narrow_request(view.handle, prop, cause, time, turn)))
 
     async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
                    turn: Optional[int], size: Optional[int] = None) -> Walked:
         """Send the steps in one call; the consultant walks them, knowing ``size`` itself."""
-        payload = {"op": "walk", "session": view.handle, "cause": cause, "time": time, "turn": turn,
-                   "steps": [{"property": s.prop} if s.group is None else {"property": s.prop, "group": s.group}
-                             for s in steps]}
-        reply = await self._call(payload)
-        taken = reply["taken"]
-        if any(not 0 <= i < len(steps) for i in taken) or taken != sorted(set(taken)):
-            raise CarrierError("malformed reply to 'walk': 'taken' is not increasing step indices",
-                               kind="protocol", service=self.client.name)
-        return Walked(tuple(taken), reply["size"], reply["narrowed"])
+        reply = await self._call(codec.walk_request(view.handle, steps, cause, time, turn))
+        return self._decoded("walk", codec.walked_of, reply, len(steps))
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
-        reply = await self._call({"op": "rule_out", "session": view.handle})
-        try:
-            masks = [int(mask, 16) for mask in reply["masks"]]
-        except ValueError:
-            raise CarrierError("malformed reply to 'rule_out': a mask is not hexadecimal", kind="protocol",
-                               service=self.client.name) from None
-        return list(reply["properties"]), masks
+        return self._decoded("rule_out", codec.rule_out_of, await self._call(codec.rule_out_request(view.handle)))
 
     async def close(
         self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        payload: dict[str, Any] = {"op": "close", "session": view.handle, "time": time, "turn": turn}
-        if encode:
-            payload["encode"] = list(encode)
-        return list((await self._call(payload))["members"])
+        return codec.members_of(await self._call(codec.close_request(view.handle, encode, time, turn)))
+
+    def _decoded(self, op: str, decode, reply: dict, *args: Any) -> Any:
+        """Decode ``reply`` to ``op``; a reply the schema admits but that is unusable is a ``protocol`` error."""
+        try:
+            return decode(reply, *args)
+        except codec.ReplyError as err:
+            raise CarrierError(f"malformed reply to '{op}': {err}", kind="protocol", service=self.client.name) from None
