@@ -271,7 +271,7 @@ def _serve_decay(s: ConsultantService, req: Mapping[str, Any], client: str) -> d
         ticks = TickRun.from_json(req["ticks"])
     except TickError as err:
         raise RequestError(f"field 'ticks': {err}") from None
-    s.decay(ticks)
+    s.decay_now(ticks)
     return {"policy": s.policy.name}
 
 

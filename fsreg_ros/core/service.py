@@ -46,9 +46,9 @@ from .decay import TickError, TickRun, check_time
 from .forgetting import NONE, ForgettingPolicy
 from .memory import WMEvent
 from .persistence import Persistence, Restored
-from .store import DomainStore, StoredState
+from .store import DomainStore, StoreContents
 from .views import ViewTable
-from .wm_manager import apply_ticks, configure_buffer, unapplied
+from .wm_manager import configure_buffer, unapplied
 
 
 class NotReady(RuntimeError):
@@ -293,11 +293,15 @@ class ConsultantService:
             self.notices.append(("info", f"configured by the WM Manager (incarnation {self.incarnation}): serving"))
         self.touch(time)
 
-    def decay(self, ticks: TickRun) -> None:
-        """Apply decay ticks now (Algorithm 2), skipping those at or before the last one applied."""
+    def decay_now(self, ticks: TickRun) -> None:
+        """Apply decay ticks now, eagerly (Algorithm 2), skipping those at or before the last one applied.
+
+        Eager as :meth:`WMBuffer.decay_now <fsreg_ros.core.memory.WMBuffer.decay_now>` (the events in their
+        canonical order), where :meth:`WMBuffer.decay` defers the pops.
+        """
         due = unapplied(ticks, self.decay_until)
         if due is not None:
-            apply_ticks(self.buffer, due, self.consultant.entities)
+            self.buffer.decay_now(due, self.consultant.entities)
             self.decay_until = due.last
             self._record(journal.decay(due))
             self.persistence.note("decay_until", due.last)
@@ -334,7 +338,7 @@ class ConsultantService:
             out.append(message)
         return out
 
-    def restore(self, state: StoredState) -> Restored:
+    def restore(self, state: StoreContents) -> Restored:
         """Take up what the store held (:meth:`~fsreg_ros.core.persistence.Persistence.restore`)."""
         return self.persistence.restore(state)
 

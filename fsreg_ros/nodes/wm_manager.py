@@ -277,7 +277,7 @@ class WMManagerNode(Node):
         """Attach consultants that became reachable; expire unanswered calls."""
         self._links.expire()
         for dom in self._domains.values():
-            if not self.manager.domains[dom.name].attached and dom.client.ready():
+            if not self.manager.domains[dom.name].attached and dom.caller.ready():
                 self._attach(dom)
         self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
 

@@ -18,7 +18,7 @@ What lives here, one module per job (the wire codec, ROS-free, is
 * node support shared by several nodes: :mod:`.node_base` (the main runner, parameter
   helpers, the clock watchdog), :mod:`.asking` (the base of RR and REG),
   :mod:`.manage_link` and :mod:`.memory_parameters` (the WM Manager's links and
-  parameters), :mod:`.event_ledger` (the dialogue player's record of ``wm/events``).
+  parameters), :mod:`.event_audit` (the dialogue player's record of ``wm/events``).
 
 May import: :mod:`fsreg_ros.core`, :mod:`fsreg_ros.contract`, rclpy and the message packages.
 """

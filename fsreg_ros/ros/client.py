@@ -37,7 +37,7 @@ from rcl_interfaces.srv import DescribeParameters, SetParametersAtomically
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from .carrier import CarrierError, JsonClient, publish, publisher, subscribe
+from .carrier import CarrierError, ServiceCaller, publish, publisher, subscribe
 from ..contract.codec import printable
 
 #: Seconds a client waits for an answer, by default.
@@ -113,7 +113,7 @@ class GraphClient:
         self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()}
         self._ready_sub = subscribe(node, contract.READY, self._on_ready)
         self._clock = node.create_publisher(Clock, contract.CLOCK, 10)
-        self._services: dict[str, JsonClient] = {}
+        self._services: dict[str, ServiceCaller] = {}
         self._param_clients: dict[tuple[str, str], Any] = {}
         self._entities: dict[str, set[str]] = {}
         self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
@@ -371,9 +371,9 @@ class GraphClient:
         return answer
 
     # -------------------------------------------------------------- services
-    def service(self, name: str) -> JsonClient:
+    def service(self, name: str) -> ServiceCaller:
         if name not in self._services:
-            self._services[name] = JsonClient(self.node, name)
+            self._services[name] = ServiceCaller(self.node, name)
         return self._services[name]
 
     def call(self, name: str, payload: Mapping[str, Any], timeout: Optional[float] = None) -> dict:

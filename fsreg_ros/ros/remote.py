@@ -56,7 +56,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 
 from .. import contract
 from ..contract import consultant_codec as codec
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
+from .carrier import DEFAULT_TIMEOUT, CarrierError, ServiceCaller, drop_timer, subscribe, wait_until
 from ..contract.codec import MessageError
 from ..core.consultant import KnowledgeError
 from ..core.port import Narrowed, Step, View, Walked, WalkStep
@@ -112,7 +112,7 @@ class RemotePort:
         self.outage_wait = outage_wait
         self.lapsed_deadline = lapsed_deadline
         self.max_in_flight = max(1, max_in_flight)
-        self.client = JsonClient(node, contract.consultant_service(domain), callback_group, timeout)
+        self.caller = ServiceCaller(node, contract.consultant_service(domain), callback_group, timeout)
         self.client_id = f"{node.get_fully_qualified_name()}#{secrets.token_hex(3)}"
         self._catalogue: Optional[Catalogue] = None
         self._latest = ""  # the newest version any reply named
@@ -153,10 +153,10 @@ class RemotePort:
         if not self.alive:
             self._down_since = now
         # Confirm after a short grace (a lease can lapse under heavy load and recover).
-        client, incarnation, timer = self.client, self.incarnation, None
+        caller, incarnation, timer = self.caller, self.incarnation, None
 
         def confirm() -> None:
-            drop_timer(client.node, timer, client.callback_group)
+            drop_timer(caller.node, timer, caller.callback_group)
             if self.alive and self.incarnation == incarnation and self._appeared_at > now:
                 return  # the same consultant again: its calls are answered
             # A call sent while a live consultant was matched was answered by it; those
@@ -165,10 +165,10 @@ class RemotePort:
             error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
             for future, sent in list(self._inflight.items()):
                 if sent <= before and not future.done():
-                    client.client.remove_pending_request(future)
-                    future.set_exception(CarrierError(error, kind="unavailable", service=client.name))
+                    caller.client.remove_pending_request(future)
+                    future.set_exception(CarrierError(error, kind="unavailable", service=caller.name))
 
-        timer = client.node.create_timer(LAPSE_GRACE, confirm, client.callback_group,
+        timer = caller.node.create_timer(LAPSE_GRACE, confirm, caller.callback_group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def reported(self, incarnation: Optional[int], configured: bool) -> None:
@@ -189,7 +189,7 @@ class RemotePort:
 
     def _available(self) -> bool:
         proven = self._answered_at > self._down_since  # answered since its liveliness was last seen to go
-        return (self.alive is not False or proven) and self.client.ready()
+        return (self.alive is not False or proven) and self.caller.ready()
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
@@ -199,26 +199,26 @@ class RemotePort:
             # queued behind a dead consultant are answered at once.
             wait = self._down_since + self.outage_wait - time.monotonic()
             if wait > 0:
-                await wait_until(self.client.node, self._available, wait, callback_group=self.client.callback_group)
-            if not self.client.ready():
+                await wait_until(self.caller.node, self._available, wait, callback_group=self.caller.callback_group)
+            if not self.caller.ready():
                 raise CarrierError(f"consultant '{self.domain}' is not running (no server is matched); try again "
-                                   "later", kind="unavailable", service=self.client.name)
+                                   "later", kind="unavailable", service=self.caller.name)
             if self.alive is False:  # a lapse alone is no proof of death: ask, briefly
                 deadline = min(self.timeout, self.lapsed_deadline)
         if len(self._inflight) >= self.max_in_flight:
-            await wait_until(self.client.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
-                             callback_group=self.client.callback_group)
-        future = self.client.send(payload)
+            await wait_until(self.caller.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
+                             callback_group=self.caller.callback_group)
+        future = self.caller.send(payload)
         self._inflight[future] = time.monotonic()
         try:
-            reply = await self.client.result(future, deadline)
+            reply = await self.caller.result(future, deadline)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 raise KnowledgeError(err.error) from None
             if err.kind == "timeout" and deadline < self.timeout:  # asked briefly after a lapse: no answer
                 err = CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
                                    f"answer within {deadline:g} s); try again later", kind="unavailable",
-                                   service=self.client.name)
+                                   service=self.caller.name)
             # Alive again (a restart: a request to a server just matched can be lost): ask the new one once.
             if retry and err.kind == "unavailable" and payload["op"] in RETRIED_OPS and self.alive:
                 self._latest = ""  # the new incarnation's catalogue may differ
@@ -230,7 +230,7 @@ class RemotePort:
             contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
-                               service=self.client.name) from None
+                               service=self.caller.name) from None
         if "version" in reply:
             self._latest = reply["version"]
             self._answered(reply["version"])
@@ -255,7 +255,7 @@ class RemotePort:
 
     async def _wait_ready(self, timeout: float) -> dict:
         deadline = time.monotonic() + timeout
-        node, group = self.client.node, self.client.callback_group
+        node, group = self.caller.node, self.caller.callback_group
 
         def configured() -> bool:
             return self.manager_report is None or self.manager_report[1]
@@ -263,14 +263,14 @@ class RemotePort:
         if not await wait_until(node, configured, timeout, callback_group=group):
             raise CarrierError(f"consultant '{self.domain}' restarted (incarnation {self.manager_report[0]}) and the "
                                f"WM Manager did not configure it within {timeout:g} s", kind="timeout",
-                               service=self.client.name)
+                               service=self.caller.name)
         while True:
-            reply = await self.client.wait_ready(codec.info_request(), max(deadline - time.monotonic(), 1e-3))
+            reply = await self.caller.wait_ready(codec.info_request(), max(deadline - time.monotonic(), 1e-3))
             try:
                 contract.check(contract.InfoReply, reply)
             except MessageError as err:
                 raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol",
-                                   service=self.client.name) from None
+                                   service=self.caller.name) from None
             wanted = self.manager_report[0] if self.manager_report is not None else 0
             if contract.version_incarnation(reply["version"]) >= wanted:
                 break
@@ -339,4 +339,4 @@ class RemotePort:
         try:
             return decode(reply, *args)
         except codec.ReplyError as err:
-            raise CarrierError(f"malformed reply to '{op}': {err}", kind="protocol", service=self.client.name) from None
+            raise CarrierError(f"malformed reply to '{op}': {err}", kind="protocol", service=self.caller.name) from None
