@@ -5,7 +5,10 @@ outdated-rate bounds of the recommendation table.  A module of its own so that t
 plots need not import the sweep, nor the sweep the plots, at import time.
 """
 
-#: The grid parameters, in column order (a policy reads some of them).
-GRID = ("decay_period", "capacity", "global_capacity", "shared_capacity")
+from ..core import settings
+
+#: The grid parameters, in column order (a policy reads some of them): the memory settings a
+#: rule needs, in the settings table's order (``seed``, which has a fallback, is drawn per game).
+GRID = tuple(row.name for row in settings.parameters() if row.fallback is None)
 #: The outdated-rate bounds of the recommendation table.
 BOUNDS = (0.01, 0.05)

@@ -49,12 +49,17 @@ class UsageError(ValueError):
 INPUT_ERRORS = (SourceError, PolicyError, KnowledgeError, ResolutionError, GenerationError, OSError, UsageError)
 
 
+def add_memory_options(parser: argparse.ArgumentParser) -> None:
+    """Add one option per memory setting, from the settings table (read back by :func:`options_from_args`)."""
+    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
+    for row in settings.TABLE:
+        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+
+
 def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("scenario", type=Path, help="scenario YAML file (docs/scenario-format.md)")
-    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    for row in settings.TABLE:  # one option per memory setting
-        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+    add_memory_options(parser)
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
