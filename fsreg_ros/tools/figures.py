@@ -244,7 +244,7 @@ SMALL = {"--seeds": "2", "--turns": "12"}
 
 FIGURES = (
     Figure("tuna", "fsreg-eval", ("tuna", TUNA, *ORDERS),
-           {"tuna": ("docs/research.md", verbatim), "tuna-dice": ("README.md", tuna_dice_table)},
+           {"tuna": ("docs/research.md", verbatim), "tuna-dice": ("docs/research.md", tuna_dice_table)},
            small_argv=("tuna", TUNA, ORDERS[0], ORDERS[1], "--order", "people=type,hasBeard,hasGlasses")),
     Figure("tuna-learned", "fsreg-eval", ("tuna", TUNA, "--folds", "10"),
            {"tuna-learned": ("docs/research.md", verbatim)}, small={"--folds": "2"}),
@@ -254,7 +254,7 @@ FIGURES = (
            {"table1": ("README.md", verbatim),
             "table1-alignment": ("docs/research.md", from_line("decay         entrainment"))}),
     Figure("sweep", "fsreg-sweep", SWEEP + ("--out", f"{OUT}/sweep"),
-           {"sweep": ("README.md", summary_table), "sweep-full": ("docs/research.md", verbatim),
+           {"sweep": ("docs/research.md", summary_table), "sweep-full": ("docs/research.md", verbatim),
             "sweep-divergence": ("docs/research.md", divergence_blocks),
             "sweep-origins": ("docs/research.md", origin_table)},
            small=SMALL, writes=True),
@@ -273,7 +273,7 @@ FIGURES = (
            {"sweep-rules": ("docs/research.md", verbatim)}, small=SMALL, writes=True),
     Figure("followup", "fsreg-sweep", FOLLOWUP + ("--out", f"{OUT}/followup"),
            {"followup": ("docs/research.md", recommendation_table),
-            "followup-readme": ("README.md", recommendation_table),
+            "followup-readme": ("docs/research.md", recommendation_table),
             "followup-settings": ("docs/research.md", until_line("recommendation:"))},
            small=SMALL, writes=True),
     Figure("followup-verified", "fsreg-sweep",
