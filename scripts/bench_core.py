@@ -66,7 +66,9 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test" / "support"))
 
-from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402
+from fsreg_ros.core.consultant import Consultant  # noqa: E402
+from fsreg_ros.core.local_port import LocalPort  # noqa: E402
+from fsreg_ros.core.port import run_sync  # noqa: E402
 from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.wm_manager import WMManager  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402

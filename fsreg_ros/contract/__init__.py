@@ -14,6 +14,10 @@ One module per job:
   :mod:`.consultant` (a consultant's announcement, query ops and manage ops),
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
+* :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (bounded
+  decoding, encoding that refuses what is not JSON, error replies that never raise);
+* :mod:`.consultant_codec`: the consultant protocol written once (ROS-free): each op's
+  request and reply encoded and decoded, for the consultant node and :class:`RemotePort`;
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
 * :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);

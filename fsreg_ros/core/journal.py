@@ -20,7 +20,7 @@ Records are JSON lists whose first item names the operation:
 ``["encode", entity, [property, ...], cause, time, turn]``
     ``WMBuffer.encode``: Encode(entity, properties), Algorithm 1 (rule 1).
 ``["decay", {"origin", "period", "first", "count"}]``
-    decay ticks applied at once (Algorithm 2, :func:`~fsreg_ros.core.wm_manager.apply_ticks`).
+    decay ticks applied at once (Algorithm 2, :meth:`~fsreg_ros.core.memory.WMBuffer.decay_now`).
 ``["limits", settings, time]``
     a forgetting policy installed (its limits trim at once, Algorithm 3 included).
 ``["advance", time]``
@@ -42,7 +42,7 @@ from . import bitset
 from .decay import TickError, TickRun, check_time
 from .forgetting import ForgettingPolicy, PolicyError
 from .memory import ENCODE_CAUSES, WMBuffer
-from .wm_manager import apply_ticks, configure_buffer
+from .wm_manager import configure_buffer
 
 Record = list
 
@@ -142,7 +142,7 @@ def replay(buffer: WMBuffer, entity_order: Sequence[str], record: Record) -> Non
     elif kind == "encode":
         buffer.encode(record[1], record[2], record[3], record[4], record[5])
     elif kind == "decay":
-        apply_ticks(buffer, TickRun.from_json(record[1]), entity_order)
+        buffer.decay_now(TickRun.from_json(record[1]), entity_order)
     elif kind == "limits":
         configure_buffer(buffer, ForgettingPolicy.from_settings(record[1]), record[2])
     elif kind == "advance":

@@ -19,7 +19,8 @@ from json.encoder import encode_basestring as _string
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
-from .consultant import LocalPort, run_sync
+from .local_port import LocalPort
+from .port import run_sync
 from .forgetting import ForgettingPolicy
 from .generation import algorithm_for, generate
 from .memory import WMEvent

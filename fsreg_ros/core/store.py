@@ -17,8 +17,8 @@ buffer operations since (one row per consultant call: a rule-3 burst over thousa
 of distractors is one row, not thousands): a restarted consultant loads the
 checkpoint and replays the journal (:mod:`fsreg_ros.core.journal` defines the records
 and their replay; :mod:`fsreg_ros.core.persistence` writes and restores them).  A
-checkpoint rewrites the queues changed since the previous one and empties the journal,
-in one transaction.
+checkpoint rewrites the queues changed since the previous one and empties the
+journal, in one transaction.
 
 Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
 
@@ -193,8 +193,8 @@ class Batch:
 
 
 @dataclass
-class StoredState:
-    """What a consultant finds in its database at start."""
+class StoreContents:
+    """What a consultant finds in its database at start (what it reports of it is the contract's ``StoredState``)."""
 
     incarnation: int
     policy: Optional[dict] = None
@@ -233,7 +233,7 @@ class DomainStore:
         self._lock_id: tuple[int, int] = (0, 0)
 
     # ---------------------------------------------------------------- opening
-    def open(self, reset: bool = False) -> StoredState:
+    def open(self, reset: bool = False) -> StoreContents:
         """Lock, check and open the database (creating it on first use); count a new incarnation.
 
         ``reset`` moves an existing database aside (``<file>.<time>.old``) and starts
@@ -304,7 +304,7 @@ class DomainStore:
         except (sqlite3.Error, UnicodeEncodeError, ValueError) as err:
             raise StoreError(f"state database {self.path}: {err}") from None
 
-    def rewrite(self, state: StoredState, backup: bool = True) -> Optional[Path]:
+    def rewrite(self, state: StoreContents, backup: bool = True) -> Optional[Path]:
         """Replace everything stored with ``state`` (a migration to this KB); return the backup's path.
 
         The old database is first copied aside (``<file>.<time>.old``) when ``backup``.
@@ -522,13 +522,13 @@ class DomainStore:
         self._put(db, "checkpoint", {"stamp": checkpoint.stamp, "ticks": checkpoint.ticks,
                                      "policy": checkpoint.policy})
 
-    def _read(self, incarnation: int) -> StoredState:
+    def _read(self, incarnation: int) -> StoreContents:
         db, path = self._db, self.path
         decay_until, latest = self._meta("decay_until"), self._meta("latest")
         checkpoint = self._meta("checkpoint") or {}
         if not isinstance(checkpoint, dict):
             raise damaged(path, "meta 'checkpoint' is not an object")
-        state = StoredState(
+        state = StoreContents(
             incarnation,
             policy=self._meta("policy"),
             decay_until=-math.inf if decay_until is None else float(decay_until),

@@ -2,7 +2,7 @@
 
 It owns each domain's :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` and
 :class:`~fsreg_ros.core.decay.DecaySchedule` and decides what to send, through a
-small :class:`MemoryPort` (as :class:`~fsreg_ros.core.consultant.ConsultantPort`
+small :class:`MemoryPort` (as :class:`~fsreg_ros.core.port.ConsultantPort`
 does for the algorithms):
 
 * ``configure(domain, policy, time)``: install a policy in the domain's buffer (its
@@ -12,9 +12,10 @@ does for the algorithms):
   entries below the threshold are forgotten at their crossing times).
 
 :class:`BufferPort` applies them in-process to :class:`~fsreg_ros.core.memory.WMBuffer`
-objects (the simulator); the ``wm_manager`` node's port sends them to the
-consultants' manage services, where :func:`configure_buffer` and :func:`apply_ticks`
-apply them (so both run the same code).
+objects (the simulator; decay lazily, ``WMBuffer.decay``); the ``wm_manager`` node's
+port sends them to the consultants' manage services, where :func:`configure_buffer`
+and :meth:`~fsreg_ros.core.service.ConsultantService.decay_now` (eagerly,
+``WMBuffer.decay_now``, which gives the same queues) apply them.
 
 Time: the decay grid's origin is the manager's clock when it starts managing
 (``origin``; 0 for the simulator, and for a sim-time graph before the first
@@ -65,11 +66,6 @@ class MemoryPort(Protocol):
 def configure_buffer(buffer: WMBuffer, policy: ForgettingPolicy, time: float) -> None:
     """Install a policy's limits in a buffer; they apply to every queue at once."""
     buffer.set_limits(policy.validated().limits(), time)
-
-
-def apply_ticks(buffer: WMBuffer, ticks: TickRun, entity_order: Sequence[str]) -> None:
-    """Apply decay ticks now, in the canonical event order (tick, then entity order)."""
-    buffer.decay_now(ticks, entity_order)
 
 
 def unapplied(ticks: TickRun, applied_until: float) -> Optional[TickRun]:

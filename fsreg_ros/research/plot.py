@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from .grid import BOUNDS, GRID
 from .stats import METHOD, bootstrap_ci
 
 #: One colour per cause; the turn lines use grey and black line styles no cause uses.  Encodings are
@@ -104,8 +105,6 @@ def _file_name(policy: str) -> str:
 
 
 def _grid_parameters(entries: Sequence[dict]) -> list[str]:
-    from .sweep import GRID
-
     return [p for p in GRID if any(getattr(e["setting"], p) is not None for e in entries)]
 
 
@@ -371,8 +370,6 @@ def listener_plot(summary: Sequence[dict], out: Path) -> list[str]:
 def sweep_plots(rows: Sequence[dict], summary: Sequence[dict], curves: Mapping[tuple, Sequence[int]], out: Path,
                 dynamic: bool = False, listener: bool = False) -> list[str]:
     """Write the sweep's plots (PNG and PDF each) into ``out``; return their file names (each written once)."""
-    from .sweep import BOUNDS
-
     files = []
     none = next((e for e in summary if e["setting"].policy == "none"), None)
     for policy in dict.fromkeys(e["setting"].policy for e in summary):

@@ -68,13 +68,12 @@ from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
+from .grid import BOUNDS, GRID
 from .ledger import GAMES, GameRecord, Ledger, LedgerError, code_label, difference, header
 from .listener import ListenerOptions
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
-#: The grid parameters, in column order (a policy reads some of them).
-GRID = ("decay_period", "capacity", "global_capacity", "shared_capacity", "activation_threshold")
 METRICS = (
     "entrainment",
     "entrainment_gain",
@@ -103,8 +102,6 @@ COLUMNS = (
     + ("from_wm_share",) + tuple(f"from_{o}" for o in ORIGINS)
     + ("gap", "human_order")
 )
-#: The outdated-rate bounds of the recommendation table.
-BOUNDS = (0.01, 0.05)
 #: Parameters each grid policy reads come from the rules (``seed`` is drawn per game).
 WORLD_DEFAULT = "faces"
 

@@ -41,9 +41,9 @@ from rosgraph_msgs.msg import Clock
 
 from .. import contract
 from ..contract import Limits
+from ..contract.codec import MessageError, printable, safe_dumps
 from ..core.decay import MAX_TIME
-from .carrier import CarrierError, JsonClient, publish, publisher, subscribe
-from .codec import MessageError, printable, safe_dumps
+from .carrier import CarrierError, ServiceCaller, publish, publisher, subscribe
 
 #: Seconds a client waits for an answer, by default.
 DEFAULT_TIMEOUT = 10.0
@@ -138,7 +138,7 @@ class GraphClient:
         self._gone_checked = 0.0
         self.limits = Limits()  # the graph's size limits (the nodes' defaults), checked before sending
         self._clock = node.create_publisher(Clock, contract.CLOCK, 10)
-        self._services: dict[str, JsonClient] = {}
+        self._services: dict[str, ServiceCaller] = {}
         self._param_clients: dict[tuple[str, str], Any] = {}
         self._entities: dict[str, set[str]] = {}
         self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
@@ -467,9 +467,9 @@ class GraphClient:
         return answer
 
     # -------------------------------------------------------------- services
-    def service(self, name: str) -> JsonClient:
+    def service(self, name: str) -> ServiceCaller:
         if name not in self._services:
-            self._services[name] = JsonClient(self.node, name)
+            self._services[name] = ServiceCaller(self.node, name)
         return self._services[name]
 
     def call(self, name: str, payload: Mapping[str, Any], timeout: Optional[float] = None) -> dict:

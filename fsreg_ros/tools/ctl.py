@@ -48,10 +48,10 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Callable, Optional, Sequence
 
+from ..contract.codec import printable
 from ..contract import normalise_namespace
 from ..core import settings
 from ..core.decay import MAX_TIME
-from ..ros.codec import printable
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .view import check_port, serve_view

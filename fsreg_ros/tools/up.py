@@ -48,12 +48,11 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from .. import contract
-from .sim import INPUT_ERRORS, UsageError, one_line, options_from_args
+from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options_from_args
 from ..contract import normalise_namespace
-from ..core.forgetting import RULES
 from ..core.generation import ALGORITHMS, WM_ORDERS
-from ..core.lexicon import Lexicon, coverage_warning
-from ..core.scenario import load_scenario
+from ..core.lexicon import Lexicon
+from ..core.scenario import coverage_warning, load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
@@ -78,13 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "SIGTERM (talk to it with fsreg-ctl).")
     parser.add_argument("scenario", type=Path, help="scenario/KB YAML file (its dialogue is not played)")
     parser.add_argument("--namespace", default="", help="ROS namespace of every node (default: none)")
-    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
-    memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
-    memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
-    memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
-    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
-    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
+    add_memory_options(parser)  # one per memory setting, from the settings table
     parser.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     parser.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")

@@ -12,7 +12,9 @@ from hypothesis import strategies as st
 
 from fsreg_ros.core import bitset
 from fsreg_ros.core.decay import TickRun
-from fsreg_ros.core.consultant import Consultant, LocalPort, WalkStep, run_sync, walk_by_narrowing
+from fsreg_ros.core.consultant import Consultant
+from fsreg_ros.core.local_port import LocalPort
+from fsreg_ros.core.port import WalkStep, run_sync, walk_by_narrowing
 from fsreg_ros.core.forgetting import DISPLACEMENT, RULES, ForgettingPolicy
 from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate

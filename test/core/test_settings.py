@@ -132,7 +132,7 @@ def _launch_arguments(monkeypatch) -> dict:
 
 
 def test_the_contract_policy_object_is_the_table():
-    from fsreg_ros.ros.codec import MessageError
+    from fsreg_ros.contract.codec import MessageError
     from fsreg_ros.contract import PolicySettings, check, json_schemas
 
     assert tuple(PolicySettings.model_fields) == settings.names()

@@ -261,7 +261,8 @@ def test_wm_told_or_not_and_what_the_robot_says_when_it_believes_its_wm():
 
 
 def test_belief_port_narrows_by_a_stale_property():
-    from fsreg_ros.core.consultant import Consultant, run_sync
+    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.port import run_sync
     from fsreg_ros.core.generation import generate
 
     kb = Consultant("d", {"t": {"glasses": 1.0}, "u": {"no-glasses": 1.0}}, ["glasses", "no-glasses"],
@@ -271,7 +272,7 @@ def test_belief_port_narrows_by_a_stale_property():
     assert kb.queue("t") == ["glasses"]  # not told: the stale property stays
     believed = run_sync(generate("t", BeliefPort(kb), "sd-pia", time=2.0, turn=1))
     assert believed.description == ["glasses"] and believed.sources == ["wm"] and believed.distinguishing
-    from fsreg_ros.core.consultant import LocalPort
+    from fsreg_ros.core.local_port import LocalPort
 
     checked = run_sync(generate("u", LocalPort(kb), "sd-pia", time=3.0, turn=2))
     assert checked.description == []  # u and t are both no-glasses now: nothing distinguishes u
