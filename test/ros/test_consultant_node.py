@@ -670,7 +670,7 @@ def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(gr
 
 
 @pytest.mark.parametrize("period", [0.0, 0.1], ids=["each-change", "coalesced"])
-def test_a_late_wm_state_subscriber_gets_the_state_as_of_now(graph: Graph, period):
+def test_a_late_wm_state_subscriber_gets_the_state_as_of_now(graph: RosSession, period):
     """Issue 24.5: the latched wm/state is the current state even when nobody listened while WM changed."""
     node = start(graph, state_period=period)
     configure(graph, "displacement", capacity=2)

@@ -234,7 +234,7 @@ def test_graph_under_activation_equals_the_simulator(table1_path, tmp_path):
     consultant forgets lazily at crossing times; results and the canonical trace equal the core's."""
     options = Options(memory={"policy": "activation+displacement", "activation_threshold": -1.15, "capacity": 3})
     scenario = load_scenario(table1_path)
-    with Graph() as g:
+    with RosSession() as g:
         player = start_graph(g, table1_path, options, tmp_path)
         player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
         result = g.run(player.play(), timeout=60.0)

@@ -375,7 +375,7 @@ def test_shared_pool_ops_of_the_consultant(graph: RosSession):
 @pytest.mark.parametrize("policy", [{"policy": "none"}, {"policy": "decay", "decay_period": 5.0},
                                     {"policy": "displacement", "capacity": 2},
                                     {"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}])
-def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy(graph: Graph, policy):
+def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy(graph: RosSession, policy):
     """Issue 28.5: under displacement (which sends the consultant nothing on its own) status said ready and
     configured seconds into an outage; the manager now follows each consultant's liveliness."""
     ready = graph.listen(contract.READY.name, contract.STATE_QOS)
