@@ -147,10 +147,15 @@ def legacy_state_path(base: Path, node_name: str, domain: str) -> Path:
 
 
 def fingerprint(preference: Sequence[str], entities: Mapping[str, Mapping[str, float]], threshold: float,
-                attributes: Mapping[str, str]) -> str:
-    """Return a digest of a domain's KB: a store made for another KB is migrated, not reused as is."""
-    text = json.dumps([list(preference), {e: dict(f) for e, f in entities.items()}, threshold, dict(attributes)],
-                      sort_keys=True)
+                attributes: Mapping[str, str], exclusive: Sequence[Sequence[str]] = ()) -> str:
+    """Return a digest of a domain's KB: a store made for another KB is migrated, not reused as is.
+
+    Declared ``exclusive`` groups count only when there are some (a KB without any keeps its digest).
+    """
+    kb: list = [list(preference), {e: dict(f) for e, f in entities.items()}, threshold, dict(attributes)]
+    if exclusive:
+        kb.append([list(group) for group in exclusive])
+    text = json.dumps(kb, sort_keys=True)
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
 
 
