@@ -356,3 +356,56 @@ def test_journal_records_are_checked_and_filtered_for_a_migration():
                 ["each", "x", ["a"], "rr", float("inf"), 2]):
         with pytest.raises(journal.JournalError):
             journal.check(bad, known_e, known_p)
+
+
+# ------------------------------------------------------------------ exclusive properties
+EXCLUSIVE = [["glasses", "lab-coat"], ["male", "female"]]
+
+
+def stored_facts(service) -> dict:
+    """The facts table of the service's state database, read beside it (entity -> {property: certainty})."""
+    import sqlite3
+
+    db = sqlite3.connect(f"file:{service.store.path}?mode=ro", uri=True)
+    try:
+        out: dict = {}
+        for entity, prop, certainty in db.execute("SELECT entity, property, certainty FROM facts ORDER BY rowid"):
+            out.setdefault(entity, {})[prop] = certainty
+        return out
+    finally:
+        db.close()
+
+
+@pytest.mark.parametrize("checkpoint", [False, True])
+def test_an_exclusive_retraction_is_stored_with_its_fact_and_restored(tmp_path, checkpoint):
+    service = make(tmp_path, exclusive=EXCLUSIVE)
+    configure(service)
+    encode(service, "face2", ["glasses", "female"], 1.0)
+    out = service.ltm_assert("face2", {"lab-coat": 1.0}, 2.0)
+    assert out.reply == {"entity": "face2", "new_entity": False, "updated": {"lab-coat": 1.0, "glasses": 0.0},
+                         "retracted": ["glasses"]}
+    assert out.changes.facts == ("face2", {"lab-coat": 1.0, "glasses": 0.0}, False)
+    assert service.buffer.snapshot() == {"face2": ["female"]}
+    assert stored_facts(service) == {"face2": {"lab-coat": 1.0, "glasses": 0.0}}  # one commit carries both
+    if checkpoint:
+        service.shutdown()
+    else:
+        service.store.close()  # abruptly: the journal carries the WM retraction
+    again = make(tmp_path, exclusive=EXCLUSIVE)
+    assert again.consultant.properties_of("face2") == ["dark-hair", "female", "lab-coat"]
+    assert again.consultant.certainty("face2", "glasses") == 0.0
+    assert again.buffer.snapshot() == {"face2": ["female"]}
+    # the restored facts are consistent: asserting glasses back retracts lab-coat, and that is restored too
+    again.ltm_assert("face2", {"glasses": 1.0}, 3.0)
+    again.store.close()
+    third = make(tmp_path, exclusive=EXCLUSIVE)
+    assert third.consultant.properties_of("face2") == ["dark-hair", "female", "glasses"]
+
+
+def test_a_contradicting_assert_is_refused_before_anything_is_stored(tmp_path):
+    service = make(tmp_path, exclusive=EXCLUSIVE)
+    configure(service)
+    with pytest.raises(KnowledgeError, match="exclude each other") as err:
+        service.ltm_assert("face3", {"male": 1.0, "female": 1.0}, 1.0)
+    assert err.value.kind == "contradiction"
+    assert stored_facts(service) == {} and service.consultant.version == 0
