@@ -99,8 +99,8 @@ class ConsultantNode(Node):
                                 retract_on_update=retract, exclusive=spec.exclusive)
         base = Path(state_dir).expanduser() if state_dir else default_state_dir()
         path = state_path(base, self.context.get_domain_id(), self.get_fully_qualified_name(), domain)
-        store = DomainStore(path, fingerprint(spec.preference, spec.entities, spec.threshold, spec.attributes,
-                                             spec.exclusive))
+        kb_digest = fingerprint(spec.preference, spec.entities, spec.threshold, spec.attributes, spec.exclusive)
+        store = DomainStore(path, kb_digest)
         clock = "sim" if self.get_parameter("use_sim_time").value else "system"
         self.service = ConsultantService(consultant, sessions=sessions, store=store, persist_wm=persist_wm,
                                          clock=clock, now=self.now)

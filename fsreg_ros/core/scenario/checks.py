@@ -377,4 +377,3 @@ class Checker:
         raise self.fail(
             whole, f"domain not determined: no domain knows every property (candidate domains per property: {owners})"
         )
-
