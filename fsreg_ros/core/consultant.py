@@ -129,6 +129,22 @@ class Consultant:
         facts = self._certainty[entity]
         return [p for p in self.preference if facts.get(p, 0.0) >= self.threshold]
 
+    def differences(self, kb: Mapping[str, Mapping[str, float]]) -> dict[str, int]:
+        """Count what LTM holds beyond the KB ``kb`` (entity -> facts): ``runtime_entities``, ``runtime_facts``.
+
+        A runtime fact is a property whose certainty differs from the KB's (asserted,
+        changed or retracted at run time), on any entity.
+        """
+        entities = facts = 0
+        for entity in self.entities:
+            mine, given = self._certainty[entity], kb.get(entity)
+            if given is None:
+                entities += 1
+                facts += len(mine)
+            elif mine != given:
+                facts += sum(mine.get(p, 0.0) != given.get(p, 0.0) for p in set(mine) | set(given))
+        return {"runtime_entities": entities, "runtime_facts": facts}
+
     def queue(self, entity: str) -> list[str]:
         """Return the WM queue of a known entity, LRU first (reading never refreshes)."""
         self._require_entity(entity)

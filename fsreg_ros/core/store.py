@@ -235,13 +235,15 @@ class DomainStore:
         self._lock_id: tuple[int, int] = (0, 0)
 
     # ---------------------------------------------------------------- opening
-    def open(self, reset: bool = False) -> StoredState:
+    def open(self, reset: bool = False, after: int = 0) -> StoredState:
         """Lock, check and open the database (creating it on first use); count a new incarnation.
 
         ``reset`` moves an existing database aside (``<file>.<time>.old``) and starts
-        afresh.  Raises :class:`StateInUse` when another process holds it,
-        :class:`StateDamaged` when it is not what this program wrote, and
-        :class:`StoreError` for any other I/O problem; the message names the file.
+        afresh; the new incarnation is above ``after`` too (a reset while serving
+        keeps the numbering going up, so everyone sees a new incarnation).  Raises
+        :class:`StateInUse` when another process holds it, :class:`StateDamaged` when
+        it is not what this program wrote, and :class:`StoreError` for any other I/O
+        problem; the message names the file.
         """
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -257,7 +259,7 @@ class DomainStore:
                 raise damaged(self.path, "the file is empty (0 bytes), so the runtime facts it held are gone")
             found = self._connect()
             with self._tx() as db:
-                incarnation = int(self._meta("incarnation") or 0) + 1
+                incarnation = max(int(self._meta("incarnation") or 0), after) + 1
                 self._put(db, "incarnation", incarnation)
             state = self._read(incarnation)
         except StoreError:
