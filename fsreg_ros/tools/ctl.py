@@ -8,6 +8,7 @@
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
     fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM now (the wm/state that shows every change)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
+    fsreg-ctl [--namespace NS] state reset [--yes]         set the stored state aside, start from the scenario
 
 Every command waits (``--timeout``) until the graph in the namespace is ready (its WM
 Manager's ``wm_manager/ready``), so a first request is not refused; refuses to go on when
@@ -22,6 +23,12 @@ every domain's setting; ``DOMAIN.KEY=VALUE`` to one domain's; ``NODE:KEY=VALUE``
 parameter of another node (``reg:algorithm=greedy``, ``consultant_faces:threshold=0.6``).
 Values are converted to the parameter's type; the keys given to one node are set all at
 once or not at all.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
+
+``state reset``: every consultant moves its state database aside (never deleting it)
+and serves its scenario afresh (no runtime facts, empty WM), as a new incarnation; it
+asks for confirmation on the terminal unless ``--yes``, refuses without a terminal and
+without ``--yes`` (exit 2), and exits 1 when not confirmed.  It prints what each domain
+set aside and where, and returns once the graph is ready again.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
+from .up import restored_text
 from .view import check_port, serve_view
 
 PROG = "fsreg-ctl"
@@ -93,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="address to bind (default 127.0.0.1: this machine only)")
     clock = commands.add_parser("clock", parents=[common], help="set a sim-time graph's clock to SECONDS")
     clock.add_argument("seconds", type=float)
+    add_state_parser(commands, common)
     return parser
 
 
@@ -174,7 +183,8 @@ def show_status(status: dict) -> str:
             f"running {json.dumps(running, sort_keys=True)}, incarnation "
             f"{(status.get('incarnation') or {}).get(domain)}, "
             f"{'configured' if (status.get('configured') or {}).get(domain) else 'not configured'}"
-            + (f", next decay tick at {tick:g} s" if isinstance(tick, (int, float)) else ""))
+            + (f", next decay tick at {tick:g} s" if isinstance(tick, (int, float)) else "")
+            + f"; {restored_text((status.get('restored') or {}).get(domain))}")
     return "\n".join(lines)
 
 
@@ -208,6 +218,63 @@ class Screen:
         self.out.flush()
 
 
+# ------------------------------------------------------------------ state
+def add_state_parser(commands, common: argparse.ArgumentParser) -> None:
+    """Add ``state reset [--yes]`` (issue 28.6)."""
+    state = commands.add_parser(
+        "state", parents=[common], help="the consultants' stored state: 'reset' sets it aside, starts from the scenario")
+    state.add_argument("action", choices=["reset"], help="reset: move every state database aside (never deleted)")
+    state.add_argument("--yes", action="store_true", help="do not ask for confirmation (needed without a terminal)")
+
+
+def check_state_args(args: argparse.Namespace, stdin) -> None:
+    """Refuse ``state reset`` without ``--yes`` when there is no terminal to confirm on (UsageError: exit 2)."""
+    if not args.yes and not (stdin is not None and stdin.isatty()):
+        raise UsageError("state reset: no terminal to confirm on; add --yes to reset without asking")
+
+
+def run_state(client, args: argparse.Namespace, emit, timeout: float, ask=input) -> int:
+    """``state reset``: confirm, reset every domain's consultant, wait until the graph serves again; exit code.
+
+    Each consultant checkpoints, moves its database aside and serves its KB afresh as a
+    new incarnation (manage op ``reset``); this returns once the WM Manager configured
+    every new incarnation.  Not confirmed: nothing is sent, exit 1.
+    """
+    from ..ros.client import ClientError
+
+    domains = client.domains()
+    if not args.yes:
+        answer = ask(f"{PROG}: reset the stored state of {', '.join(domains)} in graph {client.graph} "
+                     f"({client.where()}): runtime facts and WM are set aside; continue? [y/N] ")
+        if answer.strip().lower() not in ("y", "yes"):
+            print(f"{PROG}: state reset not confirmed; nothing changed", file=sys.stderr)
+            return EXIT_ERROR
+    replies: dict[str, dict] = {}
+    for domain in domains:
+        try:
+            replies[domain] = client.reset_state(domain, timeout)
+        except ClientError as err:
+            done = f" ({', '.join(replies)} reset already)" if replies else ""
+            raise ClientError(f"state reset of '{domain}': {err}{done}", err.kind) from None
+
+    def serving() -> bool:
+        ready = client.readiness() or {}
+        states = ready.get("domains") or {}
+        return bool(ready.get("ready")) and all(
+            (states.get(d) or {}).get("incarnation") == reply["incarnation"] for d, reply in replies.items())
+
+    client.spin_until(serving, timeout, "the graph serving again after the state reset", "not-ready")
+    lines = []
+    for domain, reply in replies.items():
+        cleared = reply["cleared"]
+        lines.append(f"{domain}: set aside {cleared['runtime_facts']} runtime facts ({cleared['runtime_entities']} "
+                     f"runtime entities) and {cleared['queues']} WM queues"
+                     + (f", the old state moved to {reply['moved_aside']}" if reply.get("moved_aside") else "")
+                     + f"; incarnation {reply['incarnation']} serves the scenario afresh")
+    emit({"reset": replies}, "\n".join(lines))
+    return EXIT_OK
+
+
 # ------------------------------------------------------------------ main
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``fsreg-ctl``; return its exit code."""
@@ -225,6 +292,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             args.port = check_port(args.port)
         if args.command == "watch" and args.count is not None and args.count < 1:
             raise UsageError("watch: --count must be at least 1")
+        if args.command == "state":
+            check_state_args(args, sys.stdin)
     except (UsageError, ValueError) as err:
         print(f"{PROG}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
@@ -328,6 +397,8 @@ class Ctl:
             self.emit(reply, f"clock at {args.seconds:g} s; the forgetting due by then is applied")
         elif args.command == "watch":
             return self._watch(client)
+        elif args.command == "state":
+            return run_state(client, args, self.emit, self.timeout)
         elif args.command == "view":
             try:
                 return serve_view(client, args.host, args.port, announce=lambda text: print(text, flush=True))
