@@ -222,7 +222,7 @@ class Screen:
 def add_state_parser(commands, common: argparse.ArgumentParser) -> None:
     """Add ``state reset [--yes]`` (issue 28.6)."""
     state = commands.add_parser(
-        "state", parents=[common], help="the consultants' stored state: 'reset' sets it aside, starts from the scenario")
+        "state", parents=[common], help="the consultants' stored state: 'reset' sets it aside (start afresh)")
     state.add_argument("action", choices=["reset"], help="reset: move every state database aside (never deleted)")
     state.add_argument("--yes", action="store_true", help="do not ask for confirmation (needed without a terminal)")
 
