@@ -25,6 +25,7 @@ Durability by kind of data: docs/deployment.md, "State".
 from __future__ import annotations
 
 import math
+from datetime import datetime, timezone
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Protocol, Sequence
 
@@ -93,7 +94,7 @@ class Restored:
                 f"{self.runtime_facts} runtime facts, {self.queues} WM queues ({self.records} journal records)")
         if self.run is not None:
             text += f", stored by incarnation {self.run}" + (f" on the {self.clock} clock" if self.clock else "") + (
-                f" up to t={self.latest:g} s" if self.latest is not None else "")
+                f" up to {time_text(self.clock, self.latest)}" if self.latest is not None else "")
         if self.moved_aside:
             text += f"; the old state moved aside to {self.moved_aside}"
         if self.migrated:
@@ -116,6 +117,13 @@ class Restored:
             out["migrated"] = True
             out["dropped"] = len(self.dropped)
         return out
+
+
+def time_text(clock: Optional[str], t: float) -> str:
+    """Return a time of a clock epoch for people: ``t=12.5 s`` (sim time), ``2026-11-26 19:30:12 UTC`` (system)."""
+    if clock == "system" and t > 1e8:
+        return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return f"t={t:g} s"
 
 
 class Persistence:

@@ -47,6 +47,7 @@ from ..contract import normalise_namespace
 from ..core.forgetting import RULES
 from ..core.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon, coverage_warning
+from ..core.persistence import time_text
 from ..core.scenario import load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
@@ -146,8 +147,9 @@ def restored_text(r: Optional[dict]) -> str:
     if r.get("fresh"):
         return f"fresh (the scenario alone{aside})"
     epoch = ", ".join(x for x in (f"{r['clock']} clock" if r.get("clock") else "",
-                                  f"up to t={r['latest']:g} s" if r.get("latest") is not None else "") if x)
-    dropped = f" ({r['queues_dropped']} more dropped: another clock or run)" if r.get("queues_dropped") else ""
+                                  f"up to {time_text(r.get('clock'), r['latest'])}" if r.get("latest") is not None
+                                  else "") if x)
+    dropped = f" ({r['queues_dropped']} dropped: WM of another clock or run)" if r.get("queues_dropped") else ""
     return (f"restored {r['runtime_facts']} runtime facts ({r['runtime_entities']} runtime entities), "
             f"{r['queues']} WM queues{dropped} from run {r.get('run')}" + (f" ({epoch})" if epoch else "") + aside)
 
