@@ -7,7 +7,6 @@ moves the state database aside, empties runtime facts and WM, and reports it.
 
 from __future__ import annotations
 
-import argparse
 import io
 from pathlib import Path
 
