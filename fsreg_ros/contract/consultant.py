@@ -5,7 +5,7 @@ Three services per domain (``<domain>`` filled in):
 * ``consultant/<domain>`` -- RR's and REG's: ``info``, ``open``, ``narrow``, ``walk``,
   ``rule_out``, ``close`` (:data:`CONSULTANT_OPS`);
 * ``consultant/<domain>/manage`` -- the WM Manager's: ``configure``, ``decay``,
-  ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
+  ``advance``, ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
 * ``consultant/<domain>/debug`` -- tests' and tools': ``holds``, ``affirm``, ``wm``,
   ``encode``, ``snapshot`` (:data:`DEBUG_OPS`); served only when the consultant's
   read-only parameter ``debug`` is true.
@@ -358,6 +358,12 @@ class DecayRequest(Message):
     ticks: TickRun
 
 
+class AdvanceRequest(Stamp):
+    """Manage op ``advance``: the clock reached ``time`` (rule ``activation``: entries below the threshold go)."""
+
+    op: Literal["advance"]
+
+
 class EvictRequest(Stamp):
     """Manage op ``evict``: forget the domain's ``count`` least recently encoded fronts (cause ``shared-capacity``)."""
 
@@ -382,6 +388,13 @@ class ConfigureReply(Message):
 
 class DecayReply(Message):
     """Reply to ``decay``: queues changed and the installed policy's name."""
+
+    queues_changed: int
+    policy: str
+
+
+class AdvanceReply(Message):
+    """Reply to ``advance``: queues changed and the installed policy's name."""
 
     queues_changed: int
     policy: str
@@ -444,6 +457,7 @@ DEBUG_OPS: dict[str, tuple[type[Message], type[Message]]] = {
 MANAGE_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "configure": (ConfigureRequest, ConfigureReply),
     "decay": (DecayRequest, DecayReply),
+    "advance": (AdvanceRequest, AdvanceReply),
     "evict": (EvictRequest, EvictReply),
     "size": (SizeRequest, SizeReply),
     "reset": (ResetRequest, ResetReply),
@@ -455,6 +469,6 @@ ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, WalkReply, RuleOutRep
 DebugRequest = Annotated[Union[HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest],
                          Field(discriminator="op")]
 DebugReply = Union[HoldsReply, QueueReply, EncodeReply, SnapshotReply]
-ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, EvictRequest, SizeRequest, ResetRequest],
-                          Field(discriminator="op")]
-ManageReply = Union[ConfigureReply, DecayReply, EvictReply, SizeReply, ResetReply]
+ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, AdvanceRequest, EvictRequest, SizeRequest,
+                                ResetRequest], Field(discriminator="op")]
+ManageReply = Union[ConfigureReply, DecayReply, AdvanceReply, EvictReply, SizeReply, ResetReply]

@@ -169,7 +169,7 @@ class Persistence:
         return out
 
     def health(self) -> dict:
-        """The store's health, for ``/diagnostics``.
+        """Return the store's health, for ``/diagnostics``.
 
         The state file, the journal records since the last checkpoint, whether the last write
         succeeded (false after a refused write, e.g. a full disk, until a retry succeeds), and how

@@ -52,9 +52,9 @@ from .wm_manager import apply_ticks, configure_buffer, unapplied
 #: Query ops (RR and REG), debug ops (tests and tools, served only on request) and the WM Manager's.
 QUERY_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
 DEBUG_OPS = ("holds", "affirm", "wm", "encode", "snapshot")
-MANAGE_OPS = ("configure", "decay", "evict", "size")
+MANAGE_OPS = ("configure", "decay", "advance", "evict", "size")
 #: Ops whose change set is listed exactly (their replies say how many queues changed).
-COUNTED_OPS = ("configure", "decay", "evict")
+COUNTED_OPS = ("configure", "decay", "advance", "evict")
 #: Ops whose replies carry the LTM ``version``.
 VERSIONED_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
 
@@ -147,7 +147,7 @@ class ConsultantService:
             "info": self._info, "open": self._open, "narrow": self._narrow, "walk": self._walk,
             "rule_out": self._rule_out, "close": self._close, "holds": self._holds, "affirm": self._affirm,
             "wm": self._wm, "encode": self._encode, "snapshot": self._snapshot, "configure": self._configure,
-            "decay": self._decay, "evict": self._evict, "size": self._size,
+            "decay": self._decay, "advance": self._advance, "evict": self._evict, "size": self._size,
         }
 
     # ================================================================ calls
@@ -286,6 +286,13 @@ class ConsultantService:
             self.persistence.note("decay_until", due.last)
         self._touch(ticks.last)
 
+    def advance(self, time: float) -> None:
+        """Note that the clock reached ``time``: entries below the activation threshold go now (rule ``activation``)."""
+        self.buffer.advance(time)
+        self.buffer.flush()  # at once, as decay ticks are applied: their events are published now
+        self._record(journal.advance(time))
+        self._touch(time)
+
     def evict(self, count: int, time: float) -> None:
         """Forget the domain's ``count`` least recently encoded fronts (the shared pool's trim)."""
         self.buffer.evict_oldest(count, "shared-capacity", time)
@@ -322,7 +329,7 @@ class ConsultantService:
         return self.persistence.restore(state)
 
     def health(self) -> dict:
-        """The store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
+        """Return the store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
         return self.persistence.health()
 
     def maintain(self) -> None:
@@ -472,6 +479,10 @@ class ConsultantService:
         except TickError as err:
             raise RequestError(f"field 'ticks': {err}") from None
         self.decay(ticks)
+        return {"policy": self.policy.name}
+
+    def _advance(self, req: dict, client: str) -> dict:
+        self.advance(self._time(req.get("time")))
         return {"policy": self.policy.name}
 
     def _evict(self, req: dict, client: str) -> dict:

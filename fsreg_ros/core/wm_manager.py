@@ -7,7 +7,9 @@ does for the algorithms):
 
 * ``configure(domain, policy, time)``: install a policy in the domain's buffer (its
   limits apply at once: trims, ``none`` empties WM);
-* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.decay.TickRun`.
+* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.decay.TickRun`;
+* ``advance(domain, time)``: the clock reached ``time`` (rule ``activation``: its
+  entries below the threshold are forgotten at their crossing times).
 
 :class:`BufferPort` applies them in-process to :class:`~fsreg_ros.core.memory.WMBuffer`
 objects (the simulator); the ``wm_manager`` node's port sends them to the
@@ -46,6 +48,9 @@ class MemoryPort(Protocol):
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         """Apply decay ticks to the domain's buffer."""
+
+    def advance(self, domain: str, time: float) -> None:
+        """Tell the domain's buffer the clock reached ``time`` (rule ``activation``: entries below tau go)."""
 
     def evict(self, domain: str, count: int, time: float) -> None:
         """Forget the domain's ``count`` least recently encoded fronts (shared pool)."""
@@ -96,6 +101,9 @@ class BufferPort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.buffers[domain].decay(ticks)
+
+    def advance(self, domain: str, time: float) -> None:
+        self.buffers[domain].advance(time)
 
     def evict(self, domain: str, count: int, time: float) -> None:
         self.buffers[domain].evict_oldest(count, "shared-capacity", time)
@@ -238,8 +246,16 @@ class WMManager:
         return evictions
 
     def advance_domain(self, domain: str, now: float) -> int:
-        """Send the domain's ticks due at or before ``now`` not sent yet; how many."""
+        """Send the domain's ticks due at or before ``now`` not sent yet; how many.
+
+        Under rule ``activation`` (no ticks), send the clock instead, so entries whose
+        activation fell below the threshold are gone before the event at ``now``.
+        """
         state = self.domains[domain]
+        if state.policy.activates:
+            if state.attached:
+                self.port.advance(domain, now)
+            return 0
         ticks = state.schedule.take(now) if state.schedule is not None else None
         if ticks is None:
             return 0

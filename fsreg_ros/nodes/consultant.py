@@ -6,8 +6,9 @@ The node is wiring: it decodes each request with the contract's models
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
-``wm/state`` (latched; at most once per request and per ``state_period``; a session's
-steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
+``wm/state`` (latched, so it always holds the current state: after every request that
+changed WM, whether or not anyone listens, coalesced to at most one per ``state_period``;
+a session's steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
 ``consultant/announce`` and ``consultant/<domain>/alive`` (latched; the latter with a
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
@@ -312,15 +313,17 @@ class ConsultantNode(Node):
                               "incarnation": s.incarnation, "wm_version": s.wm_version})
 
     def _publish_due(self, waiting: bool = False) -> None:
-        """Publish a due /wm/state unless one went out less than ``state_period`` ago (or nobody reads it).
+        """Publish a due /wm/state unless one went out less than ``state_period`` ago.
 
+        Published whether or not anyone reads it now: the topic is latched, so the sample
+        DDS keeps for a late joiner (``ros2 topic echo --once``) must be the current state,
+        never an older one.  ``state_period`` coalesces: a burst of changes costs one
+        message, and the timer sends the last one once the period has passed.
         ``waiting`` (the timer): also wait while a session is open, for at most a second.
         """
         now = monotonic()
         if not self._state_due or now - self._state_sent < self._state_period:
             return
-        if not self._state.get_subscription_count():
-            return  # the timer sends it once someone subscribes
         sessions = self.service.sessions
         sessions.expire(now)
         if waiting and len(sessions) and now - self._state_sent < MAX_STATE_DELAY:

@@ -81,6 +81,8 @@ class DialoguePlayer(Node):
         declare_number(self, "turn_timeout", 30.0, 0.1, 3600.0, "seconds to wait for one turn's answer")
         declare_number(self, "retry_after", 2.0, 0.05, 600.0, "resend a turn unanswered for this long, s")
         declare_number(self, "ready_timeout", 60.0, 0.1, 3600.0, "seconds to wait for the graph to come up")
+        self.listeners = declare_number(self, "listeners", 0, 0, 100, "other subscribers (a recorder) to wait for "
+                                        "on the requests and wm/events before turn 1", integer=True, read_only=True)
         self.declare_parameter(
             "lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True)
         )
@@ -134,7 +136,8 @@ class DialoguePlayer(Node):
         return [
             topic
             for topic, (sub, pub) in PIPELINE_TOPICS.items()
-            if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
+            if (sub and self.count_subscribers(topic) < 1 + self.listeners)
+            or (pub and self.count_publishers(topic) == 0)
         ]
 
     async def wait_ready(self) -> None:
@@ -179,7 +182,7 @@ class DialoguePlayer(Node):
                     info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
                 except CarrierError as err:
                     raise PlayerError(f"graph not ready: {err}") from None
-                if matched and info.get("event_listeners", 0) >= 1:
+                if matched and info.get("event_listeners", 0) >= 1 + self.listeners:
                     incarnation = (status.get("incarnation") or {}).get(domain)
                     self.ledger.start(domain, incarnation if isinstance(incarnation, int) else None,
                                       int(info.get("events", 0)))

@@ -30,6 +30,7 @@ CAUSE_COLOURS = {
     "rr": "tab:green",
     "reg-distractor": "tab:orange",
     "decay": "tab:red",
+    "activation": "tab:gray",
     "displacement": "tab:purple",
     "similarity": "tab:pink",
     "global-capacity": "tab:brown",
@@ -41,9 +42,11 @@ TURN_STYLE = {"human": ("dimgray", ":"), "robot": ("darkgray", "--"), None: ("si
 #: Names of the grid parameters on plot axes, with units.
 AXIS = {"decay_period": "decay period δ (s)", "capacity": "capacity α (properties per entity)",
         "global_capacity": "global capacity (properties per domain)",
-        "shared_capacity": "shared pool (properties, all domains)"}
+        "shared_capacity": "shared pool (properties, all domains)",
+        "activation_threshold": "activation threshold τ (ACT-R; d = activation_decay)"}
 #: Short names of the grid parameters in legends.
-SHORT = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool"}
+SHORT = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool",
+         "activation_threshold": "τ"}
 INTEGER = ("capacity", "global_capacity", "shared_capacity")
 #: What each policy plot shows, panel by panel: (metric, title, y-axis label with its unit); dynamic games add one.
 PANELS = (

@@ -1,7 +1,7 @@
 """The WM Manager's links to the consultants' manage services (``consultant/<domain>/manage``).
 
 :class:`ManagePort` is the core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort`
-in the graph: each decision (``configure``, ``decay``, ``evict``) becomes a request,
+in the graph: each decision (``configure``, ``decay``, ``advance``, ``evict``) becomes a request,
 sent at once and tracked with a deadline by :class:`ManageLinks`, which also handles
 the replies: a configure acknowledged by the consultant's current incarnation marks the
 domain configured; a failed ``decay`` is owed again (the consultant skips ticks it had
@@ -130,6 +130,9 @@ class ManagePort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.links.send(self.links.links[domain], {"op": "decay", "ticks": ticks.to_json()})
+
+    def advance(self, domain: str, time: float) -> None:
+        self.links.send(self.links.links[domain], {"op": "advance", "time": time})
 
     def evict(self, domain: str, count: int, time: float) -> None:
         self.links.send(self.links.links[domain], {"op": "evict", "count": count, "time": time})

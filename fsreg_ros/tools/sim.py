@@ -301,9 +301,53 @@ def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, Opt
 
 
 def sim_main(argv: Optional[Sequence[str]] = None) -> int:
-    """``fsreg-sim SCENARIO.yaml [options]``: play a scenario with the core alone."""
+    """``fsreg-sim SCENARIO.yaml [options]``: play a scenario with the core alone (``--replay DIR``: a recording)."""
+    words = list(sys.argv[1:] if argv is None else argv)
+    if any(w == "--replay" or w.startswith("--replay=") for w in words):
+        return replay_main(words)
     description = "Play a scenario's dialogue through the fsreg core on a simulated clock."
     return run_cli("fsreg-sim", description, simulate_args, argv)
+
+
+def replay_main(argv: Sequence[str]) -> int:
+    """``fsreg-sim --replay DIR [--scenario FILE] [--lexicon FILE] [--json]``: a recorded session, turn by turn.
+
+    Exit 0 when every turn's answer and WM equal the live graph's, 1 on a difference, 2 when
+    the recording cannot be read or replayed (one line naming the file and the problem).
+    """
+    from ..core.recording import RecordingError, open_recording
+    from ..core.replay import ReplayError, render, replay, session_of
+
+    parser = argparse.ArgumentParser(
+        prog="fsreg-sim", description="Replay a recorded live session (fsreg-ctl record, fsreg-up --record) through "
+        "the simulator and report, turn by turn, whether its answers and WM equal the live graph's.")
+    parser.add_argument("--replay", type=Path, required=True, metavar="DIR",
+                        help="the recording: a rosbag2 folder (or its .mcap file)")
+    parser.add_argument("--scenario", type=Path, metavar="FILE",
+                        help="the knowledge base the graph ran with (default: the copy in the recording)")
+    parser.add_argument("--lexicon", type=Path, metavar="FILE", help="its lexicon (default: the recording's, if any)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object per turn")
+    args = parser.parse_args(argv)
+    try:
+        session = session_of(open_recording(args.replay), args.scenario, args.lexicon)
+        reports = replay(session)
+    except (RecordingError, ReplayError) as err:
+        print(f"fsreg-sim: error: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except INPUT_ERRORS as err:
+        print(f"fsreg-sim: error: {args.replay}: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.json:
+        for r in reports:
+            print(json.dumps({"turn": r.index, "speaker": r.kind, "time": r.time, "request": r.request,
+                              "live": r.live, "equal": not r.differences, "differences": r.differences},
+                             sort_keys=True))
+    else:
+        sys.stdout.write(render(session, reports))
+    for note in session.notes:
+        if args.json:
+            print(f"fsreg-sim: note: {note}", file=sys.stderr)
+    return EXIT_MISMATCH if any(r.differences for r in reports) else EXIT_OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -68,6 +68,17 @@ def test_each_policy_runs_only_over_the_parameters_it_reads():
         Setting("decay", 5.0)]
 
 
+def test_activation_runs_over_its_thresholds():
+    """ACT-R activation (issue 27): tau is a grid dimension, d fixed (--memory activation_decay=D, else 0.5)."""
+    config = SweepConfig(("activation+displacement",), (5.0,), (2,), (0,), 10, activation_thresholds=(-1.5, -0.8))
+    assert settings(config) == [Setting("activation+displacement", capacity=2, activation_threshold=-1.5),
+                                Setting("activation+displacement", capacity=2, activation_threshold=-0.8)]
+    assert settings(config)[0].memory({"activation_decay": 0.4}) == {
+        "policy": "activation+displacement", "activation_decay": 0.4, "capacity": 2, "activation_threshold": -1.5}
+    assert settings(config)[1].label() == "activation+displacement alpha=2, tau=-0.8"
+    assert reads("activation", {"activation_threshold": -1.0}) == ()
+
+
 def test_setting_memory_and_labels():
     setting = Setting("displacement-random+shared-capacity", capacity=2, shared_capacity=6)
     assert setting.memory({}, seed=5) == {"policy": "displacement-random+shared-capacity", "capacity": 2,

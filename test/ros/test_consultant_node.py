@@ -669,3 +669,22 @@ def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(gr
     assert [(e["seq"], e["incarnation"], e["op"], e["property"]) for e in events] == [
         (1, 1, "encode", "glasses"), (2, 1, "encode", "lab-coat"), (3, 1, "forget", "male")]
     assert graph.call(Q, {"op": "info"})["events"] == 3
+
+
+@pytest.mark.parametrize("period", [0.0, 0.1], ids=["each-change", "coalesced"])
+def test_a_late_wm_state_subscriber_gets_the_state_as_of_now(graph: Graph, period):
+    """Issue 24.5: the latched wm/state is the current state even when nobody listened while WM changed."""
+    node = start(graph, state_period=period)
+    configure(graph, "displacement", capacity=2)
+    assert node._state.get_subscription_count() == 0  # nobody reads wm/state while WM changes
+    for t, (entity, props) in enumerate((("face1", ["male", "glasses"]), ("face2", ["female"]),
+                                         ("face1", ["lab-coat"]), ("face3", ["dark-hair", "male"])), 1):
+        graph.call(D, {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": float(t)})
+    graph.spin_until(lambda: not node._state_due, what="the coalesced state published (nobody listening)")
+    version = graph.call(Q, {"op": "info"})["wm_version"]
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)  # joins after every change, like `ros2 topic echo --once`
+    graph.spin_until(lambda: states, what="the latched wm/state")
+    first = states[0]
+    assert first["queues"] == {"face1": ["glasses", "lab-coat"], "face2": ["female"], "face3": ["dark-hair", "male"]}
+    # events: 0, as nobody subscribed to wm/events either (events are numbered only while someone listens)
+    assert (first["time"], first["wm_version"], first["events"]) == (4.0, version, 0)

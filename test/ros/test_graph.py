@@ -226,3 +226,21 @@ def test_graph_trace_equals_simulator_trace(table1_path, tmp_path, policy):
     expected = sim.trace()
     assert heard == expected
     assert {e["cause"] for e in expected} >= {"rr", "speaker", "reg-distractor", "decay"}
+
+
+@pytest.mark.slow  # a whole graph, twice the events of a decay run
+def test_graph_under_activation_equals_the_simulator(table1_path, tmp_path):
+    """ACT-R activation (issue 27): the WM Manager sends its clock (manage op ``advance``) and the
+    consultant forgets lazily at crossing times; results and the canonical trace equal the core's."""
+    options = Options(memory={"policy": "activation+displacement", "activation_threshold": -1.15, "capacity": 3})
+    scenario = load_scenario(table1_path)
+    with Graph() as g:
+        player = start_graph(g, table1_path, options, tmp_path)
+        player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
+        result = g.run(player.play(), timeout=60.0)
+        heard = player.trace()
+    sim = Simulation(scenario, options, trace=True)
+    assert dumps(result) == dumps(sim.run())
+    expected = sim.trace()
+    assert heard == expected
+    assert sum(e["cause"] == "activation" for e in expected) >= 5

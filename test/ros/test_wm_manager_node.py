@@ -168,7 +168,7 @@ def test_live_parameter_changes(graph: Graph):
         ("decay_period", "soon", "Wrong parameter type"),  # refused by rclpy (static typing)
         ("decay_period", 10, "Wrong parameter type"),
         ("decay_period", None, "cannot be undeclared"),  # NOT_SET: refused by rclpy
-        ("faces.capacity", -2, "faces.capacity out of range"),
+        ("faces.capacity", -2, "faces.capacity: capacity must be >= 1, got -2 (0 inherits 'capacity')"),
         ("faces.decay_period", 0.001, "faces.decay_period: decay_period must be >= 0.01"),
         ("faces.policy", "sometimes", "faces.policy"),
         ("global_capacity", 0, "global_capacity out of range"),
@@ -306,22 +306,25 @@ def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: Graph):
 def test_numeric_parameters_declare_their_ranges(graph: Graph):
     node = manager(graph, ("faces",))
     ranges = {}
-    for name in ("decay_period", "faces.decay_period", "service_timeout"):
+    for name in ("decay_period", "service_timeout"):
         (r,) = node.describe_parameter(name).floating_point_range
         ranges[name] = (r.from_value, r.to_value)
-    for name in ("capacity", "global_capacity", "seed", "faces.capacity", "faces.seed"):
+    for name in ("capacity", "global_capacity", "seed"):
         (r,) = node.describe_parameter(name).integer_range
         ranges[name] = (r.from_value, r.to_value)
     assert ranges == {
         "decay_period": (0.01, 1e6),
-        "faces.decay_period": (0.0, 1e6),  # 0 = inherit
         "service_timeout": (0.01, 3600.0),
         "capacity": (1, 10_000),
         "global_capacity": (1, 1_000_000),
         "seed": (0, 2**31 - 1),
-        "faces.capacity": (0, 10_000),  # 0 = inherit
-        "faces.seed": (-1, 2**31 - 1),  # -1 = inherit
     }
+    # per domain: the rule in words, no range (a range reaching down to the inherit marker read "Min: 0")
+    capacity = node.describe_parameter("faces.capacity")
+    assert not capacity.integer_range
+    assert capacity.additional_constraints == "0 (inherit) or a whole number in [1, 10000]"
+    refused = node.set_parameters([Parameter("faces.capacity", value=-1)])[0]
+    assert not refused.successful and "capacity must be >= 1, got -1" in refused.reason and "Min" not in refused.reason
 
 
 def test_startup_errors(graph: Graph):
