@@ -54,7 +54,7 @@ from typing import Optional, Sequence
 from .. import contract
 from .sim import INPUT_ERRORS, UsageError, one_line, options_from_args
 from ..contract import normalise_namespace
-from ..core.forgetting import RULES
+from ..core import settings
 from ..core.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon, coverage_warning
 from ..core.persistence import time_text
@@ -84,12 +84,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("scenario", type=Path, help="scenario/KB YAML file (its dialogue is not played)")
     parser.add_argument("--namespace", default="", help="ROS namespace of every node (default: none)")
     memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
-    memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
-    memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
-    memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
-    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
-    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
+    for row in settings.TABLE:  # one option per memory setting, as fsreg-sim's (activation's too)
+        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
     parser.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     parser.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
