@@ -274,7 +274,7 @@ class Consultant:
                     retracted.append((entity, prop))
         return retracted
 
-    def preview_assert(self, entity: str, facts: Mapping[str, Any]) -> tuple[bool, list[str]]:
+    def preview_assert(self, entity: str, facts: Mapping[str, Any], exclude: bool = True) -> tuple[bool, list[str]]:
         """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
@@ -287,7 +287,7 @@ class Consultant:
         if not isinstance(facts, Mapping) or not facts:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
-        effective = self.effective_update(entity, facts)
+        effective = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         new = entity not in self._certainty
         if new:
             return new, []
@@ -327,7 +327,7 @@ class Consultant:
                     excluded[other] = 0.0
         return {**values, **excluded}
 
-    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
+    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float, exclude: bool = True) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
@@ -337,10 +337,11 @@ class Consultant:
         Q[entity] (cause ``retract``) unless ``retract_on_update`` is False (the
         follow-up study's configuration: WM not told of LTM changes); ``retracted``
         lists those properties either way.  Everything is validated
-        (:meth:`preview_assert`) before anything changes.
+        (:meth:`preview_assert`) before anything changes.  ``exclude`` False applies
+        the facts as given (a restore: the stored facts carry their exclusions already).
         """
-        new, retracted = self.preview_assert(entity, facts)
-        update = self.effective_update(entity, facts)
+        new, retracted = self.preview_assert(entity, facts, exclude)
+        update = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         if new:
             self._index[entity] = len(self.entities)
             self.entities.append(entity)

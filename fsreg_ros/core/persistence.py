@@ -266,7 +266,7 @@ class Persistence:
                     report.dropped.append(f"{entity}: none of its facts is valid")
                 continue
             try:
-                c.assert_facts(entity, facts, 0.0)
+                c.assert_facts(entity, facts, 0.0, exclude=False)  # as stored: exclusions were stored with them
             except KnowledgeError as err:
                 if not migrate:
                     raise damaged(path, f"a stored fact about {entity!r}: {err}") from None

@@ -449,3 +449,16 @@ def test_a_reset_moves_the_database_aside_and_counts_incarnations_on(tmp_path):
     assert stored.incarnation == 8 and stored.moved_aside is not None and stored.moved_aside.exists()
     assert fresh.status()["restored"] == {**FRESH, "moved_aside": str(stored.moved_aside)}
     assert not fresh.consultant.knows_entity("face9")
+
+
+def test_a_restore_applies_the_stored_facts_as_stored_without_excluding_again(tmp_path):
+    """Facts stored before a group was declared (both values held) come back as they were, never refused."""
+    service = make(tmp_path)
+    configure(service)
+    service.ltm_assert("face3", {"female": 1.0}, 1.0)  # no groups yet: face3 is male and female
+    service.shutdown()
+    again = make(tmp_path, exclusive=EXCLUSIVE)
+    assert again.consultant.properties_of("face3") == ["dark-hair", "male", "female"]
+    assert again.ltm_assert("face3", {"male": 1.0}, 2.0).reply["updated"] == {"male": 1.0, "female": 0.0}
+    again.shutdown()
+    assert make(tmp_path, exclusive=EXCLUSIVE).consultant.properties_of("face3") == ["dark-hair", "male"]
