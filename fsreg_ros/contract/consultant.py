@@ -30,19 +30,47 @@ from .wm import Origin
 Cause = Literal["speaker", "rr", "reg-distractor"]
 
 
+class RestoredState(Message):
+    """What a consultant took up from its state database at start (its ``restored`` stored state).
+
+    ``fresh``: nothing (the scenario alone); ``runtime_entities`` / ``runtime_facts``: the
+    facts asserted at run time it restored (``runtime_facts`` counts properties, on
+    entities of the KB and runtime ones); ``queues``: the WM queues restored (after the
+    first configure dropped them as of another clock or run, they count in
+    ``queues_dropped``); ``run``: the incarnation that wrote the state (null: a new
+    database); ``clock`` and ``latest``: its clock epoch (the kind of clock WM was stored
+    on, and the latest time it reflects, seconds); ``moved_aside``: where a reset moved
+    the old database; ``migrated`` / ``dropped``: it was written for another KB, and
+    how many items could not be kept.
+    """
+
+    fresh: bool
+    runtime_entities: int
+    runtime_facts: int
+    queues: int
+    run: Optional[int] = None
+    clock: Optional[str] = None
+    latest: Optional[Number] = None
+    queues_dropped: Optional[int] = None
+    moved_aside: Optional[str] = None
+    migrated: Optional[bool] = None
+    dropped: Optional[int] = None
+
+
 class StoredState(Message):
     """What a consultant reports of its stored state (``info``, announcements, ``configure``).
 
     ``wm``: ``restored`` (WM taken up from the database), ``dropped`` (it belonged to
     another clock or run: see ``note``), ``empty`` or ``not-persisted``; ``persisted``
     false while writes to the database fail (``error`` says why): the consultant
-    serves on and retries.
+    serves on and retries; ``restored``: what was taken up at start (:class:`RestoredState`).
     """
 
     wm: str
     persisted: bool
     note: Optional[str] = None
     error: Optional[str] = None
+    restored: Optional[RestoredState] = None
 
 
 class ConsultantAnnounce(Message):
@@ -386,6 +414,30 @@ class SizeReply(Message):
     size: int
 
 
+class ResetRequest(Message):
+    """Manage op ``reset`` (``fsreg-ctl state reset``): move the state database aside, start from the KB again.
+
+    The consultant re-reads its KB file, moves its database aside (never deleting it),
+    and serves as a new incarnation (not ready until the WM Manager configures it).
+    """
+
+    op: Literal["reset"]
+    client: Optional[str] = None
+
+
+class ResetReply(Message):
+    """Reply to ``reset``: the new incarnation, where the old database went, what it held, the new stored state.
+
+    ``cleared``: what the state set aside held (``runtime_entities``, ``runtime_facts``:
+    properties whose certainty differed from the KB's, ``queues``: non-empty WM queues).
+    """
+
+    incarnation: int
+    moved_aside: Optional[str] = None
+    cleared: dict[str, int]
+    state: StoredState
+
+
 # ------------------------------------------------------------------ by op
 #: Each service's ops: op -> (request schema, reply schema).
 CONSULTANT_OPS: dict[str, tuple[type[Message], type[Message]]] = {
@@ -409,6 +461,7 @@ MANAGE_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "advance": (AdvanceRequest, AdvanceReply),
     "evict": (EvictRequest, EvictReply),
     "size": (SizeRequest, SizeReply),
+    "reset": (ResetRequest, ResetReply),
 }
 
 ConsultantRequest = Annotated[Union[InfoRequest, OpenRequest, NarrowRequest, WalkRequest, RuleOutRequest,
@@ -417,6 +470,6 @@ ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, WalkReply, RuleOutRep
 DebugRequest = Annotated[Union[HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest],
                          Field(discriminator="op")]
 DebugReply = Union[HoldsReply, QueueReply, EncodeReply, SnapshotReply]
-ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, AdvanceRequest, EvictRequest, SizeRequest],
-                          Field(discriminator="op")]
-ManageReply = Union[ConfigureReply, DecayReply, AdvanceReply, EvictReply, SizeReply]
+ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, AdvanceRequest, EvictRequest, SizeRequest,
+                                ResetRequest], Field(discriminator="op")]
+ManageReply = Union[ConfigureReply, DecayReply, AdvanceReply, EvictReply, SizeReply, ResetReply]

@@ -292,7 +292,9 @@ def _serve_size(s: ConsultantService, req: Mapping[str, Any], client: str) -> di
     return {"size": len(s.buffer)}
 
 
+#: Ops the consultant node serves itself, not the service: ``reset`` replaces the service (a new incarnation).
+NODE_OPS = frozenset({"reset"})
 #: The consultant's side of each op (its request decoded, the service's typed call, its reply encoded).
 _SERVE: dict[str, Callable[[ConsultantService, Mapping[str, Any], str], dict]] = {
-    op: globals()[f"_serve_{op}"] for op in ALL_OPS
+    op: globals()[f"_serve_{op}"] for op in ALL_OPS if op not in NODE_OPS
 }

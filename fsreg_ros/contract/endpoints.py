@@ -75,7 +75,8 @@ LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply
 
 CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant",
                      "reference_resolution, reg")
-MANAGE = Service("consultant/<domain>/manage", ManageRequest, ManageReply, "consultant", "wm_manager only")
+MANAGE = Service("consultant/<domain>/manage", ManageRequest, ManageReply, "consultant",
+                 "wm_manager (and fsreg-ctl state reset: op reset)")
 DEBUG = Service("consultant/<domain>/debug", DebugRequest, DebugReply, "consultant (parameter debug)", "tests, tools")
 SYNC = Service("wm_manager/sync", SyncRequest, SyncReply, "wm_manager", "dialogue_player")
 STATUS = Service("wm_manager/status", StatusRequest, StatusReply, "wm_manager", "anyone")

@@ -6,6 +6,7 @@ from typing import Any, Optional
 
 from .base import Message, Number
 from .policy import PolicySettings
+from .consultant import RestoredState
 
 
 class SyncRequest(Message):
@@ -40,7 +41,9 @@ class StatusReply(Message):
     (null without decay); ``ready``: every domain configured (as on ``wm_manager/ready``);
     ``graph``: the WM Manager's graph identity; ``reachable``: each consultant's liveliness
     (``consultant/<domain>/alive``; null until heard of; false while it lapsed, and then
-    the domain is not configured either, under every policy).
+    the domain is not configured either, under every policy); ``restored``: what each
+    consultant's current incarnation took up from its state database at start
+    (:class:`~fsreg_ros.contract.consultant.RestoredState`; null until it announced itself).
     """
 
     time: Number
@@ -53,6 +56,7 @@ class StatusReply(Message):
     ready: Optional[bool] = None
     graph: Optional[str] = None
     reachable: Optional[dict[str, Optional[bool]]] = None
+    restored: Optional[dict[str, Optional[RestoredState]]] = None
 
 
 class DomainReadiness(Message):

@@ -78,6 +78,7 @@ class Consultant:
         sink: Optional[EventSink] = None,
         attributes: Optional[Mapping[str, str]] = None,
         retract_on_update: bool = True,
+        exclusive: Sequence[Sequence[str]] = (),
     ) -> None:
         """Build a domain's consultant.
 
@@ -85,6 +86,9 @@ class Consultant:
         a property named ``attribute=value`` needs no entry.  ``retract_on_update``
         False leaves WM alone when an LTM change makes a property stop holding (WM
         is not told of LTM changes; only forgetting clears such a property).
+        ``exclusive`` lists groups of properties that exclude each other (the scenario's
+        ``exclusive:`` block); the values ``attr=v1``, ``attr=v2``, ... of one attribute
+        named so form a group without being listed (:func:`exclusive_groups`).
         """
         self.domain = domain
         self.preference: list[str] = list(preference)
@@ -100,6 +104,11 @@ class Consultant:
         self._rebuild_holders()
         self.version = 0
         self.retract_on_update = retract_on_update
+        #: property -> the other properties of its exclusive group (only properties in a group).
+        self.excludes: dict[str, tuple[str, ...]] = {}
+        for group in exclusive_groups(self.preference, exclusive, domain):
+            for prop in group:
+                self.excludes[prop] = tuple(p for p in group if p != prop)
         self.wm = WMBuffer(domain, sink, attributes)
 
     # ----------------------------------------------------------------- LTM
@@ -119,6 +128,22 @@ class Consultant:
         self._require_entity(entity)
         facts = self._certainty[entity]
         return [p for p in self.preference if facts.get(p, 0.0) >= self.threshold]
+
+    def differences(self, kb: Mapping[str, Mapping[str, float]]) -> dict[str, int]:
+        """Count what LTM holds beyond the KB ``kb`` (entity -> facts): ``runtime_entities``, ``runtime_facts``.
+
+        A runtime fact is a property whose certainty differs from the KB's (asserted,
+        changed or retracted at run time), on any entity.
+        """
+        entities = facts = 0
+        for entity in self.entities:
+            mine, given = self._certainty[entity], kb.get(entity)
+            if given is None:
+                entities += 1
+                facts += len(mine)
+            elif mine != given:
+                facts += sum(mine.get(p, 0.0) != given.get(p, 0.0) for p in set(mine) | set(given))
+        return {"runtime_entities": entities, "runtime_facts": facts}
 
     def queue(self, entity: str) -> list[str]:
         """Return the WM queue of a known entity, LRU first (reading never refreshes)."""
@@ -249,11 +274,12 @@ class Consultant:
                     retracted.append((entity, prop))
         return retracted
 
-    def preview_assert(self, entity: str, facts: Mapping[str, Any]) -> tuple[bool, list[str]]:
+    def preview_assert(self, entity: str, facts: Mapping[str, Any], exclude: bool = True) -> tuple[bool, list[str]]:
         """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
-        properties are in preference order; they are forgotten from WM only when
+        properties are in preference order, including those an asserted property
+        excludes (:meth:`effective_update`); they are forgotten from WM only when
         ``retract_on_update`` is True.
         """
         if not isinstance(entity, str) or not entity:
@@ -261,35 +287,70 @@ class Consultant:
         if not isinstance(facts, Mapping) or not facts:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
+        effective = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         new = entity not in self._certainty
         if new:
             return new, []
         current = self._certainty[entity]
-        after = {**current, **{p: float(c) for p, c in facts.items()}}
+        after = {**current, **effective}
         threshold = self.threshold
         return False, [p for p in self.preference
                        if current.get(p, 0.0) >= threshold and after.get(p, 0.0) < threshold]
 
-    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
+    def effective_update(self, entity: str, facts: Mapping[str, Any]) -> dict[str, float]:
+        """Return the LTM update ``facts`` makes for ``entity`` (checked facts): the facts, then what they exclude.
+
+        A property asserted to hold (certainty > 0 and >= the threshold) retracts the
+        other properties of its exclusive group that the entity has (certainty > 0,
+        holding or not) and the update does not name: they are set to 0, after the
+        given facts.  Two properties of one group asserted to hold in one update
+        contradict each other: KnowledgeError (kind ``contradiction``), nothing changes.
+        """
+        values = {p: float(c) for p, c in facts.items()}
+        if not self.excludes:
+            return values
+        threshold = self.threshold
+        current = self._certainty.get(entity, {})
+        excluded: dict[str, float] = {}
+        for prop, c in values.items():
+            others = self.excludes.get(prop)
+            if not others or c <= 0.0 or c < threshold:
+                continue
+            for other in others:
+                given = values.get(other)
+                if given is not None:
+                    if given > 0.0 and given >= threshold:
+                        raise KnowledgeError(
+                            f"domain '{self.domain}', entity '{entity}': '{prop}' and '{other}' exclude each other "
+                            "and are both asserted to hold", kind="contradiction")
+                elif current.get(other, 0.0) > 0.0:
+                    excluded[other] = 0.0
+        return {**values, **excluded}
+
+    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float, exclude: bool = True) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
-        a fact; a property that stops holding is also forgotten from Q[entity]
-        (cause ``retract``) unless ``retract_on_update`` is False (the follow-up study's
-        configuration: WM not told of LTM changes); ``retracted`` lists those
-        properties either way.  Everything is validated (:meth:`preview_assert`)
-        before anything changes.
+        a fact; a property asserted to hold also retracts the others of its
+        exclusive group (:meth:`effective_update`; ``updated`` lists them with
+        certainty 0).  A property that stops holding is also forgotten from
+        Q[entity] (cause ``retract``) unless ``retract_on_update`` is False (the
+        follow-up study's configuration: WM not told of LTM changes); ``retracted``
+        lists those properties either way.  Everything is validated
+        (:meth:`preview_assert`) before anything changes.  ``exclude`` False applies
+        the facts as given (a restore: the stored facts carry their exclusions already).
         """
-        new, retracted = self.preview_assert(entity, facts)
+        new, retracted = self.preview_assert(entity, facts, exclude)
+        update = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         if new:
             self._index[entity] = len(self.entities)
             self.entities.append(entity)
             self._certainty[entity] = {}
         current = self._certainty[entity]
         bit = 1 << self._index[entity]
-        for prop, c in facts.items():
+        for prop, c in update.items():
             if c > 0:
-                current[prop] = float(c)
+                current[prop] = c
             else:
                 current.pop(prop, None)
             if current.get(prop, 0.0) >= self.threshold:
@@ -299,7 +360,7 @@ class Consultant:
         self.version += 1
         for prop in retracted if self.retract_on_update else ():
             self.wm.remove(entity, prop, "retract", time)
-        return AssertResult(entity, new, {p: float(c) for p, c in facts.items()}, retracted)
+        return AssertResult(entity, new, update, retracted)
 
     # ------------------------------------------------------------ internals
     def _check_facts(self, entity: str, facts: Mapping[str, Any]) -> None:
@@ -395,6 +456,48 @@ class CandidateSet:
     @property
     def size(self) -> int:
         return self.members.bit_count()
+
+
+def exclusive_groups(preference: Sequence[str], declared: Sequence[Sequence[str]] = (),
+                     domain: str = "") -> list[tuple[str, ...]]:
+    """Return a domain's exclusive groups: the ``declared`` ones, then one per attribute named ``attr=value``.
+
+    The values of an attribute named so (``colour=red``, ``colour=blue``) exclude each
+    other by default; a declared group may not hold such a value, name a property
+    outside ``preference``, repeat one, or have fewer than two (KnowledgeError; a
+    scenario file's checks say the same with file and line).
+    """
+    known = set(preference)
+    groups: list[tuple[str, ...]] = []
+    seen: dict[str, int] = {}
+    where = f"domain '{domain}': " if domain else ""
+    for k, group in enumerate(declared):
+        group = tuple(group)
+        if len(set(group)) < 2:
+            raise KnowledgeError(f"{where}exclusive group {k} needs at least two distinct properties, got "
+                                 f"{list(group)}")
+        for prop in group:
+            if prop not in known:
+                raise KnowledgeError(f"{where}exclusive group {k} names unknown property '{prop}'",
+                                     kind="unknown-property")
+            if prop in seen or implied_attribute(prop) is not None:
+                other = f"group {seen[prop]}" if prop in seen else f"the values of '{implied_attribute(prop)}'"
+                raise KnowledgeError(f"{where}property '{prop}' of exclusive group {k} is already in {other}")
+            seen[prop] = k
+        groups.append(group)
+    by_attribute: dict[str, list[str]] = {}
+    for prop in preference:
+        attribute = implied_attribute(prop)
+        if attribute is not None:
+            by_attribute.setdefault(attribute, []).append(prop)
+    groups.extend(tuple(values) for values in by_attribute.values() if len(values) > 1)
+    return groups
+
+
+def implied_attribute(prop: str) -> Optional[str]:
+    """Return ``attr`` for a property named ``attr=value`` (both non-empty), else None."""
+    attribute, sep, value = prop.partition("=")
+    return attribute if sep and attribute and value else None
 
 
 def check_certainty(what: str, value: Any) -> float:

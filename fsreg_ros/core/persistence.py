@@ -25,6 +25,7 @@ Durability by kind of data: docs/deployment.md, "State".
 from __future__ import annotations
 
 import math
+from datetime import datetime, timezone
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Protocol, Sequence
 
@@ -58,7 +59,15 @@ class Served(Protocol):
 
 @dataclass
 class Restored:
-    """What :meth:`Persistence.restore` found and kept."""
+    """What :meth:`Persistence.restore` found and kept.
+
+    ``run`` is the incarnation that wrote the state taken up (None: nothing was stored,
+    the database is new or was moved aside, ``fresh``); ``clock`` and ``latest`` its
+    clock epoch (the kind of clock WM was stored on, and the time it reflects);
+    ``moved_aside`` where a reset put the old database.  ``queues`` counts the WM
+    queues restored; when the first configure drops them (another clock or run,
+    :meth:`Persistence.settle_epoch`) they move to ``queues_dropped``.
+    """
 
     incarnation: int
     runtime_entities: int = 0
@@ -68,17 +77,53 @@ class Restored:
     dropped: list[str] = field(default_factory=list)  # what a migration could not keep
     migrated: bool = False
     backup: Optional[str] = None
+    run: Optional[int] = None
+    clock: Optional[str] = None
+    latest: Optional[float] = None
+    moved_aside: Optional[str] = None
+    queues_dropped: int = 0
+
+    @property
+    def fresh(self) -> bool:
+        """Whether nothing was taken up: the scenario alone."""
+        return not (self.runtime_entities or self.runtime_facts or self.queues or self.queues_dropped)
 
     def summary(self) -> str:
         """Return one log line."""
         text = (f"incarnation {self.incarnation}, {self.runtime_entities} runtime entities, "
                 f"{self.runtime_facts} runtime facts, {self.queues} WM queues ({self.records} journal records)")
+        if self.run is not None:
+            text += f", stored by incarnation {self.run}" + (f" on the {self.clock} clock" if self.clock else "") + (
+                f" up to {time_text(self.clock, self.latest)}" if self.latest is not None else "")
+        if self.moved_aside:
+            text += f"; the old state moved aside to {self.moved_aside}"
         if self.migrated:
             text += (f"; written for another KB: migrated, {len(self.dropped)} dropped"
                      + (f" ({'; '.join(self.dropped[:10])}{'; ...' if len(self.dropped) > 10 else ''})"
                         if self.dropped else "")
                      + (f", the old database kept as {self.backup}" if self.backup else ""))
         return text
+
+    def to_json(self) -> dict:
+        """Return what announcements and ``wm_manager/status`` carry (``restored`` of the stored state)."""
+        out: dict[str, Any] = {"fresh": self.fresh, "runtime_entities": self.runtime_entities,
+                               "runtime_facts": self.runtime_facts, "queues": self.queues,
+                               "run": self.run, "clock": self.clock, "latest": self.latest}
+        if self.queues_dropped:
+            out["queues_dropped"] = self.queues_dropped
+        if self.moved_aside:
+            out["moved_aside"] = self.moved_aside
+        if self.migrated:
+            out["migrated"] = True
+            out["dropped"] = len(self.dropped)
+        return out
+
+
+def time_text(clock: Optional[str], t: float) -> str:
+    """Return a time of a clock epoch for people: ``t=12.5 s`` (sim time), ``2026-11-26 19:30:12 UTC`` (system)."""
+    if clock == "system" and t > 1e8:
+        return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return f"t={t:g} s"
 
 
 class Persistence:
@@ -109,11 +154,14 @@ class Persistence:
         self._failed_at = -math.inf
         self._clock_saved = False
         self._clear_stored = False  # the next checkpoint deletes every stored queue first
+        self.restored: Optional[Restored] = None  # what restore took up (reported in status)
 
     # ============================================================ status
     def status(self) -> dict:
         """Return what ``info`` and the announcement report of the stored state."""
         out: dict[str, Any] = {"wm": self.wm_state, "persisted": self.persisted}
+        if self.restored is not None:
+            out["restored"] = self.restored.to_json()
         if self.wm_note:
             out["note"] = self.wm_note
         if self.store_error:
@@ -155,6 +203,12 @@ class Persistence:
         migrate = state.other_kb
         path = self.store.path if self.store is not None else "state"
         report = Restored(state.incarnation, migrated=migrate)
+        if not state.created:  # a database this program wrote before: its last writer and clock epoch
+            report.run = state.incarnation - 1
+            report.clock = state.clock
+            report.latest = state.latest if math.isfinite(state.latest) else None
+        if state.moved_aside is not None:
+            report.moved_aside = str(state.moved_aside)
         served.incarnation = state.incarnation
         kb_entities = list(served.consultant.entities)  # before any runtime entity joins
         if state.kb_entities is None and self.recording:
@@ -183,6 +237,9 @@ class Persistence:
             self._unsaved.clear()
             self._journal_ok, self._journal_rows, self._journal_names = True, 0, 0
         report.queues = len(buffer.nonempty_entities())
+        if report.latest is not None or report.records:  # the journal's records carry their own times
+            report.latest = served.latest if math.isfinite(served.latest) else report.latest
+        self.restored = report
         return report
 
     def _restore_facts(self, state: StoreContents, report: Restored, path: Any) -> dict[str, dict[str, float]]:
@@ -209,7 +266,7 @@ class Persistence:
                     report.dropped.append(f"{entity}: none of its facts is valid")
                 continue
             try:
-                c.assert_facts(entity, facts, 0.0)
+                c.assert_facts(entity, facts, 0.0, exclude=False)  # as stored: exclusions were stored with them
             except KnowledgeError as err:
                 if not migrate:
                     raise damaged(path, f"a stored fact about {entity!r}: {err}") from None
@@ -303,6 +360,8 @@ class Persistence:
         else:
             return
         stamp, ticks = buffer.counters()
+        if self.restored is not None:
+            self.restored.queues_dropped, self.restored.queues = self.restored.queues, 0
         buffer.restore({}, stamp, ticks, buffer.limits)
         buffer.take_changes()
         served.decay_until = -math.inf

@@ -197,7 +197,7 @@ class ConsultantService:
             new, stopped = self.consultant.preview_assert(entity, facts)
             retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
             _check_storable([entity, *facts])
-            values = {p: float(c) for p, c in facts.items()}
+            values = self.consultant.effective_update(entity, facts)  # with what it excludes, at 0
             self.persistence.store_facts(entity, values, new, retracted, when)  # fsynced first
             result = self.consultant.assert_facts(entity, facts, when)
             self.touch(when, wm=bool(retracted))

@@ -150,10 +150,15 @@ def legacy_state_path(base: Path, node_name: str, domain: str) -> Path:
 
 
 def fingerprint(preference: Sequence[str], entities: Mapping[str, Mapping[str, float]], threshold: float,
-                attributes: Mapping[str, str]) -> str:
-    """Return a digest of a domain's KB: a store made for another KB is migrated, not reused as is."""
-    text = json.dumps([list(preference), {e: dict(f) for e, f in entities.items()}, threshold, dict(attributes)],
-                      sort_keys=True)
+                attributes: Mapping[str, str], exclusive: Sequence[Sequence[str]] = ()) -> str:
+    """Return a digest of a domain's KB: a store made for another KB is migrated, not reused as is.
+
+    Declared ``exclusive`` groups count only when there are some (a KB without any keeps its digest).
+    """
+    kb: list = [list(preference), {e: dict(f) for e, f in entities.items()}, threshold, dict(attributes)]
+    if exclusive:
+        kb.append([list(group) for group in exclusive])
+    text = json.dumps(kb, sort_keys=True)
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
 
 
@@ -233,13 +238,15 @@ class DomainStore:
         self._lock_id: tuple[int, int] = (0, 0)
 
     # ---------------------------------------------------------------- opening
-    def open(self, reset: bool = False) -> StoreContents:
+    def open(self, reset: bool = False, after: int = 0) -> StoreContents:
         """Lock, check and open the database (creating it on first use); count a new incarnation.
 
         ``reset`` moves an existing database aside (``<file>.<time>.old``) and starts
-        afresh.  Raises :class:`StateInUse` when another process holds it,
-        :class:`StateDamaged` when it is not what this program wrote, and
-        :class:`StoreError` for any other I/O problem; the message names the file.
+        afresh; the new incarnation is above ``after`` too (a reset while serving
+        keeps the numbering going up, so everyone sees a new incarnation).  Raises
+        :class:`StateInUse` when another process holds it, :class:`StateDamaged` when
+        it is not what this program wrote, and :class:`StoreError` for any other I/O
+        problem; the message names the file.
         """
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -255,7 +262,7 @@ class DomainStore:
                 raise damaged(self.path, "the file is empty (0 bytes), so the runtime facts it held are gone")
             found = self._connect()
             with self._tx() as db:
-                incarnation = int(self._meta("incarnation") or 0) + 1
+                incarnation = max(int(self._meta("incarnation") or 0), after) + 1
                 self._put(db, "incarnation", incarnation)
             state = self._read(incarnation)
         except StoreError:

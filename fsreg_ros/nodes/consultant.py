@@ -80,7 +80,7 @@ class ConsultantNode(Node):
         threshold = declare_number(self, "threshold", float(spec.threshold), 0.0, 1.0,
                                    "a property holds iff its certainty >= threshold (default: the KB's)")
         self.limits = declare_limits(self)
-        sessions = ViewTable(
+        self._session_limits = (
             declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000, "open RR/REG sessions kept at most",
                            integer=True, read_only=True),
             declare_number(self, "session_timeout", DEFAULT_TIMEOUT, 0.01, 3600.0,
@@ -92,37 +92,25 @@ class ConsultantNode(Node):
                                             "least time between two /wm/state messages (s, steady clock)",
                                             read_only=True)
         state_dir = self._text("state_dir", "directory of the state databases ('' = $XDG_STATE_HOME/fsreg_ros)")
-        persist_wm = self._flag("persist_wm", True, "also keep WM in the state database (false: facts and policy)")
+        self._persist_wm = self._flag("persist_wm", True,
+                                      "also keep WM in the state database (false: facts and policy)")
         reset = self._flag("reset_state", False, "move the state database aside at start and begin afresh")
         debug = self._flag("debug", False, "serve consultant/<domain>/debug (holds, affirm, wm, encode, snapshot)")
-        retract = self._flag("retract_on_update", True,
-                             "an LTM change that makes a property stop holding removes it from WM")
+        self._retract = self._flag("retract_on_update", True,
+                                   "an LTM change that makes a property stop holding removes it from WM")
         self.domain = domain
-        consultant = Consultant(domain, spec.entities, spec.preference, threshold, attributes=spec.attributes,
-                                retract_on_update=retract)
+        self._kb = kb
         base = Path(state_dir).expanduser() if state_dir else default_state_dir()
-        path = state_path(base, self.context.get_domain_id(), self.get_fully_qualified_name(), domain)
-        store = DomainStore(path, fingerprint(spec.preference, spec.entities, spec.threshold, spec.attributes))
-        clock = "sim" if self.get_parameter("use_sim_time").value else "system"
-        self.service = ConsultantService(consultant, sessions=sessions, store=store, persist_wm=persist_wm,
-                                         clock=clock, now=self.now)
-        try:
-            stored = store.open(reset=reset)
-            restored = self.service.restore(stored)
-        except StoreError as err:
-            store.close()
-            raise StartupError(str(err)) from None
+        self._state_path = state_path(base, self.context.get_domain_id(), self.get_fully_qualified_name(), domain)
+        self._spec = spec
+        self.service = self._open_state(spec, threshold, reset)
+        consultant = self.service.consultant
         log = self.get_logger()
-        if stored.moved_aside is not None:
-            log.warning(f"reset_state: {path} moved to {stored.moved_aside}; starting afresh")
         legacy = legacy_state_path(base, self.get_fully_qualified_name(), domain)
-        if stored.created and legacy.exists():
-            log.warning(f"a state database from before ROS domain ids were part of the path is at {legacy}; "
-                        f"not used: move it to {path} if it belongs to this robot")
-        if restored.migrated:
-            log.warning(printable(f"state {path}: {restored.summary()}", 4000))
-        else:
-            log.info(printable(f"state {path}: {restored.summary()}"))
+        if self.service.persistence.restored.run is None and legacy.exists():  # a database created now
+            log.warning(
+                f"a state database from before ROS domain ids were part of the path is at {legacy}; "
+                f"not used: move it to {self._state_path} if it belongs to this robot")
         self.service.maintain()  # compact a replayed journal now
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
@@ -135,7 +123,8 @@ class ConsultantNode(Node):
         if debug:
             services.append((contract.DEBUG, contract.DEBUG_OPS))
         for service, ops in services:  # each request validated once, by serve(), against its op's schema
-            serve(self, service, {op: partial(self._call, op) for op in ops}, limits=self.limits, domain=domain)
+            serve(self, service, {op: self._reset if op == "reset" else partial(self._call, op) for op in ops},
+                  limits=self.limits, domain=domain)
         subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, limits=self.limits,
                   accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain)
         self.add_post_set_parameters_callback(self._after_set_parameters)
@@ -151,6 +140,72 @@ class ConsultantNode(Node):
         self.announce()
         log.info(f"consultant of '{domain}': {len(consultant.entities)} entities, {len(consultant.preference)} "
                  f"properties, threshold {threshold:g}, from {kb}" + (" (debug service on)" if debug else ""))
+
+    def _open_state(self, spec, threshold: float, reset: bool, after: int = 0) -> ConsultantService:
+        """Build the domain's consultant from ``spec`` and take up its state database (``reset``: moved aside first).
+
+        Raises StartupError naming the database when it cannot be used; logs what was restored.
+        """
+        consultant = Consultant(self.domain, spec.entities, spec.preference, threshold, attributes=spec.attributes,
+                                retract_on_update=self._retract, exclusive=spec.exclusive)
+        path = self._state_path
+        kb_digest = fingerprint(spec.preference, spec.entities, spec.threshold, spec.attributes, spec.exclusive)
+        store = DomainStore(path, kb_digest)
+        clock = "sim" if self.get_parameter("use_sim_time").value else "system"
+        service = ConsultantService(consultant, sessions=ViewTable(*self._session_limits), store=store,
+                                    persist_wm=self._persist_wm, clock=clock, now=self.now)
+        try:
+            stored = store.open(reset=reset, after=after)
+            restored = service.restore(stored)
+        except StoreError as err:
+            store.close()
+            raise StartupError(str(err)) from None
+        log = self.get_logger()
+        if stored.moved_aside is not None:
+            log.warning(f"reset_state: {path} moved to {stored.moved_aside}; starting afresh")
+        if restored.migrated:
+            log.warning(printable(f"state {path}: {restored.summary()}", 4000))
+        else:
+            log.info(printable(f"state {path}: {restored.summary()}"))
+        return service
+
+    def _reset(self, request: dict) -> dict:
+        """Manage op ``reset``: set the state database aside, serve the KB file's domain afresh (a new incarnation).
+
+        The KB file is read again (a file that no longer loads, or lost the domain, is
+        refused and nothing changes); the old state is checkpointed, its database moved
+        aside (never deleted), WM and the runtime facts are gone, and the new incarnation
+        is announced (not ready until the WM Manager configures it).
+        """
+        try:
+            spec = load_scenario(self._kb).domains.get(self.domain)
+        except (ScenarioError, OSError) as err:
+            raise MessageError(f"reset refused, nothing changed: {err}") from None
+        if spec is None:
+            raise MessageError(f"reset refused, nothing changed: {self._kb} has no domain '{self.domain}' any more")
+        old = self.service
+        cleared = {**old.consultant.differences(self._spec.entities),
+                   "queues": len(old.buffer.nonempty_entities())}
+        threshold = float(self.get_parameter("threshold").value)
+        old.shutdown()  # a last checkpoint: the database set aside holds everything
+        try:
+            self.service = self._open_state(spec, threshold, reset=True, after=old.incarnation)
+        except StartupError as err:  # the old database is still in place: serve it again
+            self.get_logger().error(printable(f"reset failed: {err}; serving the old state again"))
+            self.service = self._open_state(self._spec, threshold, reset=False, after=old.incarnation)
+            raise CarrierError(printable(f"reset failed: {err}; the old state is served again"),
+                               kind="not-stored") from None
+        self._spec = spec
+        self.service.maintain()
+        restored = self.service.persistence.restored
+        self.get_logger().warning(printable(
+            f"state reset by {request.get('client') or 'a client'}: {cleared['runtime_facts']} runtime facts, "
+            f"{cleared['queues']} WM queues set aside in {restored.moved_aside}; incarnation "
+            f"{self.service.incarnation} serves {self._kb} afresh"))
+        self.publish_state()
+        self.announce()
+        return {"incarnation": self.service.incarnation, "moved_aside": restored.moved_aside, "cleared": cleared,
+                "state": self.service.status()}
 
     # ----------------------------------------------------------------- calls
     def _call(self, op: str, request: dict) -> dict:

@@ -271,6 +271,8 @@ class WMManagerNode(Node):
         if dom is None:
             return  # not managed here
         incarnation = announce["incarnation"]
+        if incarnation == dom.incarnation or dom.incarnation is None or incarnation > dom.incarnation:
+            dom.restored = (announce.get("state") or {}).get("restored", dom.restored)
         if announce["ready"] and incarnation == dom.incarnation:
             dom.running = announce.get("memory")
             return
@@ -418,6 +420,7 @@ class WMManagerNode(Node):
             ready=self._all_configured(),
             graph=graph_identity(self),
             reachable={d: dom.alive for d, dom in self._domains.items()},
+            restored={d: dom.restored for d, dom in self._domains.items()},
         )
 
     def memory(self) -> dict[str, dict]:

@@ -78,6 +78,9 @@ ROBOT_ORDER = ROBOT_ORDERS[DOMAIN]
 PROPERTY_ATTRIBUTE = {
     value: a for attrs in DOMAIN_ATTRIBUTES.values() for a, values in attrs.items() for value in values
 }
+#: Each domain's exclusive groups: an entity has one value of each attribute, so its values exclude each other
+#: (a fact change names the old value with certainty 0 itself, so the exclusion retracts nothing more).
+EXCLUSIVE = {d: tuple(values for values in attrs.values()) for d, attrs in DOMAIN_ATTRIBUTES.items()}
 
 
 @dataclass(frozen=True)
@@ -129,7 +132,8 @@ class Game:
 
 
 def _consultant(domain: str, board: Mapping[str, Sequence[str]], order: Sequence[str]) -> Consultant:
-    return Consultant(domain, {e: {p: 1.0 for p in props} for e, props in board.items()}, order)
+    return Consultant(domain, {e: {p: 1.0 for p in props} for e, props in board.items()}, order,
+                      exclusive=EXCLUSIVE[domain])
 
 
 def _draw_change(rng: random.Random, time: float, world: Mapping[str, dict]) -> Optional[Change]:
@@ -216,7 +220,8 @@ def scenario_of(game: Game) -> Scenario:
         entities = {e: {p: 1.0 for p in props} for e, props in board.items()}
         # The attributes let attribute-similarity interference (rule ``similarity``) act.
         attributes = {p: PROPERTY_ATTRIBUTE[p] for p in ROBOT_ORDERS[domain]}
-        domains[domain] = DomainSpec(domain, ROBOT_ORDERS[domain], entities, attributes=attributes)
+        domains[domain] = DomainSpec(domain, ROBOT_ORDERS[domain], entities, attributes=attributes,
+                                     exclusive=EXCLUSIVE[domain])
     dialogue = tuple(
         Turn(i, time, speaker, target=target, description=said, domain=domain if speaker == "human" else None)
         for i, (speaker, time, target, domain, said) in enumerate(game.turns)

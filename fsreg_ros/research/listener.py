@@ -170,7 +170,7 @@ class Listener:
     """
 
     def __init__(self, game: Any, options: ListenerOptions, memory: Optional[Mapping[str, Any]] = None) -> None:
-        from .games import scenario_of
+        from .games import EXCLUSIVE, scenario_of
 
         self.options = options
         boards, self.errors = perceive(game.boards, game.seed, options.missing, options.noise)
@@ -180,7 +180,8 @@ class Listener:
         scenario = scenario_of(game) if memory is not None else None
         for domain, board in boards.items():
             order = listener_order(options.order_name(), domain, game.human_orders[domain])
-            self.consultants[domain] = Consultant(domain, {e: {p: 1.0 for p in ps} for e, ps in board.items()}, order)
+            self.consultants[domain] = Consultant(domain, {e: {p: 1.0 for p in ps} for e, ps in board.items()}, order,
+                                                  exclusive=EXCLUSIVE[domain])
             if scenario is not None:
                 policy = scenario.policy_for(domain, dict(memory))  # type: ignore[arg-type]
                 self.manager.manage(self.consultants[domain].wm, policy, now=0.0)

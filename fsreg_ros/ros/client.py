@@ -497,6 +497,24 @@ class GraphClient:
                               f"{describe_graph(self.graph)}) in {self.where()}", "foreign")
         return reply
 
+    def reset_state(self, domain: str, timeout: Optional[float] = None) -> dict:
+        """Ask ``domain``'s consultant to set its state aside and start from its KB again (manage op ``reset``).
+
+        Sent once (not idempotent: never resent); its reply (``incarnation``, ``moved_aside``,
+        ``cleared``, ``state``) or ClientError.  The consultant then serves as a new
+        incarnation, ready once the WM Manager configured it (:meth:`wait_ready`).
+        """
+        timeout = self.timeout if timeout is None else timeout
+        name = contract.manage_service(domain)
+        client = self.service(name)
+        self.spin_until(client.ready, timeout, f"service {self.node.resolve_service_name(name)} is not available",
+                        "not-ready")
+        future = client.send({"op": "reset", "client": self.node.get_fully_qualified_name()})
+        try:
+            return self.run(client.result(future, timeout), timeout + 1.0, f"service {name}")
+        except CarrierError as err:
+            raise ClientError(printable(str(err)), err.kind) from None
+
     def sync(self, t: float, timeout: Optional[float] = None) -> dict:
         """Call the WM Manager's barrier: every decay tick due at or before ``t`` applied (docs/design.md)."""
         return self.call(contract.SYNC.name, {"time": t}, timeout)

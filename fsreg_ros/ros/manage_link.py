@@ -38,6 +38,7 @@ class ConsultantLink:
     inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
     incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
     running: Optional[dict] = None  # the policy it acknowledged or announced
+    restored: Optional[dict] = None  # what its incarnation restored at start (its stored state's ``restored``)
     #: Its liveliness on ``consultant/<domain>/alive`` (1 s lease): None until heard of, False while lapsed.
     alive: Optional[bool] = None
     alive_sub: Any = None
@@ -84,6 +85,7 @@ class ManageLinks:
             link.running = reply.get("memory")
             if isinstance(reply.get("incarnation"), int):
                 link.incarnation = reply["incarnation"]
+            link.restored = (reply.get("state") or {}).get("restored", link.restored)  # a first configure may drop WM
             if not link.configured:
                 self.node.get_logger().info(
                     f"consultant '{link.name}' (incarnation {link.incarnation}) configured: {link.running}")

@@ -9,6 +9,7 @@
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
     fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM now (the wm/state that shows every change)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
+    fsreg-ctl [--namespace NS] state reset [--yes]         set the stored state aside, start from the scenario
 
 Every command checks its arguments before anything is sent (numbers finite and in
 range, names and messages within the graph's limits, domains among those the graph
@@ -33,6 +34,12 @@ back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certa
 
 Commands are a table (:data:`COMMANDS`): adding one is one function registered with
 :func:`command` (its arguments, and what it needs: a ready graph, any graph, or none).
+
+``state reset``: every consultant moves its state database aside (never deleting it)
+and serves its scenario afresh (no runtime facts, empty WM), as a new incarnation; it
+asks for confirmation on the terminal unless ``--yes``, refuses without a terminal and
+without ``--yes`` (exit 2), and exits 1 when not confirmed.  It prints what each domain
+set aside and where, and returns once the graph is ready again.
 """
 
 from __future__ import annotations
@@ -54,6 +61,7 @@ from ..core import settings
 from ..core.decay import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
+from .up import restored_text
 from .view import check_port, serve_view
 
 PROG = "fsreg-ctl"
@@ -280,7 +288,8 @@ def show_status(status: dict) -> str:
             f"running {json.dumps(running, sort_keys=True)}, incarnation "
             f"{(status.get('incarnation') or {}).get(domain)}, "
             f"{'configured' if (status.get('configured') or {}).get(domain) else 'not configured'}"
-            + (f", next decay tick at {tick:g} s" if isinstance(tick, (int, float)) else ""))
+            + (f", next decay tick at {tick:g} s" if isinstance(tick, (int, float)) else "")
+            + f"; {restored_text((status.get('restored') or {}).get(domain))}")
     return "\n".join(lines)
 
 
@@ -750,6 +759,69 @@ def record(ctl: Ctl, client) -> int:
     counts = recorder.counts
     ctl.emit({"recorded": str(path), "messages": sum(counts.values()), "counts": counts},
              f"recorded {recorder.summary()}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------ state
+def _state_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("action", choices=["reset"], help="reset: move every state database aside (never deleted)")
+    parser.add_argument("--yes", action="store_true", help="do not ask for confirmation (needed without a terminal)")
+
+
+def check_state_args(args: argparse.Namespace, stdin=None) -> None:
+    """Refuse ``state reset`` without ``--yes`` when there is no terminal to confirm on (UsageError: exit 2)."""
+    stdin = sys.stdin if stdin is None else stdin
+    if not args.yes and not (stdin is not None and stdin.isatty()):
+        raise UsageError("state reset: no terminal to confirm on; add --yes to reset without asking")
+
+
+@command("state", "the consultants' stored state: 'reset' sets it aside and serves the scenario afresh",
+         arguments=_state_arguments, check=check_state_args)
+def state(ctl: Ctl, client) -> int:
+    """``state reset [--yes]`` (issue 28.6): :func:`run_state`."""
+    return run_state(client, ctl.args, ctl.emit, ctl.timeout)
+
+
+def run_state(client, args: argparse.Namespace, emit, timeout: float, ask=input) -> int:
+    """``state reset``: confirm, reset every domain's consultant, wait until the graph serves again; exit code.
+
+    Each consultant checkpoints, moves its database aside and serves its KB afresh as a
+    new incarnation (manage op ``reset``); this returns once the WM Manager configured
+    every new incarnation.  Not confirmed: nothing is sent, exit 1.
+    """
+    from ..ros.client import ClientError
+
+    domains = client.domains()
+    if not args.yes:
+        answer = ask(f"{PROG}: reset the stored state of {', '.join(domains)} in graph {client.graph} "
+                     f"({client.where()}): runtime facts and WM are set aside; continue? [y/N] ")
+        if answer.strip().lower() not in ("y", "yes"):
+            print(f"{PROG}: state reset not confirmed; nothing changed", file=sys.stderr)
+            return EXIT_ERROR
+    replies: dict[str, dict] = {}
+    client.notice_leaving = False  # each consultant is unready until configured again: expected, waited for below
+    for domain in domains:
+        try:
+            replies[domain] = client.reset_state(domain, timeout)
+        except ClientError as err:
+            done = f" ({', '.join(replies)} reset already)" if replies else ""
+            raise ClientError(f"state reset of '{domain}': {err}{done}", err.kind) from None
+
+    def serving() -> bool:
+        ready = client.readiness() or {}
+        states = ready.get("domains") or {}
+        return bool(ready.get("ready")) and all(
+            (states.get(d) or {}).get("incarnation") == reply["incarnation"] for d, reply in replies.items())
+
+    client.spin_until(serving, timeout, "the graph serving again after the state reset", "not-ready")
+    lines = []
+    for domain, reply in replies.items():
+        cleared = reply["cleared"]
+        lines.append(f"{domain}: set aside {cleared['runtime_facts']} runtime facts ({cleared['runtime_entities']} "
+                     f"runtime entities) and {cleared['queues']} WM queues"
+                     + (f", the old state moved to {reply['moved_aside']}" if reply.get("moved_aside") else "")
+                     + f"; incarnation {reply['incarnation']} serves the scenario afresh")
+    emit({"reset": replies}, "\n".join(lines))
     return EXIT_OK
 
 

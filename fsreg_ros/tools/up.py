@@ -1,7 +1,7 @@
 """``fsreg-up``: start the live node graph of a scenario's domains and keep it up.
 
-    fsreg-up SCENARIO [--namespace NS] [memory options] [--params-file FILE] [--state-dir DIR] [--wall-time]
-             [--view [PORT]] [--record DIR]
+    fsreg-up SCENARIO [--namespace NS] [memory options] [--params-file FILE] [--state-dir DIR] [--fresh]
+             [--wall-time] [--view [PORT]] [--record DIR]
 
 Starts one process per node, as ``fsreg-graph`` does (a ``consultant`` per domain of
 the scenario, the ``wm_manager`` with the scenario's memory settings and the command
@@ -11,7 +11,11 @@ looks for a graph already running in the namespace (a node of a graph's name, or
 Manager's readiness) and refuses with one line naming it.  Then it waits until every
 consultant is configured (``wm_manager/ready``) and every topic is matched, prints one
 line containing ``ready`` (the namespace, the graph's identity, the ROS domain, the
-clock and where to talk to it; ``--json``: one JSON object), and stays up.  Ctrl-C or
+clock, what each consultant restored from its state database -- runtime facts and WM
+queues, from which run and clock epoch -- or ``fresh``, and where to talk to it;
+``--json``: one JSON object), and stays up.  ``--fresh`` starts from the scenario alone:
+each consultant moves its state database aside (never deleting it; the ready line
+says where) instead of restoring it.  Ctrl-C or
 SIGTERM stops every node (SIGTERM to the process group, SIGKILL after a grace period;
 every node also dies with this process) and leaves no process behind; exit 0.
 
@@ -52,6 +56,7 @@ from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options
 from ..contract import normalise_namespace
 from ..core.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon
+from ..core.persistence import time_text
 from ..core.scenario import coverage_warning, load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
@@ -83,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
     parser.add_argument("--state-dir", type=Path, metavar="DIR",
                         help="the consultants' state directory (default: theirs, under $XDG_STATE_HOME/fsreg_ros)")
+    parser.add_argument("--fresh", action="store_true",
+                        help="start from the scenario alone: each consultant moves its state database aside "
+                             "(never deleted; the ready line says where) instead of restoring it")
     parser.add_argument("--wall-time", action="store_true", help="follow the system clock instead of /clock")
     parser.add_argument("--clock", metavar="TOPIC",
                         help="the clock topic to follow under sim time (default: /clock, or <namespace>/clock)")
@@ -102,8 +110,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def ready_report(graph_id: str, namespace: str, domain_id: int, memory: dict, clock: Optional[str],
-                 log_dir: Path, resolve) -> dict:
-    """Return what the ready line says, as data: identity, where, memory, clock, endpoints, logs."""
+                 log_dir: Path, resolve, restored: Optional[dict] = None) -> dict:
+    """Return what the ready line says, as data: identity, where, memory, clock, state, endpoints, logs.
+
+    ``restored``: per domain, what its consultant took up from its state database
+    (``wm_manager/status`` ``restored``; :class:`~fsreg_ros.contract.RestoredState`).
+    """
     topics = (contract.HUMAN, contract.RR_RESULT, contract.REG_REQUEST, contract.REG_EXPRESSION, contract.LTM_ASSERT,
               contract.LTM_ASSERT_RESULT, contract.WM_STATE, contract.WM_EVENTS, contract.READY)
     services = [contract.STATUS.name, contract.SYNC.name] + [contract.consultant_service(d) for d in memory]
@@ -114,6 +126,7 @@ def ready_report(graph_id: str, namespace: str, domain_id: int, memory: dict, cl
         "ros_domain_id": domain_id,
         "memory": memory,
         "clock": clock,
+        "restored": dict(restored or {}),
         "topics": {t.name: resolve(t.name) for t in topics},
         "services": {s: resolve(s) for s in services},
         "logs": str(log_dir),
@@ -129,10 +142,30 @@ def ready_line(report: dict) -> str:
     ctl = "fsreg-ctl" + (f" --namespace {ns}" if ns != "/" else "")
     endpoints = ", ".join(list(report["topics"].values()) + list(report["services"].values()))
     return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
-            f"{memory}; {clock}; endpoints {endpoints}; "
+            f"{memory}; {clock}; {state_text(report.get('restored') or {})}; endpoints {endpoints}; "
             f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch"
             + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}"
             + (f"; recording to {report['recording']}" if report.get("recording") else ""))
+
+
+def restored_text(r: Optional[dict]) -> str:
+    """Return what one consultant restored at start (its ``restored``): ``fresh (...)`` or ``restored ...``."""
+    if not r:
+        return "state unknown"
+    aside = f", the old state moved aside to {r['moved_aside']}" if r.get("moved_aside") else ""
+    if r.get("fresh"):
+        return f"fresh (the scenario alone{aside})"
+    epoch = ", ".join(x for x in (f"{r['clock']} clock" if r.get("clock") else "",
+                                  f"up to {time_text(r.get('clock'), r['latest'])}" if r.get("latest") is not None
+                                  else "") if x)
+    dropped = f" ({r['queues_dropped']} dropped: WM of another clock or run)" if r.get("queues_dropped") else ""
+    return (f"restored {r['runtime_facts']} runtime facts ({r['runtime_entities']} runtime entities), "
+            f"{r['queues']} WM queues{dropped} from run {r.get('run')}" + (f" ({epoch})" if epoch else "") + aside)
+
+
+def state_text(restored: dict) -> str:
+    """Return the ready line's state part: what each domain's consultant restored, or ``fresh``."""
+    return "state " + ("; ".join(f"{d}: {restored_text(r)}" for d, r in sorted(restored.items())) or "unknown")
 
 
 class Stop(Exception):
@@ -236,6 +269,10 @@ class Up:
             spec.parameters.update((file_params or {}).get(spec.name, {}))
         if memory is not None:
             self.memory = memory
+        if args.fresh:  # start from the scenario alone: each consultant moves its database aside
+            for spec in self.specs:
+                if spec.executable == "consultant":
+                    spec.parameters["reset_state"] = True
         self.graph: Optional[Graph] = None
         self.respawns: dict[str, int] = {}
 
@@ -266,9 +303,12 @@ class Up:
                 recorder = self._recorder(node)
             self.graph = Graph(self.specs, self.log_dir, self.env, self.namespace, clock=self.clock)
             self.graph.start()
+            for spec in self.specs:  # --fresh is for this start only: a respawned node takes up its state
+                spec.parameters.pop("reset_state", None)
             self._wait_ready(client)
+            restored = client.status().get("restored") or {}
             report = ready_report(self.graph_id, self.namespace, context.get_domain_id(), self.memory, self.clock,
-                                  self.log_dir, node.resolve_topic_name)
+                                  self.log_dir, node.resolve_topic_name, restored)
             view = self._start_view(client)
             if view is not None:
                 report["view"] = view.url

@@ -271,3 +271,82 @@ def test_raising_the_threshold_retracts_from_wm():
     assert c.holds("a", ["e1", "e2"]) == ["e2"]
     assert [(e.op, e.entity, e.property, e.cause, e.time) for e in events[-1:]] == [
         ("forget", "e1", "a", "retract", 2.0)]
+
+
+# ----------------------------------------------------------- exclusive properties
+def guess_who(policy="decay", **params):
+    """The Guess-Who board of scenarios/guess_who_table1.yaml, as the scenario's consultant."""
+    from pathlib import Path
+
+    from fsreg_ros.core.scenario import load_scenario
+
+    root = Path(__file__).resolve().parents[2]
+    events: list = []
+    c = load_scenario(root / "scenarios" / "guess_who_table1.yaml").consultants(events.append)["faces"]
+    WMManager().manage(c.wm, ForgettingPolicy.parse(policy, **(params or {"decay_period": 10.0})))
+    return c, events
+
+
+def test_asserting_no_glasses_retracts_glasses_from_ltm_and_wm():
+    c, events = guess_who()
+    c.wm.encode("face2", ["glasses", "female"], "speaker", 1.0)
+    events.clear()
+    result = c.assert_facts("face2", {"no-glasses": 1.0}, 5.0)
+    assert result.to_json() == {"entity": "face2", "new_entity": False,
+                                "updated": {"no-glasses": 1.0, "glasses": 0.0}, "retracted": ["glasses"]}
+    assert c.properties_of("face2") == ["female", "dark-hair", "t-shirt", "no-glasses"]
+    assert c.certainty("face2", "glasses") == 0.0 and c.certainty("face2", "no-glasses") == 1.0
+    assert c.queue("face2") == ["female"]
+    assert keys(events) == [("forget", "face2", "glasses", "retract", 5.0, None)]
+    assert "face2" not in c.holders("glasses") and "face2" in c.holders("no-glasses")
+    # asserting what already holds excludes nothing more; a group of three retracts the one held
+    assert c.assert_facts("face2", {"no-glasses": 1.0}, 6.0).retracted == []
+    result = c.assert_facts("face2", {"hoodie": 0.9}, 7.0)
+    assert result.updated == {"hoodie": 0.9, "t-shirt": 0.0} and result.retracted == ["t-shirt"]
+
+
+def test_an_exclusive_retraction_clears_a_fact_below_the_threshold_and_leaves_other_groups_alone():
+    c = Consultant("faces", {"f1": {"glasses": 0.3, "male": 1.0}}, ["glasses", "no-glasses", "male", "female"],
+                   exclusive=[["glasses", "no-glasses"], ["male", "female"]])
+    result = c.assert_facts("f1", {"no-glasses": 0.8}, 1.0)
+    assert result.updated == {"no-glasses": 0.8, "glasses": 0.0} and result.retracted == []  # glasses never held
+    assert c.properties_of("f1") == ["no-glasses", "male"] and c.certainty("f1", "glasses") == 0.0
+    # certainty 0 or below the threshold asserts nothing to hold: nothing is excluded
+    assert c.assert_facts("f1", {"female": 0.4}, 2.0).updated == {"female": 0.4}
+    assert c.properties_of("f1") == ["no-glasses", "male"]
+    # a property named in the update keeps its given certainty
+    assert c.assert_facts("f1", {"female": 1.0, "male": 0.2}, 3.0).updated == {"female": 1.0, "male": 0.2}
+
+
+def test_attr_value_properties_exclude_each_other_by_default():
+    c = Consultant("things", {"t1": {"colour=red": 1.0, "size=big": 1.0}},
+                   ["colour=red", "colour=blue", "size=big", "shape"])
+    assert c.excludes == {"colour=red": ("colour=blue",), "colour=blue": ("colour=red",)}  # size=big: a group of one
+    result = c.assert_facts("t1", {"colour=blue": 1.0, "shape": 1.0}, 1.0)
+    assert result.updated == {"colour=blue": 1.0, "shape": 1.0, "colour=red": 0.0}
+    assert c.properties_of("t1") == ["colour=blue", "size=big", "shape"]
+
+
+def test_two_exclusive_properties_asserted_together_are_refused_and_change_nothing():
+    c, events = guess_who()
+    c.wm.encode("face2", ["glasses"], "speaker", 1.0)
+    events.clear()
+    before = ({e: c.properties_of(e) for e in c.entities}, c.wm.snapshot(), c.version)
+    with pytest.raises(KnowledgeError, match="'glasses' and 'no-glasses' exclude each other") as err:
+        c.assert_facts("face2", {"glasses": 1.0, "no-glasses": 1.0}, 2.0)
+    assert err.value.kind == "contradiction"
+    with pytest.raises(KnowledgeError, match="exclude each other"):
+        c.assert_facts("face99", {"male": 1.0, "female": 0.9}, 2.0)  # a new entity too
+    assert ({e: c.properties_of(e) for e in c.entities}, c.wm.snapshot(), c.version) == before
+    assert events == []
+
+
+@pytest.mark.parametrize("groups, message", [
+    ([["glasses"]], "at least two distinct properties"),
+    ([["glasses", "glasses"]], "at least two distinct properties"),
+    ([["glasses", "monocle"]], "unknown property 'monocle'"),
+    ([["glasses", "male"], ["male", "female"]], "property 'male' of exclusive group 1 is already in group 0"),
+])
+def test_bad_exclusive_groups_are_refused(groups, message):
+    with pytest.raises(KnowledgeError, match=message):
+        Consultant("faces", {}, PREF, exclusive=groups)

@@ -31,6 +31,9 @@ ENTITIES = {
 KB = fingerprint(PREF, ENTITIES, 0.5, {})
 POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 3}
 TICK = {"origin": 0.0, "period": 10.0, "first": 1, "count": 1}
+#: What a consultant that found no stored state reports it restored.
+FRESH = {"fresh": True, "runtime_entities": 0, "runtime_facts": 0, "queues": 0, "run": None, "clock": None,
+         "latest": None}
 
 
 class Steady:
@@ -281,7 +284,7 @@ def test_facts_are_stored_before_memory_changes_and_a_refused_write_changes_noth
     # WM writes fail too, but the call is served; the changes wait, the status says so
     encode(service, "face1", ["male"], 3.0)
     assert service.status() == {"wm": "empty", "persisted": False,
-                                "error": "state database x: database or disk is full"}
+                                "error": "state database x: database or disk is full", "restored": FRESH}
     service.store.commit = real
     service.steady.now += 2.0  # past the retry pause
     service.maintain()
@@ -327,7 +330,10 @@ def test_a_clock_of_another_kind_drops_wm_and_a_later_clock_keeps_it(tmp_path):
     encode(sim, "face2", ["female"], 50.0)
     sim.shutdown()
     later = make(tmp_path, clock="sim")
-    assert configure(later, time=60.0).reply["state"] == {"wm": "restored", "persisted": True}
+    assert configure(later, time=60.0).reply["state"] == {
+        "wm": "restored", "persisted": True,
+        "restored": {"fresh": False, "runtime_entities": 0, "runtime_facts": 0, "queues": 1, "run": 2, "clock": "sim",
+                     "latest": 50.0}}
     assert later.buffer.snapshot() == {"face2": ["female"]}
 
 
@@ -358,3 +364,103 @@ def test_journal_records_are_checked_and_filtered_for_a_migration():
                 ["each", "x", ["a"], "rr", float("inf"), 2]):
         with pytest.raises(journal.JournalError):
             journal.check(bad, known_e, known_p)
+
+
+# ------------------------------------------------------------------ exclusive properties
+EXCLUSIVE = [["glasses", "lab-coat"], ["male", "female"]]
+
+
+def stored_facts(service) -> dict:
+    """The facts table of the service's state database, read beside it (entity -> {property: certainty})."""
+    import sqlite3
+
+    db = sqlite3.connect(f"file:{service.store.path}?mode=ro", uri=True)
+    try:
+        out: dict = {}
+        for entity, prop, certainty in db.execute("SELECT entity, property, certainty FROM facts ORDER BY rowid"):
+            out.setdefault(entity, {})[prop] = certainty
+        return out
+    finally:
+        db.close()
+
+
+@pytest.mark.parametrize("checkpoint", [False, True])
+def test_an_exclusive_retraction_is_stored_with_its_fact_and_restored(tmp_path, checkpoint):
+    service = make(tmp_path, exclusive=EXCLUSIVE)
+    configure(service)
+    encode(service, "face2", ["glasses", "female"], 1.0)
+    out = service.ltm_assert("face2", {"lab-coat": 1.0}, 2.0)
+    assert out.reply == {"entity": "face2", "new_entity": False, "updated": {"lab-coat": 1.0, "glasses": 0.0},
+                         "retracted": ["glasses"]}
+    assert out.changes.facts == ("face2", {"lab-coat": 1.0, "glasses": 0.0}, False)
+    assert service.buffer.snapshot() == {"face2": ["female"]}
+    assert stored_facts(service) == {"face2": {"lab-coat": 1.0, "glasses": 0.0}}  # one commit carries both
+    if checkpoint:
+        service.shutdown()
+    else:
+        service.store.close()  # abruptly: the journal carries the WM retraction
+    again = make(tmp_path, exclusive=EXCLUSIVE)
+    assert again.consultant.properties_of("face2") == ["dark-hair", "female", "lab-coat"]
+    assert again.consultant.certainty("face2", "glasses") == 0.0
+    assert again.buffer.snapshot() == {"face2": ["female"]}
+    # the restored facts are consistent: asserting glasses back retracts lab-coat, and that is restored too
+    again.ltm_assert("face2", {"glasses": 1.0}, 3.0)
+    again.store.close()
+    third = make(tmp_path, exclusive=EXCLUSIVE)
+    assert third.consultant.properties_of("face2") == ["dark-hair", "female", "glasses"]
+
+
+def test_a_contradicting_assert_is_refused_before_anything_is_stored(tmp_path):
+    service = make(tmp_path, exclusive=EXCLUSIVE)
+    configure(service)
+    with pytest.raises(KnowledgeError, match="exclude each other") as err:
+        service.ltm_assert("face3", {"male": 1.0, "female": 1.0}, 1.0)
+    assert err.value.kind == "contradiction"
+    assert stored_facts(service) == {} and service.consultant.version == 0
+
+
+# ------------------------------------------------------------------ what a restart restored (issue 28.6)
+def test_a_restart_reports_what_it_restored_with_exact_counts_run_and_clock_epoch(tmp_path):
+    service = make(tmp_path, clock="sim")
+    assert service.status()["restored"] == FRESH
+    configure(service, time=5.0)
+    service.ltm_assert("face9", {"male": 1.0, "glasses": 0.8}, 6.0)
+    service.ltm_assert("face2", {"glasses": 0.0}, 7.0)
+    encode(service, "face1", ["male"], 8.0)
+    encode(service, "face3", ["male", "dark-hair"], 12.5)
+    service.shutdown()
+    again = make(tmp_path, clock="sim")
+    restored = again.persistence.restored
+    assert again.status()["restored"] == {"fresh": False, "runtime_entities": 1, "runtime_facts": 3, "queues": 2,
+                                          "run": 1, "clock": "sim", "latest": 12.5}
+    assert restored.summary().endswith("stored by incarnation 1 on the sim clock up to t=12.5 s")
+    # the first configure on an earlier clock drops the WM it restored: the report says so
+    configure(again, time=1.0)
+    assert again.status()["restored"]["queues"] == 0 and again.status()["restored"]["queues_dropped"] == 2
+
+
+def test_a_reset_moves_the_database_aside_and_counts_incarnations_on(tmp_path):
+    service = make(tmp_path)
+    configure(service)
+    service.ltm_assert("face9", {"male": 1.0}, 1.0)
+    service.shutdown()
+    store = DomainStore(tmp_path / "faces.sqlite3", KB)
+    fresh = ConsultantService(Consultant("faces", ENTITIES, PREF), store=store)
+    stored = store.open(reset=True, after=7)
+    fresh.restore(stored)
+    assert stored.incarnation == 8 and stored.moved_aside is not None and stored.moved_aside.exists()
+    assert fresh.status()["restored"] == {**FRESH, "moved_aside": str(stored.moved_aside)}
+    assert not fresh.consultant.knows_entity("face9")
+
+
+def test_a_restore_applies_the_stored_facts_as_stored_without_excluding_again(tmp_path):
+    """Facts stored before a group was declared (both values held) come back as they were, never refused."""
+    service = make(tmp_path)
+    configure(service)
+    service.ltm_assert("face3", {"female": 1.0}, 1.0)  # no groups yet: face3 is male and female
+    service.shutdown()
+    again = make(tmp_path, exclusive=EXCLUSIVE)
+    assert again.consultant.properties_of("face3") == ["dark-hair", "male", "female"]
+    assert again.ltm_assert("face3", {"male": 1.0}, 2.0).reply["updated"] == {"male": 1.0, "female": 0.0}
+    again.shutdown()
+    assert make(tmp_path, exclusive=EXCLUSIVE).consultant.properties_of("face3") == ["dark-hair", "male"]

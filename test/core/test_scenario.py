@@ -1133,3 +1133,66 @@ def test_attribute_errors(block, path, fragment):
     err = error_of(ATTRS + f"    attributes: {block}\n")
     assert (err.path, err.line) == (path, 4)
     assert fragment in err.message
+
+
+# ------------------------------------------------------------------ exclusive groups
+EXCL = """\
+domains:
+  t:
+    preference: [colour=red, colour=blue, size=big, male, female, glasses, no-glasses]
+"""
+
+
+def test_exclusive_groups_are_kept_as_declared_and_the_consultant_adds_the_attr_value_ones():
+    scenario = parse_scenario(EXCL + "    exclusive: [[glasses, no-glasses], [male, female]]\n"
+                              "    entities: {p1: [male, glasses, colour=red]}\n", source="t.yaml")
+    assert scenario.domains["t"].exclusive == (("glasses", "no-glasses"), ("male", "female"))
+    consultant = scenario.consultants()["t"]
+    assert consultant.excludes == {
+        "glasses": ("no-glasses",), "no-glasses": ("glasses",), "male": ("female",), "female": ("male",),
+        "colour=red": ("colour=blue",), "colour=blue": ("colour=red",),
+    }
+    assert parse_scenario(EXCL, source="t.yaml").domains["t"].exclusive == ()
+
+
+def test_the_guess_who_scenarios_declare_their_exclusive_groups():
+    root = Path(__file__).resolve().parents[2]
+    for name in ("guess_who_table1.yaml", "guess_who_table1_text.yaml"):
+        spec = load_scenario(root / "scenarios" / name, lexicon=FakeLexicon()).domains["faces"]
+        assert spec.exclusive == (("glasses", "no-glasses"), ("light-hair", "dark-hair"), ("male", "female"),
+                                  ("lab-coat", "t-shirt", "hoodie")), name
+
+
+@pytest.mark.parametrize(
+    "block, path, fragment",
+    [
+        ("[[glasses, monocle]]", "domains.t.exclusive[0][1]", "unknown property 'monocle'"),
+        ("[[male, female], [female, glasses]]", "domains.t.exclusive[1][0]",
+         "property 'female' is in exclusive group 0 too (a property is in one group at most)"),
+        ("[[male, female, male]]", "domains.t.exclusive[0][2]", "property 'male' is in this group already"),
+        ("[[male]]", "domains.t.exclusive[0]", "a group of one (male)"),
+        ("[[glasses, colour=red]]", "domains.t.exclusive[0][1]",
+         "property 'colour=red' is in the group of attribute 'colour' by its name"),
+        ("{a: [male]}", "domains.t.exclusive", "must be a list"),
+    ],
+)
+def test_exclusive_group_errors(block, path, fragment):
+    err = error_of(EXCL + f"    exclusive: {block}\n")
+    assert (err.path, err.line) == (path, 4)
+    assert fragment in err.message
+    assert str(err).startswith(f"t.yaml:4: {path}: ") and "\n" not in str(err)
+
+
+@pytest.mark.parametrize("facts, fragment", [
+    ("[male, female]", "entity 'p1' holds both 'male' and 'female', which exclude each other"),
+    ("[colour=red, colour=blue]", "entity 'p1' holds both 'colour=red' and 'colour=blue'"),
+])
+def test_an_entity_holding_two_exclusive_properties_is_refused(facts, fragment):
+    err = error_of(EXCL + "    exclusive: [[male, female]]\n    entities:\n      p1: " + facts + "\n")
+    assert (err.path, err.line) == ("domains.t.entities.p1", 6)
+    assert fragment in err.message
+
+
+def test_an_entity_may_have_an_exclusive_property_below_the_threshold():
+    text = EXCL + "    exclusive: [[male, female]]\n    entities:\n      p1: {male: 1.0, female: 0.4}\n"
+    assert parse_scenario(text, source="t.yaml").domains["t"].entities["p1"] == {"male": 1.0, "female": 0.4}

@@ -7,6 +7,7 @@ import pytest
 
 from fsreg_ros.research import cli
 from fsreg_ros.research.games import ATTRIBUTES, BOARD_SIZE, BeliefPort, make_game, play, scenario_of
+from fsreg_ros.research.listener import ListenerOptions
 from fsreg_ros.research.stats import bootstrap_ci
 from fsreg_ros.research.sweep import COLUMNS, Setting, SweepConfig, reads, recommend, settings, summarise_runs
 
@@ -330,3 +331,25 @@ def test_retract_on_update_decides_whether_ltm_changes_reach_wm(retract):
     assert kb.set_threshold(0.7, 2.0) == ([("t", "hat")] if retract else [])
     assert kb.queue("t") == ([] if retract else ["glasses", "hat"])
     assert kb.properties_of("t") == []
+
+
+def test_fact_changes_are_consistent_with_the_exclusive_groups_and_play_as_without_them(monkeypatch):
+    """Every change names the old value at 0 itself: the exclusion retracts nothing more, so results are unchanged."""
+    import fsreg_ros.research.games as games
+    from fsreg_ros.core.consultant import Consultant
+
+    game = make_game(1, 200, world="faces+objects", changes=30)
+    robots = {d: Consultant(d, {e: dict.fromkeys(p, 1.0) for e, p in board.items()}, games.ROBOT_ORDERS[d],
+                            exclusive=games.EXCLUSIVE[d]) for d, board in game.boards.items()}
+    for change in game.changes:
+        robot = robots[change.domain]
+        assert robot.effective_update(change.entity, change.facts()) == change.facts()
+        robot.assert_facts(change.entity, change.facts(), change.time)
+        for values in games.EXCLUSIVE[change.domain]:
+            assert len(set(values) & set(robot.properties_of(change.entity))) == 1
+    memory = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4}
+    with_groups = play(game, memory, listener=ListenerOptions(missing=0.1), trace=True)
+    monkeypatch.setattr(games, "EXCLUSIVE", {d: () for d in games.EXCLUSIVE})
+    without = play(game, memory, listener=ListenerOptions(missing=0.1), trace=True)
+    assert with_groups.result == without.result and with_groups.trace == without.trace
+    assert with_groups.outdated == without.outdated and with_groups.heard == without.heard

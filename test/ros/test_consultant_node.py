@@ -32,6 +32,9 @@ pytestmark = pytest.mark.graph
 Q = contract.consultant_service("faces")
 M = contract.manage_service("faces")
 D = contract.debug_service("faces")
+#: What a consultant that found no stored state reports it restored.
+FRESH = {"fresh": True, "runtime_entities": 0, "runtime_facts": 0, "queues": 0, "run": None, "clock": None,
+         "latest": None}
 
 
 @pytest.fixture
@@ -74,7 +77,7 @@ def test_info_and_latched_start_state(graph: RosSession):
         "events": 0,
         "wm_version": 0,
         "event_listeners": 0,
-        "state": {"wm": "empty", "persisted": True},
+        "state": {"wm": "empty", "persisted": True, "restored": FRESH},
     }
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
     graph.spin_until(lambda: graph.call(Q, {"op": "info"})["event_listeners"] == 1, what="a matched event listener")
@@ -108,7 +111,7 @@ def test_query_ops_round_trip(graph: RosSession):
         "memory": {"policy": "displacement", "capacity": 3},
         "queues_changed": 0,
         "incarnation": 1,
-        "state": {"wm": "empty", "persisted": True},
+        "state": {"wm": "empty", "persisted": True, "restored": FRESH},
     }
     assert graph.call(Q, {"op": "info"})["policy"] == "displacement"
 

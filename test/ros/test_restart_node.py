@@ -88,10 +88,14 @@ def test_a_recreated_consultant_resumes_ltm_wm_and_policy_and_serves_only_once_c
     announces.clear()
     start(graph, tmp_path)
     graph.spin_until(lambda: announces.latest(incarnation=2), what="announce of incarnation 2")
+    # face9 and its two facts, the queues of face1 and face9, written by incarnation 1 on the system clock up to 12 s
+    RESTORED = {"fresh": False, "runtime_entities": 1, "runtime_facts": 2, "queues": 2, "run": 1, "clock": "system",
+                "latest": 12.0}
     assert announces.latest(incarnation=2) == {"domain": "faces", "incarnation": 2, "ready": False,
                                                "memory": {"policy": "decay+displacement", "decay_period": 10.0,
                                                           "capacity": 3},
-                                               "state": {"wm": "restored", "persisted": True}}
+                                               "state": {"wm": "restored", "persisted": True,
+                                                         "restored": RESTORED}}
     err = graph.call_error(D, {"op": "holds", "property": "glasses", "entities": ["face9"]})
     assert err.kind == "not-ready" and "incarnation 2" in err.error
     info = graph.call(Q, {"op": "info"})  # info answers (readiness probes), and shows the asserted face
@@ -100,7 +104,7 @@ def test_a_recreated_consultant_resumes_ltm_wm_and_policy_and_serves_only_once_c
     assert graph.call(M, tick)["queues_changed"] == 0  # applied before the restart: not again
     reply = graph.call(M, {"op": "configure", "policy": POLICY, "time": 12.0})
     assert reply == {"memory": POLICY, "queues_changed": 0, "incarnation": 2,
-                     "state": {"wm": "restored", "persisted": True}}
+                     "state": {"wm": "restored", "persisted": True, "restored": RESTORED}}
     assert graph.call(D, {"op": "snapshot"})["queues"] == before
     assert graph.call(D, {"op": "holds", "property": "glasses", "entities": ["face9", "face2"]}) == {
         "holds": ["face9", "face2"]}
@@ -118,7 +122,9 @@ def test_without_persist_wm_ltm_facts_survive_but_wm_starts_empty(graph: RosSess
     start(graph, tmp_path, persist_wm=False)
     info = graph.call(Q, {"op": "info"})
     assert info["entities"][-1] == "face9" and info["memory"] == POLICY
-    assert info["state"] == {"wm": "not-persisted", "persisted": True}
+    assert info["state"] == {"wm": "not-persisted", "persisted": True, "restored": {
+        "fresh": False, "runtime_entities": 1, "runtime_facts": 1, "queues": 0, "run": 1, "clock": None,
+        "latest": None}}
     graph.call(M, {"op": "configure", "policy": POLICY, "time": 2.0})
     assert graph.call(D, {"op": "snapshot"})["queues"] == {}
 
@@ -183,7 +189,9 @@ def test_a_wall_clock_restart_keeps_wm(graph: RosSession, tmp_path):
     graph.remove(node)
     start(graph, tmp_path)
     reply = graph.call(M, {"op": "configure", "policy": POLICY})  # the node's clock: later than ``now``
-    assert reply["state"] == {"wm": "restored", "persisted": True}
+    assert reply["state"] == {"wm": "restored", "persisted": True, "restored": {
+        "fresh": False, "runtime_entities": 0, "runtime_facts": 0, "queues": 1, "run": 1, "clock": "system",
+        "latest": now}}
     assert graph.call(D, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
 
 

@@ -72,7 +72,7 @@ def test_every_command_is_one_entry_of_the_table():
     parser = ctl.build_parser()
     commands = next(a for a in parser._actions if a.dest == "command")
     assert list(commands.choices) == list(ctl.COMMANDS) == [
-        "say", "describe", "assert", "status", "set", "params", "watch", "wm", "clock", "view", "record"]
+        "say", "describe", "assert", "status", "set", "params", "watch", "wm", "clock", "view", "record", "state"]
     assert {spec.needs for spec in ctl.COMMANDS.values()} <= {"ready", "graph", "none"}
 
 

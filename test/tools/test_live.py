@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import secrets
 import select
 import signal
@@ -147,6 +148,47 @@ def test_fsreg_up_and_fsreg_ctl_as_a_user_runs_them(table1_up):
     assert up.stop(signal.SIGTERM) == 0
     wait_gone(descendants)
     assert "fsreg-up: stopped graph" in up.proc.stderr.read()
+
+
+def test_a_restart_says_what_it_restored_and_fresh_starts_from_the_scenario(table1_path, tmp_path):
+    """Issue 28.6: the ready line and status say what was restored; --fresh moves the state aside and says where.
+
+    On the system clock with a policy without decay, so the WM stored is the WM restored.
+    """
+    ns, state = namespace(), tmp_path / "state"
+    args = [str(table1_path), "--namespace", ns, "--policy", "displacement", "--capacity", "5", "--wall-time",
+            "--state-dir", str(state)]
+    first = Up(*args)
+    try:
+        assert "; state faces: fresh (the scenario alone); endpoints " in first.ready
+        assert ctl(ns, "say", "male,", "lab-coat,", "light-hair,", "glasses").returncode == 0
+        assert ctl(ns, "assert", "face17", "male").stdout == "face17 (faces): added male 1\n"
+        changed = ctl(ns, "assert", "face2", "no-glasses")
+        assert changed.stdout == "face2 (faces): updated no-glasses 1, glasses 0; retracted from WM: glasses\n"
+        queues = len(json.loads(ctl(ns, "watch", "--count", "1", "--json").stdout)["queues"])
+        assert queues > 0
+    finally:
+        assert first.stop() == 0
+    second = Up(*args)
+    try:
+        restored = re.escape(f"restored 3 runtime facts (1 runtime entities), {queues} WM queues from run 1 "
+                             "(system clock, up to ") + r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC\)"
+        assert re.search(f"; state faces: {restored}; endpoints ", second.ready), second.ready
+        status = ctl(ns, "status")
+        assert re.search(f", configured; {restored}\n", status.stdout), status.stdout
+        assert json.loads(ctl(ns, "describe", "face2", "--json").stdout)["text"] == "the woman with a t-shirt"
+    finally:
+        assert second.stop() == 0
+    third = Up(*args, "--fresh")
+    try:
+        (aside,) = state.rglob("faces.sqlite3.*.old")
+        assert f"; state faces: fresh (the scenario alone, the old state moved aside to {aside}); endpoints " in \
+            third.ready, third.ready
+        unknown = ctl(ns, "describe", "face17")
+        assert unknown.returncode == 1 and "no consultant knows entity 'face17'" in unknown.stderr
+        assert json.loads(ctl(ns, "describe", "face2", "--json").stdout)["text"] == "the woman with glasses"
+    finally:
+        assert third.stop() == 0
 
 
 def refusal(stderr: str, ns: str, first: str) -> None:

@@ -14,7 +14,7 @@ from typing import Optional, Sequence, Union
 
 import yaml
 
-from ..consultant import KnowledgeError, check_certainty
+from ..consultant import KnowledgeError, check_certainty, exclusive_groups, implied_attribute
 from ..lexicon import Lexicon
 from ..resolution import domains_knowing
 from ..yaml_source import PathLoc, find_line, render_path
@@ -98,7 +98,52 @@ class Checker:
             entities[entity] = self.facts(at, name, block.preference, facts, all_properties, known)
         memory = self.memory_block(here + ("memory",), block.memory)
         attributes = self.attributes(here + ("attributes",), block)
-        return DomainSpec(name, tuple(block.preference), entities, threshold, memory, attributes)
+        exclusive = self.exclusive(here, block, entities, threshold)
+        return DomainSpec(name, tuple(block.preference), entities, threshold, memory, attributes, exclusive)
+
+    def exclusive(self, here: PathLoc, block: DomainBlock, entities: dict[str, dict[str, float]],
+                  threshold: float) -> tuple[tuple[str, ...], ...]:
+        """Return the declared exclusive groups, checked; and check no entity holds two properties of one group.
+
+        A group names properties of the domain's preference order, at least two, none
+        in another group (nor an ``attr=value`` property: the values of an attribute
+        named so are a group already).  The groups in force are these plus the
+        ``attr=value`` ones (:func:`~fsreg_ros.core.consultant.exclusive_groups`).
+        """
+        at = here + ("exclusive",)
+        known = set(block.preference)
+        owner: dict[str, int] = {}
+        for k, group in enumerate(block.exclusive):
+            if len(set(group)) < 2:
+                raise self.fail(at + (k,), f"a group of one ({', '.join(group)}): an exclusive group needs at "
+                                           "least two properties that exclude each other")
+            for i, prop in enumerate(group):
+                if prop not in known:
+                    raise self.fail(at + (k, i), f"unknown property '{prop}': exclusive groups name the domain's "
+                                                 f"properties (its preference order: {names(block.preference)})")
+                if prop in owner:
+                    where = "in this group already" if owner[prop] == k else f"in exclusive group {owner[prop]} too"
+                    raise self.fail(at + (k, i), f"property '{prop}' is {where} (a property is in one group at most)")
+                implied = implied_attribute(prop)
+                if implied is not None:
+                    raise self.fail(at + (k, i), f"property '{prop}' is in the group of attribute '{implied}' by its "
+                                                 "name (every 'attr=value' of one attribute excludes the others)")
+                owner[prop] = k
+        groups = exclusive_groups(block.preference, block.exclusive)
+        if groups:
+            group_of = {prop: k for k, group in enumerate(groups) for prop in group}
+            for entity, facts in entities.items():
+                seen: dict[int, str] = {}
+                for prop, certainty in facts.items():
+                    k = group_of.get(prop)
+                    if k is None or certainty < threshold:
+                        continue
+                    if k in seen:
+                        raise self.fail(here + ("entities", entity),
+                                        f"entity '{entity}' holds both '{seen[k]}' and '{prop}', which exclude "
+                                        "each other")
+                    seen[k] = prop
+        return tuple(tuple(group) for group in block.exclusive)
 
     def attributes(self, at: PathLoc, block: DomainBlock) -> dict[str, str]:
         """Return property -> attribute: the ``attributes:`` block, then ``attr=value`` names.
@@ -332,9 +377,3 @@ class Checker:
         raise self.fail(
             whole, f"domain not determined: no domain knows every property (candidate domains per property: {owners})"
         )
-
-
-def implied_attribute(prop: str) -> Optional[str]:
-    """Return ``attr`` for a property named ``attr=value`` (both non-empty), else None."""
-    attribute, sep, value = prop.partition("=")
-    return attribute if sep and attribute and value else None

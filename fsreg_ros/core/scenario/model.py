@@ -47,6 +47,9 @@ class DomainSpec:
     memory: Optional[dict] = None
     #: property -> attribute, from the ``attributes:`` block and ``attr=value`` names.
     attributes: dict[str, str] = field(default_factory=dict)
+    #: The declared exclusive groups (the ``exclusive:`` block); the ``attr=value`` groups are implied
+    #: (:func:`~fsreg_ros.core.consultant.exclusive_groups`).
+    exclusive: tuple[tuple[str, ...], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -141,7 +144,8 @@ class Scenario:
         receives every WM event.
         """
         return {
-            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink, attributes=spec.attributes)
+            name: Consultant(name, spec.entities, spec.preference, spec.threshold, sink, attributes=spec.attributes,
+                             exclusive=spec.exclusive)
             for name, spec in self.domains.items()
         }
 

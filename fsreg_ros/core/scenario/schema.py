@@ -72,6 +72,11 @@ class DomainBlock(Strict):
         default_factory=dict,
         description="attribute -> its properties (optional); a property 'attr=value' belongs to 'attr' implicitly",
     )
+    exclusive: list[list[Name]] = Field(
+        default_factory=list,
+        description="groups of properties that exclude each other (optional): asserting one to hold retracts the "
+        "others for that entity; the values of an attribute named 'attr=value' are a group without being listed",
+    )
     entities: dict[Name, Facts] = Field(
         default_factory=dict, description="entity -> facts, in entity order; names unique across the file"
     )
