@@ -129,6 +129,10 @@ def test_resume_plays_only_the_missing_games(tmp_path, monkeypatch, capsys):
                    "--resume plays the rest\n")
     assert not (out / "manifest.json").exists() and not (out / "runs.csv").exists()
     monkeypatch.setattr(Ledger, "append", real_append)
+    assert cli.sweep_main([*DYNAMIC, "--out", str(out)]) == 2  # finished games are not thrown away unasked
+    assert capsys.readouterr().err == (
+        f"fsreg-sweep: error: {out} holds an unfinished sweep (2 of 5 games in games.jsonl): --resume continues it; "
+        f"to start afresh, delete {out / GAMES}\n")
     with (out / GAMES).open("ab") as games:
         games.write(b'{"seed":4,"kb_sha2')  # a game torn by the kill: dropped
     played = []
