@@ -25,7 +25,7 @@ assumptions and is not a measurement.  ``--quick`` runs a small sweep instead (f
 the smoke test).  No timing is asserted anywhere.
 
 Usage: ``scripts/bench_cluster.py [--quick] [--seeds N] [--turns N] [--workers N]
-[--scale 100] [--to 50] [--json FILE]`` (re-runs itself with the repository's
+[--scale 100] [--to 50] [--repeat N] [--json FILE]`` (re-runs itself with the repository's
 ``.venv`` Python when started otherwise).
 """
 
@@ -161,12 +161,15 @@ def main() -> int:
     parser.add_argument("--scale", type=int, default=100, help="the projected sweep is this many times larger")
     parser.add_argument("--to", type=int, default=50, help="workers of the projection (default 50)")
     parser.add_argument("--sample", type=int, default=4, help="games played in-process for the per-task figures")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="timed pairs, in alternating order (the figure is the ratio of the means)")
     parser.add_argument("--json", type=Path, help="also write every figure as JSON")
     args = parser.parse_args()
     seeds = args.seeds or (4 if args.quick else 30)
     turns = args.turns or (20 if args.quick else 200)
     for name, value, low in (("--seeds", seeds, 1), ("--turns", turns, 2), ("--workers", args.workers, 1),
-                             ("--scale", args.scale, 1), ("--to", args.to, 1), ("--sample", args.sample, 1)):
+                             ("--scale", args.scale, 1), ("--to", args.to, 1), ("--sample", args.sample, 1),
+                             ("--repeat", args.repeat, 1)):
         if value < low:
             parser.error(f"{name} must be at least {low}, got {value}")
     sweep = sweep_args(seeds, turns)
@@ -174,9 +177,17 @@ def main() -> int:
           f"uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
     work = Path(tempfile.mkdtemp(prefix="fsreg-bench-cluster-"))
     try:
-        local = timed_sweep(sweep, ["--jobs", str(args.workers)], work / "jobs")
-        cluster = timed_sweep(sweep, ["--cluster", f"local:{args.workers}"], work / "cluster")
+        runs: dict = {"jobs": [], "cluster": []}
+        engines = {"jobs": ["--jobs", str(args.workers)], "cluster": ["--cluster", f"local:{args.workers}"]}
+        for rep in range(args.repeat):  # A B, B A, ...: drifting load weighs on both alike
+            for name in (("jobs", "cluster") if rep % 2 == 0 else ("cluster", "jobs")):
+                runs[name].append(timed_sweep(sweep, engines[name], work / name))
         differ = [n for n in OUTPUTS if (work / "jobs" / n).read_bytes() != (work / "cluster" / n).read_bytes()]
+        local = {"wall_s": sum(r["wall_s"] for r in runs["jobs"]) / args.repeat,
+                 "load_before": "; ".join(r["load_before"] for r in runs["jobs"]), "runs": runs["jobs"]}
+        cluster = {"wall_s": sum(r["wall_s"] for r in runs["cluster"]) / args.repeat,
+                   "load_before": "; ".join(r["load_before"] for r in runs["cluster"]), "runs": runs["cluster"],
+                   "execution": runs["cluster"][-1]["execution"]}
         measured = per_game(sweep, min(args.sample, seeds))
         costs = cluster_costs(measured.pop("config"), args.workers, 200)
     finally:
@@ -185,8 +196,9 @@ def main() -> int:
     overhead = (cluster["wall_s"] - local["wall_s"]) / seeds
     fixed = costs["start_s"] + costs["first_tasks_s"] + costs["close_s"]
     marginal = (cluster["wall_s"] - local["wall_s"] - fixed) / seeds
-    print(f"\n  --jobs {args.workers}:            {local['wall_s']:7.1f} s   ({local['load_before']} before)")
-    print(f"  --cluster local:{args.workers}:   {cluster['wall_s']:7.1f} s   ({cluster['load_before']} before; "
+    mean = f"mean of {args.repeat}, " if args.repeat > 1 else ""
+    print(f"\n  --jobs {args.workers}:            {local['wall_s']:7.1f} s   ({mean}{local['load_before']} before)")
+    print(f"  --cluster local:{args.workers}:   {cluster['wall_s']:7.1f} s   ({mean}{cluster['load_before']} before; "
           f"{cluster['execution']['retried']} tasks retried)")
     print(f"  ratio cluster / jobs: {ratio:.3f} (target at most {TARGET_RATIO}: "
           f"{'met' if ratio <= TARGET_RATIO else 'MISSED'}); cluster overhead {overhead * 1e3:+.0f} ms per game "
