@@ -41,6 +41,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from venv_python import use_venv  # noqa: E402
@@ -48,6 +49,7 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 
 TARGET_RATIO = 1.15  # cluster / local processes, end to end
+SUMMARY_GAMES = (30, 300)  # the summary's bootstrap is timed at these numbers of games
 OUTPUTS = ("runs.csv", "summary.csv", "divergence.csv", "recommendation.csv")
 
 
@@ -90,7 +92,8 @@ def cluster_costs(config, workers: int, tasks: int) -> dict:
     up = time.perf_counter() - start
     try:
         start = time.perf_counter()
-        run_tasks(run_seed, [(config, seed) for seed in range(workers)], engine, progress=False, client=client)
+        tiny = replace(config, policies=("none",), turns=2)  # a worker's imports and set-up, next to no game
+        run_tasks(run_seed, [(tiny, seed) for seed in range(workers)], engine, progress=False, client=client)
         first = time.perf_counter() - start
         run_tasks(abs, list(range(workers * 4)), engine, progress=False, client=client)  # warm
         start = time.perf_counter()
@@ -103,7 +106,7 @@ def cluster_costs(config, workers: int, tasks: int) -> dict:
     return {"start_s": up, "first_tasks_s": first, "empty_task_ms": empty * 1e3, "close_s": down}
 
 
-def per_game(args: list, games: int) -> dict:
+def per_game(args: list, games: int, summary_games: tuple = SUMMARY_GAMES) -> dict:
     """One core's cost of a game, the transfer sizes and the client's work per game, in this process."""
     from fsreg_ros.research import cli
     from fsreg_ros.research.ledger import Ledger, header
@@ -127,13 +130,16 @@ def per_game(args: list, games: int) -> dict:
         book.close()
         line_bytes = (Path(tmp) / "games.jsonl").stat().st_size / len(results)
     rows, _, _ = assemble(book.games, config.seeds)
-    start = time.perf_counter()
-    summary = summarise_runs(rows)
-    summary_s = time.perf_counter() - start
+    summary_s = {}
+    for n in summary_games:  # the sampled games' rows, repeated under other seeds: the bootstrap's cost at n games
+        many = [{**row, "seed": row["seed"] + len(rows) * k} for k in range(math.ceil(n / games)) for row in rows]
+        many = many[:n * len(rows) // games]
+        start = time.perf_counter()
+        summary = summarise_runs(many)
+        summary_s[n] = time.perf_counter() - start
     return {"config": config, "game_cpu_s": sum(costs) / len(costs), "task_bytes": sum(task_bytes) / len(tasks),
             "result_bytes": sum(result_bytes) / len(results), "ledger_line_bytes": line_bytes,
-            "client_ms_per_game": client_ms, "summary_s": summary_s, "summary_games": len(results),
-            "settings": len(summary)}
+            "client_ms_per_game": client_ms, "summary_s": summary_s, "settings": len(summary)}
 
 
 def projection(measured: dict, games: int, workers: int, scale: int, to: int, costs: dict) -> dict:
@@ -143,7 +149,8 @@ def projection(measured: dict, games: int, workers: int, scale: int, to: int, co
     compute = waves * measured["game_cpu_s"]
     scheduler = total * costs["empty_task_ms"] / 1e3 / to  # round trips, overlapped across workers
     client = total * measured["client_ms_per_game"] / 1e3  # serial, but overlapped with the workers' compute
-    summary = measured["summary_s"] * total / measured["summary_games"]  # bootstrap grows with the games
+    (n1, t1), (n2, t2) = sorted(measured["summary_s"].items())
+    summary = t1 + (t2 - t1) * (total - n1) / (n2 - n1)  # the bootstrap grows linearly with the games
     transfer = total * (measured["task_bytes"] + measured["result_bytes"])
     start = costs["start_s"] + costs["first_tasks_s"]
     wall = start + max(compute + scheduler, client) + summary
@@ -188,7 +195,7 @@ def main() -> int:
         cluster = {"wall_s": sum(r["wall_s"] for r in runs["cluster"]) / args.repeat,
                    "load_before": "; ".join(r["load_before"] for r in runs["cluster"]), "runs": runs["cluster"],
                    "execution": runs["cluster"][-1]["execution"]}
-        measured = per_game(sweep, min(args.sample, seeds))
+        measured = per_game(sweep, min(args.sample, seeds), (8, 16) if args.quick else SUMMARY_GAMES)
         costs = cluster_costs(measured.pop("config"), args.workers, 200)
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -207,13 +214,13 @@ def main() -> int:
     print(f"  outputs: {'byte-identical' if not differ else 'DIFFER: ' + ', '.join(differ)} "
           f"({', '.join(OUTPUTS)})")
     print(f"\n  LocalCluster of {args.workers} on 127.0.0.1: start {costs['start_s']:.2f} s, first task per worker "
-          f"(imports) {costs['first_tasks_s']:.2f} s, close {costs['close_s']:.2f} s; empty-task round trip "
+          f"(imports, set-up) {costs['first_tasks_s']:.2f} s, close {costs['close_s']:.2f} s; empty-task round trip "
           f"{costs['empty_task_ms']:.2f} ms")
     print(f"  per game ({measured['settings']} settings, {turns} turns): {measured['game_cpu_s']:.2f} s of one core; "
           f"task sent {measured['task_bytes'] / 1e3:.1f} kB, result back {measured['result_bytes'] / 1e3:.1f} kB, "
           f"games.jsonl line {measured['ledger_line_bytes'] / 1e3:.1f} kB; client work "
-          f"{measured['client_ms_per_game']:.1f} ms (fsync'd append); summary {measured['summary_s']:.2f} s "
-          f"for {measured['summary_games']} games")
+          f"{measured['client_ms_per_game']:.1f} ms (fsync'd append); summary (bootstrap) "
+          + ", ".join(f"{t:.1f} s for {n} games" for n, t in measured["summary_s"].items()))
     plan = projection(measured, seeds, args.workers, args.scale, args.to, costs)
     print(f"\n  PROJECTION (not measured): {plan['games']:,} games on {plan['workers']} one-thread workers, each as "
           f"fast as a core here: {plan['waves']} waves x {measured['game_cpu_s']:.2f} s = {plan['compute_s']:.0f} s "
