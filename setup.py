@@ -16,10 +16,10 @@ NODES = {
     "dialogue_player": "fsreg_ros.nodes.dialogue_player:main",
 }
 TOOLS = {
-    "fsreg-sim": "fsreg_ros.cli:sim_main",
-    "fsreg-graph": "fsreg_ros.graph:main",
-    "fsreg-up": "fsreg_ros.up:main",
-    "fsreg-ctl": "fsreg_ros.ctl:main",
+    "fsreg-sim": "fsreg_ros.tools.sim:sim_main",
+    "fsreg-graph": "fsreg_ros.tools.graph:main",
+    "fsreg-up": "fsreg_ros.tools.up:main",
+    "fsreg-ctl": "fsreg_ros.tools.ctl:main",
     "fsreg-eval": "fsreg_ros.research.cli:eval_main",
     "fsreg-sweep": "fsreg_ros.research.cli:sweep_main",
     "fsreg-plot": "fsreg_ros.research.cli:plot_main",
@@ -37,7 +37,7 @@ setup(
     ],
     # ROS wheels are deliberately not listed: a real ROS install provides rclpy and
     # the message packages itself (requirements-ros.txt pins them for a venv).
-    install_requires=["setuptools", "pyyaml>=6", "pydantic>=2.5", "numpy>=1.24"],
+    install_requires=["setuptools", "pyyaml>=6", "pydantic>=2.5", "numpy>=1.24", "rosbags>=0.11.9"],
     # Dask for research jobs beyond one machine (fsreg-sweep --cluster/--scheduler): pip install fsreg_ros[cluster].
     # The same pin is in requirements-dev.txt, so the test suite always runs the cluster tests.
     extras_require={"cluster": ["dask[distributed]==2026.8.0"]},

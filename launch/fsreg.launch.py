@@ -7,7 +7,7 @@ Every memory setting is an argument (policy, decay_period, capacity, global_capa
 seed, shared_capacity: the settings table, ``fsreg_ros/core/settings.py``), defaulting
 to the WM Manager's own default (policy ``none``).
 
-The nodes and their parameters come from :func:`fsreg_ros.graph_spec.node_specs`, the
+The nodes and their parameters come from :func:`fsreg_ros.ros.graph_spec.node_specs`, the
 same definition ``fsreg-graph`` uses: one consultant per domain (named
 consultant_<domain>), the WM Manager, the parser stub, reference resolution and REG,
 each domain with the policy given here.  Play a scripted dialogue with
@@ -25,7 +25,7 @@ from launch_ros.actions import Node
 from fsreg_ros.contract import CLOCK, normalise_namespace
 from fsreg_ros.core import settings
 from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.graph_spec import PACKAGE, node_specs, policy_settings
+from fsreg_ros.ros.graph_spec import PACKAGE, node_specs, policy_settings
 
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM"),

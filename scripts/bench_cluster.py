@@ -4,7 +4,7 @@
 What it measures, in one run (ratios within the run; the load average is printed
 before each timed command, since other work on the machine moves every figure):
 
-* the README's follow-up sweep (``fsreg_ros.research.figures.FOLLOWUP``: 6 policies,
+* the README's follow-up sweep (``fsreg_ros.tools.figures.FOLLOWUP``: 6 policies,
   131 settings, 30 games of 200 turns), run as users run it -- ``fsreg-sweep ...
   --jobs 2`` and ``fsreg-sweep ... --cluster local:2``, each a fresh process, timed
   end to end.  Their runs.csv, summary.csv, divergence.csv and recommendation.csv must
@@ -58,7 +58,7 @@ def load() -> str:
 
 
 def sweep_args(seeds: int, turns: int) -> list:
-    from fsreg_ros.research.figures import FOLLOWUP
+    from fsreg_ros.tools.figures import FOLLOWUP
 
     argv = [a for a in FOLLOWUP]
     argv[argv.index("--seeds") + 1] = str(seeds)

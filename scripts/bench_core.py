@@ -28,7 +28,7 @@
    (so the eager version really pops every queue at every tick).  Between two ticks
    1 % of the queues are touched (one encoding each).  Lazy = ``WMBuffer`` under
    ``WMManager`` (a tick is O(1); a queue catches up when next touched); naive =
-   ``test/naive_wm.NaiveWM`` (pops the front of every queue at every tick).  Both
+   ``test/support/naive_wm.NaiveWM`` (pops the front of every queue at every tick).  Both
    run in the same process, one after the other, on the same touch pattern.
    Reported: median cost of one tick, the cost of one whole cycle (tick + touches,
    including the lazy catch-ups), and, for the lazy buffer, the final ``flush()``
@@ -58,7 +58,7 @@ sys.path.insert(0, str(REPO / "scripts"))
 from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
-sys.path.insert(0, str(REPO / "test"))
+sys.path.insert(0, str(REPO / "test" / "support"))
 
 from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402
 from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
@@ -304,7 +304,7 @@ def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dic
             events.clear()
         states[label] = buffer.snapshot()
         results[label] = {"median_ms": statistics.median(times) * 1e3, "max_ms": max(times) * 1e3,
-                          "held": len(buffer), "in_columns": len(buffer._in_columns)}
+                          "held": len(buffer), "in_columns": len(buffer.columns.entities)}
         del buffer
         gc.collect()
     naive = NaiveWM(policy.rules, policy.value("capacity"), record=False)

@@ -2,7 +2,7 @@
 """Latency of the node graph as users run it, next to the bare hop and the core, at three sizes.
 
 For each world -- Table 1 and the random worlds of ``scripts/make_world.py`` with 1,000
-and 10,000 entities (:mod:`fsreg_ros.worlds`, seeded, its default shape) -- it starts the
+and 10,000 entities (:mod:`fsreg_ros.tools.worlds`, seeded, its default shape) -- it starts the
 graph ``fsreg-up`` starts, with every default: one process per node, persistence on (a
 state directory of its own), sim time, the scenario's memory settings, a namespace of
 its own (:class:`fsreg_ros.testing.LiveGraph` with ``processes=True``; the consultants'
@@ -10,7 +10,7 @@ debug service off, as ``fsreg-up`` has it).  Every world's graph is up at once a
 turns are interleaved (turn i of each world before turn i + 1 of any), so every figure,
 across worlds too, is taken under the same machine load.  It waits until the graph says it is ready
 (``wm_manager/ready`` and every topic matched: :meth:`GraphClient.wait_ready`) and then,
-through the public :class:`~fsreg_ros.client.GraphClient`, measures per turn:
+through the public :class:`~fsreg_ros.ros.client.GraphClient`, measures per turn:
 
 * human turn -> ``rr/result`` (parser -> RR -> consultant calls);
 * ``reg/request`` -> ``reg/expression``;
@@ -53,7 +53,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.network import ros_environment  # noqa: E402
+from fsreg_ros.ros.network import ros_environment  # noqa: E402
 
 os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
@@ -63,7 +63,7 @@ from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options, Simulation  # noqa: E402
-from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
+from fsreg_ros.tools.worlds import WorldShape, dump_world, random_world  # noqa: E402
 
 TABLE1 = REPO / "scenarios" / "guess_who_table1.yaml"
 #: A Table 1 turn's p50 may take this many bare hops per (calls per turn + 2).

@@ -31,7 +31,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.cli import sim_main  # noqa: E402
+from fsreg_ros.tools.sim import sim_main  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.yaml_source import ExactLoader, FastLoader  # noqa: E402
 

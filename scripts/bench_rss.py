@@ -9,7 +9,7 @@ at each sample and, per node, the slope after REG's cache is full (default 1,024
 bytes per request: fitted by least squares over the samples, with its 95 % interval. Before the
 fix, REG grew ~1.9 kB per request after the cache filled: every service call created a deadline
 timer, and rclpy's callback group kept a weak reference
-to each timer forever (see ``fsreg_ros.carrier.drop_timer``).
+to each timer forever (see ``fsreg_ros.ros.carrier.drop_timer``).
 
     scripts/bench_rss.py [SCENARIO.yaml] [--requests 6000] [--every 500]
 
@@ -34,7 +34,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.graph import Graph, graph_nodes, ros_environment  # noqa: E402
+from fsreg_ros.tools.graph import Graph, graph_nodes, ros_environment  # noqa: E402
 
 os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
@@ -45,7 +45,7 @@ from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.carrier import publisher, qos_profile, to_msg  # noqa: E402
+from fsreg_ros.ros.carrier import publisher, qos_profile, to_msg  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 from fsreg_ros.core.simulation import Options  # noqa: E402
 
@@ -80,7 +80,8 @@ def fit_slope(points: list[tuple[int, float]]) -> tuple[float, tuple[float, floa
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", nargs="?", type=Path, default=REPO / "test" / "data" / "graph" / "kb.yaml")
+    parser.add_argument("scenario", nargs="?", type=Path,
+                        default=REPO / "test" / "support" / "data" / "graph" / "kb.yaml")
     parser.add_argument("--requests", type=int, default=6000)
     parser.add_argument("--every", type=int, default=500)
     parser.add_argument("--json", type=Path, help="also write the samples here")

@@ -8,7 +8,7 @@ that process):
 * ``fsreg-sim WORLD --json`` (the installed console script, default settings): load,
   the game, the same game under policy ``none`` for the alignment baseline, the
   alignment, the JSON text;
-* ``python test/naive_sim.py WORLD --json``: the naive reference computing the same
+* ``python test/support/naive_sim.py WORLD --json``: the naive reference computing the same
   (plain libyaml load, list queues, eager decay, RR and SD-PIA written out as loops
   over entities, alignment written out from its definitions; only the lexicon is
   borrowed, to say the descriptions).
@@ -18,7 +18,7 @@ differences).  The ratio naive / fsreg of wall times is the figure (target: at l
 x5 on both worlds); the ratio of CPU times (user + system) is printed beside it, as it
 suffers less from other load on the machine.  The split -- start-up, loading, the game, the ``none`` game with the
 alignment, the JSON text -- is measured by running the same steps in-process in
-another fresh process per side (``fsreg_ros.cli``'s own functions for fsreg).
+another fresh process per side (``fsreg_ros.tools.sim``'s own functions for fsreg).
 
 Worlds: the presets of ``scripts/make_world.py`` (default ``sparse,dense``: 10,000
 entities with 200 properties, or with 6 properties each holding for about half the
@@ -46,14 +46,14 @@ from typing import Optional
 from venv_python import REPO, use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
-sys.path.insert(0, str(REPO / "test"))  # the naive reference
+sys.path.insert(0, str(REPO / "test" / "support"))  # the naive reference
 
 from make_world import PRESETS, describe, preset_shape  # noqa: E402
 
-from fsreg_ros.worlds import dump_world, random_world  # noqa: E402
+from fsreg_ros.tools.worlds import dump_world, random_world  # noqa: E402
 
 TARGET_RATIO = 5.0  # naive / fsreg, end to end
-NAIVE = REPO / "test" / "naive_sim.py"
+NAIVE = REPO / "test" / "support" / "naive_sim.py"
 SIDES = ("fsreg", "naive")
 #: The in-process split: phase key, label.
 PHASES = (
@@ -114,7 +114,7 @@ def run_timed(argv: list[str], out: Path) -> dict:
 def split_fsreg(world: str) -> tuple[dict, str]:
     """Time ``fsreg-sim WORLD --json``'s steps in-process with the CLI's own functions; return (phases, text)."""
     start = time.perf_counter()
-    from fsreg_ros import cli
+    from fsreg_ros.tools import sim as cli
     from fsreg_ros.core.simulation import dumps
 
     marks = [time.perf_counter()]
@@ -199,7 +199,7 @@ def child_profile(world: str) -> int:
     import cProfile
     import pstats
 
-    from fsreg_ros.cli import sim_main
+    from fsreg_ros.tools.sim import sim_main
 
     profiler = cProfile.Profile()
     stdout = sys.stdout
@@ -282,7 +282,7 @@ def render(report: dict, repeat: int) -> str:
         f"end to end, as users run it (fastest of {repeat} alternating run(s), each a fresh process):",
         f"  {'command':<38} {'wall s':>8} {'CPU s':>8} {'peak RSS MB':>12}",
         *(f"  {label:<38} {side['wall_s']:>8.3f} {side['cpu_s']:>8.3f} {side['peak_rss_mb']:>12.1f}"
-          for label, side in (("fsreg-sim WORLD --json", f), ("python test/naive_sim.py WORLD --json", n))),
+          for label, side in (("fsreg-sim WORLD --json", f), ("python test/support/naive_sim.py WORLD --json", n))),
         f"  {'naive / fsreg':<38} {'x' + format(report['ratio_total'], '.2f'):>8} "
         f"{'x' + format(report['ratio_cpu'], '.2f'):>8} {'x' + format(report['ratio_rss'], '.2f'):>12}",
     ]

@@ -7,7 +7,7 @@ One turn is what the graph's consultant does for a dialogue turn, through the co
 (delta 10 s), then a human turn (RR: ``open`` with the first property, ``narrow`` per
 further property, ``close`` with the description, rules 1 and 2) or a robot turn (REG:
 ``open`` of the target, ``narrow`` per considered property, ``close``, rules 1 and 3),
-alternating, in a random world (:mod:`fsreg_ros.worlds`; policy decay+displacement,
+alternating, in a random world (:mod:`fsreg_ros.tools.worlds`; policy decay+displacement,
 capacity 3).  The same calls run twice in the same process, on two identical
 consultants: one service without a store (the core) and one with its state database
 (the defaults: WM persisted as a journal record per call in WAL mode with
@@ -49,7 +49,7 @@ from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.service import ConsultantService  # noqa: E402
 from fsreg_ros.core.store import DomainStore  # noqa: E402
-from fsreg_ros.worlds import DOMAIN, WorldShape, random_world  # noqa: E402
+from fsreg_ros.tools.worlds import DOMAIN, WorldShape, random_world  # noqa: E402
 
 POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 3}
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A longer fuzz run of every topic and service of the graph than the test suite's.
 
-Same fuzzer as ``test/test_fuzz_graph.py`` (``test/fuzzgraph.py``: the graph in one
+Same fuzzer as ``test/ros/test_fuzz_graph.py`` (``test/support/fuzzgraph.py``: the graph in one
 process on sim time, catalogued hostile inputs then hypothesis-generated ones with a
 fixed seed), with ``--examples`` generated inputs per endpoint.  Prints per topic or
 service the inputs tried, rejected and accepted, and every crash (a callback that
@@ -22,9 +22,9 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "test")]
+sys.path[:0] = [str(REPO), str(REPO / "test" / "support")]
 
-from fsreg_ros.network import require_loopback, ros_environment  # noqa: E402
+from fsreg_ros.ros.network import require_loopback, ros_environment  # noqa: E402
 
 require_loopback("fuzz.py")
 os.environ.update(ros_environment())  # before rclpy loads

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write a random world scenario (fsreg_ros.worlds) as YAML, deterministic from --seed.
+"""Write a random world scenario (fsreg_ros.tools.worlds) as YAML, deterministic from --seed.
 
 Usage: ``scripts/make_world.py [-o FILE] [--preset sparse|dense] [--entities N]
 [--attributes A] [--values V] [--human H] [--robot R] [--policy P] [--decay-period D]
@@ -28,7 +28,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.worlds import WorldShape, dump_world, random_world  # noqa: E402
+from fsreg_ros.tools.worlds import WorldShape, dump_world, random_world  # noqa: E402
 
 #: The benchmark worlds: changes to :class:`WorldShape`'s defaults.
 PRESETS: dict[str, dict] = {

@@ -5,7 +5,7 @@
 #   scripts/test.sh --quick          the quick suite, -m "not slow": no multi-process graphs, no colcon, no
 #                                    generated fuzzing (987 tests in 81 s on this project's 2-core machine)
 #   scripts/test.sh -m slow          only the slow tests
-#   scripts/test.sh test/test_x.py -k name -q     (any pytest arguments)
+#   scripts/test.sh test/core/test_x.py -k name -q     (any pytest arguments)
 #
 # Tests that start a graph of node processes or run for more than a few seconds are marked slow
 # (pytest.ini).  Always set ROS_DOMAIN_ID to a domain of your own when other graphs run.
@@ -16,6 +16,17 @@ if [[ " $* " == *" --help "* || "${1:-}" == "-h" ]]; then
 fi
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
+# The live view's browser test needs Debian's chromium (test/tools/test_view.py); install it where missing.
+if ! command -v chromium >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        echo "fsreg: installing chromium (the live view's browser test) ..." >&2
+        (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) >/dev/null 2>&1 \
+            || { echo "fsreg: apt-get install chromium failed" >&2; exit 2; }
+    else
+        echo "fsreg: the tests need Debian's chromium: sudo apt-get install chromium" >&2
+        exit 2
+    fi
+fi
 . "$root/scripts/rosenv.sh"
 cd "$root"
 args=()

@@ -2,7 +2,7 @@
 
 This runs before any test module imports rclpy.  Discovery must stay on localhost
 (nothing may send traffic off this machine) and Fast DDS is bound to loopback by
-fsreg_ros.network; an environment that would widen it stops the run at once (exit 2).
+fsreg_ros.ros.network; an environment that would widen it stops the run at once (exit 2).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.network import NetworkRefused, ros_environment  # imports no rclpy
+from fsreg_ros.ros.network import NetworkRefused, ros_environment  # imports no rclpy
 
 try:  # the tests never widen the network, whatever FSREG_ALLOW_NETWORK says
     os.environ.update(ros_environment(allow_network=False))
@@ -22,7 +22,7 @@ except NetworkRefused as err:
 assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "test"))  # test helpers (rosutil, naive_wm)
+sys.path.insert(0, str(REPO / "test" / "support"))  # test helpers (rosutil, naive_wm, naive_sim, fuzzgraph)
 
 
 @pytest.fixture(autouse=True)

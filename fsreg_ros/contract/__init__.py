@@ -15,9 +15,10 @@ One module per job:
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
-* :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.carrier.qos_profile`` makes the
+* :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);
-* :mod:`.endpoints`: the registry of topics and services (relative names, who talks);
+* :mod:`.endpoints`: the registry of topics and services (relative names, who talks), and
+  :func:`graph_topics`, every topic of one graph with its type and QoS (what a recorder subscribes to);
 * :mod:`.naming`: namespaces and the per-graph ``/clock`` remapping;
 * :mod:`.limits`: bounds on what a node accepts;
 * :mod:`.checking`: a decoded message against its schema, with one-line errors;
@@ -103,11 +104,15 @@ from .endpoints import (
     READY,
     WM_EVENTS,
     WM_STATE,
+    CLOCK_TYPE,
+    STRING_TYPE,
+    GraphTopic,
     Service,
     Topic,
     alive_topic,
     consultant_service,
     debug_service,
+    graph_topics,
     manage_service,
 )
 from .export import fields_of, json_schemas, message_table
@@ -137,4 +142,5 @@ __all__ = [
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
+    "CLOCK_TYPE", "STRING_TYPE", "GraphTopic", "graph_topics",  # every topic of a graph, as a recorder sees it
 ]

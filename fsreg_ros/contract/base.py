@@ -82,11 +82,18 @@ class RequestRef(Message):
 
 
 class ErrorReply(Message):
-    """A failed service call (``success=false``) or an error on a reply topic."""
+    """A failed service call (``success=false``) or an error on a reply topic.
+
+    ``kind`` names the error (every error reply carries one; docs/semantics.md §7 lists
+    them); on a service reply it is the server's exception class (``KnowledgeError``) or
+    a carrier kind (``not-ready``, ``too-large``), and ``detail`` the specific kind
+    (``unknown-entity``, ``unknown-property``) when there is one.
+    """
 
     error: str
     kind: Optional[str] = None
     id: Optional[Id] = None
+    detail: Optional[str] = None
 
 
 class Stamp(Message):

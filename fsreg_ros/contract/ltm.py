@@ -26,4 +26,5 @@ class LtmAssertResult(Message):
     updated: Optional[dict[str, Number]] = None
     retracted: Optional[list[str]] = None
     error: Optional[str] = None
+    kind: Optional[str] = None
     id: Optional[Id] = None

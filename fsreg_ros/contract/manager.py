@@ -38,7 +38,9 @@ class StatusReply(Message):
     current incarnation acknowledged the current setting; ``incarnation``: the
     consultant's (null until known); ``next_tick``: the time of the next decay tick
     (null without decay); ``ready``: every domain configured (as on ``wm_manager/ready``);
-    ``graph``: the WM Manager's graph identity.
+    ``graph``: the WM Manager's graph identity; ``reachable``: each consultant's liveliness
+    (``consultant/<domain>/alive``; null until heard of; false while it lapsed, and then
+    the domain is not configured either, under every policy).
     """
 
     time: Number
@@ -50,14 +52,16 @@ class StatusReply(Message):
     next_tick: dict[str, Optional[Number]]
     ready: Optional[bool] = None
     graph: Optional[str] = None
+    reachable: Optional[dict[str, Optional[bool]]] = None
 
 
 class DomainReadiness(Message):
-    """One domain on ``wm_manager/ready``: is its consultant's current incarnation configured, and with what."""
+    """One domain on ``wm_manager/ready``: is its consultant's current incarnation configured (and reachable)."""
 
     configured: bool
     incarnation: Optional[int] = None
     running: Optional[dict[str, Any]] = None
+    reachable: Optional[bool] = None
 
 
 class ManagerReady(Message):

@@ -6,7 +6,7 @@ from typing import Optional
 
 from .endpoints import CLOCK
 
-#: The field in which every published message names its graph (``fsreg_ros.carrier.publish`` stamps it).
+#: The field in which every published message names its graph (``fsreg_ros.ros.carrier.publish`` stamps it).
 GRAPH_FIELD = "graph"
 #: The node parameter that gives a node its graph's identity ('' = none: nothing is stamped).
 GRAPH_PARAMETER = "graph"

@@ -1,6 +1,6 @@
 """QoS of every fsreg topic, as plain data (no ROS import).
 
-:class:`QosSpec` says what a profile is; :func:`fsreg_ros.carrier.qos_profile` turns it
+:class:`QosSpec` says what a profile is; :func:`fsreg_ros.ros.carrier.qos_profile` turns it
 into an rclpy ``QoSProfile`` where a node creates its publisher or subscription.  So a
 tool that only needs names and schemas imports no ROS package.
 """

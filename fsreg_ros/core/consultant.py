@@ -34,6 +34,11 @@ class KnowledgeError(ValueError):
     The message says what and where; the consultant's state is unchanged.
     """
 
+    def __init__(self, message: str = "", kind: Optional[str] = None) -> None:
+        super().__init__(message)
+        #: The ``kind`` an error reply on a topic carries (``unknown-entity``, ...); None: the class name.
+        self.kind = kind
+
 
 @dataclass(frozen=True)
 class AssertResult:
@@ -175,8 +180,8 @@ class Consultant:
             unknown = [e for e in context if e not in self._index]
             if unknown:
                 raise KnowledgeError(
-                    f"context names unknown entities of domain '{self.domain}': {', '.join(unknown)}"
-                )
+                    f"context names unknown entities of domain '{self.domain}': {', '.join(unknown)}",
+                    kind="unknown-entity")
             members = bitset.from_indices((self._index[e] for e in context), len(self.entities))
         if where is not None:
             members &= ~(1 << where)
@@ -302,7 +307,7 @@ class Consultant:
             if prop not in self._known:
                 raise KnowledgeError(
                     f"domain '{self.domain}', entity '{entity}': unknown property '{prop}' "
-                    f"(not in the domain's preference order)"
+                    f"(not in the domain's preference order)", kind="unknown-property"
                 )
             check_certainty(f"certainty of '{prop}' for '{entity}'", c)
 
@@ -369,11 +374,11 @@ class Consultant:
 
     def _require_entity(self, entity: str) -> None:
         if entity not in self._certainty:
-            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'")
+            raise KnowledgeError(f"domain '{self.domain}' has no entity '{entity}'", kind="unknown-entity")
 
     def _require_property(self, prop: str) -> None:
         if prop not in self._known:
-            raise KnowledgeError(f"domain '{self.domain}' knows no property '{prop}'")
+            raise KnowledgeError(f"domain '{self.domain}' knows no property '{prop}'", kind="unknown-property")
 
 
 @dataclass

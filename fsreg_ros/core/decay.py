@@ -1,6 +1,8 @@
 """Decay time (the paper's Algorithm 2): the tick schedule and tick arithmetic.
 
-This is the one module that does arithmetic on decay tick times:
+The pops themselves (a tick pops the front of every non-empty queue, lazily) are
+:mod:`fsreg_ros.core.memory.decay`.  This is the one module that does arithmetic on
+decay tick times:
 
 * :class:`DecaySchedule` says which ticks are due at a time: tick k falls at
   ``origin + k * period`` (k = 1, 2, ...) and is due at T iff
@@ -165,7 +167,7 @@ class DecaySchedule:
 class TickLedger:
     """Every decay tick a buffer was given, numbered 0, 1, 2, ..., as arithmetic runs.
 
-    Lazy decay (see :mod:`fsreg_ros.core.memory`) applies a tick to a queue when the
+    Lazy decay (:mod:`fsreg_ros.core.memory.decay`) applies a tick to a queue when the
     queue is next touched, reporting it at the tick's own time: :meth:`time` finds it.
     """
 

@@ -57,6 +57,11 @@ def algorithm_for(retains: bool, algorithm: Optional[str] = None) -> str:
 class GenerationError(ValueError):
     """REG cannot run: unknown target, bad context set, bad option."""
 
+    def __init__(self, message: str = "", kind: Optional[str] = None) -> None:
+        super().__init__(message)
+        #: The ``kind`` an error reply on a topic carries (``unknown-entity``, ...); None: the class name.
+        self.kind = kind
+
 
 @dataclass
 class Expression:
@@ -320,4 +325,4 @@ async def generate(
             return await full_brevity(target, port, **options)
         return await greedy(target, port, **options)
     except KnowledgeError as err:
-        raise GenerationError(str(err)) from err
+        raise GenerationError(str(err), kind=err.kind) from err

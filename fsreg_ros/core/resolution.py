@@ -22,6 +22,11 @@ RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
 class ResolutionError(ValueError):
     """The description cannot be resolved at all (unknown property, no domain)."""
 
+    def __init__(self, message: str = "", kind: Optional[str] = None) -> None:
+        super().__init__(message)
+        #: The ``kind`` an error reply on a topic carries (``unknown-entity``, ...); None: the class name.
+        self.kind = kind
+
 
 @dataclass
 class Resolution:
@@ -64,18 +69,21 @@ async def choose_domain(
     """
     if domain is not None:
         if domain not in ports:
-            raise ResolutionError(f"unknown domain '{domain}' (known: {', '.join(sorted(ports))})")
+            raise ResolutionError(f"unknown domain '{domain}' (known: {', '.join(sorted(ports))})",
+                                  kind="unknown-domain")
         preference = set(await ports[domain].preference())
         missing = [p for p in description if p not in preference]
         if missing:
-            raise ResolutionError(f"domain '{domain}' knows no property {', '.join(repr(p) for p in missing)}")
+            raise ResolutionError(f"domain '{domain}' knows no property {', '.join(repr(p) for p in missing)}",
+                                  kind="unknown-property")
         return domain
     preferences = {name: set(await port.preference()) for name, port in ports.items()}
     known = set().union(*preferences.values())
     fitting = domains_knowing(description, preferences)
     unknown = [p for p in description if p not in known]
     if unknown:
-        raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}")
+        raise ResolutionError(f"no consultant knows property {', '.join(repr(p) for p in unknown)}",
+                              kind="unknown-property")
     if len(fitting) != 1:
         which = "no domain" if not fitting else f"several domains ({', '.join(sorted(fitting))})"
         raise ResolutionError(f"cannot tell the domain of {list(description)}: {which} know every property; "
@@ -107,7 +115,7 @@ async def resolve(
         # Rule 1 for a resolved description, in utterance order.
         candidates = await port.close(view, description if remaining == 1 else (), time, turn)
     except KnowledgeError as err:  # raced with an LTM change; report, never guess
-        raise ResolutionError(str(err)) from err
+        raise ResolutionError(str(err), kind=getattr(err, "kind", None)) from err
     if len(candidates) == 1:
         return Resolution(RESOLVED, domain, description, candidates)
     return Resolution(AMBIGUOUS if candidates else NO_MATCH, domain, description, candidates)

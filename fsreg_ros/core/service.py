@@ -5,8 +5,7 @@ and its WM buffer) and everything that lives beside it while it serves: the open
 sessions of RR and REG (:mod:`fsreg_ros.core.sessions`), the forgetting policy the WM
 Manager installed, readiness (configured in this incarnation), the decay high-water
 mark (the last tick applied: a tick is never applied twice), the numbering of the
-events it publishes, and, when it has one, its state database
-(:mod:`fsreg_ros.core.store`).  The ROS node is wiring around it; the in-process
+events it publishes, and its persistence (below).  The ROS node is wiring around it; the in-process
 :class:`~fsreg_ros.core.consultant.LocalPort` uses its typed methods, so the simulator
 and the graph run the same code.
 
@@ -19,22 +18,17 @@ One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contrac
    its buffer operations (:mod:`fsreg_ros.core.journal`) and the policy, decay mark
    and facts it set; a manage op also lists exactly the queues it changed
    (``WMBuffer.take_changes``: the WM Manager is told how many);
-3. they are committed to the store, once (the records; a checkpoint of the queues
-   changed since the last one, read off ``take_changes``, when the journal is long);
+3. they are committed to the store, once, by :meth:`Persistence.finish
+   <fsreg_ros.core.persistence.Persistence.finish>` (the records; a checkpoint of the
+   queues changed since the last one, read off ``take_changes``, when the journal is long);
 4. the :class:`Outcome` carries the reply, the changes and the numbered events.
 
-Durability by kind of data (docs/deployment.md, "State"): an LTM fact is written and
-fsynced *before* memory changes (:meth:`ltm_assert`): a refused write (a full disk)
-changes nothing and is refused with its reason.  A WM write that fails does not fail
-the call: WM decays within seconds and REG must keep answering, so the service serves
-on, keeps the unsaved queues, retries (at most once a second) with a checkpoint, and
-reports ``persisted: false`` and the error in :meth:`status` until a write succeeds.
-
-Clock epochs: stored WM records the clock kind (``sim`` or ``system``) and the latest
-time it reflects.  At the first ``configure`` of an incarnation, a clock of another
-kind, or one behind that time (a restarted simulation), means the stored WM belongs to
-another run: WM and the decay mark are dropped (facts and policy kept), and
-:meth:`status` and :attr:`notices` say so.
+Persistence (restore at start, clock epochs, writing each call's changes once,
+checkpoints, retries after a failed write) is :class:`~fsreg_ros.core.persistence.Persistence`,
+held as :attr:`ConsultantService.persistence`: an LTM fact is stored before memory
+changes (a refused write changes nothing); a failed WM write does not fail the call
+(the service serves on and reports ``persisted: false`` in :meth:`status`); stored WM
+of another clock or run is dropped at the first ``configure``.
 """
 
 from __future__ import annotations
@@ -48,10 +42,11 @@ from . import journal
 from .consultant import (CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, Walk, Walked, WalkStep,
                          close_view, open_view)
 from .decay import TickError, TickRun, check_time
-from .forgetting import NONE, ForgettingPolicy, PolicyError
-from .memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMEvent
+from .forgetting import NONE, ForgettingPolicy
+from .memory import ENCODE_CAUSES, WMEvent
+from .persistence import Persistence, Restored
 from .sessions import SessionTable
-from .store import Batch, Checkpoint, DomainStore, StoreError, StoredState, damaged
+from .store import DomainStore, StoredState
 from .wm_manager import apply_ticks, configure_buffer, unapplied
 
 #: Query ops (RR and REG), debug ops (tests and tools, served only on request) and the WM Manager's.
@@ -62,12 +57,6 @@ MANAGE_OPS = ("configure", "decay", "evict", "size")
 COUNTED_OPS = ("configure", "decay", "evict")
 #: Ops whose replies carry the LTM ``version``.
 VERSIONED_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
-#: Journal length (records, names) at which :meth:`ConsultantService.maintain` writes a checkpoint ...
-CHECKPOINT_RECORDS, CHECKPOINT_NAMES = 256, 200_000
-#: ... and at which a call writes one itself.
-FORCE_RECORDS, FORCE_NAMES = 4096, 2_000_000
-#: Least time between two attempts to write after a failed write (steady seconds).
-RETRY_AFTER = 1.0
 
 
 class NotReady(RuntimeError):
@@ -108,31 +97,6 @@ class Outcome:
     events: list[dict] = field(default_factory=list)
 
 
-@dataclass
-class Restored:
-    """What :meth:`ConsultantService.restore` found and kept."""
-
-    incarnation: int
-    runtime_entities: int = 0
-    runtime_facts: int = 0
-    queues: int = 0
-    records: int = 0
-    dropped: list[str] = field(default_factory=list)  # what a migration could not keep
-    migrated: bool = False
-    backup: Optional[str] = None
-
-    def summary(self) -> str:
-        """Return one log line."""
-        text = (f"incarnation {self.incarnation}, {self.runtime_entities} runtime entities, "
-                f"{self.runtime_facts} runtime facts, {self.queues} WM queues ({self.records} journal records)")
-        if self.migrated:
-            text += (f"; written for another KB: migrated, {len(self.dropped)} dropped"
-                     + (f" ({'; '.join(self.dropped[:10])}{'; ...' if len(self.dropped) > 10 else ''})"
-                        if self.dropped else "")
-                     + (f", the old database kept as {self.backup}" if self.backup else ""))
-        return text
-
-
 class ConsultantService:
     """One domain's consultant with its sessions, policy, readiness, decay mark, events and store."""
 
@@ -162,9 +126,6 @@ class ConsultantService:
         self.domain = consultant.domain
         self.incarnation = incarnation
         self.sessions: SessionTable[CandidateSet] = sessions if sessions is not None else SessionTable()
-        self.store = store
-        self.persist_wm = persist_wm
-        self.clock = clock
         self.now = now or (lambda: 0.0)
         self.steady = steady
         self.ready = ready
@@ -176,25 +137,12 @@ class ConsultantService:
         self.latest = -math.inf  # the latest time WM reflects (clock epochs)
         self.seq = 0  # events numbered so far
         self.wm_version = 0  # calls of this incarnation that changed WM (wm/state and info report it)
-        self.wm_state = "empty"  # restored | dropped | empty | not-persisted
-        self.wm_note = ""
-        self.persisted = True
-        self.store_error: Optional[str] = None
         self.notices: list[tuple[str, str]] = []  # (level, line) for the node's log: epochs, write failures
-        self._stored_epoch: Optional[tuple[Optional[str], float]] = None
+        self.persistence = Persistence(self, store, persist_wm, clock)
+        self._recording = self.persistence.recording  # WM changes are journalled (fixed at start)
         self._records: list[list] = []
         self._events: list[WMEvent] = []
-        self._recording = store is not None and persist_wm
-        self._unsaved: set[str] = set()  # entities changed since the last checkpoint
-        self._unsaved_meta: dict[str, Any] = {}
-        self._journal_rows = 0
-        self._journal_names = 0
-        self._journal_ok = True  # False after a failed write: the next WM write is a checkpoint
-        self._failed_at = -math.inf
         self._touched = False  # the current call changed WM
-        self._clock_saved = False
-        self._clear_stored = False  # the next checkpoint deletes every stored queue first
-        self._runtime: list[str] = []  # runtime-added entities, in order (restored)
         self._handlers: dict[str, Callable[[dict, str], dict]] = {
             "info": self._info, "open": self._open, "narrow": self._narrow, "walk": self._walk,
             "rule_out": self._rule_out, "close": self._close, "holds": self._holds, "affirm": self._affirm,
@@ -233,15 +181,7 @@ class ConsultantService:
             retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
             _check_storable([entity, *facts])
             values = {p: float(c) for p, c in facts.items()}
-            if self.store is not None:
-                journalled = bool(retracted) and self._recording and self._journal_ok and self._journals()
-                records = [journal.remove(entity, retracted, when)] if journalled else []
-                self.store.commit(Batch(facts=(entity, values, new), records=records))  # fsynced first
-                if journalled:
-                    self._journal_rows += 1
-                    self._journal_names += 1
-                elif retracted and self._recording:
-                    self._journal_ok = False  # the retraction must reach the store as a checkpoint
+            self.persistence.store_facts(entity, values, new, retracted, when)  # fsynced first
             result = self.consultant.assert_facts(entity, facts, when)
             self._touch(when, wm=bool(retracted))
             return result.to_json()
@@ -324,12 +264,12 @@ class ConsultantService:
     def configure(self, policy: ForgettingPolicy, time: float) -> None:
         """Install ``policy`` (trims at once; the policy already installed changes nothing) and serve."""
         if not self.ready:
-            self._settle_epoch(time)
+            self.persistence.settle_epoch(time)
         if policy != self.policy:
             configure_buffer(self.buffer, policy, time)
             self.policy = policy
             self._record(journal.limits(policy, time))
-            self._unsaved_meta["policy"] = policy.settings()
+            self.persistence.note("policy", policy.settings())
             self.notices.append(("info", f"memory policy {policy.to_json()}"))
         if not self.ready:
             self.ready = True
@@ -343,7 +283,7 @@ class ConsultantService:
             apply_ticks(self.buffer, due, self.consultant.entities)
             self.decay_until = due.last
             self._record(journal.decay(due))
-            self._unsaved_meta["decay_until"] = due.last
+            self.persistence.note("decay_until", due.last)
         self._touch(ticks.last)
 
     def evict(self, count: int, time: float) -> None:
@@ -353,14 +293,14 @@ class ConsultantService:
         self._touch(time)
 
     # ============================================================ state, status
+    @property
+    def store(self) -> Optional[DomainStore]:
+        """The state database (None: nothing is stored); :attr:`persistence` keeps it."""
+        return self.persistence.store
+
     def status(self) -> dict:
         """Return what ``info`` and the announcement report of the stored state."""
-        out: dict[str, Any] = {"wm": self.wm_state, "persisted": self.persisted}
-        if self.wm_note:
-            out["note"] = self.wm_note
-        if self.store_error:
-            out["error"] = self.store_error
-        return out
+        return self.persistence.status()
 
     def version(self) -> str:
         """Return ``"<incarnation>:<LTM changes>"``: what callers cache the catalogue by."""
@@ -378,167 +318,43 @@ class ConsultantService:
         return out
 
     def restore(self, state: StoredState) -> Restored:
-        """Take up what the store held: runtime facts, policy, decay mark and WM (checkpoint + journal).
+        """Take up what the store held (:meth:`~fsreg_ros.core.persistence.Persistence.restore`)."""
+        return self.persistence.restore(state)
 
-        Nothing is announced (no events).  A database written for this KB must name
-        only known entities and properties (else StateDamaged naming the file); one
-        written for another KB is migrated: what still validates is kept, the rest
-        listed in :attr:`Restored.dropped`, and the database rewritten (its old
-        version kept aside).  WM is checked against the clock at the first
-        :meth:`configure`.
-        """
-        migrate = state.other_kb
-        path = self.store.path if self.store is not None else "state"
-        report = Restored(state.incarnation, migrated=migrate)
-        self.incarnation = state.incarnation
-        kb_entities = list(self.consultant.entities)  # before any runtime entity joins
-        if state.kb_entities is None and self._recording:
-            self._unsaved_meta["kb_entities"] = kb_entities
-        sink, self.buffer.sink = self.buffer.sink, None
-        try:
-            runtime = self._restore_facts(state, report, path)
-            if state.policy is not None:
-                try:
-                    self.policy = ForgettingPolicy.from_settings(state.policy)
-                except PolicyError as err:
-                    raise damaged(path, f"stored policy: {err}") from None
-            if self.persist_wm:
-                self._restore_wm(state, report, path)
-            else:
-                configure_buffer(self.buffer, self.policy, 0.0)
-                self.wm_state = "not-persisted"
-        finally:
-            self.buffer.sink = sink
-        self._take_changes()
-        if report.records:
-            self._journal_ok = False  # compact the replayed journal at the next write
-        if migrate and self.store is not None:
-            backup = self.store.rewrite(self._export(state, runtime, kb_entities))
-            report.backup = str(backup) if backup else None
-            self._unsaved.clear()
-            self._journal_ok, self._journal_rows, self._journal_names = True, 0, 0
-        report.queues = len(self.buffer.nonempty_entities())
-        return report
+    def health(self) -> dict:
+        """The store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
+        return self.persistence.health()
 
     def maintain(self) -> None:
         """Write a checkpoint when the journal has grown long, or retry a failed write (call when idle)."""
-        if not self._recording:
-            return
-        due = (self._journal_rows >= CHECKPOINT_RECORDS or self._journal_names >= CHECKPOINT_NAMES
-               or not self._journal_ok)
-        if due and self.steady() - self._failed_at >= RETRY_AFTER:
-            self._write(checkpoint=True)
+        self.persistence.maintain()
 
     def shutdown(self) -> None:
         """Write what is unsaved as a checkpoint (best effort) and close the store."""
-        if self.store is None:
-            return
-        if self._recording:
-            self._write(checkpoint=True)
-        self.store.close()
+        self.persistence.shutdown()
 
     # ============================================================ internals: a call
     def _run(self, body: Callable[[], dict], listening: bool, op: str) -> Outcome:
         self._records, self._events, self._touched = [], [], False
         counted = op in COUNTED_OPS
         if counted:
-            self._take_changes()  # what earlier calls changed is not this one's
+            self.persistence.take_changes()  # what earlier calls changed is not this one's
         sink = self.buffer.sink
         self.buffer.sink = self._events.append if listening else None
         try:
             reply = body()
         finally:
             self.buffer.sink = sink
-            queues = self._take_changes() if counted else []
+            queues = self.persistence.take_changes() if counted else []
             changes = Changes(self._touched or bool(queues), queues, self._records)
             if changes.wm:
                 self.wm_version += 1
-            self._finish(changes)
+            self.persistence.finish(changes)  # written once
         if counted:
             reply["queues_changed"] = len(changes.queues)
         if op in VERSIONED_OPS:
             reply["version"] = self.version()
         return Outcome(reply, changes, self.numbered(self._events))
-
-    def _finish(self, changes: Changes) -> None:
-        """Account for a call's changes and write them (once), unless nothing needs writing."""
-        changes.policy = self._unsaved_meta.get("policy")
-        changes.decay_until = self._unsaved_meta.get("decay_until")
-        if self.store is None:
-            self._unsaved_meta.clear()
-            return
-        if self._recording:
-            if not changes.records and not self._unsaved_meta and self._journal_ok:
-                return  # nothing to write, or written already (a retraction goes with its fact)
-        elif not self._unsaved_meta:
-            return
-        if self.steady() - self._failed_at < RETRY_AFTER:
-            return  # a write failed just now: keep everything pending
-        force = (not self._journal_ok or not self._journals() or self._journal_rows >= FORCE_RECORDS
-                 or self._journal_names >= FORCE_NAMES)
-        self._write(checkpoint=self._recording and force, records=changes.records)
-
-    def _write(self, checkpoint: bool, records: Sequence[list] = ()) -> None:
-        """Commit what is unsaved: the call's journal records, or a checkpoint; on failure keep it pending."""
-        batch = Batch()
-        meta: dict[str, Any] = {}
-        if "policy" in self._unsaved_meta or (checkpoint and self._recording):
-            meta["policy"] = self.policy.settings()
-        if self._recording:
-            if "decay_until" in self._unsaved_meta:
-                meta["decay_until"] = self.decay_until if math.isfinite(self.decay_until) else None
-            if checkpoint:  # the journal's records carry their own times
-                meta["latest"] = self.latest if math.isfinite(self.latest) else None
-            if not self._clock_saved:
-                meta["clock"] = self.clock
-            if "kb_entities" in self._unsaved_meta:
-                meta["kb_entities"] = self._unsaved_meta["kb_entities"]
-            if checkpoint:
-                batch.checkpoint = self._checkpoint()
-            else:
-                batch.records = list(records)
-        batch.meta = meta
-        try:
-            self.store.commit(batch)  # type: ignore[union-attr]
-        except StoreError as err:
-            self._failed_at = self.steady()
-            self._journal_ok = False
-            if self.persisted or self.store_error != str(err):
-                self.notices.append(("warning", f"WM not stored (serving on; retrying with a checkpoint): {err}"))
-            self.persisted, self.store_error = False, str(err)
-            return
-        self._unsaved_meta.clear()
-        self._clock_saved = self._clock_saved or self._recording
-        if batch.checkpoint is not None:
-            self._unsaved.clear()
-            self._clear_stored = False
-            self._journal_ok, self._journal_rows, self._journal_names = True, 0, 0
-        else:
-            self._journal_rows += len(batch.records)
-            self._journal_names += sum(journal.names_in(r) for r in batch.records)
-        if not self.persisted:
-            self.notices.append(("info", "WM stored again"))
-        self.persisted, self.store_error = True, None
-
-    def _take_changes(self) -> list[str]:
-        """Take the buffer's change record (entities whose queue changed), keeping them for the checkpoint."""
-        changed = self.buffer.take_changes()
-        if self._recording:
-            self._unsaved.update(changed)
-        return changed
-
-    def _checkpoint(self) -> Checkpoint:
-        self._take_changes()
-        export, unsaved = self.buffer.export_queue, self._unsaved
-        held = [e for e in self.buffer.nonempty_entities() if e in unsaved]  # in the buffer's order
-        emptied = sorted(unsaved.difference(held))
-        stamp, ticks = self.buffer.counters()
-        return Checkpoint({e: export(e) for e in held + emptied}, stamp, ticks, self.policy.settings(),
-                          clear=self._clear_stored)
-
-    def _journals(self) -> bool:
-        """Whether WM changes can be journalled (not with random displacement victims)."""
-        return self.buffer.limits.victim != "random"
 
     def _record(self, record: list) -> None:
         if self._recording:
@@ -566,132 +382,6 @@ class ConsultantService:
             return check_time("time", value)
         except TickError as err:
             raise RequestError(f"field 'time': {err}") from None
-
-    def _settle_epoch(self, time: float) -> None:
-        """At the first configure: drop stored WM that belongs to another clock or run."""
-        stored, self._stored_epoch = self._stored_epoch, None
-        if stored is None or (not self.buffer.nonempty_entities() and self.decay_until == -math.inf):
-            return  # nothing stored to judge
-        clock, latest = stored
-        if clock is not None and clock != self.clock:
-            why = f"it was stored on the {clock} clock and this consultant runs on the {self.clock} clock"
-        elif time + 1e-9 < latest:
-            why = (f"it reflects time {latest:g} s but the clock reads {time:g} s "
-                   "(a restarted simulation or a clock set back)")
-        else:
-            return
-        stamp, ticks = self.buffer.counters()
-        self.buffer.restore({}, stamp, ticks, self.buffer.limits)
-        self.buffer.take_changes()
-        self.decay_until = -math.inf
-        self.latest = -math.inf
-        self.wm_state, self.wm_note = "dropped", f"stored WM not restored: {why}"
-        self.notices.append(("warning", f"{self.wm_note}; runtime facts and policy restored"))
-        if self._recording:  # the stored queues go at the next write, which is a checkpoint
-            self._unsaved.clear()
-            self._clear_stored, self._journal_ok = True, False
-            self._unsaved_meta["decay_until"] = -math.inf
-
-    # ============================================================ internals: restore
-    def _restore_facts(self, state: StoredState, report: Restored, path: Any) -> dict[str, dict[str, float]]:
-        """Re-apply the runtime facts; return those kept (entity -> facts), runtime entities first."""
-        c, migrate = self.consultant, state.other_kb
-        kept: dict[str, dict[str, float]] = {}
-        runtime = list(state.entities)
-        for entity in runtime + [e for e in state.facts if e not in runtime]:
-            facts = dict(state.facts.get(entity, {}))
-            if entity not in runtime and not c.knows_entity(entity):
-                if not migrate:
-                    raise damaged(path, f"facts about entity {entity!r}, which neither the KB nor the runtime "
-                                        "entities hold")
-                report.dropped.append(f"{entity}: no longer in the KB")
-                continue
-            unknown = [p for p in facts if not c.knows_property(p)]
-            if unknown and not migrate:
-                raise damaged(path, f"a fact about {entity!r} names property {unknown[0]!r}, unknown to the KB")
-            for prop in unknown:
-                report.dropped.append(f"{entity}.{prop}: unknown property")
-                del facts[prop]
-            if not facts:
-                if entity in runtime:
-                    report.dropped.append(f"{entity}: none of its facts is valid")
-                continue
-            try:
-                c.assert_facts(entity, facts, 0.0)
-            except KnowledgeError as err:
-                if not migrate:
-                    raise damaged(path, f"a stored fact about {entity!r}: {err}") from None
-                report.dropped.append(f"{entity}: {err}")
-                continue
-            kept[entity] = facts
-            report.runtime_entities += entity in runtime
-            report.runtime_facts += len(facts)
-        self._runtime = [e for e in runtime if e in kept]
-        return kept
-
-    def _restore_wm(self, state: StoredState, report: Restored, path: Any) -> None:
-        c, migrate = self.consultant, state.other_kb
-        queues = {}
-        for entity, items in state.queues.items():
-            stray = [item[3] for item in items if item[3] not in ENCODE_CAUSES and item[3] != UNKNOWN_ORIGIN[0]]
-            if stray:
-                raise damaged(path, f"the WM queue of {entity!r} has an entry with cause {stray[0]!r}")
-            if not c.knows_entity(entity):
-                if not migrate:
-                    raise damaged(path, f"a WM queue of entity {entity!r}, which the domain does not hold")
-                report.dropped.append(f"WM of {entity}: no longer in the KB")
-                continue
-            unknown = [item[0] for item in items if not c.knows_property(item[0])]
-            if unknown:
-                if not migrate:
-                    raise damaged(path, f"the WM queue of {entity!r} holds property {unknown[0]!r}, unknown to the KB")
-                report.dropped.append(f"WM of {entity}: {', '.join(unknown)} (unknown properties)")
-                items = [item for item in items if c.knows_property(item[0])]
-            if items:
-                queues[entity] = items
-        try:
-            limits = ForgettingPolicy.from_settings(state.limits) if state.limits is not None else NONE
-        except PolicyError as err:
-            raise damaged(path, f"stored checkpoint policy: {err}") from None
-        self.buffer.restore(queues, state.stamp, state.ticks, limits.limits())
-        records = []
-        order = None if state.kb_entities is None else state.kb_entities + state.entities
-        for record in state.journal:
-            try:
-                record = journal.decode(record, order)
-                checked = journal.check(record, c.knows_entity, c.knows_property, keep_known=state.other_kb)
-            except journal.JournalError as err:
-                raise damaged(path, f"journal: {err}") from None
-            if checked is None:
-                report.dropped.append(f"journal record {record[0]!r}: names nothing the KB still holds")
-            else:
-                records.append(checked)
-        for record in records:
-            journal.replay(self.buffer, c.entities, record)
-        report.records = len(records)
-        latest = max([state.latest, *(journal.time_of(record) for record in records)])
-        if c.retract_on_update:  # a runtime retraction stored while WM could not be: apply it now
-            for entity, facts in state.facts.items():
-                gone = [p for p, certainty in facts.items() if certainty < c.threshold and c.knows_entity(entity)
-                        and c.knows_property(p) and p not in c.properties_of(entity)]
-                for prop in gone:
-                    self.buffer.remove(entity, prop, "retract", 0.0)
-        self.decay_until = state.decay_until
-        self.latest = latest
-        self._clock_saved = state.clock == self.clock
-        self._stored_epoch = (state.clock, latest)
-        self.wm_state = "restored" if self.buffer.nonempty_entities() or records else "empty"
-
-    def _export(self, state: StoredState, runtime_facts: dict[str, dict[str, float]],
-                kb_entities: list[str]) -> StoredState:
-        """Return the state to write after a migration: what was kept, as of now."""
-        export = self.buffer.export_queue
-        stamp, ticks = self.buffer.counters()
-        return StoredState(
-            self.incarnation, policy=state.policy, decay_until=self.decay_until, clock=state.clock,
-            latest=self.latest, entities=list(self._runtime), facts=runtime_facts,
-            queues={e: export(e) for e in self.buffer.nonempty_entities()} if self.persist_wm else {},
-            stamp=stamp, ticks=ticks, limits=self.policy.settings(), kb_entities=kb_entities)
 
     # ============================================================ internals: handlers
     def _info(self, req: dict, client: str) -> dict:

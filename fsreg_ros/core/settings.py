@@ -8,16 +8,16 @@ is generated from :data:`TABLE`:
 * the policy itself, :class:`fsreg_ros.core.forgetting.ForgettingPolicy` (which
   parameters each rule needs, their checks, what is reported);
 * the scenario file schema (:mod:`fsreg_ros.core.scenario.schema`, ``MemoryBlock``);
-* the command-line options of ``fsreg-sim`` / ``fsreg-graph`` (:mod:`fsreg_ros.cli`);
+* the command-line options of ``fsreg-sim`` / ``fsreg-graph`` (:mod:`fsreg_ros.tools.sim`);
 * the ``wm_manager`` node's parameters and their descriptors
   (:mod:`fsreg_ros.nodes.wm_manager`);
-* the graph definition and the launch file's arguments (:mod:`fsreg_ros.graph_spec`,
+* the graph definition and the launch file's arguments (:mod:`fsreg_ros.ros.graph_spec`,
   ``launch/fsreg.launch.py``);
 * the contract's policy object, sent by the WM Manager to a consultant's ``configure``
   (:mod:`fsreg_ros.contract.policy`).
 
 Adding a setting is one row here plus the rule that reads it (docs/design.md, "Add a
-memory setting"); ``test/test_settings.py`` checks every consumer against the table.
+memory setting"); ``test/core/test_settings.py`` checks every consumer against the table.
 The one check of a value is :func:`check_value`; the ``policy`` row's value is a rule
 string, checked by :func:`fsreg_ros.core.forgetting.parse_rules`.
 """

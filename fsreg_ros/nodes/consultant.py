@@ -6,8 +6,9 @@ The node is wiring: it decodes each request with the contract's models
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
-``wm/state`` (latched; at most once per request and per ``state_period``; a session's
-steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
+``wm/state`` (latched, so it always holds the current state: after every request that
+changed WM, whether or not anyone listens, coalesced to at most one per ``state_period``;
+a session's steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
 ``consultant/announce`` and ``consultant/<domain>/alive`` (latched; the latter with a
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
@@ -33,15 +34,16 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, serve, subscribe
-from ..codec import MessageError, printable
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, serve, subscribe
+from ..ros.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
 from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
-from .asking import declare_limits
-from .common import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
+from ..ros.asking import declare_limits
+from ..ros.diagnostics import ERROR, OK, WARN
+from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
 #: Ops whose WM changes are published with the session's ``close``.
 SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
@@ -179,8 +181,8 @@ class ConsultantNode(Node):
         self.announce(only_if_changed=True)
 
     # ------------------------------------------------------------- LTM topic
-    def _reject_assert(self, request_id: Any, error: str) -> None:
-        reply = {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": error}
+    def _reject_assert(self, request_id: Any, error: str, kind: str = "bad-request") -> None:
+        reply = {"domain": None, "consultant": self.domain, "entity": None, "ok": False, "error": error, "kind": kind}
         if request_id is not None:
             reply["id"] = request_id
         publish(self._assert_results, reply)
@@ -196,10 +198,10 @@ class ConsultantNode(Node):
                 data["entity"], data["properties"], listening=listening))
         except StoreError as err:  # memory unchanged: nothing was applied
             log.error(printable(f"{contract.LTM_ASSERT.name}: not stored: {err}"))
-            reply.update(ok=False, error=printable(f"not stored: {err}"))
+            reply.update(ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
         except ValueError as err:  # MessageError, KnowledgeError: nothing changed
             log.warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
-            reply.update(ok=False, error=printable(err))
+            reply.update(ok=False, error=printable(err), kind=reply_kind(err))
         else:
             result = outcome.reply
             reply.update(ok=True, new_entity=result["new_entity"], updated=result["updated"],
@@ -221,6 +223,18 @@ class ConsultantNode(Node):
                 self._published(outcome)
 
     # ----------------------------------------------------------- publishing
+    def diagnostic_values(self) -> tuple[int, str, dict]:
+        """``/diagnostics``: readiness, WM sizes and the state database's health."""
+        health = self.service.health()
+        buffer = self.service.buffer
+        values = {"domain": self.domain, "ready": self.service.ready, "entities_in_wm": len(buffer.nonempty_entities()),
+                  "wm_properties": len(buffer), **health}
+        if not health["last_write_ok"]:
+            return ERROR, f"the last write to the state database failed, retrying: {health['store_error']}", values
+        if not self.service.ready:
+            return WARN, "not configured by the WM Manager yet", values
+        return OK, "ready", values
+
     def now(self) -> float:
         return now_seconds(self)
 
@@ -244,15 +258,17 @@ class ConsultantNode(Node):
                               "incarnation": s.incarnation, "wm_version": s.wm_version})
 
     def _publish_due(self, waiting: bool = False) -> None:
-        """Publish a due /wm/state unless one went out less than ``state_period`` ago (or nobody reads it).
+        """Publish a due /wm/state unless one went out less than ``state_period`` ago.
 
+        Published whether or not anyone reads it now: the topic is latched, so the sample
+        DDS keeps for a late joiner (``ros2 topic echo --once``) must be the current state,
+        never an older one.  ``state_period`` coalesces: a burst of changes costs one
+        message, and the timer sends the last one once the period has passed.
         ``waiting`` (the timer): also wait while a session is open, for at most a second.
         """
         now = monotonic()
         if not self._state_due or now - self._state_sent < self._state_period:
             return
-        if not self._state.get_subscription_count():
-            return  # the timer sends it once someone subscribes
         sessions = self.service.sessions
         sessions.expire(now)
         if waiting and len(sessions) and now - self._state_sent < MAX_STATE_DELAY:

@@ -25,9 +25,9 @@ subscription is matched with every consultant.  Every event carries ``seq`` (1, 
 ... per consultant incarnation) and ``incarnation``; the player notes each
 consultant's last ``seq`` before turn 1 and, after the last turn, checks that it heard
 exactly the events that followed, without a gap, from the incarnation it started with
-(:class:`~fsreg_ros.nodes.event_ledger.EventLedger`).  A gap, a restarted consultant, or anything stamped by another
+(:class:`~fsreg_ros.ros.event_ledger.EventLedger`).  A gap, a restarted consultant, or anything stamped by another
 graph (``graph``, the ``graph`` parameter of every node; see
-:func:`fsreg_ros.carrier.graph_identity`) on an answer or an event fails the run
+:func:`fsreg_ros.ros.carrier.graph_identity`) on an answer or an event fails the run
 (exit 1) with one line saying what was missing or foreign: a result is never written
 from an incomplete event stream.
 """
@@ -45,14 +45,14 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from ..carrier import (CarrierError, JsonClient, drop_timer, graph_identity, publish, publisher, subscribe,
-                       wait_until)
-from ..client import clock_message, describe_graph
+from ..ros.carrier import (CarrierError, JsonClient, drop_timer, graph_identity, publish, publisher, subscribe,
+                           wait_until)
+from ..ros.client import clock_message, describe_graph
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
-from .common import declare_number, run_node
-from .event_ledger import EventLedger
+from ..ros.node_base import declare_number, run_node
+from ..ros.event_ledger import EventLedger
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
     contract.HUMAN.name: (True, False),
@@ -81,6 +81,8 @@ class DialoguePlayer(Node):
         declare_number(self, "turn_timeout", 30.0, 0.1, 3600.0, "seconds to wait for one turn's answer")
         declare_number(self, "retry_after", 2.0, 0.05, 600.0, "resend a turn unanswered for this long, s")
         declare_number(self, "ready_timeout", 60.0, 0.1, 3600.0, "seconds to wait for the graph to come up")
+        self.listeners = declare_number(self, "listeners", 0, 0, 100, "other subscribers (a recorder) to wait for "
+                                        "on the requests and wm/events before turn 1", integer=True, read_only=True)
         self.declare_parameter(
             "lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True)
         )
@@ -134,7 +136,8 @@ class DialoguePlayer(Node):
         return [
             topic
             for topic, (sub, pub) in PIPELINE_TOPICS.items()
-            if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
+            if (sub and self.count_subscribers(topic) < 1 + self.listeners)
+            or (pub and self.count_publishers(topic) == 0)
         ]
 
     async def wait_ready(self) -> None:
@@ -179,7 +182,7 @@ class DialoguePlayer(Node):
                     info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
                 except CarrierError as err:
                     raise PlayerError(f"graph not ready: {err}") from None
-                if matched and info.get("event_listeners", 0) >= 1:
+                if matched and info.get("event_listeners", 0) >= 1 + self.listeners:
                     incarnation = (status.get("incarnation") or {}).get(domain)
                     self.ledger.start(domain, incarnation if isinstance(incarnation, int) else None,
                                       int(info.get("events", 0)))
@@ -299,7 +302,7 @@ def write_outputs(player: DialoguePlayer, result: dict) -> None:
         with open(output, "w", encoding="utf-8") as out:
             out.write(dumps(result))
     else:
-        from ..report import render_table
+        from ..core.report import render_table
 
         print(render_table(result), end="", flush=True)
     trace = player.get_parameter("trace").value

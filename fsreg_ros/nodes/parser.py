@@ -19,12 +19,12 @@ from typing import Optional
 from rclpy.node import Node
 
 from .. import contract
-from ..carrier import publish, publisher, subscribe
+from ..ros.carrier import publish, publisher, subscribe
 from ..contract import fingerprint
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
-from .asking import declare_limits
-from .common import descriptor, run_node, watch_clock
+from ..ros.asking import declare_limits
+from ..ros.node_base import descriptor, run_node, watch_clock
 from .reference_resolution import rr_error
 
 
@@ -51,8 +51,8 @@ class ParserNode(Node):
         self._clock_watch = watch_clock(self)
         self.get_logger().info(f"parser ready for {len(self.properties)} properties")
 
-    def _reject(self, request_id, error: str) -> None:
-        publish(self._errors, rr_error(request_id, error))
+    def _reject(self, request_id, error: str, kind: str = "bad-request") -> None:
+        publish(self._errors, rr_error(request_id, error, kind))
 
     def _on_human(self, data: dict) -> None:
         publish(self._semantics, self.parse(data))

@@ -16,11 +16,11 @@ from __future__ import annotations
 from typing import Optional
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import printable
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
+from ..ros.codec import printable
 from ..core.resolution import NO_MATCH, resolve
-from .asking import AskingNode
-from .common import run_node
+from ..ros.asking import AskingNode
+from ..ros.node_base import run_node
 
 
 class ReferenceResolutionNode(AskingNode):
@@ -33,8 +33,8 @@ class ReferenceResolutionNode(AskingNode):
                   callback_group=self.request_group, limits=self.limits)
         self.get_logger().info(f"reference resolution over domains {sorted(self.ports)}")
 
-    def _reject(self, request_id, error: str) -> None:
-        publish(self._results, rr_error(request_id, error))
+    def _reject(self, request_id, error: str, kind: str = "bad-request") -> None:
+        publish(self._results, rr_error(request_id, error, kind))
 
     def fingerprint(self, data: dict) -> str:
         """Return the fingerprint of the utterance the parser read (``request``), else of the semantics message."""
@@ -61,15 +61,16 @@ class ReferenceResolutionNode(AskingNode):
             result = await resolve(description, self.ports, domain=domain, time=time, turn=data.get("turn"))
         except (ValueError, CarrierError) as err:  # ResolutionError, KnowledgeError, MessageError
             self.get_logger().warning(printable(f"{contract.SEMANTICS.name} (id {data['id']!r}): {err}"))
-            out.update(status="error", error=str(err), resolved=None, candidates=[], description=list(description))
+            out.update(status="error", error=str(err), kind=reply_kind(err), resolved=None, candidates=[],
+                       description=list(description))
             return out
         out.update(result.to_json())
         return out
 
 
-def rr_error(request_id, error: str) -> dict:
+def rr_error(request_id, error: str, kind: str = "bad-request") -> dict:
     """Return the ``rr/result`` for an utterance that could not be read (no resolution ran)."""
-    reply = {"status": "error", "error": error, "resolved": None, "candidates": []}
+    reply = {"status": "error", "error": error, "kind": kind, "resolved": None, "candidates": []}
     if request_id is not None:
         reply["id"] = request_id
     return reply

@@ -9,7 +9,7 @@ the final description (rule 1) are encoded in that consultant's WM.
 Parameters: ``algorithm`` (``auto`` = SD-PIA, or DIST-PIA for a domain whose
 policy is ``none``; or one of sd-pia, dist-pia, full-brevity, greedy),
 ``wm_order`` (lru-first, mru-first, preference), ``lexicon`` (path, '' = default), and
-the limits and timeouts of :class:`~fsreg_ros.nodes.asking.AskingNode`.  Bad requests
+the limits and timeouts of :class:`~fsreg_ros.ros.asking.AskingNode`.  Bad requests
 get ``{"id", "error"}`` on ``reg/expression`` and a logged warning.
 """
 
@@ -20,12 +20,12 @@ from typing import Optional
 from rcl_interfaces.msg import SetParametersResult
 
 from .. import contract
-from ..carrier import CarrierError, publish, publisher, subscribe
-from ..codec import printable
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
+from ..ros.codec import printable
 from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
 from ..core.lexicon import Lexicon
-from .asking import AskingNode
-from .common import descriptor, run_node
+from ..ros.asking import AskingNode
+from ..ros.node_base import descriptor, run_node
 
 
 class RegNode(AskingNode):
@@ -65,8 +65,10 @@ class RegNode(AskingNode):
         problem = self._check(values["algorithm"], values["wm_order"])
         return SetParametersResult(successful=not problem, reason=problem)
 
-    def _reject(self, request_id, error: str) -> None:
-        reply = {"error": error} if request_id is None else {"id": request_id, "error": error}
+    def _reject(self, request_id, error: str, kind: str = "bad-request") -> None:
+        reply = {"error": error, "kind": kind}
+        if request_id is not None:
+            reply["id"] = request_id
         publish(self._expressions, reply)
 
     async def answer(self, data: dict) -> dict:
@@ -88,6 +90,7 @@ class RegNode(AskingNode):
         except (ValueError, CarrierError) as err:  # GenerationError, KnowledgeError, MessageError
             self.get_logger().warning(printable(f"{contract.REG_REQUEST.name} (id {data['id']!r}): {err}"))
             out["error"] = str(err)
+            out["kind"] = reply_kind(err)
             return out
         expression.text = self.lexicon.realise(expression.description, domain)
         out.update(expression.to_json())
@@ -103,7 +106,8 @@ class RegNode(AskingNode):
             for domain, port in self.ports.items():
                 if await port.knows(target, refresh):
                     return domain
-        raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})")
+        raise GenerationError(f"no consultant knows entity '{target}' (domains: {', '.join(sorted(self.ports))})",
+                              kind="unknown-entity")
 
 
 def main(args=None) -> int:

@@ -13,6 +13,12 @@ sends each decision to ``/consultant/<domain>/manage``:
   of any ``decay`` it never acknowledged (the consultant skips ticks it had applied,
   so none is applied twice).  A restarted consultant refuses query ops (kind
   ``not-ready``) until that configure arrives.
+* Reachability, under every policy: the node follows each consultant's liveliness on
+  ``consultant/<domain>/alive`` (a 1 s DDS lease, kept by the consultant's DDS threads).
+  When it lapses, the domain stops counting as configured (``ready`` turns false, the
+  domain is detached so decay ticks are owed, not lost) until the consultant is back
+  and has acknowledged a configure again: without it, a policy that sends nothing on
+  its own (displacement, none) never noticed an outage.
 * ``decay`` sends a run of ticks ``{"origin", "period", "first", "count"}``: a few
   numbers however many ticks, so a clock far ahead costs what one tick costs.
 
@@ -28,7 +34,7 @@ Parameters (all but ``domains`` changeable at run time; a change is validated as
 effective policy of every domain and rejected with a reason if any is invalid;
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
 ``domains`` (string array, required, read-only): the consultant domains managed; the
-memory settings, node-wide and per domain (:mod:`fsreg_ros.nodes.memory_parameters`,
+memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
 from the settings table); ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of
 each consultant call, and of sync's wait for the consultants to be configured.
 
@@ -59,6 +65,7 @@ from typing import Any, Optional
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -71,15 +78,17 @@ from rclpy.parameter import Parameter
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
-                       wait_until)
+from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
+                           wait_until)
 from ..contract import manage_service
+from ..ros.codec import printable
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
-from .common import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
-from .manage_link import ConsultantLink, ManageLinks, ManagePort
-from .memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
+from ..ros.diagnostics import OK, WARN
+from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
+from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
+from ..ros.memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
 
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
@@ -156,6 +165,17 @@ class WMManagerNode(Node):
         serve(self, contract.SYNC, self._sync, self._barrier_group)
         serve(self, contract.STATUS, self._status)
         subscribe(self, contract.ANNOUNCE, self._on_announce)
+        # An ltm/assert for a domain no consultant serves would go unanswered: the WM Manager, which knows
+        # the configured domains, answers it (kind unknown-domain; malformed ones as bad-request).
+        # A message no consultant can read (not JSON, too large) is answered by every consultant, not here.
+        self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
+        self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
+        subscribe(self, contract.LTM_ASSERT, self._on_foreign_assert, reject=self._reject_assert,
+                  accept=self._foreign_domain, limits=contract.Limits())
+        for name, dom in self._domains.items():
+            dom.alive_sub = subscribe(
+                self, contract.alive_topic(name), partial(self._on_alive, dom),
+                event_callbacks=SubscriptionEventCallbacks(liveliness=partial(self._on_liveliness, dom)))
         self._clock_watch = watch_clock(self)
         self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -262,8 +282,64 @@ class WMManagerNode(Node):
         dom.incarnation = incarnation
         dom.running = announce.get("memory")
         dom.configured = False
+        dom.alive = True  # it just spoke
         self.manager.detach(dom.name)
         self._attach(dom)
+        self._publish_ready()
+
+    def _foreign_domain(self, data: dict) -> bool:
+        domain = data.get("domain")
+        self._foreign = domain if isinstance(domain, str) and domain not in self._domains else None
+        return self._foreign is not None
+
+    def _on_foreign_assert(self, data: dict) -> None:
+        """Answer an ``ltm/assert`` naming a domain this graph does not have (no consultant would)."""
+        self._reject_assert(data.get("id"), printable(
+            f"no consultant serves domain {data['domain']!r} (this graph's domains: {', '.join(self._names)}); "
+            "nothing was stored"), "unknown-domain", data["domain"])
+
+    def _reject_assert(self, request_id: Any, error: str, kind: str = "bad-request",
+                       domain: Optional[str] = None) -> None:
+        foreign, self._foreign = self._foreign, None
+        if foreign is None:
+            return  # unreadable before its domain was known: the consultants answer it
+        reply: dict[str, Any] = {"domain": domain or foreign, "entity": None, "ok": False, "error": error,
+                                 "kind": kind}
+        if request_id is not None:
+            reply["id"] = request_id
+        log_warning(self.get_logger(), f"{contract.LTM_ASSERT.name}: {error}")
+        publish(self._assert_results, reply)
+
+    def _on_alive(self, dom: ConsultantLink, announce: dict) -> None:
+        """Take an alive message as proof of life (in one process DDS liveliness shows only through writes)."""
+        if dom.alive is False:
+            self._reachable(dom, True)
+        dom.alive = True
+
+    def _on_liveliness(self, dom: ConsultantLink, info) -> None:
+        """Follow a consultant's liveliness: a lapse makes its domain unconfigured until it is back."""
+        alive = info.alive_count > 0
+        if alive != dom.alive and (dom.alive is not None or not alive):
+            self._reachable(dom, alive)
+        dom.alive = alive
+
+    def _reachable(self, dom: ConsultantLink, alive: bool) -> None:
+        log = self.get_logger()
+        if alive:
+            log.info(f"consultant '{dom.name}' is reachable again (liveliness back): configuring it")
+            dom.alive = True
+            attached = self.manager.domains[dom.name].attached
+            if attached and not dom.configured and dom.configuring is None:
+                self.manager.detach(dom.name)  # acknowledged while it seemed gone: configure it again
+                attached = False
+            if not attached and dom.client.ready():
+                self._attach(dom)
+            return
+        log.warning(f"consultant '{dom.name}' is unreachable (its liveliness lapsed): the graph is not ready "
+                    "until it is back and configured")
+        dom.alive = False
+        self.manager.detach(dom.name)
+        dom.lost()
         self._publish_ready()
 
     def _attach(self, dom: ConsultantLink) -> None:
@@ -277,9 +353,18 @@ class WMManagerNode(Node):
         """Attach consultants that became reachable; expire unanswered calls."""
         self._links.expire()
         for dom in self._domains.values():
-            if not self.manager.domains[dom.name].attached and dom.client.ready():
+            if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.client.ready():
                 self._attach(dom)
         self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
+
+    def diagnostic_values(self) -> tuple[int, str, dict]:
+        """``/diagnostics``: readiness, and each domain's consultant (configured, incarnation)."""
+        missing = sorted(d for d, dom in self._domains.items() if not dom.configured)
+        values = {f"{d}.configured": dom.configured for d, dom in sorted(self._domains.items())}
+        values.update({f"{d}.incarnation": dom.incarnation for d, dom in sorted(self._domains.items())})
+        if missing:
+            return WARN, f"not ready: {', '.join(missing)} not configured", {"ready": False, **values}
+        return OK, "ready", {"ready": True, **values}
 
     def _all_configured(self) -> bool:
         return all(dom.configured for dom in self._domains.values())
@@ -287,8 +372,8 @@ class WMManagerNode(Node):
     def _publish_ready(self) -> None:
         """Publish ``wm_manager/ready`` when readiness or a domain's configuration changed."""
         state = {"ready": self._all_configured(),
-                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running}
-                             for d, dom in self._domains.items()}}
+                 "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running,
+                                 "reachable": dom.alive} for d, dom in self._domains.items()}}
         if state == self._ready_sent:
             return
         self._ready_sent = state
@@ -332,6 +417,7 @@ class WMManagerNode(Node):
             next_tick={d: self.manager.next_tick(d) for d in self._domains},
             ready=self._all_configured(),
             graph=graph_identity(self),
+            reachable={d: dom.alive for d, dom in self._domains.items()},
         )
 
     def memory(self) -> dict[str, dict]:

@@ -16,6 +16,7 @@ from ..core.forgetting import PolicyError
 from ..core.generation import GenerationError
 from .execution import add_engine_arguments, engine_from_args
 from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
+from .listener import MAX_REPAIRS, ORDERS, PARTNERS, ListenerOptions
 from .tuna import ALGORITHMS, DOMAINS, TunaError, evaluate, load_trials
 
 
@@ -53,7 +54,8 @@ def parse_orders(entries: Sequence[str]) -> dict[str, list[str]]:
 
 def eval_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="fsreg-eval", description="Score REG algorithms against human referring expressions."
+        prog="fsreg-eval",
+        description="Score REG algorithms (tuna) and forgetting rules (tangrams) against human referring expressions."
     )
     sub = parser.add_subparsers(dest="corpus", required=True)
     tuna = sub.add_parser("tuna", help="the TUNA corpus (singular trials)")
@@ -66,6 +68,22 @@ def eval_parser() -> argparse.ArgumentParser:
     tuna.add_argument("--folds", type=int, default=10, help="k for cross-validated order learning (default 10)")
     tuna.add_argument("--per-trial", type=Path, metavar="FILE.csv", help="write one row per trial and algorithm")
     tuna.add_argument("--json", action="store_true", help="print the results as JSON")
+    tangrams = sub.add_parser(
+        "tangrams",
+        help="the tangram games of Hawkins, Frank & Goodman (2020): forgetting rules against people's reuse")
+    tangrams.add_argument("path", type=Path, help="directory holding tangramsSequential.csv (or the file)")
+    tangrams.add_argument("--tokens", default="content", metavar="NAME",
+                          help="tokenisation: content (stop list), stems (stop list + Snowball stems) or all "
+                               "(default content)")
+    tangrams.add_argument("--folds", type=int, default=10, help="k of the cross-validation by game (default 10)")
+    tangrams.add_argument("--grid", action="append", default=[], metavar="PARAM=V1,V2,...",
+                          help="replace a parameter's grid (e.g. decay_period=5,10,20)")
+    tangrams.add_argument("--resamples", type=int, default=10_000,
+                          help="bootstrap resamples for the intervals (default 10000)")
+    tangrams.add_argument("--jobs", type=int, default=1, help="worker processes for the replays (results do not "
+                                                              "depend on it)")
+    tangrams.add_argument("--plots", type=Path, metavar="DIR", help="write the figures (PNG and PDF) into DIR")
+    tangrams.add_argument("--json", action="store_true", help="print the results as JSON")
     return parser
 
 
@@ -115,9 +133,61 @@ def write_per_trial(path: Path, results: list) -> None:
                 ])
 
 
+def tangram_grids(entries: Sequence[str]) -> dict:
+    """``["capacity=1,2,3"]`` -> ``{"capacity": (1, 2, 3)}``, each value checked against the settings table."""
+    from ..core import settings as table
+    from .tangrams import fitted_parameters, wm_models
+
+    fitted = {p for model in wm_models() for p in fitted_parameters(model.name.split("+"))}
+    grids: dict = {}
+    for entry in entries:
+        name, sep, text = entry.partition("=")
+        name = name.strip()
+        if not sep or name not in fitted:
+            known = ", ".join(sorted(fitted))
+            raise UsageError(f"--grid '{entry}': expected PARAM=V1,V2,... with PARAM one of {known}")
+        row = table.setting(name)
+        grids[name] = tuple(sorted(number_list(f"--grid {name}", text, row.kind, row.low, row.high)))
+    return grids
+
+
+def eval_tangrams(args: argparse.Namespace) -> int:
+    from .tangrams import TOKENISATIONS, evaluate, report
+
+    if args.tokens not in TOKENISATIONS:
+        raise UsageError(f"--tokens: unknown tokenisation '{args.tokens}' (known: {', '.join(TOKENISATIONS)})")
+    if not 2 <= args.folds <= 1000:
+        raise UsageError(f"--folds must be in [2, 1000], got {args.folds}")
+    if not 100 <= args.resamples <= 1_000_000:
+        raise UsageError(f"--resamples must be in [100, 1000000], got {args.resamples}")
+    if not 1 <= args.jobs <= 64:
+        raise UsageError(f"--jobs must be in [1, 64], got {args.jobs}")
+    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
+        raise UsageError(f"--plots {args.plots}: not a directory")
+    grids = tangram_grids(args.grid)
+    result = evaluate(args.path, args.tokens, args.folds, grids, args.jobs, args.resamples)
+    written = []
+    if args.plots is not None:
+        from .tangrams_plot import write_figures
+
+        written = write_figures(result, args.plots)
+    if args.json:
+        print(json.dumps(result.to_json(), indent=2))
+        return 0
+    for line in report(result):
+        print(line)
+    if written:
+        print(f"figures written to {args.plots}: {', '.join(written)}")
+    return 0
+
+
+def eval_command(args: argparse.Namespace) -> int:
+    return eval_tangrams(args) if args.corpus == "tangrams" else eval_tuna(args)
+
+
 def eval_main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``fsreg-eval``."""
-    return _run(eval_tuna, eval_parser(), argv)
+    return _run(eval_command, eval_parser(), argv)
 
 
 # ----------------------------------------------------------------- fsreg-sweep
@@ -183,6 +253,23 @@ def sweep_parser() -> argparse.ArgumentParser:
                         help="extra memory setting for every non-none run (fixes that parameter)")
     parser.add_argument("--human-memory", action="append", default=[], metavar="KEY=VALUE",
                         help="give the human a WM of its own (e.g. policy=decay, decay_period=10)")
+    listener = parser.add_argument_group(
+        "listener", "who resolves the robot's descriptions (any of these adds the listener's metrics; "
+                    "see docs/research.md)")
+    listener.add_argument("--listener-missing", metavar="RATE",
+                          help="share of facts the listener does not know, in [0, 1] (default 0)")
+    listener.add_argument("--listener-noise", metavar="RATE",
+                          help="share of known facts the listener misperceives, in [0, 1] (default 0)")
+    listener.add_argument("--listener-order", metavar="ORDER",
+                          help=f"the listener's preference order, with --partner robot: {', '.join(ORDERS)} "
+                               "(default: robot)")
+    listener.add_argument("--max-repairs", metavar="N",
+                          help=f"repairs per robot turn before the reference counts as failed (default {MAX_REPAIRS})")
+    listener.add_argument("--partner", metavar="WHO",
+                          help="who plays the human's role: human (the game's Incremental-Algorithm human, default) "
+                               "or robot (a second fsreg agent with its own WM; robot-robot mode)")
+    listener.add_argument("--partner-memory", action="append", default=[], metavar="KEY=VALUE",
+                          help="with --partner robot: its WM settings (default: the same as the robot's in each run)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
     parser.add_argument("--resume", action="store_true",
                         help="play only the games missing from --out's games.jsonl (same command, same code)")
@@ -226,6 +313,55 @@ def retraction_list(text: str) -> tuple:
     return tuple(dict.fromkeys(v == "on" for v in values))
 
 
+def rate(option: str, text: str) -> float:
+    """Parse a probability for ``option``: a finite number in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{option}: '{text}' is not a number") from None
+    if not 0.0 <= value <= 1.0:  # also refuses nan
+        raise UsageError(f"{option} must be in [0, 1], got {text}")
+    return value
+
+
+def listener_options(args: argparse.Namespace) -> Optional[ListenerOptions]:
+    """Return the listener the options describe, or None when none of them is given (no listener, as before)."""
+    given = [args.listener_missing, args.listener_noise, args.listener_order, args.max_repairs, args.partner]
+    if all(v is None for v in given) and not args.partner_memory:
+        return None
+    partner = args.partner if args.partner is not None else "human"
+    if partner not in PARTNERS:
+        raise UsageError(f"--partner: expected {' or '.join(PARTNERS)}, got '{partner}'")
+    robot = partner == "robot"
+    if args.listener_order is not None:
+        if args.listener_order not in ORDERS:
+            raise UsageError(f"--listener-order: expected one of {', '.join(ORDERS)}, got '{args.listener_order}'")
+        if not robot:
+            raise UsageError("--listener-order needs --partner robot (the order decides what the listener says; "
+                             "resolution checks every property in any order)")
+    if args.partner_memory and not robot:
+        raise UsageError("--partner-memory needs --partner robot")
+    if robot and args.human_memory:
+        raise UsageError("--human-memory and --partner robot both give the human's role a WM: "
+                         "use --partner-memory")
+    repairs = MAX_REPAIRS
+    if args.max_repairs is not None:
+        try:
+            repairs = int(args.max_repairs)
+        except ValueError:
+            raise UsageError(f"--max-repairs: '{args.max_repairs}' is not an integer") from None
+        if not 0 <= repairs <= 20:
+            raise UsageError(f"--max-repairs must be in [0, 20], got {repairs}")
+    return ListenerOptions(
+        missing=rate("--listener-missing", args.listener_missing) if args.listener_missing is not None else 0.0,
+        noise=rate("--listener-noise", args.listener_noise) if args.listener_noise is not None else 0.0,
+        order=args.listener_order,
+        max_repairs=repairs,
+        partner=partner,
+        partner_memory=memory_settings(args.partner_memory, "--partner-memory") if args.partner_memory else None,
+    )
+
+
 def sweep_config(args: argparse.Namespace):
     """Return the checked SweepConfig, engine and shard (or None) of fsreg-sweep's arguments."""
     from .sweep import Shard, SweepConfig
@@ -253,6 +389,7 @@ def sweep_config(args: argparse.Namespace):
                              f"(give at most --seeds shards)")
         shard = Shard(index, count, seeds)
         seeds = shard.mine()
+    listener = listener_options(args)
     config = SweepConfig(
         policies=policies,
         decay_periods=number_list("--decay-periods", args.decay_periods, float, 1e-2, 1e6),
@@ -268,6 +405,7 @@ def sweep_config(args: argparse.Namespace):
         changes=args.changes,
         retraction=retraction_list(args.retraction),
         wm_belief=args.wm_belief,
+        listener=listener,
     )
     return config, engine, shard
 
@@ -290,6 +428,9 @@ def sweep_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None
           f"written to {args.out / 'runs.csv'}")
     for line in headline(summary, dynamic=config.changes > 0):
         print(line)
+    if config.listener is not None:
+        for line in listener_lines(summary, config.listener):
+            print(line)
     if config.changes > 0:
         for line in recommendation_lines(recommend(summary)):
             print(line)
@@ -369,6 +510,36 @@ def headline(summary: list, dynamic: bool = False) -> list[str]:
     return lines
 
 
+def listener_lines(summary: list, listener: ListenerOptions) -> list[str]:
+    """Return one line per setting: the listener's success, turns to success, length and entrainment, with intervals."""
+    from .stats import METHOD
+
+    robot = listener.partner == "robot"
+    who = (f"a second fsreg agent (order {listener.order_name()}, WM "
+           + (", ".join(f"{k}={v}" for k, v in listener.partner_memory.items()) if listener.partner_memory
+              else "as the robot's") + ")") if robot else "the human"
+    lines = [f"listener: {who}, facts missing {listener.missing:g}, misperceived {listener.noise:g}, "
+             f"at most {listener.max_repairs} repairs"]
+    labels = [e["setting"].label() for e in summary]
+    width = max([len(label) for label in labels] + [7])
+    lines.append(f"  {'setting':{width}}  {'success [95% CI]':>22}  {'1st try':>7}  {'turns to success [95% CI]':>25}  "
+                 f"{'length':>6}  {'heard':>5}  {'entrainment [95% CI]':>22}" + ("  robot resolved" if robot else ""))
+    for label, entry in zip(labels, summary):
+        e = entry["estimates"]
+        line = (f"  {label:{width}}  {e['success'].text(3):>22}  {e['first_success'].mean:7.3f}  "
+                f"{e['turns_to_success'].text(3):>25}  {e['mean_length'].mean:6.2f}  {e['final_length'].mean:5.2f}  "
+                f"{e['entrainment'].text(3):>22}")
+        if robot:
+            line += f"  {e['partner_resolved'].mean:14.3f}"
+        lines.append(line)
+    lines.append("  success: share of robot turns whose referent the listener identified (repairs included); 1st try: "
+                 "at once; turns to success: attempts, over the turns that succeeded; length: properties per robot "
+                 "description; heard: in the description the listener resolved last"
+                 + ("; robot resolved: share of the partner's descriptions the robot resolved to their referent"
+                    if robot else "") + f"; {METHOD}.")
+    return lines
+
+
 def recommendation_lines(table: list) -> list[str]:
     """Return the recommendation table as text: per WM configuration and bound, the best setting."""
     lines = ["recommendation: per WM configuration, the setting with the most entrainment whose mean outdated "
@@ -398,9 +569,11 @@ def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
 # ------------------------------------------------------------------ fsreg-plot
 def plot_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file."
+        prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file, fsreg-ctl watch --events "
+        "--json output, or a recording (fsreg-ctl record, fsreg-up --record)."
     )
-    parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace)")
+    parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace, fsreg-ctl watch --events "
+                        "--json: lines without 'op' are skipped), or a recording's folder or .mcap file")
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
     parser.add_argument("--result", type=Path, help="fsreg-sim --json output, for the turns' times and speakers")
     parser.add_argument("--title", default="", help="plot title")
@@ -410,7 +583,11 @@ def plot_parser() -> argparse.ArgumentParser:
 
 
 def read_trace(path: Path) -> list[dict]:
-    """Read a JSON-lines event trace; a bad line is named by number."""
+    """Read a JSON-lines event trace; a bad line is named by number.
+
+    Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
+    are not events and are skipped; anything else must be an encode/forget event.
+    """
     events = []
     with path.open(encoding="utf-8") as lines:
         for number, line in enumerate(lines, 1):
@@ -420,6 +597,8 @@ def read_trace(path: Path) -> list[dict]:
                 event = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
+            if isinstance(event, dict) and "op" not in event:
+                continue  # a WM state (or another record of a watch): not an event
             if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
                 raise UsageError(f"{path}:{number}: not a WM event (an object with op encode|forget)")
             if not isinstance(event.get("time", 0), (int, float)) or isinstance(event.get("time"), bool):
@@ -428,11 +607,42 @@ def read_trace(path: Path) -> list[dict]:
     return events
 
 
+#: Transport fields of a recorded ``wm/events`` message (not part of the event itself).
+TRANSPORT = ("seq", "incarnation", "graph")
+
+
+def read_recording(path: Path) -> tuple[list[dict], dict]:
+    """Return a recording's WM events and its turns (a result with ``turns``: time and speaker of each answer).
+
+    A recording cut short is read as far as it goes, and what is lost is said on stderr.
+    """
+    from ..core.recording import open_recording
+
+    recording = open_recording(path)
+    if recording.lost:
+        print(f"fsreg-plot: note: {recording.lost}", file=sys.stderr)
+    events = [{k: v for k, v in m.data.items() if k not in TRANSPORT} for m in recording.on("events")
+              if isinstance(m.data, dict)]
+    turns, seen = [], set()
+    for message in recording.messages:
+        speaker = {"rr": "human", "expression": "robot"}.get(recording.role(message) or "")
+        data = message.data
+        if speaker is None or not isinstance(data, dict) or (speaker, data.get("id")) in seen:
+            continue
+        seen.add((speaker, data.get("id")))
+        if isinstance(data.get("time"), (int, float)):
+            turns.append({"turn": len(turns), "time": float(data["time"]), "speaker": speaker})
+    return events, {"turns": turns}
+
+
 def plot_command(args: argparse.Namespace) -> int:
     from .plot import wm_timeline
 
-    events = read_trace(args.trace)
     result = None
+    if args.trace.is_dir() or args.trace.suffix == ".mcap":
+        events, result = read_recording(args.trace)
+    else:
+        events = read_trace(args.trace)
     if args.result:
         try:
             result = json.loads(args.result.read_text(encoding="utf-8"))

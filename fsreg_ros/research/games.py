@@ -37,10 +37,11 @@ from ..core.consultant import Consultant, LocalPort, Narrowed, Step, View, run_s
 from ..core.describe import describe
 from ..core.generation import algorithm_for
 from ..core.lexicon import Lexicon
-from ..core.resolution import resolve
+from ..core.resolution import NO_MATCH, resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
-from ..core.simulation import Options, Simulation
+from ..core.simulation import Options, Simulation, human_record
 from ..core.wm_manager import WMManager
+from .listener import Listener, ListenerOptions
 
 DOMAIN = "faces"
 OBJECTS = "objects"
@@ -272,6 +273,7 @@ class Played:
     wm_sizes: list = field(default_factory=list)
     outdated: list = field(default_factory=list)
     trace: Optional[list] = None
+    heard: Optional[list] = None  # per robot turn, the listener's :class:`~.listener.Heard` (with a listener)
 
 
 class HumanSpeaker:
@@ -319,6 +321,7 @@ def play(
     retract: bool = True,
     wm_belief: bool = False,
     trace: bool = False,
+    listener: Optional[ListenerOptions] = None,
 ) -> Played:
     """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``).
 
@@ -328,6 +331,11 @@ def play(
     take the target's WM as true (:class:`BeliefPort`).  Fact changes reach the
     robot's LTM through ``Consultant.assert_facts`` before the first turn at or after
     their time (decay ticks due by then first).
+
+    With ``listener`` (:mod:`.listener`) a listener of its own knowledge resolves each
+    robot description, the robot repairing a failed reference (``Played.heard``); with
+    its ``partner`` ``robot``, that listener is a second fsreg agent that also plays
+    the human's turns, from its own WM (``partner_memory``, else ``memory``).
     """
     scenario = scenario_of(game)
     simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon, trace=trace)
@@ -336,8 +344,15 @@ def play(
     if wm_belief:
         simulation.ports = {d: BeliefPort(c) for d, c in simulation.consultants.items()}
     human = HumanSpeaker(game, human_memory) if human_memory is not None else None
+    hearer = None
+    if listener is not None:
+        partner = listener.partner == "robot"
+        own = listener.partner_memory if listener.partner_memory is not None else memory
+        hearer = Listener(game, listener, own if partner else None)
+        if partner:
+            human = hearer  # the second fsreg agent plays the human's role: it speaks, hears and sees
     changes = list(game.changes)
-    records, wm_sizes, outdated = [], [], []
+    records, wm_sizes, outdated, heard = [], [], [], []
     for turn in scenario.dialogue:
         while changes and changes[0].time <= turn.time:
             change = changes.pop(0)
@@ -345,19 +360,30 @@ def play(
             simulation.consultants[change.domain].assert_facts(change.entity, change.facts(), change.time)
             if human is not None:
                 human.see(change)
+            if hearer is not None and hearer is not human:
+                hearer.see(change)
         if turn.speaker == "human" and human is not None:
             turn = replace(turn, description=tuple(human.say(turn.target, turn.domain, turn.time, turn.index)))
         if turn.speaker == "robot":
             domain = scenario.domain_of(turn.target)  # type: ignore[arg-type]
             simulation.manager.advance(turn.time)
             wm_sizes.append(len(simulation.consultants[domain].wm))
-        record = simulation.play(turn)
+        if turn.speaker == "human" and not turn.description:  # a partner that knows nothing to say of it
+            simulation.manager.advance(turn.time)
+            record = human_record(turn, {"description": [], "status": NO_MATCH, "resolved": None, "candidates": [],
+                                         "domain": turn.domain}, None)
+        else:
+            record = simulation.play(turn)
         if turn.speaker == "robot":
             consultant = simulation.consultants[record["domain"]]
             holding = set(consultant.properties_of(turn.target))  # type: ignore[arg-type]
             outdated.append([p for p in record["description"] or () if p not in holding])
-            if human is not None:
+            if hearer is not None:
+                heard.append(hearer.hear(record["description"] or (), turn.target, record["domain"], consultant,
+                                         turn.time, turn.index))
+            if human is not None and human is not hearer:
                 human.hear(record["description"] or (), record["domain"], turn.time, turn.index)
         records.append(record)
     result = {"scenario": scenario.name, "memory": simulation.manager.effective(), "turns": records}
-    return Played(result, summarise(result), wm_sizes, outdated, simulation.trace() if trace else None)
+    return Played(result, summarise(result), wm_sizes, outdated, simulation.trace() if trace else None,
+                  heard if hearer is not None else None)

@@ -56,3 +56,28 @@ def bootstrap_ci(values: Sequence[float], resamples: int = RESAMPLES, seed: int 
     tail = (1 - level) / 2 * 100
     low, high = np.percentile(means, [tail, 100 - tail])
     return Estimate(mean, float(low), float(high), n)
+
+
+def ratio_bootstrap_ci(numerators: Sequence[float], denominators: Sequence[float], resamples: int = RESAMPLES,
+                       seed: int = SEED, level: float = LEVEL) -> Estimate:
+    """Return sum(numerators) / sum(denominators) and its percentile bootstrap interval over units.
+
+    For a per-item mean of per-unit totals (e.g. log-likelihood per candidate, units = games):
+    units are resampled with replacement, as :func:`bootstrap_ci` does (same seed, same draws).
+    """
+    import numpy as np
+
+    num = np.asarray(numerators, dtype=float)
+    den = np.asarray(denominators, dtype=float)
+    n = len(num)
+    if n == 0 or den.sum() == 0:
+        return Estimate(float("nan"), float("nan"), float("nan"), n)
+    value = float(num.sum() / den.sum())
+    if n == 1:
+        return Estimate(value, value, value, n)
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, n, size=(resamples, n))
+    ratios = num[draws].sum(axis=1) / np.maximum(den[draws].sum(axis=1), 1e-300)
+    tail = (1 - level) / 2 * 100
+    low, high = np.percentile(ratios, [tail, 100 - tail])
+    return Estimate(value, float(low), float(high), n)

@@ -32,6 +32,16 @@ Metrics per game and setting (:data:`METRICS`; over the robot's turns):
   referent when said; ``outdated_descriptions``: share of descriptions with one;
 * ``from_wm_share`` and, of the properties taken from WM, the share each origin put there.
 
+With a listener (``SweepConfig.listener``, :mod:`fsreg_ros.research.listener`) each
+row also has :data:`LISTENER_METRICS`: ``success`` (share of robot turns whose
+referent the listener identified, repairs included), ``first_success`` (at the
+first attempt), ``turns_to_success`` (mean attempts over the turns that succeeded),
+``final_length`` (properties in the description last heard), ``said_length``
+(properties the robot said, repairs included), ``repairs`` (per robot turn) and,
+when a second fsreg agent plays the human (robot-robot), ``partner_resolved``: the
+share of its descriptions the robot resolved to their referent.  Without a listener
+the files are exactly as before.
+
 :func:`summarise_runs` gives each setting's means with bootstrap intervals over
 games (:mod:`fsreg_ros.research.stats`), and :func:`recommend` the follow-up study's
 table: per WM configuration, the setting with the most entrainment whose outdated
@@ -59,6 +69,7 @@ from ..core.lexicon import Lexicon
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
 from .ledger import GAMES, GameRecord, Ledger, LedgerError, code_label, difference, header
+from .listener import ListenerOptions
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
@@ -81,6 +92,9 @@ METRICS = (
     "outdated_rate",
     "outdated_descriptions",
 )
+#: Metrics of the listener (only with one; ``partner_resolved`` only in robot-robot mode).
+LISTENER_METRICS = ("success", "first_success", "turns_to_success", "final_length", "said_length", "repairs")
+PARTNER_METRICS = ("partner_resolved",)
 COLUMNS = (
     ("policy", "wm") + GRID + ("retraction", "seed", "turns", "robot_turns", "described_turns",
                                "length_matched_turns")
@@ -114,6 +128,7 @@ class SweepConfig:
     retraction: tuple = (True,)  # the robot's WM told of LTM changes (True), not told (False)
     wm_belief: bool = False  # REG takes the target's WM as true (games.BeliefPort)
     gap_range: tuple = (2.0, 12.0)
+    listener: Optional[ListenerOptions] = None  # who resolves the robot's descriptions (None: nobody, as before)
 
     def values(self, parameter: str) -> tuple:
         """Return the grid's values of one parameter."""
@@ -203,6 +218,38 @@ def check(config: SweepConfig) -> None:
             scenario.policy_for(domain, setting.memory(config.memory))
     if config.human_memory is not None:
         scenario.policy_for(DOMAIN, config.human_memory)
+    listener = config.listener
+    if listener is not None and listener.partner_memory is not None:
+        scenario.policy_for(DOMAIN, listener.partner_memory)
+
+
+def metrics(config: SweepConfig) -> tuple:
+    """Return the metrics a sweep summarises: :data:`METRICS`, and the listener's when it has one."""
+    if config.listener is None:
+        return METRICS
+    return METRICS + LISTENER_METRICS + (PARTNER_METRICS if config.listener.partner == "robot" else ())
+
+
+def columns(config: SweepConfig) -> tuple:
+    """Return runs.csv's columns: :data:`COLUMNS`, then the listener's metrics when it has one."""
+    return COLUMNS + metrics(config)[len(METRICS):]
+
+
+def listener_metrics(played) -> dict:
+    """Return one game's listener metrics (:data:`LISTENER_METRICS`, and ``partner_resolved``) from a played game."""
+    heard = played.heard or []
+    succeeded = [h for h in heard if h.success]
+    row = {
+        "success": _share([int(h.success) for h in heard]),
+        "first_success": _share([int(h.turns == 1) for h in heard]),
+        "turns_to_success": _share([h.turns for h in succeeded]) if succeeded else None,
+        "final_length": _share([h.final_length for h in heard]),
+        "said_length": _share([h.said for h in heard]),
+        "repairs": _share([len(h.repairs) for h in heard]),
+    }
+    partner = [t for t in played.result["turns"] if t["speaker"] == "human"]
+    row["partner_resolved"] = _share([int(t.get("resolved") == t.get("target")) for t in partner])
+    return row
 
 
 def _descriptions(played) -> list:
@@ -218,7 +265,7 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
     config, seed = task
     lexicon = Lexicon.load()
     game = make_game(seed, config.turns, config.gap_range, config.board_size, config.world, config.changes)
-    options = dict(human_memory=config.human_memory, wm_belief=config.wm_belief)
+    options = dict(human_memory=config.human_memory, wm_belief=config.wm_belief, listener=config.listener)
     baseline = play(game, {"policy": "none"}, lexicon, **options)
     base_descriptions = _descriptions(baseline)
     base_length = baseline.alignment.mean_length
@@ -268,6 +315,8 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
             row[f"from_{origin}"] = summary.origins.get(origin, 0) / summary.from_wm if summary.from_wm else None
         for k in CHECKPOINTS:
             row[f"divergence_k{k}"] = _share(flags[:k]) if len(flags) >= k else None
+        if config.listener is not None:
+            row.update(listener_metrics(played))
         rows.append(row)
         curves[setting] = flags
     return rows, curves, game.kb_hash()
@@ -325,7 +374,7 @@ def summarise_runs(rows: Sequence[dict], metrics: Sequence[str] = METRICS) -> li
         by_setting.setdefault(setting_of(row), []).append(row)
     return [
         {"setting": setting, "n": len(mine),
-         "estimates": {m: bootstrap_ci([r[m] for r in mine]) for m in metrics}}
+         "estimates": {m: bootstrap_ci([r[m] for r in mine if r[m] is not None]) for m in metrics}}
         for setting, mine in by_setting.items()
     ]
 
@@ -396,13 +445,13 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def write_runs(path: Path, rows: list[dict]) -> None:
-    """Write runs.csv: one row per game and setting, fixed column order and number format."""
+def write_runs(path: Path, rows: list[dict], names: Sequence[str] = COLUMNS) -> None:
+    """Write runs.csv: one row per game and setting, fixed column order (``names``) and number format."""
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(COLUMNS)
+        writer.writerow(names)
         for row in rows:
-            writer.writerow([_cell(row.get(c)) for c in COLUMNS])
+            writer.writerow([_cell(row.get(c)) for c in names])
 
 
 def write_curves(path: Path, curves: dict) -> None:
@@ -521,8 +570,8 @@ def manifest(config: SweepConfig, hashes: dict, jobs: Optional[int], files: Sequ
         "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "git": git_state() if git is None else git,
         "environment": environment(),
-        "parameters": {**asdict(config), "seeds": list(config.seeds), "jobs": jobs,
-                       "checkpoints": list(CHECKPOINTS)},
+        "parameters": {**{k: v for k, v in asdict(config).items() if k != "listener" or v is not None},
+                       "seeds": list(config.seeds), "jobs": jobs, "checkpoints": list(CHECKPOINTS)},
         "game": {"generator": "fsreg_ros.research.games.make_game", "world": config.world,
                  "board_size": config.board_size, "turns": config.turns, "gap_range": list(config.gap_range),
                  "changes_per_100_turns": config.changes},
@@ -558,8 +607,8 @@ def write_results(config: SweepConfig, out: Path, rows: list[dict], curves: dict
 
     runs.csv, divergence.csv, summary.csv, recommendation.csv (dynamic games), the PNGs.
     """
-    summary = summarise_runs(rows)
-    write_runs(out / "runs.csv", rows)
+    summary = summarise_runs(rows, metrics(config))
+    write_runs(out / "runs.csv", rows, columns(config))
     write_curves(out / "divergence.csv", curves)
     write_summary(out / "summary.csv", summary)
     files = ["runs.csv", "divergence.csv", "summary.csv"]
@@ -569,7 +618,8 @@ def write_results(config: SweepConfig, out: Path, rows: list[dict], curves: dict
     if plots:
         from .plot import sweep_plots
 
-        files += sweep_plots(rows, summary, curves, out, dynamic=config.changes > 0)
+        files += sweep_plots(rows, summary, curves, out, dynamic=config.changes > 0,
+                             listener=config.listener is not None)
     return summary, files + [GAMES]
 
 
@@ -588,7 +638,7 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
     started = datetime.now(timezone.utc).isoformat(timespec="seconds")
     out.mkdir(parents=True, exist_ok=True)
     code = git_state(exclude=[out])
-    head = header(config, COLUMNS, code)
+    head = header(config, columns(config), code)
     if resume and (out / GAMES).exists():
         book = Ledger.resume(out, head)
     else:
@@ -629,7 +679,9 @@ def _config_from(configuration: Mapping[str, Any], seeds: Sequence[int]) -> Swee
     for f in fields(SweepConfig):
         if f.name == "seeds":
             continue
-        value = configuration[f.name]
+        value = configuration.get(f.name)
+        if f.name == "listener" and value is not None:  # a ListenerOptions, as a JSON object
+            value = ListenerOptions(**value)
         values[f.name] = tuple(value) if isinstance(value, list) else value
     return SweepConfig(seeds=tuple(seeds), **values)
 

@@ -1,10 +1,12 @@
 """fsreg's public test harness: run a live graph in a test and talk to it (no rosbag, no launch).
 
+Layer: may import everything below it (core, contract, ros, nodes, tools).
+
 * :class:`LiveGraph` (:mod:`.live`): a scenario's graph in this process or as one
   process per node, under a namespace (or ROS domain) of its own, ready when returned;
   ``say``, ``describe``, ``assert_facts``, ``wm``, ``status``, ``set_clock``,
   ``set_memory``, ``restart``.
-* :class:`RosSession` (:mod:`.session`): the low level, one context and executor with a
+* :class:`RosSession` (:mod:`.ros_session`): the low level, one context and executor with a
   probe node (``add`` a node, ``call`` a service, ``publish``, ``listen``, ``set_clock``),
   every wait bounded.
 * A pytest plugin (:mod:`.plugin`, registered on install): the fixture ``fsreg_graph``
@@ -20,10 +22,10 @@ from typing import Any
 
 _EXPORTS = {
     "LiveGraph": ".live",
-    "RosSession": ".session",
-    "Inbox": ".session",
-    "Timeout": ".session",
-    "ClientError": "..client",
+    "RosSession": ".ros_session",
+    "Inbox": ".ros_session",
+    "Timeout": ".ros_session",
+    "ClientError": "..ros.client",
 }
 
 __all__ = sorted(_EXPORTS)

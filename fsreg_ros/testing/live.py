@@ -28,15 +28,16 @@ import tempfile
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence, Union
 
-from ..client import ClientError, GraphClient
+from ..ros.client import ClientError, GraphClient
 from ..contract import normalise_namespace
 from ..core.forgetting import PARAMETERS
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
 from ..core.simulation import Options
-from ..graph import Graph, live_nodes, new_graph_id, unique_namespace
-from ..network import ros_environment
-from .session import RosSession, Timeout
+from ..tools.graph import Graph, live_nodes, new_graph_id, unique_namespace
+from ..ros.diagnostics import Diagnostics
+from ..ros.network import ros_environment
+from .ros_session import RosSession, Timeout
 
 PathLike = Union[str, os.PathLike]
 
@@ -98,6 +99,7 @@ class LiveGraph:
         self.client: Optional[GraphClient] = None
         self.graph: Optional[Graph] = None  # the processes, with processes=True
         self.nodes: dict[str, Any] = {}  # the node objects, in-process
+        self._diagnostics: list[Diagnostics] = []  # their /diagnostics publishers
 
     def _temp_dir(self, prefix: str) -> Path:
         path = Path(tempfile.mkdtemp(prefix=prefix))
@@ -132,7 +134,9 @@ class LiveGraph:
     def _add(self, node_cls: Any, spec) -> Any:
         params = dict(spec.parameters)
         sim_time = bool(params.pop("use_sim_time", False))
-        return self.session.add(node_cls, use_sim_time=sim_time, name=spec.name, **params)
+        node = self.session.add(node_cls, use_sim_time=sim_time, name=spec.name, **params)
+        self._diagnostics.append(Diagnostics(node))  # as run_node does for an executable
+        return node
 
     def wait_ready(self, timeout: float = 30.0) -> dict:
         """Wait until the graph serves (every consultant configured, every topic matched); its readiness."""

@@ -1,0 +1,388 @@
+"""Column queues: WM queues as numpy columns, and the bridge that moves queues in and out.
+
+Reference resolution and REG encode one affirmed property for every candidate or
+distractor it holds for (docs/semantics.md section 2, rules 2 and 3): thousands of
+queues per call in a large domain.  Done queue by queue in Python, each encoding
+touches a few scattered objects, and at 10,000 entities the cache misses make every
+encoding about three times dearer than at 1,000 (measured with a bare dict loop).
+:class:`QueueColumns` keeps such queues as arrays instead, so one call of
+:meth:`QueueColumns.encode` is Encode(e, [p]) (Algorithm 1) with displacement
+(Algorithm 3, LRU) for every row at once; owed decay ticks (Algorithm 2) are popped
+from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`.
+
+Row r holds the queue of the r-th entity of the buffer's entity list in ``width``
+slots (the displacement capacity).  A slot holds a property id (-1: empty), the
+entry's stamp and its origin reference: the stamp of the encoding that made the
+property enter the queue, or ``-(i + 1)`` for the buffer's i-th explicit origin (one
+restored from a store).  Slots are unordered: stamps are unique and grow, so a
+queue's order, LRU first, is its stamps' order, and an encoding writes one slot and
+shifts nothing.  :class:`QueueColumns` knows nothing about names, events or limits
+beyond the width.
+
+:class:`ColumnQueues` is the buffer's side: which entities' queues live in the
+columns (each queue lives in exactly one place, a dict :class:`Queue` or a row), the
+entity list the rows are numbered by, property ids and restored origins, and the
+moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
+rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
+no event sink listens and the limits are at most an LRU capacity; anything else that
+touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
+so every other code path only ever sees dicts.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Mapping, Optional, Sequence
+
+import numpy as np
+
+from .limits import Limits
+from .queue import Entry, Origin, Queue
+
+if TYPE_CHECKING:
+    from .buffer import WMBuffer
+
+#: :meth:`WMBuffer.encode_members` keeps the queues of a domain of at least this many
+#: entities as columns; smaller domains go queue by queue.  A column operation costs
+#: tens of microseconds however few its members, and a queue moved between the two
+#: forms costs more than an encoding, so the choice is made per domain, not per call
+#: (bench_core, scripts/bench_encode.py).
+COLUMN_MIN = 4096
+#: Column queues are used up to this displacement capacity (their width), and while
+#: width x entities stays within this many slots (20 bytes each, held for every entity).
+COLUMN_MAX_WIDTH = 64
+COLUMN_MAX_SLOTS = 2**22
+
+#: Larger than any stamp: an empty slot is never a queue's front.
+_NO_STAMP = np.iinfo(np.int64).max
+
+
+class QueueColumns:
+    """Queues of ``width`` slots, one row per entity (see the module docstring)."""
+
+    def __init__(self, width: int, rows: int) -> None:
+        self.width = width
+        self.prop = np.full((width, rows), -1, dtype=np.int32)
+        self.stamp = np.zeros((width, rows), dtype=np.int64)
+        self.entry = np.zeros((width, rows), dtype=np.int64)
+        self.length = np.zeros(rows, dtype=np.int64)
+        self.synced = np.zeros(rows, dtype=np.int64)  # decay ticks the row is up to date with
+        self.held = np.zeros(rows, dtype=bool)  # the row's queue lives here
+        self.changed = np.zeros(rows, dtype=np.int64)  # change-record mark of its first change (0: none)
+
+    @property
+    def rows(self) -> int:
+        """Rows allocated (at least the number of entities bound)."""
+        return self.length.shape[0]
+
+    def grow(self, rows: int) -> None:
+        """Make room for at least ``rows`` rows (new rows empty, not held)."""
+        if rows <= self.rows:
+            return
+        extra = max(rows, 2 * self.rows) - self.rows  # doubling: appending entities stays cheap
+        self.prop = np.concatenate([self.prop, np.full((self.width, extra), -1, dtype=np.int32)], axis=1)
+        self.stamp = np.concatenate([self.stamp, np.zeros((self.width, extra), dtype=np.int64)], axis=1)
+        self.entry = np.concatenate([self.entry, np.zeros((self.width, extra), dtype=np.int64)], axis=1)
+        self.length = np.concatenate([self.length, np.zeros(extra, dtype=np.int64)])
+        self.synced = np.concatenate([self.synced, np.zeros(extra, dtype=np.int64)])
+        self.changed = np.concatenate([self.changed, np.zeros(extra, dtype=np.int64)])
+        self.held = np.concatenate([self.held, np.zeros(extra, dtype=bool)])
+
+    # ------------------------------------------------------------ one row
+    def read(self, row: int) -> list[tuple[int, int, int]]:
+        """Return row ``row``'s entries as ``(property id, stamp, origin reference)``, LRU first."""
+        if not self.length[row]:
+            return []
+        items = [
+            (prop, stamp, entry)
+            for prop, stamp, entry in zip(self.prop[:, row].tolist(), self.stamp[:, row].tolist(),
+                                          self.entry[:, row].tolist())
+            if prop >= 0
+        ]
+        items.sort(key=lambda item: item[1])
+        return items
+
+    def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
+        """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
+        self.prop[:, row] = -1
+        for k, (prop, stamp, entry) in enumerate(items):
+            self.prop[k, row], self.stamp[k, row], self.entry[k, row] = prop, stamp, entry
+        self.length[row] = len(items)
+        self.synced[row] = synced
+        self.held[row] = True
+
+    def start_empty(self, rows: np.ndarray, synced: int) -> None:
+        """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
+        self.prop[:, rows] = -1
+        self.length[rows] = 0
+        self.synced[rows] = synced
+        self.held[rows] = True
+
+    def release(self, row: int) -> None:
+        """Stop holding row ``row`` (its queue moves elsewhere)."""
+        self.prop[:, row] = -1
+        self.length[row] = 0
+        self.held[row] = False
+
+    # ---------------------------------------------------------- many rows
+    def pop_fronts(self, rows: np.ndarray, counts: np.ndarray) -> None:
+        """Pop ``counts[i]`` fronts (oldest stamps first) of each held row ``rows[i]`` (at most its length)."""
+        if not counts.any():
+            return
+        popping = counts > 0
+        targets, counts = rows[popping], counts[popping]
+        emptied = counts >= self.length[targets]
+        gone = targets[emptied]
+        self.prop[:, gone] = -1
+        self.length[gone] = 0
+        partial, counts = targets[~emptied], counts[~emptied]
+        for done in range(int(counts.max(initial=0))):  # fewer than width rounds
+            now = partial[counts > done]
+            stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
+            self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
+            self.length[now] -= 1
+
+    def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
+        """Return the first ``depth`` property ids of each of ``rows``, LRU first (fewer for a shorter row)."""
+        stamps = np.where(np.take(self.prop, rows, axis=1) >= 0, np.take(self.stamp, rows, axis=1), _NO_STAMP)
+        order = np.argsort(stamps, axis=0, kind="stable")[:depth]
+        props = np.take_along_axis(np.take(self.prop, rows, axis=1), order, axis=0).T.tolist()
+        return [[p for p in row if p >= 0] for row in props]
+
+    def non_empty(self) -> np.ndarray:
+        """Return the held rows holding something (ascending)."""
+        return np.flatnonzero(self.held & (self.length > 0))
+
+    def entries(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return every entry of ``rows`` as parallel arrays: its stamp, its row and its property id."""
+        props = np.take(self.prop, rows, axis=1)
+        where = props >= 0
+        return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
+
+    def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
+        """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
+
+        The rows must be up to date with decay (:func:`~fsreg_ros.core.memory.decay.pop_owed`)
+        and distinct.  A property present is refreshed (new stamp, same origin); otherwise it takes an
+        empty slot or, in a full row, the front's (LRU displacement).  Returns, per row,
+        whether the queue grew and whether it was empty before.  The slot is found with
+        one key per slot (the property itself -2, an empty slot -1, else its stamp) and
+        its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
+        ``argmax`` along the short axis would each cost more than the whole encoding.
+        """
+        props = np.take(self.prop, rows, axis=1)
+        key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
+        slot, best = _first_minimum(key)
+        present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
+        flat = slot * self.rows + rows
+        stamps = np.arange(first_stamp, first_stamp + len(rows), dtype=np.int64)
+        entries = self.entry.reshape(-1)
+        kept = np.where(present, np.take(entries, flat), stamps)
+        self.prop.reshape(-1)[flat] = prop
+        self.stamp.reshape(-1)[flat] = stamps
+        entries[flat] = kept
+        length = self.length[rows]
+        self.length[rows] = length + grew
+        return grew, length == 0
+
+    def mark_changed(self, rows: np.ndarray, mark: int) -> None:
+        """Record ``mark`` as the first change of each of ``rows`` not changed yet."""
+        fresh = rows[self.changed[rows] == 0]
+        self.changed[fresh] = mark
+
+    def take_changed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the changed rows and their marks, by mark then row; clear the record."""
+        rows = np.flatnonzero(self.changed)
+        marks = self.changed[rows]
+        order = np.argsort(marks, kind="stable")
+        self.changed[rows] = 0
+        return rows[order], marks[order]
+
+    def origin_stamps(self) -> np.ndarray:
+        """Return every origin reference that is a stamp (> 0) held in any slot."""
+        refs = self.entry[self.prop >= 0]
+        return refs[refs > 0]
+
+
+#: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
+_LOOP_WIDTH = 16
+
+
+def _first_minimum(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return, per column of ``values`` (slots x rows), the first row holding the column's minimum, and the minimum.
+
+    ``np.minimum.reduce`` runs across the columns at once; ``argmin(axis=0)`` walks each
+    short column on its own and costs several times more for the few slots of a queue.
+    """
+    best = np.minimum.reduce(values, axis=0)
+    if values.shape[0] > _LOOP_WIDTH:
+        return (values == best).argmax(axis=0), best
+    slot = np.zeros(values.shape[1], dtype=np.intp)
+    for k in range(values.shape[0] - 1, 0, -1):  # the last assignment wins: the first such slot
+        slot[values[k] == best] = k
+    return slot, best
+
+
+class ColumnQueues:
+    """The buffer's column queues: where each lives, and the moves to and from dict queues.
+
+    ``store`` is None until :meth:`bind` first sizes it; ``bound`` is the entity list its
+    rows are numbered by (the first list :meth:`WMBuffer.encode_members` got; it may only
+    grow by appending), ``row`` entity -> row, ``entities`` the entities whose queue
+    lives in the store.  Property ids and the origins restored from a store (referred
+    to as ``-(i + 1)``) are numbered here.
+    """
+
+    def __init__(self, wm: "WMBuffer") -> None:
+        self.wm = wm
+        self.clear()
+        self.bound: Optional[list[str]] = None
+        self.row: dict[str, int] = {}
+        self.prop_id: dict[str, int] = {}
+        self.prop_name: list[str] = []
+
+    def clear(self) -> None:
+        """Hold no queue (a restore); the entity list and property ids stay."""
+        self.store: Optional[QueueColumns] = None
+        self.entities: set[str] = set()
+        self.explicit: list[Origin] = []
+        self.explicit_id: dict[Origin, int] = {}
+
+    def fits(self, limits: Limits) -> bool:
+        """Tell whether the column queues can stay under ``limits``: nothing kept, or an LRU capacity of their width.
+
+        Under any other limits a queue may have to lose another property than its
+        front, or more than one, which only a dict queue does.
+        """
+        if self.store is None or not limits.retains:
+            return True
+        return limits.lru_only and limits.capacity == self.store.width
+
+    def usable(self, entities: Sequence[str], limits: Limits) -> bool:
+        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``."""
+        capacity = limits.capacity
+        return (
+            len(entities) >= self.wm.column_min
+            and self.wm.sink is None
+            and limits.lru_only
+            and capacity is not None
+            and capacity <= COLUMN_MAX_WIDTH
+            and capacity * len(entities) <= COLUMN_MAX_SLOTS
+            and self.bind(entities, capacity)
+        )
+
+    def bind(self, entities: Sequence[str], width: int) -> bool:
+        """Bind rows to ``entities`` (the first list given) and size the store; False for another list."""
+        if self.bound is None:
+            self.bound = entities  # type: ignore[assignment]
+        elif entities is not self.bound:
+            return False
+        if self.store is not None and self.store.width != width:
+            self.drop()
+        if len(self.row) < len(entities):  # new entities were appended
+            for i in range(len(self.row), len(entities)):
+                self.row[entities[i]] = i
+        if self.store is None:
+            self.store = QueueColumns(width, len(entities))
+        self.store.grow(len(entities))
+        return True
+
+    def adopt(self, rows: np.ndarray) -> bool:
+        """Move the queues of ``rows`` into the store (those not there yet); False, moving none, if one is longer.
+
+        Rows whose entity has no dict queue start empty, all at once; the few that have
+        one take its entries.
+        """
+        store = self.store
+        fresh = rows[~store.held[rows]]
+        if not len(fresh):
+            return True
+        names = list(map(self.bound.__getitem__, fresh.tolist()))
+        queues = self.wm._queues
+        moving = sorted(queues.keys() & names, key=self.row.__getitem__)  # in entity order
+        if any(len(queues[name]) > store.width for name in moving):
+            return False
+        store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
+        for name in moving:
+            q = queues.pop(name)
+            store.write(self.row[name], [self.item(prop, value) for prop, value in q.items()], q.synced)
+        self.entities.update(names)
+        return True
+
+    def prop(self, name: str) -> int:
+        """Return the id of property ``name`` (numbered on first use)."""
+        pid = self.prop_id.get(name)
+        if pid is None:
+            pid = self.prop_id[name] = len(self.prop_name)
+            self.prop_name.append(name)
+        return pid
+
+    def item(self, prop: str, value: Entry) -> tuple[int, int, int]:
+        """Return a dict queue's entry as a column item ``(property id, stamp, origin reference)``."""
+        pid = self.prop(prop)
+        if value.__class__ is int:
+            return pid, value, value
+        stamp, ref = value
+        if ref.__class__ is not int:  # an origin restored from a store
+            index = self.explicit_id.get(ref)
+            if index is None:
+                index = self.explicit_id[ref] = len(self.explicit)
+                self.explicit.append(ref)
+            ref = -(index + 1)
+        return pid, stamp, ref
+
+    def row_dict(self, row: int) -> dict:
+        """Return a row's queue as a dict queue's entries (property -> entry), LRU first."""
+        names, explicit = self.prop_name, self.explicit
+        return {
+            names[pid]: stamp if ref == stamp else (stamp, ref if ref > 0 else explicit[-ref - 1])
+            for pid, stamp, ref in self.store.read(row)
+        }
+
+    def readable(self, entity: str) -> Mapping:
+        """Return the column queue of ``entity`` up to date with decay, for reading.
+
+        A copy of its row; with an event sink listening, owed pops must be reported, so
+        it becomes a dict queue (caught up, returned).
+        """
+        row, store, wm = self.row[entity], self.store, self.wm
+        if store.synced[row] != wm.lazy_decay.ticks.count and store.length[row]:
+            if wm.sink is not None:
+                wm.lazy_decay.catch_up(entity)
+                return wm._queues[entity]
+            wm.lazy_decay.settle_columns(np.array([row]))
+        return self.row_dict(row)
+
+    def to_dict(self, entity: str) -> Queue:
+        """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
+        row, store = self.row[entity], self.store
+        q = self.wm._queues[entity] = Queue(self.row_dict(row))
+        q.synced = int(store.synced[row])
+        q.hits = None
+        q.marked = False  # if it changed since the last take, a column mark says so
+        store.release(row)
+        self.entities.discard(entity)
+        return q
+
+    def drop(self) -> None:
+        """Move every column queue back to a dict queue (before any code path that only knows dicts)."""
+        if self.store is None:
+            return
+        self.wm.changes.compact()
+        for entity in [e for e in self.bound if e in self.entities]:
+            self.to_dict(entity)
+        self.store = None
+        self.entities = set()
+
+    def ranks(self, entity_order: Sequence[str]) -> Mapping[str, int]:
+        """Return entity -> rank in ``entity_order`` (the rows' own numbering when that is their list)."""
+        if entity_order is self.bound:
+            for i in range(len(self.row), len(entity_order)):  # entities appended since the last bind
+                self.row[entity_order[i]] = i
+            return self.row
+        return {entity: i for i, entity in enumerate(entity_order)}
+
+    def emptied(self, rows: np.ndarray) -> None:
+        """Take the ``rows`` left empty out of the buffer's non-empty queues."""
+        nonempty, bound = self.wm._nonempty, self.bound
+        for row in rows[self.store.length[rows] == 0].tolist():
+            nonempty.pop(bound[row], None)

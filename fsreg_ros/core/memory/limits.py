@@ -1,0 +1,66 @@
+"""What a buffer may hold: the :class:`Limits` the WM Manager installs, as data.
+
+The WM Manager (:mod:`fsreg_ros.core.wm_manager`, with the policies of
+:mod:`fsreg_ros.core.forgetting`) decides *what* is forgotten and sets these; the
+buffer enforces them after every single encoding event
+(:mod:`fsreg_ros.core.memory.displacement`).  This module imports neither.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+#: How displacement chooses the property it forgets from an over-full queue.
+VICTIMS = ("lru", "lfu", "random")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a buffer may hold, enforced after every encoding event (set by the WM Manager).
+
+    * ``retains``: False forgets everything and encodes nothing (policy ``none``);
+    * ``capacity``: at most this many properties per queue (Algorithm 3); the victim
+      is the queue's front (``lru``), its least frequently encoded property other
+      than the one just encoded (``lfu``, ties to the LRU one), or a random such
+      property (``random``, drawn from ``random.Random(seed)``, created anew each
+      time the limits are set);
+    * ``similarity``: encoding a property of an attribute forgets the entity's other
+      properties of that attribute (interference by similarity);
+    * ``global_capacity``: at most this many properties in the domain; the victim is
+      the front encoded least recently in the whole domain.
+
+    Order after one encoding event: similarity, then capacity, then the global limit.
+    """
+
+    retains: bool = True
+    capacity: Optional[int] = None
+    victim: str = "lru"
+    similarity: bool = False
+    global_capacity: Optional[int] = None
+    seed: int = 0
+
+    def check(self) -> None:
+        """Raise ValueError for an unknown victim choice."""
+        if self.victim not in VICTIMS:
+            raise ValueError(f"unknown displacement victim {self.victim!r} (known: {', '.join(VICTIMS)})")
+
+    @property
+    def lru_only(self) -> bool:
+        """True when nothing beyond an LRU capacity is in force (what the fast encoding paths handle)."""
+        return self.victim == "lru" and not self.similarity and self.global_capacity is None
+
+
+UNLIMITED = Limits()
+
+
+def attribute_of(prop: str, attributes: Mapping[str, str]) -> Optional[str]:
+    """Return the attribute ``prop`` belongs to, or None if it has none.
+
+    It is declared in ``attributes``, or the part before ``=`` in an
+    ``attribute=value`` name.
+    """
+    found = attributes.get(prop)
+    if found is None and "=" in prop:
+        found = prop.split("=", 1)[0]
+    return found

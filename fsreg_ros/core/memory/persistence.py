@@ -1,0 +1,79 @@
+"""A buffer's state as a store keeps it: exported queues, counters, and the restore.
+
+A consultant persists the queues :meth:`WMBuffer.take_changes` names, each as
+:meth:`WMBuffer.export_queue` returns it (:class:`QueueItem`: property, stamp, LFU
+hits and origin), beside :meth:`WMBuffer.counters`; :meth:`WMBuffer.restore` takes
+them back (:mod:`fsreg_ros.core.store`, :mod:`fsreg_ros.core.journal`).
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from typing import TYPE_CHECKING, Mapping, Sequence
+
+from .limits import Limits
+from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, is_origin
+
+if TYPE_CHECKING:
+    from .buffer import WMBuffer
+
+
+def export_queue(wm: "WMBuffer", entity: str) -> list[QueueItem]:
+    """Return Q[entity] as :class:`QueueItem` items, LRU first.
+
+    ``hits`` is the LFU count (1 when LFU is not in force); ``cause`` and ``turn``
+    the entry's origin (:meth:`WMBuffer.origins`).
+    """
+    q = wm._readable(entity)
+    if not q:
+        return []
+    hits = ((q.hits if q.__class__ is Queue else None) or {}).get  # a column queue's copy has none (LRU)
+    starts, runs = wm.origin_log.starts, wm.origin_log.runs
+    items = []
+    for prop, value in q.items():  # OriginLog.of and QueueItem(...) inlined: a store exports thousands
+        if value.__class__ is int:
+            stamp = ref = value
+        else:
+            stamp, ref = value
+        origin = runs[bisect_right(starts, ref) - 1] if ref.__class__ is int else ref
+        items.append(tuple.__new__(QueueItem, (prop, stamp, hits(prop, 1), origin[0], origin[1])))
+    return items
+
+
+def restore(wm: "WMBuffer", queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
+    """Replace ``wm``'s state with a stored one (queues LRU first, no events, no changes).
+
+    Items are :class:`QueueItem` (or tuples of its five fields); items of only
+    ``(property, stamp, hits)``, from a store that kept no origins, get origin
+    :data:`UNKNOWN_ORIGIN`.  The queues are taken as up to date with ``ticks`` decay
+    ticks; ``limits`` are installed without trimming (the stored queues already
+    respect them).  The change record is cleared: the state now equals the stored one.
+    ValueError, changing nothing, for a malformed queue or limits.
+    """
+    limits.check()
+    for entity, items in queues.items():  # all checked before anything changes
+        if not isinstance(entity, str):
+            raise ValueError(f"queue of {entity!r}: an entity is named by a string")
+        for item in items:
+            if len(item) not in (3, 5) or len(item) == 5 and not is_origin(item[3], item[4]):
+                raise ValueError(f"queue of {entity!r}: item {item!r} is not (property, stamp, hits, cause, turn)")
+    wm.limits = limits
+    wm.interference.install(limits)
+    wm._queues, wm._nonempty, wm._size, wm._stamp = {}, {}, 0, stamp
+    wm.changes.clear()
+    wm.columns.clear()
+    wm.lazy_decay.reset(ticks)
+    wm.origin_log.clear()
+    shared: dict[Origin, Origin] = {}  # one origin object per distinct (cause, turn)
+    for entity, items in queues.items():
+        q = wm._new_queue(entity)
+        for item in items:
+            prop, prop_stamp, hits = item[0], item[1], item[2]
+            origin = (item[3], item[4]) if len(item) == 5 else UNKNOWN_ORIGIN
+            q[prop] = (prop_stamp, shared.setdefault(origin, origin))
+            if limits.victim == "lfu":
+                q.hits = q.hits or {}
+                q.hits[prop] = hits
+        if q:
+            wm._nonempty[entity] = None
+            wm._size += len(q)

@@ -1,0 +1,23 @@
+"""The ROS 2 glue of fsreg: everything between the pure core and rclpy, and nothing else.
+
+Layers, bottom to top (an arrow only points down; ``test/project/test_layers.py`` reads the imports):
+``core`` (pure algorithms, reports of played scenarios) ->
+``contract`` (names, QoS, schemas; ROS-free) -> ``ros`` (this
+package) -> ``nodes`` (one module per node) -> ``tools`` (command-line programs) and
+``testing`` (the public harness).  ``research`` sits on ``core`` alone.
+
+What lives here, one module per job:
+
+* :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (ROS-free);
+* :mod:`.carrier`: serving, subscribing and calling JSON over rclpy with validation;
+* :mod:`.network`: the DDS environment of every process (loopback unless widened);
+* :mod:`.graph_spec`: the one definition of the node graph (nodes, names, parameters);
+* :mod:`.remote`: :class:`~.remote.RemotePort`, a consultant port over a consultant node's service;
+* :mod:`.client`: :class:`~.client.GraphClient`, the client side of a live graph (tools, harness);
+* node support shared by several nodes: :mod:`.node_base` (the main runner, parameter
+  helpers, the clock watchdog), :mod:`.asking` (the base of RR and REG),
+  :mod:`.manage_link` and :mod:`.memory_parameters` (the WM Manager's links and
+  parameters), :mod:`.event_ledger` (the dialogue player's record of ``wm/events``).
+
+May import: :mod:`fsreg_ros.core`, :mod:`fsreg_ros.contract`, rclpy and the message packages.
+"""

@@ -1,0 +1,639 @@
+"""The client side of a live fsreg graph: readiness, requests and their answers, graph identity.
+
+One :class:`GraphClient` talks to one graph (one namespace of one ROS domain) through
+a node the caller owns and an executor the client spins in bounded loops (every wait
+has a deadline and fails with :class:`ClientError`).  It is what ``fsreg-ctl`` runs,
+what ``fsreg-up`` waits for readiness with, and what :mod:`fsreg_ros.testing` drives a
+graph through, so a robot builder's integration test, the command line and the
+project's own tests use one client.
+
+* Readiness: the WM Manager's latched ``wm_manager/ready``
+  (:class:`~fsreg_ros.contract.ManagerReady`) says when every consultant serves;
+  :meth:`GraphClient.wait_ready` waits for it, and for the dialogue pipeline to be
+  matched with this client, instead of retrying requests.
+* Identity: every node stamps what it publishes with its graph's identity
+  (:data:`~fsreg_ros.contract.GRAPH_FIELD`).  The client expects one graph (given, or the
+  one whose WM Manager answers), refuses to go on when two graphs' WM Managers share
+  the namespace (kind ``clash``), and rejects an answer stamped by another graph (kind
+  ``foreign``) instead of counting it.
+* Requests: ``say`` (``dialogue/human`` -> ``rr/result``), ``describe``
+  (``reg/request`` -> ``reg/expression``), ``assert_facts`` (``ltm/assert`` ->
+  ``ltm/assert/result``), each with a fresh id, resent every ``retry_after`` seconds
+  until answered (RR, REG and the consultants answer a repeated id once); ``wm``,
+  ``status``, ``sync``, ``set_clock`` and node parameters through services.
+"""
+
+from __future__ import annotations
+
+import itertools
+import secrets
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
+
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, SetParametersAtomically
+from rosgraph_msgs.msg import Clock
+
+from .. import contract
+from .carrier import CarrierError, JsonClient, publish, publisher, subscribe
+from .codec import printable
+
+#: Seconds a client waits for an answer, by default.
+DEFAULT_TIMEOUT = 10.0
+#: Seconds after which an unanswered message is sent again.
+RETRY_AFTER = 2.0
+#: Seconds to collect every WM Manager's latched readiness once more than one publishes it.
+CLASH_WAIT = 2.0
+#: Seconds a runner looks for a graph already running where it would start one (discovery on this
+#: machine takes 0.1-2.5 s; the wait ends as soon as one is seen).
+DISCOVERY_WAIT = 2.5
+#: The node names of a graph (besides ``consultant_<domain>``).
+GRAPH_NODES = ("wm_manager", "parser", "reference_resolution", "reg", "dialogue_player")
+#: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
+KIND_TOPICS = {"say": (contract.HUMAN, contract.RR_RESULT), "describe": (contract.REG_REQUEST, contract.REG_EXPRESSION),
+               "assert": (contract.LTM_ASSERT, contract.LTM_ASSERT_RESULT)}
+
+
+class ClientError(RuntimeError):
+    """A request that did not get an answer of its graph.
+
+    ``kind``: ``not-ready`` (no graph, or not serving yet), ``timeout`` (no answer in
+    time), ``clash`` (two graphs on one name), ``foreign`` (an answer stamped by another
+    graph), ``rejected`` (a parameter change refused), ``usage`` (a request that cannot
+    be made, e.g. an entity no consultant knows), or the error kind a service reported.
+    """
+
+    def __init__(self, message: str, kind: str = "error") -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+@dataclass
+class Answer:
+    """One message heard on a reply topic, and when (monotonic seconds)."""
+
+    data: dict
+    received: float
+
+
+def clock_message(seconds: float) -> Clock:
+    """Return a ``/clock`` message for a time in seconds (nanoseconds always < 1e9)."""
+    stamp = Clock()
+    stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
+    return stamp
+
+
+def describe_graph(graph: Any) -> str:
+    """Return a graph identity for messages ('none' for an unstamped message)."""
+    return repr(graph) if graph else "none (unstamped)"
+
+
+class GraphClient:
+    """A client of one live graph, on ``node`` (spun by this client through ``executor``).
+
+    ``graph`` is the identity expected; None takes the identity of the graph whose WM
+    Manager announces readiness (:meth:`wait_ready`).  Names are relative, so the
+    node's namespace chooses the graph's (and a remapping of ``/clock`` its clock).
+    """
+
+    def __init__(self, node, executor, *, graph: Optional[str] = None, timeout: float = DEFAULT_TIMEOUT,
+                 retry_after: float = RETRY_AFTER) -> None:
+        self.node = node
+        self.executor = executor
+        self.graph = graph
+        self.timeout = timeout
+        self.retry_after = retry_after
+        self.time: Optional[float] = None  # the clock set through this client, stamped on requests
+        self.answers: dict[str, list[Answer]] = {}
+        self.ready_messages: dict[tuple, dict] = {}  # (graph, pid, host) -> latest wm_manager/ready
+        self._ready_heard: dict[tuple, float] = {}  # when each was heard (monotonic)
+        self._publishers = {kind: publisher(node, topics[0]) for kind, topics in KIND_TOPICS.items()}
+        self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()}
+        self._ready_sub = subscribe(node, contract.READY, self._on_ready)
+        self._clock = node.create_publisher(Clock, contract.CLOCK, 10)
+        self._services: dict[str, JsonClient] = {}
+        self._param_clients: dict[tuple[str, str], Any] = {}
+        self._entities: dict[str, set[str]] = {}
+        self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
+        self._states: Optional[dict[str, dict]] = None  # domain -> latest wm/state (once :meth:`state` is used)
+        self._state_watcher: Optional[Callable[[dict], None]] = None  # :meth:`watch`'s, once it runs
+        self._ids = itertools.count(1)
+        self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
+
+    # ------------------------------------------------------------ callbacks
+    def _on_answer(self, data: dict) -> None:
+        key = str(data.get("id"))
+        if key in self.answers:
+            self.answers[key].append(Answer(data, time.monotonic()))
+
+    def _on_ready(self, data: dict) -> None:  # subscribe() has checked it against contract.ManagerReady
+        key = (data.get(contract.GRAPH_FIELD) or "", data.get("pid"), data.get("host"))
+        self.ready_messages[key] = data
+        self._ready_heard[key] = time.monotonic()
+
+    # -------------------------------------------------------------- spinning
+    @property
+    def namespace(self) -> str:
+        """The namespace of the graph this client talks to ('/' for none)."""
+        return self.node.get_namespace()
+
+    def where(self) -> str:
+        """Return 'namespace N on ROS domain D', for messages."""
+        return f"namespace {self.namespace} on ROS domain {self.node.context.get_domain_id()}"
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float, what: str, kind: str = "timeout") -> None:
+        """Spin until ``predicate()``; raise ClientError(``kind``) naming ``what`` after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > deadline:
+                raise ClientError(f"{what}: nothing within {timeout:g} s", kind)
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def spin_for(self, seconds: float) -> None:
+        """Spin for ``seconds`` (collects what arrives meanwhile)."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def run(self, coroutine, timeout: float, what: str) -> Any:
+        """Run a coroutine as a task of the executor until done; its result."""
+        task = self.executor.create_task(coroutine)
+        try:
+            self.spin_until(task.done, timeout, what)
+        except ClientError:
+            task.cancel()
+            raise
+        return task.result()
+
+    # ----------------------------------------------------------------- ready
+    def readiness(self) -> Optional[dict]:
+        """Return the latest ``wm_manager/ready`` of this client's graph (None before one arrived)."""
+        mine = [k for k in self.ready_messages if self.graph is None or k[0] == self.graph]
+        return self.ready_messages[max(mine, key=self._ready_heard.__getitem__)] if mine else None
+
+    def _graphs(self) -> list[tuple]:
+        return sorted(self.ready_messages, key=str)
+
+    def check_clash(self) -> None:
+        """Raise ClientError(``clash``) if two WM Managers announce readiness on this client's names.
+
+        Two messages from WM Managers that are not both matched now (one was restarted)
+        are not a clash: the latest heard stands.
+        """
+        def others() -> bool:  # another WM Manager is known (matched, or a node of that name): hear it
+            managers = sum(1 for name, ns in self.node.get_node_names_and_namespaces()
+                           if name == "wm_manager" and ns == self.namespace)
+            return max(self._ready_sub.get_publisher_count(), managers) > len(self.ready_messages)
+
+        if others():  # collect its latched message (or let a dead one's entity go)
+            deadline = time.monotonic() + CLASH_WAIT
+            while time.monotonic() < deadline and others():
+                self.executor.spin_once(timeout_sec=0.01)
+        if len(self.ready_messages) > 1 and self._ready_sub.get_publisher_count() <= 1:
+            latest = max(self.ready_messages, key=self._ready_heard.__getitem__)
+            self.ready_messages = {latest: self.ready_messages[latest]}
+        if len(self.ready_messages) > 1:
+            graphs = "; ".join(f"graph {describe_graph(g)} (wm_manager pid {pid} on {host})"
+                               for g, pid, host in self._graphs())
+            raise ClientError(f"two graphs in {self.where()}: {graphs}; give each its own --namespace or "
+                              "ROS_DOMAIN_ID", "clash")
+
+    def wait_ready(self, timeout: float = 30.0, pipeline: bool = True) -> dict:
+        """Wait until the graph serves: its WM Manager says ``ready`` (and, with ``pipeline``, every topic matched).
+
+        Learns the graph identity if none was given.  Raises ClientError: ``not-ready``
+        (no WM Manager, or not ready in time), ``clash`` (two graphs on these names).
+        """
+        deadline = time.monotonic() + timeout
+        self.spin_until(lambda: self.ready_messages, timeout,
+                        f"no fsreg graph answers in {self.where()} (is fsreg-up running there?)", "not-ready")
+        self.check_clash()
+        if self.graph is None:
+            (self.graph, _, _), = self.ready_messages
+        if not any(graph == self.graph for graph, _, _ in self.ready_messages):
+            found = ", ".join(describe_graph(g) for g, _, _ in self._graphs())
+            raise ClientError(f"graph {describe_graph(self.graph)} is not in {self.where()} (found {found})",
+                              "not-ready")
+
+        def serving() -> bool:
+            message = self.readiness()
+            return bool(message and message["ready"])
+
+        remaining = max(0.0, deadline - time.monotonic())
+        try:
+            self.spin_until(serving, remaining, f"graph {describe_graph(self.graph)} in {self.where()} did not "
+                            "become ready", "not-ready")
+        except ClientError as err:
+            message = self.readiness() or {}
+            waiting = [d for d, state in (message.get("domains") or {}).items() if not state.get("configured")]
+            raise ClientError(f"{err} (consultants not configured: {', '.join(waiting) or 'none'})",
+                              "not-ready") from None
+        if pipeline:
+            for kind in KIND_TOPICS:
+                self.wait_matched(kind, max(0.0, deadline - time.monotonic()))
+        return self.readiness() or {}
+
+    def find_running(self, wait: float) -> Optional[str]:
+        """Look for a graph in this client's namespace for up to ``wait`` s; describe it in one line (None: none).
+
+        A graph is a node of a graph's name (:data:`GRAPH_NODES`, ``consultant_<domain>``)
+        in the namespace, or a WM Manager's readiness there.
+        """
+        deadline = time.monotonic() + wait
+        while True:
+            found = sorted(f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces()
+                           if ns == self.namespace and (name in GRAPH_NODES or name.startswith("consultant_")))
+            if found or self.ready_messages:
+                if not self.ready_messages:  # its WM Manager's latched readiness names its owner
+                    try:
+                        self.spin_until(lambda: self.ready_messages, CLASH_WAIT, "readiness")
+                    except ClientError:
+                        pass
+                owners = "; ".join(f"graph {describe_graph(g)}, wm_manager pid {pid} on {host}"
+                                   for g, pid, host in self._graphs())
+                nodes = f"nodes {', '.join(found)}" if found else "a WM Manager"
+                return f"{self.where()} already has a graph: {nodes}" + (f" ({owners})" if owners else "")
+            if time.monotonic() >= deadline:
+                return None
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def domains(self) -> list[str]:
+        """Return the names of the graph's domains, as its readiness lists them."""
+        message = self.readiness()
+        if message is None:
+            raise ClientError(f"no fsreg graph answers in {self.where()}", "not-ready")
+        return list(message["domains"])
+
+    def wait_matched(self, kind: str, timeout: float) -> None:
+        """Wait until the request topic of ``kind`` has its readers and the reply topic its writers."""
+        needed = len(self.domains()) if kind == "assert" else 1
+        pub, sub = self._publishers[kind], self._reply_subs[kind]
+        request, reply = KIND_TOPICS[kind]
+        self.spin_until(lambda: pub.get_subscription_count() >= needed and sub.get_publisher_count() >= needed,
+                        timeout, f"{request.name} -> {reply.name} is not connected in {self.where()}", "not-ready")
+
+    # ---------------------------------------------------------------- topics
+    def new_id(self, kind: str) -> str:
+        return f"{self._prefix}-{kind}-{next(self._ids)}"
+
+    def send(self, kind: str, message: Mapping[str, Any]) -> str:
+        """Publish one request of ``kind`` (say, describe, assert) now; return its id.
+
+        Its answers collect in ``answers`` under that id.
+        """
+        key = str(message["id"])
+        self.answers.setdefault(key, [])
+        publish(self._publishers[kind], message)
+        return key
+
+    def answer_of(self, key: str) -> Optional[dict]:
+        """Return the first answer to request ``key`` (ClientError ``foreign`` if it came from another graph)."""
+        heard = self.answers.get(key) or []
+        if not heard:
+            return None
+        data = heard[0].data
+        graph = data.get(contract.GRAPH_FIELD) or ""
+        if self.graph is not None and graph != self.graph:
+            raise ClientError(f"the answer to {key!r} came from another graph ({describe_graph(graph)}, expected "
+                              f"{describe_graph(self.graph)}) in {self.where()}", "foreign")
+        return data
+
+    def exchange(self, kind: str, message: dict, timeout: Optional[float] = None) -> dict:
+        """Send ``message`` (resent every ``retry_after`` s) and return its answer."""
+        timeout = self.timeout if timeout is None else timeout
+        request = KIND_TOPICS[kind][0].name
+        self.wait_matched(kind, timeout)
+        key = self.send(kind, message)
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                try:
+                    self.spin_until(lambda: self.answers[key], min(self.retry_after, deadline - time.monotonic()),
+                                    "answer")
+                    return self.answer_of(key) or {}
+                except ClientError as err:
+                    if err.kind != "timeout" or time.monotonic() >= deadline:
+                        if err.kind == "timeout":
+                            raise ClientError(f"no answer to {request} {key!r} within {timeout:g} s in "
+                                              f"{self.where()}", "timeout") from None
+                        raise
+                publish(self._publishers[kind], message)
+        finally:
+            self.answers.pop(key, None)
+
+    def _stamp(self, message: dict, time_: Optional[float]) -> dict:
+        when = self.time if time_ is None else time_
+        if when is not None:
+            message["time"] = when
+        return message
+
+    def say(self, text: Optional[str] = None, *, description: Optional[Sequence[str]] = None,
+            domain: Optional[str] = None, time: Optional[float] = None, turn: Optional[int] = None,
+            timeout: Optional[float] = None) -> dict:
+        """Say something to the robot (text, or a property list); return its ``rr/result``."""
+        if (text is None) == (description is None):
+            raise ClientError("say: give text or a description, not both", "usage")
+        message: dict[str, Any] = {"id": self.new_id("say")}
+        if text is not None:
+            message["text"] = text
+        else:
+            message["description"] = list(description or ())
+        if domain is not None:
+            message["domain"] = domain
+        if turn is not None:
+            message["turn"] = turn
+        return self.exchange("say", self._stamp(message, time), timeout)
+
+    def describe(self, target: str, *, context: Optional[Sequence[str]] = None, time: Optional[float] = None,
+                 turn: Optional[int] = None, timeout: Optional[float] = None) -> dict:
+        """Ask the robot to describe ``target`` (against ``context`` if given); return its ``reg/expression``."""
+        message: dict[str, Any] = {"id": self.new_id("describe"), "target": target}
+        if context is not None:
+            message["context"] = list(context)
+        if turn is not None:
+            message["turn"] = turn
+        return self.exchange("describe", self._stamp(message, time), timeout)
+
+    def assert_facts(self, entity: str, properties: Mapping[str, float] | Iterable[str], *,
+                     domain: Optional[str] = None, timeout: Optional[float] = None) -> dict:
+        """Tell the consultant of ``domain`` facts about ``entity`` (property -> certainty); its ``ltm/assert/result``.
+
+        ``properties`` may be a list (each certain, 1.0).  Without ``domain``: the
+        graph's only domain, or the one whose consultant knows ``entity``.
+        """
+        facts = dict(properties) if isinstance(properties, Mapping) else {p: 1.0 for p in properties}
+        domain = domain or self.domain_of(entity, new_ok=True)
+        message = {"id": self.new_id("assert"), "domain": domain, "entity": entity, "properties": facts}
+        answer = self.exchange("assert", message, timeout)
+        self._entities.pop(domain, None)
+        return answer
+
+    # -------------------------------------------------------------- services
+    def service(self, name: str) -> JsonClient:
+        if name not in self._services:
+            self._services[name] = JsonClient(self.node, name)
+        return self._services[name]
+
+    def call(self, name: str, payload: Mapping[str, Any], timeout: Optional[float] = None) -> dict:
+        """Call one of the graph's JSON services; its reply (ClientError with the service's error kind).
+
+        Every service the client calls is idempotent (status, sync, a consultant's
+        queries), so a call that times out is sent again within ``timeout``: a first
+        request to a server just discovered can be lost.
+        """
+        timeout = self.timeout if timeout is None else timeout
+        client = self.service(name)
+        self.spin_until(client.ready, timeout, f"service {self.node.resolve_service_name(name)} is not available",
+                        "not-ready")
+        try:
+            return self.run(client.wait_ready(payload, timeout), timeout + 1.0, f"service {name}")
+        except CarrierError as err:
+            raise ClientError(printable(str(err)), err.kind) from None
+
+    def status(self, timeout: Optional[float] = None) -> dict:
+        """Return the WM Manager's ``wm_manager/status`` (``ready``, ``memory``, ``running``, ...)."""
+        reply = self.call(contract.STATUS.name, {}, timeout)
+        graph = reply.get("graph") or ""
+        if self.graph is not None and graph != self.graph:
+            raise ClientError(f"{contract.STATUS.name} answered by another graph ({describe_graph(graph)}, expected "
+                              f"{describe_graph(self.graph)}) in {self.where()}", "foreign")
+        return reply
+
+    def sync(self, t: float, timeout: Optional[float] = None) -> dict:
+        """Call the WM Manager's barrier: every decay tick due at or before ``t`` applied (docs/design.md)."""
+        return self.call(contract.SYNC.name, {"time": t}, timeout)
+
+    def publish_clock(self, t: float) -> None:
+        """Publish the graph's clock = ``t`` (nothing waits: see :meth:`set_clock`)."""
+        self._clock.publish(clock_message(t))
+
+    def set_clock(self, t: float, timeout: Optional[float] = None) -> dict:
+        """Publish the graph's clock = ``t`` and wait until the forgetting due by then is applied; the sync reply.
+
+        Later requests from this client are stamped with ``t``.
+        """
+        self.publish_clock(t)
+        reply = self.sync(t, timeout)
+        self.time = t
+        return reply
+
+    def domain_of(self, entity: str, new_ok: bool = False) -> str:
+        """Return the domain whose consultant knows ``entity`` (or the only domain, for a new one if ``new_ok``)."""
+        domains = self.domains()
+        for domain in domains:
+            if domain not in self._entities:
+                info = self.call(contract.consultant_service(domain), {"op": "info"})
+                self._entities[domain] = set(info.get("entities") or ())
+            if entity in self._entities[domain]:
+                return domain
+        if new_ok and len(domains) == 1:
+            return domains[0]
+        raise ClientError(f"no consultant knows entity {entity!r} (domains: {', '.join(domains)})"
+                          + ("; name the domain of a new entity" if new_ok else ""), "usage")
+
+    def wm(self, entity: str, domain: Optional[str] = None) -> list[str]:
+        """Return ``entity``'s working memory now, least recently used first (reading never refreshes it).
+
+        Asks the consultant's debug service (served when its ``debug`` parameter is true,
+        as :mod:`fsreg_ros.testing` starts it); :meth:`state` needs no debug service.
+        """
+        domain = domain or self.domain_of(entity)
+        return list(self.call(contract.debug_service(domain), {"op": "wm", "entity": entity})["queue"])
+
+    def snapshot(self, domain: str) -> dict[str, list[str]]:
+        """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""
+        return dict(self.call(contract.debug_service(domain), {"op": "snapshot"})["queues"])
+
+    def state(self, domain: str, timeout: Optional[float] = None, current: bool = False) -> dict:
+        """Return ``domain``'s latest ``wm/state`` (latched: its non-empty queues as last published).
+
+        A consultant publishes it after each request that changed WM, at most every
+        ``state_period`` (0.1 s by default), so it may lag a change by that much.
+        ``current``: first ask the consultant (``info``) how many of its calls changed
+        WM, and wait for the state that shows them all (what ``fsreg-ctl wm`` prints).
+        """
+        if self._states is None:
+            self._states = {}
+            subscribe(self.node, contract.WM_STATE, self._on_state)
+        wait = self.timeout if timeout is None else timeout
+        if not current:
+            self.spin_until(lambda: domain in self._states, wait,
+                            f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
+            return self._states[domain]
+        info = self.call(contract.consultant_service(domain), {"op": "info"}, timeout)
+        wanted = (contract.version_incarnation(info["version"]), info["wm_version"])
+
+        def caught_up() -> bool:
+            state = self._states.get(domain)
+            return state is not None and state_version(state) >= wanted
+
+        self.spin_until(caught_up, wait, f"no {contract.WM_STATE.name} of domain {domain!r} as of "
+                        f"incarnation {wanted[0]}, WM change {wanted[1]} in {self.where()}", "not-ready")
+        return self._states[domain]
+
+    def _on_state(self, data: dict) -> None:
+        graph = data.get(contract.GRAPH_FIELD) or ""
+        if self.graph is not None and graph != self.graph:
+            if self._state_watcher is not None:
+                self.foreign = self._foreign(graph)
+            return
+        self._states[data["domain"]] = data
+        if self._state_watcher is not None:
+            self._state_watcher(data)
+
+    def _foreign(self, graph: str) -> str:
+        return (f"a message from another graph ({describe_graph(graph)}, expected "
+                f"{describe_graph(self.graph)}) in {self.where()}")
+
+    # ------------------------------------------------------------ parameters
+    def _param_client(self, node_name: str, srv_type, suffix: str):
+        key = (node_name, suffix)
+        if key not in self._param_clients:
+            self._param_clients[key] = self.node.create_client(srv_type, f"{node_name}/{suffix}")
+        return self._param_clients[key]
+
+    def _service_call(self, client, request, timeout: float, what: str):
+        """Call a parameter service (idempotent: sent again after 2, 4, ... s without a reply, until ``timeout``)."""
+        self.spin_until(client.service_is_ready, timeout, f"{what}: service {client.srv_name} is not available",
+                        "not-ready")
+        deadline, attempt = time.monotonic() + timeout, 2.0
+        while True:
+            future = client.call_async(request)
+            try:
+                self.spin_until(future.done, min(attempt, max(0.0, deadline - time.monotonic())), what)
+                return future.result()
+            except ClientError:
+                client.remove_pending_request(future)
+                if time.monotonic() >= deadline:
+                    raise
+                attempt *= 2
+
+    def set_parameters(self, node_name: str, values: Mapping[str, Any], timeout: Optional[float] = None) -> None:
+        """Set parameters of node ``node_name`` (relative, e.g. ``wm_manager``) all at once, or none.
+
+        A value given as text is converted to the parameter's declared type.  Raises
+        ClientError ``usage`` for an unknown name or a value of the wrong type, and
+        ``rejected`` with the node's reason when it refuses the change.
+        """
+        timeout = self.timeout if timeout is None else timeout
+        names = list(values)
+        describe = self._param_client(node_name, DescribeParameters, "describe_parameters")
+        described = self._service_call(describe, DescribeParameters.Request(names=names), timeout,
+                                       f"{node_name}: describe parameters")
+        messages = []
+        for name, desc in zip(names, described.descriptors):
+            if desc.type == ParameterType.PARAMETER_NOT_SET:
+                raise ClientError(f"{node_name} has no parameter {name!r}", "usage")
+            messages.append(ParameterMsg(name=name, value=parameter_value(name, values[name], desc.type)))
+        setter = self._param_client(node_name, SetParametersAtomically, "set_parameters_atomically")
+        result = self._service_call(setter, SetParametersAtomically.Request(parameters=messages), timeout,
+                                    f"{node_name}: set parameters").result
+        if not result.successful:
+            raise ClientError(f"{node_name} refused {', '.join(names)}: {result.reason or 'no reason given'}",
+                              "rejected")
+
+    # ---------------------------------------------------------------- watching
+    def watch(self, on_state: Callable[[dict], None], on_event: Optional[Callable[[dict], None]] = None) -> list:
+        """Pass every ``wm/state`` and (with ``on_event``) ``wm/events`` message of this graph on.
+
+        Each domain's current state comes first (:meth:`state` with ``current``), then
+        each newer one as it is published (an older latched copy is not passed on); the
+        states come through :meth:`state`'s subscription.  Returns the subscriptions made
+        (``wm/events``'s, if ``on_event`` is given).
+
+        A message stamped by another graph raises ClientError ``foreign`` out of the spin.
+        """
+        shown: dict[str, tuple[int, int]] = {}
+
+        def newer(state: dict) -> None:
+            version = state_version(state)
+            if version > shown.get(state["domain"], (-1, -1)):
+                shown[state["domain"]] = version
+                on_state(state)
+
+        for domain in self.domains():
+            newer(self.state(domain, current=True))
+        self.foreign = None
+        self._state_watcher = newer  # wm/state keeps coming through state()'s subscription
+        if on_event is None:
+            return []
+
+        def checked_event(data: dict) -> None:
+            graph = data.get(contract.GRAPH_FIELD) or ""
+            if self.graph is not None and graph != self.graph:
+                self.foreign = self._foreign(graph)
+                return
+            on_event(data)
+
+        return [subscribe(self.node, contract.WM_EVENTS, checked_event)]
+
+
+def state_version(state: Mapping[str, Any]) -> tuple[int, int]:
+    """Return which state a ``wm/state`` message shows: ``(incarnation, wm_version)``, later compares greater."""
+    return state["incarnation"], state["wm_version"]
+
+
+def parameter_value(name: str, value: Any, kind: int) -> ParameterValue:
+    """Return ``value`` (text from a command line, or a Python value) as a ParameterValue of type ``kind``."""
+    out = ParameterValue(type=kind)
+    text = value if isinstance(value, str) else None
+    try:
+        if kind == ParameterType.PARAMETER_BOOL:
+            if text is not None:
+                lowered = text.strip().lower()
+                if lowered not in ("true", "false"):
+                    raise ValueError
+                value = lowered == "true"
+            if not isinstance(value, bool):
+                raise ValueError
+            out.bool_value = value
+        elif kind == ParameterType.PARAMETER_INTEGER:
+            number = int(text.strip()) if text is not None else value
+            if isinstance(number, bool) or not isinstance(number, int) or not -2**63 <= number < 2**63:
+                raise ValueError
+            out.integer_value = number
+        elif kind == ParameterType.PARAMETER_DOUBLE:
+            number = float(text.strip()) if text is not None else float(value)
+            if isinstance(value, bool) or number != number or number in (float("inf"), float("-inf")):
+                raise ValueError
+            out.double_value = number
+        elif kind == ParameterType.PARAMETER_STRING:
+            if not isinstance(value, str):
+                raise ValueError
+            out.string_value = value
+        elif kind == ParameterType.PARAMETER_STRING_ARRAY:
+            items = [v.strip() for v in text.strip().strip("[]").split(",") if v.strip()] if text is not None \
+                else list(value)
+            out.string_array_value = [str(v) for v in items]
+        else:
+            raise ClientError(f"parameter {name!r} has a type this client does not set ({kind})", "usage")
+    except (ValueError, TypeError, AttributeError):
+        expected = {ParameterType.PARAMETER_BOOL: "true or false", ParameterType.PARAMETER_INTEGER: "a whole number",
+                    ParameterType.PARAMETER_DOUBLE: "a finite number", ParameterType.PARAMETER_STRING: "text"}
+        raise ClientError(f"parameter {name!r}: expected {expected.get(kind, 'a value of its type')}, got "
+                          f"{printable(repr(value), 60)}", "usage") from None
+    return out
+
+
+def find_graph(namespace: str, wait: float = DISCOVERY_WAIT) -> Optional[str]:
+    """Describe the graph running in ``namespace`` on this process's ROS domain (None if none is seen in ``wait`` s).
+
+    Starts and ends a context of its own; set the ROS environment first.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor(context=context)
+    node = rclpy.create_node(f"fsreg_probe_{secrets.token_hex(4)}", namespace=namespace or "/", context=context)
+    try:
+        executor.add_node(node)
+        return GraphClient(node, executor).find_running(wait)
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -1,0 +1,136 @@
+"""The WM Manager's links to the consultants' manage services (``consultant/<domain>/manage``).
+
+:class:`ManagePort` is the core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort`
+in the graph: each decision (``configure``, ``decay``, ``evict``) becomes a request,
+sent at once and tracked with a deadline by :class:`ManageLinks`, which also handles
+the replies: a configure acknowledged by the consultant's current incarnation marks the
+domain configured; a failed ``decay`` is owed again (the consultant skips ticks it had
+applied) and a failed ``decay`` or ``configure`` detaches the domain, so it is attached
+(and configured) again when the consultant answers or announces itself.  The requests
+and replies are the contract's manage ops (:mod:`fsreg_ros.contract.consultant`).
+"""
+
+from __future__ import annotations
+
+import time as wallclock
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any, Callable, Optional
+
+from rclpy.task import Future
+
+from .carrier import CarrierError, JsonClient, log_error
+from ..contract import manage_service
+from ..core.decay import TickRun
+from ..core.forgetting import ForgettingPolicy
+from ..core.wm_manager import WMManager
+
+
+@dataclass
+class ConsultantLink:
+    """What the WM Manager knows of one domain's consultant, and its calls in flight."""
+
+    name: str
+    client: JsonClient
+    timer: Any = None  # the domain's one-shot decay timer
+    configured: bool = False  # a configure has been acknowledged by the current incarnation
+    configuring: Optional[Future] = None
+    inflight: list = field(default_factory=list)  # [(future, payload, deadline)]
+    incarnation: Optional[int] = None  # the consultant's, from its announce or configure reply
+    running: Optional[dict] = None  # the policy it acknowledged or announced
+    #: Its liveliness on ``consultant/<domain>/alive`` (1 s lease): None until heard of, False while lapsed.
+    alive: Optional[bool] = None
+    alive_sub: Any = None
+
+    def lost(self) -> None:
+        """Forget that the consultant is configured (it went away): it is configured again when it is back."""
+        self.configured = False
+        self.configuring = None
+
+
+class ManageLinks:
+    """Every managed domain's link: sending, deadlines, replies."""
+
+    def __init__(self, node, names: list[str], callback_group, timeout: Callable[[], float]) -> None:
+        self.node = node
+        self.timeout = timeout
+        self.manager: Optional[WMManager] = None  # set by the node once it made the manager
+        self.links = {n: ConsultantLink(n, JsonClient(node, manage_service(n), callback_group)) for n in names}
+
+    def send(self, link: ConsultantLink, payload: dict) -> Future:
+        """Send one manage request now; its reply is handled when it comes (or its deadline passes)."""
+        future = link.client.send(payload)
+        entry = (future, payload, wallclock.monotonic() + self.timeout())
+        link.inflight.append(entry)
+        future.add_done_callback(partial(self._on_reply, link, entry))
+        return future
+
+    def _on_reply(self, link: ConsultantLink, entry: tuple, future: Future) -> None:
+        if entry in link.inflight:
+            link.inflight.remove(entry)
+        payload = entry[1]
+        op = payload["op"]
+        try:
+            reply = link.client.decode(future)
+        except CarrierError as err:
+            log_error(self.node.get_logger(), f"consultant '{link.name}' failed '{op}': {err}")
+            if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
+                self.manager.owe(link.name, TickRun.from_json(payload["ticks"]))
+            if op in ("decay", "configure"):  # start over: attach again when it answers or announces itself
+                self.manager.detach(link.name)
+                link.lost()
+            return
+        if op == "configure" and future is link.configuring:
+            link.running = reply.get("memory")
+            if isinstance(reply.get("incarnation"), int):
+                link.incarnation = reply["incarnation"]
+            if not link.configured:
+                self.node.get_logger().info(
+                    f"consultant '{link.name}' (incarnation {link.incarnation}) configured: {link.running}")
+            # Configured only while it lives: an acknowledgement that arrives after its liveliness lapsed
+            # (a reply in flight) is the dead incarnation's; it is configured again when it is back.
+            link.configured = (link.alive is not False
+                               and link.running == self.manager.domains[link.name].policy.to_json())
+            link.configuring = None
+
+    def expire(self) -> None:
+        """Fail the calls whose deadline passed (kind ``timeout``)."""
+        now = wallclock.monotonic()
+        for link in self.links.values():
+            for future, _, deadline in list(link.inflight):
+                if now > deadline and not future.done():
+                    link.client.expire(future, self.timeout())
+
+    async def settle(self, deadline: float) -> None:
+        """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
+        pending = [(link, entry[0]) for link in self.links.values() for entry in list(link.inflight)]
+        for link, future in pending:
+            await self.result(link, future, deadline)
+
+    async def result(self, link: ConsultantLink, future: Future, deadline: float) -> dict:
+        """Await one reply until ``deadline`` (monotonic); CarrierError naming the consultant."""
+        remaining = max(deadline - wallclock.monotonic(), 0.05)
+        try:
+            return await link.client.result(future, remaining)
+        except CarrierError as err:
+            raise CarrierError(f"consultant '{link.name}' did not apply the change: {err}", kind=err.kind) from None
+
+
+class ManagePort:
+    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph."""
+
+    def __init__(self, links: ManageLinks) -> None:
+        self.links = links
+
+    def configure(self, domain: str, policy: ForgettingPolicy, time: float) -> None:
+        link = self.links.links[domain]
+        link.configuring = self.links.send(link, {"op": "configure", "policy": policy.settings(), "time": time})
+
+    def decay(self, domain: str, ticks: TickRun) -> None:
+        self.links.send(self.links.links[domain], {"op": "decay", "ticks": ticks.to_json()})
+
+    def evict(self, domain: str, count: int, time: float) -> None:
+        self.links.send(self.links.links[domain], {"op": "evict", "count": count, "time": time})
+
+    def sizes(self, domains: list[str]) -> None:
+        return None  # needs service calls: the sync barrier asks, then calls manager.share

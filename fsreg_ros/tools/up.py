@@ -1,0 +1,336 @@
+"""``fsreg-up``: start the live node graph of a scenario's domains and keep it up.
+
+    fsreg-up SCENARIO [--namespace NS] [memory options] [--state-dir DIR] [--wall-time] [--record DIR]
+
+Starts one process per node, as ``fsreg-graph`` does (a ``consultant`` per domain of
+the scenario, the ``wm_manager`` with the scenario's memory settings and the command
+line's merged over them, the ``parser``, ``reference_resolution`` and ``reg``, with the
+scenario's lexicon); the scenario's dialogue, if any, is not played.  Before starting it
+looks for a graph already running in the namespace (a node of a graph's name, or a WM
+Manager's readiness) and refuses with one line naming it.  Then it waits until every
+consultant is configured (``wm_manager/ready``) and every topic is matched, prints one
+line containing ``ready`` (the namespace, the graph's identity, the ROS domain, the
+clock and where to talk to it; ``--json``: one JSON object), and stays up.  Ctrl-C or
+SIGTERM stops every node (SIGTERM to the process group, SIGKILL after a grace period;
+every node also dies with this process) and leaves no process behind; exit 0.
+
+``--record DIR`` records every fsreg topic to a new rosbag2 folder from before the first
+node starts until the graph stops (:mod:`fsreg_ros.ros.recorder`), with a copy of the
+scenario (and lexicon) for ``fsreg-sim --replay DIR``.
+
+A node that exits is reported with the tail of its log and everything is stopped
+(exit 1), or, with ``--respawn``, it is started again (at most ``MAX_RESPAWNS`` times
+per node); its state survives in its state database.
+
+Time: sim time by default (the nodes follow ``/clock``, under a namespace
+``<namespace>/clock``, or ``--clock TOPIC``; ``fsreg-ctl clock T`` or a simulator drives
+it); ``--wall-time`` makes the nodes follow the system clock.  Exit codes: 0 stopped by
+Ctrl-C/SIGTERM, 1 failed (a node died, not ready in time, a graph already there), 2 bad
+input or a refused network environment.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Optional, Sequence
+
+from .. import contract
+from .sim import INPUT_ERRORS, UsageError, one_line, options_from_args
+from ..contract import normalise_namespace
+from ..core.forgetting import RULES
+from ..core.generation import ALGORITHMS, WM_ORDERS
+from ..core.lexicon import Lexicon, coverage_warning
+from ..core.scenario import load_scenario
+from ..core.simulation import effective_policies
+from .graph import Graph, clock_arguments, live_nodes, new_graph_id
+from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
+from .view import DEFAULT_HOST, DEFAULT_PORT, LiveView
+
+PROG = "fsreg-up"
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+#: Times one node is started again with --respawn before fsreg-up gives up.
+MAX_RESPAWNS = 5
+#: Seconds between two checks of the node processes while up.
+POLL = 0.1
+
+
+class UpError(RuntimeError):
+    """The graph could not be started or kept up (one line, exit 1)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Start the live fsreg node graph of a scenario's domains and keep it up until Ctrl-C or "
+                    "SIGTERM (talk to it with fsreg-ctl).")
+    parser.add_argument("scenario", type=Path, help="scenario/KB YAML file (its dialogue is not played)")
+    parser.add_argument("--namespace", default="", help="ROS namespace of every node (default: none)")
+    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
+    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
+    memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
+    memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
+    memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
+    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
+    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
+    parser.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
+    parser.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
+    parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
+    parser.add_argument("--state-dir", type=Path, metavar="DIR",
+                        help="the consultants' state directory (default: theirs, under $XDG_STATE_HOME/fsreg_ros)")
+    parser.add_argument("--wall-time", action="store_true", help="follow the system clock instead of /clock")
+    parser.add_argument("--clock", metavar="TOPIC",
+                        help="the clock topic to follow under sim time (default: /clock, or <namespace>/clock)")
+    parser.add_argument("--log-dir", type=Path, metavar="DIR", help="node logs (default: a new temporary directory)")
+    parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
+                        help="seconds to wait for the graph to be ready (default 60)")
+    parser.add_argument("--respawn", action="store_true", help="start a node that exits again (default: stop all)")
+    parser.add_argument("--json", action="store_true", help="print the ready line as one JSON object")
+    parser.add_argument("--view", nargs="?", type=int, const=DEFAULT_PORT, default=None, metavar="PORT",
+                        help=f"also serve the live web view on 127.0.0.1:PORT (default {DEFAULT_PORT}; 0: a free port)")
+    parser.add_argument("--record", type=Path, metavar="DIR",
+                        help="record every fsreg topic from the start to a new rosbag2 folder DIR (MCAP)")
+    return parser
+
+
+def ready_report(graph_id: str, namespace: str, domain_id: int, memory: dict, clock: Optional[str],
+                 log_dir: Path, resolve) -> dict:
+    """Return what the ready line says, as data: identity, where, memory, clock, endpoints, logs."""
+    topics = (contract.HUMAN, contract.RR_RESULT, contract.REG_REQUEST, contract.REG_EXPRESSION, contract.LTM_ASSERT,
+              contract.LTM_ASSERT_RESULT, contract.WM_STATE, contract.WM_EVENTS, contract.READY)
+    services = [contract.STATUS.name, contract.SYNC.name] + [contract.consultant_service(d) for d in memory]
+    return {
+        "ready": True,
+        "graph": graph_id,
+        "namespace": namespace or "/",
+        "ros_domain_id": domain_id,
+        "memory": memory,
+        "clock": clock,
+        "topics": {t.name: resolve(t.name) for t in topics},
+        "services": {s: resolve(s) for s in services},
+        "logs": str(log_dir),
+        "pid": os.getpid(),
+    }
+
+
+def ready_line(report: dict) -> str:
+    """Return the one-line text form of :func:`ready_report`."""
+    ns = report["namespace"]
+    memory = "; ".join(f"{d}: " + ", ".join(f"{k} {v}" for k, v in m.items()) for d, m in report["memory"].items())
+    clock = f"sim time on {report['clock']}" if report["clock"] else "wall-clock time"
+    ctl = "fsreg-ctl" + (f" --namespace {ns}" if ns != "/" else "")
+    endpoints = ", ".join(list(report["topics"].values()) + list(report["services"].values()))
+    return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
+            f"{memory}; {clock}; endpoints {endpoints}; "
+            f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch"
+            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}"
+            + (f"; recording to {report['recording']}" if report.get("recording") else ""))
+
+
+class Stop(Exception):
+    """Ctrl-C or SIGTERM arrived."""
+
+
+def _on_signal(signum, frame) -> None:
+    raise Stop(signal.Signals(signum).name)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run ``fsreg-up``; return its exit code."""
+    require_loopback(PROG)  # exits 2 if the environment would take DDS off this machine
+    args = build_parser().parse_args(argv)
+    try:
+        namespace = normalise_namespace(args.namespace)
+    except ValueError as err:
+        print(f"{PROG}: error: --namespace: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.view is not None and not 0 <= args.view <= 65535:
+        print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.record is not None and args.record.exists():
+        print(f"{PROG}: error: --record: {args.record} exists already; a recording goes to a new folder",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.ready_timeout <= 0:
+        print(f"{PROG}: error: --ready-timeout must be positive, got {args.ready_timeout:g}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        lexicon = Lexicon.load(args.lexicon)
+        scenario = load_scenario(args.scenario, lexicon)
+        options = options_from_args(args)
+        policies = effective_policies(scenario, options)
+        clock = None if args.wall_time else (args.clock or (f"{namespace}{contract.CLOCK}" if namespace
+                                                            else contract.CLOCK))
+        if clock is not None:
+            _check_topic(clock)
+    except INPUT_ERRORS as err:
+        print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    warning = coverage_warning(lexicon, scenario)
+    if warning:
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
+    try:
+        env = enforce_loopback(dict(os.environ))
+    except NetworkRefused as err:  # pragma: no cover - require_loopback refused it already
+        print(f"{PROG}: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    os.environ.update(env)
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return Up(args, scenario, options, policies, namespace, clock, env).run()
+    except Stop:
+        return EXIT_OK
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _check_topic(name: str) -> None:
+    """Raise UsageError naming ``--clock`` if ``name`` is not a valid ROS topic name."""
+    text = name if name.startswith("/") else "/" + name
+    if not all(part and (part[0].isalpha() or part[0] == "_") and all(c.isalnum() or c == "_" for c in part)
+               for part in text.strip("/").split("/")):
+        raise UsageError(f"--clock: {name!r} is not a ROS topic name")
+
+
+class Up:
+    """One fsreg-up run: the probe that checks and waits, the node processes, the loop that keeps them up."""
+
+    def __init__(self, args: argparse.Namespace, scenario, options, policies: dict, namespace: str,
+                 clock: Optional[str], env: dict) -> None:
+        self.args = args
+        self.namespace = namespace
+        self.clock = clock
+        self.env = env
+        self.graph_id = new_graph_id(PROG)
+        self.memory = {d: p.to_json() for d, p in policies.items()}
+        self.log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="fsreg-up-"))
+        self.specs = live_nodes(scenario, args.scenario, options, graph=self.graph_id, lexicon=args.lexicon,
+                                state_dir=str(args.state_dir.resolve()) if args.state_dir else None,
+                                use_sim_time=not args.wall_time)
+        self.graph: Optional[Graph] = None
+        self.respawns: dict[str, int] = {}
+
+    def run(self) -> int:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from ..ros.client import DISCOVERY_WAIT, ClientError, GraphClient
+
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        context = rclpy.Context()
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+        executor = SingleThreadedExecutor(context=context)
+        remaps = ["-r", f"__ns:={self.namespace}"] if self.namespace else []
+        remaps += clock_arguments(self.namespace, self.clock)
+        node = rclpy.create_node("fsreg_up", context=context, cli_args=["--ros-args", *remaps] if remaps else None)
+        executor.add_node(node)
+        recorder = None
+        try:
+            client = GraphClient(node, executor, graph=self.graph_id)
+            running = client.find_running(DISCOVERY_WAIT)
+            if running is not None:
+                print(f"{PROG}: error: {running}; stop it, or choose another --namespace or ROS_DOMAIN_ID",
+                      file=sys.stderr)
+                return EXIT_FAILED
+            if self.args.record is not None:  # subscribed before any node starts: the recording starts with the graph
+                recorder = self._recorder(node)
+            self.graph = Graph(self.specs, self.log_dir, self.env, self.namespace, clock=self.clock)
+            self.graph.start()
+            self._wait_ready(client)
+            report = ready_report(self.graph_id, self.namespace, context.get_domain_id(), self.memory, self.clock,
+                                  self.log_dir, node.resolve_topic_name)
+            view = self._start_view(client)
+            if view is not None:
+                report["view"] = view.url
+            if recorder is not None:
+                report["recording"] = str(self.args.record)
+            print(json.dumps(report, sort_keys=True) if self.args.json else ready_line(report), flush=True)
+            while True:
+                self._supervise()
+                if view is None:
+                    client.spin_for(POLL)
+                else:
+                    stop = time.monotonic() + POLL
+                    while time.monotonic() < stop:
+                        view.step()
+        except (UpError, ClientError) as err:
+            print(f"{PROG}: error: {err}", file=sys.stderr)
+            return EXIT_FAILED
+        except OSError as err:  # --view's port
+            print(f"{PROG}: error: --view: cannot serve on {DEFAULT_HOST}:{self.args.view}: {err.strerror or err}",
+                  file=sys.stderr)
+            return EXIT_FAILED
+        finally:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # stopping is not interrupted
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            if self.graph is not None:
+                self.graph.stop()
+                print(f"{PROG}: stopped graph {self.graph_id} ({len(self.graph.procs)} nodes); logs in {self.log_dir}",
+                      file=sys.stderr)
+            if recorder is not None:
+                recorder.close()
+                print(f"{PROG}: recorded {recorder.summary()}", file=sys.stderr)
+            executor.shutdown(timeout_sec=1.0)
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
+
+    def _start_view(self, client):
+        """Serve the live view (``--view``) from this process; None without the option."""
+        if self.args.view is None:
+            return None
+        view = LiveView(client, DEFAULT_HOST, self.args.view)  # OSError: the port is taken
+        view.start()
+        return view
+
+    def _recorder(self, node):
+        """Start recording every fsreg topic on ``node`` (:mod:`fsreg_ros.ros.recorder`), with what a replay needs."""
+        from ..core.recording import RecordingError
+        from ..ros.recorder import Recorder
+
+        custom = {"fsreg.graph": self.graph_id, "fsreg.namespace": self.namespace or "/",
+                  "fsreg.algorithm": self.args.algorithm or "auto", "fsreg.wm_order": self.args.wm_order}
+        attach = {"scenario": self.args.scenario, **({"lexicon": self.args.lexicon} if self.args.lexicon else {})}
+        try:
+            return Recorder(node, self.args.record, custom=custom, attach=attach)
+        except (RecordingError, OSError) as err:
+            raise UpError(f"--record: {err}") from None
+
+    def _wait_ready(self, client) -> None:
+        from ..ros.client import ClientError
+
+        deadline = time.monotonic() + self.args.ready_timeout
+        while True:
+            self._supervise(starting=True)
+            try:
+                client.wait_ready(min(1.0, max(0.0, deadline - time.monotonic())))
+                return
+            except ClientError as err:
+                if err.kind != "not-ready":
+                    raise
+                if time.monotonic() >= deadline:
+                    raise UpError(f"not ready within {self.args.ready_timeout:g} s: {err}") from None
+
+    def _supervise(self, starting: bool = False) -> None:
+        """Respawn or report a node that exited."""
+        for spec, code in self.graph.dead():
+            tail = self.graph.tail(spec.name)
+            if self.args.respawn and self.respawns.get(spec.name, 0) < MAX_RESPAWNS:
+                self.respawns[spec.name] = self.respawns.get(spec.name, 0) + 1
+                print(f"{PROG}: node {spec.name} exited with code {code}; starting it again "
+                      f"({self.respawns[spec.name]} of {MAX_RESPAWNS})\n{tail}", file=sys.stderr, flush=True)
+                self.graph.restart(spec.name, kill=False)
+                continue
+            when = "while starting" if starting else "while up"
+            raise UpError(f"node {spec.name} exited with code {code} {when}; stopping the graph\n{tail}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

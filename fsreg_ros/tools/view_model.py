@@ -1,0 +1,201 @@
+"""What the live view shows, as plain data: the dialogue, each entity's WM per domain, REG's sources.
+
+:class:`ViewModel` owns the view's picture of one graph.  It is fed the graph's own
+messages (``wm/state``, ``wm/events``, ``dialogue/human``, ``rr/result``,
+``reg/expression``, ``wm_manager/ready`` and the WM Manager's status) by
+:mod:`fsreg_ros.tools.view`, and :meth:`ViewModel.snapshot` gives the JSON the page
+renders.  It imports no ROS package, so its rules are tested without a graph.
+
+What a queue entry shows (docs/deployment.md "The live view"):
+
+* ``origin``: the cause (and dialogue turn) of the encoding that made the property enter
+  the queue, from the consultant's ``wm/events`` (``?`` when that encoding happened
+  before the view started);
+* ``forget_at``: under decay, when the property leaves WM if nothing is encoded meanwhile:
+  decay pops the front of every non-empty queue each tick (Alg. 2), so the k-th entry
+  (0 = least recently used) leaves at the next tick plus k decay periods; ``None``
+  without decay (displacement forgets only when something new is encoded).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from typing import Any, Mapping, Optional
+
+from ..core.forgetting import RULE_PARAMETERS, ForgettingPolicy, PolicyError
+
+#: How many dialogue lines the view keeps (the oldest scroll off).
+DIALOGUE_LINES = 200
+
+
+def decay_period(memory: Mapping[str, Any]) -> Optional[float]:
+    """The decay period of a policy object (seconds), or None when the policy does not decay."""
+    try:
+        policy = ForgettingPolicy.from_settings({k: v for k, v in memory.items() if v is not None})
+    except (PolicyError, TypeError, ValueError):
+        return None
+    if not policy.decays:
+        return None
+    (period,) = RULE_PARAMETERS["decay"]
+    return float(policy.value(period))
+
+
+class ViewModel:
+    """The live view's state of one graph; every method is thread-safe."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Condition()
+        self.version = 0
+        self._states: dict[str, dict] = {}  # domain -> latest wm/state
+        self._origins: dict[tuple[str, str, str], dict] = {}  # (domain, entity, property) -> origin
+        self._dialogue: deque = deque(maxlen=DIALOGUE_LINES)
+        self._said: dict[str, int] = {}  # request id -> index of its line in the dialogue
+        self._ready: Optional[dict] = None
+        self._status: Optional[dict] = None
+        self._time: Optional[float] = None
+
+    # ------------------------------------------------------------ input
+    def _changed(self) -> None:
+        self.version += 1
+        self._lock.notify_all()
+
+    def on_state(self, state: Mapping[str, Any]) -> None:
+        """A domain's ``wm/state`` (newer than the last one shown)."""
+        with self._lock:
+            self._states[state["domain"]] = dict(state)
+            self._clock(state.get("time"))
+            self._changed()
+
+    def on_event(self, event: Mapping[str, Any]) -> None:
+        """A ``wm/events`` message: an encode records the entry's origin, a forget drops it."""
+        with self._lock:
+            key = (event["domain"], event["entity"], event["property"])
+            if event.get("op") == "encode":
+                self._origins[key] = {"cause": event.get("cause"), "turn": event.get("turn")}
+            elif event.get("op") == "forget":
+                self._origins.pop(key, None)
+            self._clock(event.get("time"))
+            self._changed()
+
+    def on_human(self, message: Mapping[str, Any]) -> None:
+        """The human's utterance (``dialogue/human``): a dialogue line, resolved later by ``rr/result``."""
+        with self._lock:
+            words = message.get("text") or ", ".join(message.get("description") or [])
+            self._add_line(message.get("id"), {"speaker": "human", "text": words, "time": message.get("time"),
+                                               "turn": message.get("turn")})
+
+    def on_rr(self, message: Mapping[str, Any]) -> None:
+        """Reference resolution's answer to an utterance: whom it resolved (or why not)."""
+        with self._lock:
+            line = self._line_of(message.get("id"), {"speaker": "human", "text": message.get("text") or "",
+                                                     "time": message.get("time")})
+            line["resolved"] = message.get("resolved")
+            line["status"] = message.get("status")
+            if message.get("error"):
+                line["error"] = message.get("error")
+            line["candidates"] = len(message.get("candidates") or [])
+            self._changed()
+
+    def on_expression(self, message: Mapping[str, Any]) -> None:
+        """REG's expression: the robot's line, each property marked WM or LTM."""
+        with self._lock:
+            if message.get("error"):
+                line = {"speaker": "robot", "text": "", "error": message.get("error"), "target": message.get("target"),
+                        "time": message.get("time")}
+            else:
+                description = list(message.get("description") or [])
+                sources = list(message.get("sources") or [])
+                origins = list(message.get("origins") or [])
+                line = {"speaker": "robot", "text": message.get("text") or "", "target": message.get("target"),
+                        "time": message.get("time"), "domain": message.get("domain"),
+                        "properties": [{"property": p,
+                                        "source": sources[i] if i < len(sources) else None,
+                                        "origin": origins[i] if i < len(origins) else None}
+                                       for i, p in enumerate(description)]}
+            self._add_line(message.get("id"), line)
+            self._clock(message.get("time"))
+
+    def on_ready(self, ready: Mapping[str, Any]) -> None:
+        """``wm_manager/ready``: readiness and each domain's running memory settings."""
+        with self._lock:
+            self._ready = dict(ready)
+            self._clock(ready.get("time"))
+            self._changed()
+
+    def on_status(self, status: Mapping[str, Any]) -> None:
+        """The WM Manager's status (the next decay tick of each domain, its settings)."""
+        with self._lock:
+            self._status = dict(status)
+            self._clock(status.get("time"))
+            self._changed()
+
+    def _clock(self, t: Any) -> None:
+        if isinstance(t, (int, float)) and (self._time is None or t > self._time):
+            self._time = float(t)
+
+    def _add_line(self, key: Any, line: dict) -> None:
+        if key is not None and str(key) in self._said:
+            self._find(str(key)).update(line)
+        else:
+            self._dialogue.append(line)
+            if key is not None:
+                line["id"] = str(key)
+                self._said[str(key)] = 1
+        self._changed()
+
+    def _find(self, key: str) -> dict:
+        for line in reversed(self._dialogue):
+            if line.get("id") == key:
+                return line
+        line = {"id": key}
+        self._dialogue.append(line)
+        return line
+
+    def _line_of(self, key: Any, default: dict) -> dict:
+        if key is not None and str(key) in self._said:
+            return self._find(str(key))
+        self._add_line(key, default)
+        return self._dialogue[-1]
+
+    # ------------------------------------------------------------ output
+    def wait_change(self, seen: int, timeout: float) -> int:
+        """Block until the version passes ``seen`` (or ``timeout`` seconds); return the version."""
+        with self._lock:
+            self._lock.wait_for(lambda: self.version != seen, timeout)
+            return self.version
+
+    def snapshot(self) -> dict:
+        """The page's data: dialogue lines, each domain's queues with origins and forget times, settings."""
+        with self._lock:
+            domains = {}
+            for domain, state in sorted(self._states.items()):
+                memory = self._memory(domain)
+                period = decay_period(memory)
+                next_tick = self._next_tick(domain)
+                entities = {}
+                for entity, queue in sorted(state.get("queues", {}).items()):
+                    entries = []
+                    for k, prop in enumerate(queue):
+                        forget_at = (next_tick + k * period) if (next_tick is not None and period) else None
+                        origin = self._origins.get((domain, entity, prop))
+                        entries.append({"property": prop, "origin": origin, "forget_at": forget_at})
+                    entities[entity] = entries
+                domains[domain] = {"time": state.get("time"), "incarnation": state.get("incarnation"),
+                                   "wm_version": state.get("wm_version"), "memory": memory,
+                                   "next_tick": next_tick, "entities": entities}
+            ready = self._ready or {}
+            return {"version": self.version, "time": self._time, "ready": ready.get("ready"),
+                    "graph": ready.get("graph"), "domains": domains, "dialogue": list(self._dialogue)}
+
+    def _memory(self, domain: str) -> dict:
+        if self._status and domain in (self._status.get("memory") or {}):
+            return dict(self._status["memory"][domain])
+        running = ((self._ready or {}).get("domains") or {}).get(domain) or {}
+        return dict(running.get("running") or {})
+
+    def _next_tick(self, domain: str) -> Optional[float]:
+        if not self._status:
+            return None
+        tick = (self._status.get("next_tick") or {}).get(domain)
+        return float(tick) if isinstance(tick, (int, float)) else None

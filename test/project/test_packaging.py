@@ -1,0 +1,208 @@
+"""Packaging: colcon installs every node where `ros2 run` looks (the core's purity: test_core_is_pure.py),
+and the launch file builds the graph of :mod:`fsreg_ros.ros.graph_spec`."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+NODES = ["parser", "reference_resolution", "consultant", "wm_manager", "reg", "dialogue_player"]
+
+
+def setup_entry_points() -> dict[str, str]:
+    text = (REPO / "setup.py").read_text()
+    return dict(re.findall(r'"([\w-]+)": "(fsreg_ros[\w.]*:\w+)"', text))
+
+
+def test_every_node_is_a_console_script_with_a_main():
+    entry = setup_entry_points()
+    for node in NODES:
+        assert node in entry, node
+        module, func = entry[node].split(":")
+        mod = __import__(module, fromlist=[func])
+        assert callable(getattr(mod, func))
+
+
+class _Recorded:
+    """Stand-in for a launch / launch_ros class: records its arguments."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
+
+
+class _Config(_Recorded):
+    def perform(self, context) -> str:
+        return context[self.args[0]]
+
+
+def _launch_nodes(monkeypatch, given: dict) -> list:
+    """Run launch/fsreg.launch.py with stand-ins for launch/launch_ros; return its Node objects."""
+    import types
+
+    modules = {
+        "launch": types.SimpleNamespace(LaunchDescription=lambda entities: entities),
+        "launch.actions": types.SimpleNamespace(DeclareLaunchArgument=_Recorded, OpaqueFunction=_Recorded),
+        "launch.substitutions": types.SimpleNamespace(LaunchConfiguration=_Config),
+        "launch_ros": types.SimpleNamespace(),
+        "launch_ros.actions": types.SimpleNamespace(Node=_Recorded),
+    }
+    for name, module in modules.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    namespace: dict = {}
+    exec(compile((REPO / "launch" / "fsreg.launch.py").read_text(), "fsreg.launch.py", "exec"), namespace)
+    entities = namespace["generate_launch_description"]()
+    context = {a.args[0]: a.kwargs["default_value"] for a in entities if isinstance(a, _Recorded) and a.args}
+    context.update(given)
+    opaque = [e for e in entities if isinstance(e, _Recorded) and "function" in e.kwargs]
+    assert len(opaque) == 1
+    return opaque[0].kwargs["function"](context)
+
+
+def test_launch_file_builds_the_graph_spec(monkeypatch):
+    from fsreg_ros.core import settings
+    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.ros.graph_spec import node_specs, policy_settings
+
+    given = {"kb": "/tmp/kb.yaml", "domains": "faces, objects", "policy": "displacement", "capacity": "3",
+             "namespace": "robot1", "use_sim_time": "true"}
+    nodes = _launch_nodes(monkeypatch, given)
+    defaults = {row.name: row.default for row in settings.TABLE}  # the launch arguments' defaults
+    policy = policy_settings(ForgettingPolicy.from_settings({**defaults, "policy": "displacement", "capacity": 3}))
+    expected = node_specs("/tmp/kb.yaml", ["faces", "objects"], {"faces": policy, "objects": policy},
+                          use_sim_time=True, algorithm="auto", wm_order="lru-first")
+    got = [(n.kwargs["executable"], n.kwargs["name"], n.kwargs["parameters"]) for n in nodes]
+    assert got == [(s.executable, s.name, [s.parameters]) for s in expected]
+    assert {n.kwargs["package"] for n in nodes} == {"fsreg_ros"}
+    assert {n.kwargs["executable"] for n in nodes} <= set(setup_entry_points())
+    assert {n.kwargs["namespace"] for n in nodes} == {"/robot1"}
+    assert all(n.kwargs["remappings"] == [("/clock", "/robot1/clock")] for n in nodes)
+    assert got[2][2][0]["faces.policy"] == "displacement" and got[2][2][0]["faces.capacity"] == 3
+
+
+def test_params_files_name_real_nodes():
+    import yaml
+
+    known = set(NODES) | {"consultant_faces"}
+    for path in (REPO / "config").glob("*.yaml"):
+        data = yaml.safe_load(path.read_text())
+        if not isinstance(data, dict) or not all(isinstance(v, dict) and "ros__parameters" in v for v in data.values()):
+            continue  # not a params file (lexicon, expectations)
+        assert set(data) <= known, path
+
+
+@pytest.mark.slow
+def test_colcon_build_installs_every_executable(tmp_path):
+    colcon = Path(sys.executable).parent / "colcon"
+    if not colcon.exists():
+        colcon = Path(shutil.which("colcon") or "")
+    assert colcon.is_file(), "colcon not installed (requirements-dev.txt)"
+    src = tmp_path / "src" / "fsreg_ros"
+    ignore = shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "__pycache__", "*.egg-info")
+    shutil.copytree(REPO, src, ignore=ignore)
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    proc = subprocess.run(
+        [str(colcon), "build", "--base-paths", "src", "--event-handlers", "console_direct-"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300, env=env,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    lib = tmp_path / "install" / "fsreg_ros" / "lib" / "fsreg_ros"
+    for node in NODES:
+        exe = lib / node
+        assert exe.is_file() and os.access(exe, os.X_OK), f"{exe} missing"
+    share = tmp_path / "install" / "fsreg_ros" / "share"
+    assert (share / "fsreg_ros" / "config" / "lexicon.yaml").is_file()
+    assert (share / "fsreg_ros" / "launch" / "fsreg.launch.py").is_file()
+    assert (share / "ament_index" / "resource_index" / "packages" / "fsreg_ros").is_file()
+    # `ros2 run fsreg_ros consultant` stand-in: the installed executable starts and
+    # refuses a missing KB with one clear line and exit code 2.
+    prefix = tmp_path / "install" / "fsreg_ros"
+    site = next(prefix.glob("lib/python3*/site-packages"))
+    assert (site / "fsreg_ros" / "nodes" / "consultant.py").is_file()
+    run_env = dict(env, AMENT_PREFIX_PATH=str(prefix), PYTHONPATH=f"{site}{os.pathsep}{env.get('PYTHONPATH', '')}")
+    run = subprocess.run(
+        [str(lib / "consultant"), "--ros-args", "-p", "domain:=faces", "-p", f"kb:={tmp_path}/none.yaml"],
+        capture_output=True, text=True, timeout=60, env=run_env,
+    )
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert "none.yaml" in run.stdout + run.stderr
+    assert "Traceback" not in run.stdout + run.stderr
+
+
+def test_the_docs_message_table_is_the_contracts():
+    from fsreg_ros import contract
+
+    text = (REPO / "docs" / "design.md").read_text()
+    section = text[text.index("## Messages"):text.index("## Forgetting without races")]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert rows == contract.message_table()
+    assert any("`wm/state`" in row and "`events`" in row for row in rows)
+
+
+def test_the_contract_and_codec_import_no_ros_package():
+    """A tool that only needs names, schemas or the JSON codec imports no ROS package."""
+    code = ("import sys, fsreg_ros.contract, fsreg_ros.ros.codec, fsreg_ros.ros.graph_spec; "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'std_msgs', 'rosidl_parser', "
+            "'diagnostic_msgs', 'rcl_interfaces', 'rosgraph_msgs'}))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[]"
+
+
+def test_no_topic_or_service_literal_outside_the_contract():
+    names = [t.name for t in __import__("fsreg_ros.contract", fromlist=["TOPICS"]).TOPICS]
+    names += ["wm_manager/sync", "wm_manager/status"]
+    for path in (REPO / "fsreg_ros").rglob("*.py"):
+        if path == REPO / "fsreg_ros" / "contract" / "endpoints.py":
+            continue
+        text = path.read_text()
+        for name in names:
+            assert f'"{name}"' not in text and f'"/{name}"' not in text, f"{path}: {name}"
+
+
+def test_readme_topic_pub_examples_fit_the_contract():
+    """Every ``ros2 topic pub`` line of the README publishes a valid message with a fresh id."""
+    import shlex
+
+    import yaml
+
+    from fsreg_ros import contract
+
+    topics = {"/" + t.name: t for t in contract.TOPICS}
+    ids = []
+    lines = [line for line in (REPO / "README.md").read_text().splitlines() if line.startswith("ros2 topic pub")]
+    assert lines
+    for line in lines:
+        words = shlex.split(line)
+        assert "--once" in words and "-w" in words  # waits for a subscriber, so the message is not lost
+        topic = next(w for w in words if w.startswith("/"))
+        data = yaml.safe_load(words[-1])["data"]
+        import json
+
+        message = json.loads(data)
+        schema = topics[topic].schema
+        models = getattr(schema, "__args__", None) or (schema,)
+        contract.check(models[0], message)
+        ids.append(message["id"])
+    assert len(ids) == len(set(ids))
+
+
+def test_every_script_the_docs_run_is_executable():
+    """``scripts/x`` in the README or docs/ runs as written: the file exists, has a shebang and is executable
+    (``rosenv.sh``, which says it is sourced, excepted)."""
+    text = "\n".join(p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))])
+    named = sorted(set(re.findall(r"(?<![\w/.])scripts/([\w.-]+\.(?:py|sh))", text)))
+    assert "bench_store.py" in named and "table1.sh" in named
+    for name in named:
+        path = REPO / "scripts" / name
+        assert path.is_file(), name
+        if path.read_text().startswith("# Sourced"):
+            continue
+        assert path.read_text().startswith("#!"), name
+        assert os.access(path, os.X_OK), f"scripts/{name} is not executable"

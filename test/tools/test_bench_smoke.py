@@ -1,0 +1,78 @@
+"""Smoke tests of the benchmarks (bench_core, bench_graph, soak): they run and report (no timings asserted)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_core.py"
+
+
+def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
+    out = tmp_path / "bench.json"
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--quick", "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    text = proc.stdout
+    assert "REG latency" in text and "Decay tick" in text and "Eager decay tick" in text and "Targets" in text
+    for config in ("sd-pia", "dist-pia", "dist-pia/none"):
+        assert f"\n{config} " in text
+    data = json.loads(out.read_text())
+    assert {"meta", "reg", "reg_ratios", "decay", "targets"} <= set(data)
+    assert data["meta"]["quick"] is True
+    assert {r["config"] for r in data["reg"]} >= {"sd-pia", "dist-pia", "dist-pia/none"}
+    assert all(0 < r["median_ms"] <= r["p95_ms"] for r in data["reg"])
+    # The lazy buffer and the naive reference end in the same state.
+    assert data["decay"] and all(r["same_final_state"] for r in data["decay"])
+    # Eager decay over column queues, with an event sink and over dict queues: the same final state.
+    eager = data["eager_decay"]
+    assert eager["same_final_state"] is True and eager["detail"]["columns"]["in_columns"] > 0
+    assert eager["detail"]["dicts"]["in_columns"] == 0
+    assert all(eager[f"{label}_ms"] > 0 for label in ("columns", "columns+sink", "dicts"))
+    # SD-PIA under a retaining policy really has WM content to walk.
+    assert any(r["config"] == "sd-pia" and r["from_wm_mean"] > 0 for r in data["reg"])
+
+
+# ------------------------------------------------------------------ the graph's benchmarks
+GRAPH_SCRIPT = SCRIPT.parent / "bench_graph.py"
+SOAK_SCRIPT = SCRIPT.parent / "soak.py"
+
+
+@pytest.mark.slow  # starts node processes
+def test_bench_graph_runs_the_default_graph_and_checks_its_targets(tmp_path):
+    out = tmp_path / "graph.json"
+    proc = subprocess.run(
+        [sys.executable, str(GRAPH_SCRIPT), "--worlds", "table1", "--turns", "4", "--rounds", "1", "--json", str(out)],
+        capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    (row,) = data["rows"]
+    assert row["world"] == "table1" and row["entities"] == 16 and row["turns"] == 4
+    assert set(row["paths"]) == {"human", "robot"}
+    for path in row["paths"].values():
+        # every turn took consultant calls, so the graph's turn costs more than one bare hop
+        assert path["calls"] >= 1 and path["graph_p50"] > row["hop_p50"] > 0
+        assert path["hop_budget"] == 1.5 * (path["calls"] + 2)
+    assert [line.split(":")[0] for line in data["checks"]] == [
+        "Table 1 human turn -> rr/result", "Table 1 reg/request -> reg/expression"]
+    assert "every default (persistence on" in proc.stdout
+
+
+@pytest.mark.slow  # starts node processes
+def test_soak_sends_open_loop_and_accounts_for_every_message():
+    proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), "--turns", "10", "--requests", "10", "--rate", "10"],
+                          capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("== uninterrupted: open loop, 10 human turns/s + 10 REG requests/s, 20 messages")
+    assert any(line.startswith("human  sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
+    assert any(line.startswith("reg    sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
+    assert any(line.strip().startswith("consultant_faces") for line in lines)

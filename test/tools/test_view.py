@@ -1,0 +1,196 @@
+"""The live view (issue 24.3): what its model makes of the graph's messages, and its server.
+
+The model and the HTTP server are tested without ROS; ``test_view_in_a_browser``
+drives a real graph with ``fsreg-ctl view`` serving it and reads the page in headless
+Chromium (Debian's ``chromium``, installed by scripts/venv.sh where missing).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import urllib.request
+
+import pytest
+
+from fsreg_ros.tools.view import ViewServer, check_port
+from fsreg_ros.tools.view_model import ViewModel, decay_period
+
+
+def state(domain, t, queues, version=1, incarnation=1):
+    return {"domain": domain, "time": t, "queues": queues, "events": 0, "incarnation": incarnation,
+            "wm_version": version}
+
+
+def event(op, entity, prop, cause, t, turn=None, domain="faces"):
+    return {"op": op, "domain": domain, "entity": entity, "property": prop, "cause": cause, "time": t, "turn": turn,
+            "seq": 1, "incarnation": 1}
+
+
+def test_queues_carry_origin_and_forget_time_under_decay():
+    model = ViewModel()
+    model.on_event(event("encode", "face1", "male", "human-speech", 1.0, turn=1))
+    model.on_event(event("encode", "face1", "glasses", "rr-affirmed", 1.0, turn=1))
+    model.on_state(state("faces", 1.0, {"face1": ["male", "glasses", "hat"]}))
+    model.on_status({"time": 1.0, "domains": ["faces"], "memory": {"faces": {"policy": "decay", "decay_period": 10.0}},
+                     "configured": {"faces": True}, "running": {}, "incarnation": {"faces": 1},
+                     "next_tick": {"faces": 10.0}, "ready": True})
+    snap = model.snapshot()
+    entries = snap["domains"]["faces"]["entities"]["face1"]
+    assert [e["property"] for e in entries] == ["male", "glasses", "hat"]
+    assert [e["origin"] for e in entries] == [{"cause": "human-speech", "turn": 1},
+                                              {"cause": "rr-affirmed", "turn": 1}, None]
+    assert [e["forget_at"] for e in entries] == [10.0, 20.0, 30.0]  # the front pops first, one per tick
+    assert snap["domains"]["faces"]["memory"] == {"policy": "decay", "decay_period": 10.0}
+    model.on_event(event("forget", "face1", "male", "decay", 10.0))
+    model.on_state(state("faces", 10.0, {"face1": ["glasses", "hat"]}, version=2))
+    assert [e["property"] for e in model.snapshot()["domains"]["faces"]["entities"]["face1"]] == ["glasses", "hat"]
+
+
+def test_no_forget_time_without_decay():
+    assert decay_period({"policy": "displacement", "capacity": 2}) is None
+    assert decay_period({"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}) == 5.0
+    assert decay_period({"policy": "bogus"}) is None
+    model = ViewModel()
+    model.on_state(state("faces", 1.0, {"face1": ["male"]}))
+    model.on_status({"time": 1.0, "memory": {"faces": {"policy": "displacement", "capacity": 2}},
+                     "next_tick": {"faces": None}})
+    assert model.snapshot()["domains"]["faces"]["entities"]["face1"][0]["forget_at"] is None
+
+
+def test_dialogue_lines_join_utterance_and_answer_and_mark_reg_sources():
+    model = ViewModel()
+    model.on_human({"id": "u1", "time": 1.0, "turn": 1, "text": "the man with glasses"})
+    model.on_rr({"id": "u1", "time": 1.0, "status": "resolved", "resolved": "face1", "candidates": ["face1"],
+                 "description": ["male", "glasses"]})
+    model.on_expression({"id": "r1", "time": 2.0, "target": "face3", "domain": "faces", "algorithm": "sd-pia",
+                         "description": ["glasses", "female"], "sources": ["wm", "ltm"],
+                         "origins": [{"cause": "human-speech", "turn": 1}, None], "text": "the woman with glasses"})
+    model.on_expression({"id": "r2", "time": 3.0, "target": "nobody", "error": "unknown entity 'nobody'",
+                         "kind": "unknown-entity"})
+    lines = model.snapshot()["dialogue"]
+    assert [(line["speaker"], line.get("resolved"), line.get("text")) for line in lines] == [
+        ("human", "face1", "the man with glasses"), ("robot", None, "the woman with glasses"), ("robot", None, "")]
+    assert lines[1]["properties"] == [
+        {"property": "glasses", "source": "wm", "origin": {"cause": "human-speech", "turn": 1}},
+        {"property": "female", "source": "ltm", "origin": None}]
+    assert lines[2]["error"] == "unknown entity 'nobody'"
+
+
+def test_a_restarted_consultant_replaces_its_state():
+    model = ViewModel()
+    model.on_state(state("faces", 5.0, {"face1": ["male"]}, version=4, incarnation=1))
+    model.on_state(state("faces", 6.0, {}, version=0, incarnation=2))
+    snap = model.snapshot()["domains"]["faces"]
+    assert (snap["incarnation"], snap["entities"]) == (2, {})
+
+
+def test_server_binds_loopback_and_pushes_changes_within_200_ms():
+    model = ViewModel()
+    server = ViewServer(model, "127.0.0.1", 0)
+    server.start()
+    try:
+        host, port = server.server_address[:2]
+        assert host == "127.0.0.1" and port > 0
+        page = urllib.request.urlopen(server.url, timeout=5).read().decode()
+        assert "<title>fsreg: working memory, live</title>" in page and 'EventSource("events")' in page
+        assert json.loads(urllib.request.urlopen(server.url + "snapshot", timeout=5).read())["domains"] == {}
+        with urllib.request.urlopen(server.url + "events", timeout=5) as stream:
+            first = json.loads(stream.readline().decode().removeprefix("data: "))
+            assert first["version"] == 0
+            stream.readline()  # the blank line ending the event
+            sent = time.monotonic()
+            model.on_state(state("faces", 2.0, {"face2": ["female"]}))
+            pushed = json.loads(stream.readline().decode().removeprefix("data: "))
+            assert time.monotonic() - sent < 0.2
+            assert pushed["domains"]["faces"]["entities"]["face2"][0]["property"] == "female"
+        with pytest.raises(urllib.error.HTTPError):
+            urllib.request.urlopen(server.url + "nothing", timeout=5)
+    finally:
+        server.stop()
+
+
+@pytest.mark.parametrize("port, ok", [(None, 8765), (0, 0), (65535, 65535), (-1, None), (70000, None)])
+def test_port_option(port, ok):
+    if ok is None:
+        with pytest.raises(ValueError, match="--port must be between 0 and 65535"):
+            check_port(port)
+    else:
+        assert check_port(port) == ok
+
+
+def chromium() -> str:
+    """Debian's headless Chromium (scripts/test.sh installs it where missing); the test fails without it."""
+    import shutil
+
+    path = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert path, "chromium is not installed: scripts/test.sh installs it (apt-get install chromium)"
+    return path
+
+
+def page_dom(url: str) -> str:
+    """The page as Chromium renders it after its scripts ran (headless, no sandbox as root)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as profile:
+        result = subprocess.run([chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                                 f"--user-data-dir={profile}", "--timeout=4000", "--dump-dom", url],
+                                capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return result.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.graph
+def test_view_in_a_browser(tmp_path):
+    """fsreg-ctl view serves a live graph; after a scripted dialogue Chromium shows its WM and REG's sources."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from html import unescape
+    from pathlib import Path
+
+    from fsreg_ros.testing import LiveGraph
+
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "guess_who_table1.yaml"
+    with LiveGraph(scenario, processes=True, policy="decay", decay_period=10.0) as robot:
+        view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
+                                 "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env=dict(os.environ))
+        try:
+            line = view.stdout.readline()
+            match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
+            assert match, line + view.stderr.read() if view.poll() is not None else line
+            url = match.group(1)
+            robot.set_clock(1.0)
+            assert robot.say("male, lab-coat, light-hair, glasses")["resolved"] == "face1"
+            robot.set_clock(2.0)
+            expression = robot.describe("face1")
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:  # the view has heard the state the graph holds now
+                snap = json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())
+                face1 = snap["domains"].get("faces", {}).get("entities", {}).get("face1")
+                if (face1 and len(snap["dialogue"]) == 2 and snap["dialogue"][0].get("resolved")
+                        and snap["domains"]["faces"]["next_tick"] is not None):
+                    break
+                time.sleep(0.1)
+            expected_wm = robot.wm("face1")
+            dom = page_dom(url)
+        finally:
+            view.terminate()
+            view.wait(timeout=10)
+    row = re.search(r'<tr class="entity" data-entity="face1">(.*?)</tr>', dom)
+    assert row, dom[:3000]
+    entries = re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="([^"]+)" data-forget-at="([^"]+)"',
+                         row.group(1))
+    assert [prop for prop, _, _ in entries] == expected_wm and expected_wm
+    assert [origin for _, origin, _ in entries] == ["speaker"] * 4  # the human's own words, encoded at turn 1
+    assert [float(f) for _, _, f in entries] == [10.0, 20.0, 30.0, 40.0]  # one pop per decay tick, front first
+    props = re.findall(r'<span class="prop (wm|ltm)" data-property="([^"]+)" data-source="(wm|ltm)"', dom)
+    assert [p for _, p, _ in props] == list(expression["description"])
+    assert [s for s, _, _ in props] == list(expression["sources"])
+    assert unescape(expression["text"]) in unescape(dom)
+    assert 'id="ready" class="yes"' in dom
+    assert re.search(r'data-resolved="face1"', dom)
