@@ -14,6 +14,10 @@ One module per job:
   :mod:`.consultant` (a consultant's announcement, query ops and manage ops),
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
+* :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (bounded
+  decoding, encoding that refuses what is not JSON, error replies that never raise);
+* :mod:`.consultant_codec`: the consultant protocol written once (ROS-free): each op's
+  request and reply encoded and decoded, for the consultant node and :class:`RemotePort`;
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
 * :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);
@@ -48,6 +52,8 @@ from .consultant import (
     ConsultantRequest,
     DebugReply,
     DebugRequest,
+    AdvanceReply,
+    AdvanceRequest,
     DecayReply,
     DecayRequest,
     EncodeReply,
@@ -121,16 +127,18 @@ from .ltm import LtmAssert, LtmAssertResult
 from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .policy import PolicySettings
-from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .qos import (ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS,
+                  QosSpec)
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
     "ALIVE", "ALIVE_QOS", "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
     "EVENTS_QOS", "HUMAN", "LIMIT_RANGES", "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "MANAGE_OPS",
-    "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
+    "PIPELINE_QOS", "READY_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
     "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE", "AffirmRequest",
     "CloseReply", "CloseRequest", "ConfigureReply", "ConfigureRequest", "ConsultantAnnounce", "ConsultantReply",
-    "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EncodeReply", "EncodeRequest",
+    "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "AdvanceReply", "AdvanceRequest",
+    "EncodeReply", "EncodeRequest",
     "ErrorReply", "EvictReply", "EvictRequest", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id", "InfoReply",
     "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageReply", "ManageRequest", "Message", "Name",
     "NameNumbers", "Names", "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest",

@@ -1,8 +1,9 @@
 """``consultant``: one domain's LTM and WM buffer behind its services (DIARC's consultant pattern).
 
 One process per domain (``--ros-args -r __node:=consultant_faces -p domain:=faces -p kb:=kb.yaml``).
-The node is wiring: it decodes each request with the contract's models
-(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it on the core
+The node is wiring: it validates each request with the contract's models
+(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it through the
+protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
@@ -34,14 +35,15 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..ros.carrier import CarrierError, publish, publisher, reply_kind, serve, subscribe
-from ..ros.codec import MessageError, printable
+from ..contract import consultant_codec
+from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
-from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
+from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
+from ..ros.carrier import CarrierError, publish, publisher, reply_kind, serve, subscribe
 from ..ros.diagnostics import ERROR, OK, WARN
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
@@ -78,7 +80,7 @@ class ConsultantNode(Node):
         threshold = declare_number(self, "threshold", float(spec.threshold), 0.0, 1.0,
                                    "a property holds iff its certainty >= threshold (default: the KB's)")
         self.limits = declare_limits(self)
-        sessions = SessionTable(
+        sessions = ViewTable(
             declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000, "open RR/REG sessions kept at most",
                            integer=True, read_only=True),
             declare_number(self, "session_timeout", DEFAULT_TIMEOUT, 0.01, 3600.0,
@@ -154,7 +156,7 @@ class ConsultantNode(Node):
     def _call(self, op: str, request: dict) -> dict:
         """Run one validated request (its ``op``), publish what came of it; return the reply."""
         client = request.get("client") or ""
-        outcome = self._guarded(lambda listening: self.service.apply(op, request, client, listening))
+        outcome = self._guarded(lambda listening: consultant_codec.apply(self.service, op, request, client, listening))
         if op == "info":
             outcome.reply["event_listeners"] = self._events.get_subscription_count()
         self._published(outcome, wait=op in SESSION_STEPS)

@@ -235,6 +235,9 @@ def sweep_parser() -> argparse.ArgumentParser:
     parser.add_argument("--global-capacities", default="4,8,16", help="comma-separated integers, for global-capacity")
     parser.add_argument("--shared-capacities", default="4,8,16",
                         help="comma-separated integers (one pool for all domains), for shared-capacity")
+    parser.add_argument("--activation-thresholds", default="-1.5,-1.15,-0.8",
+                        help="comma-separated thresholds (tau), for activation (d: --memory activation_decay=D, "
+                             "default 0.5; with it, one encoding stays exp(-tau/d) s: 20, 10, 5 by default)")
     parser.add_argument("--seeds", type=int, default=10, help="number of games (seeds --seed-base ... +N-1)")
     parser.add_argument("--seed-base", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
@@ -396,6 +399,7 @@ def sweep_config(args: argparse.Namespace):
         capacities=number_list("--capacities", args.capacities, int, 1, 10_000),
         global_capacities=number_list("--global-capacities", args.global_capacities, int, 1, 1_000_000),
         shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
+        activation_thresholds=number_list("--activation-thresholds", args.activation_thresholds, float, -20.0, 20.0),
         seeds=seeds,
         turns=args.turns,
         memory=memory_settings(args.memory),

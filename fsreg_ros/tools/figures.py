@@ -290,7 +290,7 @@ LISTENER = ("--policies", "decay,displacement,none", "--decay-periods", "10,40",
 
 FIGURES = (
     Figure("tuna", "fsreg-eval", ("tuna", TUNA, *ORDERS),
-           {"tuna": ("docs/research.md", verbatim), "tuna-dice": ("README.md", tuna_dice_table)},
+           {"tuna": ("docs/research.md", verbatim), "tuna-dice": ("docs/research.md", tuna_dice_table)},
            small_argv=("tuna", TUNA, ORDERS[0], ORDERS[1], "--order", "people=type,hasBeard,hasGlasses")),
     Figure("tuna-learned", "fsreg-eval", ("tuna", TUNA, "--folds", "10"),
            {"tuna-learned": ("docs/research.md", verbatim)}, small={"--folds": "2"}),
@@ -307,7 +307,7 @@ FIGURES = (
            {"table1-graph": ("README.md", lines_with("robot descriptions match"))},
            small_argv=("scenarios/guess_who_table1.yaml", "--policy", "decay")),
     Figure("sweep", "fsreg-sweep", SWEEP + ("--out", f"{OUT}/sweep"),
-           {"sweep": ("README.md", summary_table), "sweep-full": ("docs/research.md", verbatim),
+           {"sweep": ("docs/research.md", summary_table), "sweep-full": ("docs/research.md", verbatim),
             "sweep-divergence": ("docs/research.md", divergence_blocks),
             "sweep-origins": ("docs/research.md", origin_table)},
            small=SMALL, writes=True),
@@ -332,7 +332,7 @@ FIGURES = (
            {"robot-robot": ("docs/research.md", listener_table)}, small=SMALL, writes=True),
     Figure("followup", "fsreg-sweep", FOLLOWUP + ("--out", f"{OUT}/followup"),
            {"followup": ("docs/research.md", recommendation_table),
-            "followup-readme": ("README.md", recommendation_table),
+            "followup-readme": ("docs/research.md", recommendation_table),
             "followup-settings": ("docs/research.md", until_line("recommendation:"))},
            small=SMALL, writes=True),
     Figure("followup-verified", "fsreg-sweep",
@@ -347,7 +347,7 @@ TANGRAM_SMALL = {"--folds": "2"}
 FIGURES += (
     Figure("tangrams", "fsreg-eval",
            ("tangrams", TANGRAMS, "--folds", "10", "--jobs", "2", "--plots", f"{OUT}/tangrams"),
-           {"tangrams": ("docs/research.md", verbatim), "tangrams-readme": ("README.md", tangram_table)},
+           {"tangrams": ("docs/research.md", verbatim), "tangrams-readme": ("docs/research.md", tangram_table)},
            small=TANGRAM_SMALL),
     Figure("tangrams-stems", "fsreg-eval",
            ("tangrams", TANGRAMS, "--tokens", "stems", "--folds", "10", "--jobs", "2", "--plots",
@@ -359,7 +359,7 @@ FIGURES += (
             "--capacities", "2,4,6", "--seeds", "30", "--turns", "200", "--jobs", "2", "--no-progress",
             "--out", f"{OUT}/sweep-human-fitted"),
            {"sweep-human-fitted": ("docs/research.md", summary_table),
-            "sweep-human-fitted-readme": ("README.md", summary_table)}, small=SMALL, writes=True),
+            "sweep-human-fitted-readme": ("docs/research.md", summary_table)}, small=SMALL, writes=True),
 )
 
 

@@ -30,9 +30,9 @@ from ..core.consultant import KnowledgeError
 from ..core import settings
 from ..core.forgetting import PolicyError, check_setting, parse_rules
 from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError
-from ..core.lexicon import Lexicon, coverage_warning, lexicon_template, unsayable
+from ..core.lexicon import Lexicon
 from ..core.resolution import ResolutionError
-from ..core.scenario import load_scenario
+from ..core.scenario import coverage_warning, lexicon_template, load_scenario, unsayable
 from ..core.simulation import Options, Simulation, dumps
 from ..core.yaml_source import SourceError, find_line, read_yaml
 from ..core.report import render_comparison, render_table, run_label
@@ -49,12 +49,17 @@ class UsageError(ValueError):
 INPUT_ERRORS = (SourceError, PolicyError, KnowledgeError, ResolutionError, GenerationError, OSError, UsageError)
 
 
+def add_memory_options(parser: argparse.ArgumentParser) -> None:
+    """Add one option per memory setting, from the settings table (read back by :func:`options_from_args`)."""
+    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
+    for row in settings.TABLE:
+        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+
+
 def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("scenario", type=Path, help="scenario YAML file (docs/scenario-format.md)")
-    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    for row in settings.TABLE:  # one option per memory setting
-        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+    add_memory_options(parser)
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
