@@ -25,7 +25,7 @@ assumptions and is not a measurement.  ``--quick`` runs a small sweep instead (f
 the smoke test).  No timing is asserted anywhere.
 
 Usage: ``scripts/bench_cluster.py [--quick] [--seeds N] [--turns N] [--workers N]
-[--scale 100] [--to 50] [--json FILE]`` (re-runs itself with the repository's
+[--scale 100] [--to 50] [--repeat N] [--json FILE]`` (re-runs itself with the repository's
 ``.venv`` Python when started otherwise).
 """
 
@@ -41,6 +41,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from venv_python import use_venv  # noqa: E402
@@ -48,6 +49,7 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 
 TARGET_RATIO = 1.15  # cluster / local processes, end to end
+SUMMARY_GAMES = (30, 300)  # the summary's bootstrap is timed at these numbers of games
 OUTPUTS = ("runs.csv", "summary.csv", "divergence.csv", "recommendation.csv")
 
 
@@ -90,7 +92,8 @@ def cluster_costs(config, workers: int, tasks: int) -> dict:
     up = time.perf_counter() - start
     try:
         start = time.perf_counter()
-        run_tasks(run_seed, [(config, seed) for seed in range(workers)], engine, progress=False, client=client)
+        tiny = replace(config, policies=("none",), turns=2)  # a worker's imports and set-up, next to no game
+        run_tasks(run_seed, [(tiny, seed) for seed in range(workers)], engine, progress=False, client=client)
         first = time.perf_counter() - start
         run_tasks(abs, list(range(workers * 4)), engine, progress=False, client=client)  # warm
         start = time.perf_counter()
@@ -103,7 +106,7 @@ def cluster_costs(config, workers: int, tasks: int) -> dict:
     return {"start_s": up, "first_tasks_s": first, "empty_task_ms": empty * 1e3, "close_s": down}
 
 
-def per_game(args: list, games: int) -> dict:
+def per_game(args: list, games: int, summary_games: tuple = SUMMARY_GAMES) -> dict:
     """One core's cost of a game, the transfer sizes and the client's work per game, in this process."""
     from fsreg_ros.research import cli
     from fsreg_ros.research.ledger import Ledger, header
@@ -127,13 +130,16 @@ def per_game(args: list, games: int) -> dict:
         book.close()
         line_bytes = (Path(tmp) / "games.jsonl").stat().st_size / len(results)
     rows, _, _ = assemble(book.games, config.seeds)
-    start = time.perf_counter()
-    summary = summarise_runs(rows)
-    summary_s = time.perf_counter() - start
+    summary_s = {}
+    for n in summary_games:  # the sampled games' rows, repeated under other seeds: the bootstrap's cost at n games
+        many = [{**row, "seed": row["seed"] + len(rows) * k} for k in range(math.ceil(n / games)) for row in rows]
+        many = many[:n * len(rows) // games]
+        start = time.perf_counter()
+        summary = summarise_runs(many)
+        summary_s[n] = time.perf_counter() - start
     return {"config": config, "game_cpu_s": sum(costs) / len(costs), "task_bytes": sum(task_bytes) / len(tasks),
             "result_bytes": sum(result_bytes) / len(results), "ledger_line_bytes": line_bytes,
-            "client_ms_per_game": client_ms, "summary_s": summary_s, "summary_games": len(results),
-            "settings": len(summary)}
+            "client_ms_per_game": client_ms, "summary_s": summary_s, "settings": len(summary)}
 
 
 def projection(measured: dict, games: int, workers: int, scale: int, to: int, costs: dict) -> dict:
@@ -143,7 +149,8 @@ def projection(measured: dict, games: int, workers: int, scale: int, to: int, co
     compute = waves * measured["game_cpu_s"]
     scheduler = total * costs["empty_task_ms"] / 1e3 / to  # round trips, overlapped across workers
     client = total * measured["client_ms_per_game"] / 1e3  # serial, but overlapped with the workers' compute
-    summary = measured["summary_s"] * total / measured["summary_games"]  # bootstrap grows with the games
+    (n1, t1), (n2, t2) = sorted(measured["summary_s"].items())
+    summary = t1 + (t2 - t1) * (total - n1) / (n2 - n1)  # the bootstrap grows linearly with the games
     transfer = total * (measured["task_bytes"] + measured["result_bytes"])
     start = costs["start_s"] + costs["first_tasks_s"]
     wall = start + max(compute + scheduler, client) + summary
@@ -161,12 +168,15 @@ def main() -> int:
     parser.add_argument("--scale", type=int, default=100, help="the projected sweep is this many times larger")
     parser.add_argument("--to", type=int, default=50, help="workers of the projection (default 50)")
     parser.add_argument("--sample", type=int, default=4, help="games played in-process for the per-task figures")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="timed pairs, in alternating order (the figure is the ratio of the means)")
     parser.add_argument("--json", type=Path, help="also write every figure as JSON")
     args = parser.parse_args()
     seeds = args.seeds or (4 if args.quick else 30)
     turns = args.turns or (20 if args.quick else 200)
     for name, value, low in (("--seeds", seeds, 1), ("--turns", turns, 2), ("--workers", args.workers, 1),
-                             ("--scale", args.scale, 1), ("--to", args.to, 1), ("--sample", args.sample, 1)):
+                             ("--scale", args.scale, 1), ("--to", args.to, 1), ("--sample", args.sample, 1),
+                             ("--repeat", args.repeat, 1)):
         if value < low:
             parser.error(f"{name} must be at least {low}, got {value}")
     sweep = sweep_args(seeds, turns)
@@ -174,10 +184,18 @@ def main() -> int:
           f"uptime: {subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}")
     work = Path(tempfile.mkdtemp(prefix="fsreg-bench-cluster-"))
     try:
-        local = timed_sweep(sweep, ["--jobs", str(args.workers)], work / "jobs")
-        cluster = timed_sweep(sweep, ["--cluster", f"local:{args.workers}"], work / "cluster")
+        runs: dict = {"jobs": [], "cluster": []}
+        engines = {"jobs": ["--jobs", str(args.workers)], "cluster": ["--cluster", f"local:{args.workers}"]}
+        for rep in range(args.repeat):  # A B, B A, ...: drifting load weighs on both alike
+            for name in (("jobs", "cluster") if rep % 2 == 0 else ("cluster", "jobs")):
+                runs[name].append(timed_sweep(sweep, engines[name], work / name))
         differ = [n for n in OUTPUTS if (work / "jobs" / n).read_bytes() != (work / "cluster" / n).read_bytes()]
-        measured = per_game(sweep, min(args.sample, seeds))
+        local = {"wall_s": sum(r["wall_s"] for r in runs["jobs"]) / args.repeat,
+                 "load_before": "; ".join(r["load_before"] for r in runs["jobs"]), "runs": runs["jobs"]}
+        cluster = {"wall_s": sum(r["wall_s"] for r in runs["cluster"]) / args.repeat,
+                   "load_before": "; ".join(r["load_before"] for r in runs["cluster"]), "runs": runs["cluster"],
+                   "execution": runs["cluster"][-1]["execution"]}
+        measured = per_game(sweep, min(args.sample, seeds), (8, 16) if args.quick else SUMMARY_GAMES)
         costs = cluster_costs(measured.pop("config"), args.workers, 200)
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -185,8 +203,9 @@ def main() -> int:
     overhead = (cluster["wall_s"] - local["wall_s"]) / seeds
     fixed = costs["start_s"] + costs["first_tasks_s"] + costs["close_s"]
     marginal = (cluster["wall_s"] - local["wall_s"] - fixed) / seeds
-    print(f"\n  --jobs {args.workers}:            {local['wall_s']:7.1f} s   ({local['load_before']} before)")
-    print(f"  --cluster local:{args.workers}:   {cluster['wall_s']:7.1f} s   ({cluster['load_before']} before; "
+    mean = f"mean of {args.repeat}, " if args.repeat > 1 else ""
+    print(f"\n  --jobs {args.workers}:            {local['wall_s']:7.1f} s   ({mean}{local['load_before']} before)")
+    print(f"  --cluster local:{args.workers}:   {cluster['wall_s']:7.1f} s   ({mean}{cluster['load_before']} before; "
           f"{cluster['execution']['retried']} tasks retried)")
     print(f"  ratio cluster / jobs: {ratio:.3f} (target at most {TARGET_RATIO}: "
           f"{'met' if ratio <= TARGET_RATIO else 'MISSED'}); cluster overhead {overhead * 1e3:+.0f} ms per game "
@@ -195,13 +214,13 @@ def main() -> int:
     print(f"  outputs: {'byte-identical' if not differ else 'DIFFER: ' + ', '.join(differ)} "
           f"({', '.join(OUTPUTS)})")
     print(f"\n  LocalCluster of {args.workers} on 127.0.0.1: start {costs['start_s']:.2f} s, first task per worker "
-          f"(imports) {costs['first_tasks_s']:.2f} s, close {costs['close_s']:.2f} s; empty-task round trip "
+          f"(imports, set-up) {costs['first_tasks_s']:.2f} s, close {costs['close_s']:.2f} s; empty-task round trip "
           f"{costs['empty_task_ms']:.2f} ms")
     print(f"  per game ({measured['settings']} settings, {turns} turns): {measured['game_cpu_s']:.2f} s of one core; "
           f"task sent {measured['task_bytes'] / 1e3:.1f} kB, result back {measured['result_bytes'] / 1e3:.1f} kB, "
           f"games.jsonl line {measured['ledger_line_bytes'] / 1e3:.1f} kB; client work "
-          f"{measured['client_ms_per_game']:.1f} ms (fsync'd append); summary {measured['summary_s']:.2f} s "
-          f"for {measured['summary_games']} games")
+          f"{measured['client_ms_per_game']:.1f} ms (fsync'd append); summary (bootstrap) "
+          + ", ".join(f"{t:.1f} s for {n} games" for n, t in measured["summary_s"].items()))
     plan = projection(measured, seeds, args.workers, args.scale, args.to, costs)
     print(f"\n  PROJECTION (not measured): {plan['games']:,} games on {plan['workers']} one-thread workers, each as "
           f"fast as a core here: {plan['waves']} waves x {measured['game_cpu_s']:.2f} s = {plan['compute_s']:.0f} s "

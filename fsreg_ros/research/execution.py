@@ -35,6 +35,7 @@ import hashlib
 import logging
 import multiprocessing
 import re
+import signal
 import socket
 import uuid
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -132,6 +133,15 @@ def engine_from_args(args: argparse.Namespace) -> Engine:
     if not 1 <= jobs <= MAX_LOCAL_WORKERS:
         raise EngineError(f"--jobs must be in [1, {MAX_LOCAL_WORKERS}], got {jobs}")
     return Engine("local", jobs)
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask preload hook of a LocalCluster's workers: Ctrl-C is the calling process's to handle.
+
+    A terminal's Ctrl-C reaches every process of its group; the worker processes ignore
+    it (no traceback from each), and the calling process stops the cluster.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @functools.lru_cache(maxsize=1)
@@ -261,7 +271,7 @@ def dask_client(engine: Engine) -> Iterator[Any]:
     if engine.kind == "cluster":
         cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                scheduler_port=0, dashboard_address="127.0.0.1:0", worker_dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.ERROR, preload=[__name__])
         try:
             with Client(cluster) as client:
                 yield client

@@ -642,6 +642,7 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
     if resume and (out / GAMES).exists():
         book = Ledger.resume(out, head)
     else:
+        _refuse_to_discard(out)
         book = Ledger.start(out, head)
     (out / "manifest.json").unlink(missing_ok=True)  # written again when this sweep has finished
     resumed = len(book.games)
@@ -656,6 +657,19 @@ def run(config: SweepConfig, out: Path, jobs: int = 1, progress: bool = True, pl
         manifest(config, hashes, job.engine.workers if job.engine.kind == "local" else None, files, len(rows),
                  started, argv, code, execution), indent=2) + "\n")
     return rows, summary, execution
+
+
+def _refuse_to_discard(out: Path) -> None:
+    """Refuse to start afresh over an unfinished sweep's games (--resume continues it)."""
+    if not (out / GAMES).exists() or (out / "manifest.json").exists():
+        return
+    try:
+        found = Ledger.read(out)
+    except LedgerError:
+        return  # not a games file this version can resume: nothing to keep
+    if found.games:
+        raise LedgerError(f"{out} holds an unfinished sweep ({len(found.games)} of {len(found.header['seeds'])} "
+                          f"games in {GAMES}): --resume continues it; to start afresh, delete {out / GAMES}")
 
 
 # ---------------------------------------------------------------------- merge

@@ -80,6 +80,21 @@ def test_a_worker_with_other_code_fails_the_job_audibly(cluster):
         future.result()
 
 
+def test_the_same_progress_bar_on_every_engine(cluster, capsys):
+    import re
+
+    _, client = cluster
+    bars = []
+    for engine, own in ((Engine("local", 1), None), (Engine("local", 2), None), (Engine("cluster", 2), client)):
+        run_tasks(square, list(range(4)), engine, progress=True, desc="fsreg-sweep", unit="game", done=2,
+                  client=own)
+        err = capsys.readouterr().err
+        first, last = (re.sub(r"\|.*\|", "|bar|", line.strip()) for line in (err.split("\r")[1], err.split("\r")[-1]))
+        bars.append((first, re.sub(r"\[.*\]", "[time, rate]", last)))
+        assert re.search(r"\d(game/s|s/game)\]$", last)
+    assert bars == [("fsreg-sweep:  33%|bar| 2/6 [00:00<?, ?game/s]", "fsreg-sweep: 100%|bar| 6/6 [time, rate]")] * 3
+
+
 def test_workers_never_import_rclpy(cluster):
     _, client = cluster
     config = SweepConfig(("decay", "none"), (5.0,), (1,), (0, 1), 8)

@@ -129,6 +129,10 @@ def test_resume_plays_only_the_missing_games(tmp_path, monkeypatch, capsys):
                    "--resume plays the rest\n")
     assert not (out / "manifest.json").exists() and not (out / "runs.csv").exists()
     monkeypatch.setattr(Ledger, "append", real_append)
+    assert cli.sweep_main([*DYNAMIC, "--out", str(out)]) == 2  # finished games are not thrown away unasked
+    assert capsys.readouterr().err == (
+        f"fsreg-sweep: error: {out} holds an unfinished sweep (2 of 5 games in games.jsonl): --resume continues it; "
+        f"to start afresh, delete {out / GAMES}\n")
     with (out / GAMES).open("ab") as games:
         games.write(b'{"seed":4,"kb_sha2')  # a game torn by the kill: dropped
     played = []
@@ -168,13 +172,14 @@ def test_resume_refuses_another_sweep_or_other_code(tmp_path, monkeypatch, capsy
     assert cli.sweep_main([*TINY, "--seeds", "2", "--out", str(tmp_path / "new"), "--resume"]) == 0
 
 
-@pytest.mark.slow  # a real Ctrl-C: SIGINT to fsreg-sweep in its own process, then --resume
-def test_ctrl_c_then_resume_loses_no_finished_game(tmp_path):
-    args = [*DYNAMIC[:-6], "--seeds", "16", "--turns", "30", "--no-plots", "--jobs", "2"]
+@pytest.mark.slow  # a real Ctrl-C: SIGINT to fsreg-sweep's process group, as a terminal sends it, then --resume
+@pytest.mark.parametrize("engine", [["--jobs", "2"], ["--cluster", "local:2"]], ids=["jobs", "cluster"])
+def test_ctrl_c_then_resume_loses_no_finished_game(tmp_path, engine):
+    args = [*DYNAMIC[:-6], "--seeds", "16", "--turns", "30", "--no-plots", *engine]
     out = tmp_path / "run"
     tool = Path(sys.executable).parent / "fsreg-sweep"
     process = subprocess.Popen([str(tool), *args, "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
+                               text=True, start_new_session=True)
     games = out / GAMES
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and process.poll() is None:
@@ -182,20 +187,19 @@ def test_ctrl_c_then_resume_loses_no_finished_game(tmp_path):
             break
         time.sleep(0.02)
     assert process.poll() is None, "the sweep ended before it could be interrupted"
-    process.send_signal(signal.SIGINT)
+    os.killpg(process.pid, signal.SIGINT)  # the sweep and its workers, as Ctrl-C in a terminal
     stdout, stderr = process.communicate(timeout=120)
     assert process.returncode == 130, stderr
     kept = len(Ledger.read(out).games)
     assert 2 <= kept < 16
     assert f"fsreg-sweep: interrupted; {kept} of 16 games are kept" in stderr
-    assert "Traceback" not in stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr  # nor from a worker
     done = subprocess.run([str(tool), *args, "--out", str(out), "--resume"], capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 0, done.stderr
     assert f"resumed: {kept} games were already done, {16 - kept} played now" in done.stdout
-    ref = tmp_path / "ref"
-    subprocess.run([str(tool), *args, "--out", str(ref)], check=True, capture_output=True, timeout=600)
-    same_outputs(ref, out)
+    sweep_to(tmp_path / "ref", *[a for a in args if a not in engine])
+    same_outputs(tmp_path / "ref", out)
 
 
 # ------------------------------------------------------------------ merge refusals
