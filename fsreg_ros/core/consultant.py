@@ -249,23 +249,29 @@ class Consultant:
                     retracted.append((entity, prop))
         return retracted
 
-    def preview_assert(self, entity: str, facts: Mapping[str, Any]) -> tuple[bool, list[str]]:
+    def preview_assert(self, entity: str, facts: Mapping[str, Any],
+                       pending: Optional[dict[str, dict[str, float]]] = None) -> tuple[bool, list[str]]:
         """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
         properties are in preference order; they are forgotten from WM only when
-        ``retract_on_update`` is True.
+        ``retract_on_update`` is True.  ``pending`` previews a batch: it maps each entity
+        an earlier fact of the batch (previewed, not yet applied) changed to its facts
+        as that fact leaves them, and is updated with this one's (nothing else is).
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
         if not isinstance(facts, Mapping) or not facts:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
-        new = entity not in self._certainty
+        earlier = pending.get(entity) if pending is not None else None
+        new = entity not in self._certainty and earlier is None
+        current = earlier if earlier is not None else self._certainty.get(entity, {})
+        after = {**current, **{p: float(c) for p, c in facts.items()}}
+        if pending is not None:
+            pending[entity] = {p: c for p, c in after.items() if c > 0}
         if new:
             return new, []
-        current = self._certainty[entity]
-        after = {**current, **{p: float(c) for p, c in facts.items()}}
         threshold = self.threshold
         return False, [p for p in self.preference
                        if current.get(p, 0.0) >= threshold and after.get(p, 0.0) < threshold]

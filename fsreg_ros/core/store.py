@@ -173,20 +173,27 @@ class Checkpoint:
 class Batch:
     """Everything one consultant call writes, in one transaction.
 
-    ``facts`` (entity, {property: certainty}, new entity) makes it durable (fsynced
-    before it returns); ``records`` are appended to the journal (after the
-    ``checkpoint``, if any); ``meta`` keys are set (``policy``, ``decay_until``,
+    ``facts``: LTM updates, each (entity, {property: certainty}, new entity), in order
+    (one such tuple is taken as a list of one); any makes the batch durable (fsynced
+    before :meth:`DomainStore.commit` returns); ``records`` are appended to the journal
+    (after the ``checkpoint``, if any); ``meta`` keys are set (``policy``, ``decay_until``,
     ``clock``, ``latest``).
     """
 
-    facts: Optional[tuple[str, Mapping[str, float], bool]] = None
+    facts: Sequence[tuple[str, Mapping[str, float], bool]] = ()
     records: Sequence[Any] = ()
     checkpoint: Optional[Checkpoint] = None
     meta: Mapping[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if self.facts is None:
+            self.facts = ()
+        elif isinstance(self.facts, tuple) and self.facts and isinstance(self.facts[0], str):
+            self.facts = [self.facts]  # one update
+
     @property
     def durable(self) -> bool:
-        return self.facts is not None
+        return bool(self.facts)
 
 
 @dataclass
@@ -228,6 +235,9 @@ class DomainStore:
         self._db: Optional[sqlite3.Connection] = None
         self._lock: Optional[int] = None
         self._lock_id: tuple[int, int] = (0, 0)
+        #: Transactions :meth:`commit` committed since this object was made (fsynced ones in ``durable_commits``).
+        self.commits = 0
+        self.durable_commits = 0
 
     # ---------------------------------------------------------------- opening
     def open(self, reset: bool = False) -> StoredState:
@@ -286,8 +296,8 @@ class DomainStore:
                 db.execute("PRAGMA synchronous=FULL")
             try:
                 with _Transaction(db):
-                    if batch.facts is not None:
-                        self._facts(db, *batch.facts)
+                    for facts in batch.facts:
+                        self._facts(db, *facts)
                     if batch.checkpoint is not None:
                         self._checkpoint(db, batch.checkpoint)
                     if batch.records:
@@ -300,6 +310,8 @@ class DomainStore:
                     db.execute("PRAGMA synchronous=NORMAL")
         except (sqlite3.Error, UnicodeEncodeError, ValueError) as err:
             raise StoreError(f"state database {self.path}: {err}") from None
+        self.commits += 1
+        self.durable_commits += batch.durable
 
     def rewrite(self, state: StoredState, backup: bool = True) -> Optional[Path]:
         """Replace everything stored with ``state`` (a migration to this KB); return the backup's path.

@@ -286,7 +286,7 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
 
 # ----------------------------------------------------------------- messages
 def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
-    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile.
+    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth`` (or all), latched or volatile.
 
     A ``lease`` makes liveliness automatic with that lease duration.
     """
@@ -295,6 +295,10 @@ def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
     lease = {}
     if spec.lease is not None:
         lease = {"liveliness": LivelinessPolicy.AUTOMATIC, "liveliness_lease_duration": Duration(seconds=spec.lease)}
+    if spec.keep_all:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+                          **lease)
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=spec.depth,

@@ -285,7 +285,7 @@ def test_facts_are_stored_before_memory_changes_and_a_refused_write_changes_noth
     service.maintain()
     assert service.status()["persisted"] and service.store.journal_length() == 0
     out = service.ltm_assert("face2", {"glasses": 0.0}, 4.0)
-    assert out.reply["retracted"] == ["glasses"] and out.changes.facts == ("face2", {"glasses": 0.0}, False)
+    assert out.reply["retracted"] == ["glasses"] and out.changes.facts == [("face2", {"glasses": 0.0}, False)]
     expected = service.buffer.snapshot()
     again = replayed(tmp_path, service)
     assert again.buffer.snapshot() == expected == {"face2": ["female"], "face1": ["male"]}
