@@ -15,6 +15,7 @@ nodes instead.  One implementation of each algorithm serves both.
 from __future__ import annotations
 
 import math
+from collections import abc
 from dataclasses import dataclass, field
 from typing import Any, Coroutine, Iterable, Mapping, Optional, Protocol, Sequence, TypeVar
 
@@ -261,7 +262,7 @@ class Consultant:
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
-        if not isinstance(facts, Mapping) or not facts:
+        if not isinstance(facts, abc.Mapping) or not facts:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
         earlier = pending.get(entity) if pending is not None else None
@@ -276,7 +277,8 @@ class Consultant:
         return False, [p for p in self.preference
                        if current.get(p, 0.0) >= threshold and after.get(p, 0.0) < threshold]
 
-    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float) -> AssertResult:
+    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float,
+                     previewed: Optional[tuple[bool, list[str]]] = None) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
@@ -284,9 +286,10 @@ class Consultant:
         (cause ``retract``) unless ``retract_on_update`` is False (the follow-up study's
         configuration: WM not told of LTM changes); ``retracted`` lists those
         properties either way.  Everything is validated (:meth:`preview_assert`)
-        before anything changes.
+        before anything changes.  ``previewed``: what :meth:`preview_assert` returned for
+        exactly this update just now (a batch previews every fact first; not validated again).
         """
-        new, retracted = self.preview_assert(entity, facts)
+        new, retracted = previewed if previewed is not None else self.preview_assert(entity, facts)
         if new:
             self._index[entity] = len(self.entities)
             self.entities.append(entity)

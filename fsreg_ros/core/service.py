@@ -216,11 +216,11 @@ class ConsultantService:
                     continue
                 refusals.append(None)
                 retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
-                accepted.append((entity, props, {p: float(c) for p, c in props.items()}, new, retracted))
-            self.persistence.store_facts([(e, values, new, gone) for e, _, values, new, gone in accepted],
+                accepted.append((entity, props, {p: float(c) for p, c in props.items()}, new, stopped, retracted))
+            self.persistence.store_facts([(e, values, new, gone) for e, _, values, new, _, gone in accepted],
                                          when)  # one transaction, fsynced, before memory changes
-            results = iter(self.consultant.assert_facts(entity, props, when).to_json()
-                           for entity, props, *_ in accepted)
+            results = iter(self.consultant.assert_facts(entity, props, when, (new, stopped)).to_json()
+                           for entity, props, _, new, stopped, _ in accepted)
             replies = []
             for (entity, _), refusal in zip(facts, refusals):
                 if refusal is None:

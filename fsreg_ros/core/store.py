@@ -296,8 +296,8 @@ class DomainStore:
                 db.execute("PRAGMA synchronous=FULL")
             try:
                 with _Transaction(db):
-                    for facts in batch.facts:
-                        self._facts(db, *facts)
+                    if batch.facts:
+                        self._many_facts(db, batch.facts)
                     if batch.checkpoint is not None:
                         self._checkpoint(db, batch.checkpoint)
                     if batch.records:
@@ -518,6 +518,15 @@ class DomainStore:
             "INSERT INTO facts (entity, property, certainty) VALUES (?, ?, ?) "
             "ON CONFLICT(entity, property) DO UPDATE SET certainty = excluded.certainty",
             [(entity, prop, float(c)) for prop, c in facts.items()])
+
+    @staticmethod
+    def _many_facts(db: sqlite3.Connection, updates: Sequence[tuple[str, Mapping[str, float], bool]]) -> None:
+        """Store LTM updates in order: one statement for the new entities, one for every fact."""
+        db.executemany("INSERT OR IGNORE INTO entities (name) VALUES (?)", [(e,) for e, _, new in updates if new])
+        db.executemany(
+            "INSERT INTO facts (entity, property, certainty) VALUES (?, ?, ?) "
+            "ON CONFLICT(entity, property) DO UPDATE SET certainty = excluded.certainty",
+            [(entity, prop, float(c)) for entity, facts, _ in updates for prop, c in facts.items()])
 
     def _checkpoint(self, db: sqlite3.Connection, checkpoint: Checkpoint) -> None:
         if checkpoint.clear:
