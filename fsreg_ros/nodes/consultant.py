@@ -50,8 +50,9 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
-#: Most facts one ``ltm/assert`` commit takes from the messages waiting (docs/semantics.md, "Facts in batches").
-MAX_DRAIN_FACTS = 500
+#: Most facts one ``ltm/assert`` commit takes from the messages waiting, and the most seconds spent taking them
+#: (RR's and REG's calls wait meanwhile; docs/semantics.md, "Facts in batches").
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 500, 0.02
 
 
 class ConsultantNode(Node):
@@ -137,7 +138,8 @@ class ConsultantNode(Node):
             serve(self, service, {op: partial(self._call, op) for op in ops}, limits=self.limits, domain=domain)
         subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
-                          size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS)
+                          size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
+                          max_seconds=MAX_DRAIN_SECONDS)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -418,11 +418,13 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
 
 def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None], *, reject: Reject,
                       limits: LimitsSource = None, accept: Optional[Callable[[dict], bool]] = None,
-                      size: Callable[[dict], int] = lambda data: 1, max_size: int = 1000):
+                      size: Callable[[dict], int] = lambda data: 1, max_size: int = 1000,
+                      max_seconds: float = 0.02):
     """Subscribe like :func:`subscribe`, but hand ``handler`` every message already waiting, at once.
 
     When a message arrives, the messages waiting behind it in the reader are taken too
-    (until their ``size`` sum reaches ``max_size``), each decoded and validated alone (a
+    (until their ``size`` sum reaches ``max_size``, or taking them has taken ``max_seconds``,
+    so the node's other callbacks wait at most that long), each decoded and validated alone (a
     bad one is rejected alone, as :func:`subscribe` does); ``handler(messages)`` then
     gets the valid ones in arrival order, in one call, so a node can apply them in one
     commit (the consultant's ``ltm/assert``).  If it raises, every one of them is
@@ -473,7 +475,7 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
         batch = [first] if first is not None else []
         total = sum(size(data) for data in batch)
         taken = 1
-        while total < max_size:
+        while total < max_size and time.monotonic() - started < max_seconds:
             waiting = take_waiting(subscription)
             if waiting is None:
                 break
