@@ -16,7 +16,8 @@ Latency is measured from each message's *scheduled* moment to its reply (a sende
 that falls behind its schedule is not hidden; the largest lateness is reported).
 Prints per path: sent, lost (no reply by the end), duplicated (more than one reply),
 error replies, p50/p95/p99/max latency; and per node the RSS at start and end and its
-slope in MB per 1,000 requests (least squares over samples taken once a second).
+slope in MB per 1,000 requests (least squares over samples taken once a second), and the
+CPU seconds each node and the sender used during the run.
 
 ``--facts-rate N [--batch K]``: also play perception: N facts per second on ``ltm/assert``
 (K facts per message, so N/K messages per second, each on its schedule like the rest),
@@ -99,6 +100,7 @@ class RunResult:
     late_ms: float  # the most a message left after its scheduled moment
     killed_at: Optional[int] = None
     busy: int = 0  # facts messages the publisher refused (backpressure)
+    cpu: dict[str, float] = field(default_factory=dict)  # node -> CPU seconds used during the run
     known: Optional[tuple[int, int]] = None  # (perceived entities the consultant knows, of how many)
 
 
@@ -181,6 +183,18 @@ def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
             raise SystemExit(f"soak.py: error: the warm-up {kind} message was refused: {reply['error']}")
 
 
+def cpu_seconds(graph) -> dict[str, float]:
+    """CPU seconds (user + system) each node process and this sender have used so far."""
+    out = {}
+    for spec, proc in list(graph.procs) + [(None, psutil.Process())]:
+        try:
+            times = psutil.Process(proc.pid).cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        out[spec.name if spec is not None else "sender (soak.py)"] = times.user + times.system
+    return out
+
+
 def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> None:
     for spec, proc in graph.procs:
         try:
@@ -203,6 +217,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
+        cpu_before = cpu_seconds(graph)
         start = time.monotonic()
         next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
@@ -232,6 +247,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
+        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph).items()}
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         known = None
@@ -246,7 +262,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
                 print(f"soak.py: cannot ask the consultant of {domain} what it knows: {err}", file=sys.stderr)
         for spec, code in graph.dead():
             print(f"soak.py: node {spec.name} died (exit {code})\n{graph.tail(spec.name)}", file=sys.stderr)
-        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at, busy, known)
+        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at, busy=busy, known=known, cpu=cpu)
 
 
 # ------------------------------------------------------------------- figures
@@ -296,6 +312,9 @@ def report(result: RunResult, title: str) -> str:
     lines.append("RSS MB start -> end, slope MB per 1,000 requests:")
     for name, points in sorted(result.rss.items()):
         lines.append(f"  {name:22} {points[0][1]:7.1f} -> {points[-1][1]:7.1f}  {slope(points):+.3f}")
+    if result.cpu:
+        lines.append(f"CPU seconds used in the {result.seconds:.1f} s (share of one core): " + ", ".join(
+            f"{name} {used:.1f} ({used / result.seconds:.0%})" for name, used in sorted(result.cpu.items())))
     return "\n".join(lines)
 
 
