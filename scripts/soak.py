@@ -43,6 +43,7 @@ supervisor would); prints, besides both runs' figures, the replies that differ.
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import os
 import sys
@@ -72,7 +73,7 @@ from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.testing import LiveGraph  # noqa: E402
 
 READY_TIMEOUT = 60.0
-DRAIN = 15.0  # wall seconds to wait for the last replies (a dead consultant call costs 10 s)
+DRAIN = 15.0  # wall seconds without a reply after which the unanswered are lost (a dead consultant call costs 10 s)
 #: REG p99 (ms) that ends --step.
 STEP_LIMIT_MS = 100.0
 #: The client's request kind of each soak message kind.
@@ -243,7 +244,18 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
             client.publish_clock(stamp)
             messages[key] = Sent(kind, i, due, time.monotonic())
             client.send(KINDS[kind], {**msg, "id": key, "time": stamp})
-        spin_until(live, lambda: all(client.answers[k] for k in messages), time.monotonic() + DRAIN)
+        waiting = set(messages)  # wait for the last replies while they still come (DRAIN s without one: lost)
+
+        def drained() -> bool:
+            waiting.difference_update([k for k in itertools.islice(waiting, 500) if client.answers[k]])
+            return not waiting
+
+        while waiting:
+            before = len(waiting)
+            spin_until(live, drained, time.monotonic() + DRAIN)
+            waiting.difference_update([k for k in list(waiting) if client.answers[k]])
+            if len(waiting) == before:
+                break
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start

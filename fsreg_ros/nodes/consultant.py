@@ -50,14 +50,9 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
-#: Most facts one ``ltm/assert`` callback takes from the messages waiting, and the most seconds spent taking them
+#: Most facts one ``ltm/assert`` commit takes from the messages waiting, and the most seconds spent taking them
 #: (RR's and REG's calls wait meanwhile; docs/semantics.md, "Facts in batches").
 MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 500, 0.02
-#: Least seconds between two ``ltm/assert`` commits: facts taken sooner wait (up to this long) and go together
-#: in the next commit, so a stream of facts leaves the executor free for RR's and REG's calls in between.
-COMMIT_PERIOD = 0.05
-#: Facts pending at which a commit happens at once anyway.
-MAX_PENDING_FACTS = 2000
 
 
 class ConsultantNode(Node):
@@ -141,18 +136,13 @@ class ConsultantNode(Node):
             services.append((contract.DEBUG, contract.DEBUG_OPS))
         for service, ops in services:  # each request validated once, by serve(), against its op's schema
             serve(self, service, {op: partial(self._call, op) for op in ops}, limits=self.limits, domain=domain)
-        self._pending: list[dict] = []  # ltm/assert messages taken, not committed yet
-        self._pending_facts = 0
-        self._last_commit = float("-inf")
-        self._commit_timer = self.create_timer(COMMIT_PERIOD, self._commit_due, clock=steady_clock())
-        self._commit_timer.cancel()
-        subscribe_batches(self, contract.LTM_ASSERT, self._take_asserts, reject=self._reject_assert, limits=self.limits,
+        subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
                           size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
                           max_seconds=MAX_DRAIN_SECONDS)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
-        steady = steady_clock()
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer = self.create_timer(max(self._state_period, 0.02), self._tick, clock=steady)
         # Across processes DDS keeps the alive topic's liveliness itself; a reader in this
         # process (a composed graph) sees it only through writes: repeat the announcement.
@@ -200,32 +190,6 @@ class ConsultantNode(Node):
         if request_id is not None:
             reply["id"] = request_id
         publish(self._assert_results, reply)
-
-    def _take_asserts(self, messages: list[dict]) -> None:
-        """Take ``ltm/assert`` messages: commit them with those pending now, or within ``COMMIT_PERIOD`` of the last
-        commit (the commit timer)."""
-        self._pending.extend(messages)
-        self._pending_facts += sum(len(data.get("facts") or ()) or 1 for data in messages)
-        if monotonic() - self._last_commit >= COMMIT_PERIOD or self._pending_facts >= MAX_PENDING_FACTS:
-            self._commit_pending()
-        elif self._commit_timer.is_canceled():
-            self._commit_timer.reset()
-
-    def _commit_due(self) -> None:
-        self._commit_timer.cancel()
-        if self._pending:
-            self._commit_pending()
-
-    def _commit_pending(self) -> None:
-        messages, self._pending, self._pending_facts = self._pending, [], 0
-        self._last_commit = monotonic()
-        try:
-            self._on_asserts(messages)
-        except Exception as err:  # noqa: BLE001 - every message taken is answered, whatever happened
-            text = f"internal error: {type(err).__name__}: {printable(err)}"
-            self.get_logger().error(f"{contract.LTM_ASSERT.name}: {text}")
-            for data in messages:
-                self._answer_assert(data, ok=False, error=text, kind="internal")
 
     def _on_asserts(self, messages: list[dict]) -> None:
         """Apply ``ltm/assert`` messages of this domain (routed by ``accept``, validated, drained together by
@@ -366,15 +330,9 @@ class ConsultantNode(Node):
 
     def destroy_node(self) -> None:
         service = getattr(self, "service", None)
-        if getattr(self, "_pending", None):
-            self._commit_pending()  # what was taken is applied and answered before the store closes
         if service is not None:
             service.shutdown()
         super().destroy_node()
-
-
-def steady_clock() -> Clock:
-    return Clock(clock_type=ClockType.STEADY_TIME)
 
 
 def _facts_of(data: dict) -> list[tuple[str, dict]]:
