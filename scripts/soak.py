@@ -107,8 +107,11 @@ class RunResult:
 
 def schedule(scenario: Scenario, turns: int, requests: int, rate: float, facts_rate: float = 0.0, batch: int = 1,
              pool: int = 100) -> list[tuple[float, str, dict]]:
-    """Return (offset s, kind, message) in time order: human turns at ``rate``, REG at ``rate`` half a period later,
-    and ``facts_rate`` facts per second in messages of ``batch`` facts over the same span."""
+    """Return (offset s, kind, message) in time order.
+
+    Human turns at ``rate``, REG at ``rate`` half a period later, and ``facts_rate`` facts
+    per second in messages of ``batch`` facts over the same span.
+    """
     human = [t for t in scenario.dialogue if t.speaker == "human"]
     robot = [t for t in scenario.dialogue if t.speaker == "robot"]
     if (turns and not human) or (requests and not robot):
@@ -153,7 +156,7 @@ def facts_plan(scenario: Scenario, seconds: float, rate: float, batch: int, pool
 
 
 def facts_in(msg: dict) -> int:
-    """How many facts a perception message carries."""
+    """Return how many facts a perception message carries."""
     return len(msg["facts"]) if "facts" in msg else 1
 
 
@@ -185,7 +188,7 @@ def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
 
 
 def cpu_seconds(graph) -> dict[str, float]:
-    """CPU seconds (user + system) each node process and this sender have used so far."""
+    """Return the CPU seconds (user + system) each node process and this sender have used so far."""
     out = {}
     for spec, proc in list(graph.procs) + [(None, psutil.Process())]:
         try:
@@ -331,7 +334,7 @@ def report(result: RunResult, title: str) -> str:
 
 
 def facts_report(result: RunResult) -> list[str]:
-    """The perception lines: facts sent, applied, refused, lost and not sent; latency per message; what is known."""
+    """Return the perception lines: facts sent, applied, refused, lost, not sent; latency; what is known."""
     sent = [s for s in result.messages.values() if s.kind == "facts"]
     if not sent and not result.busy:
         return []

@@ -9,7 +9,6 @@ check, e.g. ``field 'time': a number too large ...``), raised as
 
 from __future__ import annotations
 
-import types
 from functools import lru_cache
 from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
 

@@ -192,11 +192,12 @@ class ConsultantNode(Node):
         publish(self._assert_results, reply)
 
     def _on_asserts(self, messages: list[dict]) -> None:
-        """Apply ``ltm/assert`` messages of this domain (routed by ``accept``, validated, drained together by
-        :func:`~fsreg_ros.ros.carrier.subscribe_batches`) in ONE commit; answer each.
+        """Apply ``ltm/assert`` messages of this domain in ONE commit; answer each.
 
-        A message holds one entity's facts or a batch (``facts``); every fact of every
-        message is one fact of one :meth:`~fsreg_ros.core.service.ConsultantService.ltm_assert_batch`
+        They were routed by ``accept``, validated and drained together by
+        :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
+        or a batch (``facts``); every fact of every message is one fact of one
+        :meth:`~fsreg_ros.core.service.ConsultantService.ltm_assert_batch`
         (all-or-nothing per fact, one fsynced transaction for the accepted ones), and each
         message gets one ``ltm/assert/result``: a batch's lists every fact in order.
         """

@@ -447,7 +447,7 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
     ignored = [0]
 
     def decoded(text: str) -> Optional[dict]:
-        """The message if it is valid and for this node; None (rejected or ignored) otherwise."""
+        """Return the message if it is valid and for this node; None (rejected or ignored) otherwise."""
         seen: dict = {}
         try:
             payload = parse(text, max_bytes=_limit(max_bytes))

@@ -640,13 +640,14 @@ def test_a_batch_on_ltm_assert_is_one_commit_with_a_result_per_fact(graph: Graph
         {"entity": "face1", "properties": {"glasses": 0.0}},
     ]}, contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: results.latest(id="b1"), what="the batch's result")
-    assert results.latest(id="b1") == {"domain": "faces", "id": "b1", "ok": False, "applied": 2, "refused": 1,
-                                       "results": [
+    per_fact = [
         {"entity": "face7", "ok": True, "new_entity": True, "updated": {"female": 1.0}, "retracted": []},
         {"entity": "face2", "ok": False, "kind": "unknown-property",
          "error": "domain 'faces', entity 'face2': unknown property 'wings' (not in the domain's preference order)"},
         {"entity": "face1", "ok": True, "new_entity": False, "updated": {"glasses": 0.0}, "retracted": ["glasses"]},
-    ]}
+    ]
+    assert results.latest(id="b1") == {"domain": "faces", "id": "b1", "ok": False, "applied": 2, "refused": 1,
+                                       "results": per_fact}
     assert node.service.store.durable_commits == commits + 1
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face7"]
     assert graph.call(D, {"op": "wm", "entity": "face1"})["queue"] == []
