@@ -15,7 +15,12 @@
    * ``dist-pia``       the same policy (same encodings, no Phase 1);
    * ``dist-pia/none``  policy none: the paper's "No WM" (nothing is encoded);
    * ``sd-pia+sink``    as sd-pia with an event sink (every encode/forget builds a
-                        WMEvent, as the ROS consultant does); largest size only.
+                        WMEvent, as the ROS consultant does); largest size only;
+   * ``sd-pia/displ``   policy displacement (capacity 4) alone; largest size only;
+   * ``sd-pia/act``     policy activation+displacement (ACT-R base-level activation,
+                        d 0.5, tau -0.5 ln 10: one encoding stays 10 s, as a decay
+                        period of 10 s keeps a front; capacity 4); largest size only.
+                        Target: within 1.5x of ``sd-pia/displ`` (issue 27).
 
    Reported: median and p95 latency, median encodings per call, and the ratio of
    medians 10k/1k entities (10.0 would be linear in the number of entities).  Next
@@ -45,6 +50,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import math
 import platform
 import random
 import statistics
@@ -60,7 +66,9 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test" / "support"))
 
-from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync  # noqa: E402
+from fsreg_ros.core.consultant import Consultant  # noqa: E402
+from fsreg_ros.core.local_port import LocalPort  # noqa: E402
+from fsreg_ros.core.port import run_sync  # noqa: E402
 from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.wm_manager import WMManager  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
@@ -71,6 +79,8 @@ from bench_encode import best_encode, best_vectorised  # noqa: E402
 PREVALENCE = (0.1, 0.3)
 WM_POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4}
 TARGET_REG_MS = 5.0  # SD-PIA, one target among 10,000 entities x 200 properties
+TARGET_ACTIVATION_RATIO = 1.5  # SD-PIA under activation+displacement / under displacement, 10,000 x 200
+ACTIVATION_THRESHOLD = -0.5 * math.log(10.0)  # d = 0.5: one encoding stays exp(-tau / d) = 10 s
 TARGET_DECAY_RATIO = 100.0  # naive / lazy, tick over 100k mostly idle queues
 IDLE_TOUCHED = 0.01
 
@@ -91,6 +101,11 @@ def random_kb(n_entities: int, n_props: int, rng: random.Random) -> tuple[dict, 
 def policy_of(name: str) -> ForgettingPolicy:
     if name == "none":
         return ForgettingPolicy.parse("none")
+    if name == "displacement":
+        return ForgettingPolicy.parse("displacement", capacity=WM_POLICY["capacity"])
+    if name == "activation":
+        return ForgettingPolicy.parse("activation+displacement", capacity=WM_POLICY["capacity"],
+                                      activation_decay=0.5, activation_threshold=ACTIVATION_THRESHOLD)
     return ForgettingPolicy.parse(
         WM_POLICY["policy"], decay_period=WM_POLICY["decay_period"], capacity=WM_POLICY["capacity"]
     )
@@ -155,9 +170,10 @@ def bench_reg(sizes: list[tuple[int, int]], trials: int, warmup: int, seed: int,
         log(f"  KB {n_entities} x {n_props} built in {time.perf_counter() - t0:.1f} s")
         configs = [("sd-pia", "wm", False), ("dist-pia", "wm", False), ("dist-pia", "none", False)]
         if (n_entities, n_props) == largest:
-            configs.append(("sd-pia", "wm", True))
+            configs += [("sd-pia", "wm", True), ("sd-pia", "displacement", False), ("sd-pia", "activation", False)]
         for algorithm, policy, sink in configs:
-            label = algorithm + ("/none" if policy == "none" else "") + ("+sink" if sink else "")
+            suffix = {"none": "/none", "displacement": "/displ", "activation": "/act"}.get(policy, "")
+            label = algorithm + suffix + ("+sink" if sink else "")
             runs = [bench_reg_config(facts, props, algorithm, policy, sink, trials, warmup, seed)
                     for _ in range(repeat)]
             result = min(runs, key=lambda r: r["median_ms"])  # least disturbed run
@@ -406,6 +422,14 @@ def targets(result: dict) -> list[dict]:
         })
     else:
         out.append({"name": "SD-PIA 1k -> 10k scaling", "value": "not run", "verdict": "n/a (--quick)"})
+    by = {r["config"]: r for r in result["reg"] if r["entities"] == 10_000 and r["properties"] == 200}
+    if "sd-pia/act" in by and "sd-pia/displ" in by:
+        value = by["sd-pia/act"]["median_ms"] / by["sd-pia/displ"]["median_ms"]
+        out.append({
+            "name": f"SD-PIA under activation+displacement / displacement, 10,000 x 200 (<= {TARGET_ACTIVATION_RATIO})",
+            "value": f"x{value:.2f}",
+            "verdict": "met" if value <= TARGET_ACTIVATION_RATIO else "MISSED",
+        })
     decay = [r for r in result["decay"] if r["queues"] == 100_000]
     if decay:
         value = decay[0]["tick_ratio"]

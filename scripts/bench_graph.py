@@ -58,7 +58,8 @@ from fsreg_ros.ros.network import ros_environment  # noqa: E402
 os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.core.consultant import LocalPort, run_sync  # noqa: E402
+from fsreg_ros.core.local_port import LocalPort  # noqa: E402
+from fsreg_ros.core.port import run_sync  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402

@@ -44,8 +44,10 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.core.consultant import Consultant, Narrowed, View, Walked, run_sync  # noqa: E402
+from fsreg_ros.contract.consultant_codec import apply  # noqa: E402
+from fsreg_ros.core.consultant import Consultant  # noqa: E402
 from fsreg_ros.core.generation import generate  # noqa: E402
+from fsreg_ros.core.port import Narrowed, View, Walked, run_sync  # noqa: E402
 from fsreg_ros.core.resolution import resolve  # noqa: E402
 from fsreg_ros.core.service import ConsultantService  # noqa: E402
 from fsreg_ros.core.store import DomainStore  # noqa: E402
@@ -67,7 +69,7 @@ class ApplyPort:
         self.after = after or (lambda changed: None)  # run after each call (the earlier design's write)
 
     def _apply(self, op: str, request: dict) -> dict:
-        outcome = self.service.apply(op, {"op": op, **request})
+        outcome = apply(self.service, op, {"op": op, **request})
         self.after(outcome.changes.queues)
         return outcome.reply
 
@@ -135,7 +137,7 @@ def make(world: dict, store: DomainStore | None) -> ConsultantService:
     service = ConsultantService(Consultant(DOMAIN, facts, domain["preference"]), store=store)
     if store is not None:
         service.restore(store.open())
-    service.apply("configure", {"op": "configure", "policy": POLICY, "time": 0.0})
+    apply(service, "configure", {"op": "configure", "policy": POLICY, "time": 0.0})
     return service
 
 
@@ -162,10 +164,10 @@ def bench(entities: int, turns: int, seed: int, directory: Path, baseline: bool)
             run_turn(old.port, turn, index, target)
             old_ms.append((time.perf_counter() - start) * 1e3)
     assert core.buffer.snapshot() == stored.buffer.snapshot(), "the two consultants diverged"
-    unsaved, journal = len(stored._unsaved), stored.store.journal_length()
+    unsaved, journal = len(stored.persistence._unsaved), stored.store.journal_length()
     start = time.perf_counter()
     stored.maintain()  # what the node's timer does when the journal is long (forced here)
-    stored._write(checkpoint=True)
+    stored.persistence._write(checkpoint=True)
     checkpoint_ms = (time.perf_counter() - start) * 1e3
     expected = stored.buffer.snapshot()
     stored.store.close()

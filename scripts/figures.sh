@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate every figure of README.md and docs/research.md: each block between
 # "<!-- figure NAME -->" and "<!-- /figure -->" is rewritten from the one command it shows
-# (fsreg-eval, fsreg-sim, fsreg-sweep at their documented size; outputs and PNGs in out/figures/).
+# (fsreg-eval, fsreg-sim, fsreg-graph, fsreg-sweep at their documented size; outputs and PNGs in out/figures/).
 # Creates or refreshes .venv first, like the other scripts.
 #
 # Usage: scripts/figures.sh [TUNA_DIR] [--tangrams DIR] [--check] [--only NAME ...]
@@ -13,6 +13,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/scripts/venv.sh"
+. "$root/scripts/rosenv.sh"  # the main job's figure (table1-graph) runs the node graph: loopback, a ROS domain
 args=()
 if [ $# -gt 0 ] && [ "${1#-}" = "$1" ]; then
   args+=(--tuna "$1")

@@ -2,8 +2,8 @@
 # DDS stays on this machine: LOCALHOST discovery plus the Fast DDS loopback profile
 # (config/fastdds_localhost.xml), both set by fsreg_ros.ros.network.  An environment that
 # would widen it (another discovery range, ROS_STATIC_PEERS, ROS_DISCOVERY_SERVER, a
-# profile of your own) is refused with exit 2 unless FSREG_ALLOW_NETWORK=1 (README
-# "Running on several machines").  Needs the venv (scripts/venv.sh) or FSREG_PYTHON.
+# profile of your own) is refused with exit 2 unless FSREG_ALLOW_NETWORK=1 (docs/deployment.md;
+# README "Running on several machines").  Needs the venv (scripts/venv.sh) or FSREG_PYTHON.
 _fsreg_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-${TMPDIR:-/tmp}/fsreg-ros-log-$(id -u)}"
 mkdir -p "$ROS_LOG_DIR"

@@ -38,6 +38,12 @@ supervisor would); prints, besides both runs' figures, the replies that differ.
     scripts/soak.py --turns 200 --requests 200 --rate 20 --kill-consultant-at 100
     scripts/soak.py --turns 400 --requests 400 --rate 20 --facts-rate 1000
     scripts/soak.py --turns 400 --requests 400 --rate 20 --facts-rate 10000 --batch 50
+    scripts/soak.py --record      # the same run twice: without, then with `fsreg-ctl record` (cost, nothing dropped)
+
+``--record``: after the first run, run again with ``fsreg-ctl record`` recording the graph
+(its own process, as a robot would run it), print both runs' figures and the cost in p99,
+then count every message in the bag against what was sent and answered (the requests and
+answers per id, and each consultant's ``wm/events`` numbered without a gap).
 """
 
 from __future__ import annotations
@@ -207,7 +213,32 @@ def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> Non
             pass
 
 
-def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunResult:
+class Recording:
+    """``fsreg-ctl record`` of the soaked graph, in its own process."""
+
+    def __init__(self, live: LiveGraph, path: Path) -> None:
+        import subprocess
+
+        self.path = path
+        self.proc = subprocess.Popen([str(Path(sys.executable).parent / "fsreg-ctl"), "--namespace", live.namespace,
+                                      "record", str(path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     env=os.environ)
+        client = live.client
+        pubs = [client._publishers[k] for k in KINDS.values()]  # the recorder's subscriptions matched: 2 readers
+        if not spin_until(live, lambda: all(p.get_subscription_count() >= 2 for p in pubs),
+                          time.monotonic() + READY_TIMEOUT):
+            raise SystemExit("soak.py: error: the recorder did not subscribe in time")
+
+    def stop(self) -> None:
+        import signal
+
+        self.proc.send_signal(signal.SIGINT)
+        out, err = self.proc.communicate(timeout=120)
+        if self.proc.returncode != 0:
+            raise SystemExit(f"soak.py: error: fsreg-ctl record exited {self.proc.returncode}: {err.decode()[-500:]}")
+
+
+def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: Optional[Path] = None) -> RunResult:
     scenario = load_scenario(args.scenario)
     plan = schedule(scenario, args.turns, args.requests, rate, args.facts_rate, args.batch, args.facts_entities)
     memory = {"policy": args.policy} if args.policy else {}
@@ -217,6 +248,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
         client, graph = live.client, live.graph
         rss: dict[str, list[tuple[int, float]]] = {}
         messages: dict[str, Sent] = {}
+        recorder = Recording(live, record) if record is not None else None
         warm_up(live, plan)
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
@@ -265,6 +297,8 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int]) -> RunRes
         cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph).items()}
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
+        if recorder is not None:
+            recorder.stop()
         known = None
         facts_msgs = [m for _, k, m in plan if k == "facts"]
         if facts_msgs:
@@ -393,6 +427,35 @@ def compare(base: RunResult, killed: RunResult) -> str:
     return "\n".join(lines)
 
 
+def recording_report(result: RunResult, path: Path) -> str:
+    """Count every message of the recording against what was sent and answered (nothing may be dropped)."""
+    from fsreg_ros.core.recording import open_recording
+    from fsreg_ros.core.replay import ReplayError, check_events
+
+    recording = open_recording(path)
+    lines = [f"== recording {path}: {len(recording.messages)} messages"
+             + (f"; {recording.lost}" if recording.lost else "")]
+    dropped = 0
+    for kind, request, reply in (("human", "human", "rr"), ("reg", "request", "expression")):
+        sent = {k for k, s in result.messages.items() if s.kind == kind}
+        answered = {k for k in sent if result.messages[k].replies}
+        got_requests = {m.data.get("id") for m in recording.on(request) if isinstance(m.data, dict)}
+        got_replies = {m.data.get("id") for m in recording.on(reply) if isinstance(m.data, dict)}
+        missing = len(sent - got_requests) + len(answered - got_replies)
+        dropped += missing
+        lines.append(f"  {request}: {len(sent & got_requests)} of {len(sent)} sent; {reply}: "
+                     f"{len(answered & got_replies)} of {len(answered)} answers")
+    events = [m.data for m in recording.on("events") if isinstance(m.data, dict)]
+    try:
+        check_events(str(path), events)
+        lines.append(f"  wm/events: {len(events)}, numbered without a gap")
+    except ReplayError as err:
+        dropped += 1
+        lines.append(f"  wm/events: {err}")
+    lines.append(f"  dropped: {dropped}")
+    return "\n".join(lines)
+
+
 def write_csv(result: RunResult, path: Path) -> None:
     """Write one line per message: index, kind, scheduled offset (s), latency (ms; empty if lost)."""
     start = min(s.due for s in result.messages.values())
@@ -427,6 +490,8 @@ def main(argv: Optional[list[str]] = None) -> int:
                         "scheduled offset s, latency ms (empty: lost)")
     parser.add_argument("--kill-consultant-at", type=int, metavar="K",
                         help="also run once SIGKILLing and restarting the consultant before message K")
+    parser.add_argument("--record", action="store_true",
+                        help="also run once recording with fsreg-ctl record; the cost and a count of the bag")
     args = parser.parse_args(argv)
     if not 0 < args.rate <= args.max_rate or args.turns < 0 or args.requests < 0 or args.turns + args.requests == 0:
         parser.error("--rate must be positive and at most --max-rate; --turns and --requests not negative, "
@@ -457,6 +522,17 @@ def main(argv: Optional[list[str]] = None) -> int:
             held = f"; it held at {result.rate - args.rate:g}/s" if stage > 1 else ""
             print(f"== step: REG p99 passed {STEP_LIMIT_MS:g} ms at {result.rate:g} requests/s "
                   f"({percentile(latencies(result, 'reg'), 99):.1f} ms){held}")
+    if args.record:
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="fsreg-soak-") as tmp:
+            path = Path(tmp) / "soak"
+            recorded = run(args, args.rate, None, record=path)
+            print(report(recorded, "recorded (fsreg-ctl record)"), flush=True)
+            for kind in ("human", "reg"):
+                before, after = (percentile(latencies(r, kind), 99) for r in (base, recorded))
+                print(f"== recording cost, {kind}: p99 {before:.1f} -> {after:.1f} ms ({(after / before - 1):+.0%})")
+            print(recording_report(recorded, path), flush=True)
     if args.kill_consultant_at is not None:
         killed = run(args, args.rate, args.kill_consultant_at)
         print(report(killed, f"consultant SIGKILLed and restarted at message {args.kill_consultant_at}"))

@@ -14,10 +14,15 @@ One module per job:
   :mod:`.consultant` (a consultant's announcement, query ops and manage ops),
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
+* :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (bounded
+  decoding, encoding that refuses what is not JSON, error replies that never raise);
+* :mod:`.consultant_codec`: the consultant protocol written once (ROS-free): each op's
+  request and reply encoded and decoded, for the consultant node and :class:`RemotePort`;
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
 * :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);
-* :mod:`.endpoints`: the registry of topics and services (relative names, who talks);
+* :mod:`.endpoints`: the registry of topics and services (relative names, who talks), and
+  :func:`graph_topics`, every topic of one graph with its type and QoS (what a recorder subscribes to);
 * :mod:`.naming`: namespaces and the per-graph ``/clock`` remapping;
 * :mod:`.limits`: bounds on what a node accepts;
 * :mod:`.checking`: a decoded message against its schema, with one-line errors;
@@ -47,6 +52,8 @@ from .consultant import (
     ConsultantRequest,
     DebugReply,
     DebugRequest,
+    AdvanceReply,
+    AdvanceRequest,
     DecayReply,
     DecayRequest,
     EncodeReply,
@@ -103,11 +110,15 @@ from .endpoints import (
     READY,
     WM_EVENTS,
     WM_STATE,
+    CLOCK_TYPE,
+    STRING_TYPE,
+    GraphTopic,
     Service,
     Topic,
     alive_topic,
     consultant_service,
     debug_service,
+    graph_topics,
     manage_service,
 )
 from .export import fields_of, json_schemas, message_table
@@ -116,18 +127,19 @@ from .ltm import LtmAssert, LtmAssertResult, LtmFact, LtmFactResult
 from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .policy import PolicySettings
-from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, SERVICE_QOS,
-                  STATE_PUB_QOS, STATE_QOS, QosSpec)
+from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS,
+                  SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec)
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
     "ALIVE", "ALIVE_QOS", "ANNOUNCE", "ASSERT_QOS", "ASSERT_RESULT_QOS", "CLOCK", "CONSULTANT", "CONSULTANT_OPS",
     "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
     "EVENTS_QOS", "HUMAN", "LIMIT_RANGES", "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "MANAGE_OPS",
-    "PIPELINE_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
+    "PIPELINE_QOS", "READY_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
     "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE", "AffirmRequest",
     "CloseReply", "CloseRequest", "ConfigureReply", "ConfigureRequest", "ConsultantAnnounce", "ConsultantReply",
-    "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "EncodeReply", "EncodeRequest",
+    "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "AdvanceReply", "AdvanceRequest",
+    "EncodeReply", "EncodeRequest",
     "ErrorReply", "EvictReply", "EvictRequest", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id", "InfoReply",
     "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "LtmFact", "LtmFactResult", "ManageReply",
     "ManageRequest", "Message", "Name",
@@ -140,4 +152,5 @@ __all__ = [
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
+    "CLOCK_TYPE", "STRING_TYPE", "GraphTopic", "graph_topics",  # every topic of a graph, as a recorder sees it
 ]

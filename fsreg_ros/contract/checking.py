@@ -3,7 +3,7 @@
 The one translation of pydantic's errors for the wire: the first problem, as
 ``field 'target': expected a string, got 3`` (or the message of the project's own
 check, e.g. ``field 'time': a number too large ...``), raised as
-:class:`~fsreg_ros.ros.codec.MessageError`.  :func:`fsreg_ros.ros.carrier.serve` and
+:class:`~fsreg_ros.contract.codec.MessageError`.  :func:`fsreg_ros.ros.carrier.serve` and
 :func:`~fsreg_ros.ros.carrier.subscribe` validate every request and message with it.
 """
 
@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origi
 
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from ..ros.codec import MessageError, describe, printable
+from .codec import MessageError, describe, printable
 
 
 def check(model: Any, data: dict, limits: Optional[Any] = None) -> dict:
@@ -76,7 +76,7 @@ def _model_of(schema: Any, data: Any, loc: tuple) -> tuple[type[BaseModel], tupl
 
 
 def _field_spec(annotation: Any) -> Any:
-    """Return a :func:`~fsreg_ros.ros.codec.describe` spec for a schema field's annotation."""
+    """Return a :func:`~fsreg_ros.contract.codec.describe` spec for a schema field's annotation."""
     origin, args = get_origin(annotation), get_args(annotation)
     if origin is Annotated:
         return _field_spec(args[0])

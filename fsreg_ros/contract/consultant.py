@@ -5,14 +5,15 @@ Three services per domain (``<domain>`` filled in):
 * ``consultant/<domain>`` -- RR's and REG's: ``info``, ``open``, ``narrow``, ``walk``,
   ``rule_out``, ``close`` (:data:`CONSULTANT_OPS`);
 * ``consultant/<domain>/manage`` -- the WM Manager's: ``configure``, ``decay``,
-  ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
+  ``advance``, ``evict``, ``size`` (:data:`MANAGE_OPS`, the discriminated union :data:`ManageRequest`);
 * ``consultant/<domain>/debug`` -- tests' and tools': ``holds``, ``affirm``, ``wm``,
   ``encode``, ``snapshot`` (:data:`DEBUG_OPS`); served only when the consultant's
   read-only parameter ``debug`` is true.
 
 Every request is one of the models below, chosen by its ``op``; a reply is the op's
 reply model.  Semantics: docs/semantics.md sections 2-4 (encoding rules 1-3, RR, REG),
-:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).
+:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).  Encoding and decoding
+them, for the consultant and its callers alike: :mod:`fsreg_ros.contract.consultant_codec`.
 """
 
 from __future__ import annotations
@@ -120,7 +121,7 @@ class WalkRequest(Stamp):
 
     A step is taken when it holds for the target (always, without one) and leaves fewer
     members; a step whose ``group`` was taken already is skipped; nothing is asked once
-    no member is left (:class:`fsreg_ros.core.consultant.Walk`).  Each narrowing encodes as
+    no member is left (:class:`fsreg_ros.core.port.Walk`).  Each narrowing encodes as
     ``narrow`` does (``cause``; null: no encoding).  One call for what would be one
     ``narrow`` per step.  A step naming an unknown property refuses the call, changing nothing.
     """
@@ -330,6 +331,12 @@ class DecayRequest(Message):
     ticks: TickRun
 
 
+class AdvanceRequest(Stamp):
+    """Manage op ``advance``: the clock reached ``time`` (rule ``activation``: entries below the threshold go)."""
+
+    op: Literal["advance"]
+
+
 class EvictRequest(Stamp):
     """Manage op ``evict``: forget the domain's ``count`` least recently encoded fronts (cause ``shared-capacity``)."""
 
@@ -354,6 +361,13 @@ class ConfigureReply(Message):
 
 class DecayReply(Message):
     """Reply to ``decay``: queues changed and the installed policy's name."""
+
+    queues_changed: int
+    policy: str
+
+
+class AdvanceReply(Message):
+    """Reply to ``advance``: queues changed and the installed policy's name."""
 
     queues_changed: int
     policy: str
@@ -392,6 +406,7 @@ DEBUG_OPS: dict[str, tuple[type[Message], type[Message]]] = {
 MANAGE_OPS: dict[str, tuple[type[Message], type[Message]]] = {
     "configure": (ConfigureRequest, ConfigureReply),
     "decay": (DecayRequest, DecayReply),
+    "advance": (AdvanceRequest, AdvanceReply),
     "evict": (EvictRequest, EvictReply),
     "size": (SizeRequest, SizeReply),
 }
@@ -402,5 +417,6 @@ ConsultantReply = Union[InfoReply, OpenReply, NarrowReply, WalkReply, RuleOutRep
 DebugRequest = Annotated[Union[HoldsRequest, AffirmRequest, WMRequest, EncodeRequest, SnapshotRequest],
                          Field(discriminator="op")]
 DebugReply = Union[HoldsReply, QueueReply, EncodeReply, SnapshotReply]
-ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, EvictRequest, SizeRequest], Field(discriminator="op")]
-ManageReply = Union[ConfigureReply, DecayReply, EvictReply, SizeReply]
+ManageRequest = Annotated[Union[ConfigureRequest, DecayRequest, AdvanceRequest, EvictRequest, SizeRequest],
+                          Field(discriminator="op")]
+ManageReply = Union[ConfigureReply, DecayReply, AdvanceReply, EvictReply, SizeReply]

@@ -23,8 +23,8 @@ from .consultant import (
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
-from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, EVENTS_QOS, PIPELINE_QOS, STATE_PUB_QOS, STATE_QOS,
-                  QosSpec)
+from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, STATE_PUB_QOS,
+                  STATE_QOS, QosSpec)
 from .wm import WMEventMessage, WMState
 
 
@@ -68,7 +68,7 @@ ANNOUNCE = Topic("consultant/announce", ConsultantAnnounce, STATE_PUB_QOS, "cons
                  reader_qos=STATE_QOS)
 ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consultant",
               "wm_manager (readiness), reference_resolution, reg")
-READY = Topic("wm_manager/ready", ManagerReady, STATE_PUB_QOS, "wm_manager", "reference_resolution, reg (restarts), "
+READY = Topic("wm_manager/ready", ManagerReady, READY_QOS, "wm_manager", "reference_resolution, reg (restarts), "
               "clients (fsreg-up, fsreg-ctl, fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
 LTM_ASSERT = Topic("ltm/assert", LtmAssert, ASSERT_QOS, "perception, dialogue manager", "consultants")
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], ASSERT_RESULT_QOS, "consultants",
@@ -107,3 +107,46 @@ def debug_service(domain: str) -> str:
 def alive_topic(domain: str) -> Topic:
     """Return the latched, liveliness-leased announcement topic of one domain's consultant."""
     return replace(ALIVE, name=ALIVE.name.replace("<domain>", domain))
+
+
+#: Message type of every fsreg topic (one JSON object in ``data``) and of the clock, as ROS names them.
+STRING_TYPE = "std_msgs/msg/String"
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+#: ``/clock`` as fsreg's clients and the dialogue player publish it: reliable, volatile, depth 10.
+CLOCK_QOS = QosSpec(10)
+#: Topics a recording leaves out: ``consultant/<domain>/alive`` repeats the announcement 4 times a
+#: second as a liveliness heartbeat (``consultant/announce`` carries the same, once per change).
+NOT_RECORDED = (ALIVE,)
+
+
+@dataclass(frozen=True)
+class GraphTopic:
+    """One topic of a graph as a subscriber sees it: full name, ROS type, the QoS its writers offer and a reader's.
+
+    ``topic`` is the contract's entry (None for ``/clock``, which is not a JSON topic).
+    """
+
+    name: str
+    msgtype: str
+    qos: QosSpec
+    reader_qos: QosSpec
+    topic: Optional[Topic] = None
+
+
+def graph_topics(namespace: str = "", clock: Optional[str] = None) -> tuple[GraphTopic, ...]:
+    """Return every fsreg topic of the graph in ``namespace`` with its type and QoS, ``/clock`` last.
+
+    Every topic of :data:`TOPICS` but the heartbeat (:data:`NOT_RECORDED`), resolved in the
+    namespace, and the graph's clock: ``clock`` if given, else ``<namespace>/clock`` under a
+    namespace (:func:`fsreg_ros.contract.clock_remap`) and ``/clock`` without one.  What a
+    recorder or a viewer subscribes to.
+    """
+    from .naming import normalise_namespace  # naming imports this module
+
+    ns = normalise_namespace(namespace)
+    out = [GraphTopic(f"{ns}/{t.name}", STRING_TYPE, t.qos, t.subscriber_qos, t)
+           for t in TOPICS if t not in NOT_RECORDED]
+    clock_name = clock or f"{ns}{CLOCK}"
+    out.append(GraphTopic(clock_name if clock_name.startswith("/") else "/" + clock_name, CLOCK_TYPE, CLOCK_QOS,
+                          CLOCK_QOS))
+    return tuple(out)

@@ -53,6 +53,9 @@ ASSERT_QOS = QosSpec(10, keep_all=True)
 ASSERT_RESULT_QOS = QosSpec(10_000)
 #: ``consultant/<domain>/alive``: latched, and the writer's liveliness lapses within 1 s of its process dying.
 ALIVE_QOS = QosSpec(1, latched=True, lease=1.0)
+#: ``wm_manager/ready`` writer: latched, only the latest kept, and its liveliness lapses within 1 s of the WM
+#: Manager's process dying, so a client waiting on the graph notices it leaving (a reader asking no lease matches).
+READY_QOS = QosSpec(1, latched=True, lease=1.0)
 #: Every service (requests and replies): depth 1000.  With rclpy's default (depth 10) a
 #: server more than 10 requests behind silently dropped the oldest (measured: 10 of 100
 #: concurrent calls answered; 100 of 100 with depth 1000).

@@ -20,8 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Mapping, Optional, Sequence, Union
 
-from .consultant import (Consultant, ConsultantPort, KnowledgeError, LocalPort, Narrowed, Step, View, Walked, WalkStep,
-                         run_sync)
+from .consultant import Consultant, KnowledgeError
+from .local_port import LocalPort
+from .port import ConsultantPort, Narrowed, Step, View, Walked, WalkStep, run_sync
 from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.

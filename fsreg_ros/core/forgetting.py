@@ -6,6 +6,14 @@ the one place policy names are parsed and validated):
 * ``decay`` (delta = ``decay_period``): every delta seconds of the robot's clock,
   counted from the WM Manager's start, pop the front of every non-empty queue
   (Algorithm 2; the schedule is :mod:`fsreg_ros.core.decay`).
+* ``activation`` (d = ``activation_decay``, default 0.5; tau =
+  ``activation_threshold``): ACT-R base-level activation.  An entry's activation is
+  ln sum_j (t - t_j)^(-d) over the times its property was encoded for that entity
+  since it entered the queue; it is forgotten when that falls below tau, at the
+  crossing time, computed once per encoding and applied lazily
+  (:mod:`fsreg_ros.core.memory.activation`).  The clock reaches the buffer from the
+  WM Manager (:meth:`WMManager.advance`) and from every encoding's own time.
+  Not combined with ``decay`` (both are forgetting by time; choose one).
 * ``displacement`` (alpha = ``capacity``): after each encoding event, while
   ``len(Q[R]) > alpha`` forget the front of ``Q[R]`` (Algorithm 3, LRU).
 * ``displacement-lfu`` (``capacity``): as ``displacement``, but forget the property
@@ -28,7 +36,8 @@ the one place policy names are parsed and validated):
   the domain holding the most properties (the first in domain order on ties) forgets
   its least recently encoded front (cause ``shared-capacity``).
 
-At most one displacement rule.  The size limits become data on the buffer
+At most one displacement rule, and ``decay`` or ``activation``, not both.  The size
+limits and the activation parameters become data on the buffer
 (:meth:`ForgettingPolicy.limits`), enforced by :mod:`fsreg_ros.core.memory`.
 
 The settings (their types, bounds, defaults and which rule reads which) are the
@@ -49,6 +58,7 @@ DISPLACEMENT = {"displacement": "lru", "displacement-lfu": "lfu", "displacement-
 #: Every rule, in canonical order (the order a policy name lists them in).
 RULES = (
     "decay",
+    "activation",
     "displacement",
     "displacement-lfu",
     "displacement-random",
@@ -108,6 +118,11 @@ class ForgettingPolicy:
     @property
     def decays(self) -> bool:
         return "decay" in self.rules
+
+    @property
+    def activates(self) -> bool:
+        """True when forgetting by ACT-R activation is in force (the WM Manager then sends its clock)."""
+        return "activation" in self.rules
 
     @classmethod
     def parse(cls, policy: str, **parameters: Optional[Number]) -> "ForgettingPolicy":
@@ -169,7 +184,7 @@ class ForgettingPolicy:
         return {"policy": self.name, **dict(self.parameters)}
 
     def limits(self) -> Limits:
-        """Return the size limits this policy puts on a buffer (decay is the schedule's)."""
+        """Return the limits this policy puts on a buffer (decay is the schedule's)."""
         if not self.rules:
             return Limits(retains=False)
         displacing = [rule for rule in self.rules if rule in DISPLACEMENT]
@@ -180,10 +195,18 @@ class ForgettingPolicy:
             similarity="similarity" in self.rules,
             global_capacity=self.given("global_capacity") if "global-capacity" in self.rules else None,  # type: ignore
             seed=int(self.value("seed")),  # type: ignore[arg-type]
+            activation=_activation_of(self),
         )
 
 
 NONE = ForgettingPolicy()
+
+
+def _activation_of(policy: ForgettingPolicy) -> Optional[tuple[float, float]]:
+    """Return ``(d, tau)`` under rule ``activation``, else None."""
+    if not policy.activates:
+        return None
+    return float(policy.value("activation_decay")), float(policy.value("activation_threshold"))  # type: ignore
 
 
 def _as_float(name: str, value: int) -> float:
@@ -210,6 +233,8 @@ def parse_rules(policy: str) -> tuple[str, ...]:
     displacing = [rule for rule in rules if rule in DISPLACEMENT]
     if len(displacing) > 1:
         raise PolicyError(f"policy '{policy}' combines {' and '.join(displacing)}: choose one displacement rule")
+    if "decay" in rules and "activation" in rules:
+        raise PolicyError(f"policy '{policy}' combines decay and activation: both forget by time, choose one")
     # Canonical order, so "displacement+decay" and "decay+displacement" are one policy.
     return tuple(rule for rule in RULES if rule in rules)
 

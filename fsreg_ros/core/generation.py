@@ -3,9 +3,11 @@
 docs/semantics.md section 4.  A property *rules out* a distractor iff it holds for the target
 and not for the distractor.
 
-* :func:`sd_pia` - the paper's forgetting-sensitive REG (SD-PIA).  Phase 1 walks
+* :func:`sd_pia` - the paper's forgetting-sensitive REG (SD-PIA, Algorithm 4).  Phase 1 walks
   the target's WM queue (LRU to MRU by default), Phase 2 the domain's preference
-  order; LTM is only consulted as far as needed.  When a property that holds for
+  order; LTM is only consulted as far as needed.  Both phases are read here; the
+  walk's rules (take, skip a taken attribute, stop when no distractor is left) are
+  :class:`~fsreg_ros.core.port.Walk`, which the consultant runs in one call.  When a property that holds for
   the target is considered, it is encoded for every remaining distractor it also
   holds for (rule 3), selected or not.  The description is encoded for the target
   at the end (rule 1).
@@ -21,7 +23,8 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
-from .consultant import ConsultantPort, KnowledgeError, View, WalkStep
+from .consultant import KnowledgeError
+from .port import ConsultantPort, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
@@ -120,17 +123,19 @@ async def sd_pia(
     attributes: Optional[Mapping[str, str]] = None,
     view: Optional[View] = None,
 ) -> Expression:
-    """SD-PIA (and, with ``use_wm=False``, DIST-PIA).  docs/semantics.md section 4.
+    """SD-PIA, the paper's Algorithm 4 (and, with ``use_wm=False``, DIST-PIA).  docs/semantics.md section 4.
 
     The consultant keeps the distractor set (``view``, opened here unless given).
-    Phase 1 (Q[target] in ``wm_order``) and Phase 2 (the preference order, minus what
-    Phase 1 considered) are one :class:`~fsreg_ros.core.consultant.Walk` over the
+    Phase 1 (Q[target] in ``wm_order``: the properties recently encoded for the target)
+    and Phase 2 (the preference order, minus what Phase 1 considered: LTM, asked only
+    as far as needed) are one :class:`~fsreg_ros.core.port.Walk` over the
     properties that hold for the target (the others are skipped, nothing asked): each
     considered property narrows the distractors, encoding it for every remaining
     distractor it holds for (rule 3), and is selected when it rules one out; once a
     value of an attribute is selected, other values of it are skipped (a description
     never holds two values of one attribute); the walk ends when no distractor is
-    left.  The port runs the walk in one call (:meth:`~ConsultantPort.walk`).
+    left.  The port runs the walk in one call (:meth:`~fsreg_ros.core.port.ConsultantPort.walk`);
+    the description is encoded for the target when the view closes (rule 1, :func:`_finish`).
     """
     algorithm = "sd-pia" if use_wm else "dist-pia"
     if view is None:
@@ -138,9 +143,10 @@ async def sd_pia(
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
     entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
-    phase1 = phase1_order(view.queue, wm_order, preference) if use_wm else []
+    phase1 = phase1_order(view.queue, wm_order, preference) if use_wm else []  # Phase 1: WM
     walked_wm = set(phase1)
-    candidates = [(p, "wm") for p in phase1] + [(p, "ltm") for p in preference if p not in walked_wm]
+    phase2 = [p for p in preference if p not in walked_wm]  # Phase 2: LTM, in preference order
+    candidates = [(p, "wm") for p in phase1] + [(p, "ltm") for p in phase2]
     if view.holding is not None:  # p does not hold for t (as read when the view opened): skipped, nothing asked
         candidates = [(p, source) for p, source in candidates if p in view.holding]
     steps = [WalkStep(p, attribute_of(p, attributes)) for p, _ in candidates]

@@ -20,9 +20,11 @@ Records are JSON lists whose first item names the operation:
 ``["encode", entity, [property, ...], cause, time, turn]``
     ``WMBuffer.encode``: Encode(entity, properties), Algorithm 1 (rule 1).
 ``["decay", {"origin", "period", "first", "count"}]``
-    decay ticks applied at once (Algorithm 2, :func:`~fsreg_ros.core.wm_manager.apply_ticks`).
+    decay ticks applied at once (Algorithm 2, :meth:`~fsreg_ros.core.memory.WMBuffer.decay_now`).
 ``["limits", settings, time]``
     a forgetting policy installed (its limits trim at once, Algorithm 3 included).
+``["advance", time]``
+    the clock reached ``time`` (``WMBuffer.advance``: rule ``activation``'s pops).
 ``["evict", count, time]``
     the shared pool's trim of this domain (cause ``shared-capacity``).
 ``["remove", entity, [property, ...], time]``
@@ -40,7 +42,7 @@ from . import bitset
 from .decay import TickError, TickRun, check_time
 from .forgetting import ForgettingPolicy, PolicyError
 from .memory import ENCODE_CAUSES, WMBuffer
-from .wm_manager import apply_ticks, configure_buffer
+from .wm_manager import configure_buffer
 
 Record = list
 
@@ -94,6 +96,11 @@ def limits(policy: ForgettingPolicy, time: float) -> Record:
     return ["limits", policy.settings(), time]
 
 
+def advance(time: float) -> Record:
+    """Return the record of the clock reaching ``time``."""
+    return ["advance", time]
+
+
 def evict(count: int, time: float) -> Record:
     """Return the record of the shared pool's trim of ``count`` fronts."""
     return ["evict", count, time]
@@ -120,7 +127,7 @@ def time_of(record: Record) -> float:
         return float(record[4])
     if kind == "decay":
         return TickRun.from_json(record[1]).last
-    return float(record[-1])  # limits, evict, remove
+    return float(record[-1])  # limits, evict, remove, advance
 
 
 # ------------------------------------------------------------------ replay
@@ -135,9 +142,11 @@ def replay(buffer: WMBuffer, entity_order: Sequence[str], record: Record) -> Non
     elif kind == "encode":
         buffer.encode(record[1], record[2], record[3], record[4], record[5])
     elif kind == "decay":
-        apply_ticks(buffer, TickRun.from_json(record[1]), entity_order)
+        buffer.decay_now(TickRun.from_json(record[1]), entity_order)
     elif kind == "limits":
         configure_buffer(buffer, ForgettingPolicy.from_settings(record[1]), record[2])
+    elif kind == "advance":
+        buffer.advance(record[1])
     elif kind == "evict":
         buffer.evict_oldest(record[1], "shared-capacity", record[2])
     elif kind == "remove":
@@ -175,6 +184,8 @@ def check(record: Any, knows_entity: Callable[[str], bool], knows_property: Call
             check_time("time", record[2])
         elif kind == "evict":
             check_time("time", record[2])
+        elif kind == "advance":
+            check_time("time", record[1])
         elif kind == "remove":
             check_time("time", record[3])
     except (TickError, PolicyError) as err:
@@ -190,6 +201,7 @@ _SHAPES: dict[str, tuple] = {
     "decay": (dict,),
     "limits": (dict, (int, float)),
     "evict": (int, (int, float)),
+    "advance": ((int, float),),
     "remove": (str, _NAMES, (int, float)),
 }
 

@@ -33,7 +33,7 @@ from . import journal
 from .consultant import Consultant, KnowledgeError
 from .forgetting import NONE, ForgettingPolicy, PolicyError
 from .memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMBuffer
-from .store import Batch, Checkpoint, DomainStore, StoreError, StoredState, damaged
+from .store import Batch, Checkpoint, DomainStore, StoreError, StoreContents, damaged
 from .wm_manager import configure_buffer
 
 #: Journal length (records, names) at which :meth:`Persistence.maintain` writes a checkpoint ...
@@ -122,7 +122,7 @@ class Persistence:
         return out
 
     def health(self) -> dict:
-        """The store's health, for ``/diagnostics``.
+        """Return the store's health, for ``/diagnostics``.
 
         The state file, the journal records since the last checkpoint, whether the last write
         succeeded (false after a refused write, e.g. a full disk, until a retry succeeds), and how
@@ -142,7 +142,7 @@ class Persistence:
         return self.served.buffer.limits.victim != "random"
 
     # ============================================================ restore
-    def restore(self, state: StoredState) -> Restored:
+    def restore(self, state: StoreContents) -> Restored:
         """Take up what the store held: runtime facts, policy, decay mark and WM (checkpoint + journal).
 
         Nothing is announced (no events).  A database written for this KB must name
@@ -186,7 +186,7 @@ class Persistence:
         report.queues = len(buffer.nonempty_entities())
         return report
 
-    def _restore_facts(self, state: StoredState, report: Restored, path: Any) -> dict[str, dict[str, float]]:
+    def _restore_facts(self, state: StoreContents, report: Restored, path: Any) -> dict[str, dict[str, float]]:
         """Re-apply the runtime facts; return those kept (entity -> facts), runtime entities first."""
         c, migrate = self.served.consultant, state.other_kb
         kept: dict[str, dict[str, float]] = {}
@@ -222,7 +222,7 @@ class Persistence:
         self.runtime = [e for e in runtime if e in kept]
         return kept
 
-    def _restore_wm(self, state: StoredState, report: Restored, path: Any) -> None:
+    def _restore_wm(self, state: StoreContents, report: Restored, path: Any) -> None:
         served = self.served
         c, buffer, migrate = served.consultant, served.buffer, state.other_kb
         queues = {}
@@ -276,13 +276,13 @@ class Persistence:
         self._stored_epoch = (state.clock, latest)
         self.wm_state = "restored" if buffer.nonempty_entities() or records else "empty"
 
-    def _export(self, state: StoredState, runtime_facts: dict[str, dict[str, float]],
-                kb_entities: list[str]) -> StoredState:
+    def _export(self, state: StoreContents, runtime_facts: dict[str, dict[str, float]],
+                kb_entities: list[str]) -> StoreContents:
         """Return the state to write after a migration: what was kept, as of now."""
         served = self.served
         export = served.buffer.export_queue
         stamp, ticks = served.buffer.counters()
-        return StoredState(
+        return StoreContents(
             served.incarnation, policy=state.policy, decay_until=served.decay_until, clock=state.clock,
             latest=served.latest, entities=list(self.runtime), facts=runtime_facts,
             queues={e: export(e) for e in served.buffer.nonempty_entities()} if self.persist_wm else {},
@@ -317,13 +317,13 @@ class Persistence:
 
     # ============================================================ writing
     def store_facts(self, facts: Sequence[tuple[str, dict[str, float], bool, Sequence[str]]], when: float) -> None:
-        """Store LTM updates durably (one fsynced transaction) before they are applied; raises StoreError, having
-        stored nothing.
+        """Store LTM updates durably (one fsynced transaction) before they are applied.
 
-        ``facts``: (entity, {property: certainty}, new entity?, retracted) per update, in
-        order (a batch of ``ltm/assert`` is one call); ``retracted``: the properties an
-        update removes from WM, journalled with it when the journal is usable, else left
-        to the next write (a checkpoint).  Nothing to store: nothing is written.
+        Raises StoreError, having stored nothing.  ``facts``: (entity, {property:
+        certainty}, new entity?, retracted) per update, in order (a batch of ``ltm/assert``
+        is one call); ``retracted``: the properties an update removes from WM, journalled
+        with it when the journal is usable, else left to the next write (a checkpoint).
+        Nothing to store: nothing is written.
         """
         if self.store is None or not facts:
             return

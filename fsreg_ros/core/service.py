@@ -2,11 +2,11 @@
 
 :class:`ConsultantService` holds a :class:`~fsreg_ros.core.consultant.Consultant` (LTM
 and its WM buffer) and everything that lives beside it while it serves: the open
-sessions of RR and REG (:mod:`fsreg_ros.core.sessions`), the forgetting policy the WM
+views of RR and REG (:mod:`fsreg_ros.core.views`), the forgetting policy the WM
 Manager installed, readiness (configured in this incarnation), the decay high-water
 mark (the last tick applied: a tick is never applied twice), the numbering of the
 events it publishes, and its persistence (below).  The ROS node is wiring around it; the in-process
-:class:`~fsreg_ros.core.consultant.LocalPort` uses its typed methods, so the simulator
+:class:`~fsreg_ros.core.local_port.LocalPort` uses its typed methods, so the simulator
 and the graph run the same code.
 
 One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contract.consultant`):
@@ -39,24 +39,16 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from . import journal
-from .consultant import (CandidateSet, Consultant, KnowledgeError, Narrowed, Step, View, Walk, Walked, WalkStep,
-                         close_view, open_view)
+from .consultant import CandidateSet, Consultant, KnowledgeError
+from .port import Narrowed, Step, View, Walk, Walked, WalkStep
+from .views import close_view, open_view
 from .decay import TickError, TickRun, check_time
 from .forgetting import NONE, ForgettingPolicy
-from .memory import ENCODE_CAUSES, WMEvent
+from .memory import WMEvent
 from .persistence import Persistence, Restored
-from .sessions import SessionTable
-from .store import DomainStore, StoredState
-from .wm_manager import apply_ticks, configure_buffer, unapplied
-
-#: Query ops (RR and REG), debug ops (tests and tools, served only on request) and the WM Manager's.
-QUERY_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
-DEBUG_OPS = ("holds", "affirm", "wm", "encode", "snapshot")
-MANAGE_OPS = ("configure", "decay", "evict", "size")
-#: Ops whose change set is listed exactly (their replies say how many queues changed).
-COUNTED_OPS = ("configure", "decay", "evict")
-#: Ops whose replies carry the LTM ``version``.
-VERSIONED_OPS = ("info", "open", "narrow", "walk", "rule_out", "close")
+from .store import DomainStore, StoreContents
+from .views import ViewTable
+from .wm_manager import configure_buffer, unapplied
 
 
 class NotReady(RuntimeError):
@@ -105,7 +97,7 @@ class ConsultantService:
         consultant: Consultant,
         *,
         incarnation: int = 1,
-        sessions: Optional[SessionTable[CandidateSet]] = None,
+        sessions: Optional[ViewTable[CandidateSet]] = None,
         store: Optional[DomainStore] = None,
         persist_wm: bool = True,
         clock: str = "system",
@@ -125,7 +117,7 @@ class ConsultantService:
         self.buffer = consultant.wm
         self.domain = consultant.domain
         self.incarnation = incarnation
-        self.sessions: SessionTable[CandidateSet] = sessions if sessions is not None else SessionTable()
+        self.sessions: ViewTable[CandidateSet] = sessions if sessions is not None else ViewTable()
         self.now = now or (lambda: 0.0)
         self.steady = steady
         self.ready = ready
@@ -143,30 +135,55 @@ class ConsultantService:
         self._records: list[list] = []
         self._events: list[WMEvent] = []
         self._touched = False  # the current call changed WM
-        self._handlers: dict[str, Callable[[dict, str], dict]] = {
-            "info": self._info, "open": self._open, "narrow": self._narrow, "walk": self._walk,
-            "rule_out": self._rule_out, "close": self._close, "holds": self._holds, "affirm": self._affirm,
-            "wm": self._wm, "encode": self._encode, "snapshot": self._snapshot, "configure": self._configure,
-            "decay": self._decay, "evict": self._evict, "size": self._size,
-        }
 
     # ================================================================ calls
-    def apply(self, op: str, request: Mapping[str, Any], client: str = "", listening: bool = False) -> Outcome:
-        """Run one op of the consultant protocol; return its :class:`Outcome`.
-
-        ``request`` holds the op's fields (types checked by the contract's models);
-        ``client`` names the caller (sessions are counted per client); ``listening``
-        whether anyone hears the events (else no events are built).  Raises
-        KnowledgeError, PolicyError, RequestError, NotReady or SessionError, having
-        changed nothing, for a request it refuses.
-        """
-        handler = self._handlers.get(op)
-        if handler is None:
-            raise RequestError(f"unknown op {op!r}")
-        if not self.ready and op not in MANAGE_OPS and op != "info":
+    def require_ready(self) -> None:
+        """Raise NotReady until the WM Manager configured this incarnation (queries wait for it)."""
+        if not self.ready:
             raise NotReady(f"consultant '{self.domain}' (incarnation {self.incarnation}) is not configured by the "
                            "WM Manager yet; try again")
-        return self._run(lambda: handler(dict(request), client), listening, op)
+
+    def run(self, body: Callable[[], dict], listening: bool = False, counted: bool = False) -> Outcome:
+        """Run one call (``body`` returns its reply); return its :class:`Outcome`, its changes written once.
+
+        ``listening``: whether anyone hears the events (else no events are built);
+        ``counted``: list exactly the queues the call changed (the manage ops' replies
+        say how many).  The ops of the consultant protocol come here decoded
+        (:func:`fsreg_ros.contract.consultant_codec.apply`); a refusal (KnowledgeError,
+        PolicyError, RequestError, SessionError) changes nothing.
+        """
+        self._records, self._events, self._touched = [], [], False
+        if counted:
+            self.persistence.take_changes()  # what earlier calls changed is not this one's
+        sink = self.buffer.sink
+        self.buffer.sink = self._events.append if listening else None
+        try:
+            reply = body()
+        finally:
+            self.buffer.sink = sink
+            queues = self.persistence.take_changes() if counted else []
+            changes = Changes(self._touched or bool(queues), queues, self._records)
+            if changes.wm:
+                self.wm_version += 1
+            self.persistence.finish(changes)  # written once
+        return Outcome(reply, changes, self.numbered(self._events))
+
+    def touch(self, time: float, wm: bool = True) -> None:
+        """Note a request's time (and, for a WM change, that WM changed and the latest time it reflects)."""
+        self.time = time
+        if wm:
+            self._touched = True
+            if time > self.latest:
+                self.latest = time
+
+    def request_time(self, value: Any) -> float:
+        """Return a request's ``time`` checked (RequestError), or the robot clock's now when it has none."""
+        if value is None:
+            return self.now()
+        try:
+            return check_time("time", value)
+        except TickError as err:
+            raise RequestError(f"field 'time': {err}") from None
 
     def ltm_assert(self, entity: str, facts: Mapping[str, Any], time: Optional[float] = None,
                    listening: bool = False) -> Outcome:
@@ -203,8 +220,8 @@ class ConsultantService:
         refusals: list[Optional[KnowledgeError]] = []
         applied: list[tuple[str, dict[str, float], bool]] = []
 
-        def run() -> dict:
-            when = self._time(time)
+        def body() -> dict:
+            when = self.request_time(time)
             pending: dict[str, dict[str, float]] = {}  # entity -> its facts as the accepted ones so far leave them
             accepted = []  # (entity, properties, values, new, retracted)
             for entity, props in facts:
@@ -231,30 +248,30 @@ class ConsultantService:
                     replies.append({"entity": entity if isinstance(entity, str) else None, "ok": False,
                                     "error": str(refusal), "kind": refusal.kind or type(refusal).__name__})
             if accepted:
-                self._touch(when, wm=any(gone for *_, gone in accepted))
+                self.touch(when, wm=any(gone for *_, gone in accepted))
             return {"results": replies, "applied": len(accepted), "refused": len(facts) - len(accepted)}
-        outcome = self._run(run, listening, "assert")
+        outcome = self.run(body, listening)
         outcome.changes.facts = applied
         return outcome, refusals
 
     def set_threshold(self, threshold: float, time: Optional[float] = None, listening: bool = False) -> Outcome:
         """Change the domain's threshold (not stored: it comes from the parameters); retractions are journalled."""
         def run() -> dict:
-            when = self._time(time)
+            when = self.request_time(time)
             retracted = self.consultant.set_threshold(threshold, when)
             by_entity: dict[str, list[str]] = {}
             for entity, prop in retracted:
                 by_entity.setdefault(entity, []).append(prop)
             for entity, props in by_entity.items():
                 self._record(journal.remove(entity, props, when))
-            self._touch(when, wm=bool(retracted))
+            self.touch(when, wm=bool(retracted))
             return {"threshold": self.consultant.threshold, "retracted": [list(pair) for pair in retracted]}
-        return self._run(run, listening, "threshold")
+        return self.run(run, listening)
 
     # ============================================================ typed ops
     def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None,
              first: Optional[Step] = None) -> View:
-        """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.consultant.ConsultantPort.open`."""
+        """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.port.ConsultantPort.open`."""
         view = open_view(self.consultant, target, context, first)
         if first is not None and view.first.target_holds:
             self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
@@ -270,7 +287,7 @@ class ConsultantService:
 
     def walk(self, candidates: CandidateSet, steps: Sequence[WalkStep], cause: Optional[str], time: float,
              turn: Optional[int]) -> Walked:
-        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.consultant.Walk` decides, in this one call.
+        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.port.Walk` decides, in this one call.
 
         Every step's property is checked first: an unknown one changes nothing (KnowledgeError).
         """
@@ -322,23 +339,34 @@ class ConsultantService:
         if not self.ready:
             self.ready = True
             self.notices.append(("info", f"configured by the WM Manager (incarnation {self.incarnation}): serving"))
-        self._touch(time)
+        self.touch(time)
 
-    def decay(self, ticks: TickRun) -> None:
-        """Apply decay ticks now (Algorithm 2), skipping those at or before the last one applied."""
+    def decay_now(self, ticks: TickRun) -> None:
+        """Apply decay ticks now, eagerly (Algorithm 2), skipping those at or before the last one applied.
+
+        Eager as :meth:`WMBuffer.decay_now <fsreg_ros.core.memory.WMBuffer.decay_now>` (the events in their
+        canonical order), where :meth:`WMBuffer.decay` defers the pops.
+        """
         due = unapplied(ticks, self.decay_until)
         if due is not None:
-            apply_ticks(self.buffer, due, self.consultant.entities)
+            self.buffer.decay_now(due, self.consultant.entities)
             self.decay_until = due.last
             self._record(journal.decay(due))
             self.persistence.note("decay_until", due.last)
-        self._touch(ticks.last)
+        self.touch(ticks.last)
+
+    def advance(self, time: float) -> None:
+        """Note that the clock reached ``time``: entries below the activation threshold go now (rule ``activation``)."""
+        self.buffer.advance(time)
+        self.buffer.flush()  # at once, as decay ticks are applied: their events are published now
+        self._record(journal.advance(time))
+        self.touch(time)
 
     def evict(self, count: int, time: float) -> None:
         """Forget the domain's ``count`` least recently encoded fronts (the shared pool's trim)."""
         self.buffer.evict_oldest(count, "shared-capacity", time)
         self._record(journal.evict(count, time))
-        self._touch(time)
+        self.touch(time)
 
     # ============================================================ state, status
     @property
@@ -365,12 +393,12 @@ class ConsultantService:
             out.append(message)
         return out
 
-    def restore(self, state: StoredState) -> Restored:
+    def restore(self, state: StoreContents) -> Restored:
         """Take up what the store held (:meth:`~fsreg_ros.core.persistence.Persistence.restore`)."""
         return self.persistence.restore(state)
 
     def health(self) -> dict:
-        """The store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
+        """Return the store's health, for ``/diagnostics`` (:meth:`Persistence.health`)."""
         return self.persistence.health()
 
     def maintain(self) -> None:
@@ -382,28 +410,6 @@ class ConsultantService:
         self.persistence.shutdown()
 
     # ============================================================ internals: a call
-    def _run(self, body: Callable[[], dict], listening: bool, op: str) -> Outcome:
-        self._records, self._events, self._touched = [], [], False
-        counted = op in COUNTED_OPS
-        if counted:
-            self.persistence.take_changes()  # what earlier calls changed is not this one's
-        sink = self.buffer.sink
-        self.buffer.sink = self._events.append if listening else None
-        try:
-            reply = body()
-        finally:
-            self.buffer.sink = sink
-            queues = self.persistence.take_changes() if counted else []
-            changes = Changes(self._touched or bool(queues), queues, self._records)
-            if changes.wm:
-                self.wm_version += 1
-            self.persistence.finish(changes)  # written once
-        if counted:
-            reply["queues_changed"] = len(changes.queues)
-        if op in VERSIONED_OPS:
-            reply["version"] = self.version()
-        return Outcome(reply, changes, self.numbered(self._events))
-
     def _record(self, record: list) -> None:
         if self._recording:
             self._records.append(record)
@@ -413,132 +419,7 @@ class ConsultantService:
         """Note (and record) the rule 2/3 encodings a narrowing (or an open's first step) just did, if any."""
         if cause is not None and candidates.members and self.buffer.retains:
             self._record(journal.bits(prop, candidates.members, cause, time, turn))
-            self._touch(time)
-
-    def _touch(self, time: float, wm: bool = True) -> None:
-        """Note a request's time (and, for a WM change, that WM changed and the latest time it reflects)."""
-        self.time = time
-        if wm:
-            self._touched = True
-            if time > self.latest:
-                self.latest = time
-
-    def _time(self, value: Any) -> float:
-        if value is None:
-            return self.now()
-        try:
-            return check_time("time", value)
-        except TickError as err:
-            raise RequestError(f"field 'time': {err}") from None
-
-    # ============================================================ internals: handlers
-    def _info(self, req: dict, client: str) -> dict:
-        start = req.get("entities_from") or 0
-        if start < 0:
-            raise RequestError(f"field 'entities_from': expected a whole number >= 0, got {start}")
-        c = self.consultant
-        return {"domain": self.domain, "entities": c.entities[start:], "entity_count": len(c.entities),
-                "preference": list(c.preference), "threshold": c.threshold, "policy": self.policy.name,
-                "memory": self.policy.to_json(), "events": self.seq, "wm_version": self.wm_version,
-                "state": self.status()}
-
-    def _open(self, req: dict, client: str) -> dict:
-        step, first = req.get("first"), None
-        if step is not None:
-            first = Step(step["property"], _cause(step.get("cause"), optional=True), self._time(step.get("time")),
-                         step.get("turn"))
-        view = self.open(req.get("target"), req.get("context"), first)
-        session = self.sessions.open(view.handle, self.steady(), client)
-        if first is not None:
-            self._touch(first.time, wm=False)
-        holding = None if view.holding is None else [p for p in self.consultant.preference if p in view.holding]
-        reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-                 "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
-        if view.first is not None:
-            reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
-        return reply
-
-    def _narrow(self, req: dict, client: str) -> dict:
-        cause = _cause(req.get("cause"), optional=True)
-        when = self._time(req.get("time"))
-        candidates = self.sessions.get(req["session"], self.steady())
-        step = self.narrow(candidates, req["property"], cause, when, req.get("turn"))
-        self._touch(when, wm=False)
-        return {"target_holds": step.target_holds, "size": step.size}
-
-    def _walk(self, req: dict, client: str) -> dict:
-        cause = _cause(req.get("cause"), optional=True)
-        when = self._time(req.get("time"))
-        candidates = self.sessions.get(req["session"], self.steady())
-        steps = [WalkStep(step["property"], step.get("group")) for step in req["steps"]]
-        walked = self.walk(candidates, steps, cause, when, req.get("turn"))
-        self._touch(when, wm=False)
-        return {"taken": list(walked.taken), "size": walked.size, "narrowed": walked.narrowed}
-
-    def _rule_out(self, req: dict, client: str) -> dict:
-        props, masks = self.rule_out(self.sessions.get(req["session"], self.steady()))
-        return {"properties": props, "masks": [format(mask, "x") for mask in masks]}
-
-    def _close(self, req: dict, client: str) -> dict:
-        when = self._time(req.get("time"))
-        candidates = self.sessions.get(req["session"], self.steady())
-        encode = req.get("encode") or ()
-        members = self.close(candidates, encode, when, req.get("turn"))
-        self.sessions.close(req["session"], self.steady())
-        self._touch(when, wm=bool(encode) and self.buffer.retains)
-        return {"members": members}
-
-    def _holds(self, req: dict, client: str) -> dict:
-        return {"holds": self.consultant.holds(req["property"], req["entities"])}
-
-    def _affirm(self, req: dict, client: str) -> dict:
-        cause, when = _cause(req.get("cause")), self._time(req.get("time"))
-        held = self.affirm(req["property"], req["entities"], cause, when, req.get("turn"))
-        self._touch(when, wm=bool(held))
-        return {"holds": held}
-
-    def _wm(self, req: dict, client: str) -> dict:
-        return {"queue": self.consultant.queue(req["entity"])}
-
-    def _encode(self, req: dict, client: str) -> dict:
-        cause, when = _cause(req.get("cause")), self._time(req.get("time"))
-        self.encode(req["entity"], req["properties"], cause, when, req.get("turn"))
-        self._touch(when)
-        return {}
-
-    def _snapshot(self, req: dict, client: str) -> dict:
-        return {"queues": self.buffer.snapshot(), "events": self.seq}
-
-    def _configure(self, req: dict, client: str) -> dict:
-        policy = ForgettingPolicy.from_settings(req["policy"])  # PolicyError: nothing installed
-        self.configure(policy, self._time(req.get("time")))
-        return {"memory": policy.to_json(), "incarnation": self.incarnation, "state": self.status()}
-
-    def _decay(self, req: dict, client: str) -> dict:
-        try:
-            ticks = TickRun.from_json(req["ticks"])
-        except TickError as err:
-            raise RequestError(f"field 'ticks': {err}") from None
-        self.decay(ticks)
-        return {"policy": self.policy.name}
-
-    def _evict(self, req: dict, client: str) -> dict:
-        count = req["count"]
-        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-            raise RequestError(f"field 'count': expected a whole number >= 0, got {count!r}")
-        self.evict(count, self._time(req.get("time")))
-        return {"size": len(self.buffer)}
-
-    def _size(self, req: dict, client: str) -> dict:
-        return {"size": len(self.buffer)}
-
-
-def _cause(cause: Any, optional: bool = False) -> Optional[str]:
-    if cause is None and optional:
-        return None
-    if cause not in ENCODE_CAUSES:
-        raise RequestError(f"field 'cause': expected one of {', '.join(ENCODE_CAUSES)}, got {cause!r}")
-    return cause
+            self.touch(time)
 
 
 def _check_storable(names: Sequence[str]) -> None:

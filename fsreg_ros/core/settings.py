@@ -102,11 +102,20 @@ class Setting:
 MIN_DECAY_PERIOD = 0.01
 MAX_DECAY_PERIOD = 1e6
 
+#: ``activation_decay`` bounds: ACT-R's d, in (0, 1) (Petrov's approximation of older
+#: presentations needs d < 1; the architecture's customary value is 0.5).
+MIN_ACTIVATION_DECAY = 0.01
+MAX_ACTIVATION_DECAY = 0.99
+#: ``activation_threshold`` bounds (|tau|): with d >= 0.01 a single encoding then stays
+#: between exp(-20) s and far beyond any clock (the crossing is then "never").
+MAX_ACTIVATION_THRESHOLD = 20.0
+
 #: Every memory setting.  ``policy`` first, then the parameters in report order.
 TABLE: tuple[Setting, ...] = (
     Setting("policy", str, "none", "",
-            "none, or rules joined by + (decay, displacement, displacement-lfu, displacement-random, similarity, "
-            "global-capacity, shared-capacity); at most one displacement rule", metavar="P"),
+            "none, or rules joined by + (decay, activation, displacement, displacement-lfu, displacement-random, "
+            "similarity, global-capacity, shared-capacity); at most one displacement rule, and decay or activation, "
+            "not both", metavar="P"),
     Setting("decay_period", float, 10.0, 0.0,
             "decay: seconds between ticks (delta); a tick at time T is applied before any turn stamped T",
             MIN_DECAY_PERIOD, MAX_DECAY_PERIOD, rules=("decay",), unit="seconds", metavar="S"),
@@ -116,6 +125,13 @@ TABLE: tuple[Setting, ...] = (
             1, 1_000_000, rules=("global-capacity",)),
     Setting("seed", int, 0, -1, "displacement-random: seed of the random victim choice", 0, 2**31 - 1,
             rules=("displacement-random",), fallback=0),
+    Setting("activation_decay", float, 0.5, 0.0,
+            "activation: decay rate d of a property's ACT-R base-level activation ln sum_j (t - t_j)^-d",
+            MIN_ACTIVATION_DECAY, MAX_ACTIVATION_DECAY, rules=("activation",), fallback=0.5, metavar="D"),
+    Setting("activation_threshold", float, -1.0, -1000.0,
+            "activation: a property leaves WM when its activation falls below this threshold (tau; one encoding "
+            "stays exp(-tau/d) seconds)", -MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD,
+            rules=("activation",), metavar="TAU"),
     Setting("shared_capacity", int, 12, 0,
             "shared-capacity: at most this many properties in the pool of every domain with that rule "
             "(the smallest value wins), trimmed before each turn", 1, 1_000_000, rules=("shared-capacity",)),

@@ -19,7 +19,8 @@ from json.encoder import encode_basestring as _string
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
-from .consultant import LocalPort, run_sync
+from .local_port import LocalPort
+from .port import run_sync
 from .forgetting import ForgettingPolicy
 from .generation import algorithm_for, generate
 from .memory import WMEvent
@@ -147,21 +148,26 @@ class Simulation:
         return trace_order(self.scenario, [e.to_json() for e in self.events])
 
 
+#: Forget causes driven by the clock alone, reported at their own time (:func:`trace_order`).
+CLOCK_CAUSES = ("decay", "activation")
+
+
 def trace_order(scenario: Scenario, events: list[dict]) -> list[dict]:
     """Events in the order an eager buffer would have emitted them.
 
     Lazy decay emits a queue's decay events when the queue is next touched, with the
-    tick's own time, and a graph delivers events from several consultants in any
-    interleaving.  Sorting by time, decay first at equal times (ticks at T come
-    before events stamped T), decay events of one tick in domain and entity order,
-    and otherwise in arrival order, gives one canonical trace for both.
+    tick's own time (lazy activation likewise, with the crossing time), and a graph
+    delivers events from several consultants in any interleaving.  Sorting by time,
+    clock-driven forgetting (decay, activation) first at equal times (ticks at T come
+    before events stamped T), those of one time in domain and entity order, and
+    otherwise in arrival order, gives one canonical trace for both.
     """
     domain_rank = {d: i for i, d in enumerate(scenario.domains)}
     entity_rank = {e: i for spec in scenario.domains.values() for i, e in enumerate(spec.entities)}
 
     def key(i: int) -> tuple:
         event = events[i]
-        decay = event.get("cause") == "decay"
+        decay = event.get("cause") in CLOCK_CAUSES
         place = (0, 0)
         if decay:
             place = (

@@ -17,8 +17,8 @@ buffer operations since (one row per consultant call: a rule-3 burst over thousa
 of distractors is one row, not thousands): a restarted consultant loads the
 checkpoint and replays the journal (:mod:`fsreg_ros.core.journal` defines the records
 and their replay; :mod:`fsreg_ros.core.persistence` writes and restores them).  A
-checkpoint rewrites the queues changed since the previous one and empties the journal,
-in one transaction.
+checkpoint rewrites the queues changed since the previous one and empties the
+journal, in one transaction.
 
 Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
 
@@ -37,8 +37,9 @@ Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
     retraction (it overrides the KB).
 ``queues(entity, items)``
     The checkpoint: each non-empty WM queue, ``items`` a JSON list of ``[property,
-    stamp, hits, cause, turn]`` LRU first; the rowid orders the queues as they (last)
-    became non-empty.
+    stamp, hits, cause, turn]`` LRU first (under rule ``activation``, a sixth field: the
+    entry's encoding history ``[n, first, recent times...]``); the rowid orders the
+    queues as they (last) became non-empty.
 ``journal(seq, record)``
     The buffer operations since the checkpoint, in order (JSON).
 
@@ -73,6 +74,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 from .memory import UNKNOWN_ORIGIN
+from .memory.activation import Trace
 
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.
@@ -98,8 +100,9 @@ CREATE TABLE queues (entity TEXT PRIMARY KEY, items TEXT NOT NULL);
 CREATE TABLE journal (seq INTEGER PRIMARY KEY, record TEXT NOT NULL);
 """
 
-#: One stored queue entry: property, stamp, LFU hits, cause and turn of the encoding that made it enter.
-Item = tuple[str, int, int, str, Optional[int]]
+#: One stored queue entry: property, stamp, LFU hits, cause and turn of the encoding that made it enter
+#: (and, under rule ``activation``, its encoding history).
+Item = tuple
 
 
 class StoreError(RuntimeError):
@@ -197,8 +200,8 @@ class Batch:
 
 
 @dataclass
-class StoredState:
-    """What a consultant finds in its database at start."""
+class StoreContents:
+    """What a consultant finds in its database at start (what it reports of it is the contract's ``StoredState``)."""
 
     incarnation: int
     policy: Optional[dict] = None
@@ -240,7 +243,7 @@ class DomainStore:
         self.durable_commits = 0
 
     # ---------------------------------------------------------------- opening
-    def open(self, reset: bool = False) -> StoredState:
+    def open(self, reset: bool = False) -> StoreContents:
         """Lock, check and open the database (creating it on first use); count a new incarnation.
 
         ``reset`` moves an existing database aside (``<file>.<time>.old``) and starts
@@ -313,7 +316,7 @@ class DomainStore:
         self.commits += 1
         self.durable_commits += batch.durable
 
-    def rewrite(self, state: StoredState, backup: bool = True) -> Optional[Path]:
+    def rewrite(self, state: StoreContents, backup: bool = True) -> Optional[Path]:
         """Replace everything stored with ``state`` (a migration to this KB); return the backup's path.
 
         The old database is first copied aside (``<file>.<time>.old``) when ``backup``.
@@ -540,13 +543,13 @@ class DomainStore:
         self._put(db, "checkpoint", {"stamp": checkpoint.stamp, "ticks": checkpoint.ticks,
                                      "policy": checkpoint.policy})
 
-    def _read(self, incarnation: int) -> StoredState:
+    def _read(self, incarnation: int) -> StoreContents:
         db, path = self._db, self.path
         decay_until, latest = self._meta("decay_until"), self._meta("latest")
         checkpoint = self._meta("checkpoint") or {}
         if not isinstance(checkpoint, dict):
             raise damaged(path, "meta 'checkpoint' is not an object")
-        state = StoredState(
+        state = StoreContents(
             incarnation,
             policy=self._meta("policy"),
             decay_until=-math.inf if decay_until is None else float(decay_until),
@@ -653,11 +656,16 @@ def _items(entity: str, text: str, path: Path) -> list[Item]:
         raw = None
     items: list[Item] = []
     for item in raw if isinstance(raw, list) else [None]:
-        if not (isinstance(item, list) and len(item) == 5 and isinstance(item[0], str)
+        if not (isinstance(item, list) and len(item) in (5, 6) and isinstance(item[0], str)
                 and all(isinstance(x, int) and not isinstance(x, bool) for x in item[1:3])
                 and isinstance(item[3], str) and (item[4] is None or isinstance(item[4], int))):
             raise damaged(path, f"the WM queue of {entity!r} is malformed ({text[:80]!r})")
-        items.append((item[0], item[1], item[2], item[3], item[4]))
+        if len(item) == 6:
+            try:
+                Trace.from_json(item[5])
+            except ValueError as err:
+                raise damaged(path, f"the WM queue of {entity!r}: {err}") from None
+        items.append(tuple(item))  # type: ignore[arg-type]  # a sixth field: the activation trace
     if not items:
         raise damaged(path, f"the WM queue of {entity!r} is stored empty")
     return items

@@ -2,17 +2,20 @@
 
 It owns each domain's :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` and
 :class:`~fsreg_ros.core.decay.DecaySchedule` and decides what to send, through a
-small :class:`MemoryPort` (as :class:`~fsreg_ros.core.consultant.ConsultantPort`
+small :class:`MemoryPort` (as :class:`~fsreg_ros.core.port.ConsultantPort`
 does for the algorithms):
 
 * ``configure(domain, policy, time)``: install a policy in the domain's buffer (its
   limits apply at once: trims, ``none`` empties WM);
-* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.decay.TickRun`.
+* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.decay.TickRun`;
+* ``advance(domain, time)``: the clock reached ``time`` (rule ``activation``: its
+  entries below the threshold are forgotten at their crossing times).
 
 :class:`BufferPort` applies them in-process to :class:`~fsreg_ros.core.memory.WMBuffer`
-objects (the simulator); the ``wm_manager`` node's port sends them to the
-consultants' manage services, where :func:`configure_buffer` and :func:`apply_ticks`
-apply them (so both run the same code).
+objects (the simulator; decay lazily, ``WMBuffer.decay``); the ``wm_manager`` node's
+port sends them to the consultants' manage services, where :func:`configure_buffer`
+and :meth:`~fsreg_ros.core.service.ConsultantService.decay_now` (eagerly,
+``WMBuffer.decay_now``, which gives the same queues) apply them.
 
 Time: the decay grid's origin is the manager's clock when it starts managing
 (``origin``; 0 for the simulator, and for a sim-time graph before the first
@@ -47,6 +50,9 @@ class MemoryPort(Protocol):
     def decay(self, domain: str, ticks: TickRun) -> None:
         """Apply decay ticks to the domain's buffer."""
 
+    def advance(self, domain: str, time: float) -> None:
+        """Tell the domain's buffer the clock reached ``time`` (rule ``activation``: entries below tau go)."""
+
     def evict(self, domain: str, count: int, time: float) -> None:
         """Forget the domain's ``count`` least recently encoded fronts (shared pool)."""
 
@@ -60,11 +66,6 @@ class MemoryPort(Protocol):
 def configure_buffer(buffer: WMBuffer, policy: ForgettingPolicy, time: float) -> None:
     """Install a policy's limits in a buffer; they apply to every queue at once."""
     buffer.set_limits(policy.validated().limits(), time)
-
-
-def apply_ticks(buffer: WMBuffer, ticks: TickRun, entity_order: Sequence[str]) -> None:
-    """Apply decay ticks now, in the canonical event order (tick, then entity order)."""
-    buffer.decay_now(ticks, entity_order)
 
 
 def unapplied(ticks: TickRun, applied_until: float) -> Optional[TickRun]:
@@ -96,6 +97,9 @@ class BufferPort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.buffers[domain].decay(ticks)
+
+    def advance(self, domain: str, time: float) -> None:
+        self.buffers[domain].advance(time)
 
     def evict(self, domain: str, count: int, time: float) -> None:
         self.buffers[domain].evict_oldest(count, "shared-capacity", time)
@@ -238,8 +242,16 @@ class WMManager:
         return evictions
 
     def advance_domain(self, domain: str, now: float) -> int:
-        """Send the domain's ticks due at or before ``now`` not sent yet; how many."""
+        """Send the domain's ticks due at or before ``now`` not sent yet; how many.
+
+        Under rule ``activation`` (no ticks), send the clock instead, so entries whose
+        activation fell below the threshold are gone before the event at ``now``.
+        """
         state = self.domains[domain]
+        if state.policy.activates:
+            if state.attached:
+                self.port.advance(domain, now)
+            return 0
         ticks = state.schedule.take(now) if state.schedule is not None else None
         if ticks is None:
             return 0

@@ -1,13 +1,15 @@
 """``consultant``: one domain's LTM and WM buffer behind its services (DIARC's consultant pattern).
 
 One process per domain (``--ros-args -r __node:=consultant_faces -p domain:=faces -p kb:=kb.yaml``).
-The node is wiring: it decodes each request with the contract's models
-(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it on the core
+The node is wiring: it validates each request with the contract's models
+(:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it through the
+protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
-``wm/state`` (latched; at most once per request and per ``state_period``; a session's
-steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
+``wm/state`` (latched, so it always holds the current state: after every request that
+changed WM, whether or not anyone listens, coalesced to at most one per ``state_period``;
+a session's steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
 ``consultant/announce`` and ``consultant/<domain>/alive`` (latched; the latter with a
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
@@ -33,14 +35,15 @@ from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
 from .. import contract
-from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe_batches
-from ..ros.codec import MessageError, printable
+from ..contract import consultant_codec
+from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
 from ..core.service import ConsultantService, NotReady, Outcome, RequestError
-from ..core.sessions import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, SessionTable
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
+from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
+from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe_batches
 from ..ros.diagnostics import ERROR, OK, WARN
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
@@ -80,7 +83,7 @@ class ConsultantNode(Node):
         threshold = declare_number(self, "threshold", float(spec.threshold), 0.0, 1.0,
                                    "a property holds iff its certainty >= threshold (default: the KB's)")
         self.limits = declare_limits(self)
-        sessions = SessionTable(
+        sessions = ViewTable(
             declare_number(self, "max_sessions", DEFAULT_CAPACITY, 1, 100_000, "open RR/REG sessions kept at most",
                            integer=True, read_only=True),
             declare_number(self, "session_timeout", DEFAULT_TIMEOUT, 0.01, 3600.0,
@@ -158,7 +161,7 @@ class ConsultantNode(Node):
     def _call(self, op: str, request: dict) -> dict:
         """Run one validated request (its ``op``), publish what came of it; return the reply."""
         client = request.get("client") or ""
-        outcome = self._guarded(lambda listening: self.service.apply(op, request, client, listening))
+        outcome = self._guarded(lambda listening: consultant_codec.apply(self.service, op, request, client, listening))
         if op == "info":
             outcome.reply["event_listeners"] = self._events.get_subscription_count()
         self._published(outcome, wait=op in SESSION_STEPS)
@@ -293,15 +296,17 @@ class ConsultantNode(Node):
                               "incarnation": s.incarnation, "wm_version": s.wm_version})
 
     def _publish_due(self, waiting: bool = False) -> None:
-        """Publish a due /wm/state unless one went out less than ``state_period`` ago (or nobody reads it).
+        """Publish a due /wm/state unless one went out less than ``state_period`` ago.
 
+        Published whether or not anyone reads it now: the topic is latched, so the sample
+        DDS keeps for a late joiner (``ros2 topic echo --once``) must be the current state,
+        never an older one.  ``state_period`` coalesces: a burst of changes costs one
+        message, and the timer sends the last one once the period has passed.
         ``waiting`` (the timer): also wait while a session is open, for at most a second.
         """
         now = monotonic()
         if not self._state_due or now - self._state_sent < self._state_period:
             return
-        if not self._state.get_subscription_count():
-            return  # the timer sends it once someone subscribes
         sessions = self.service.sessions
         sessions.expire(now)
         if waiting and len(sessions) and now - self._state_sent < MAX_STATE_DELAY:

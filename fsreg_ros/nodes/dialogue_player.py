@@ -25,7 +25,7 @@ subscription is matched with every consultant.  Every event carries ``seq`` (1, 
 ... per consultant incarnation) and ``incarnation``; the player notes each
 consultant's last ``seq`` before turn 1 and, after the last turn, checks that it heard
 exactly the events that followed, without a gap, from the incarnation it started with
-(:class:`~fsreg_ros.ros.event_ledger.EventLedger`).  A gap, a restarted consultant, or anything stamped by another
+(:class:`~fsreg_ros.ros.event_audit.EventAudit`).  A gap, a restarted consultant, or anything stamped by another
 graph (``graph``, the ``graph`` parameter of every node; see
 :func:`fsreg_ros.ros.carrier.graph_identity`) on an answer or an event fails the run
 (exit 1) with one line saying what was missing or foreign: a result is never written
@@ -45,14 +45,14 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from ..ros.carrier import (CarrierError, JsonClient, drop_timer, graph_identity, publish, publisher, subscribe,
+from ..ros.carrier import (CarrierError, ServiceCaller, drop_timer, graph_identity, publish, publisher, subscribe,
                            wait_until)
 from ..ros.client import clock_message, describe_graph
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order
 from ..ros.node_base import declare_number, run_node
-from ..ros.event_ledger import EventLedger
+from ..ros.event_audit import EventAudit
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
     contract.HUMAN.name: (True, False),
@@ -81,6 +81,8 @@ class DialoguePlayer(Node):
         declare_number(self, "turn_timeout", 30.0, 0.1, 3600.0, "seconds to wait for one turn's answer")
         declare_number(self, "retry_after", 2.0, 0.05, 600.0, "resend a turn unanswered for this long, s")
         declare_number(self, "ready_timeout", 60.0, 0.1, 3600.0, "seconds to wait for the graph to come up")
+        self.listeners = declare_number(self, "listeners", 0, 0, 100, "other subscribers (a recorder) to wait for "
+                                        "on the requests and wm/events before turn 1", integer=True, read_only=True)
         self.declare_parameter(
             "lexicon", "", describe(description="lexicon YAML ('' = package default)", read_only=True)
         )
@@ -94,11 +96,12 @@ class DialoguePlayer(Node):
         self._human = publisher(self, contract.HUMAN)
         self._request = publisher(self, contract.REG_REQUEST)
         self.graph = graph_identity(self)
-        self._sync = JsonClient(self, contract.SYNC.name, group)
-        self._status = JsonClient(self, contract.STATUS.name, group)
-        self._consultants = {d: JsonClient(self, contract.consultant_service(d), group) for d in self.scenario.domains}
+        self._sync = ServiceCaller(self, contract.SYNC.name, group)
+        self._status = ServiceCaller(self, contract.STATUS.name, group)
+        self._consultants = {d: ServiceCaller(self, contract.consultant_service(d), group)
+                             for d in self.scenario.domains}
         self._pending: dict[str, Future] = {}
-        self.ledger = EventLedger(self.graph, tuple(self.scenario.domains))
+        self.audit = EventAudit(self.graph, tuple(self.scenario.domains))
         self.memory: dict[str, Any] = {}
         subscribe(self, contract.RR_RESULT, self._on_answer, callback_group=group)
         subscribe(self, contract.REG_EXPRESSION, self._on_answer, callback_group=group)
@@ -118,23 +121,24 @@ class DialoguePlayer(Node):
         future.set_result(data)
 
     def _on_event(self, data: dict) -> None:
-        self.ledger.hear(data)  # subscribe() has checked it against contract.WMEventMessage
+        self.audit.hear(data)  # subscribe() has checked it against contract.WMEventMessage
 
     @property
     def events(self) -> list[dict]:
         """The run's events heard so far (without transport fields), in arrival order."""
-        return self.ledger.trace_events()
+        return self.audit.trace_events()
 
     def _check_fault(self) -> None:
-        if self.ledger.fault is not None:
-            raise PlayerError(self.ledger.fault)
+        if self.audit.fault is not None:
+            raise PlayerError(self.audit.fault)
 
     # -------------------------------------------------------------- waiting
     def _missing_peers(self) -> list[str]:
         return [
             topic
             for topic, (sub, pub) in PIPELINE_TOPICS.items()
-            if (sub and self.count_subscribers(topic) == 0) or (pub and self.count_publishers(topic) == 0)
+            if (sub and self.count_subscribers(topic) < 1 + self.listeners)
+            or (pub and self.count_publishers(topic) == 0)
         ]
 
     async def wait_ready(self) -> None:
@@ -179,10 +183,10 @@ class DialoguePlayer(Node):
                     info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
                 except CarrierError as err:
                     raise PlayerError(f"graph not ready: {err}") from None
-                if matched and info.get("event_listeners", 0) >= 1:
+                if matched and info.get("event_listeners", 0) >= 1 + self.listeners:
                     incarnation = (status.get("incarnation") or {}).get(domain)
-                    self.ledger.start(domain, incarnation if isinstance(incarnation, int) else None,
-                                      int(info.get("events", 0)))
+                    self.audit.start(domain, incarnation if isinstance(incarnation, int) else None,
+                                     int(info.get("events", 0)))
                     waiting.remove(domain)
             if waiting:
                 if wallclock.monotonic() > deadline:
@@ -249,11 +253,11 @@ class DialoguePlayer(Node):
                 last = int((await self._consultants[domain].wait_ready({"op": "info"}, timeout))["events"])
             except CarrierError as err:
                 raise PlayerError(f"cannot check the events of '{domain}': {err}") from None
-            wanted = last - self.ledger.base[domain]
-            done = lambda: self.ledger.fault is not None or self.ledger.heard(domain) >= wanted  # noqa: E731
+            wanted = last - self.audit.base[domain]
+            done = lambda: self.audit.fault is not None or self.audit.heard(domain) >= wanted  # noqa: E731
             await wait_until(self, done, timeout)
             self._check_fault()
-            problem = self.ledger.check(domain, last)
+            problem = self.audit.check(domain, last)
             if problem is not None:
                 raise PlayerError(f"incomplete {contract.WM_EVENTS.name}: {problem}; the run's trace, origins and "
                                   "alignment would be wrong")

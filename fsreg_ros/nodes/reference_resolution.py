@@ -17,7 +17,7 @@ from typing import Optional
 
 from .. import contract
 from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
-from ..ros.codec import printable
+from ..contract.codec import printable
 from ..core.resolution import NO_MATCH, resolve
 from ..ros.asking import AskingNode
 from ..ros.node_base import run_node

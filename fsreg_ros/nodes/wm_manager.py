@@ -81,7 +81,7 @@ from .. import contract
 from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
                            subscribe_batches, wait_until)
 from ..contract import manage_service
-from ..ros.codec import printable
+from ..contract.codec import printable
 from ..core.decay import TIME_EPSILON, TickError
 from ..core.forgetting import ForgettingPolicy
 from ..core.wm_manager import WMManager
@@ -361,7 +361,7 @@ class WMManagerNode(Node):
         """Attach consultants that became reachable; expire unanswered calls."""
         self._links.expire()
         for dom in self._domains.values():
-            if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.client.ready():
+            if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.caller.ready():
                 self._attach(dom)
         self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
 

@@ -235,6 +235,9 @@ def sweep_parser() -> argparse.ArgumentParser:
     parser.add_argument("--global-capacities", default="4,8,16", help="comma-separated integers, for global-capacity")
     parser.add_argument("--shared-capacities", default="4,8,16",
                         help="comma-separated integers (one pool for all domains), for shared-capacity")
+    parser.add_argument("--activation-thresholds", default="-1.5,-1.15,-0.8",
+                        help="comma-separated thresholds (tau), for activation (d: --memory activation_decay=D, "
+                             "default 0.5; with it, one encoding stays exp(-tau/d) s: 20, 10, 5 by default)")
     parser.add_argument("--seeds", type=int, default=10, help="number of games (seeds --seed-base ... +N-1)")
     parser.add_argument("--seed-base", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
@@ -396,6 +399,7 @@ def sweep_config(args: argparse.Namespace):
         capacities=number_list("--capacities", args.capacities, int, 1, 10_000),
         global_capacities=number_list("--global-capacities", args.global_capacities, int, 1, 1_000_000),
         shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
+        activation_thresholds=number_list("--activation-thresholds", args.activation_thresholds, float, -20.0, 20.0),
         seeds=seeds,
         turns=args.turns,
         memory=memory_settings(args.memory),
@@ -569,9 +573,11 @@ def sweep_main(argv: Optional[Sequence[str]] = None) -> int:
 # ------------------------------------------------------------------ fsreg-plot
 def plot_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file."
+        prog="fsreg-plot", description="Draw a WM timeline from an fsreg-sim --trace file, fsreg-ctl watch --events "
+        "--json output, or a recording (fsreg-ctl record, fsreg-up --record)."
     )
-    parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace)")
+    parser.add_argument("trace", type=Path, help="JSON lines of WM events (fsreg-sim --trace, fsreg-ctl watch --events "
+                        "--json: lines without 'op' are skipped), or a recording's folder or .mcap file")
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG file to write")
     parser.add_argument("--result", type=Path, help="fsreg-sim --json output, for the turns' times and speakers")
     parser.add_argument("--title", default="", help="plot title")
@@ -581,7 +587,11 @@ def plot_parser() -> argparse.ArgumentParser:
 
 
 def read_trace(path: Path) -> list[dict]:
-    """Read a JSON-lines event trace; a bad line is named by number."""
+    """Read a JSON-lines event trace; a bad line is named by number.
+
+    Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
+    are not events and are skipped; anything else must be an encode/forget event.
+    """
     events = []
     with path.open(encoding="utf-8") as lines:
         for number, line in enumerate(lines, 1):
@@ -591,6 +601,8 @@ def read_trace(path: Path) -> list[dict]:
                 event = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
+            if isinstance(event, dict) and "op" not in event:
+                continue  # a WM state (or another record of a watch): not an event
             if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
                 raise UsageError(f"{path}:{number}: not a WM event (an object with op encode|forget)")
             if not isinstance(event.get("time", 0), (int, float)) or isinstance(event.get("time"), bool):
@@ -599,11 +611,42 @@ def read_trace(path: Path) -> list[dict]:
     return events
 
 
+#: Transport fields of a recorded ``wm/events`` message (not part of the event itself).
+TRANSPORT = ("seq", "incarnation", "graph")
+
+
+def read_recording(path: Path) -> tuple[list[dict], dict]:
+    """Return a recording's WM events and its turns (a result with ``turns``: time and speaker of each answer).
+
+    A recording cut short is read as far as it goes, and what is lost is said on stderr.
+    """
+    from ..core.recording import open_recording
+
+    recording = open_recording(path)
+    if recording.lost:
+        print(f"fsreg-plot: note: {recording.lost}", file=sys.stderr)
+    events = [{k: v for k, v in m.data.items() if k not in TRANSPORT} for m in recording.on("events")
+              if isinstance(m.data, dict)]
+    turns, seen = [], set()
+    for message in recording.messages:
+        speaker = {"rr": "human", "expression": "robot"}.get(recording.role(message) or "")
+        data = message.data
+        if speaker is None or not isinstance(data, dict) or (speaker, data.get("id")) in seen:
+            continue
+        seen.add((speaker, data.get("id")))
+        if isinstance(data.get("time"), (int, float)):
+            turns.append({"turn": len(turns), "time": float(data["time"]), "speaker": speaker})
+    return events, {"turns": turns}
+
+
 def plot_command(args: argparse.Namespace) -> int:
     from .plot import wm_timeline
 
-    events = read_trace(args.trace)
     result = None
+    if args.trace.is_dir() or args.trace.suffix == ".mcap":
+        events, result = read_recording(args.trace)
+    else:
+        events = read_trace(args.trace)
     if args.result:
         try:
             result = json.loads(args.result.read_text(encoding="utf-8"))

@@ -33,10 +33,12 @@ from itertools import product
 from typing import Any, Mapping, Optional, Sequence
 
 from ..core.alignment import AlignmentSummary, summarise
-from ..core.consultant import Consultant, LocalPort, Narrowed, Step, View, run_sync
+from ..core.consultant import Consultant
 from ..core.describe import describe
 from ..core.generation import algorithm_for
 from ..core.lexicon import Lexicon
+from ..core.local_port import LocalPort
+from ..core.port import Narrowed, Step, View, run_sync
 from ..core.resolution import NO_MATCH, resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation import Options, Simulation, human_record

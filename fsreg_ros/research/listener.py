@@ -49,7 +49,9 @@ import random
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core.consultant import Consultant, LocalPort, run_sync
+from ..core.consultant import Consultant
+from ..core.local_port import LocalPort
+from ..core.port import run_sync
 from ..core.describe import describe
 from ..core.generation import algorithm_for
 from ..core.resolution import AMBIGUOUS, NO_MATCH, RESOLVED, resolve

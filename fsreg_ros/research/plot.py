@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from .grid import BOUNDS, GRID
 from .stats import METHOD, bootstrap_ci
 
 #: One colour per cause; the turn lines use grey and black line styles no cause uses.  Encodings are
@@ -30,6 +31,7 @@ CAUSE_COLOURS = {
     "rr": "tab:green",
     "reg-distractor": "tab:orange",
     "decay": "tab:red",
+    "activation": "tab:gray",
     "displacement": "tab:purple",
     "similarity": "tab:pink",
     "global-capacity": "tab:brown",
@@ -41,9 +43,11 @@ TURN_STYLE = {"human": ("dimgray", ":"), "robot": ("darkgray", "--"), None: ("si
 #: Names of the grid parameters on plot axes, with units.
 AXIS = {"decay_period": "decay period δ (s)", "capacity": "capacity α (properties per entity)",
         "global_capacity": "global capacity (properties per domain)",
-        "shared_capacity": "shared pool (properties, all domains)"}
+        "shared_capacity": "shared pool (properties, all domains)",
+        "activation_threshold": "activation threshold τ (ACT-R; d = activation_decay)"}
 #: Short names of the grid parameters in legends.
-SHORT = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool"}
+SHORT = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool",
+         "activation_threshold": "τ"}
 INTEGER = ("capacity", "global_capacity", "shared_capacity")
 #: What each policy plot shows, panel by panel: (metric, title, y-axis label with its unit); dynamic games add one.
 PANELS = (
@@ -101,8 +105,6 @@ def _file_name(policy: str) -> str:
 
 
 def _grid_parameters(entries: Sequence[dict]) -> list[str]:
-    from .sweep import GRID
-
     return [p for p in GRID if any(getattr(e["setting"], p) is not None for e in entries)]
 
 
@@ -368,8 +370,6 @@ def listener_plot(summary: Sequence[dict], out: Path) -> list[str]:
 def sweep_plots(rows: Sequence[dict], summary: Sequence[dict], curves: Mapping[tuple, Sequence[int]], out: Path,
                 dynamic: bool = False, listener: bool = False) -> list[str]:
     """Write the sweep's plots (PNG and PDF each) into ``out``; return their file names (each written once)."""
-    from .sweep import BOUNDS
-
     files = []
     none = next((e for e in summary if e["setting"].policy == "none"), None)
     for policy in dict.fromkeys(e["setting"].policy for e in summary):

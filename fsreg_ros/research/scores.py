@@ -10,13 +10,9 @@ from __future__ import annotations
 
 from typing import Collection
 
+from ..core.alignment import dice
 
-def dice(a: Collection[str], b: Collection[str]) -> float:
-    """Return the Dice coefficient of two property sets (1.0 for two empty sets)."""
-    a, b = set(a), set(b)
-    if not a and not b:
-        return 1.0
-    return 2 * len(a & b) / (len(a) + len(b))
+__all__ = ["dice", "masi", "mean"]  # dice is defined once, in the core (alignment)
 
 
 def masi(a: Collection[str], b: Collection[str]) -> float:

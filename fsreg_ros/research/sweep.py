@@ -68,13 +68,12 @@ from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
+from .grid import BOUNDS, GRID
 from .ledger import GAMES, GameRecord, Ledger, LedgerError, code_label, difference, header
 from .listener import ListenerOptions
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
-#: The grid parameters, in column order (a policy reads some of them).
-GRID = ("decay_period", "capacity", "global_capacity", "shared_capacity")
 METRICS = (
     "entrainment",
     "entrainment_gain",
@@ -103,8 +102,6 @@ COLUMNS = (
     + ("from_wm_share",) + tuple(f"from_{o}" for o in ORIGINS)
     + ("gap", "human_order")
 )
-#: The outdated-rate bounds of the recommendation table.
-BOUNDS = (0.01, 0.05)
 #: Parameters each grid policy reads come from the rules (``seed`` is drawn per game).
 WORLD_DEFAULT = "faces"
 
@@ -120,6 +117,7 @@ class SweepConfig:
     turns: int
     global_capacities: tuple = (4, 8, 16)
     shared_capacities: tuple = (4, 8, 16)
+    activation_thresholds: tuple = (-1.5, -1.15, -0.8)  # d = 0.5: one encoding stays 20, 10, 5 s
     memory: dict = field(default_factory=dict)  # extra memory settings for every non-none run
     human_memory: Optional[dict] = None  # the human's own WM settings (None: a no-WM human)
     board_size: int = BOARD_SIZE
@@ -133,7 +131,8 @@ class SweepConfig:
     def values(self, parameter: str) -> tuple:
         """Return the grid's values of one parameter."""
         return {"decay_period": self.decay_periods, "capacity": self.capacities,
-                "global_capacity": self.global_capacities, "shared_capacity": self.shared_capacities}[parameter]
+                "global_capacity": self.global_capacities, "shared_capacity": self.shared_capacities,
+                "activation_threshold": self.activation_thresholds}[parameter]
 
 
 @dataclass(frozen=True)
@@ -145,6 +144,7 @@ class Setting:
     capacity: Optional[int] = None
     global_capacity: Optional[int] = None
     shared_capacity: Optional[int] = None
+    activation_threshold: Optional[float] = None
     retraction: bool = True
 
     @property
@@ -174,7 +174,7 @@ class Setting:
     def label(self) -> str:
         """Return e.g. ``decay delta=10`` or ``displacement alpha=2, not told``."""
         names = {"decay_period": "delta", "capacity": "alpha", "global_capacity": "global",
-                 "shared_capacity": "pool"}
+                 "shared_capacity": "pool", "activation_threshold": "tau"}
         params = ", ".join(f"{names[p]}={_number(v)}" for p, v in self.parameters().items())
         text = f"{self.policy} {params}".strip()
         return text if self.retraction else f"{text} (not told)"

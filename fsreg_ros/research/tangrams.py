@@ -51,7 +51,7 @@ settings table, so a rule added there is fitted here without a change: each rule
 grid of the parameters it reads (:data:`GRIDS`; a parameter without one gets a grid from the
 table's bounds), ``decay+displacement`` (the paper's both) over their product, and the
 baselines.  ``similarity`` is left out (:data:`EXCLUDED`): words have no attributes, so it
-forgets nothing.  Parameters with a fallback (the random victim's ``seed``) are not fitted.
+forgets nothing.  The random victim's ``seed`` is not fitted (:data:`NOT_FITTED`).
 """
 
 from __future__ import annotations
@@ -389,7 +389,13 @@ GRIDS: dict[str, tuple] = {
     "capacity": (1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 15, 20, 25, 30, 40, 60, 100),
     "global_capacity": (2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024),
     "shared_capacity": (2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024),
+    # ACT-R base-level activation (when the core has it): d, and tau, with which one encoding
+    # stays exp(-tau / d) seconds (1 s to 6 h at d = 0.8).
+    "activation_decay": (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99),
+    "activation_threshold": (-10.0, -9.0, -8.0, -7.0, -6.0, -5.0, -4.0, -3.0, -2.0, -1.0, 0.0),
 }
+#: Parameters held at their table value, not fitted: they are no property of forgetting.
+NOT_FITTED = {"seed": "the random victim's seed (its fallback, 0)"}
 #: Rules not fitted, and why.
 EXCLUDED = {"similarity": "words have no attributes, so it forgets nothing (it is no-forgetting)"}
 #: Rule combinations fitted beside the single rules (the paper's both).
@@ -426,11 +432,11 @@ def default_grid(name: str, values: int = 12) -> tuple:
 
 
 def fitted_parameters(rules: Sequence[str]) -> list[str]:
-    """Return the parameters a policy's rules read that are fitted (those without a fallback)."""
+    """Return the parameters a policy's rules read that are fitted (all but :data:`NOT_FITTED`)."""
     names = []
     for rule in rules:
         for param in RULE_PARAMETERS[rule]:
-            if param not in names and table.setting(param).fallback is None:
+            if param not in names and param not in NOT_FITTED:
                 names.append(param)
     return names
 

@@ -4,11 +4,12 @@ Layers, bottom to top (an arrow only points down; ``test/project/test_layers.py`
 ``core`` (pure algorithms, reports of played scenarios) ->
 ``contract`` (names, QoS, schemas; ROS-free) -> ``ros`` (this
 package) -> ``nodes`` (one module per node) -> ``tools`` (command-line programs) and
-``testing`` (the public harness).  ``research`` sits on ``core`` alone.
+``testing`` (the public harness).  ``research`` sits on ``core`` alone; of the
+others only ``tools`` imports it.
 
-What lives here, one module per job:
+What lives here, one module per job (the wire codec, ROS-free, is
+:mod:`fsreg_ros.contract.codec`):
 
-* :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (ROS-free);
 * :mod:`.carrier`: serving, subscribing and calling JSON over rclpy with validation;
 * :mod:`.network`: the DDS environment of every process (loopback unless widened);
 * :mod:`.graph_spec`: the one definition of the node graph (nodes, names, parameters);
@@ -17,7 +18,7 @@ What lives here, one module per job:
 * node support shared by several nodes: :mod:`.node_base` (the main runner, parameter
   helpers, the clock watchdog), :mod:`.asking` (the base of RR and REG),
   :mod:`.manage_link` and :mod:`.memory_parameters` (the WM Manager's links and
-  parameters), :mod:`.event_ledger` (the dialogue player's record of ``wm/events``).
+  parameters), :mod:`.event_audit` (the dialogue player's record of ``wm/events``).
 
 May import: :mod:`fsreg_ros.core`, :mod:`fsreg_ros.contract`, rclpy and the message packages.
 """

@@ -5,7 +5,7 @@ each through a :class:`~fsreg_ros.ros.remote.RemotePort`, and handles one reques
 time, in arrival order: the request subscription is an async callback in a mutually
 exclusive group (the group stays busy until the coroutine returns), while the
 service clients live in a reentrant group so their responses can arrive meanwhile
-(ROS-NOTES: a client in the busy group deadlocks).
+(a client in the busy group deadlocks: see :mod:`fsreg_ros.ros.carrier`, "Calling").
 
 Request ids have one meaning per client (a request's optional ``client`` field; see
 :mod:`fsreg_ros.contract.attribution`).  Delivery is at-least-once: a requester that
@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from .. import contract
 from .carrier import DEFAULT_TIMEOUT, stamped, subscribe
-from .codec import printable, safe_dumps
+from ..contract.codec import printable, safe_dumps
 from ..contract import LIMIT_RANGES, Limits, RequestRef, attribution, cache_key, fingerprint
 from .remote import RemotePort
 from .diagnostics import OK, WARN

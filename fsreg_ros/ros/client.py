@@ -25,6 +25,8 @@ project's own tests use one client.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import itertools
 import secrets
 import time
@@ -33,13 +35,16 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
 
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
-from rcl_interfaces.srv import DescribeParameters, SetParametersAtomically
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParametersAtomically
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
-from .carrier import CarrierError, JsonClient, publish, publisher, subscribe
-from .codec import printable
+from ..contract import Limits
+from ..contract.codec import MessageError, printable, safe_dumps
+from ..core.decay import MAX_TIME
+from .carrier import CarrierError, ServiceCaller, publish, publisher, subscribe
 
 #: Seconds a client waits for an answer, by default.
 DEFAULT_TIMEOUT = 10.0
@@ -50,6 +55,14 @@ CLASH_WAIT = 2.0
 #: Seconds a runner looks for a graph already running where it would start one (discovery on this
 #: machine takes 0.1-2.5 s; the wait ends as soon as one is seen).
 DISCOVERY_WAIT = 2.5
+#: Seconds a waiting client lets its graph stay not ready (after it was ready) before reporting it gone.
+GONE_AFTER = 1.5
+#: Seconds ``set_clock`` waits for the graph's nodes to subscribe the clock topic before publishing.
+CLOCK_DISCOVERY = 2.5
+#: Seconds between two ``/clock`` messages while ``set_clock`` waits for the graph's clock to reach the time.
+CLOCK_RESEND = 0.25
+#: Seconds a client waits after its request and reply topics first match before sending (see wait_matched).
+MATCH_SETTLE = 0.25
 #: The node names of a graph (besides ``consultant_<domain>``).
 GRAPH_NODES = ("wm_manager", "parser", "reference_resolution", "reg", "dialogue_player")
 #: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
@@ -61,10 +74,13 @@ class ClientError(RuntimeError):
     """A request that did not get an answer of its graph.
 
     ``kind``: ``not-ready`` (no graph, or not serving yet), ``timeout`` (no answer in
-    time), ``clash`` (two graphs on one name), ``foreign`` (an answer stamped by another
-    graph), ``busy`` (a message not sent: its receivers are too far behind, see
-    :meth:`GraphClient.send`), ``rejected`` (a parameter change refused), ``usage`` (a request that cannot
-    be made, e.g. an entity no consultant knows), or the error kind a service reported.
+    time), ``gone`` (the graph left while the client waited: its WM Manager stopped, or
+    its readiness was lost), ``clash`` (two graphs on one name), ``foreign`` (an answer
+    stamped by another graph), ``busy`` (a message not sent: its receivers are too far
+    behind, see :meth:`GraphClient.send`), ``rejected`` (a parameter change refused),
+    ``refused`` (a clock the graph does not take), ``usage`` (a request that cannot be
+    made: a name the graph does not have, a value out of range, a message over the
+    graph's size limits), or the error kind a service reported.
     """
 
     def __init__(self, message: str, kind: str = "error") -> None:
@@ -118,9 +134,18 @@ class GraphClient:
         self._ready_heard: dict[tuple, float] = {}  # when each was heard (monotonic)
         self._publishers = {kind: publisher(node, topics[0]) for kind, topics in KIND_TOPICS.items()}
         self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()}
-        self._ready_sub = subscribe(node, contract.READY, self._on_ready)
+        # The reader asks the writer's liveliness lease: only then does Fast DDS report the writer's death.
+        ready_topic = dataclasses.replace(contract.READY, reader_qos=contract.READY_QOS)
+        self._ready_sub = subscribe(node, ready_topic, self._on_ready,
+                                    event_callbacks=SubscriptionEventCallbacks(liveliness=self._on_liveliness))
+        self._ready_alive: Optional[int] = None  # live writers of wm_manager/ready (None: no liveliness event yet)
+        self.notice_leaving = False  # every wait checks that the graph is still there (:meth:`gone`)
+        self._was_ready = False
+        self._unready_since: Optional[float] = None
+        self._gone_checked = 0.0
+        self.limits = Limits()  # the graph's size limits (the nodes' defaults), checked before sending
         self._clock = node.create_publisher(Clock, contract.CLOCK, 10)
-        self._services: dict[str, JsonClient] = {}
+        self._services: dict[str, ServiceCaller] = {}
         self._param_clients: dict[tuple[str, str], Any] = {}
         self._entities: dict[str, set[str]] = {}
         self.foreign: Optional[str] = None  # set by :meth:`watch` when another graph's message arrives
@@ -140,6 +165,45 @@ class GraphClient:
         self.ready_messages[key] = data
         self._ready_heard[key] = time.monotonic()
 
+    def _on_liveliness(self, info) -> None:
+        self._ready_alive = info.alive_count
+
+    def gone(self) -> Optional[str]:
+        """Return why this client's graph has left (None while it is there, or before it was found).
+
+        Gone: its WM Manager's ``wm_manager/ready`` writer is no longer matched (the
+        process stopped), or its liveliness lapsed (the process died: within the topic's
+        1 s lease), or the graph said ``ready`` and then not for :data:`GONE_AFTER` s.
+        """
+        message = self.readiness()
+        if message is None:
+            return None
+        who = f"graph {describe_graph(self.graph or message.get(contract.GRAPH_FIELD))} in {self.where()}"
+        if self._ready_sub.get_publisher_count() == 0:
+            return f"{who} left: its WM Manager stopped"
+        if self._ready_alive == 0:
+            return f"{who} left: its WM Manager's liveliness lapsed (the process died)"
+        now = time.monotonic()
+        if message["ready"]:
+            self._was_ready, self._unready_since = True, None
+        elif self._was_ready:
+            self._unready_since = self._unready_since or now
+            if now - self._unready_since >= GONE_AFTER:
+                waiting = [d for d, st in (message.get("domains") or {}).items() if not st.get("configured")]
+                return (f"{who} lost its readiness for {GONE_AFTER:g} s (consultants not configured: "
+                        f"{', '.join(waiting) or 'none'})")
+        return None
+
+    def check_gone(self) -> None:
+        """Raise ClientError ``gone`` if :attr:`notice_leaving` is set and the graph left (checked every 0.1 s)."""
+        now = time.monotonic()
+        if not self.notice_leaving or now - self._gone_checked < 0.1:
+            return
+        self._gone_checked = now
+        reason = self.gone()
+        if reason is not None:
+            raise ClientError(reason, "gone")
+
     # -------------------------------------------------------------- spinning
     @property
     def namespace(self) -> str:
@@ -156,6 +220,7 @@ class GraphClient:
         while not predicate():
             if time.monotonic() > deadline:
                 raise ClientError(f"{what}: nothing within {timeout:g} s", kind)
+            self.check_gone()
             self.executor.spin_once(timeout_sec=0.005)
 
     def spin_for(self, seconds: float) -> None:
@@ -278,8 +343,18 @@ class GraphClient:
         needed = len(self.domains()) if kind == "assert" else 1
         pub, sub = self._publishers[kind], self._reply_subs[kind]
         request, reply = KIND_TOPICS[kind]
-        self.spin_until(lambda: pub.get_subscription_count() >= needed and sub.get_publisher_count() >= needed,
-                        timeout, f"{request.name} -> {reply.name} is not connected in {self.where()}", "not-ready")
+
+        def matched() -> bool:
+            return pub.get_subscription_count() >= needed and sub.get_publisher_count() >= needed
+
+        if matched():
+            return
+        self.spin_until(matched, timeout, f"{request.name} -> {reply.name} is not connected in {self.where()}",
+                        "not-ready")
+        # This side sees the other; the other side's discovery of this one usually completes within this
+        # settle time.  Without it, a first request or answer was sometimes lost to the half-made match
+        # and the request went out twice (the second copy answered from the node's cache).
+        self.spin_for(MATCH_SETTLE)
 
     # ---------------------------------------------------------------- topics
     def new_id(self, kind: str) -> str:
@@ -293,6 +368,7 @@ class GraphClient:
         took it, and a sender about 10,000 messages ahead of them waits up to 100 ms, then
         is refused (backpressure: send it again later; nothing of it was delivered).
         """
+        self.check_message(kind, message)
         key = str(message["id"])
         self.answers.setdefault(key, [])
         try:
@@ -302,6 +378,23 @@ class GraphClient:
             raise ClientError(f"{KIND_TOPICS[kind][0].name} {key!r} not sent (the receivers are too far behind): "
                               f"{printable(str(err).split(',')[0], 200)}", "busy") from None
         return key
+
+    def check_message(self, kind: str, message: Mapping[str, Any]) -> None:
+        """Raise ClientError ``usage`` if the graph would refuse ``message`` for its form or size (:attr:`limits`).
+
+        The same check the nodes make (the request topic's schema, names, lists and the
+        message's bytes within :class:`~fsreg_ros.contract.Limits`), made before sending,
+        so an oversized request is refused at once instead of answered by silence.
+        """
+        topic = KIND_TOPICS[kind][0]
+        size = len(safe_dumps(message).encode("utf-8"))
+        if size > self.limits.max_message_bytes:
+            raise ClientError(f"{topic.name}: the message is {size} bytes; the graph takes at most "
+                              f"{self.limits.max_message_bytes} (max_message_bytes)", "usage")
+        try:
+            contract.check(topic.schema, dict(message), self.limits)
+        except MessageError as err:
+            raise ClientError(printable(f"{topic.name}: {err}", 300), "usage") from None
 
     def answer_of(self, key: str) -> Optional[dict]:
         """Return the first answer to request ``key`` (ClientError ``foreign`` if it came from another graph)."""
@@ -382,6 +475,9 @@ class GraphClient:
         message (``facts``) and applied in one commit; its result lists each fact's in
         ``results``, in order (docs/semantics.md, "Facts in batches").
         """
+        if domain is not None and domain not in self.domains():
+            raise ClientError(f"the graph has no domain {printable(repr(domain), 80)} (its domains: "
+                              f"{', '.join(self.domains())})", "usage")
         if isinstance(entity, Mapping):
             if properties is not None:
                 raise ClientError("assert_facts: give a batch (entity -> properties) or an entity and its "
@@ -407,9 +503,9 @@ class GraphClient:
         return answer
 
     # -------------------------------------------------------------- services
-    def service(self, name: str) -> JsonClient:
+    def service(self, name: str) -> ServiceCaller:
         if name not in self._services:
-            self._services[name] = JsonClient(self.node, name)
+            self._services[name] = ServiceCaller(self.node, name)
         return self._services[name]
 
     def call(self, name: str, payload: Mapping[str, Any], timeout: Optional[float] = None) -> dict:
@@ -445,15 +541,54 @@ class GraphClient:
         """Publish the graph's clock = ``t`` (nothing waits: see :meth:`set_clock`)."""
         self._clock.publish(clock_message(t))
 
-    def set_clock(self, t: float, timeout: Optional[float] = None) -> dict:
+    def set_clock(self, t: float, timeout: Optional[float] = None, *, confirm: bool = False) -> dict:
         """Publish the graph's clock = ``t`` and wait until the forgetting due by then is applied; the sync reply.
 
-        Later requests from this client are stamped with ``t``.
+        ``t`` must be a finite number of seconds in [0, 1e12] (ClientError ``usage``).
+        The clock is published once the graph's nodes subscribe it (a message published
+        before that is lost).  With ``confirm``: refused (ClientError ``refused``) when no
+        node follows the clock topic (a wall-clock graph) or ``t`` is earlier than the
+        graph's clock (a clock does not go back), and the call returns only when the WM
+        Manager's clock reads ``t`` or later (the clock is sent again until it does), so a
+        request sent afterwards is stamped ``t`` or later.  Later requests from this
+        client are stamped with ``t``.
         """
+        timeout = self.timeout if timeout is None else timeout
+        t = check_clock(t)
+        deadline = time.monotonic() + timeout
+        expected = len(GRAPH_NODES) - 1 + len(self.domains()) if self.readiness() is not None else 1
+        try:
+            self.spin_until(lambda: self._clock.get_subscription_count() >= expected,
+                            min(CLOCK_DISCOVERY, timeout), "clock subscribers")
+        except ClientError:
+            if confirm and self._clock.get_subscription_count() == 0:
+                raise ClientError(f"clock {t:g} s refused: no node of the graph follows "
+                                  f"{self.node.resolve_topic_name(contract.CLOCK)} (it runs on wall-clock time, or "
+                                  "follows another clock topic: --clock)", "refused") from None
+        if confirm:
+            now = float(self.status(timeout)["time"])
+            if t < now - 1e-9:
+                raise ClientError(f"clock {t:g} s refused: the graph's clock is at {now:g} s and does not go back "
+                                  "(forgetting already applied is never undone)", "refused")
         self.publish_clock(t)
-        reply = self.sync(t, timeout)
+        reply = self.sync(t, max(0.0, deadline - time.monotonic()))
+        if confirm:
+            def reached() -> bool:
+                if float(self.status(max(0.0, deadline - time.monotonic()))["time"]) >= t - 1e-9:
+                    return True
+                self.publish_clock(t)  # /clock is best effort for the nodes' time sources: send it again
+                self.spin_for(CLOCK_RESEND)
+                return False
+
+            self.spin_until(reached, max(0.0, deadline - time.monotonic()),
+                            f"the graph's clock at {t:g} s (does it follow "
+                            f"{self.node.resolve_topic_name(contract.CLOCK)}?)", "refused")
         self.time = t
         return reply
+
+    def graph_time(self, timeout: Optional[float] = None) -> float:
+        """Return the graph's clock (its WM Manager's, from ``wm_manager/status``), seconds."""
+        return float(self.status(timeout)["time"])
 
     def domain_of(self, entity: str, new_ok: bool = False) -> str:
         """Return the domain whose consultant knows ``entity`` (or the only domain, for a new one if ``new_ok``)."""
@@ -546,29 +681,110 @@ class GraphClient:
                     raise
                 attempt *= 2
 
-    def set_parameters(self, node_name: str, values: Mapping[str, Any], timeout: Optional[float] = None) -> None:
-        """Set parameters of node ``node_name`` (relative, e.g. ``wm_manager``) all at once, or none.
+    def graph_nodes(self) -> list[str]:
+        """Return the names of the graph's nodes seen in this client's namespace (discovery; may lag)."""
+        return sorted(name for name, ns in self.node.get_node_names_and_namespaces()
+                      if ns == self.namespace and (name in GRAPH_NODES or name.startswith("consultant_")))
 
-        A value given as text is converted to the parameter's declared type.  Raises
-        ClientError ``usage`` for an unknown name or a value of the wrong type, and
-        ``rejected`` with the node's reason when it refuses the change.
+    def node_names(self) -> list[str]:
+        """Return the names of the graph's nodes, from its readiness (its domains' consultants and the rest)."""
+        return sorted([*GRAPH_NODES[:-1], *(f"consultant_{d}" for d in self.domains())])
+
+    def require_node(self, node_name: str, timeout: Optional[float] = None) -> None:
+        """Raise ClientError unless ``node_name`` is a node of the graph whose parameter services answer.
+
+        ``usage`` at once for a name the graph does not have (:meth:`node_names`);
+        ``not-ready`` if its parameter services are not found within ``timeout``.
         """
+        if node_name not in self.node_names():
+            raise ClientError(f"no node {printable(repr(node_name), 80)} in graph {describe_graph(self.graph)} (its "
+                              f"nodes: {', '.join(self.node_names())})", "usage")
+        client = self._param_client(node_name, ListParameters, "list_parameters")
+        self.spin_until(client.service_is_ready, self.timeout if timeout is None else timeout,
+                        f"{node_name}: service {client.srv_name} is not available", "not-ready")
+
+    def list_parameters(self, node_name: str, timeout: Optional[float] = None) -> list[str]:
+        """Return the names of node ``node_name``'s parameters, sorted."""
         timeout = self.timeout if timeout is None else timeout
+        client = self._param_client(node_name, ListParameters, "list_parameters")
+        reply = self._service_call(client, ListParameters.Request(), timeout, f"{node_name}: list parameters")
+        return sorted(reply.result.names)
+
+    def describe_parameters(self, node_name: str, names: Sequence[str], timeout: Optional[float] = None) -> dict:
+        """Return node ``node_name``'s descriptors of ``names`` (rcl_interfaces ParameterDescriptor), by name."""
+        timeout = self.timeout if timeout is None else timeout
+        client = self._param_client(node_name, DescribeParameters, "describe_parameters")
+        reply = self._service_call(client, DescribeParameters.Request(names=list(names)), timeout,
+                                   f"{node_name}: describe parameters")
+        return dict(zip(names, reply.descriptors))
+
+    def get_parameters(self, node_name: str, names: Optional[Sequence[str]] = None,
+                       timeout: Optional[float] = None) -> dict[str, Any]:
+        """Return node ``node_name``'s parameter values (all of them without ``names``), as Python values."""
+        timeout = self.timeout if timeout is None else timeout
+        names = self.list_parameters(node_name, timeout) if names is None else list(names)
+        client = self._param_client(node_name, GetParameters, "get_parameters")
+        reply = self._service_call(client, GetParameters.Request(names=names), timeout,
+                                   f"{node_name}: get parameters")
+        return {name: python_value(value) for name, value in zip(names, reply.values)}
+
+    def set_parameters(self, node_name: str, values: Mapping[str, Any], timeout: Optional[float] = None) -> dict:
+        """Set parameters of node ``node_name`` (e.g. ``wm_manager``) all at once, or none; the values now in force.
+
+        Checked before anything is sent, each error naming the node, the key and what is
+        allowed (ClientError ``usage``): a node or parameter the graph does not have, a
+        read-only parameter, a value of the wrong type or outside the declared range
+        (converted from text to the declared type first), and for the WM Manager the
+        memory settings as the whole effective policy of every domain.  A change the
+        node refuses raises ``rejected`` with its reason.  The values returned are read
+        back from the node after the change.
+        """
+        from . import node_parameters
+        from .memory_parameters import effective_policies, parameter_names
+
+        timeout = self.timeout if timeout is None else timeout
+        self.require_node(node_name, timeout)
+        known = self.list_parameters(node_name, timeout)
         names = list(values)
-        describe = self._param_client(node_name, DescribeParameters, "describe_parameters")
-        described = self._service_call(describe, DescribeParameters.Request(names=names), timeout,
-                                       f"{node_name}: describe parameters")
-        messages = []
-        for name, desc in zip(names, described.descriptors):
-            if desc.type == ParameterType.PARAMETER_NOT_SET:
-                raise ClientError(f"{node_name} has no parameter {name!r}", "usage")
-            messages.append(ParameterMsg(name=name, value=parameter_value(name, values[name], desc.type)))
+        for name in names:
+            if name not in known:
+                close = difflib.get_close_matches(name, known, n=1)
+                hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
+                raise ClientError(f"{node_name}: no parameter {printable(repr(name), 80)} ({hint})", "usage")
+        described = self.describe_parameters(node_name, names, timeout)
+        messages, typed = [], {}
+        for name in names:
+            desc = described[name]
+            if desc.read_only:
+                raise ClientError(f"{node_name}: {name} is read-only (set when the node starts: "
+                                  "fsreg-up --params-file)", "usage")
+            value = parameter_value(f"{node_name}: {name}", values[name], desc.type)
+            typed[name] = python_value(value)
+            problem = range_problem(desc, typed[name])
+            if problem:
+                raise ClientError(f"{node_name}: {name}: {problem}", "usage")
+            messages.append(ParameterMsg(name=name, value=value))
+        executable = "consultant" if node_name.startswith("consultant_") else node_name
+        catalogue = node_parameters.node_parameters(executable, self.domains())
+        for name in names:  # the node's own checks (choices, the settings table), as data
+            if name in catalogue:
+                try:
+                    node_parameters.check_parameter(catalogue[name], typed[name])
+                except node_parameters.ParameterError as err:
+                    raise ClientError(f"{node_name}: {name}: {err}", "usage") from None
+        if node_name == "wm_manager" and any(n in parameter_names(self.domains()) for n in names):
+            current = self.get_parameters(node_name, parameter_names(self.domains()), timeout)
+            try:
+                effective_policies({**current, **typed}, self.domains())
+            except ValueError as err:
+                raise ClientError(f"{node_name}: {printable(str(err), 300)}", "usage") from None
         setter = self._param_client(node_name, SetParametersAtomically, "set_parameters_atomically")
         result = self._service_call(setter, SetParametersAtomically.Request(parameters=messages), timeout,
                                     f"{node_name}: set parameters").result
         if not result.successful:
             raise ClientError(f"{node_name} refused {', '.join(names)}: {result.reason or 'no reason given'}",
                               "rejected")
+        return self.get_parameters(node_name, names, timeout)
 
     # ---------------------------------------------------------------- watching
     def watch(self, on_state: Callable[[dict], None], on_event: Optional[Callable[[dict], None]] = None) -> list:
@@ -604,6 +820,19 @@ class GraphClient:
             on_event(data)
 
         return [subscribe(self.node, contract.WM_EVENTS, checked_event)]
+
+
+def check_clock(t: Any) -> float:
+    """Return ``t`` if a graph can take it as its clock (finite seconds in [0, 1e12]); else ClientError ``usage``."""
+    try:
+        value = float(t)
+    except (TypeError, ValueError, OverflowError):
+        raise ClientError(f"clock: expected a number of seconds, got {printable(repr(t), 60)}", "usage") from None
+    if isinstance(t, bool) or not value == value or abs(value) == float("inf"):
+        raise ClientError(f"clock: expected a finite number of seconds, got {printable(repr(t), 60)}", "usage")
+    if not 0.0 <= value <= MAX_TIME:
+        raise ClientError(f"clock: {value:g} s is out of range: a clock is in [0, {MAX_TIME:g}] s", "usage")
+    return value
 
 
 def state_version(state: Mapping[str, Any]) -> tuple[int, int]:
@@ -644,13 +873,45 @@ def parameter_value(name: str, value: Any, kind: int) -> ParameterValue:
                 else list(value)
             out.string_array_value = [str(v) for v in items]
         else:
-            raise ClientError(f"parameter {name!r} has a type this client does not set ({kind})", "usage")
+            raise ClientError(f"{name}: a parameter of a type this client does not set ({kind})", "usage")
     except (ValueError, TypeError, AttributeError):
         expected = {ParameterType.PARAMETER_BOOL: "true or false", ParameterType.PARAMETER_INTEGER: "a whole number",
                     ParameterType.PARAMETER_DOUBLE: "a finite number", ParameterType.PARAMETER_STRING: "text"}
-        raise ClientError(f"parameter {name!r}: expected {expected.get(kind, 'a value of its type')}, got "
+        raise ClientError(f"{name}: expected {expected.get(kind, 'a value of its type')}, got "
                           f"{printable(repr(value), 60)}", "usage") from None
     return out
+
+
+def python_value(value: ParameterValue) -> Any:
+    """Return a ParameterValue as a Python value (None when not set)."""
+    kind = value.type
+    if kind == ParameterType.PARAMETER_BOOL:
+        return bool(value.bool_value)
+    if kind == ParameterType.PARAMETER_INTEGER:
+        return int(value.integer_value)
+    if kind == ParameterType.PARAMETER_DOUBLE:
+        return float(value.double_value)
+    if kind == ParameterType.PARAMETER_STRING:
+        return str(value.string_value)
+    arrays = {ParameterType.PARAMETER_BYTE_ARRAY: "byte_array_value", ParameterType.PARAMETER_BOOL_ARRAY:
+              "bool_array_value", ParameterType.PARAMETER_INTEGER_ARRAY: "integer_array_value",
+              ParameterType.PARAMETER_DOUBLE_ARRAY: "double_array_value",
+              ParameterType.PARAMETER_STRING_ARRAY: "string_array_value"}
+    if kind in arrays:
+        return [v.item() if hasattr(v, "item") else v for v in getattr(value, arrays[kind])]
+    return None
+
+
+def range_problem(desc, value: Any) -> Optional[str]:
+    """Return what is wrong with a number outside a descriptor's declared range (None: in range, or no range)."""
+    ranges = list(desc.integer_range) or list(desc.floating_point_range)
+    if not ranges or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    low, high = sorted((ranges[0].from_value, ranges[0].to_value))
+    if low <= value <= high:
+        return None
+    kind = "a whole number" if desc.integer_range else "a number"
+    return f"expected {kind} in [{low:g}, {high:g}], got {value!r}"
 
 
 def find_graph(namespace: str, wait: float = DISCOVERY_WAIT) -> Optional[str]:

@@ -67,12 +67,12 @@ class RequestStats:
             self._recent.popleft()
 
     def rate(self) -> float:
-        """Requests per second over the last :data:`RATE_WINDOW` seconds."""
+        """Return the requests per second over the last :data:`RATE_WINDOW` seconds."""
         self._trim(self.clock())
         return len(self._recent) / RATE_WINDOW
 
     def p95_ms(self) -> Optional[float]:
-        """The 95th percentile of the latest handling times, milliseconds (nearest rank); None before any."""
+        """Return the 95th percentile of the latest handling times in ms (nearest rank); None before any."""
         if not self._latencies:
             return None
         ordered = sorted(self._latencies)
@@ -88,7 +88,7 @@ _STATS: "weakref.WeakKeyDictionary[Any, RequestStats]" = weakref.WeakKeyDictiona
 
 
 def request_stats(node) -> RequestStats:
-    """The request figures of ``node`` (made on first use)."""
+    """Return the request figures of ``node`` (made on first use)."""
     stats = _STATS.get(node)
     if stats is None:
         stats = _STATS[node] = RequestStats()
@@ -103,7 +103,7 @@ def node_status(node) -> tuple[int, str, dict[str, Any]]:
 
 
 def status_message(node):
-    """The ``DiagnosticStatus`` of ``node`` now."""
+    """Return the ``DiagnosticStatus`` of ``node`` now."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
     level, message, values = node_status(node)
@@ -147,7 +147,7 @@ class Diagnostics:
 
 
 def as_dict(status) -> dict[str, Any]:
-    """A received ``DiagnosticStatus`` as plain data (the level by name)."""
+    """Return a received ``DiagnosticStatus`` as plain data (the level by name)."""
     level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
     return {"name": status.name, "level": LEVEL_NAMES.get(level, str(level)), "message": status.message,
             "hardware_id": status.hardware_id, "values": {kv.key: kv.value for kv in status.values}}

@@ -1,7 +1,7 @@
 """The WM Manager's links to the consultants' manage services (``consultant/<domain>/manage``).
 
 :class:`ManagePort` is the core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort`
-in the graph: each decision (``configure``, ``decay``, ``evict``) becomes a request,
+in the graph: each decision (``configure``, ``decay``, ``advance``, ``evict``) becomes a request,
 sent at once and tracked with a deadline by :class:`ManageLinks`, which also handles
 the replies: a configure acknowledged by the consultant's current incarnation marks the
 domain configured; a failed ``decay`` is owed again (the consultant skips ticks it had
@@ -19,7 +19,7 @@ from typing import Any, Callable, Optional
 
 from rclpy.task import Future
 
-from .carrier import CarrierError, JsonClient, log_error
+from .carrier import CarrierError, ServiceCaller, log_error
 from ..contract import manage_service
 from ..core.decay import TickRun
 from ..core.forgetting import ForgettingPolicy
@@ -31,7 +31,7 @@ class ConsultantLink:
     """What the WM Manager knows of one domain's consultant, and its calls in flight."""
 
     name: str
-    client: JsonClient
+    caller: ServiceCaller
     timer: Any = None  # the domain's one-shot decay timer
     configured: bool = False  # a configure has been acknowledged by the current incarnation
     configuring: Optional[Future] = None
@@ -55,11 +55,11 @@ class ManageLinks:
         self.node = node
         self.timeout = timeout
         self.manager: Optional[WMManager] = None  # set by the node once it made the manager
-        self.links = {n: ConsultantLink(n, JsonClient(node, manage_service(n), callback_group)) for n in names}
+        self.links = {n: ConsultantLink(n, ServiceCaller(node, manage_service(n), callback_group)) for n in names}
 
     def send(self, link: ConsultantLink, payload: dict) -> Future:
         """Send one manage request now; its reply is handled when it comes (or its deadline passes)."""
-        future = link.client.send(payload)
+        future = link.caller.send(payload)
         entry = (future, payload, wallclock.monotonic() + self.timeout())
         link.inflight.append(entry)
         future.add_done_callback(partial(self._on_reply, link, entry))
@@ -71,7 +71,7 @@ class ManageLinks:
         payload = entry[1]
         op = payload["op"]
         try:
-            reply = link.client.decode(future)
+            reply = link.caller.decode(future)
         except CarrierError as err:
             log_error(self.node.get_logger(), f"consultant '{link.name}' failed '{op}': {err}")
             if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
@@ -99,7 +99,7 @@ class ManageLinks:
         for link in self.links.values():
             for future, _, deadline in list(link.inflight):
                 if now > deadline and not future.done():
-                    link.client.expire(future, self.timeout())
+                    link.caller.expire(future, self.timeout())
 
     async def settle(self, deadline: float) -> None:
         """Wait for everything sent so far (ticks, a timer's, configures, evictions)."""
@@ -111,7 +111,7 @@ class ManageLinks:
         """Await one reply until ``deadline`` (monotonic); CarrierError naming the consultant."""
         remaining = max(deadline - wallclock.monotonic(), 0.05)
         try:
-            return await link.client.result(future, remaining)
+            return await link.caller.result(future, remaining)
         except CarrierError as err:
             raise CarrierError(f"consultant '{link.name}' did not apply the change: {err}", kind=err.kind) from None
 
@@ -128,6 +128,9 @@ class ManagePort:
 
     def decay(self, domain: str, ticks: TickRun) -> None:
         self.links.send(self.links.links[domain], {"op": "decay", "ticks": ticks.to_json()})
+
+    def advance(self, domain: str, time: float) -> None:
+        self.links.send(self.links.links[domain], {"op": "advance", "time": time})
 
     def evict(self, domain: str, count: int, time: float) -> None:
         self.links.send(self.links.links[domain], {"op": "evict", "count": count, "time": time})

@@ -3,7 +3,10 @@
 Generated from :mod:`fsreg_ros.core.settings`: ``<setting>`` (the table's default, its
 bounds as the declared range, its help as the description) for every domain, and
 ``<domain>.<setting>`` for one domain, defaulting to the row's inherit marker (``""``, 0,
-or -1 for ``seed``: use the node-wide value), its range widened down to that marker.
+or -1 for ``seed``: use the node-wide value).  A per-domain parameter declares no ROS
+range (a range would have to include the marker, and rclpy's refusal would then say
+"Min: 0" where the table says at least 1); its ``additional_constraints`` state the rule,
+and the node refuses a value outside the table's bounds with the table's own words.
 :func:`effective_policies` turns a set of values into each domain's policy, checked by
 the core's rules, so a parameter change is validated as whole effective policies.
 """
@@ -24,8 +27,10 @@ SETTINGS = settings.names()
 def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescriptor:
     """Return a memory setting's descriptor, from its row of the settings table.
 
-    A numeric setting's range is its bounds; a per-domain setting's range is widened
-    down to its inherit marker (which is below the bounds, so it is never a real value).
+    A numeric setting's range is its bounds.  A per-domain setting has no declared
+    range (its inherit marker is below the bounds, so it is never a real value, and a
+    range cannot express "the marker or the bounds"): ``additional_constraints`` says
+    the rule, :func:`effective_policies` enforces it.
     """
     row = settings.setting(key)
     text = row.description
@@ -34,13 +39,12 @@ def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescr
     out = ParameterDescriptor(description=text)
     if not row.is_parameter:
         return out
-    low = row.inherit if domain is not None else row.low
-    if row.kind is float:
-        out.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(row.high), step=0.0)]
-    else:
-        out.integer_range = [IntegerRange(from_value=int(low), to_value=int(row.high), step=1)]
     if domain is not None:
         out.additional_constraints = f"{row.inherit!r} (inherit) or {row.bounds_text}"
+    elif row.kind is float:
+        out.floating_point_range = [FloatingPointRange(from_value=float(row.low), to_value=float(row.high), step=0.0)]
+    else:
+        out.integer_range = [IntegerRange(from_value=int(row.low), to_value=int(row.high), step=1)]
     return out
 
 

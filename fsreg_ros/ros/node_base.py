@@ -44,7 +44,7 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from .codec import id_of, printable
+from ..contract.codec import id_of, printable
 from ..contract import CLOCK
 from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback

@@ -1,16 +1,16 @@
-"""A :class:`~fsreg_ros.core.consultant.ConsultantPort` over a consultant node's service.
+"""A :class:`~fsreg_ros.core.port.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
 call (a :meth:`~RemotePort.walk` included: the consultant runs it) is one awaited JSON
-call to ``consultant/<domain>`` (ops and replies:
-:mod:`fsreg_ros.contract.consultant`; the preference order and the entity list are
+call to ``consultant/<domain>`` (ops and replies: :mod:`fsreg_ros.contract.consultant`,
+encoded and decoded by :mod:`fsreg_ros.contract.consultant_codec`; the preference order and the entity list are
 cached while the consultant's LTM ``version`` stays the same).  Await port methods
 only from a callback outside ``callback_group`` (give the port a reentrant group of its own).
 
 Errors: a request the consultant rejects because it names an unknown entity or
 property (or a session it no longer holds) raises
 :class:`~fsreg_ros.core.consultant.KnowledgeError`, as the in-process
-:class:`~fsreg_ros.core.consultant.LocalPort` would; everything else (timeouts, a
+:class:`~fsreg_ros.core.local_port.LocalPort` would; everything else (timeouts, a
 malformed reply, other rejections, an outage) raises :class:`~fsreg_ros.ros.carrier.CarrierError`.
 
 Outages are detected, not waited out.  The port listens to the consultant's latched
@@ -55,9 +55,11 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 
 from .. import contract
-from .carrier import DEFAULT_TIMEOUT, CarrierError, JsonClient, drop_timer, subscribe, wait_until
-from .codec import MessageError
-from ..core.consultant import KnowledgeError, Narrowed, Step, View, Walked, WalkStep
+from ..contract import consultant_codec as codec
+from .carrier import DEFAULT_TIMEOUT, CarrierError, ServiceCaller, drop_timer, subscribe, wait_until
+from ..contract.codec import MessageError
+from ..core.consultant import KnowledgeError
+from ..core.port import Narrowed, Step, View, Walked, WalkStep
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5
@@ -110,7 +112,7 @@ class RemotePort:
         self.outage_wait = outage_wait
         self.lapsed_deadline = lapsed_deadline
         self.max_in_flight = max(1, max_in_flight)
-        self.client = JsonClient(node, contract.consultant_service(domain), callback_group, timeout)
+        self.caller = ServiceCaller(node, contract.consultant_service(domain), callback_group, timeout)
         self.client_id = f"{node.get_fully_qualified_name()}#{secrets.token_hex(3)}"
         self._catalogue: Optional[Catalogue] = None
         self._latest = ""  # the newest version any reply named
@@ -151,10 +153,10 @@ class RemotePort:
         if not self.alive:
             self._down_since = now
         # Confirm after a short grace (a lease can lapse under heavy load and recover).
-        client, incarnation, timer = self.client, self.incarnation, None
+        caller, incarnation, timer = self.caller, self.incarnation, None
 
         def confirm() -> None:
-            drop_timer(client.node, timer, client.callback_group)
+            drop_timer(caller.node, timer, caller.callback_group)
             if self.alive and self.incarnation == incarnation and self._appeared_at > now:
                 return  # the same consultant again: its calls are answered
             # A call sent while a live consultant was matched was answered by it; those
@@ -163,10 +165,10 @@ class RemotePort:
             error = f"consultant '{self.domain}' stopped (its liveliness lapsed) before answering; try again"
             for future, sent in list(self._inflight.items()):
                 if sent <= before and not future.done():
-                    client.client.remove_pending_request(future)
-                    future.set_exception(CarrierError(error, kind="unavailable", service=client.name))
+                    caller.client.remove_pending_request(future)
+                    future.set_exception(CarrierError(error, kind="unavailable", service=caller.name))
 
-        timer = client.node.create_timer(LAPSE_GRACE, confirm, client.callback_group,
+        timer = caller.node.create_timer(LAPSE_GRACE, confirm, caller.callback_group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def reported(self, incarnation: Optional[int], configured: bool) -> None:
@@ -187,7 +189,7 @@ class RemotePort:
 
     def _available(self) -> bool:
         proven = self._answered_at > self._down_since  # answered since its liveliness was last seen to go
-        return (self.alive is not False or proven) and self.client.ready()
+        return (self.alive is not False or proven) and self.caller.ready()
 
     # ------------------------------------------------------------ plumbing
     async def _call(self, payload: Mapping[str, Any], retry: bool = True) -> dict:
@@ -197,19 +199,19 @@ class RemotePort:
             # queued behind a dead consultant are answered at once.
             wait = self._down_since + self.outage_wait - time.monotonic()
             if wait > 0:
-                await wait_until(self.client.node, self._available, wait, callback_group=self.client.callback_group)
-            if not self.client.ready():
+                await wait_until(self.caller.node, self._available, wait, callback_group=self.caller.callback_group)
+            if not self.caller.ready():
                 raise CarrierError(f"consultant '{self.domain}' is not running (no server is matched); try again "
-                                   "later", kind="unavailable", service=self.client.name)
+                                   "later", kind="unavailable", service=self.caller.name)
             if self.alive is False:  # a lapse alone is no proof of death: ask, briefly
                 deadline = min(self.timeout, self.lapsed_deadline)
         if len(self._inflight) >= self.max_in_flight:
-            await wait_until(self.client.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
-                             callback_group=self.client.callback_group)
-        future = self.client.send(payload)
+            await wait_until(self.caller.node, lambda: len(self._inflight) < self.max_in_flight, self.timeout,
+                             callback_group=self.caller.callback_group)
+        future = self.caller.send(payload)
         self._inflight[future] = time.monotonic()
         try:
-            reply = await self.client.result(future, deadline)
+            reply = await self.caller.result(future, deadline)
         except CarrierError as err:
             if err.kind in ("KnowledgeError", "SessionError"):
                 detail = err.reply.get("detail") if isinstance(err.reply, dict) else None
@@ -217,7 +219,7 @@ class RemotePort:
             if err.kind == "timeout" and deadline < self.timeout:  # asked briefly after a lapse: no answer
                 err = CarrierError(f"consultant '{self.domain}' is not running (its liveliness lapsed and it did not "
                                    f"answer within {deadline:g} s); try again later", kind="unavailable",
-                                   service=self.client.name)
+                                   service=self.caller.name)
             # Alive again (a restart: a request to a server just matched can be lost): ask the new one once.
             if retry and err.kind == "unavailable" and payload["op"] in RETRIED_OPS and self.alive:
                 self._latest = ""  # the new incarnation's catalogue may differ
@@ -229,7 +231,7 @@ class RemotePort:
             contract.check(contract.CONSULTANT_OPS[payload["op"]][1], reply)
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
-                               service=self.client.name) from None
+                               service=self.caller.name) from None
         if "version" in reply:
             self._latest = reply["version"]
             self._answered(reply["version"])
@@ -254,7 +256,7 @@ class RemotePort:
 
     async def _wait_ready(self, timeout: float) -> dict:
         deadline = time.monotonic() + timeout
-        node, group = self.client.node, self.client.callback_group
+        node, group = self.caller.node, self.caller.callback_group
 
         def configured() -> bool:
             return self.manager_report is None or self.manager_report[1]
@@ -262,14 +264,14 @@ class RemotePort:
         if not await wait_until(node, configured, timeout, callback_group=group):
             raise CarrierError(f"consultant '{self.domain}' restarted (incarnation {self.manager_report[0]}) and the "
                                f"WM Manager did not configure it within {timeout:g} s", kind="timeout",
-                               service=self.client.name)
+                               service=self.caller.name)
         while True:
-            reply = await self.client.wait_ready({"op": "info"}, max(deadline - time.monotonic(), 1e-3))
+            reply = await self.caller.wait_ready(codec.info_request(), max(deadline - time.monotonic(), 1e-3))
             try:
                 contract.check(contract.InfoReply, reply)
             except MessageError as err:
                 raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol",
-                                   service=self.client.name) from None
+                                   service=self.caller.name) from None
             wanted = self.manager_report[0] if self.manager_report is not None else 0
             if contract.version_incarnation(reply["version"]) >= wanted:
                 break
@@ -287,10 +289,10 @@ class RemotePort:
         if cat is not None and not refresh and cat.version == self._latest:
             return cat
         start = len(cat.entities) if cat is not None else 0
-        reply = await self._call({"op": "info", "entities_from": start})
+        reply = await self._call(codec.info_request(start))
         if cat is None or contract.version_incarnation(reply["version"]) != cat.incarnation:
             if start:  # restarted: its entities may differ from the first one on
-                reply = await self._call({"op": "info"})
+                reply = await self._call(codec.info_request())
             cat = Catalogue(reply["version"], list(reply["preference"]), [], set())
         cat.entities += reply["entities"]
         cat.known.update(reply["entities"])
@@ -301,7 +303,7 @@ class RemotePort:
     # ------------------------------------------------------- ConsultantPort
     async def info(self) -> dict:
         """Return the ``info`` reply (entities, preference, policy, events, event listeners, stored state, ...)."""
-        return await self._call({"op": "info"})
+        return await self._call(codec.info_request())
 
     async def knows(self, entity: str, refresh: bool = False) -> bool:
         """Return True if ``entity`` is one of this domain's (entities never leave a domain)."""
@@ -313,55 +315,29 @@ class RemotePort:
     async def open(
         self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
     ) -> View:
-        payload: dict[str, Any] = {"op": "open", "client": self.client_id}
-        if target is not None:
-            payload["target"] = target
-        if context is not None:
-            payload["context"] = list(context)
-        if first is not None:
-            payload["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
-        reply = await self._call(payload)
-        holding = reply.get("holding")
-        view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
-                    frozenset(holding) if holding is not None else None,
-                    origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
-        if first is not None:
-            if reply.get("first") is None:
-                raise CarrierError("malformed reply to 'open': no 'first'", kind="protocol", service=self.client.name)
-            view.first = Narrowed(reply["first"]["target_holds"], reply["first"]["size"])
-        return view
+        reply = await self._call(codec.open_request(target, context, first, self.client_id))
+        return self._decoded("open", codec.view_of, reply, first is not None)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
-        reply = await self._call({"op": "narrow", "session": view.handle, "property": prop, "cause": cause,
-                                  "time": time, "turn": turn})
-        return Narrowed(reply["target_holds"], reply["size"])
+        return codec.narrowed_of(await self._call(codec.narrow_request(view.handle, prop, cause, time, turn)))
 
     async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
                    turn: Optional[int], size: Optional[int] = None) -> Walked:
         """Send the steps in one call; the consultant walks them, knowing ``size`` itself."""
-        payload = {"op": "walk", "session": view.handle, "cause": cause, "time": time, "turn": turn,
-                   "steps": [{"property": s.prop} if s.group is None else {"property": s.prop, "group": s.group}
-                             for s in steps]}
-        reply = await self._call(payload)
-        taken = reply["taken"]
-        if any(not 0 <= i < len(steps) for i in taken) or taken != sorted(set(taken)):
-            raise CarrierError("malformed reply to 'walk': 'taken' is not increasing step indices",
-                               kind="protocol", service=self.client.name)
-        return Walked(tuple(taken), reply["size"], reply["narrowed"])
+        reply = await self._call(codec.walk_request(view.handle, steps, cause, time, turn))
+        return self._decoded("walk", codec.walked_of, reply, len(steps))
 
     async def rule_out(self, view: View) -> tuple[list[str], list[int]]:
-        reply = await self._call({"op": "rule_out", "session": view.handle})
-        try:
-            masks = [int(mask, 16) for mask in reply["masks"]]
-        except ValueError:
-            raise CarrierError("malformed reply to 'rule_out': a mask is not hexadecimal", kind="protocol",
-                               service=self.client.name) from None
-        return list(reply["properties"]), masks
+        return self._decoded("rule_out", codec.rule_out_of, await self._call(codec.rule_out_request(view.handle)))
 
     async def close(
         self, view: View, encode: Sequence[str] = (), time: float = 0.0, turn: Optional[int] = None
     ) -> list[str]:
-        payload: dict[str, Any] = {"op": "close", "session": view.handle, "time": time, "turn": turn}
-        if encode:
-            payload["encode"] = list(encode)
-        return list((await self._call(payload))["members"])
+        return codec.members_of(await self._call(codec.close_request(view.handle, encode, time, turn)))
+
+    def _decoded(self, op: str, decode, reply: dict, *args: Any) -> Any:
+        """Decode ``reply`` to ``op``; a reply the schema admits but that is unusable is a ``protocol`` error."""
+        try:
+            return decode(reply, *args)
+        except codec.ReplyError as err:
+            raise CarrierError(f"malformed reply to '{op}': {err}", kind="protocol", service=self.caller.name) from None

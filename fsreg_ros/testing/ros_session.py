@@ -30,7 +30,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
-from ..ros.carrier import CarrierError, JsonClient, qos_profile, to_msg
+from ..ros.carrier import CarrierError, ServiceCaller, qos_profile, to_msg
 from ..ros.client import clock_message
 from ..contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace
 from ..ros.network import enforce_loopback
@@ -85,7 +85,7 @@ class RosSession:
         self.probe = Node("probe", context=self.context, cli_args=["--ros-args", *self.remaps] if self.remaps else None)
         self.executor.add_node(self.probe)
         self.group = ReentrantCallbackGroup()
-        self._clients: dict[str, JsonClient] = {}
+        self._clients: dict[str, ServiceCaller] = {}
         self._publishers: dict[str, Any] = {}
         self._clock_pub = None
         self.time = 0.0
@@ -136,10 +136,10 @@ class RosSession:
         return task.result()
 
     # -------------------------------------------------------------- services
-    def client(self, service: str) -> JsonClient:
+    def client(self, service: str) -> ServiceCaller:
         """Return the probe's JSON client of ``service`` (made once)."""
         if service not in self._clients:
-            self._clients[service] = JsonClient(self.probe, service, self.group)
+            self._clients[service] = ServiceCaller(self.probe, service, self.group)
         return self._clients[service]
 
     def wait_service(self, service: str, timeout: float = 5.0) -> None:

@@ -5,37 +5,53 @@
     fsreg-ctl [--namespace NS] assert ENTITY PROP[:C]... [--domain D]   tell a consultant facts
     fsreg-ctl [--namespace NS] status                      readiness, memory per domain
     fsreg-ctl [--namespace NS] set KEY=VALUE...            change memory settings (or NODE:KEY=VALUE)
+    fsreg-ctl [--namespace NS] params get|dump [ITEM...]   read parameters back (dump: ros2 param dump's YAML)
     fsreg-ctl [--namespace NS] watch [--events]            each entity's WM, live
     fsreg-ctl [--namespace NS] wm ENTITY                   one entity's WM now (the wm/state that shows every change)
     fsreg-ctl [--namespace NS] clock SECONDS               set a sim-time graph's clock
 
-Every command waits (``--timeout``) until the graph in the namespace is ready (its WM
-Manager's ``wm_manager/ready``), so a first request is not refused; refuses to go on when
-two graphs share the namespace; and rejects an answer stamped by another graph.  With
-``--json`` each prints the answer as one JSON object (``watch``: one per line).  Errors
-are one line on stderr.  Exit codes: 0 answered, 1 the graph answered with an error (an
-unknown entity, a refused setting, ...), 2 bad usage, 3 no answer (no graph, not ready,
-timed out, two graphs, another graph's answer).
+Every command checks its arguments before anything is sent (numbers finite and in
+range, names and messages within the graph's limits, domains among those the graph
+announced), waits (``--timeout``) until the graph in the namespace is ready (its WM
+Manager's ``wm_manager/ready``), refuses to go on when two graphs share the namespace,
+rejects an answer stamped by another graph, and stops with exit 3 within 2 s when the
+graph leaves while it waits (its WM Manager stopped or died, or its readiness was lost).
+With ``--json`` each prints the answer as one JSON object (``watch``: one per line).
+Errors are one line on stderr.  Exit codes: 0 answered, 1 the graph answered with an
+error or refused (an unknown entity, a parameter change the node rejected, a clock
+earlier than the graph's), 2 bad usage (malformed or out-of-range arguments, a node,
+parameter or domain the graph does not have, input over the graph's size limits), 3 no
+answer (no graph, not ready, timed out, the graph left, two graphs, another graph's answer).
 
 ``set``: a memory setting (``policy``, ``decay_period``, ``capacity``, ...) applies to
-every domain's setting; ``DOMAIN.KEY=VALUE`` to one domain's; ``NODE:KEY=VALUE`` sets a
-parameter of another node (``reg:algorithm=greedy``, ``consultant_faces:threshold=0.6``).
-Values are converted to the parameter's type; the keys given to one node are set all at
-once or not at all.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
+every domain's setting; ``DOMAIN.KEY=VALUE`` to one domain's (``inherit`` as the value
+makes it follow the node-wide one); ``NODE:KEY=VALUE`` sets a parameter of another node
+(``reg:algorithm=greedy``, ``consultant_faces:threshold=0.6``).  Keys, values and
+ranges are checked against the node's declared parameters and the settings table; the
+keys given to one node are set all at once or not at all, and what is printed is read
+back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
+
+Commands are a table (:data:`COMMANDS`): adding one is one function registered with
+:func:`command` (its arguments, and what it needs: a ready graph, any graph, or none).
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
+import math
 import os
+import re
 import secrets
 import sys
-from typing import Any, Optional, Sequence
+from dataclasses import dataclass
+from typing import Any, Callable, Optional, Sequence
 
-from ..ros.codec import printable
+from ..contract.codec import printable
 from ..contract import normalise_namespace
-from ..core.forgetting import PARAMETERS
+from ..core import settings
+from ..core.decay import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .view import check_port, serve_view
@@ -43,56 +59,105 @@ from .view import check_port, serve_view
 PROG = "fsreg-ctl"
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NO_ANSWER = 0, 1, 2, 3
 #: Client error kinds that mean "no answer from this graph".
-NO_ANSWER = ("not-ready", "timeout", "clash", "foreign", "cancelled", "unavailable")
+NO_ANSWER = ("not-ready", "timeout", "clash", "foreign", "cancelled", "unavailable", "gone")
 #: Memory settings: applied to every domain unless given as DOMAIN.KEY.
-MEMORY_KEYS = ("policy", *PARAMETERS)
+MEMORY_KEYS = settings.names()
+#: Longest ``--timeout``, seconds (a day).
+MAX_TIMEOUT = 86_400.0
+#: What argparse takes for a negative number rather than an option.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+#: Seconds without an answer after which a request is sent again (the node answers a repeated id from its cache).
+RETRY_AFTER = 4.0
+#: Most WM updates ``watch --count`` waits for.
+MAX_COUNT = 10**9
 
 
 class UsageError(ValueError):
     """A command line that cannot be turned into a request."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``fsreg-ctl: error: ...``), exit 2.
+
+    ``-inf``, ``-nan`` and ``-1e300`` are read as (negative) numbers, not options, so a
+    number argument refuses them with its own range instead of "required".
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        self.exit(EXIT_USAGE, f"{PROG}: error: {where}{' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def number(low: float, high: float, *, integer: bool = False, above: bool = False,
+           unit: str = "") -> Callable[[str], Any]:
+    """Return an argparse ``type`` taking a finite number in [low, high] (``above``: (low, high]); one-line errors."""
+    bounds = f"{'(' if above else '['}{settings.number(low)}, {settings.number(high)}]"
+    kind = "a whole number" if integer else "a finite number"
+    rule = f"{kind}{' of ' + unit if unit else ''} in {bounds}"
+
+    def parse(text: str) -> Any:
+        try:
+            value = int(text) if integer else float(text)
+        except (ValueError, OverflowError):
+            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(repr(text), 60)}") from None
+        if not math.isfinite(value) or value < low or value > high or (above and value <= low):
+            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(text, 60)}")
+        return value
+
+    return parse
+
+
+@dataclass(frozen=True)
+class Command:
+    """One subcommand: its help, its arguments, what it needs of the graph, and what it does.
+
+    ``needs``: ``ready`` (waits until the graph serves), ``graph`` (the graph found,
+    ready or not: ``status``, ``watch``, ``params``), ``none`` (no graph needed).
+    ``run(ctl, client)`` returns the exit code; ``check(args)`` refuses bad arguments
+    (UsageError) before any ROS is started.
+    """
+
+    name: str
+    help: str
+    run: Callable[["Ctl", Any], int]
+    arguments: Callable[[argparse.ArgumentParser], None]
+    needs: str = "ready"
+    check: Optional[Callable[[argparse.Namespace], None]] = None
+
+
+#: Every subcommand, by name, in the order ``--help`` lists them.
+COMMANDS: dict[str, Command] = {}
+
+
+def command(name: str, help: str, *, needs: str = "ready", arguments: Optional[Callable] = None,
+            check: Optional[Callable] = None) -> Callable:
+    """Register the decorated ``run(ctl, client) -> exit code`` as subcommand ``name``."""
+    def register(run: Callable) -> Callable:
+        COMMANDS[name] = Command(name, help, run, arguments or (lambda parser: None), needs, check)
+        return run
+    return register
+
+
 def build_parser() -> argparse.ArgumentParser:
-    common = argparse.ArgumentParser(add_help=False)
+    common = OneLineParser(add_help=False)
     common.add_argument("--namespace", default=argparse.SUPPRESS, help="the graph's ROS namespace (default: none)")
     common.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="print JSON")
-    common.add_argument("--timeout", type=float, default=argparse.SUPPRESS, metavar="S",
-                        help="seconds to wait for the graph and for each answer (default 10)")
+    common.add_argument("--timeout", type=number(0.0, MAX_TIMEOUT, above=True, unit="seconds"),
+                        default=argparse.SUPPRESS, metavar="S",
+                        help=f"seconds to wait for the graph and for each answer, in (0, {MAX_TIMEOUT:g}] (default 10)")
     common.add_argument("--graph", default=argparse.SUPPRESS, metavar="ID",
                         help="the graph identity expected (default: the one running in the namespace)")
     common.add_argument("--clock", default=argparse.SUPPRESS, metavar="TOPIC",
                         help="the clock topic 'clock' publishes on (default: the graph's own)")
-    parser = argparse.ArgumentParser(prog=PROG, parents=[common],
-                                     description="Talk to a live fsreg graph (started with fsreg-up).")
+    parser = OneLineParser(prog=PROG, parents=[common],
+                           description="Talk to a live fsreg graph (started with fsreg-up).")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    say = commands.add_parser("say", parents=[common], help="the human says TEXT; print whom RR resolved")
-    say.add_argument("text", nargs="*", help="what the human says (words)")
-    say.add_argument("--description", metavar="P1,P2", help="a property list instead of text")
-    say.add_argument("--domain", help="the domain the description is about")
-    describe = commands.add_parser("describe", parents=[common], help="the robot describes ENTITY")
-    describe.add_argument("entity")
-    describe.add_argument("--context", nargs="+", metavar="E", help="describe against these entities only")
-    facts = commands.add_parser("assert", parents=[common], help="tell a consultant facts about ENTITY")
-    facts.add_argument("entity")
-    facts.add_argument("properties", nargs="+", metavar="PROP[:C]", help="a property, with certainty C (default 1)")
-    facts.add_argument("--domain", help="the consultant's domain (default: the one knowing ENTITY, or the only one)")
-    commands.add_parser("status", parents=[common], help="readiness and memory of every domain")
-    settings = commands.add_parser("set", parents=[common], help="change memory settings or node parameters")
-    settings.add_argument("assignments", nargs="+", metavar="KEY=VALUE")
-    watch = commands.add_parser("watch", parents=[common], help="show each entity's WM live (Ctrl-C ends)")
-    watch.add_argument("--events", action="store_true", help="also print every encode/forget event")
-    watch.add_argument("--count", type=int, metavar="N", help="stop after N WM updates")
-    wm = commands.add_parser("wm", parents=[common], help="one entity's WM, least recently used first")
-    wm.add_argument("entity")
-    wm.add_argument("--domain")
-    view = commands.add_parser("view", parents=[common],
-                               help="serve a live web page of the graph's WM on 127.0.0.1 (Ctrl-C ends)")
-    view.add_argument("--port", type=int, default=None, metavar="N",
-                      help="TCP port of the page (default 8765; 0 takes a free port)")
-    view.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
-                      help="address to bind (default 127.0.0.1: this machine only)")
-    clock = commands.add_parser("clock", parents=[common], help="set a sim-time graph's clock to SECONDS")
-    clock.add_argument("seconds", type=float)
+    for spec in COMMANDS.values():
+        spec.arguments(commands.add_parser(spec.name, parents=[common], help=spec.help))
     return parser
 
 
@@ -110,29 +175,70 @@ def parse_facts(items: Sequence[str]) -> dict[str, float]:
         try:
             certainty = float(value)
         except ValueError:
-            raise UsageError(f"assert: {item!r}: the certainty after ':' must be a number in [0, 1]") from None
+            raise UsageError(f"assert: {printable(repr(item), 80)}: the certainty after ':' must be a number in "
+                             "[0, 1]") from None
         if not prop or not 0.0 <= certainty <= 1.0:
-            raise UsageError(f"assert: {item!r}: give PROP or PROP:C with C in [0, 1]")
+            raise UsageError(f"assert: {printable(repr(item), 80)}: give PROP or PROP:C with C in [0, 1]")
         facts[prop] = certainty
     return facts
 
 
-def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str, dict[str, str]]:
-    """Return ``KEY=VALUE`` items as node -> {parameter: value text} (see the module docstring)."""
-    out: dict[str, dict[str, str]] = {}
+def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """Return ``KEY=VALUE`` items as node -> {parameter: value} (see the module docstring).
+
+    A memory setting's value is checked against the settings table here (``inherit``
+    for a domain's setting is its inherit marker); other values stay text, converted to
+    the parameter's declared type by the client.
+    """
+    out: dict[str, dict[str, Any]] = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise UsageError(f"set: {item!r}: expected KEY=VALUE")
+            raise UsageError(f"set: {printable(repr(item), 80)}: expected KEY=VALUE")
         node, colon, name = key.rpartition(":")
         if colon:
+            if not node or not name:
+                raise UsageError(f"set: {printable(repr(item), 80)}: expected NODE:KEY=VALUE")
+            if node == "wm_manager" and _memory_key(name, domains):
+                value = memory_value(item, name, value, domains)
             out.setdefault(node, {})[name] = value
         elif key in MEMORY_KEYS:
             for domain in domains:
-                out.setdefault("wm_manager", {})[f"{domain}.{key}"] = value
+                name = f"{domain}.{key}"
+                out.setdefault("wm_manager", {})[name] = memory_value(item, name, value, domains)
         else:
-            out.setdefault("wm_manager", {})[key] = value
+            out.setdefault("wm_manager", {})[key] = memory_value(item, key, value, domains) \
+                if _memory_key(key, domains) else value
     return out
+
+
+def _memory_key(name: str, domains: Sequence[str]) -> bool:
+    domain, dot, key = name.rpartition(".")
+    return key in MEMORY_KEYS and (not dot or domain in domains)
+
+
+def memory_value(item: str, name: str, text: str, domains: Sequence[str]) -> Any:
+    """Return a memory setting's value from text, checked against the settings table; UsageError naming the rule."""
+    domain, dot, key = name.rpartition(".")
+    row = settings.setting(key)
+    where = f"set {printable(item, 120)}: wm_manager: {name}"
+    inherit = f", or 'inherit' (use the node-wide {key})" if dot else ""
+    if text.strip() == "inherit":
+        if not dot:
+            raise UsageError(f"{where}: only a domain's setting (DOMAIN.{key}) inherits")
+        return row.inherit
+    if not row.is_parameter:
+        return text
+    rule = f"{row.bounds_text}{inherit}"
+    try:
+        value: Any = int(text) if row.kind is int else float(text)
+    except (ValueError, OverflowError):
+        raise UsageError(f"{where}: expected {rule}, got {printable(repr(text), 60)}") from None
+    try:
+        settings.check_value(key, value)
+    except settings.PolicyError as err:
+        raise UsageError(f"{where}: {err} (allowed: {rule})") from None
+    return value
 
 
 # ---------------------------------------------------------------- output
@@ -216,15 +322,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         namespace = normalise_namespace(option(args, "namespace", ""))
         timeout = float(option(args, "timeout", 10.0))
-        if not timeout > 0:
-            raise UsageError(f"--timeout must be positive, got {timeout:g}")
-        facts = parse_facts(args.properties) if args.command == "assert" else None
-        if args.command == "say" and bool(args.text) == bool(args.description):
-            raise UsageError("say: give the words to say, or --description P1,P2 (not both)")
-        if args.command == "view":
-            args.port = check_port(args.port)
-        if args.command == "watch" and args.count is not None and args.count < 1:
-            raise UsageError("watch: --count must be at least 1")
+        spec = COMMANDS[args.command]
+        if spec.check is not None:
+            spec.check(args)
     except (UsageError, ValueError) as err:
         print(f"{PROG}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
@@ -233,18 +333,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except NetworkRefused as err:  # pragma: no cover - require_loopback refused it already
         print(f"{PROG}: error: {err}", file=sys.stderr)
         return EXIT_USAGE
-    return Ctl(args, namespace, timeout, facts).run()
+    return Ctl(args, namespace, timeout).run()
 
 
 class Ctl:
     """One fsreg-ctl command against one graph."""
 
-    def __init__(self, args: argparse.Namespace, namespace: str, timeout: float,
-                 facts: Optional[dict[str, float]]) -> None:
+    def __init__(self, args: argparse.Namespace, namespace: str, timeout: float) -> None:
         self.args = args
         self.namespace = namespace
         self.timeout = timeout
-        self.facts = facts
         self.json = bool(option(args, "json", False))
 
     def emit(self, data: Any, text: str) -> None:
@@ -267,15 +365,22 @@ class Ctl:
                                  cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
         try:
-            client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout)
-            return self.command(client)
+            client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout,
+                                 retry_after=RETRY_AFTER)
+            spec = COMMANDS[self.args.command]
+            if spec.needs == "graph":  # works on a graph that is not ready (yet)
+                self.find(client)
+            elif spec.needs == "ready":
+                client.wait_ready(self.timeout, pipeline=False)  # requests wait for their own topics (exchange)
+            client.notice_leaving = spec.needs != "none"
+            return spec.run(self, client)
         except ClientError as err:
             print(printable(f"{PROG}: error: {err}", 2000), file=sys.stderr)
             if err.kind == "usage":
                 return EXIT_USAGE
             return EXIT_NO_ANSWER if err.kind in NO_ANSWER else EXIT_ERROR
         except UsageError as err:
-            print(f"{PROG}: error: {err}", file=sys.stderr)
+            print(printable(f"{PROG}: error: {err}", 2000), file=sys.stderr)
             return EXIT_USAGE
         except KeyboardInterrupt:
             return EXIT_OK
@@ -284,59 +389,7 @@ class Ctl:
             node.destroy_node()
             rclpy.try_shutdown(context=context)
 
-    def command(self, client) -> int:
-        from ..ros.client import ClientError
-
-        args = self.args
-        if args.command in ("status", "watch", "view"):  # these work on a graph that is not ready (yet)
-            self._find(client)
-        else:  # say, describe and assert wait for their own topics to match (GraphClient.exchange)
-            client.wait_ready(self.timeout, pipeline=False)
-        if args.command == "say":
-            description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
-            answer = client.say(" ".join(args.text) if args.text else None, description=description,
-                                domain=args.domain)
-            self.emit(answer, show_say(answer))
-            if answer.get("status") == "error" or "error" in answer:
-                raise ClientError(f"say: {answer.get('error')}", "error")
-        elif args.command == "describe":
-            answer = client.describe(args.entity, context=args.context)
-            if "error" in answer:
-                raise ClientError(f"describe {args.entity}: {answer['error']}", "error")
-            self.emit(answer, show_describe(answer))
-        elif args.command == "assert":
-            answer = client.assert_facts(args.entity, self.facts, domain=args.domain)
-            if not answer.get("ok"):
-                raise ClientError(f"assert {args.entity}: {answer.get('error')}", "error")
-            self.emit(answer, show_assert(answer))
-        elif args.command == "status":
-            status = client.status()
-            # every node's /diagnostics (at 1 Hz: one period and a little more hears each node once)
-            status["diagnostics"] = read_statuses(client.node, client.spin_for, client.node.get_namespace(),
-                                                  wait=DIAGNOSTICS_PERIOD * 1.5)
-            self.emit(status, "\n".join([show_status(status), *summary(status["diagnostics"])]))
-        elif args.command == "set":
-            return self._set(client)
-        elif args.command == "wm":
-            domain = args.domain or client.domain_of(args.entity)
-            state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
-            queue = list((state.get("queues") or {}).get(args.entity, []))
-            self.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},
-                      f"{args.entity} ({domain}): {', '.join(queue) or '(empty)'}")
-        elif args.command == "clock":
-            reply = client.set_clock(args.seconds)
-            self.emit(reply, f"clock at {args.seconds:g} s; the forgetting due by then is applied")
-        elif args.command == "watch":
-            return self._watch(client)
-        elif args.command == "view":
-            try:
-                return serve_view(client, args.host, args.port, announce=lambda text: print(text, flush=True))
-            except OSError as err:
-                raise ClientError(f"view: cannot serve on {args.host}:{args.port}: {err.strerror or err}",
-                                  "usage") from None
-        return EXIT_OK
-
-    def _find(self, client) -> None:
+    def find(self, client) -> None:
         """Find the graph in the namespace (not necessarily ready)."""
         from ..ros.client import ClientError
 
@@ -348,39 +401,356 @@ class Ctl:
         elif client.readiness() is None:
             raise ClientError(f"graph {client.graph!r} is not in {client.where()}", "not-ready")
 
-    def _set(self, client) -> int:
-        changes = parse_assignments(self.args.assignments, client.domains())
-        for node_name, values in changes.items():
-            client.set_parameters(node_name, values)
-        text = "; ".join(f"{node}: " + ", ".join(f"{k}={v}" for k, v in values.items())
-                         for node, values in changes.items())
-        self.emit({"set": changes}, f"set {text}")
-        return EXIT_OK
+    def now(self, client) -> float:
+        """Return the graph's clock: a request is stamped with it, never earlier than a ``clock`` that returned."""
+        return client.graph_time()
 
-    def _watch(self, client) -> int:
-        from ..ros.client import ClientError
 
-        args = self.args
-        seen = {"states": 0}
-        screen = Screen(sys.stdout) if sys.stdout.isatty() and not self.json else None
+def _error(ctl: Ctl, answer: dict, what: str) -> None:
+    """Raise ClientError (exit 1) with the graph's error reply in one line (``--json``: the reply on stdout too)."""
+    from ..ros.client import ClientError
 
-        def on_state(state: dict) -> None:
-            seen["states"] += 1
-            if screen is not None:
-                screen.update(state)
-            else:
-                self.emit(state, show_state(state))
+    if ctl.json:
+        ctl.emit(answer, "")
+    raise ClientError(f"{what}: {answer.get('error')}", "error")
 
-        def on_event(event: dict) -> None:
-            if screen is None:
-                self.emit(event, show_event(event))
 
-        client.watch(on_state, on_event if args.events else None)
-        while args.count is None or seen["states"] < args.count:
-            client.executor.spin_once(timeout_sec=0.1)
-            if client.foreign is not None:
-                raise ClientError(client.foreign, "foreign")
-        return EXIT_OK
+# ------------------------------------------------------------------ commands
+def _say_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("text", nargs="*", help="what the human says (words)")
+    parser.add_argument("--description", metavar="P1,P2", help="a property list instead of text")
+    parser.add_argument("--domain", help="the domain the description is about")
+
+
+def _say_check(args: argparse.Namespace) -> None:
+    if bool(args.text) == bool(args.description):
+        raise UsageError("say: give the words to say, or --description P1,P2 (not both)")
+
+
+@command("say", "the human says TEXT; print whom RR resolved", arguments=_say_arguments, check=_say_check)
+def say(ctl: Ctl, client) -> int:
+    args = ctl.args
+    if args.domain is not None and args.domain not in client.domains():
+        raise UsageError(f"say: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
+                         f"{', '.join(client.domains())})")
+    description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
+    answer = client.say(" ".join(args.text) if args.text else None, description=description, domain=args.domain,
+                        time=ctl.now(client))
+    if answer.get("status") == "error" or "error" in answer:
+        _error(ctl, answer, "say")
+    ctl.emit(answer, show_say(answer))
+    return EXIT_OK
+
+
+def _describe_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("entity")
+    parser.add_argument("--context", nargs="+", metavar="E", help="describe against these entities only")
+
+
+@command("describe", "the robot describes ENTITY", arguments=_describe_arguments)
+def describe(ctl: Ctl, client) -> int:
+    args = ctl.args
+    answer = client.describe(args.entity, context=args.context, time=ctl.now(client))
+    if "error" in answer:
+        _error(ctl, answer, f"describe {printable(args.entity, 80)}")
+    ctl.emit(answer, show_describe(answer))
+    return EXIT_OK
+
+
+def _assert_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("entity")
+    parser.add_argument("properties", nargs="+", metavar="PROP[:C]", help="a property, with certainty C (default 1)")
+    parser.add_argument("--domain", help="the consultant's domain (default: the one knowing ENTITY, or the only one)")
+
+
+@command("assert", "tell a consultant facts about ENTITY", arguments=_assert_arguments,
+         check=lambda args: parse_facts(args.properties) and None)
+def assert_(ctl: Ctl, client) -> int:
+    args = ctl.args
+    answer = client.assert_facts(args.entity, parse_facts(args.properties), domain=args.domain)
+    if not answer.get("ok"):
+        _error(ctl, answer, f"assert {printable(args.entity, 80)}")
+    ctl.emit(answer, show_assert(answer))
+    return EXIT_OK
+
+
+@command("status", "readiness and memory of every domain, and every node's /diagnostics", needs="graph")
+def status(ctl: Ctl, client) -> int:
+    reply = client.status()
+    # every node's /diagnostics (at 1 Hz: one period and a little more hears each node once)
+    reply["diagnostics"] = read_statuses(client.node, client.spin_for, client.node.get_namespace(),
+                                         wait=DIAGNOSTICS_PERIOD * 1.5)
+    ctl.emit(reply, "\n".join([show_status(reply), *summary(reply["diagnostics"])]))
+    return EXIT_OK
+
+
+def _set_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("assignments", nargs="+", metavar="KEY=VALUE")
+
+
+def _set_check(args: argparse.Namespace) -> None:
+    for item in args.assignments:
+        key, sep, _ = item.partition("=")
+        node, colon, name = key.rpartition(":")
+        if not sep or not key or colon and not (node and name):
+            raise UsageError(f"set: {printable(repr(item), 80)}: expected KEY=VALUE or NODE:KEY=VALUE")
+
+
+@command("set", "change memory settings or node parameters (checked, then read back)", arguments=_set_arguments,
+         check=_set_check)
+def set_(ctl: Ctl, client) -> int:
+    from ..ros.client import ClientError
+
+    changes = parse_assignments(ctl.args.assignments, client.domains())
+    for node_name, values in changes.items():  # every node and key checked before anything is set
+        client.require_node(node_name)
+        known = client.list_parameters(node_name)
+        for name in values:
+            if name not in known:
+                close = difflib.get_close_matches(name, known, n=1)
+                hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
+                raise UsageError(f"set: node {node_name} has no parameter {printable(repr(name), 80)} ({hint})")
+    now: dict[str, dict[str, Any]] = {}
+    for node_name, values in changes.items():
+        try:
+            now[node_name] = client.set_parameters(node_name, values)
+        except ClientError as err:
+            done = f" (already set: {_assignments(now)})" if now else ""
+            raise ClientError(f"set: {err}{done}", err.kind) from None
+    shown = {node: {k: "inherit" if node == "wm_manager" and _inherits(k, v, client.domains()) else v
+                    for k, v in vals.items()} for node, vals in now.items()}
+    ctl.emit({"set": now}, f"set {_assignments(shown)}")
+    return EXIT_OK
+
+
+def _inherits(name: str, value: Any, domains: Sequence[str]) -> bool:
+    """Return whether a domain's memory setting is at its inherit marker (it follows the node-wide value)."""
+    domain, dot, key = name.rpartition(".")
+    return bool(dot) and domain in domains and key in MEMORY_KEYS and value == settings.setting(key).inherit
+
+
+def _assignments(values: dict[str, dict[str, Any]]) -> str:
+    return "; ".join(f"{node}: " + ", ".join(f"{k}={_text(v)}" for k, v in params.items())
+                     for node, params in values.items())
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return "[" + ", ".join(_text(v) for v in value) + "]"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _params_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("action", choices=("get", "dump"), help="get: KEY=VALUE lines; dump: ros2 param dump's YAML")
+    parser.add_argument("items", nargs="*", metavar="ITEM",
+                        help="NODE, NODE:KEY, or a memory setting (KEY, DOMAIN.KEY) of wm_manager "
+                             "(default: every node)")
+
+
+@command("params", "read parameters back: get (NODE:KEY=VALUE lines) or dump (the YAML ros2 param dump writes)",
+         needs="graph", arguments=_params_arguments)
+def params(ctl: Ctl, client) -> int:
+    from ..ros.node_parameters import dump_yaml
+
+    args = ctl.args
+    wanted: dict[str, Optional[list[str]]] = {}
+    for item in args.items or client.node_names():
+        node, colon, key = item.rpartition(":")
+        if not colon and _memory_key(item, client.domains()):
+            node, key = "wm_manager", item
+        elif not colon:
+            node, key = item, ""
+        if args.action == "dump" and key:
+            raise UsageError(f"params dump: {printable(item, 80)}: dump takes node names (get reads single keys)")
+        client.require_node(node)
+        if key:
+            if wanted.get(node, []) is not None:
+                wanted.setdefault(node, []).append(key)
+        else:
+            wanted[node] = None
+    values: dict[str, dict[str, Any]] = {}
+    for node, keys in wanted.items():
+        known = client.list_parameters(node)
+        for key in keys or ():
+            if key not in known:
+                close = difflib.get_close_matches(key, known, n=1)
+                raise UsageError(f"params get: node {node} has no parameter {printable(repr(key), 80)}"
+                                 + (f" (did you mean {close[0]}?)" if close else ""))
+        values[node] = client.get_parameters(node, keys or known)
+    if args.action == "dump":
+        prefix = "" if client.namespace == "/" else client.namespace
+        print(json.dumps({f"{prefix}/{n}": v for n, v in values.items()}, sort_keys=True) if ctl.json
+              else dump_yaml({f"{prefix}/{n}": v for n, v in values.items()}), end="\n" if ctl.json else "", flush=True)
+    else:
+        ctl.emit(values, "\n".join(f"{node}:{k}={_text(v)}" for node, vals in values.items() for k, v in vals.items()))
+    return EXIT_OK
+
+
+def _watch_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--events", action="store_true", help="also print every encode/forget event")
+    parser.add_argument("--count", type=number(1, MAX_COUNT, integer=True), metavar="N",
+                        help="stop after N WM updates")
+
+
+@command("watch", "show each entity's WM live (Ctrl-C ends; exit 3 when the graph leaves)", needs="graph",
+         arguments=_watch_arguments)
+def watch(ctl: Ctl, client) -> int:
+    from ..ros.client import ClientError
+
+    args = ctl.args
+    seen = {"states": 0}
+    screen = Screen(sys.stdout) if sys.stdout.isatty() and not ctl.json else None
+
+    def on_state(state: dict) -> None:
+        seen["states"] += 1
+        if screen is not None:
+            screen.update(state)
+        else:
+            ctl.emit(state, show_state(state))
+
+    def on_event(event: dict) -> None:
+        if screen is None:
+            ctl.emit(event, show_event(event))
+
+    client.watch(on_state, on_event if args.events else None)
+    while args.count is None or seen["states"] < args.count:
+        client.executor.spin_once(timeout_sec=0.1)
+        client.check_gone()
+        if client.foreign is not None:
+            raise ClientError(client.foreign, "foreign")
+    return EXIT_OK
+
+
+def _wm_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("entity")
+    parser.add_argument("--domain")
+
+
+@command("wm", "one entity's WM, least recently used first", arguments=_wm_arguments)
+def wm(ctl: Ctl, client) -> int:
+    args = ctl.args
+    if args.domain is not None and args.domain not in client.domains():
+        raise UsageError(f"wm: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
+                         f"{', '.join(client.domains())})")
+    domain = args.domain or client.domain_of(args.entity)
+    state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
+    queue = list((state.get("queues") or {}).get(args.entity, []))
+    ctl.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},
+             f"{args.entity} ({domain}): {', '.join(queue) or '(empty)'}")
+    return EXIT_OK
+
+
+def _clock_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("seconds", type=number(0.0, MAX_TIME, unit="seconds"),
+                        help=f"the time, in [0, {MAX_TIME:g}] s and not earlier than the graph's clock")
+
+
+@command("clock", "set a sim-time graph's clock to SECONDS (refused: a wall-clock graph, a clock going back)",
+         arguments=_clock_arguments)
+def clock(ctl: Ctl, client) -> int:
+    seconds = ctl.args.seconds
+    reply = client.set_clock(seconds, confirm=True)
+    ctl.emit(reply, f"clock at {seconds:g} s; the forgetting due by then is applied")
+    return EXIT_OK
+
+
+def _view_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--port", type=number(0, 65535, integer=True), default=None, metavar="N",
+                        help="TCP port of the page (default 8765; 0 takes a free port)")
+    parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                        help="address to bind (default 127.0.0.1: this machine only)")
+
+
+def _view_check(args: argparse.Namespace) -> None:
+    args.port = check_port(args.port)
+
+
+@command("view", "serve a live web page of the graph's WM on 127.0.0.1 (Ctrl-C ends)", needs="graph",
+         arguments=_view_arguments, check=_view_check)
+def view(ctl: Ctl, client) -> int:
+    from ..ros.client import ClientError
+
+    args = ctl.args
+    try:
+        return serve_view(client, args.host, args.port, announce=lambda text: print(text, flush=True))
+    except OSError as err:
+        raise ClientError(f"view: cannot serve on {args.host}:{args.port}: {err.strerror or err}", "usage") from None
+
+
+def _record_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("directory", metavar="DIR", help="the recording's folder (must not exist)")
+    parser.add_argument("--duration", type=number(0.0, 7 * 86400, above=True, unit="seconds"), metavar="S",
+                        help="stop after S seconds (wall clock)")
+    parser.add_argument("--segment", type=number(0.0, 3600, above=True, unit="seconds"), default=1.0, metavar="S",
+                        help="close a segment every S seconds: what a killed recorder can lose at most (default 1)")
+
+
+def check_record(args: argparse.Namespace) -> None:
+    """Refuse a ``record`` command line that cannot be recorded (one line, exit 2)."""
+    from pathlib import Path
+
+    if Path(args.directory).exists():
+        raise UsageError(f"record: {args.directory} exists already; a recording goes to a new folder")
+
+
+@command("record", "record every fsreg topic to a new rosbag2 folder DIR (MCAP) until Ctrl-C", needs="none",
+         arguments=_record_arguments, check=check_record)
+def record(ctl: Ctl, client) -> int:
+    """``record``: every fsreg topic of the namespace to a rosbag2 folder until Ctrl-C, SIGTERM or --duration.
+
+    Recording starts at once (nothing that comes while the graph is looked for is lost).
+    """
+    import signal
+    import time
+    from pathlib import Path
+
+    from ..core.recording import RecordingError
+    from ..ros.client import ClientError
+    from ..ros.recorder import Recorder, graph_knowledge
+
+    args = ctl.args
+    try:  # recording starts at once: nothing that comes while the graph is looked for is lost
+        recorder = Recorder(client.node, Path(args.directory), segment_seconds=args.segment,
+                            custom={"fsreg.namespace": ctl.namespace or "/"})
+    except (RecordingError, OSError) as err:
+        raise UsageError(f"record: {err}") from None
+
+    def stop(signum, frame) -> None:
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    print(f"{PROG}: recording {len(recorder.topics)} topics of {client.where()} to {args.directory}"
+          + (f" for {args.duration:g} s" if args.duration else " (Ctrl-C ends)"), file=sys.stderr, flush=True)
+    deadline = None if args.duration is None else time.monotonic() + args.duration
+    try:
+        try:  # a graph up: note what it runs with (knowledge base, lexicon, REG options) for a replay
+            client.spin_until(lambda: client.ready_messages, ctl.timeout, "readiness", "not-ready")
+            client.check_clash()
+            if client.graph is None:
+                (client.graph, _, _), = client.ready_messages
+            custom, attach = graph_knowledge(client, ctl.timeout)
+            recorder.bag.custom.update(custom)
+            for key, source in attach.items():
+                recorder.bag.attach(key, source)
+        except ClientError as err:
+            if err.kind == "clash":
+                raise
+            print(f"{PROG}: note: no graph answered in {client.where()} within {ctl.timeout:g} s; recording "
+                  "whatever comes (a replay will need --scenario)", file=sys.stderr, flush=True)
+        while deadline is None or time.monotonic() < deadline:
+            client.executor.spin_once(timeout_sec=0.05)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for sig in previous:  # closing the bag is not interrupted
+            signal.signal(sig, signal.SIG_IGN)
+        path = recorder.close()
+    counts = recorder.counts
+    ctl.emit({"recorded": str(path), "messages": sum(counts.values()), "counts": counts},
+             f"recorded {recorder.summary()}")
+    return EXIT_OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -310,12 +310,15 @@ def run_graph(
     env: Optional[dict] = None,
     lexicon: Optional[Path] = None,
     namespace: Optional[str] = None,
+    record: Optional[Path] = None,
 ) -> tuple[dict, list[dict]]:
     """Play a scenario through the multi-process graph; return (result, trace).
 
     The run is a graph of its own: under ``namespace`` (None: a new unique one, '': the
     root namespace) and with a new graph identity that every node stamps and the
-    player checks.
+    player checks.  ``record``: record every topic to this new rosbag2 folder
+    (:mod:`fsreg_ros.ros.recorder`, subscribed before any node starts; the player waits
+    for it too), then check that it holds every answer and WM event (GraphError if not).
     """
     words = Lexicon.load(lexicon)
     scenario = load_scenario(scenario_path, words)  # bad input fails here, before any process
@@ -324,9 +327,13 @@ def run_graph(
     with tempfile.TemporaryDirectory(prefix="fsreg-graph-") as tmp:
         tmp_path = Path(tmp)
         output, trace_file = tmp_path / "result.json", (tmp_path / "trace.jsonl" if trace else None)
-        nodes = graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon,
-                            graph=new_graph_id("fsreg-graph"))
+        identity = new_graph_id("fsreg-graph")
+        nodes = graph_nodes(scenario, scenario_path, options, output, trace_file, lexicon, graph=identity)
         graph = Graph(nodes, tmp_path, env, namespace)
+        recorder = None
+        if record is not None:
+            recorder = start_recorder(record, namespace, identity, scenario_path, options, lexicon)
+            nodes[-1].parameters["listeners"] = 1  # the player waits for the recorder's subscriptions too
         try:
             graph.start()
             deadline = time.monotonic() + RUN_DEADLINE + TURN_ALLOWANCE * len(scenario.dialogue)
@@ -337,9 +344,46 @@ def run_graph(
             events = []
             if trace_file is not None and trace_file.exists():
                 events = [json.loads(line) for line in trace_file.read_text().splitlines() if line]
-            return result, events
         finally:
             graph.stop()
+            if recorder is not None:
+                recorder.close()
+        if record is not None:
+            check_recording(record, scenario)
+        return result, events
+
+
+def start_recorder(path: Path, namespace: str, identity: str, scenario_path: Path, options: Options,
+                   lexicon: Optional[Path]):
+    """Start recording the run's graph to ``path`` (a node of its own, spun in a thread)."""
+    os.environ.update(ros_environment())  # before rclpy loads
+    from ..core.recording import RecordingError
+    from ..ros.recorder import RecorderThread
+
+    custom = {"fsreg.graph": identity, "fsreg.namespace": namespace or "/",
+              "fsreg.algorithm": options.algorithm or "auto", "fsreg.wm_order": options.wm_order}
+    attach = {"scenario": scenario_path, **({"lexicon": lexicon} if lexicon else {})}
+    try:
+        return RecorderThread(path, namespace, custom=custom, attach=attach)
+    except RecordingError as err:
+        raise GraphError(f"--record: {err}") from None
+
+
+def check_recording(path: Path, scenario: Scenario) -> None:
+    """Raise GraphError unless the recording holds an answer to every turn and every WM event without a gap."""
+    from ..core.recording import open_recording
+    from ..core.replay import ReplayError, check_events
+
+    recording = open_recording(path)
+    for speaker, role in (("human", "rr"), ("robot", "expression")):
+        wanted = sum(1 for t in scenario.dialogue if t.speaker == speaker)
+        heard = len({m.data.get("id") for m in recording.on(role) if isinstance(m.data, dict)})
+        if heard < wanted:
+            raise GraphError(f"recording {path} is incomplete: {heard} of {wanted} answers to {speaker} turns")
+    try:
+        check_events(str(path), [m.data for m in recording.on("events") if isinstance(m.data, dict)])
+    except ReplayError as err:
+        raise GraphError(f"recording incomplete: {err}") from None
 
 
 def refuse_running_graph(namespace: str) -> None:
@@ -357,7 +401,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     require_loopback("fsreg-graph")  # exits 2 if the environment would take DDS off this machine
     extra = argparse.ArgumentParser(add_help=False)
     extra.add_argument("--namespace", default=None)
+    extra.add_argument("--record", type=Path, default=None)
     known, rest = extra.parse_known_args(sys.argv[1:] if argv is None else list(argv))
+    if known.record is not None and known.record.exists():
+        print(f"fsreg-graph: error: --record: {known.record} exists already; a recording goes to a new folder",
+              file=sys.stderr)
+        return 2
     namespace: Optional[str] = None  # each run its own
     if known.namespace is not None:
         try:
@@ -371,15 +420,20 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if namespace is not None and not checked:  # a namespace given: is a graph running there already?
             checked.append(True)
             refuse_running_graph(namespace)
+        record = known.record
+        if record is not None and (args.compare_policies or args.expect):  # one recording per compared policy
+            record = record / f"{args.scenario.stem}-{options.memory.get('policy')}"
         # The trace only when an option writes it: alignment reads the result records alone.
-        return run_graph(args.scenario, options, trace=needs_trace(args), lexicon=args.lexicon, namespace=namespace)
+        return run_graph(args.scenario, options, trace=needs_trace(args), lexicon=args.lexicon, namespace=namespace,
+                         record=record)
 
     try:
         return run_cli(
             "fsreg-graph",
             "Play a scenario through the multi-process fsreg ROS 2 node graph (sim time). Each run is a graph of "
             "its own, in a namespace made for it; --namespace NS runs every node under the ROS namespace /NS "
-            "instead, with its own NS/clock (refused if a graph already runs there).",
+            "instead, with its own NS/clock (refused if a graph already runs there). --record DIR records every "
+            "topic to the rosbag2 folder DIR (with --compare-policies: DIR/<scenario>-<policy> per run).",
             graph_args,
             rest,
             failures=(GraphError,),

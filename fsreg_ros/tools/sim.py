@@ -30,9 +30,9 @@ from ..core.consultant import KnowledgeError
 from ..core import settings
 from ..core.forgetting import PolicyError, check_setting, parse_rules
 from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError
-from ..core.lexicon import Lexicon, coverage_warning, lexicon_template, unsayable
+from ..core.lexicon import Lexicon
 from ..core.resolution import ResolutionError
-from ..core.scenario import load_scenario
+from ..core.scenario import coverage_warning, lexicon_template, load_scenario, unsayable
 from ..core.simulation import Options, Simulation, dumps
 from ..core.yaml_source import SourceError, find_line, read_yaml
 from ..core.report import render_comparison, render_table, run_label
@@ -49,12 +49,17 @@ class UsageError(ValueError):
 INPUT_ERRORS = (SourceError, PolicyError, KnowledgeError, ResolutionError, GenerationError, OSError, UsageError)
 
 
+def add_memory_options(parser: argparse.ArgumentParser) -> None:
+    """Add one option per memory setting, from the settings table (read back by :func:`options_from_args`)."""
+    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
+    for row in settings.TABLE:
+        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+
+
 def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("scenario", type=Path, help="scenario YAML file (docs/scenario-format.md)")
-    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    for row in settings.TABLE:  # one option per memory setting
-        memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
+    add_memory_options(parser)
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
@@ -301,9 +306,53 @@ def simulate_args(args: argparse.Namespace, options: Options) -> tuple[dict, Opt
 
 
 def sim_main(argv: Optional[Sequence[str]] = None) -> int:
-    """``fsreg-sim SCENARIO.yaml [options]``: play a scenario with the core alone."""
+    """``fsreg-sim SCENARIO.yaml [options]``: play a scenario with the core alone (``--replay DIR``: a recording)."""
+    words = list(sys.argv[1:] if argv is None else argv)
+    if any(w == "--replay" or w.startswith("--replay=") for w in words):
+        return replay_main(words)
     description = "Play a scenario's dialogue through the fsreg core on a simulated clock."
     return run_cli("fsreg-sim", description, simulate_args, argv)
+
+
+def replay_main(argv: Sequence[str]) -> int:
+    """``fsreg-sim --replay DIR [--scenario FILE] [--lexicon FILE] [--json]``: a recorded session, turn by turn.
+
+    Exit 0 when every turn's answer and WM equal the live graph's, 1 on a difference, 2 when
+    the recording cannot be read or replayed (one line naming the file and the problem).
+    """
+    from ..core.recording import RecordingError, open_recording
+    from ..core.replay import ReplayError, render, replay, session_of
+
+    parser = argparse.ArgumentParser(
+        prog="fsreg-sim", description="Replay a recorded live session (fsreg-ctl record, fsreg-up --record) through "
+        "the simulator and report, turn by turn, whether its answers and WM equal the live graph's.")
+    parser.add_argument("--replay", type=Path, required=True, metavar="DIR",
+                        help="the recording: a rosbag2 folder (or its .mcap file)")
+    parser.add_argument("--scenario", type=Path, metavar="FILE",
+                        help="the knowledge base the graph ran with (default: the copy in the recording)")
+    parser.add_argument("--lexicon", type=Path, metavar="FILE", help="its lexicon (default: the recording's, if any)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object per turn")
+    args = parser.parse_args(argv)
+    try:
+        session = session_of(open_recording(args.replay), args.scenario, args.lexicon)
+        reports = replay(session)
+    except (RecordingError, ReplayError) as err:
+        print(f"fsreg-sim: error: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except INPUT_ERRORS as err:
+        print(f"fsreg-sim: error: {args.replay}: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.json:
+        for r in reports:
+            print(json.dumps({"turn": r.index, "speaker": r.kind, "time": r.time, "request": r.request,
+                              "live": r.live, "equal": not r.differences, "differences": r.differences},
+                             sort_keys=True))
+    else:
+        sys.stdout.write(render(session, reports))
+    for note in session.notes:
+        if args.json:
+            print(f"fsreg-sim: note: {note}", file=sys.stderr)
+    return EXIT_MISMATCH if any(r.differences for r in reports) else EXIT_OK
 
 
 if __name__ == "__main__":  # pragma: no cover

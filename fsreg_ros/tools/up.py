@@ -1,6 +1,7 @@
 """``fsreg-up``: start the live node graph of a scenario's domains and keep it up.
 
-    fsreg-up SCENARIO [--namespace NS] [memory options] [--state-dir DIR] [--wall-time]
+    fsreg-up SCENARIO [--namespace NS] [memory options] [--params-file FILE] [--state-dir DIR] [--wall-time]
+             [--view [PORT]] [--record DIR]
 
 Starts one process per node, as ``fsreg-graph`` does (a ``consultant`` per domain of
 the scenario, the ``wm_manager`` with the scenario's memory settings and the command
@@ -14,9 +15,18 @@ clock and where to talk to it; ``--json``: one JSON object), and stays up.  Ctrl
 SIGTERM stops every node (SIGTERM to the process group, SIGKILL after a grace period;
 every node also dies with this process) and leaves no process behind; exit 0.
 
+``--record DIR`` records every fsreg topic to a new rosbag2 folder from before the first
+node starts until the graph stops (:mod:`fsreg_ros.ros.recorder`), with a copy of the
+scenario (and lexicon) for ``fsreg-sim --replay DIR``.
+
 A node that exits is reported with the tail of its log and everything is stopped
 (exit 1), or, with ``--respawn``, it is started again (at most ``MAX_RESPAWNS`` times
 per node); its state survives in its state database.
+
+``--params-file FILE`` gives the nodes parameters in the YAML ``ros2 param dump``
+writes (``/**`` wildcards, node names, namespaces), each key and value checked against
+the node's parameters before anything starts (:mod:`fsreg_ros.tools.params_file`); the
+memory options on the command line win over the file, the file over the scenario.
 
 Time: sim time by default (the nodes follow ``/clock``, under a namespace
 ``<namespace>/clock``, or ``--clock TOPIC``; ``fsreg-ctl clock T`` or a simulator drives
@@ -38,12 +48,11 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from .. import contract
-from .sim import INPUT_ERRORS, UsageError, one_line, options_from_args
+from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options_from_args
 from ..contract import normalise_namespace
-from ..core.forgetting import RULES
 from ..core.generation import ALGORITHMS, WM_ORDERS
-from ..core.lexicon import Lexicon, coverage_warning
-from ..core.scenario import load_scenario
+from ..core.lexicon import Lexicon
+from ..core.scenario import coverage_warning, load_scenario
 from ..core.simulation import effective_policies
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
@@ -68,13 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "SIGTERM (talk to it with fsreg-ctl).")
     parser.add_argument("scenario", type=Path, help="scenario/KB YAML file (its dialogue is not played)")
     parser.add_argument("--namespace", default="", help="ROS namespace of every node (default: none)")
-    memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
-    memory.add_argument("--policy", help=f"none, or rules joined by + ({', '.join(RULES)})")
-    memory.add_argument("--decay-period", type=float, metavar="S", help="decay period delta in seconds")
-    memory.add_argument("--capacity", type=int, metavar="N", help="per-entity queue limit alpha")
-    memory.add_argument("--global-capacity", type=int, metavar="N", help="per-domain total limit")
-    memory.add_argument("--shared-capacity", type=int, metavar="N", help="limit of the pool shared by all domains")
-    memory.add_argument("--seed", type=int, metavar="N", help="seed of random displacement (default 0)")
+    add_memory_options(parser)  # one per memory setting, from the settings table
     parser.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
     parser.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
@@ -86,10 +89,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--log-dir", type=Path, metavar="DIR", help="node logs (default: a new temporary directory)")
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="seconds to wait for the graph to be ready (default 60)")
+    parser.add_argument("--params-file", type=Path, metavar="FILE",
+                        help="node parameters in the YAML 'ros2 param dump' writes ('/**' wildcards, node names); "
+                             "checked before anything starts; memory options on the command line win over it")
     parser.add_argument("--respawn", action="store_true", help="start a node that exits again (default: stop all)")
     parser.add_argument("--json", action="store_true", help="print the ready line as one JSON object")
     parser.add_argument("--view", nargs="?", type=int, const=DEFAULT_PORT, default=None, metavar="PORT",
                         help=f"also serve the live web view on 127.0.0.1:PORT (default {DEFAULT_PORT}; 0: a free port)")
+    parser.add_argument("--record", type=Path, metavar="DIR",
+                        help="record every fsreg topic from the start to a new rosbag2 folder DIR (MCAP)")
     return parser
 
 
@@ -123,7 +131,8 @@ def ready_line(report: dict) -> str:
     return (f"{PROG}: ready: graph {report['graph']} in namespace {ns} on ROS domain {report['ros_domain_id']}; "
             f"{memory}; {clock}; endpoints {endpoints}; "
             f"talk to it with: {ctl} say TEXT | describe ENTITY | status | watch"
-            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}")
+            + (f"; live view at {report['view']}" if report.get("view") else "") + f"; logs in {report['logs']}"
+            + (f"; recording to {report['recording']}" if report.get("recording") else ""))
 
 
 class Stop(Exception):
@@ -146,6 +155,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.view is not None and not 0 <= args.view <= 65535:
         print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.record is not None and args.record.exists():
+        print(f"{PROG}: error: --record: {args.record} exists already; a recording goes to a new folder",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.ready_timeout <= 0:
         print(f"{PROG}: error: --ready-timeout must be positive, got {args.ready_timeout:g}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -158,6 +171,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                                             else contract.CLOCK))
         if clock is not None:
             _check_topic(clock)
+        file_params, memory = {}, None
+        if args.params_file is not None:
+            file_params, memory = params_from_file(args.params_file, policies, namespace, options)
     except INPUT_ERRORS as err:
         print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -172,12 +188,24 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     os.environ.update(env)
     previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return Up(args, scenario, options, policies, namespace, clock, env).run()
+        return Up(args, scenario, options, policies, namespace, clock, env, file_params, memory).run()
     except Stop:
         return EXIT_OK
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def params_from_file(path: Path, policies: dict, namespace: str, options) -> tuple[dict, dict]:
+    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid."""
+    from ..ros.graph_spec import policy_settings
+    from .params_file import check_memory, overrides
+
+    domains = list(policies)
+    given = overrides(path, domains, namespace, options.memory)
+    manager = {f"{d}.{k}": v for d, p in policies.items() for k, v in policy_settings(p).items() if v is not None}
+    manager.update(given.get("wm_manager", {}))
+    return given, check_memory(path, manager, domains)
 
 
 def _check_topic(name: str) -> None:
@@ -192,7 +220,8 @@ class Up:
     """One fsreg-up run: the probe that checks and waits, the node processes, the loop that keeps them up."""
 
     def __init__(self, args: argparse.Namespace, scenario, options, policies: dict, namespace: str,
-                 clock: Optional[str], env: dict) -> None:
+                 clock: Optional[str], env: dict, file_params: Optional[dict] = None,
+                 memory: Optional[dict] = None) -> None:
         self.args = args
         self.namespace = namespace
         self.clock = clock
@@ -203,6 +232,10 @@ class Up:
         self.specs = live_nodes(scenario, args.scenario, options, graph=self.graph_id, lexicon=args.lexicon,
                                 state_dir=str(args.state_dir.resolve()) if args.state_dir else None,
                                 use_sim_time=not args.wall_time)
+        for spec in self.specs:  # --params-file (checked): over the scenario's, under the command line's
+            spec.parameters.update((file_params or {}).get(spec.name, {}))
+        if memory is not None:
+            self.memory = memory
         self.graph: Optional[Graph] = None
         self.respawns: dict[str, int] = {}
 
@@ -221,6 +254,7 @@ class Up:
         remaps += clock_arguments(self.namespace, self.clock)
         node = rclpy.create_node("fsreg_up", context=context, cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
+        recorder = None
         try:
             client = GraphClient(node, executor, graph=self.graph_id)
             running = client.find_running(DISCOVERY_WAIT)
@@ -228,6 +262,8 @@ class Up:
                 print(f"{PROG}: error: {running}; stop it, or choose another --namespace or ROS_DOMAIN_ID",
                       file=sys.stderr)
                 return EXIT_FAILED
+            if self.args.record is not None:  # subscribed before any node starts: the recording starts with the graph
+                recorder = self._recorder(node)
             self.graph = Graph(self.specs, self.log_dir, self.env, self.namespace, clock=self.clock)
             self.graph.start()
             self._wait_ready(client)
@@ -236,6 +272,8 @@ class Up:
             view = self._start_view(client)
             if view is not None:
                 report["view"] = view.url
+            if recorder is not None:
+                report["recording"] = str(self.args.record)
             print(json.dumps(report, sort_keys=True) if self.args.json else ready_line(report), flush=True)
             while True:
                 self._supervise()
@@ -259,6 +297,9 @@ class Up:
                 self.graph.stop()
                 print(f"{PROG}: stopped graph {self.graph_id} ({len(self.graph.procs)} nodes); logs in {self.log_dir}",
                       file=sys.stderr)
+            if recorder is not None:
+                recorder.close()
+                print(f"{PROG}: recorded {recorder.summary()}", file=sys.stderr)
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)
@@ -270,6 +311,19 @@ class Up:
         view = LiveView(client, DEFAULT_HOST, self.args.view)  # OSError: the port is taken
         view.start()
         return view
+
+    def _recorder(self, node):
+        """Start recording every fsreg topic on ``node`` (:mod:`fsreg_ros.ros.recorder`), with what a replay needs."""
+        from ..core.recording import RecordingError
+        from ..ros.recorder import Recorder
+
+        custom = {"fsreg.graph": self.graph_id, "fsreg.namespace": self.namespace or "/",
+                  "fsreg.algorithm": self.args.algorithm or "auto", "fsreg.wm_order": self.args.wm_order}
+        attach = {"scenario": self.args.scenario, **({"lexicon": self.args.lexicon} if self.args.lexicon else {})}
+        try:
+            return Recorder(node, self.args.record, custom=custom, attach=attach)
+        except (RecordingError, OSError) as err:
+            raise UpError(f"--record: {err}") from None
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError

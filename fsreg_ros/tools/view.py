@@ -198,7 +198,7 @@ def serve_view(client, host: str, port: int, *, until=None, announce=print) -> i
 
 
 def check_port(port: Optional[int]) -> int:
-    """A TCP port number from the command line (0 = any free port)."""
+    """Return the TCP port of the command line (0 = any free port); ValueError out of range."""
     if port is None:
         return DEFAULT_PORT
     if not 0 <= port <= 65535:

@@ -30,7 +30,7 @@ DIALOGUE_LINES = 200
 
 
 def decay_period(memory: Mapping[str, Any]) -> Optional[float]:
-    """The decay period of a policy object (seconds), or None when the policy does not decay."""
+    """Return the decay period of a policy object (seconds), or None when the policy does not decay."""
     try:
         policy = ForgettingPolicy.from_settings({k: v for k, v in memory.items() if v is not None})
     except (PolicyError, TypeError, ValueError):
@@ -61,14 +61,14 @@ class ViewModel:
         self._lock.notify_all()
 
     def on_state(self, state: Mapping[str, Any]) -> None:
-        """A domain's ``wm/state`` (newer than the last one shown)."""
+        """Take a domain's ``wm/state`` (newer than the last one shown)."""
         with self._lock:
             self._states[state["domain"]] = dict(state)
             self._clock(state.get("time"))
             self._changed()
 
     def on_event(self, event: Mapping[str, Any]) -> None:
-        """A ``wm/events`` message: an encode records the entry's origin, a forget drops it."""
+        """Take a ``wm/events`` message: an encode records the entry's origin, a forget drops it."""
         with self._lock:
             key = (event["domain"], event["entity"], event["property"])
             if event.get("op") == "encode":
@@ -79,14 +79,14 @@ class ViewModel:
             self._changed()
 
     def on_human(self, message: Mapping[str, Any]) -> None:
-        """The human's utterance (``dialogue/human``): a dialogue line, resolved later by ``rr/result``."""
+        """Take the human's utterance (``dialogue/human``): a dialogue line, resolved later by ``rr/result``."""
         with self._lock:
             words = message.get("text") or ", ".join(message.get("description") or [])
             self._add_line(message.get("id"), {"speaker": "human", "text": words, "time": message.get("time"),
                                                "turn": message.get("turn")})
 
     def on_rr(self, message: Mapping[str, Any]) -> None:
-        """Reference resolution's answer to an utterance: whom it resolved (or why not)."""
+        """Take reference resolution's answer to an utterance: whom it resolved (or why not)."""
         with self._lock:
             line = self._line_of(message.get("id"), {"speaker": "human", "text": message.get("text") or "",
                                                      "time": message.get("time")})
@@ -98,7 +98,7 @@ class ViewModel:
             self._changed()
 
     def on_expression(self, message: Mapping[str, Any]) -> None:
-        """REG's expression: the robot's line, each property marked WM or LTM."""
+        """Take REG's expression: the robot's line, each property marked WM or LTM."""
         with self._lock:
             if message.get("error"):
                 line = {"speaker": "robot", "text": "", "error": message.get("error"), "target": message.get("target"),
@@ -124,7 +124,7 @@ class ViewModel:
             self._changed()
 
     def on_status(self, status: Mapping[str, Any]) -> None:
-        """The WM Manager's status (the next decay tick of each domain, its settings)."""
+        """Take the WM Manager's status (the next decay tick of each domain, its settings)."""
         with self._lock:
             self._status = dict(status)
             self._clock(status.get("time"))
@@ -166,7 +166,7 @@ class ViewModel:
             return self.version
 
     def snapshot(self) -> dict:
-        """The page's data: dialogue lines, each domain's queues with origins and forget times, settings."""
+        """Return the page's data: dialogue lines, each domain's queues with origins and forget times, settings."""
         with self._lock:
             domains = {}
             for domain, state in sorted(self._states.items()):

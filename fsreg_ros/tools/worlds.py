@@ -48,7 +48,7 @@ class WorldShape:
 
     def check(self) -> "WorldShape":
         """Return self if every size and share is usable, else raise ValueError naming the field."""
-        for name in ("entities", "attributes", "values", "capacity", "subset_max"):
+        for name in ("entities", "attributes", "values", "subset_max"):  # the memory settings: the policy's checks
             if getattr(self, name) < 1:
                 raise ValueError(f"world shape: {name} must be >= 1, got {getattr(self, name)}")
         for name in ("human_turns", "robot_turns"):
@@ -57,16 +57,21 @@ class WorldShape:
         for name in ("distinguishing_share", "follow_share"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"world shape: {name} must be in [0, 1], got {getattr(self, name)}")
-        try:  # the core's own rules for policy names and parameters
-            ForgettingPolicy.parse(
+        self.memory()  # the core's own rules for policy names and parameters
+        return self
+
+    def memory(self) -> dict:
+        """Return the world's ``memory:`` block (the settings given, as a configure carries them); ValueError if bad."""
+        try:
+            policy = ForgettingPolicy.parse(
                 self.policy,
-                decay_period=self.decay_period,
+                decay_period=float(self.decay_period),
                 capacity=self.capacity,
                 global_capacity=self.global_capacity,
             )
         except PolicyError as err:
             raise ValueError(f"world shape: {err}") from None
-        return self
+        return policy.settings()
 
 
 def property_names(shape: WorldShape) -> list[list[str]]:
@@ -108,9 +113,7 @@ def random_world(shape: WorldShape = WorldShape()) -> dict:
             target = named if named is not None and rng.random() < shape.follow_share else rng.choice(names)
             dialogue.append({"time": time, "speaker": "robot", "target": target})
 
-    memory: dict = {"policy": shape.policy, "decay_period": float(shape.decay_period), "capacity": shape.capacity}
-    if shape.global_capacity is not None:
-        memory["global_capacity"] = shape.global_capacity
+    memory = shape.memory()
     return {
         "name": f"random-world-{shape.entities}-seed{shape.seed}",
         "domains": {DOMAIN: {"preference": preference, "entities": facts}},

@@ -6,14 +6,9 @@ import math
 
 import pytest
 
-from fsreg_ros.core.consultant import (
-    AssertResult,
-    Consultant,
-    KnowledgeError,
-    LocalPort,
-    Narrowed,
-    run_sync,
-)
+from fsreg_ros.core.consultant import AssertResult, Consultant, KnowledgeError
+from fsreg_ros.core.local_port import LocalPort
+from fsreg_ros.core.port import Narrowed, run_sync
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.wm_manager import WMManager
 

@@ -10,15 +10,17 @@ import math
 
 import pytest
 
+from fsreg_ros.contract.consultant_codec import apply
 from fsreg_ros.core import journal
-from fsreg_ros.core.consultant import (Consultant, KnowledgeError, LocalPort, Walked, WalkStep, run_sync,
-                                       walk_by_narrowing)
+from fsreg_ros.core.consultant import Consultant, KnowledgeError
 from fsreg_ros.core.forgetting import PolicyError
 from fsreg_ros.core.generation import generate
+from fsreg_ros.core.local_port import LocalPort
 from fsreg_ros.core.persistence import CHECKPOINT_RECORDS
+from fsreg_ros.core.port import Walked, WalkStep, run_sync, walk_by_narrowing
 from fsreg_ros.core.service import ConsultantService, NotReady, RequestError
-from fsreg_ros.core.sessions import SessionError, SessionTable
 from fsreg_ros.core.store import DomainStore, StateDamaged, StoreError, fingerprint
+from fsreg_ros.core.views import SessionError, ViewTable
 
 PREF = ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"]
 ENTITIES = {
@@ -46,31 +48,31 @@ def make(tmp_path=None, clock: str = "system", persist_wm: bool = True, steady=N
     store = DomainStore(tmp_path / "faces.sqlite3", KB) if tmp_path is not None else None
     service = ConsultantService(consultant, store=store, clock=clock, persist_wm=persist_wm,
                                 now=lambda: 50.0, steady=steady or Steady(),
-                                sessions=SessionTable(capacity=8, per_client=2))
+                                sessions=ViewTable(capacity=8, per_client=2))
     if store is not None:
         service.restore(store.open())
     return service
 
 
 def configure(service, policy=POLICY, time=0.0):
-    return service.apply("configure", {"op": "configure", "policy": policy, "time": time})
+    return apply(service, "configure", {"op": "configure", "policy": policy, "time": time})
 
 
 def encode(service, entity, props, time, listening=False):
-    return service.apply("encode", {"op": "encode", "entity": entity, "properties": props, "cause": "speaker",
-                                    "time": time}, listening=listening)
+    return apply(service, "encode", {"op": "encode", "entity": entity, "properties": props, "cause": "speaker",
+                                     "time": time}, listening=listening)
 
 
 # ------------------------------------------------------------------ ops and change sets
 def test_queries_wait_for_the_wm_manager_but_info_and_manage_ops_do_not():
     service = make()
-    info = service.apply("info", {"op": "info"}).reply
+    info = apply(service, "info", {"op": "info"}).reply
     assert info["policy"] == "none" and info["events"] == 0 and info["version"] == "1:0"
     assert info["state"] == {"wm": "empty", "persisted": True}
     for op, request in (("open", {"op": "open"}), ("snapshot", {"op": "snapshot"})):
         with pytest.raises(NotReady, match="incarnation 1"):
-            service.apply(op, request)
-    assert service.apply("size", {"op": "size"}).reply == {"size": 0}
+            apply(service, op, request)
+    assert apply(service, "size", {"op": "size"}).reply == {"size": 0}
     outcome = configure(service)
     assert outcome.reply == {"memory": POLICY, "incarnation": 1, "state": {"wm": "empty", "persisted": True},
                              "queues_changed": 0}
@@ -88,36 +90,36 @@ def test_every_op_reports_whether_it_changed_wm_and_manage_ops_exactly_which_que
     assert [e["seq"] for e in out.events] == [1, 2]
     assert out.events[0] == {"op": "encode", "domain": "faces", "entity": "face1", "property": "male",
                              "cause": "speaker", "time": 1.0, "turn": None, "seq": 1, "incarnation": 1}
-    out = service.apply("affirm", {"op": "affirm", "property": "glasses", "entities": ["face3", "face2", "face1"],
-                                   "cause": "rr", "time": 2.0, "turn": 1})
+    out = apply(service, "affirm", {"op": "affirm", "property": "glasses", "entities": ["face3", "face2", "face1"],
+                                    "cause": "rr", "time": 2.0, "turn": 1})
     assert out.reply == {"holds": ["face2", "face1"]} and out.changes.wm and take() == ["face2", "face1"]
     assert out.events == []  # nobody listening: no events built, none numbered
-    opened = service.apply("open", {"op": "open", "target": "face1", "client": "reg"}, client="reg")
+    opened = apply(service, "open", {"op": "open", "target": "face1", "client": "reg"}, client="reg")
     assert opened.reply["queue"] == ["male", "glasses"] and not opened.changes.wm and take() == []
     assert opened.reply["origins"] == [{"cause": "speaker", "turn": None}, {"cause": "speaker", "turn": None}]
     session = opened.reply["session"]
     step = {"op": "narrow", "session": session, "cause": "reg-distractor", "time": 3.0, "turn": 2}
-    out = service.apply("narrow", {**step, "property": "male"}, listening=True)
+    out = apply(service, "narrow", {**step, "property": "male"}, listening=True)
     assert out.reply == {"target_holds": True, "size": 1, "version": "1:0"}
     assert out.changes.wm and take() == ["face3"] and [e["seq"] for e in out.events] == [3]  # no gap
-    out = service.apply("narrow", {**step, "property": "female"})  # not the target's: nothing
+    out = apply(service, "narrow", {**step, "property": "female"})  # not the target's: nothing
     assert not out.changes.wm and take() == []
-    assert not service.apply("rule_out", {"op": "rule_out", "session": session}).changes.wm and take() == []
-    out = service.apply("close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 3.0,
-                                  "turn": 2})
+    assert not apply(service, "rule_out", {"op": "rule_out", "session": session}).changes.wm and take() == []
+    out = apply(service, "close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 3.0,
+                                   "turn": 2})
     assert out.reply == {"members": ["face3"], "version": "1:0"} and out.changes.wm and take() == ["face1"]
-    assert service.apply("snapshot", {"op": "snapshot"}).reply == {
+    assert apply(service, "snapshot", {"op": "snapshot"}).reply == {
         "queues": {"face1": ["male", "glasses", "light-hair"], "face2": ["glasses"], "face3": ["male"]}, "events": 3}
     encode(service, "face2", ["female"], 4.0)  # not taken: the next manage op does not count it
-    out = service.apply("decay", {"op": "decay", "ticks": TICK})
+    out = apply(service, "decay", {"op": "decay", "ticks": TICK})
     assert out.reply == {"policy": "decay+displacement", "queues_changed": 3} and out.changes.decay_until == 10.0
     assert out.changes.queues == ["face1", "face2", "face3"]  # every queue popped by the tick, in entity order
-    assert service.apply("decay", {"op": "decay", "ticks": TICK}).reply["queues_changed"] == 0  # applied once
-    out = service.apply("evict", {"op": "evict", "count": 1, "time": 11.0})
+    assert apply(service, "decay", {"op": "decay", "ticks": TICK}).reply["queues_changed"] == 0  # applied once
+    out = apply(service, "evict", {"op": "evict", "count": 1, "time": 11.0})
     assert out.reply == {"size": 2, "queues_changed": 1} and out.changes.queues == ["face1"]
     out = configure(service, {"policy": "none"}, 12.0)
     assert out.changes.queues == ["face1", "face2"] and out.reply["queues_changed"] == 2
-    assert service.apply("wm", {"op": "wm", "entity": "face1"}).reply == {"queue": []}
+    assert apply(service, "wm", {"op": "wm", "entity": "face1"}).reply == {"queue": []}
 
 
 def test_refused_requests_change_nothing():
@@ -144,7 +146,7 @@ def test_refused_requests_change_nothing():
     ]
     for op, request, error in bad:
         with pytest.raises(error):
-            service.apply(op, request)
+            apply(service, op, request)
         assert service.buffer.snapshot() == before, request
         assert service.buffer.take_changes() == []
     assert len(service.sessions) == 0  # the refused opens stored no session
@@ -162,9 +164,9 @@ def test_a_walk_is_one_call_doing_what_its_narrows_do(tmp_path):
     for service in (walked, by_narrows):
         configure(service)
         encode(service, "face2", ["female"], 1.0)
-    session = walked.apply("open", {"op": "open", "target": "face3"}).reply["session"]
-    out = walked.apply("walk", {"op": "walk", "session": session, "steps": WALK, "cause": "reg-distractor",
-                                "time": 2.0, "turn": 4}, listening=True)
+    session = apply(walked, "open", {"op": "open", "target": "face3"}).reply["session"]
+    out = apply(walked, "walk", {"op": "walk", "session": session, "steps": WALK, "cause": "reg-distractor",
+                                 "time": 2.0, "turn": 4}, listening=True)
     assert out.reply == {"taken": [1, 3], "size": 0, "narrowed": 3, "version": "1:0"}
     assert [(e["entity"], e["property"], e["cause"], e["turn"]) for e in out.events] == [
         ("face2", "dark-hair", "reg-distractor", 4)]
@@ -175,7 +177,7 @@ def test_a_walk_is_one_call_doing_what_its_narrows_do(tmp_path):
     steps = [WalkStep(step["property"], step.get("group")) for step in WALK]
     assert run_sync(walk_by_narrowing(port, view, steps, "reg-distractor", 2.0, 4)) == Walked((1, 3), 0, 3)
     assert walked.buffer.snapshot() == by_narrows.buffer.snapshot() == {"face2": ["female", "dark-hair"]}
-    assert walked.apply("close", {"op": "close", "session": session}).reply["members"] == []
+    assert apply(walked, "close", {"op": "close", "session": session}).reply["members"] == []
     # One call, one commit: what it encoded survives a restart.
     assert replayed(tmp_path, walked).buffer.snapshot() == {"face2": ["female", "dark-hair"]}
 
@@ -183,26 +185,26 @@ def test_a_walk_is_one_call_doing_what_its_narrows_do(tmp_path):
 def test_a_walk_naming_an_unknown_property_changes_nothing():
     service = make()
     configure(service)
-    session = service.apply("open", {"op": "open", "target": "face3"}).reply["session"]
+    session = apply(service, "open", {"op": "open", "target": "face3"}).reply["session"]
     before = service.buffer.snapshot()
     service.buffer.take_changes()
     with pytest.raises(KnowledgeError, match="knows no property 'wings' \\(step 2 of the walk\\)"):
-        service.apply("walk", {"op": "walk", "session": session, "cause": "reg-distractor", "time": 1.0,
-                               "steps": [{"property": "dark-hair"}, {"property": "male"}, {"property": "wings"}]})
+        apply(service, "walk", {"op": "walk", "session": session, "cause": "reg-distractor", "time": 1.0,
+                                "steps": [{"property": "dark-hair"}, {"property": "male"}, {"property": "wings"}]})
     assert service.buffer.snapshot() == before and service.buffer.take_changes() == []
     # The session was not narrowed either: both distractors are still in it.
-    assert service.apply("close", {"op": "close", "session": session}).reply["members"] == ["face1", "face2"]
+    assert apply(service, "close", {"op": "close", "session": session}).reply["members"] == ["face1", "face2"]
 
 
 def test_sessions_are_counted_per_client():
     service = make()
     configure(service)
-    hog = [service.apply("open", {"op": "open"}, client="hog").reply["session"] for _ in range(5)]
-    mine = service.apply("open", {"op": "open"}, client="rr").reply["session"]
+    hog = [apply(service, "open", {"op": "open"}, client="hog").reply["session"] for _ in range(5)]
+    mine = apply(service, "open", {"op": "open"}, client="rr").reply["session"]
     assert service.sessions.held("hog") == 2 and service.sessions.held("rr") == 1
     with pytest.raises(SessionError):
-        service.apply("close", {"op": "close", "session": hog[0]})
-    assert service.apply("close", {"op": "close", "session": mine}).reply["members"] == ["face1", "face2", "face3"]
+        apply(service, "close", {"op": "close", "session": hog[0]})
+    assert apply(service, "close", {"op": "close", "session": mine}).reply["members"] == ["face1", "face2", "face3"]
 
 
 def test_local_port_is_the_same_service():
@@ -225,13 +227,13 @@ def test_one_call_is_one_journal_record_and_a_restore_replays_to_the_same_wm(tmp
     service = make(tmp_path)
     configure(service)
     store = service.store
-    session = service.apply("open", {"op": "open", "target": "face1"}).reply["session"]
-    service.apply("narrow", {"op": "narrow", "session": session, "property": "male", "cause": "reg-distractor",
-                             "time": 1.0, "turn": 0})
-    service.apply("close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 1.0, "turn": 0})
+    session = apply(service, "open", {"op": "open", "target": "face1"}).reply["session"]
+    apply(service, "narrow", {"op": "narrow", "session": session, "property": "male", "cause": "reg-distractor",
+                              "time": 1.0, "turn": 0})
+    apply(service, "close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 1.0, "turn": 0})
     encode(service, "face2", ["female", "glasses", "dark-hair", "female"], 2.0)
-    service.apply("decay", {"op": "decay", "ticks": TICK})
-    service.apply("evict", {"op": "evict", "count": 1, "time": 11.0})
+    apply(service, "decay", {"op": "decay", "ticks": TICK})
+    apply(service, "evict", {"op": "evict", "count": 1, "time": 11.0})
     assert store.journal_length() == 6  # configure, narrow, close, encode, decay, evict
     expected = {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()}
     counters = service.buffer.counters()
@@ -295,7 +297,7 @@ def test_facts_are_stored_before_memory_changes_and_a_refused_write_changes_noth
 def test_stored_wm_of_another_run_is_dropped_at_the_first_configure(tmp_path):
     service = make(tmp_path, clock="sim")
     configure(service, time=1000.0)
-    service.apply("decay", {"op": "decay", "ticks": {**TICK, "first": 99}})  # the tick at 990
+    apply(service, "decay", {"op": "decay", "ticks": {**TICK, "first": 99}})  # the tick at 990
     encode(service, "face1", ["male"], 1000.0)
     service.ltm_assert("face9", {"male": 1.0}, 1000.0)
     service.shutdown()

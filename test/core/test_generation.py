@@ -9,7 +9,9 @@ from typing import Optional
 import pytest
 import yaml
 
-from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
+from fsreg_ros.core.consultant import Consultant
+from fsreg_ros.core.local_port import LocalPort
+from fsreg_ros.core.port import run_sync
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.generation import (

@@ -505,7 +505,7 @@ def test_the_parser_hears_what_the_default_says(lex):
 
 
 def test_one_warning_names_what_the_lexicon_cannot_say(tmp_path):
-    from fsreg_ros.core.lexicon import coverage_warning, unsayable
+    from fsreg_ros.core.scenario import coverage_warning, unsayable
     from fsreg_ros.core.scenario import load_scenario
 
     (tmp_path / "tabletop.yaml").write_text(TABLETOP)
@@ -540,7 +540,7 @@ def test_the_lexicon_template_is_valid_and_silences_the_warning(tmp_path):
 
 
 def test_the_template_of_a_scenario_the_lexicon_fully_covers(table1_path, tmp_path):
-    from fsreg_ros.core.lexicon import lexicon_template
+    from fsreg_ros.core.scenario import lexicon_template
     from fsreg_ros.core.scenario import load_scenario
 
     lexicon = Lexicon.load()

@@ -257,7 +257,7 @@ def test_event_json_and_causes():
     }
     assert set(ENCODE_CAUSES) == {"speaker", "rr", "reg-distractor"}
     assert set(FORGET_CAUSES) == {
-        "decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"
+        "decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"
     }
 
 
@@ -446,7 +446,8 @@ def test_origin_log_stays_bounded_over_many_turns():
 
 
 def test_view_origins_parallel_to_the_queue():
-    from fsreg_ros.core.consultant import Consultant, open_view
+    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.views import open_view
 
     consultant = Consultant("d", {"x": {"a": 1.0, "b": 1.0}, "y": {"a": 1.0}}, ["a", "b"])
     consultant.encode("x", ["b"], "speaker", 0.0, 0)

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from fsreg_ros.core.consultant import Consultant, LocalPort, run_sync
+from fsreg_ros.core.consultant import Consultant
+from fsreg_ros.core.local_port import LocalPort
+from fsreg_ros.core.port import run_sync
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.wm_manager import WMManager
 from fsreg_ros.core.resolution import (

@@ -7,7 +7,7 @@ import pytest
 from fsreg_ros.core.decay import TickError, TickRun
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.memory import WMBuffer
-from fsreg_ros.core.wm_manager import SYNC_AHEAD, WMManager, apply_ticks, configure_buffer
+from fsreg_ros.core.wm_manager import SYNC_AHEAD, WMManager, configure_buffer
 
 
 class RecordingPort:
@@ -95,7 +95,7 @@ def test_apply_ticks_is_canonical_entity_order_and_bounded():
     buffer.encode("f2", ["a", "b"], "rr", 1.0)
     buffer.encode("f1", ["c"], "rr", 1.0)
     events.clear()
-    apply_ticks(buffer, TickRun(0.0, 10.0, 1, 10**12), ["f1", "f2"])
+    buffer.decay_now(TickRun(0.0, 10.0, 1, 10**12), ["f1", "f2"])
     assert [(e.entity, e.property, e.time) for e in events] == [("f1", "c", 10.0), ("f2", "a", 10.0), ("f2", "b", 20.0)]
     assert buffer.snapshot() == {}
     buffer.encode("f1", ["x"], "rr", 1e13)

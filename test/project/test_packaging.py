@@ -147,7 +147,7 @@ def test_the_docs_message_table_is_the_contracts():
 
 def test_the_contract_and_codec_import_no_ros_package():
     """A tool that only needs names, schemas or the JSON codec imports no ROS package."""
-    code = ("import sys, fsreg_ros.contract, fsreg_ros.ros.codec, fsreg_ros.ros.graph_spec; "
+    code = ("import sys, fsreg_ros.contract, fsreg_ros.contract.codec, fsreg_ros.ros.graph_spec; "
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'std_msgs', 'rosidl_parser', "
             "'diagnostic_msgs', 'rcl_interfaces', 'rosgraph_msgs'}))")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=REPO)

@@ -67,6 +67,17 @@ def test_each_policy_runs_only_over_the_parameters_it_reads():
         Setting("decay", 5.0)]
 
 
+def test_activation_runs_over_its_thresholds():
+    """ACT-R activation (issue 27): tau is a grid dimension, d fixed (--memory activation_decay=D, else 0.5)."""
+    config = SweepConfig(("activation+displacement",), (5.0,), (2,), (0,), 10, activation_thresholds=(-1.5, -0.8))
+    assert settings(config) == [Setting("activation+displacement", capacity=2, activation_threshold=-1.5),
+                                Setting("activation+displacement", capacity=2, activation_threshold=-0.8)]
+    assert settings(config)[0].memory({"activation_decay": 0.4}) == {
+        "policy": "activation+displacement", "activation_decay": 0.4, "capacity": 2, "activation_threshold": -1.5}
+    assert settings(config)[1].label() == "activation+displacement alpha=2, tau=-0.8"
+    assert reads("activation", {"activation_threshold": -1.0}) == ()
+
+
 def test_setting_memory_and_labels():
     setting = Setting("displacement-random+shared-capacity", capacity=2, shared_capacity=6)
     assert setting.memory({}, seed=5) == {"policy": "displacement-random+shared-capacity", "capacity": 2,
@@ -250,7 +261,8 @@ def test_wm_told_or_not_and_what_the_robot_says_when_it_believes_its_wm():
 
 
 def test_belief_port_narrows_by_a_stale_property():
-    from fsreg_ros.core.consultant import Consultant, run_sync
+    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.port import run_sync
     from fsreg_ros.core.generation import generate
 
     kb = Consultant("d", {"t": {"glasses": 1.0}, "u": {"no-glasses": 1.0}}, ["glasses", "no-glasses"],
@@ -260,7 +272,7 @@ def test_belief_port_narrows_by_a_stale_property():
     assert kb.queue("t") == ["glasses"]  # not told: the stale property stays
     believed = run_sync(generate("t", BeliefPort(kb), "sd-pia", time=2.0, turn=1))
     assert believed.description == ["glasses"] and believed.sources == ["wm"] and believed.distinguishing
-    from fsreg_ros.core.consultant import LocalPort
+    from fsreg_ros.core.local_port import LocalPort
 
     checked = run_sync(generate("u", LocalPort(kb), "sd-pia", time=3.0, turn=2))
     assert checked.description == []  # u and t are both no-glasses now: nothing distinguishes u

@@ -16,11 +16,11 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.ros.carrier import CarrierError, JsonClient, from_msg, serve, to_msg, wait_until  # noqa: E402
-from fsreg_ros.ros.codec import MessageError  # noqa: E402
+from fsreg_ros.ros.carrier import CarrierError, ServiceCaller, from_msg, serve, to_msg, wait_until  # noqa: E402
+from fsreg_ros.contract.codec import MessageError  # noqa: E402
 from fsreg_ros.contract import STATE_QOS, Message, check  # noqa: E402
 from fsreg_ros.ros.node_base import error_reply  # noqa: E402
-from rosutil import Graph, call, ros_graph  # noqa: E402
+from rosutil import RosSession, call, ros_graph  # noqa: E402
 
 pytestmark = pytest.mark.graph
 
@@ -99,7 +99,7 @@ def test_error_reply_keeps_the_id():
     assert error_reply({"id": "a"}, "bad") == {"error": "bad", "id": "a"}
 
 
-def test_a_late_reader_of_wm_state_gets_every_writers_latest_state(graph: Graph):
+def test_a_late_reader_of_wm_state_gets_every_writers_latest_state(graph: RosSession):
     """wm/state is latched per writer (depth 1) and read with a deeper history, so a
     reader that joins late hears the latest state of each of several consultants."""
     from fsreg_ros import contract
@@ -129,7 +129,7 @@ class Server(Node):
     def __init__(self, context) -> None:
         super().__init__("carrier_server", context=context)
         self.group = ReentrantCallbackGroup()
-        self.backend = JsonClient(self, "/carrier/echo", self.group)
+        self.backend = ServiceCaller(self, "/carrier/echo", self.group)
         # echo in a group of its own: relay (default group) awaits it on this same node
         serve(self, "/carrier/echo", self.echo, MutuallyExclusiveCallbackGroup())
         serve(self, "/carrier/relay", self.relay)
@@ -146,7 +146,7 @@ class Server(Node):
 
     async def relay(self, request: dict) -> dict:
         # An async handler awaiting another service of the same node: the client is in
-        # its own reentrant group, so this must not deadlock (ROS-NOTES).
+        # its own reentrant group, so this must not deadlock (carrier's docstring, "Calling").
         reply = await self.backend.call({"relayed": request}, 2.0)
         return {"via": "relay", **reply}
 
@@ -156,20 +156,20 @@ class Server(Node):
         return "not an object"  # type: ignore[return-value]
 
 
-def test_serve_and_call_round_trip(graph: Graph):
+def test_serve_and_call_round_trip(graph: RosSession):
     server = Server(graph.context)
     graph.executor.add_node(server)
     graph.nodes.append(server)
     assert graph.call("/carrier/echo", {"x": [1, 2]}) == {"echo": {"x": [1, 2]}}
     assert graph.call("/carrier/relay", {"y": 1}) == {"via": "relay", "echo": {"relayed": {"y": 1}}}
-    # module-level call() with a JsonClient and with a plain client plus its node
+    # module-level call() with a ServiceCaller and with a plain client plus its node
     assert graph.run(call(graph.client("/carrier/echo"), {"z": 0}, 2.0)) == {"echo": {"z": 0}}
     plain = graph.probe.create_client(AddDiagnostics, "/carrier/echo")
     assert graph.run(call(plain, {"w": 1}, 2.0, node=graph.probe)) == {"echo": {"w": 1}}
     assert graph.run(call(plain, {"w": 2}, 2.0)) == {"echo": {"w": 2}}
 
 
-def test_errors_become_json_error_replies_and_the_server_survives(graph: Graph):
+def test_errors_become_json_error_replies_and_the_server_survives(graph: RosSession):
     server = Server(graph.context)
     graph.executor.add_node(server)
     graph.nodes.append(server)
@@ -191,7 +191,7 @@ def test_errors_become_json_error_replies_and_the_server_survives(graph: Graph):
     assert graph.call("/carrier/echo", {"ok": True}) == {"echo": {"ok": True}}
 
 
-def test_call_times_out_without_a_server(graph: Graph):
+def test_call_times_out_without_a_server(graph: RosSession):
     client = graph.client("/carrier/nobody")
     started = time.monotonic()
     with pytest.raises(CarrierError) as info:
@@ -203,7 +203,7 @@ def test_call_times_out_without_a_server(graph: Graph):
     assert info.value.kind == "timeout" and "not ready" in str(info.value)
 
 
-def test_wait_ready_does_one_real_round_trip(graph: Graph):
+def test_wait_ready_does_one_real_round_trip(graph: RosSession):
     server = Server(graph.context)
     graph.executor.add_node(server)
     graph.nodes.append(server)
@@ -212,7 +212,7 @@ def test_wait_ready_does_one_real_round_trip(graph: Graph):
     assert server.calls == before + 1
 
 
-def test_wait_until(graph: Graph):
+def test_wait_until(graph: RosSession):
     flag = {"set": False}
     timer = graph.probe.create_timer(0.05, lambda: flag.update(set=True))
     assert graph.run(wait_until(graph.probe, lambda: flag["set"], 2.0)) is True
@@ -229,7 +229,7 @@ def test_wait_until(graph: Graph):
 def test_error_replies_are_json_whatever_they_carry(value):
     import json
 
-    from fsreg_ros.ros.codec import error_json, printable, safe_dumps
+    from fsreg_ros.contract.codec import error_json, printable, safe_dumps
 
     text = error_json(value, "MessageError", value if isinstance(value, (str, int)) else None, extra=value)
     reply = json.loads(text)
@@ -240,14 +240,14 @@ def test_error_replies_are_json_whatever_they_carry(value):
 
 
 def test_parse_refuses_oversized_text_before_parsing():
-    from fsreg_ros.ros.codec import parse
+    from fsreg_ros.contract.codec import parse
 
     with pytest.raises(MessageError, match="over the limit of 1000"):
         parse('{"a": "' + "x" * 2000 + '"}', max_bytes=1000)
     assert parse('{"a": "x"}', max_bytes=1000) == {"a": "x"}
 
 
-def test_a_service_answers_hostile_requests(graph: Graph):
+def test_a_service_answers_hostile_requests(graph: RosSession):
     server = Server(graph.context)
     graph.executor.add_node(server)
     graph.nodes.append(server)
@@ -258,7 +258,7 @@ def test_a_service_answers_hostile_requests(graph: Graph):
 
 
 # ------------------------------------------------------------------ callbacks survive every input
-def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(graph: Graph):
+def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(graph: RosSession):
     """rclpy raises if one logging call site changes severity: a malformed message (a
     warning) followed by one whose handler fails unexpectedly (an error) once killed
     REG, RR and the consultant.  Both are logged and answered, and the node serves on."""
@@ -286,7 +286,7 @@ def test_a_warning_then_an_internal_error_on_one_topic_keeps_the_node_alive(grap
     assert "not JSON" in rejected[0][1] and rejected[1][1].startswith("internal error: OverflowError")
 
 
-def test_a_contract_topic_refuses_a_number_no_float_holds_before_the_handler(graph: Graph):
+def test_a_contract_topic_refuses_a_number_no_float_holds_before_the_handler(graph: RosSession):
     from fsreg_ros import contract
     from fsreg_ros.ros.carrier import subscribe
 
@@ -306,7 +306,7 @@ def test_a_contract_topic_refuses_a_number_no_float_holds_before_the_handler(gra
                         (2, "field 'target': a name of 12 characters, over the limit of 8")]
 
 
-def test_a_service_logging_a_warning_then_an_error_keeps_serving(graph: Graph):
+def test_a_service_logging_a_warning_then_an_error_keeps_serving(graph: RosSession):
     server = Server(graph.context)
     graph.executor.add_node(server)
     graph.nodes.append(server)
@@ -329,7 +329,7 @@ def test_log_lines_never_raise():
     log_error(Refusing(), object())
 
 
-def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: Graph):
+def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: RosSession):
     """A contract service with ops: the op chooses the handler, the request is validated
     against that op's schema (names within the limits) before any handler runs, and a
     handler may return a contract model."""
@@ -375,7 +375,7 @@ def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: G
     assert len(ran) == 2  # no handler saw a refused request
 
 
-def test_subscribe_ignores_what_accept_refuses_before_validating_it(graph: Graph):
+def test_subscribe_ignores_what_accept_refuses_before_validating_it(graph: RosSession):
     """Several consultants share ltm/assert: a message for another domain is that one's to
     refuse; this node neither handles nor rejects it, however malformed."""
     from fsreg_ros import contract

@@ -14,7 +14,7 @@ from __future__ import annotations
 import pytest
 from rosgraph_msgs.msg import Clock
 
-from rosutil import Graph
+from rosutil import RosSession
 
 from fsreg_ros import contract
 from fsreg_ros.core.scenario import load_scenario
@@ -42,7 +42,7 @@ def test_clock_values_of_every_sign_and_size(table1_path, tmp_path):
     specs = live_nodes(scenario, table1_path, Options(memory={"policy": "decay", "decay_period": 10.0}),
                        state_dir=str(tmp_path))
     classes = node_classes()
-    with Graph() as g:
+    with RosSession() as g:
         nodes = []
         for spec in specs:
             params = dict(spec.parameters)

@@ -15,7 +15,8 @@ from rclpy.parameter import Parameter
 
 from fsreg_ros import contract
 from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
-from fsreg_ros.core.consultant import KnowledgeError, LocalPort
+from fsreg_ros.core.consultant import KnowledgeError
+from fsreg_ros.core.local_port import LocalPort
 from fsreg_ros.core.forgetting import ForgettingPolicy
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.wm_manager import configure_buffer
@@ -24,7 +25,7 @@ from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.ros.remote import RemotePort
-from rosutil import DATA, KB, Graph, ros_graph
+from rosutil import DATA, KB, RosSession, ros_graph
 
 pytestmark = pytest.mark.graph
 
@@ -38,7 +39,7 @@ def graph():
     yield from ros_graph()
 
 
-def start(graph: Graph, domain: str = "faces", debug: bool = True, **params):
+def start(graph: RosSession, domain: str = "faces", debug: bool = True, **params):
     node = graph.add(ConsultantNode, domain=domain, kb=KB, name=f"consultant_{domain}", debug=debug, **params)
     graph.wait_service(contract.consultant_service(domain))
     graph.wait_service(contract.manage_service(domain))
@@ -52,12 +53,12 @@ def plain(events: list[dict]) -> list[dict]:
     return [{k: v for k, v in e.items() if k not in ("seq", "incarnation")} for e in events]
 
 
-def configure(graph: Graph, policy: str = "displacement", domain: str = "faces", **params) -> dict:
+def configure(graph: RosSession, policy: str = "displacement", domain: str = "faces", **params) -> dict:
     return graph.call(contract.manage_service(domain), {"op": "configure", "policy": {"policy": policy, **params},
                                                         "time": 0.0})
 
 
-def test_info_and_latched_start_state(graph: Graph):
+def test_info_and_latched_start_state(graph: RosSession):
     start(graph)
     info = graph.call(Q, {"op": "info"})
     version = info.pop("version")
@@ -98,7 +99,7 @@ def test_info_and_latched_start_state(graph: Graph):
     assert states[-1]["queues"] == {"face2": ["female"]}  # nothing the refused requests did
 
 
-def test_query_ops_round_trip(graph: Graph):
+def test_query_ops_round_trip(graph: RosSession):
     start(graph)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
@@ -157,7 +158,7 @@ def test_query_ops_round_trip(graph: Graph):
     assert states[n_states]["wm_version"] == 4
 
 
-def test_configure_trims_and_decay_ticks(graph: Graph):
+def test_configure_trims_and_decay_ticks(graph: RosSession):
     start(graph)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
@@ -268,7 +269,7 @@ BAD_REQUESTS = [
 ]
 
 
-def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
+def test_bad_requests_get_json_errors_and_change_nothing(graph: RosSession):
     start(graph)
     configure(graph, "decay+displacement", decay_period=10.0, capacity=3)
     graph.call(D, {"op": "encode", "entity": "face1", "properties": ["male", "glasses"], "cause": "speaker",
@@ -295,7 +296,7 @@ def test_bad_requests_get_json_errors_and_change_nothing(graph: Graph):
     assert [e["property"] for e in events] == ["female"]
 
 
-def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
+def test_ltm_assert_adds_updates_and_retracts(graph: RosSession):
     start(graph)
     configure(graph, "displacement", capacity=4)
     results = graph.listen(contract.LTM_ASSERT_RESULT.name)
@@ -361,7 +362,7 @@ def test_ltm_assert_adds_updates_and_retracts(graph: Graph):
     assert len(events) == n_events
 
 
-def test_threshold_parameter(graph: Graph):
+def test_threshold_parameter(graph: RosSession):
     node = start(graph)
     configure(graph, "none")
     holds = {"op": "holds", "property": "glasses", "entities": ["face1", "face2"]}
@@ -384,7 +385,7 @@ def test_threshold_parameter(graph: Graph):
     assert graph.call(D, holds)["holds"] == ["face1"]
 
 
-def test_remote_port_matches_the_local_consultant(graph: Graph):
+def test_remote_port_matches_the_local_consultant(graph: RosSession):
     start(graph)
     configure(graph, "displacement", capacity=2)
     group = ReentrantCallbackGroup()
@@ -412,7 +413,7 @@ def test_remote_port_matches_the_local_consultant(graph: Graph):
         assert graph.call(D, {"op": "snapshot"})["queues"] == local.wm.snapshot()
 
 
-def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph):
+def test_sessions_one_call_per_property_and_state_once_per_request(graph: RosSession):
     start(graph, max_sessions=2, session_timeout=0.3)
     configure(graph, "displacement", capacity=3)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
@@ -466,7 +467,7 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: Graph)
     assert graph.call(Q, {"op": "open"})["version"] != version
 
 
-def test_remote_port_refreshes_its_catalogue_when_ltm_changes(graph: Graph):
+def test_remote_port_refreshes_its_catalogue_when_ltm_changes(graph: RosSession):
     start(graph)
     port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())
     graph.run(port.wait_ready(5.0))
@@ -477,7 +478,7 @@ def test_remote_port_refreshes_its_catalogue_when_ltm_changes(graph: Graph):
     assert graph.run(port.preference())[0] == "light-hair"
 
 
-def test_startup_errors(graph: Graph):
+def test_startup_errors(graph: RosSession):
     with pytest.raises(StartupError, match="no domain 'shoes'"):
         graph.add(ConsultantNode, domain="shoes", kb=KB)
     with pytest.raises(StartupError, match="must be in"):
@@ -499,7 +500,7 @@ def _consultant_process(*ros_args: str) -> subprocess.Popen:
 
 
 @pytest.mark.slow
-def test_process_serves_and_exits_cleanly(graph: Graph):
+def test_process_serves_and_exits_cleanly(graph: RosSession):
     """The real ``main()``: a bad domain exits 2 with one error line; a good one serves
     another process and exits 0 on Ctrl-C."""
     bad = _consultant_process("-p", "domain:=shoes", "-p", f"kb:={KB}")
@@ -604,7 +605,7 @@ def test_run_node_exit_codes():
     ],
     ids=["long-list", "long-name", "surrogate", "unknown-property", "infinite-time", "huge-int", "huge-message"],
 )
-def test_hostile_requests_are_answered_and_change_nothing(graph: Graph, request_text, kind, fragment):
+def test_hostile_requests_are_answered_and_change_nothing(graph: RosSession, request_text, kind, fragment):
     start(graph)
     configure(graph, "displacement", capacity=2)
     graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female"], "cause": "speaker", "time": 1.0})
@@ -614,7 +615,7 @@ def test_hostile_requests_are_answered_and_change_nothing(graph: Graph, request_
     assert graph.call(D, {"op": "snapshot"}) == before
 
 
-def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
+def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: RosSession):
     start(graph)
     results = graph.listen(contract.LTM_ASSERT_RESULT.name)
     big = {"domain": "faces", "entity": "x" * 300, "properties": {"male": 1.0}, "id": "a1"}
@@ -628,7 +629,7 @@ def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: Graph):
 
 
 # ------------------------------------------------------------------ facts at robot rates (issue 28.10)
-def test_a_batch_on_ltm_assert_is_one_commit_with_a_result_per_fact(graph: Graph):
+def test_a_batch_on_ltm_assert_is_one_commit_with_a_result_per_fact(graph: RosSession):
     node = start(graph)
     configure(graph, "displacement", capacity=4)
     graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses"], "cause": "speaker", "time": 1.0})
@@ -661,7 +662,7 @@ def test_a_batch_on_ltm_assert_is_one_commit_with_a_result_per_fact(graph: Graph
     assert graph.call(Q, {"op": "info"})["entity_count"] == 4
 
 
-def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answered(graph: Graph):
+def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answered(graph: RosSession):
     node = start(graph)
     configure(graph, "displacement", capacity=4)
     results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
@@ -680,7 +681,7 @@ def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answere
 
 
 # ------------------------------------------------------------------ the production protocol
-def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
+def test_the_debug_service_is_served_only_when_asked_for(graph: RosSession):
     node = start(graph, debug=False)
     assert node.get_parameter("debug").value is False
 
@@ -694,7 +695,7 @@ def test_the_debug_service_is_served_only_when_asked_for(graph: Graph):
     assert "field 'op': expected one of info, open, narrow, walk, rule_out, close, got 'snapshot'" in err.error
 
 
-def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(graph: Graph):
+def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(graph: RosSession):
     start(graph, max_sessions=8, max_sessions_per_client=2)
     configure(graph, "displacement", capacity=2)
     mine = graph.call(Q, {"op": "open", "target": "face1", "client": "reg"})["session"]
@@ -704,7 +705,7 @@ def test_sessions_are_counted_per_client_and_a_busy_client_drops_only_its_own(gr
     assert graph.call(Q, {"op": "close", "session": hog[-1]})["members"] == ["face1", "face2", "face3"]
 
 
-def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(graph: Graph):
+def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(graph: RosSession):
     start(graph)
     configure(graph, "displacement", capacity=2)
     assert graph.call(Q, {"op": "info"})["event_listeners"] == 0
@@ -718,3 +719,22 @@ def test_info_counts_the_event_listeners_and_events_are_numbered_without_gaps(gr
     assert [(e["seq"], e["incarnation"], e["op"], e["property"]) for e in events] == [
         (1, 1, "encode", "glasses"), (2, 1, "encode", "lab-coat"), (3, 1, "forget", "male")]
     assert graph.call(Q, {"op": "info"})["events"] == 3
+
+
+@pytest.mark.parametrize("period", [0.0, 0.1], ids=["each-change", "coalesced"])
+def test_a_late_wm_state_subscriber_gets_the_state_as_of_now(graph: RosSession, period):
+    """Issue 24.5: the latched wm/state is the current state even when nobody listened while WM changed."""
+    node = start(graph, state_period=period)
+    configure(graph, "displacement", capacity=2)
+    assert node._state.get_subscription_count() == 0  # nobody reads wm/state while WM changes
+    for t, (entity, props) in enumerate((("face1", ["male", "glasses"]), ("face2", ["female"]),
+                                         ("face1", ["lab-coat"]), ("face3", ["dark-hair", "male"])), 1):
+        graph.call(D, {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": float(t)})
+    graph.spin_until(lambda: not node._state_due, what="the coalesced state published (nobody listening)")
+    version = graph.call(Q, {"op": "info"})["wm_version"]
+    states = graph.listen(contract.WM_STATE.name, STATE_QOS)  # joins after every change, like `ros2 topic echo --once`
+    graph.spin_until(lambda: states, what="the latched wm/state")
+    first = states[0]
+    assert first["queues"] == {"face1": ["glasses", "lab-coat"], "face2": ["female"], "face3": ["dark-hair", "male"]}
+    # events: 0, as nobody subscribed to wm/events either (events are numbered only while someone listens)
+    assert (first["time"], first["wm_version"], first["events"]) == (4.0, version, 0)

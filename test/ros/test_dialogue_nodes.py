@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from rosutil import Graph
+from rosutil import RosSession
 
 from fsreg_ros import contract
 from fsreg_ros.nodes.consultant import ConsultantNode
@@ -27,7 +27,7 @@ pytestmark = pytest.mark.graph
 @pytest.fixture
 def graph(table1_path: Path):
     """Consultant (displacement, capacity 2), WM Manager, parser, RR and REG."""
-    with Graph() as g:
+    with RosSession() as g:
         kb = str(table1_path)
         g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=kb, debug=True)
         g.add(WMManagerNode, domains=["faces"], policy="displacement", capacity=2)
@@ -40,11 +40,11 @@ def graph(table1_path: Path):
         yield g
 
 
-def snapshot(g: Graph) -> dict:
+def snapshot(g: RosSession) -> dict:
     return g.call(contract.debug_service("faces"), {"op": "snapshot"})["queues"]
 
 
-def ask(g: Graph, topic: str, inbox, message, key=None, timeout: float = 10.0) -> dict:
+def ask(g: RosSession, topic: str, inbox, message, key=None, timeout: float = 10.0) -> dict:
     """Publish and wait for the reply on ``inbox`` with id ``key``."""
     g.publish(topic, message)
     g.spin_until(lambda: inbox.latest(id=key) is not None, timeout, what=f"a reply with id {key!r}")
@@ -228,7 +228,7 @@ def test_a_reused_id_for_another_request_is_an_error_never_the_other_answer(grap
 class Client:
     """A requester of its own (a node publishing requests and hearing every answer on the topic)."""
 
-    def __init__(self, graph: Graph, name: str, topic: str, answers: str) -> None:
+    def __init__(self, graph: RosSession, name: str, topic: str, answers: str) -> None:
         from rclpy.node import Node
         from std_msgs.msg import String
 
@@ -291,7 +291,7 @@ def test_two_clients_sending_one_id_at_once_can_each_tell_their_reply(graph, top
 def test_a_failed_answer_is_not_cached_and_a_retry_runs_again(table1_path):
     """REG with no consultant: the request fails (not ready); once the consultant is up,
     the same id is executed for real instead of getting the cached failure."""
-    with Graph() as g:
+    with RosSession() as g:
         g.add(RegNode, domains=["faces"], ready_timeout=0.3, service_timeout=0.3)
         inbox = g.listen(contract.REG_EXPRESSION.name)
         failed = ask(g, contract.REG_REQUEST.name, inbox, {"id": "r", "target": "face5"}, "r")
@@ -378,7 +378,7 @@ def test_reference_resolution_without_domains_exits_2_in_one_line():
 def test_a_sim_time_node_without_clock_warns_once_naming_the_topic(capfd):
     from fsreg_ros.ros.node_base import watch_clock
 
-    with Graph(namespace="quiet") as g:
+    with RosSession(namespace="quiet") as g:
         node = g.add(ParserNode, use_sim_time=True, name="quiet_parser")
         timer = watch_clock(node, silence=0.3)
         checks = []
@@ -403,7 +403,7 @@ def test_a_whole_number_for_a_real_parameter_is_taken_and_a_wrong_type_refused()
 
     from fsreg_ros.ros import node_base as common
 
-    with Graph() as g:
+    with RosSession() as g:
         reg = g.add(RegNode, domains=["faces"], service_timeout=2, ready_timeout=3)
         assert reg.get_parameter("service_timeout").value == 2.0
         assert reg.describe_parameter("service_timeout").type == 3  # DOUBLE, statically typed

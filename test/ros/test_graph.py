@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rosutil import Graph
+from rosutil import RosSession
 
 from fsreg_ros import contract
 from fsreg_ros.core.forgetting import ForgettingPolicy
@@ -41,7 +41,7 @@ NODE_CLASSES = {
 DATA = Path(__file__).resolve().parents[1] / "support" / "data" / "dialogues"
 
 
-def start_graph(g: Graph, scenario_path: Path, options: Options, tmp_path: Path) -> DialoguePlayer:
+def start_graph(g: RosSession, scenario_path: Path, options: Options, tmp_path: Path) -> DialoguePlayer:
     """Add every node of the runner's graph to ``g``; return the player."""
     scenario = load_scenario(scenario_path)
     player = None
@@ -56,7 +56,7 @@ def start_graph(g: Graph, scenario_path: Path, options: Options, tmp_path: Path)
 
 
 def play(scenario_path: Path, options: Options, tmp_path: Path) -> dict:
-    with Graph() as g:
+    with RosSession() as g:
         player = start_graph(g, scenario_path, options, tmp_path)
         return g.run(player.play(), timeout=60.0)
 
@@ -104,8 +104,8 @@ def test_two_namespaced_graphs_share_a_domain_without_hearing_each_other(table1_
     namespaced /clock remap): each result equals the simulator's for its own scenario."""
     second = DATA / "two_domains.yaml"
     options = Options(memory={"policy": "decay"})
-    with Graph(namespace="robot1") as g1:
-        g2 = Graph(namespace="robot2", context=g1.context, executor=g1.executor)
+    with RosSession(namespace="robot1") as g1:
+        g2 = RosSession(namespace="robot2", context=g1.context, executor=g1.executor)
         try:
             (tmp_path / "r1").mkdir()
             (tmp_path / "r2").mkdir()
@@ -165,7 +165,7 @@ def test_live_policy_change_mid_dialogue(table1_path, tmp_path):
     scenario = load_scenario(table1_path)
     options = Options(memory={"policy": "decay"})
     switch_after = 3
-    with Graph() as g:
+    with RosSession() as g:
         player = start_graph(g, table1_path, options, tmp_path)
         manager = next(n for n in g.nodes if isinstance(n, WMManagerNode))
         g.run(player.wait_ready(), timeout=30.0)
@@ -192,7 +192,7 @@ def test_live_policy_change_mid_dialogue(table1_path, tmp_path):
 
 
 def test_invalid_live_parameter_is_rejected_and_changes_nothing(table1_path, tmp_path):
-    with Graph() as g:
+    with RosSession() as g:
         player = start_graph(g, table1_path, Options(memory={"policy": "decay"}), tmp_path)
         manager = next(n for n in g.nodes if isinstance(n, WMManagerNode))
         g.run(player.wait_ready(), timeout=30.0)
@@ -216,7 +216,7 @@ def test_graph_trace_equals_simulator_trace(table1_path, tmp_path, policy):
     simulator's trace: the graph encodes and forgets exactly what the core does."""
     options = Options(memory={"policy": policy, "global_capacity": 5})
     scenario = load_scenario(table1_path)
-    with Graph() as g:
+    with RosSession() as g:
         player = start_graph(g, table1_path, options, tmp_path)
         player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
         g.run(player.play(), timeout=60.0)
@@ -226,3 +226,21 @@ def test_graph_trace_equals_simulator_trace(table1_path, tmp_path, policy):
     expected = sim.trace()
     assert heard == expected
     assert {e["cause"] for e in expected} >= {"rr", "speaker", "reg-distractor", "decay"}
+
+
+@pytest.mark.slow  # a whole graph, twice the events of a decay run
+def test_graph_under_activation_equals_the_simulator(table1_path, tmp_path):
+    """ACT-R activation (issue 27): the WM Manager sends its clock (manage op ``advance``) and the
+    consultant forgets lazily at crossing times; results and the canonical trace equal the core's."""
+    options = Options(memory={"policy": "activation+displacement", "activation_threshold": -1.15, "capacity": 3})
+    scenario = load_scenario(table1_path)
+    with RosSession() as g:
+        player = start_graph(g, table1_path, options, tmp_path)
+        player.set_parameters([__import__("rclpy").parameter.Parameter("trace", value=str(tmp_path / "t.jsonl"))])
+        result = g.run(player.play(), timeout=60.0)
+        heard = player.trace()
+    sim = Simulation(scenario, options, trace=True)
+    assert dumps(result) == dumps(sim.run())
+    expected = sim.trace()
+    assert heard == expected
+    assert sum(e["cause"] == "activation" for e in expected) >= 5

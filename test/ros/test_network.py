@@ -20,7 +20,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from rosutil import Graph as InProcess
+from rosutil import RosSession
 
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options
@@ -141,7 +141,7 @@ def test_every_node_process_listens_on_loopback_only(table1_path, tmp_path):
     assert graph.env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(loopback_profile())
     try:
         graph.start()
-        with InProcess() as probe:  # one real round trip: the graph talks over the profile's transports
+        with RosSession() as probe:  # one real round trip: the graph talks over the profile's transports
             status = probe.call("/wm_manager/status", {}, timeout=30.0)
             assert status["domains"] and probe.call("/consultant/faces", {"op": "info"}, timeout=30.0)
         time.sleep(0.5)

@@ -1,6 +1,6 @@
 """The dialogue player never builds a result from an incomplete or foreign event stream (issue 20).
 
-:class:`EventLedger` is checked on its own (a gap, a repeat, a restart, a foreign or
+:class:`EventAudit` is checked on its own (a gap, a repeat, a restart, a foreign or
 unnumbered event); then live: a player whose consultant never sees its ``wm/events``
 subscription does not start the dialogue, and a foreign event heard during a real
 in-process run fails it with one line instead of writing a result.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 from std_msgs.msg import String
 
-from rosutil import Graph
+from rosutil import RosSession
 
 from fsreg_ros import contract
 from fsreg_ros.ros.carrier import publisher, serve
@@ -19,7 +19,7 @@ from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation import Options
 from fsreg_ros.tools.graph import graph_nodes
 from fsreg_ros.nodes.dialogue_player import DialoguePlayer, PlayerError
-from fsreg_ros.ros.event_ledger import EventLedger
+from fsreg_ros.ros.event_audit import EventAudit
 from fsreg_ros.testing.live import node_classes
 
 GRAPH = "test-1234abcd"
@@ -32,14 +32,14 @@ def event(seq: int, graph: str = GRAPH, incarnation: int = 1, domain: str = "fac
     return {k: v for k, v in data.items() if v is not None}
 
 
-def ledger() -> EventLedger:
-    book = EventLedger(GRAPH, ("faces",))
+def audit() -> EventAudit:
+    book = EventAudit(GRAPH, ("faces",))
     book.start("faces", 1, 2)  # two events were published before the run
     return book
 
 
 def test_a_complete_stream_gives_the_trace_without_transport_fields():
-    book = ledger()
+    book = audit()
     for seq in (1, 3, 4, 5):  # 1 is from before the run
         book.hear(event(seq))
     assert book.fault is None and book.check("faces", 5) is None
@@ -55,7 +55,7 @@ def test_a_complete_stream_gives_the_trace_without_transport_fields():
     ([], 3, "consultant 'faces': 1 of its 1 events missing (seq 3)"),
 ])
 def test_a_gap_a_repeat_or_disorder_is_named(seqs, last, said):
-    book = ledger()
+    book = audit()
     for seq in seqs:
         book.hear(event(seq))
     assert book.check("faces", last) == said
@@ -70,7 +70,7 @@ def test_a_gap_a_repeat_or_disorder_is_named(seqs, last, said):
     (event(None), "an event of 'faces' without 'seq' and 'incarnation'"),
 ])
 def test_a_foreign_restarted_or_unnumbered_event_is_a_fault(message, said):
-    book = ledger()
+    book = audit()
     book.hear(message)
     assert said in book.fault
     book.hear(event(3))
@@ -81,7 +81,7 @@ def test_a_foreign_restarted_or_unnumbered_event_is_a_fault(message, said):
 def test_the_player_does_not_start_until_its_event_subscription_is_matched(table1_path, tmp_path):
     """A graph whose consultant reports no wm/events listener: the player refuses to play (its events would be
     lost) instead of playing without them.  The graph here is a stand-in answering as a real one would."""
-    with Graph() as g:
+    with RosSession() as g:
         node = g.probe
         serve(node, contract.SYNC.name, lambda r: {"time": r["time"], "memory": {"faces": {"policy": "decay"}}})
         serve(node, contract.STATUS.name, lambda r: {"graph": "", "incarnation": {"faces": 1}})
@@ -105,7 +105,7 @@ def test_the_player_does_not_start_until_its_event_subscription_is_matched(table
 
 
 @pytest.mark.graph
-def _player_graph(g: Graph, table1_path, tmp_path) -> DialoguePlayer:
+def _player_graph(g: RosSession, table1_path, tmp_path) -> DialoguePlayer:
     scenario = load_scenario(table1_path)
     classes = {**node_classes(), "dialogue_player": DialoguePlayer}
     player = None
@@ -120,19 +120,19 @@ def _player_graph(g: Graph, table1_path, tmp_path) -> DialoguePlayer:
 
 def test_a_foreign_writer_on_the_event_topic_refuses_the_run(table1_path, tmp_path):
     """A publisher of wm/events beyond the run's consultants: the run stops before its first turn."""
-    with Graph() as g:
+    with RosSession() as g:
         player = _player_graph(g, table1_path, tmp_path)
         g.publish(contract.WM_EVENTS.name, event(1, graph="intruder"), contract.EVENTS_QOS)
         with pytest.raises(PlayerError) as err:
             g.run(player.play(), timeout=60.0)
         assert str(err.value) == ("wm/events has 2 publishers for this run's 1 consultant(s): another graph "
                                   "publishes in this namespace")
-        assert player.ledger.events == []
+        assert player.audit.events == []
 
 
 def test_a_foreign_event_heard_fails_the_run(table1_path, tmp_path):
     """An event stamped by another graph (as the subscription delivers it): the run fails, naming it."""
-    with Graph() as g:
+    with RosSession() as g:
         player = _player_graph(g, table1_path, tmp_path)
         player._on_event(event(1, graph="intruder"))
         with pytest.raises(PlayerError) as err:

@@ -27,7 +27,7 @@ from fsreg_ros.core.store import StoreError
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.ros.remote import RemotePort
-from rosutil import DATA, KB, Graph, ros_graph
+from rosutil import DATA, KB, RosSession, ros_graph
 
 pytestmark = pytest.mark.graph
 
@@ -42,7 +42,7 @@ def graph():
     yield from ros_graph()
 
 
-def start(graph: Graph, state_dir, kb: str = KB, use_sim_time: bool = False, **params) -> ConsultantNode:
+def start(graph: RosSession, state_dir, kb: str = KB, use_sim_time: bool = False, **params) -> ConsultantNode:
     node = graph.add(ConsultantNode, use_sim_time=use_sim_time, domain="faces", kb=kb, name="consultant_faces",
                      state_dir=str(state_dir), debug=True, **params)
     for service in (Q, M, D):
@@ -50,24 +50,24 @@ def start(graph: Graph, state_dir, kb: str = KB, use_sim_time: bool = False, **p
     return node
 
 
-def db_path(graph: Graph, state_dir, namespace: str = "") -> Path:
+def db_path(graph: RosSession, state_dir, namespace: str = "") -> Path:
     """Where the consultant ``consultant_faces`` of this graph's ROS domain keeps its database."""
     domain_id = graph.context.get_domain_id()
     return Path(state_dir) / f"ros_domain_{domain_id}" / namespace / "consultant_faces" / "faces.sqlite3"
 
 
-def encode(graph: Graph, entity: str, props: list[str], time: float) -> None:
+def encode(graph: RosSession, entity: str, props: list[str], time: float) -> None:
     graph.call(D, {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": time})
 
 
-def assert_fact(graph: Graph, results, entity: str, properties: dict, rid: str) -> dict:
+def assert_fact(graph: RosSession, results, entity: str, properties: dict, rid: str) -> dict:
     graph.publish(contract.LTM_ASSERT.name, {"domain": "faces", "entity": entity, "properties": properties,
                                              "id": rid})
     graph.spin_until(lambda: results.latest(id=rid), what=f"assert result {rid}")
     return results.latest(id=rid)
 
 
-def test_a_recreated_consultant_resumes_ltm_wm_and_policy_and_serves_only_once_configured(graph: Graph, tmp_path):
+def test_a_recreated_consultant_resumes_ltm_wm_and_policy_and_serves_only_once_configured(graph: RosSession, tmp_path):
     announces = graph.listen(contract.ANNOUNCE.name, STATE_QOS)
     node = start(graph, tmp_path)
     assert db_path(graph, tmp_path).exists()
@@ -108,7 +108,7 @@ def test_a_recreated_consultant_resumes_ltm_wm_and_policy_and_serves_only_once_c
     assert graph.call(D, {"op": "wm", "entity": "face1"}) == {"queue": ["lab-coat", "light-hair", "glasses"]}
 
 
-def test_without_persist_wm_ltm_facts_survive_but_wm_starts_empty(graph: Graph, tmp_path):
+def test_without_persist_wm_ltm_facts_survive_but_wm_starts_empty(graph: RosSession, tmp_path):
     node = start(graph, tmp_path, persist_wm=False)
     graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
     results = graph.listen(contract.LTM_ASSERT_RESULT.name)
@@ -123,16 +123,16 @@ def test_without_persist_wm_ltm_facts_survive_but_wm_starts_empty(graph: Graph, 
     assert graph.call(D, {"op": "snapshot"})["queues"] == {}
 
 
-def test_an_unusable_state_dir_stops_the_node_with_one_line(graph: Graph, tmp_path):
+def test_an_unusable_state_dir_stops_the_node_with_one_line(graph: RosSession, tmp_path):
     (tmp_path / "file").write_text("not a directory")
     with pytest.raises(StartupError, match="state database .*file"):
         graph.add(ConsultantNode, domain="faces", kb=KB, name="consultant_faces", state_dir=str(tmp_path / "file"))
 
 
 # ------------------------------------------------------------------ one robot's state
-def test_namespaces_get_their_own_files_and_a_second_live_opener_is_refused_with_the_pid(graph: Graph, tmp_path):
+def test_namespaces_get_their_own_files_and_a_second_live_opener_is_refused_with_the_pid(graph: RosSession, tmp_path):
     start(graph, tmp_path)
-    other = Graph(namespace="robot2", context=graph.context, executor=graph.executor)
+    other = RosSession(namespace="robot2", context=graph.context, executor=graph.executor)
     try:
         other.add(ConsultantNode, domain="faces", kb=KB, name="consultant_faces", state_dir=str(tmp_path))
         assert db_path(graph, tmp_path).exists() and db_path(graph, tmp_path, "robot2").exists()
@@ -146,7 +146,7 @@ def test_namespaces_get_their_own_files_and_a_second_live_opener_is_refused_with
     assert "\n" not in text
 
 
-def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy(graph: Graph, tmp_path):
+def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy(graph: RosSession, tmp_path):
     graph.set_time(1000.0)
     node = start(graph, tmp_path, use_sim_time=True)
     graph.set_time(1000.0)
@@ -175,7 +175,7 @@ def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy
     assert tick["queues_changed"] == 1 and graph.call(D, {"op": "snapshot"})["queues"] == {}
 
 
-def test_a_wall_clock_restart_keeps_wm(graph: Graph, tmp_path):
+def test_a_wall_clock_restart_keeps_wm(graph: RosSession, tmp_path):
     node = start(graph, tmp_path)
     graph.call(M, {"op": "configure", "policy": POLICY})
     now = time.time()
@@ -187,7 +187,7 @@ def test_a_wall_clock_restart_keeps_wm(graph: Graph, tmp_path):
     assert graph.call(D, {"op": "snapshot"})["queues"] == {"face2": ["female", "dark-hair"]}
 
 
-def test_a_full_disk_refuses_facts_with_memory_unchanged_and_reg_keeps_answering(graph: Graph, tmp_path):
+def test_a_full_disk_refuses_facts_with_memory_unchanged_and_reg_keeps_answering(graph: RosSession, tmp_path):
     node = start(graph, tmp_path)
     graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
     store = node.service.store
@@ -259,7 +259,7 @@ def test_damaged_state_stops_the_node_with_one_line_naming_the_file_and_reset_st
     assert graph.call(Q, {"op": "info"})["state"]["wm"] == "empty"
 
 
-def test_an_edited_kb_migrates_runtime_facts_and_wm_and_lists_what_it_drops(graph: Graph, tmp_path):
+def test_an_edited_kb_migrates_runtime_facts_and_wm_and_lists_what_it_drops(graph: RosSession, tmp_path):
     kb = tmp_path / "kb.yaml"
     scenario = yaml.safe_load(Path(KB).read_text())
     kb.write_text(yaml.safe_dump(scenario))
@@ -326,7 +326,7 @@ def test_the_migration_log_lists_the_dropped_facts(tmp_path):
 
 
 # ------------------------------------------------------------------ outages and restarts, seen by RR and REG
-def test_the_first_request_after_each_restart_succeeds(graph: Graph, tmp_path):
+def test_the_first_request_after_each_restart_succeeds(graph: RosSession, tmp_path):
     port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())
     node = start(graph, tmp_path)
     graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
@@ -347,7 +347,7 @@ def _consultant_process(state_dir: Path) -> subprocess.Popen:
 
 
 @pytest.mark.slow
-def test_an_outage_is_answered_by_liveliness_not_after_the_timeout(graph: Graph, tmp_path):
+def test_an_outage_is_answered_by_liveliness_not_after_the_timeout(graph: RosSession, tmp_path):
     """A consultant frozen mid-call (SIGSTOP: its DDS threads too): the call in flight fails because its
     liveliness lapsed, and calls while it is down fail as 'not running', never by the 10 s timeout (the
     test gives each call 8 s; how fast this is, ~1 s lease + grace, is not a test's business)."""
@@ -374,7 +374,7 @@ def test_an_outage_is_answered_by_liveliness_not_after_the_timeout(graph: Graph,
         proc.wait()
 
 
-def test_a_restart_the_manager_reports_is_waited_for_once(graph: Graph, tmp_path):
+def test_a_restart_the_manager_reports_is_waited_for_once(graph: RosSession, tmp_path):
     """RR's and REG's port learns a restart from the WM Manager's report (``wm_manager/ready``), waits for that
     incarnation to be configured and to answer, and waits in vain at most once per incarnation."""
     port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())

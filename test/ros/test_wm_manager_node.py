@@ -11,7 +11,7 @@ from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.wm_manager import WMManagerNode
-from rosutil import KB, Graph, ros_graph
+from rosutil import KB, RosSession, ros_graph
 
 pytestmark = pytest.mark.graph
 
@@ -24,33 +24,33 @@ def graph():
     yield from ros_graph()
 
 
-def consultant(graph: Graph, domain: str = "faces"):
+def consultant(graph: RosSession, domain: str = "faces"):
     return graph.add(ConsultantNode, use_sim_time=True, domain=domain, kb=KB, name=f"consultant_{domain}", debug=True)
 
 
-def manager(graph: Graph, domains=("faces",), **params):
+def manager(graph: RosSession, domains=("faces",), **params):
     return graph.add(WMManagerNode, use_sim_time=True, domains=list(domains), **params)
 
 
-def encode(graph: Graph, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
+def encode(graph: RosSession, entity: str, props: list[str], t: float, domain: str = "faces") -> None:
     request = {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": t}
     graph.call(f"/consultant/{domain}/debug", request)
 
 
-def queues(graph: Graph, domain: str = "faces") -> dict:
+def queues(graph: RosSession, domain: str = "faces") -> dict:
     return graph.call(f"/consultant/{domain}/debug", {"op": "snapshot"})["queues"]
 
 
-def memory(graph: Graph, domain: str = "faces") -> dict:
+def memory(graph: RosSession, domain: str = "faces") -> dict:
     return graph.call(f"/consultant/{domain}", {"op": "info"})["memory"]
 
 
-def configured(graph: Graph) -> None:
+def configured(graph: RosSession) -> None:
     graph.wait_service(STATUS)
     graph.spin_until(lambda: all(graph.call(STATUS, {})["configured"].values()), what="consultants configured")
 
 
-def heard_all(graph: Graph, events, domain: str = "faces") -> None:
+def heard_all(graph: RosSession, events, domain: str = "faces") -> None:
     """Wait until ``events`` holds every event the consultant has published so far (its own count)."""
     published = graph.call(f"/consultant/{domain}", {"op": "info"})["events"]
     graph.spin_until(lambda: len([e for e in events if e["domain"] == domain]) >= published,
@@ -61,7 +61,7 @@ def forgets(events, cause: str) -> list[tuple]:
     return [(e["entity"], e["property"], e["time"]) for e in events if e["op"] == "forget" and e["cause"] == cause]
 
 
-def test_configures_consultants_when_they_come_up(graph: Graph):
+def test_configures_consultants_when_they_come_up(graph: RosSession):
     manager(graph, ("faces", "objects"), policy="decay+displacement", decay_period=10.0, capacity=3,
             service_timeout=0.5, **{"objects.policy": "displacement", "objects.capacity": 1})
     consultant(graph, "faces")
@@ -87,7 +87,7 @@ def test_configures_consultants_when_they_come_up(graph: Graph):
     assert status["domains"] == ["faces", "objects"]
 
 
-def test_sync_applies_ticks_at_k_delta(graph: Graph):
+def test_sync_applies_ticks_at_k_delta(graph: RosSession):
     consultant(graph)
     manager(graph, policy="decay", decay_period=10.0)
     events = graph.listen("/wm/events", EVENTS_QOS)
@@ -111,7 +111,7 @@ def test_sync_applies_ticks_at_k_delta(graph: Graph):
     assert forgets(events, "decay") == expected
 
 
-def test_timer_decay_follows_the_clock(graph: Graph):
+def test_timer_decay_follows_the_clock(graph: RosSession):
     consultant(graph)
     manager(graph, policy="decay", decay_period=2.0)
     events = graph.listen("/wm/events", EVENTS_QOS)
@@ -139,7 +139,7 @@ def test_timer_decay_follows_the_clock(graph: Graph):
     assert graph.call(STATUS, {})["next_tick"] == {"faces": 10.0}
 
 
-def test_live_parameter_changes(graph: Graph):
+def test_live_parameter_changes(graph: RosSession):
     consultant(graph)
     node = manager(graph, policy="displacement", capacity=3)
     events = graph.listen("/wm/events", EVENTS_QOS)
@@ -168,7 +168,7 @@ def test_live_parameter_changes(graph: Graph):
         ("decay_period", "soon", "Wrong parameter type"),  # refused by rclpy (static typing)
         ("decay_period", 10, "Wrong parameter type"),
         ("decay_period", None, "cannot be undeclared"),  # NOT_SET: refused by rclpy
-        ("faces.capacity", -2, "faces.capacity out of range"),
+        ("faces.capacity", -2, "faces.capacity: capacity must be >= 1, got -2 (0 inherits 'capacity')"),
         ("faces.decay_period", 0.001, "faces.decay_period: decay_period must be >= 0.01"),
         ("faces.policy", "sometimes", "faces.policy"),
         ("global_capacity", 0, "global_capacity out of range"),
@@ -214,7 +214,7 @@ def test_live_parameter_changes(graph: Graph):
     assert graph.call(SYNC, {"time": 30.0})["applied"] == {"faces": 0}
 
 
-def test_each_domain_keeps_its_own_pool(graph: Graph):
+def test_each_domain_keeps_its_own_pool(graph: RosSession):
     consultant(graph, "faces")
     consultant(graph, "objects")
     node = manager(graph, ("faces", "objects"), policy="displacement", capacity=2, global_capacity=3,
@@ -248,7 +248,7 @@ def test_each_domain_keeps_its_own_pool(graph: Graph):
     assert queues(graph, "objects") == {} and queues(graph, "faces") != {}
 
 
-def test_a_restarted_consultant_is_configured_again(graph: Graph):
+def test_a_restarted_consultant_is_configured_again(graph: RosSession):
     old = consultant(graph)
     manager(graph, policy="decay", decay_period=5.0)
     configured(graph)
@@ -260,7 +260,7 @@ def test_a_restarted_consultant_is_configured_again(graph: Graph):
     assert graph.call(SYNC, {"time": 6.0})["applied"] == {"faces": 0}
 
 
-def test_bad_sync_requests(graph: Graph):
+def test_bad_sync_requests(graph: RosSession):
     consultant(graph)
     manager(graph)
     configured(graph)
@@ -275,7 +275,7 @@ def test_bad_sync_requests(graph: Graph):
     assert graph.call(SYNC, {"time": 1})["applied"] == {"faces": 0}
 
 
-def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: Graph):
+def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: RosSession):
     consultant(graph)
     manager(graph, policy="decay", decay_period=10.0)
     configured(graph)
@@ -303,28 +303,31 @@ def test_sync_far_from_the_clock_is_rejected_and_changes_nothing(graph: Graph):
     assert queues(graph) == {"face1": ["glasses"]}
 
 
-def test_numeric_parameters_declare_their_ranges(graph: Graph):
+def test_numeric_parameters_declare_their_ranges(graph: RosSession):
     node = manager(graph, ("faces",))
     ranges = {}
-    for name in ("decay_period", "faces.decay_period", "service_timeout"):
+    for name in ("decay_period", "service_timeout"):
         (r,) = node.describe_parameter(name).floating_point_range
         ranges[name] = (r.from_value, r.to_value)
-    for name in ("capacity", "global_capacity", "seed", "faces.capacity", "faces.seed"):
+    for name in ("capacity", "global_capacity", "seed"):
         (r,) = node.describe_parameter(name).integer_range
         ranges[name] = (r.from_value, r.to_value)
     assert ranges == {
         "decay_period": (0.01, 1e6),
-        "faces.decay_period": (0.0, 1e6),  # 0 = inherit
         "service_timeout": (0.01, 3600.0),
         "capacity": (1, 10_000),
         "global_capacity": (1, 1_000_000),
         "seed": (0, 2**31 - 1),
-        "faces.capacity": (0, 10_000),  # 0 = inherit
-        "faces.seed": (-1, 2**31 - 1),  # -1 = inherit
     }
+    # per domain: the rule in words, no range (a range reaching down to the inherit marker read "Min: 0")
+    capacity = node.describe_parameter("faces.capacity")
+    assert not capacity.integer_range
+    assert capacity.additional_constraints == "0 (inherit) or a whole number in [1, 10000]"
+    refused = node.set_parameters([Parameter("faces.capacity", value=-1)])[0]
+    assert not refused.successful and "capacity must be >= 1, got -1" in refused.reason and "Min" not in refused.reason
 
 
-def test_startup_errors(graph: Graph):
+def test_startup_errors(graph: RosSession):
     with pytest.raises(StartupError, match="'domains'"):
         graph.add(WMManagerNode, domains=[""])
     with pytest.raises(StartupError, match="unknown forgetting rule"):
@@ -339,7 +342,7 @@ def test_startup_errors(graph: Graph):
         graph.add(WMManagerNode, domains=["two words"])
 
 
-def test_wall_clock_manager(graph: Graph):
+def test_wall_clock_manager(graph: RosSession):
     consultant(graph)
     graph.add(WMManagerNode, domains=["faces"], policy="decay", decay_period=10.0)  # no sim time
     configured(graph)
@@ -349,7 +352,7 @@ def test_wall_clock_manager(graph: Graph):
     assert graph.call(SYNC, {"time": status["time"]})["applied"] == {"faces": 0}
 
 
-def test_shared_pool_ops_of_the_consultant(graph: Graph):
+def test_shared_pool_ops_of_the_consultant(graph: RosSession):
     consultant(graph)
     manage = "/consultant/faces/manage"
     graph.wait_service(manage)
@@ -372,7 +375,7 @@ def test_shared_pool_ops_of_the_consultant(graph: Graph):
 @pytest.mark.parametrize("policy", [{"policy": "none"}, {"policy": "decay", "decay_period": 5.0},
                                     {"policy": "displacement", "capacity": 2},
                                     {"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}])
-def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy(graph: Graph, policy):
+def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy(graph: RosSession, policy):
     """Issue 28.5: under displacement (which sends the consultant nothing on its own) status said ready and
     configured seconds into an outage; the manager now follows each consultant's liveliness."""
     ready = graph.listen(contract.READY.name, contract.STATE_QOS)

@@ -2,7 +2,7 @@
 
 Used by ``test/ros/test_fuzz_graph.py`` (bounded, fixed seed) and ``scripts/fuzz.py``
 (longer runs).  The graph is the runner's (``graph.graph_nodes``) in one process on
-sim time (``rosutil.Graph``), the player left out; the test talks through the probe.
+sim time (``rosutil.RosSession``), the player left out; the test talks through the probe.
 
 Every input is one of:
 
@@ -40,7 +40,7 @@ import itertools
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rosutil import Graph, Timeout
+from rosutil import RosSession, Timeout
 
 from fsreg_ros import contract
 from fsreg_ros.ros.carrier import CarrierError
@@ -367,7 +367,7 @@ def inputs(endpoint_templates: list[Template], fresh_ids) -> st.SearchStrategy:
 class Fuzzer:
     """Sends inputs to one in-process graph and checks what it does with them."""
 
-    def __init__(self, start: Callable[[], Graph], scenario: Scenario) -> None:
+    def __init__(self, start: Callable[[], RosSession], scenario: Scenario) -> None:
         self.start = start
         self.scenario = scenario
         self.domains = list(scenario.domains)
@@ -587,7 +587,7 @@ def _dedupe(lines: list[str], limit: int = 12) -> list[str]:
     return out[:limit] + ([f"... {len(out) - limit} more"] if len(out) > limit else [])
 
 
-def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.0) -> Graph:
+def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.0) -> RosSession:
     """Start the runner's nodes (not the player) in one in-process graph on sim time, at TIME, synced.
 
     The WM Manager's deadline per consultant call is short, so a stuck call costs the
@@ -597,7 +597,7 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
     from fsreg_ros.tools.graph import graph_nodes
     from test_graph import NODE_CLASSES
 
-    g = Graph()
+    g = RosSession()
     scenario = load_scenario(scenario_path)
     for spec in graph_nodes(scenario, scenario_path, Options(memory={"policy": "decay"}), tmp_path / "r.json")[:-1]:
         params = dict(spec.parameters)

@@ -15,6 +15,11 @@ It follows docs/semantics.md section 2 as literally as possible and shares no co
 * similarity: an encoded property's attribute (declared, or ``attribute=`` in its
   name) forgets the entity's other properties of that attribute, front first;
 * the decay schedule is "tick k at k * delta while k * delta <= T + 1e-9";
+* activation (``activation=(d, tau)``): every entry keeps *all* the times its property
+  was encoded since it entered; :meth:`NaiveWM.advance` to T forgets, eagerly and
+  in order of time (ties: entity order, then queue order), every entry whose
+  activation ln sum (t - t_j)^-d fell to tau at some c <= T + 1e-9, with event time
+  c found by plain bisection on the exact sum (no approximation, no shared code);
 * an entry's origin is the ``(cause, turn)`` of the encoding that made its property
   enter the queue (kept while it stays, replaced when it enters again);
 * the change record lists, in first-change order, every entity that had an encode or
@@ -28,6 +33,7 @@ Events are recorded as plain tuples ``(op, entity, property, cause, time, turn)`
 
 from __future__ import annotations
 
+import math
 import random
 from typing import Iterable, Mapping, Optional
 
@@ -55,7 +61,10 @@ class NaiveWM:
         record: bool = True,
         seed: int = 0,
         attributes: Optional[Mapping[str, str]] = None,
+        activation: Optional[tuple[float, float]] = None,
     ) -> None:
+        self.activation = activation
+        self.times: dict[tuple[str, str], list[float]] = {}
         self.queues: dict[str, list[str]] = {}
         self.stamps: dict[tuple[str, str], int] = {}
         self.counts: dict[tuple[str, str], int] = {}
@@ -115,8 +124,11 @@ class NaiveWM:
         """Algorithm 1, one encoding event per property, limits after each event."""
         if not self.retains:
             return
+        self.advance(time)
         for prop in properties:
             queue = self.queues.setdefault(entity, [])
+            if self.activation is not None:
+                self.times.setdefault((entity, prop), []).append(time)
             if prop in queue:
                 queue.remove(prop)
                 self.counts[(entity, prop)] = self.counts.get((entity, prop), 1) + 1
@@ -149,6 +161,44 @@ class NaiveWM:
             return False
         self._forget(entity, queue.index(prop), cause, time, turn)
         return True
+
+    def advance(self, now: float) -> None:
+        """Forget, eagerly and in time order, every entry whose activation fell below tau at or before ``now``."""
+        if self.activation is None:
+            return
+        while True:
+            due = []
+            for rank, (entity, queue) in enumerate(self.queues.items()):
+                for position, prop in enumerate(queue):
+                    c = self.crossing(self.times[(entity, prop)])
+                    if c <= now + EPSILON:
+                        due.append((c, rank, position, entity, prop))
+            if not due:
+                return
+            c, _, _, entity, prop = min(due)
+            self._forget(entity, self.queues[entity].index(prop), "activation", c, None)
+
+    def crossing(self, times: list[float]) -> float:
+        """Return when ln sum (t - t_j)^-d falls to tau after the last time: bisection on the exact sum."""
+        d, tau = self.activation
+
+        def above(t: float) -> bool:
+            return sum((t - tj) ** -d for tj in times) > math.exp(tau)
+
+        lo = hi = max(times)
+        step = 1.0
+        while above(hi + step):
+            step *= 2.0
+        hi = hi + step
+        for _ in range(200):
+            mid = (lo + hi) / 2
+            if mid in (lo, hi):
+                break
+            if above(mid):
+                lo = mid
+            else:
+                hi = mid
+        return hi
 
     def queue(self, entity: str) -> list[str]:
         return list(self.queues.get(entity, ()))
@@ -202,6 +252,7 @@ class NaiveWM:
 
     def _forget(self, entity: str, index: int, cause: str, time: float, turn: Optional[int]) -> None:
         prop = self.queues[entity].pop(index)
+        self.times.pop((entity, prop), None)
         self._log("forget", entity, prop, cause, time, turn)
 
     def _log(self, op: str, entity: str, prop: str, cause: str, time: float, turn: Optional[int]) -> None:

@@ -32,8 +32,9 @@ Realisation of robot descriptions and parsing of the human's ``text:`` turns.
 
 So ``set(parse(realise(d, domain), props).properties) == set(d)`` for every
 description over a domain's properties (tested, with hypothesis, on the shipped
-lexicon).  The file format is described at the top of ``config/lexicon.yaml``; reading,
-extending and checking files is :mod:`.source`'s job, words and phrases :mod:`.words`'s.
+lexicon).  The file format is described at the top of ``config/lexicon.yaml``; reading
+and extending files is :mod:`.source`'s job, words and phrases :mod:`.words`'s; the checks
+that need the built lexicon are :func:`check`, here.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ import os
 from dataclasses import dataclass
 from typing import Any, Collection, Iterable, Mapping, Optional, Sequence
 
-from .source import EntryBlock, LexiconSource, builtin_path, check, parse_mapping, read_lexicon
+from ..yaml_source import PathLoc
+from .source import REALISER_WORDS, EntryBlock, LexiconSource, builtin_path, parse_mapping, read_lexicon
 from .words import ParseResult, Phrase, PhraseTable, tokenize, variants
 
 #: Used when the lexicon has no ``function_words`` (the parser stub's list).
@@ -374,3 +376,56 @@ def _join(items: Sequence[str]) -> str:
     if len(items) <= 1:
         return "".join(items)
     return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def check(lexicon: Lexicon, where: LexiconSource) -> None:
+    """Check what needs more than types; raise LexiconError naming ``where``'s file.
+
+    Entries: ``order`` only with an adjective, no property negating itself;
+    articles are function words; no phrase is only the realiser's own words.
+    Domains: members are listed properties, once each; within a domain each
+    phrase has one owner and the default noun none.
+    """
+    glue = set(REALISER_WORDS)
+    for name, block in (where.model.properties or {}).items():
+        block = block or EntryBlock()
+        if block.order is not None and block.adjective is None:
+            raise where.fail(("properties", name, "order"), "only used with an adjective")
+        if block.negates == name:
+            raise where.fail(("properties", name, "negates"), "a property cannot negate itself")
+        for word in tokenize(block.article or ""):
+            if word not in lexicon.function_words:
+                raise where.fail(("properties", name, "article"), f"'{word}' is not a function word")
+            glue.add(word)
+    for name in lexicon.properties():
+        entry = lexicon.entry(name)
+        for phrase in (*entry.own_phrases(), *entry.other_phrases()):
+            if set(phrase) <= glue:
+                said = " ".join(phrase)
+                raise where.fail(("properties", name), f"phrase '{said}' uses only the realiser's own words")
+    for domain in where.model.domains or {}:
+        seen: set[str] = set()
+        for i, prop in enumerate(where.own_members(domain)):  # the file's own list: errors name its own items
+            if prop not in lexicon:
+                raise where.fail(("domains", domain, "properties", i), f"'{prop}' is not in properties")
+            if prop in seen:
+                raise where.fail(("domains", domain, "properties", i), f"'{prop}' listed twice")
+            seen.add(prop)
+        _check_domain_phrases(lexicon, domain, where)
+
+
+def _check_domain_phrases(lexicon: Lexicon, domain: str, where: LexiconSource) -> None:
+    owner: dict[Phrase, str] = {}
+    for prop in lexicon.domain_properties(domain):
+        entry = lexicon.entry(prop)
+        for phrase in dict.fromkeys((*entry.own_phrases(), *entry.other_phrases())):
+            other = owner.setdefault(phrase, prop)
+            if other != prop:
+                own = where.own_members(domain)
+                culprit = prop if prop in own else other
+                loc: PathLoc = ("domains", domain, "properties") + ((own.index(culprit),) if culprit in own else ())
+                raise where.fail(loc, f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'")
+    noun = tuple(tokenize(lexicon.noun_for(domain)))
+    if noun in owner:
+        message = f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'"
+        raise where.fail(("domains", domain, "noun"), message)

@@ -1,4 +1,4 @@
-"""Lexicon files: their structure (pydantic), reading, extending the built-in one, and checks.
+"""Lexicon files: their structure (pydantic), reading, and extending the built-in one.
 
 The format is described at the top of ``config/lexicon.yaml``.  A lexicon file
 given by the user (``--lexicon``, the nodes' ``lexicon`` parameter) *extends* the
@@ -10,7 +10,7 @@ negators are added, and its ``default_noun`` replaces the built-in one.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Annotated, Any, Mapping, Optional, Union
+from typing import Annotated, Any, Mapping, Optional, Union
 
 import yaml
 from pydantic import AfterValidator, Field
@@ -18,10 +18,7 @@ from pydantic import AfterValidator, Field
 from ..paths import config_path
 from ..validation import Strict, validate
 from ..yaml_source import PathLoc, SourceError, describe_value, find_line, node_line, read_yaml, render_path
-from .words import Phrase, tokenize
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from .lexicon import Lexicon
+from .words import tokenize
 
 #: Words :meth:`Lexicon.realise` itself puts around the lexicon's words.
 REALISER_WORDS = frozenset({"the", "with", "and"})
@@ -159,56 +156,3 @@ def builtin_path() -> str:
         return str(config_path("lexicon.yaml"))
     except FileNotFoundError as err:
         raise LexiconError("lexicon.yaml", "", str(err)) from None
-
-
-def check(lexicon: "Lexicon", where: LexiconSource) -> None:
-    """Check what needs more than types; raise LexiconError naming ``where``'s file.
-
-    Entries: ``order`` only with an adjective, no property negating itself;
-    articles are function words; no phrase is only the realiser's own words.
-    Domains: members are listed properties, once each; within a domain each
-    phrase has one owner and the default noun none.
-    """
-    glue = set(REALISER_WORDS)
-    for name, block in (where.model.properties or {}).items():
-        block = block or EntryBlock()
-        if block.order is not None and block.adjective is None:
-            raise where.fail(("properties", name, "order"), "only used with an adjective")
-        if block.negates == name:
-            raise where.fail(("properties", name, "negates"), "a property cannot negate itself")
-        for word in tokenize(block.article or ""):
-            if word not in lexicon.function_words:
-                raise where.fail(("properties", name, "article"), f"'{word}' is not a function word")
-            glue.add(word)
-    for name in lexicon.properties():
-        entry = lexicon.entry(name)
-        for phrase in (*entry.own_phrases(), *entry.other_phrases()):
-            if set(phrase) <= glue:
-                said = " ".join(phrase)
-                raise where.fail(("properties", name), f"phrase '{said}' uses only the realiser's own words")
-    for domain in where.model.domains or {}:
-        seen: set[str] = set()
-        for i, prop in enumerate(where.own_members(domain)):  # the file's own list: errors name its own items
-            if prop not in lexicon:
-                raise where.fail(("domains", domain, "properties", i), f"'{prop}' is not in properties")
-            if prop in seen:
-                raise where.fail(("domains", domain, "properties", i), f"'{prop}' listed twice")
-            seen.add(prop)
-        _check_domain_phrases(lexicon, domain, where)
-
-
-def _check_domain_phrases(lexicon: "Lexicon", domain: str, where: LexiconSource) -> None:
-    owner: dict[Phrase, str] = {}
-    for prop in lexicon.domain_properties(domain):
-        entry = lexicon.entry(prop)
-        for phrase in dict.fromkeys((*entry.own_phrases(), *entry.other_phrases())):
-            other = owner.setdefault(phrase, prop)
-            if other != prop:
-                own = where.own_members(domain)
-                culprit = prop if prop in own else other
-                loc: PathLoc = ("domains", domain, "properties") + ((own.index(culprit),) if culprit in own else ())
-                raise where.fail(loc, f"phrase '{' '.join(phrase)}' belongs to both '{other}' and '{prop}'")
-    noun = tuple(tokenize(lexicon.noun_for(domain)))
-    if noun in owner:
-        message = f"default noun '{' '.join(noun)}' is also a phrase of '{owner[noun]}'"
-        raise where.fail(("domains", domain, "noun"), message)

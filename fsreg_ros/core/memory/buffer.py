@@ -6,6 +6,8 @@ the forgetting primitives every rule uses (pop a front, remove a property, forge
 everything), with its collaborators:
 
 * ``lazy_decay`` (:mod:`fsreg_ros.core.memory.decay`): Algorithm 2's pops, lazy;
+* ``activation`` (:mod:`fsreg_ros.core.memory.activation`, while rule ``activation``
+  is in force): ACT-R base-level activation, its clock and lazy pops;
 * ``interference`` (:mod:`fsreg_ros.core.memory.displacement`): Algorithm 3,
   similarity and the global and shared limits, enforced after every encoding event;
 * ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`), ``changes``
@@ -24,6 +26,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from .. import bitset
 from ..decay import TickLedger, TickRun
+from .activation import LazyActivation, install_activation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import NO_ROWS, LazyDecay, pop_owed, pop_quietly
@@ -60,6 +63,7 @@ class WMBuffer:
         self._stamp = 0
         self._size = 0  # properties stored, including ones still owed to lazy decay
         self.lazy_decay = LazyDecay(self)
+        self.activation: Optional[LazyActivation] = None
         self.interference = Interference(self)
         self.origin_log = OriginLog(self)
         self.changes = ChangeRecord(self)
@@ -128,6 +132,8 @@ class WMBuffer:
         if q is not None:
             if q.synced != self.lazy_decay.ticks.count:
                 self.lazy_decay.sync(entity, q)
+            if self.activation is not None:
+                self.activation.sync(entity, q)
             return q
         return self.columns.readable(entity) if entity in self.columns.entities else None
 
@@ -157,6 +163,7 @@ class WMBuffer:
             self.columns.drop()
         self.limits = limits
         self.interference.install(limits)
+        install_activation(self, limits, time)
         for entity, q in self._queues.items():
             hits = q.hits
             if hits is not None:  # the LFU counts restart: an exported count may change
@@ -175,7 +182,17 @@ class WMBuffer:
 
     def evict_oldest(self, count: int, cause: str, time: float) -> None:
         """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
+        self.advance(time)
         self.interference.evict_oldest(count, cause, time)
+
+    def advance(self, time: float) -> None:
+        """Note that the clock reached ``time``: entries whose activation fell below the threshold go (lazily).
+
+        Only the activation rule reads the clock (every encoding's and forgetting's own
+        time also moves it); otherwise this does nothing.
+        """
+        if self.activation is not None:
+            self.activation.advance(time)
 
     # ---------------------------------------------------------------- writes
     def encode(self, entity: str, properties: Iterable[str], cause: str, time: float,
@@ -212,6 +229,9 @@ class WMBuffer:
             self._encode_quiet(entities, prop, limits.capacity)
             return
         lfu = limits.victim == "lfu"
+        act = self.activation
+        if act is not None:
+            act.advance(time)
         columns, catch_up, record, enforce = self.columns, self.lazy_decay.catch_up, self.changes.record, \
             self.interference.enforce
         for entity in entities:
@@ -222,6 +242,8 @@ class WMBuffer:
                 q = self._new_queue(entity)
             else:
                 catch_up(entity)
+                if act is not None:
+                    act.sync(entity, q)
             old = q.pop(prop, None)
             present = old is not None
             self._stamp += 1
@@ -236,6 +258,8 @@ class WMBuffer:
                 if q.hits is None:
                     q.hits = {}
                 q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
+            if act is not None:
+                act.record(entity, prop, time, present)
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
@@ -332,12 +356,12 @@ class WMBuffer:
 
     def pop_front(self, entity: str, cause: str, time: float, turn: Optional[int] = None) -> Optional[str]:
         """Forget Q[entity]'s LRU property; returns it, or None if Q is empty."""
-        self.lazy_decay.catch_up(entity)
+        self._catch_up(entity, time)
         return self._pop(entity, cause, time, turn)
 
     def remove(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int] = None) -> bool:
         """Forget one property wherever it is in Q[entity] (used for retraction)."""
-        self.lazy_decay.catch_up(entity)
+        self._catch_up(entity, time)
         q = self._queues.get(entity)
         if not q or prop not in q:
             return False
@@ -356,12 +380,15 @@ class WMBuffer:
         self.lazy_decay.now(ticks, entity_order)
 
     def flush(self) -> None:
-        """Bring every queue up to date with the decay ticks given so far (:meth:`LazyDecay.flush`)."""
+        """Bring every queue up to date with the decay ticks given so far and the clock (activation)."""
         if self.lazy_decay.ticks.count != self.lazy_decay.settled:
             self.lazy_decay.flush()
+        if self.activation is not None:
+            self.activation.flush()
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
+        self.advance(time)
         self._forget_all(cause, time, turn)
 
     def _forget_all(self, cause: str, time: float, turn: Optional[int]) -> None:
@@ -392,6 +419,15 @@ class WMBuffer:
             columns.emptied(rows)
 
     # -------------------------------------------------------------- internals
+    def _catch_up(self, entity: str, time: float) -> None:
+        """Bring Q[entity] up to date with the ticks given and the clock (at least ``time``)."""
+        self.lazy_decay.catch_up(entity)
+        if self.activation is not None:
+            self.activation.advance(time)
+            q = self._queues.get(entity)
+            if q:
+                self.activation.sync(entity, q)
+
     def _new_queue(self, entity: str) -> Queue:
         q = self._queues[entity] = Queue()
         q.synced = self.lazy_decay.ticks.count  # ticks before a queue existed are not owed
@@ -410,6 +446,8 @@ class WMBuffer:
     def _forget(self, entity: str, q: Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         del q[prop]
         self._size -= 1
+        if self.activation is not None:
+            self.activation.forget(entity, prop)
         self.changes.record(entity, q)
         if not q:
             self._nonempty.pop(entity, None)

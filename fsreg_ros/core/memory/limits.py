@@ -28,7 +28,9 @@ class Limits:
     * ``similarity``: encoding a property of an attribute forgets the entity's other
       properties of that attribute (interference by similarity);
     * ``global_capacity``: at most this many properties in the domain; the victim is
-      the front encoded least recently in the whole domain.
+      the front encoded least recently in the whole domain;
+    * ``activation``: ``(d, tau)``: an entry is forgotten when its ACT-R base-level
+      activation falls below tau (:mod:`fsreg_ros.core.memory.activation`).
 
     Order after one encoding event: similarity, then capacity, then the global limit.
     """
@@ -39,6 +41,7 @@ class Limits:
     similarity: bool = False
     global_capacity: Optional[int] = None
     seed: int = 0
+    activation: Optional[tuple[float, float]] = None
 
     def check(self) -> None:
         """Raise ValueError for an unknown victim choice."""
@@ -48,7 +51,8 @@ class Limits:
     @property
     def lru_only(self) -> bool:
         """True when nothing beyond an LRU capacity is in force (what the fast encoding paths handle)."""
-        return self.victim == "lru" and not self.similarity and self.global_capacity is None
+        return (self.victim == "lru" and not self.similarity and self.global_capacity is None
+                and self.activation is None)
 
 
 UNLIMITED = Limits()

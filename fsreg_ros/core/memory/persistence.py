@@ -12,7 +12,8 @@ from bisect import bisect_right
 from typing import TYPE_CHECKING, Mapping, Sequence
 
 from .limits import Limits
-from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, is_origin
+from .activation import LazyActivation, Trace
+from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, TracedItem, is_origin
 
 if TYPE_CHECKING:
     from .buffer import WMBuffer
@@ -22,11 +23,19 @@ def export_queue(wm: "WMBuffer", entity: str) -> list[QueueItem]:
     """Return Q[entity] as :class:`QueueItem` items, LRU first.
 
     ``hits`` is the LFU count (1 when LFU is not in force); ``cause`` and ``turn``
-    the entry's origin (:meth:`WMBuffer.origins`).
+    the entry's origin (:meth:`WMBuffer.origins`).  Under rule ``activation`` each
+    item is a :class:`TracedItem`, with the entry's encoding history.
     """
     q = wm._readable(entity)
     if not q:
         return []
+    if wm.activation is not None:
+        traces = wm.activation.traces.get(entity, {})
+        return [TracedItem(*item, traces[item[0]].to_json()) for item in _items(wm, q)]
+    return _items(wm, q)
+
+
+def _items(wm: "WMBuffer", q: Mapping) -> list[QueueItem]:
     hits = ((q.hits if q.__class__ is Queue else None) or {}).get  # a column queue's copy has none (LRU)
     starts, runs = wm.origin_log.starts, wm.origin_log.runs
     items = []
@@ -43,20 +52,25 @@ def export_queue(wm: "WMBuffer", entity: str) -> list[QueueItem]:
 def restore(wm: "WMBuffer", queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
     """Replace ``wm``'s state with a stored one (queues LRU first, no events, no changes).
 
-    Items are :class:`QueueItem` (or tuples of its five fields); items of only
-    ``(property, stamp, hits)``, from a store that kept no origins, get origin
-    :data:`UNKNOWN_ORIGIN`.  The queues are taken as up to date with ``ticks`` decay
+    Items are :class:`QueueItem` (or tuples of its five fields) or
+    :class:`TracedItem`; items of only ``(property, stamp, hits)``, from a store that
+    kept no origins, get origin :data:`UNKNOWN_ORIGIN`.  Under rule ``activation`` an
+    entry stored without a trace counts as encoded once, at the latest time any
+    stored trace names (0 if none does).  The queues are taken as up to date with ``ticks`` decay
     ticks; ``limits`` are installed without trimming (the stored queues already
     respect them).  The change record is cleared: the state now equals the stored one.
     ValueError, changing nothing, for a malformed queue or limits.
     """
     limits.check()
+    traces: dict[tuple[str, str], Trace] = {}
     for entity, items in queues.items():  # all checked before anything changes
         if not isinstance(entity, str):
             raise ValueError(f"queue of {entity!r}: an entity is named by a string")
         for item in items:
-            if len(item) not in (3, 5) or len(item) == 5 and not is_origin(item[3], item[4]):
+            if len(item) not in (3, 5, 6) or len(item) >= 5 and not is_origin(item[3], item[4]):
                 raise ValueError(f"queue of {entity!r}: item {item!r} is not (property, stamp, hits, cause, turn)")
+            if len(item) == 6:
+                traces[(entity, item[0])] = Trace.from_json(item[5])  # ValueError if malformed
     wm.limits = limits
     wm.interference.install(limits)
     wm._queues, wm._nonempty, wm._size, wm._stamp = {}, {}, 0, stamp
@@ -69,7 +83,7 @@ def restore(wm: "WMBuffer", queues: Mapping[str, Sequence[Sequence]], stamp: int
         q = wm._new_queue(entity)
         for item in items:
             prop, prop_stamp, hits = item[0], item[1], item[2]
-            origin = (item[3], item[4]) if len(item) == 5 else UNKNOWN_ORIGIN
+            origin = (item[3], item[4]) if len(item) >= 5 else UNKNOWN_ORIGIN
             q[prop] = (prop_stamp, shared.setdefault(origin, origin))
             if limits.victim == "lfu":
                 q.hits = q.hits or {}
@@ -77,3 +91,10 @@ def restore(wm: "WMBuffer", queues: Mapping[str, Sequence[Sequence]], stamp: int
         if q:
             wm._nonempty[entity] = None
             wm._size += len(q)
+    wm.activation = None
+    if limits.activation is not None:
+        latest = max((t.recent[-1] for t in traces.values()), default=0.0)
+        wm.activation = LazyActivation(wm, *limits.activation, clock=latest)
+        for entity in wm._nonempty:
+            wm.activation.adopt(entity, wm._queues[entity], latest,
+                                {p: t for (e, p), t in traces.items() if e == entity})

@@ -19,7 +19,8 @@ from typing import Callable, NamedTuple, Optional, Union
 
 #: Causes an event can have (docs/semantics.md section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
-FORGET_CAUSES = ("decay", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract")
+FORGET_CAUSES = ("decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset",
+                 "retract")
 
 
 class WMEvent(NamedTuple):
@@ -68,6 +69,17 @@ class QueueItem(NamedTuple):
     hits: int
     cause: str
     turn: Optional[int]
+
+
+class TracedItem(NamedTuple):
+    """A :class:`QueueItem` with its activation trace (rule ``activation``: ``[n, first, recent times...]``)."""
+
+    property: str
+    stamp: int
+    hits: int
+    cause: str
+    turn: Optional[int]
+    trace: list
 
 
 def is_origin(cause: object, turn: object) -> bool:

@@ -8,6 +8,7 @@ The format is described key by key in ``docs/scenario-format.md``.
 * :mod:`.schema` -- the file's structure as pydantic models and its JSON Schema.
 * :mod:`.checks` -- the checks of meaning; builds the :class:`Scenario`.
 * :mod:`.load` -- :func:`load_scenario` / :func:`parse_scenario`: YAML, structure, meaning.
+* :mod:`.coverage` -- what a lexicon cannot say of a scenario: one warning, a lexicon skeleton.
 
 Choices where the format could be read several ways:
 
@@ -22,6 +23,7 @@ Choices where the format could be read several ways:
 """
 
 from ..yaml_source import render_path
+from .coverage import coverage_warning, lexicon_template, unsayable
 from .load import load_scenario, parse_scenario
 from .model import COMMAND_LINE, MEMORY_KEYS, DomainSpec, Scenario, ScenarioError, Turn
 from .schema import scenario_json_schema
@@ -33,8 +35,11 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "Turn",
+    "coverage_warning",
+    "lexicon_template",
     "load_scenario",
     "parse_scenario",
     "render_path",
     "scenario_json_schema",
+    "unsayable",
 ]

@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.core import bitset
-from fsreg_ros.core.sessions import SessionError, SessionTable
+from fsreg_ros.core.views import SessionError, ViewTable
 
 
 def test_sessions_open_use_close_and_refuse_unknown_ids():
-    table: SessionTable[str] = SessionTable(capacity=4, timeout=10.0)
+    table: ViewTable[str] = ViewTable(capacity=4, timeout=10.0)
     first = table.open("a", now=0.0)
     second = table.open("b", now=0.0)
     assert first != second and len(table) == 2
@@ -23,7 +23,7 @@ def test_sessions_open_use_close_and_refuse_unknown_ids():
 
 
 def test_sessions_expire_when_unused_and_the_least_recently_used_is_dropped():
-    table: SessionTable[str] = SessionTable(capacity=2, timeout=5.0)
+    table: ViewTable[str] = ViewTable(capacity=2, timeout=5.0)
     a = table.open("a", now=0.0)
     b = table.open("b", now=1.0)
     table.get(a, now=2.0)  # a is now the most recently used
@@ -39,7 +39,7 @@ def test_sessions_expire_when_unused_and_the_least_recently_used_is_dropped():
 
 
 def test_a_client_over_its_quota_loses_its_own_oldest_session_never_anothers():
-    table: SessionTable[str] = SessionTable(capacity=100, timeout=60.0, per_client=3)
+    table: ViewTable[str] = ViewTable(capacity=100, timeout=60.0, per_client=3)
     rr = table.open("rr-1", now=0.0, client="rr")
     hog = [table.open(f"hog-{i}", now=float(i), client="hog") for i in range(10)]
     assert table.held("hog") == 3 and table.held("rr") == 1
@@ -51,7 +51,7 @@ def test_a_client_over_its_quota_loses_its_own_oldest_session_never_anothers():
 
 
 def test_a_full_table_drops_from_the_client_holding_the_most():
-    table: SessionTable[str] = SessionTable(capacity=4, timeout=60.0, per_client=3)
+    table: ViewTable[str] = ViewTable(capacity=4, timeout=60.0, per_client=3)
     a1 = table.open("a1", 0.0, client="a")
     b = [table.open(f"b{i}", 1.0 + i, client="b") for i in range(3)]
     table.get(b[0], now=5.0)  # b0 is now b's most recently used
@@ -71,7 +71,7 @@ def test_a_full_table_drops_from_the_client_holding_the_most():
 
 
 def test_closed_and_expired_sessions_free_their_clients_quota():
-    table: SessionTable[str] = SessionTable(capacity=10, timeout=5.0, per_client=2)
+    table: ViewTable[str] = ViewTable(capacity=10, timeout=5.0, per_client=2)
     first = table.open("x", 0.0, client="rr")
     table.open("y", 0.0, client="rr")
     table.close(first, 1.0)
@@ -81,7 +81,7 @@ def test_closed_and_expired_sessions_free_their_clients_quota():
 
 
 def test_a_restarted_table_never_reuses_ids():
-    assert SessionTable().open("x", 0.0) != SessionTable().open("x", 0.0)
+    assert ViewTable().open("x", 0.0) != ViewTable().open("x", 0.0)
 
 
 def test_bitsets_round_trip_in_entity_order():

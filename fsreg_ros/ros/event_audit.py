@@ -19,12 +19,12 @@ TRANSPORT_FIELDS = ("seq", "incarnation", contract.GRAPH_FIELD)
 
 
 @dataclass
-class EventLedger:
+class EventAudit:
     """Every ``wm/events`` message of one run, checked for completeness and origin.
 
     :meth:`start` notes, per domain, the consultant's incarnation and the last ``seq``
     it had published before the run; :meth:`hear` takes every message (a foreign or
-    malformed one is the ledger's ``fault``); :meth:`check` says, given the last
+    malformed one is the audit's ``fault``); :meth:`check` says, given the last
     ``seq`` the consultant reports after the run, whether exactly the events in
     between were heard.
     """

@@ -1,7 +1,7 @@
 """What a lexicon can say of a scenario's properties: one warning for the rest, and a lexicon skeleton for them.
 
 A property the lexicon lists, or an ``attribute=value`` property with a word value (said
-by the default of :func:`.lexicon.attribute_entry`), is said in words.  Any other is said
+by the default of :func:`fsreg_ros.core.lexicon.attribute_entry`), is said in words.  Any other is said
 as its name ("the place with shelf"): :func:`unsayable` lists them per domain,
 :func:`coverage_warning` says so in one line at start (``fsreg-sim``, ``fsreg-graph``,
 ``fsreg-up``), and :func:`lexicon_template` writes the skeleton of a lexicon file for
@@ -11,20 +11,18 @@ them (``fsreg-sim S --lexicon-template OUT.yaml``), to be filled in and given ba
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 import yaml
 
-from .lexicon import DEFAULT_DOMAIN_NOUNS, Lexicon
-
-if TYPE_CHECKING:  # pragma: no cover - typing only (the scenario package imports the lexicon)
-    from ..scenario import Scenario
+from ..lexicon.lexicon import DEFAULT_DOMAIN_NOUNS, Lexicon
+from .model import Scenario
 
 #: How many property names the warning shows before "...".
 SHOWN = 12
 
 
-def unsayable(lexicon: Lexicon, scenario: "Scenario") -> dict[str, list[str]]:
+def unsayable(lexicon: Lexicon, scenario: Scenario) -> dict[str, list[str]]:
     """Return, per domain (scenario order), the properties the lexicon cannot say (preference order)."""
     out: dict[str, list[str]] = {}
     for domain, spec in scenario.domains.items():
@@ -34,7 +32,7 @@ def unsayable(lexicon: Lexicon, scenario: "Scenario") -> dict[str, list[str]]:
     return out
 
 
-def coverage_warning(lexicon: Lexicon, scenario: "Scenario") -> Optional[str]:
+def coverage_warning(lexicon: Lexicon, scenario: Scenario) -> Optional[str]:
     """Return one line naming the properties the lexicon cannot say (None if it can say them all)."""
     missing = unsayable(lexicon, scenario)
     if not missing:
@@ -53,7 +51,7 @@ def missing_example(lexicon: Lexicon, missing: dict[str, list[str]]) -> str:
     return lexicon.entry(first).post_modifier()
 
 
-def lexicon_template(lexicon: Lexicon, scenario: "Scenario", source: str = "the scenario") -> str:
+def lexicon_template(lexicon: Lexicon, scenario: Scenario, source: str = "the scenario") -> str:
     """Return the text of a lexicon file with one entry to fill in per property the lexicon cannot say.
 
     Each entry is given ``words`` (its name, read as words) so the file is valid as it

@@ -1,17 +1,23 @@
-"""Open RR and REG requests at a consultant: a bounded table of candidate sets, fair to each client.
+"""Open views at a consultant: opening and closing one, and the bounded table that holds them.
 
-A request opens a session (its candidate or distractor set stays at the consultant),
-names it by id in every later call, and closes it at the end.  So that a caller that
-crashes or loses its connection leaks nothing, a session not used for ``timeout``
-seconds expires.  So that one busy client cannot starve the others, each client (the
-``client`` id an ``open`` carries; requests without one share the anonymous client
-``""``) may hold at most ``per_client`` sessions: opening one more drops *its own*
-least recently used session, never another client's.  At most ``capacity`` sessions
-are open in all; when the table is full, the least recently used session of the
-client holding the most is dropped (the opener's own on a tie), so a client within its
-fair share keeps its sessions.  A call naming a closed, expired or dropped session is
-refused (:class:`SessionError`) and changes nothing.  Time is a monotonic clock in
-seconds, given by the caller (so tests can drive it).
+A view is one RR or REG request's candidate (or distractor) set kept at the consultant
+(:class:`~fsreg_ros.core.port.View` is what the port reports of it).  :func:`open_view`
+opens one over a :class:`~fsreg_ros.core.consultant.Consultant` and :func:`close_view`
+closes it (rule 1's encoding); the service calls both.
+
+Over the graph a view is named by a *session* id (the wire field ``session``, the error
+kind ``SessionError``): :class:`ViewTable` keeps them.  A request opens a session (its
+candidate or distractor set stays at the consultant), names it by id in every later
+call, and closes it at the end.  So that a caller that crashes or loses its connection
+leaks nothing, a session not used for ``timeout`` seconds expires.  So that one busy
+client cannot starve the others, each client (the ``client`` id an ``open`` carries;
+requests without one share the anonymous client ``""``) may hold at most ``per_client``
+sessions: opening one more drops *its own* least recently used session, never another
+client's.  At most ``capacity`` sessions are open in all; when the table is full, the
+least recently used session of the client holding the most is dropped (the opener's own
+on a tie), so a client within its fair share keeps its sessions.  A call naming a closed,
+expired or dropped session is refused (:class:`SessionError`) and changes nothing.  Time
+is a monotonic clock in seconds, given by the caller (so tests can drive it).
 """
 
 from __future__ import annotations
@@ -19,9 +25,10 @@ from __future__ import annotations
 import secrets
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, Optional, Sequence, TypeVar
 
-from .consultant import KnowledgeError
+from .consultant import CandidateSet, Consultant, KnowledgeError
+from .port import Narrowed, Step, View
 
 S = TypeVar("S")
 
@@ -41,8 +48,8 @@ class _Entry(Generic[S]):
     client: str
 
 
-class SessionTable(Generic[S]):
-    """Open sessions by id, least recently used first, with a quota per client."""
+class ViewTable(Generic[S]):
+    """Open views by session id, least recently used first, with a quota per client."""
 
     def __init__(self, capacity: int = DEFAULT_CAPACITY, timeout: float = DEFAULT_TIMEOUT,
                  per_client: int = DEFAULT_PER_CLIENT) -> None:
@@ -127,3 +134,40 @@ class SessionTable(Generic[S]):
         del sessions[session]
         if not sessions:
             del self._clients[entry.client]
+
+
+def open_view(
+    consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step] = None
+) -> View:
+    """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set).
+
+    With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).
+    """
+    candidates = consultant.open_set(target, context)
+    size = candidates.size
+    if target is None:
+        view = View(candidates, size, [], consultant.wm.retains)
+    else:
+        holding = frozenset(consultant.properties_of(target))
+        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding,
+                    origins=consultant.wm.origins(target))
+    if first is not None:
+        holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
+        view.first = Narrowed(holds, candidates.size)
+    return view
+
+
+def close_view(
+    consultant: Consultant, candidates: CandidateSet, encode: Sequence[str], time: float, turn: Optional[int]
+) -> list[str]:
+    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says."""
+    members = consultant.members(candidates)
+    if encode:
+        if candidates.target is not None:
+            speaker = consultant.entities[candidates.target]
+        elif len(members) == 1:
+            speaker = members[0]
+        else:
+            raise KnowledgeError(f"cannot encode for the only member: {len(members)} members remain")
+        consultant.encode(speaker, encode, "speaker", time, turn)
+    return members

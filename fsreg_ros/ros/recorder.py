@@ -1,0 +1,252 @@
+"""Recording a live graph as a rosbag2 folder: the subscriptions (this module) over the bag writer (core).
+
+:class:`Recorder` subscribes, on a node it is given, to every topic of the node's graph
+(:func:`fsreg_ros.contract.graph_topics`: the dialogue in and out, RR results, REG requests
+and expressions, ``ltm/assert`` and its results, ``wm/state``, ``wm/events``, the
+consultants' announcements, ``wm_manager/ready`` and the graph's clock), each with the
+contract's reader QoS made deeper (:data:`RECORD_DEPTH`: a recorder behind by a burst must
+not lose it), and writes each message's CDR bytes as they came off the wire (a *raw*
+subscription: nothing is decoded or re-encoded) with their receive time (wall clock, ns),
+through :class:`fsreg_ros.core.recording.BagWriter`, which owns the format.  The namespace
+is the node's; the clock topic is ``/clock`` as the node resolves it (remapped into a
+namespaced graph).
+
+Used by ``fsreg-ctl record`` and ``fsreg-up --record`` (on their own node) and by
+``fsreg-graph --record`` (:class:`RecorderThread`: a node of its own spun in a thread while
+the graph's processes run).  :func:`graph_knowledge` asks a running graph which knowledge
+base, lexicon and REG options it runs with, so a recording made by ``fsreg-ctl record``
+carries what a replay needs.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any, Mapping, Optional
+
+from rclpy.clock import Clock, ClockType
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import String
+
+from .. import contract
+from ..contract import QosSpec
+from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel
+from .carrier import qos_profile
+
+#: Reader depth of every recorded topic at least (the contract's writers keep 1 to 1,000).
+RECORD_DEPTH = 1000
+#: Seconds between two checks whether the open segment is due to close.
+POLL = 0.1
+#: The role each contract topic has in a recording (:data:`fsreg_ros.core.recording.ROLES`); ``/clock``: ``clock``.
+ROLE_OF = {contract.HUMAN.name: "human", contract.SEMANTICS.name: "semantics", contract.RR_RESULT.name: "rr",
+           contract.REG_REQUEST.name: "request", contract.REG_EXPRESSION.name: "expression",
+           contract.WM_STATE.name: "state", contract.WM_EVENTS.name: "events", contract.ANNOUNCE.name: "announce",
+           contract.READY.name: "ready", contract.LTM_ASSERT.name: "assert",
+           contract.LTM_ASSERT_RESULT.name: "assert_result"}
+
+
+def channels(namespace: str = "", clock: Optional[str] = None) -> list[tuple[contract.GraphTopic, Channel]]:
+    """Return every recorded topic of a graph with the bag channel it is written to (its writers' QoS)."""
+    return [(t, Channel(t.name, t.msgtype, t.qos.depth, t.qos.latched, t.qos.lease))
+            for t in contract.graph_topics(namespace, clock)]
+
+
+class Recorder:
+    """Record every fsreg topic of ``node``'s graph to a new rosbag2 folder ``path`` (see the module docstring).
+
+    ``custom``: ``custom_data`` entries (strings, ``fsreg.`` keys); ``attach``: files to copy
+    into the recording (key -> path), e.g. the knowledge base a replay needs.  Call
+    :meth:`close` once at the end (a recording that is never closed keeps its closed
+    segments: :mod:`fsreg_ros.core.recording`).
+    """
+
+    def __init__(self, node, path: Path, *, segment_seconds: float = SEGMENT_SECONDS,
+                 custom: Optional[Mapping[str, str]] = None, attach: Optional[Mapping[str, Path]] = None) -> None:
+        self.node = node
+        clock = node.resolve_topic_name(contract.CLOCK)
+        pairs = channels(node.get_namespace(), clock)
+        roles = {t.name: ROLE_OF[t.topic.name] if t.topic is not None else "clock" for t, _ in pairs}
+        self.bag = BagWriter(Path(path), [c for _, c in pairs], segment_seconds=segment_seconds,
+                             custom={**{k: str(v) for k, v in (custom or {}).items()},
+                                     TOPICS_KEY: json.dumps(roles, sort_keys=True)})
+        for key, source in (attach or {}).items():
+            self.bag.attach(key, Path(source))
+        self.topics = [t for t, _ in pairs]
+        self.subscriptions = []
+        for topic in self.topics:
+            reader = QosSpec(max(topic.reader_qos.depth, RECORD_DEPTH), latched=topic.reader_qos.latched)
+            kind = ClockMsg if topic.msgtype == contract.CLOCK_TYPE else String
+            self.subscriptions.append(node.create_subscription(
+                kind, topic.name, lambda raw, name=topic.name: self._on(name, raw), qos_profile(reader), raw=True))
+        self._timer = node.create_timer(POLL, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.closed = False
+
+    def _on(self, topic: str, raw: bytes) -> None:
+        if not self.closed:
+            self.bag.write(topic, time.time_ns(), raw)
+            self.drain()
+
+    def drain(self) -> int:
+        """Write every message already waiting in any recorded topic's reader; return how many.
+
+        One executor wake-up per message costs rclpy far more than taking the message
+        (measured: at ~1,000 messages/s on a loaded 2-core machine the recorder fell behind
+        and the writers' history overwrote what it had not taken), so each callback takes
+        whatever else has arrived meanwhile, straight from the readers.
+        """
+        from rclpy.exceptions import InvalidHandle
+
+        taken = 0
+        for topic, sub in zip(self.topics, self.subscriptions):
+            while not self.closed:
+                try:
+                    with sub.handle:
+                        message = sub.handle.take_message(sub.msg_type, True)
+                except InvalidHandle:
+                    break
+                if message is None:
+                    break
+                self.bag.write(topic.name, time.time_ns(), message[0])
+                taken += 1
+        return taken
+
+    def _tick(self) -> None:
+        if not self.closed:
+            self.drain()
+            self.bag.poll()
+
+    def matched(self) -> dict[str, int]:
+        """Return each recorded topic's number of matched writers now."""
+        return {t.name: s.get_publisher_count() for t, s in zip(self.topics, self.subscriptions)}
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written so far, per topic."""
+        return dict(self.bag.counts)
+
+    def close(self) -> Path:
+        """Stop recording and close the bag (its segments merged into one ``.mcap``); return its folder."""
+        if self.closed:
+            return self.bag.path
+        self.drain()
+        self.closed = True
+        for sub in self.subscriptions:
+            self.node.destroy_subscription(sub)
+        self.node.destroy_timer(self._timer)
+        return self.bag.close()
+
+    def summary(self) -> str:
+        """Return one line: how many messages on how many topics went where."""
+        counts = self.bag.counts
+        busy = sum(1 for n in counts.values() if n)
+        return f"{sum(counts.values())} messages on {busy} of {len(counts)} topics to {self.bag.path}"
+
+
+class RecorderThread:
+    """A :class:`Recorder` on a node of its own, spun in a thread (``fsreg-graph --record``).
+
+    ``namespace`` and ``clock`` (None: the graph's own, as the nodes get it) say which
+    graph; set the ROS environment before building one.
+    """
+
+    def __init__(self, path: Path, namespace: str = "", clock: Optional[str] = None, **recorder: Any) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        remaps = ["-r", f"__ns:={namespace}"] if namespace else []
+        remaps += _clock_remap(namespace, clock)
+        self.node = rclpy.create_node("fsreg_recorder", context=self.context,
+                                      cli_args=["--ros-args", *remaps] if remaps else None)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        try:
+            self.recorder = Recorder(self.node, path, **recorder)
+        except BaseException:
+            self._shutdown()
+            raise
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name="fsreg-recorder", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> Path:
+        """Stop spinning, close the bag, end the node; return the recording's folder."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        try:
+            return self.recorder.close()
+        finally:
+            self._shutdown()
+
+    def _shutdown(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _clock_remap(namespace: str, clock: Optional[str]) -> list[str]:
+    if clock is None:
+        return contract.clock_remap(namespace)
+    return [] if clock == contract.CLOCK else ["-r", f"{contract.CLOCK}:={clock}"]
+
+
+def graph_knowledge(client, timeout: float) -> tuple[dict[str, str], dict[str, Path]]:
+    """Ask a running graph what it runs with: (custom data, files to attach).
+
+    The parser's ``kb`` and ``lexicon`` (attached when readable here), REG's ``algorithm``
+    and ``wm_order``, the graph identity.  What cannot be asked is left out (a replay
+    then needs ``--scenario``).
+    """
+    custom: dict[str, str] = {}
+    attach: dict[str, Path] = {}
+    if client.graph:
+        custom["fsreg.graph"] = client.graph
+    values = {**_parameters(client, "parser", ("kb", "lexicon"), timeout),
+              **_parameters(client, "reg", ("algorithm", "wm_order"), timeout)}
+    for key in ("algorithm", "wm_order"):
+        if values.get(key):
+            custom[f"fsreg.{key}"] = str(values[key])
+    for key, name in (("kb", "scenario"), ("lexicon", "lexicon")):
+        path = Path(values[key]) if values.get(key) else None
+        if path is not None and path.is_file():
+            attach[name] = path
+        elif path is not None:
+            custom[f"fsreg.{name}_path"] = str(path)  # named, not readable here
+    return custom, attach
+
+
+def _parameters(client, node_name: str, names: tuple[str, ...], timeout: float) -> dict[str, Any]:
+    """Return parameters of a graph node (those it has); {} if it does not answer in ``timeout``."""
+    from rcl_interfaces.msg import ParameterType
+    from rcl_interfaces.srv import GetParameters
+
+    service = client.node.create_client(GetParameters, f"{node_name}/get_parameters")
+    try:
+        deadline = time.monotonic() + timeout
+        while not service.service_is_ready():
+            if time.monotonic() > deadline:
+                return {}
+            client.executor.spin_once(timeout_sec=0.05)
+        future = service.call_async(GetParameters.Request(names=list(names)))
+        while not future.done():
+            if time.monotonic() > deadline:
+                service.remove_pending_request(future)
+                return {}
+            client.executor.spin_once(timeout_sec=0.05)
+        out: dict[str, Any] = {}
+        for name, value in zip(names, future.result().values):
+            if value.type == ParameterType.PARAMETER_STRING:
+                out[name] = value.string_value
+        return out
+    finally:
+        client.node.destroy_client(service)

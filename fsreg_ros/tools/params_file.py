@@ -1,0 +1,99 @@
+"""``fsreg-up --params-file FILE``: node parameters from the YAML ``ros2 param dump`` writes, checked before any start.
+
+The file's node keys (``/ns/node``, ``node``, ``/**``, ``/**/node``, nested namespaces)
+are matched against the graph's fully qualified node names (:mod:`fsreg_ros.ros.node_parameters`);
+every key must be a parameter the node declares (a wildcard entry's key, of at least one
+node it matches), not one the runner sets from the scenario and its own options
+(``domains``, ``kb``, ``graph``, ``use_sim_time``, ``state_dir``, ``lexicon``), and every
+value must be one the node takes; the memory settings, merged, must make a valid
+policy for every domain.  Errors are one line naming the file, the node and the key.
+
+Precedence: the scenario's memory settings, then the file, then ``fsreg-up``'s memory
+options (``--policy``, ``--capacity``, ...), each over the one before.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from ..core import settings
+from ..ros.node_parameters import ParameterError, check_parameter, matches, node_parameters, read_params_file
+from .sim import UsageError
+
+
+def node_names(domains: Sequence[str]) -> dict[str, str]:
+    """Return the live graph's node names -> their executables."""
+    names = {f"consultant_{d}": "consultant" for d in domains}
+    names.update(wm_manager="wm_manager", parser="parser", reference_resolution="reference_resolution", reg="reg")
+    return names
+
+
+def overrides(path: Path, domains: Sequence[str], namespace: str,
+              options_memory: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """Return node name -> the parameters the file sets (checked); UsageError naming the file, node and key.
+
+    ``options_memory`` are the memory settings given as command-line options: they win
+    over the file's for every domain.
+    """
+    entries = read_params_file_checked(path)
+    names = node_names(domains)
+    full = {name: f"{namespace}/{name}" for name in names}
+    for entry in entries:
+        if not any(matches(entry.pattern, f) for f in full.values()):
+            raise UsageError(f"{path}: node {entry.pattern} is not a node of this graph (its nodes: "
+                             f"{', '.join(sorted(full.values()))})")
+    out: dict[str, dict[str, Any]] = {}
+    for name, executable in names.items():
+        catalogue = node_parameters(executable, domains)
+        given: dict[str, Any] = {}
+        for entry in entries:
+            if not matches(entry.pattern, full[name]):
+                continue
+            wildcard = "*" in entry.pattern
+            for key, value in entry.parameters.items():
+                spec = catalogue.get(key)
+                where = f"{path}: node {full[name]}: {key}"
+                if spec is None:
+                    if wildcard and any(key in node_parameters(e, domains) for e in names.values()):
+                        continue  # a wildcard's key for other nodes (as rcl does: ignored where undeclared)
+                    close = difflib.get_close_matches(key, list(catalogue), n=1)
+                    raise UsageError(f"{path}: node {full[name]}: no parameter {key!r}"
+                                     + (f" (did you mean {close[0]}?)" if close else ""))
+                if spec.runner:
+                    raise UsageError(f"{where}: set by fsreg-up from the scenario and its options "
+                                     "(--namespace, --state-dir, --lexicon, --wall-time), not by a parameters file")
+                try:
+                    given[key] = check_parameter(spec, value)
+                except ParameterError as err:
+                    raise UsageError(f"{where}: {err}") from None
+        if given:
+            out[name] = given
+    if options_memory and "wm_manager" in out:
+        for key in options_memory:
+            out["wm_manager"].pop(key, None)
+            for domain in domains:
+                out["wm_manager"].pop(f"{domain}.{key}", None)
+    return out
+
+
+def read_params_file_checked(path: Path):
+    try:
+        return read_params_file(path)
+    except ParameterError as err:
+        raise UsageError(str(err)) from None
+
+
+def check_memory(path: Path, manager: Mapping[str, Any], domains: Sequence[str]) -> dict:
+    """Return each domain's effective policy (as JSON) from the WM Manager's parameters; UsageError naming the file."""
+    from ..ros.memory_parameters import effective_policies
+
+    values: dict[str, Any] = {row.name: row.default for row in settings.TABLE}
+    values.update({f"{d}.{row.name}": row.inherit for d in domains for row in settings.TABLE})
+    values.update({k: v for k, v in manager.items() if k in values})
+    try:
+        policies = effective_policies(values, domains)
+    except ValueError as err:
+        raise UsageError(f"{path}: node wm_manager: {err}") from None
+    return {d: p.to_json() for d, p in policies.items()}

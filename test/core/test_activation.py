@@ -1,0 +1,198 @@
+"""ACT-R base-level activation as a forgetting rule (core/memory/activation.py, docs/semantics.md section 5).
+
+Hand-computed crossing times and WM contents, pyactr's ``baselevel_learning`` as an
+independent implementation of the activation values, and a restart.  The lazy buffer
+against the naive eager reference on random operation sequences is in
+test_properties.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pyactr.utilities import baselevel_learning
+
+from fsreg_ros.core.forgetting import ForgettingPolicy, PolicyError
+from fsreg_ros.core.memory import WMBuffer, WMEvent
+from fsreg_ros.core.memory.activation import HISTORY, Trace, activation, crossing, lifetime
+from fsreg_ros.core.wm_manager import WMManager
+
+
+def trace_of(times):
+    trace = Trace(times[0])
+    for t in times[1:]:
+        trace.add(t)
+    return trace
+
+
+def policy(tau: float, d: float = 0.5, rules: str = "activation", **more) -> ForgettingPolicy:
+    return ForgettingPolicy.parse(rules, activation_decay=d, activation_threshold=tau, **more)
+
+
+# ------------------------------------------------------------ the formula
+@pytest.mark.parametrize("times, now, d", [
+    ([0.0], 3.0, 0.5),
+    ([0.0, 5.0], 10.0, 0.5),
+    ([1.0, 2.0, 4.0, 8.0], 9.5, 0.3),
+    ([0.0, 0.0, 7.25], 12.0, 0.8),  # two encodings at one time count twice
+    ([float(t) for t in range(HISTORY)], 30.0, 0.5),  # as many as are kept exactly
+    ([3.0, 40.0, 41.0, 100.0, 250.5], 1000.0, 0.65),
+])
+def test_activation_is_pyactrs_base_level_learning(times, now, d):
+    """The exact sum (n <= HISTORY) against pyactr 0.3.2's ``utilities.baselevel_learning``."""
+    expected = baselevel_learning(now, np.array(times), True, d)
+    assert activation(trace_of(times), now, d) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+def test_older_presentations_follow_petrovs_approximation():
+    """Beyond HISTORY presentations the older ones are approximated (Petrov 2006): close to pyactr's exact sum."""
+    times = [float(3 * k) for k in range(40)]  # 40 presentations, every 3 s
+    for now, d in [(121.0, 0.5), (150.0, 0.3), (400.0, 0.8)]:
+        exact = baselevel_learning(now, np.array(times), True, d)
+        approximated = activation(trace_of(times), now, d)
+        assert approximated != exact and abs(approximated - exact) < 0.01
+
+
+def test_the_crossing_is_where_activation_meets_the_threshold():
+    assert crossing(trace_of([4.0]), 0.5, -1.0) == 4.0 + math.exp(2.0) == 4.0 + lifetime(0.5, -1.0)
+    for times, d, tau in [([0.0, 10.0], 0.5, -0.6), ([1.0, 2.0, 4.0, 8.0], 0.3, -0.2),
+                          ([float(t) for t in range(30)], 0.5, 0.5), ([0.0, 0.0], 0.9, -2.0)]:
+        trace = trace_of(times)
+        c = crossing(trace, d, tau)
+        assert c > times[-1] + lifetime(d, tau) - 1e-9
+        assert activation(trace, c, d) == pytest.approx(tau, abs=1e-9)
+        assert activation(trace, c - 1e-6, d) > tau > activation(trace, c + 1e-6, d)
+
+
+def test_trace_round_trip_and_refusals():
+    trace = trace_of([float(t) for t in range(12)])
+    assert trace.to_json() == [12, 0.0, *[float(t) for t in range(4, 12)]]
+    copy = Trace.from_json(trace.to_json())
+    assert (copy.n, copy.first, copy.recent) == (trace.n, trace.first, trace.recent)
+    for bad in ([1, 0.0], [1, 0.0, 1.0, 2.0], [3, 0.0, 2.0, 1.0], [3, 0.0, float("nan")], "x", [True, 0.0, 1.0]):
+        with pytest.raises(ValueError, match="activation trace"):
+            Trace.from_json(bad)
+
+
+# --------------------------------------------------------------- the rule
+def test_policy_parsing():
+    assert policy(-1.0).to_json() == {"policy": "activation", "activation_decay": 0.5, "activation_threshold": -1.0}
+    assert policy(-1.0, rules="activation+displacement", capacity=2).limits().activation == (0.5, -1.0)
+    with pytest.raises(PolicyError, match="combines decay and activation"):
+        policy(-1.0, rules="decay+activation", decay_period=5.0)
+    with pytest.raises(PolicyError, match="needs 'activation_threshold'"):
+        ForgettingPolicy.parse("activation")
+    with pytest.raises(PolicyError, match=r"activation_decay must be <= 0.99"):
+        policy(-1.0, d=1.0)
+
+
+def managed(p: ForgettingPolicy):
+    events: list[WMEvent] = []
+    buffer = WMBuffer("d", events.append)
+    manager = WMManager()
+    manager.manage(buffer, p)
+    return buffer, manager, events
+
+
+def test_exact_wm_contents_at_given_times():
+    """d = 0.5, tau = ln(20^-0.5 + 10^-0.5): one encoding at t stays until t + exp(-2 tau) = t + 3.4316 s."""
+    tau = math.log(20 ** -0.5 + 10 ** -0.5)
+    single = math.exp(-2 * tau)  # 3.4316... s
+    buffer, manager, events = managed(policy(tau))
+    buffer.encode("e", ["a"], "speaker", 0.0, 0)
+    manager.advance(2.0)
+    buffer.encode("e", ["b"], "rr", 2.0, 1)
+    manager.advance(single - 0.01)
+    assert buffer.queue("e") == ("a", "b")
+    manager.advance(single + 0.01)
+    assert buffer.queue("e") == ("b",)  # a (once, at 0) crossed at 3.43
+    manager.advance(2.0 + single - 0.01)
+    assert buffer.queue("e") == ("b",)
+    manager.advance(2.0 + single + 0.01)
+    assert buffer.queue("e") == ()  # b (once, at 2) at 5.43
+    buffer.encode("e", ["a"], "speaker", 10.0, 2)  # a enters again: a new history
+    buffer.encode("f", ["a"], "speaker", 10.0, 2)
+    buffer.encode("f", ["a"], "speaker", 12.0, 3)
+    manager.advance(13.0)
+    assert buffer.queue("e") == ("a",) and buffer.queue("f") == ("a",)
+    manager.advance(10.0 + single + 0.001)
+    assert buffer.snapshot() == {"f": ["a"]}
+    forgets = [(e.entity, e.property, e.cause, e.time) for e in events if e.op == "forget"]
+    assert forgets == [("e", "a", "activation", pytest.approx(single)), ("e", "b", "activation",
+                       pytest.approx(2.0 + single)), ("e", "a", "activation", pytest.approx(10.0 + single))]
+
+
+def test_a_refresh_extends_the_stay_to_the_hand_computed_crossing():
+    """tau = ln(5^-0.5 + 4^-0.5): alone, an encoding stays 1.115 s; refreshed at 1, A(t) = ln(t^-0.5 + (t - 1)^-0.5)
+    meets tau at t = 5."""
+    tau = math.log(5 ** -0.5 + 4 ** -0.5)
+    buffer, manager, events = managed(policy(tau))
+    buffer.encode("e", ["a", "b"], "speaker", 0.0, 0)
+    buffer.encode("e", ["a"], "speaker", 1.0, 1)
+    manager.advance(1.2)
+    assert buffer.queue("e") == ("a",)  # b, once at 0, crossed at 1.115
+    manager.advance(4.999)
+    assert buffer.queue("e") == ("a",)
+    manager.advance(5.001)
+    assert buffer.queue("e") == ()
+    assert [(e.property, e.time) for e in events if e.op == "forget"] == [
+        ("b", pytest.approx(math.exp(-2 * tau))), ("a", pytest.approx(5.0, abs=1e-9))]
+
+
+def test_activation_with_displacement_and_an_encoding_after_a_crossing():
+    """Entries whose crossing is at or before an encoding's time go first: displacement then finds room."""
+    buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+    L = math.exp(2.0)  # 7.389 s per single encoding
+    buffer.encode("e", ["a", "b"], "rr", 0.0, 0)
+    buffer.encode("e", ["c"], "rr", L, 1)  # a and b crossed at L: no displacement
+    assert buffer.queue("e") == ("c",)
+    assert [(e.property, e.cause) for e in events if e.op == "forget"] == [("a", "activation"), ("b", "activation")]
+    buffer.encode("e", ["d", "f"], "rr", L + 1.0, 2)
+    assert buffer.queue("e") == ("d", "f") and events[-1].cause == "displacement"
+
+
+# ------------------------------------------------------------ persistence
+def test_a_restart_restores_the_encoding_histories(tmp_path):
+    """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
+    the histories: the restarted consultant forgets at the same crossing times."""
+    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.service import ConsultantService
+    from fsreg_ros.core.store import DomainStore, fingerprint
+
+    pref = ["male", "glasses", "hat"]
+    facts = {"f1": {"male": 1.0, "glasses": 1.0, "hat": 1.0}, "f2": {"glasses": 1.0}}
+    tau = math.log(5 ** -0.5 + 4 ** -0.5)  # as above: once -> 1.115 s; at 0 and 1 -> crosses at 5
+    settings = {"policy": "activation", "activation_decay": 0.5, "activation_threshold": tau}
+
+    def make():
+        store = DomainStore(tmp_path / "faces.sqlite3", fingerprint(pref, facts, 0.5, {}))
+        service = ConsultantService(Consultant("faces", facts, pref), store=store, clock="sim", now=lambda: 0.0)
+        service.restore(store.open())
+        return service
+
+    def call(service, op, **fields):
+        return service.apply(op, {"op": op, **fields}).reply
+
+    service = make()
+    call(service, "configure", policy=settings, time=0.0)
+    for time, props in ((0.0, ["male", "glasses"]), (1.0, ["male"])):
+        call(service, "encode", entity="f1", properties=props, cause="speaker", time=time)
+    call(service, "advance", time=1.2)  # glasses (once, at 0) crossed at 1.115
+    live = {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()}
+    assert live == {"f1": [("male", 3, 1, "speaker", None, [2, 0.0, 0.0, 1.0])]}
+    assert service.store.journal_length() == 4  # configure, two encodes, advance
+    service.store.close()  # abruptly: no checkpoint
+    service = make()  # from the journal
+    assert service.store.journal_length() == 4
+    assert {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()} == live
+    service.maintain()  # the replayed journal becomes a checkpoint
+    assert service.store.journal_length() == 0
+    service.store.close()
+    service = make()  # from the checkpoint
+    assert {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()} == live
+    call(service, "configure", policy=settings, time=4.0)
+    assert call(service, "advance", time=4.999)["queues_changed"] == 0
+    assert call(service, "advance", time=5.001)["queues_changed"] == 1
+    assert service.buffer.snapshot() == {}

@@ -1,0 +1,93 @@
+"""The nodes' parameters as data (fsreg_ros.ros.node_parameters) and the YAML of ``ros2 param dump``.
+
+The catalogue is what ``fsreg-up --params-file`` checks a file against before anything
+starts, so it must be what the nodes declare: checked against a live graph's nodes.
+"""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from fsreg_ros.ros.node_parameters import (ParameterError, check_parameter, dump_yaml, for_node, matches,
+                                           node_parameters, read_params_file)
+
+KINDS = {1: "bool", 2: "int", 3: "float", 4: "str", 9: "str[]"}
+
+
+@pytest.mark.graph
+def test_the_catalogue_is_what_every_node_declares(table1_path):
+    from fsreg_ros.testing import LiveGraph
+
+    with LiveGraph(table1_path) as graph:
+        for spec in graph.specs:
+            node = graph.nodes[spec.name]
+            catalogue = node_parameters(spec.executable, ["faces"])
+            assert sorted(catalogue) == sorted(node._parameters), spec.name
+            for name, param in catalogue.items():
+                described = node.describe_parameter(name)
+                assert KINDS[described.type] == param.kind, (spec.name, name)
+                assert described.read_only == param.read_only, (spec.name, name)
+                ranges = list(described.integer_range) or list(described.floating_point_range)
+                if ranges:
+                    assert (ranges[0].from_value, ranges[0].to_value) == (param.low, param.high), (spec.name, name)
+                else:  # no declared range: a text, a flag, or a domain's memory setting (the table's bounds)
+                    assert param.low is None or param.inherit is not None, (spec.name, name)
+
+
+def test_values_are_checked_as_the_node_checks_them():
+    manager = node_parameters("wm_manager", ["faces"])
+    assert check_parameter(manager["decay_period"], 5) == 5.0  # a whole number for a float parameter
+    assert check_parameter(manager["faces.capacity"], 0) == 0  # the inherit marker
+    for name, value, said in (
+        ("capacity", 0, "capacity must be >= 1, got 0"),
+        ("faces.capacity", -1, "capacity must be >= 1, got -1"),
+        ("decay_period", float("inf"), "expected a finite number in [0.01, 1e+06]"),
+        ("decay_period", True, "expected a finite number"),
+        ("capacity", 2**80, "capacity must be <= 10000"),
+        ("faces.policy", "decay+nothing", "unknown forgetting rule 'nothing'"),
+        ("service_timeout", 0.0, "expected a finite number in [0.01, 3600], got 0.0"),
+    ):
+        with pytest.raises(ParameterError, match=said.replace("[", r"\[").replace("+", r"\+")):
+            check_parameter(manager[name], value)
+    reg = node_parameters("reg", ["faces"])
+    with pytest.raises(ParameterError, match="expected one of auto, sd-pia"):
+        check_parameter(reg["algorithm"], "fastest")
+    with pytest.raises(ParameterError, match="no parameters known"):
+        node_parameters("dialogue_manager", ["faces"])
+
+
+def test_params_files_as_ros2_param_dump_writes_them(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    threshold: 0.6\n"
+                    "robot1:\n  wm_manager:\n    ros__parameters:\n      faces:\n        capacity: 3\n"
+                    "/robot1/reg:\n  ros__parameters: {algorithm: greedy}\n")
+    entries = read_params_file(path)
+    assert [(e.pattern, e.parameters) for e in entries] == [
+        ("/**", {"threshold": 0.6}), ("/robot1/wm_manager", {"faces.capacity": 3}),
+        ("/robot1/reg", {"algorithm": "greedy"})]
+    assert for_node(entries, "/robot1/wm_manager") == {"threshold": 0.6, "faces.capacity": 3}
+    assert matches("/**/reg", "/a/b/reg") and matches("/*/reg", "/a/reg") and not matches("/*/reg", "/a/b/reg")
+    assert matches("/**", "/reg") and not matches("/robot1/reg", "/robot2/reg") and matches("reg", "/reg")
+    dumped = dump_yaml({"/robot1/wm_manager": {"faces.capacity": 3, "capacity": 2, "faces.policy": "decay"}})
+    assert dumped == ("/robot1/wm_manager:\n  ros__parameters:\n    capacity: 2\n    faces:\n      capacity: 3\n"
+                      "      policy: decay\n")
+    (tmp_path / "d.yaml").write_text(dumped)
+    assert [(e.pattern, e.parameters) for e in read_params_file(tmp_path / "d.yaml")] == [
+        ("/robot1/wm_manager", {"capacity": 2, "faces.capacity": 3, "faces.policy": "decay"})]
+    assert yaml.safe_load(dumped)  # plain YAML
+
+
+@pytest.mark.parametrize("text, said", [
+    ("[1, 2]\n", "expected node names as keys"),
+    ("reg: 3\n", "node /reg: expected 'ros__parameters:' under it, got 3"),
+    ("reg:\n  ros__parameters: 3\n", "node /reg: 'ros__parameters' must map names to values"),
+    ("reg:\n  ros__parameters: {}\n  extra: 1\n", "node /reg: unexpected key 'extra' beside 'ros__parameters'"),
+    ("reg: {ros__parameters: {", "not YAML (line 1)"),
+])
+def test_a_bad_params_file_is_one_line_naming_the_file(tmp_path, text, said):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ParameterError) as err:
+        read_params_file(path)
+    assert str(err.value).startswith(f"{path}: ") and said in str(err.value) and "\n" not in str(err.value)
