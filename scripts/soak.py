@@ -16,7 +16,16 @@ Latency is measured from each message's *scheduled* moment to its reply (a sende
 that falls behind its schedule is not hidden; the largest lateness is reported).
 Prints per path: sent, lost (no reply by the end), duplicated (more than one reply),
 error replies, p50/p95/p99/max latency; and per node the RSS at start and end and its
-slope in MB per 1,000 requests (least squares over samples taken once a second).
+slope in MB per 1,000 requests (least squares over samples taken once a second), and the
+CPU seconds each node and the sender used during the run.
+
+``--facts-rate N [--batch K]``: also play perception: N facts per second on ``ltm/assert``
+(K facts per message, so N/K messages per second, each on its schedule like the rest),
+about a pool of ``--facts-entities`` perceived entities of the first domain (new at their
+first fact, updated after: certainty 1.0 or 0.8 of one property, so nothing the dialogue
+relies on changes); reported: facts sent, applied, refused, lost (no answer) and not sent
+(the publisher refused: backpressure), their latency, and how many of the perceived
+entities the consultant knows afterwards.  Facts messages move no clock.
 
 ``--step``: after the first stage, run further stages at ``--rate`` x 2, x 3, ... (a new
 graph each, same counts) until REG's p99 passes 100 ms (or ``--max-rate``), and say at
@@ -27,6 +36,8 @@ supervisor would); prints, besides both runs' figures, the replies that differ.
     scripts/soak.py --turns 1000 --requests 1000 --rate 20
     scripts/soak.py --turns 400 --requests 400 --rate 20 --step
     scripts/soak.py --turns 200 --requests 200 --rate 20 --kill-consultant-at 100
+    scripts/soak.py --turns 400 --requests 400 --rate 20 --facts-rate 1000
+    scripts/soak.py --turns 400 --requests 400 --rate 20 --facts-rate 10000 --batch 50
     scripts/soak.py --record      # the same run twice: without, then with `fsreg-ctl record` (cost, nothing dropped)
 
 ``--record``: after the first run, run again with ``fsreg-ctl record`` recording the graph
@@ -38,6 +49,8 @@ answers per id, and each consultant's ``wm/events`` numbered without a gap).
 from __future__ import annotations
 
 import argparse
+import itertools
+import math
 import os
 import sys
 import time
@@ -60,16 +73,17 @@ os.environ.update(ros_environment())  # before rclpy loads
 
 import psutil  # noqa: E402
 
+from fsreg_ros import contract  # noqa: E402
 from fsreg_ros.ros.client import ClientError  # noqa: E402
 from fsreg_ros.core.scenario import Scenario, load_scenario  # noqa: E402
 from fsreg_ros.testing import LiveGraph  # noqa: E402
 
 READY_TIMEOUT = 60.0
-DRAIN = 15.0  # wall seconds to wait for the last replies (a dead consultant call costs 10 s)
+DRAIN = 15.0  # wall seconds without a reply after which the unanswered are lost (a dead consultant call costs 10 s)
 #: REG p99 (ms) that ends --step.
 STEP_LIMIT_MS = 100.0
 #: The client's request kind of each soak message kind.
-KINDS = {"human": "say", "reg": "describe"}
+KINDS = {"human": "say", "reg": "describe", "facts": "assert"}
 
 
 @dataclass
@@ -81,6 +95,7 @@ class Sent:
     due: float
     sent: float
     replies: list[tuple[float, dict]] = field(default_factory=list)
+    facts: int = 0  # facts it carries (perception messages)
 
 
 @dataclass
@@ -91,10 +106,18 @@ class RunResult:
     seconds: float
     late_ms: float  # the most a message left after its scheduled moment
     killed_at: Optional[int] = None
+    busy: int = 0  # facts messages the publisher refused (backpressure)
+    cpu: dict[str, float] = field(default_factory=dict)  # node -> CPU seconds used during the run
+    known: Optional[tuple[int, int]] = None  # (perceived entities the consultant knows, of how many)
 
 
-def schedule(scenario: Scenario, turns: int, requests: int, rate: float) -> list[tuple[float, str, dict]]:
-    """Return (offset s, kind, message) in time order: human turns at ``rate``, REG at ``rate`` half a period later."""
+def schedule(scenario: Scenario, turns: int, requests: int, rate: float, facts_rate: float = 0.0, batch: int = 1,
+             pool: int = 100) -> list[tuple[float, str, dict]]:
+    """Return (offset s, kind, message) in time order.
+
+    Human turns at ``rate``, REG at ``rate`` half a period later, and ``facts_rate`` facts
+    per second in messages of ``batch`` facts over the same span.
+    """
     human = [t for t in scenario.dialogue if t.speaker == "human"]
     robot = [t for t in scenario.dialogue if t.speaker == "robot"]
     if (turns and not human) or (requests and not robot):
@@ -113,7 +136,34 @@ def schedule(scenario: Scenario, turns: int, requests: int, rate: float) -> list
         if t.context:
             msg["context"] = list(t.context)
         out.append((i * period + period / 2, "reg", msg))
+    if facts_rate:
+        out += facts_plan(scenario, max(turns, requests) * period, facts_rate, batch, pool)
     return sorted(out, key=lambda item: item[0])
+
+
+def facts_plan(scenario: Scenario, seconds: float, rate: float, batch: int, pool: int) -> list[tuple[float, str, dict]]:
+    """Return the perception messages: ``rate`` facts/s for ``seconds``, ``batch`` per message.
+
+    Fact i is about ``perceived<i mod pool>`` of the first domain: a new entity at its first
+    fact, then updates (one property of the preference order, certainty 1.0 or 0.8: it holds).
+    """
+    domain, spec = next(iter(scenario.domains.items()))
+    preference = list(spec.preference)
+    count = int(seconds * rate)
+    messages, period = [], batch / rate
+    for start in range(0, count, batch):
+        facts = []
+        for i in range(start, min(count, start + batch)):
+            prop = preference[(i // pool) % len(preference)]
+            facts.append({"entity": f"perceived{i % pool}", "properties": {prop: 1.0 if (i // pool) % 2 else 0.8}})
+        msg: dict = {"domain": domain, "facts": facts} if batch > 1 else {"domain": domain, **facts[0]}
+        messages.append((start // batch * period, "facts", msg))
+    return messages
+
+
+def facts_in(msg: dict) -> int:
+    """Return how many facts a perception message carries."""
+    return len(msg["facts"]) if "facts" in msg else 1
 
 
 def spin_until(live: LiveGraph, predicate, deadline: float) -> bool:
@@ -133,13 +183,26 @@ def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
         msg = next((m for _, k, m in plan if k == kind), None)
         if msg is None:
             continue
+        stamp = {} if kind == "facts" else {"time": 0.0}
         try:
-            reply = live.client.exchange(KINDS[kind], {**msg, "id": live.client.new_id("warm"), "time": 0.0},
+            reply = live.client.exchange(KINDS[kind], {**msg, "id": live.client.new_id("warm"), **stamp},
                                          READY_TIMEOUT)
         except ClientError as err:
             raise SystemExit(f"soak.py: error: no reply to the warm-up {kind} message: {err}") from None
         if reply.get("error"):
             raise SystemExit(f"soak.py: error: the warm-up {kind} message was refused: {reply['error']}")
+
+
+def cpu_seconds(graph) -> dict[str, float]:
+    """Return the CPU seconds (user + system) each node process and this sender have used so far."""
+    out = {}
+    for spec, proc in list(graph.procs) + [(None, psutil.Process())]:
+        try:
+            times = psutil.Process(proc.pid).cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        out[spec.name if spec is not None else "sender (soak.py)"] = times.user + times.system
+    return out
 
 
 def rss_sample(graph, done: int, rss: dict[str, list[tuple[int, float]]]) -> None:
@@ -177,7 +240,7 @@ class Recording:
 
 def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: Optional[Path] = None) -> RunResult:
     scenario = load_scenario(args.scenario)
-    plan = schedule(scenario, args.turns, args.requests, rate)
+    plan = schedule(scenario, args.turns, args.requests, rate, args.facts_rate, args.batch, args.facts_entities)
     memory = {"policy": args.policy} if args.policy else {}
     debug_off = {f"consultant_{d}": {"debug": False} for d in scenario.domains}  # as fsreg-up runs them
     with LiveGraph(args.scenario, processes=True, parameters=debug_off, ready_timeout=READY_TIMEOUT,
@@ -190,8 +253,9 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
+        cpu_before = cpu_seconds(graph)
         start = time.monotonic()
-        next_sample, late = start, 0.0
+        next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
             if kill_at is not None and i == kill_at:
                 graph.restart(consultant)  # SIGKILL, then start it again at once, as a supervisor would
@@ -202,22 +266,52 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
             if now >= next_sample:
                 rss_sample(graph, i, rss)
                 next_sample += 1.0
+            key = client.new_id(kind)
+            if kind == "facts":  # perception moves no clock; the consultant stamps it with its own
+                try:
+                    client.send(KINDS[kind], {"id": key, **msg})
+                except ClientError:  # backpressure: the publisher refused it (counted, not retried)
+                    busy += 1
+                    continue
+                messages[key] = Sent(kind, i, due, time.monotonic(), facts=facts_in(msg))
+                continue
             stamp = now - start  # the robot's clock follows the wall clock
             client.publish_clock(stamp)
-            key = client.new_id(kind)
             messages[key] = Sent(kind, i, due, time.monotonic())
             client.send(KINDS[kind], {**msg, "id": key, "time": stamp})
-        spin_until(live, lambda: all(client.answers[k] for k in messages), time.monotonic() + DRAIN)
+        waiting = set(messages)  # wait for the last replies while they still come (DRAIN s without one: lost)
+
+        def drained() -> bool:
+            waiting.difference_update([k for k in itertools.islice(waiting, 500) if client.answers[k]])
+            return not waiting
+
+        while waiting:
+            before = len(waiting)
+            spin_until(live, drained, time.monotonic() + DRAIN)
+            waiting.difference_update([k for k in list(waiting) if client.answers[k]])
+            if len(waiting) == before:
+                break
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
+        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph).items()}
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         if recorder is not None:
             recorder.stop()
+        known = None
+        facts_msgs = [m for _, k, m in plan if k == "facts"]
+        if facts_msgs:
+            pool = {f["entity"] for m in facts_msgs for f in (m.get("facts") or [m])}
+            domain = facts_msgs[0]["domain"]
+            try:
+                info = client.call(contract.consultant_service(domain), {"op": "info"}, READY_TIMEOUT)
+                known = (len(pool & set(info.get("entities") or ())), len(pool))
+            except ClientError as err:
+                print(f"soak.py: cannot ask the consultant of {domain} what it knows: {err}", file=sys.stderr)
         for spec, code in graph.dead():
             print(f"soak.py: node {spec.name} died (exit {code})\n{graph.tail(spec.name)}", file=sys.stderr)
-        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at)
+        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at, busy=busy, known=known, cpu=cpu)
 
 
 # ------------------------------------------------------------------- figures
@@ -257,8 +351,9 @@ def report(result: RunResult, title: str) -> str:
         lines.append(f"{kind:6} sent {len(sent)}, lost {lost}, duplicated {dup}, errors {errors}; latency ms "
                      f"p50 {percentile(ms, 50):.1f} p95 {percentile(ms, 95):.1f} p99 {percentile(ms, 99):.1f} "
                      f"max {max(ms, default=float('nan')):.1f}")
+    lines += facts_report(result)
     errors = Counter(s.replies[0][1]["error"][:120] for s in result.messages.values()
-                     if s.replies and s.replies[0][1].get("error"))
+                     if s.replies and s.replies[0][1].get("error") and s.kind != "facts")
     lines += [f"  error x{n}: {text}" for text, n in errors.most_common(5)]
     lost = [k for k, s in result.messages.items() if not s.replies]
     if lost:
@@ -266,7 +361,44 @@ def report(result: RunResult, title: str) -> str:
     lines.append("RSS MB start -> end, slope MB per 1,000 requests:")
     for name, points in sorted(result.rss.items()):
         lines.append(f"  {name:22} {points[0][1]:7.1f} -> {points[-1][1]:7.1f}  {slope(points):+.3f}")
+    if result.cpu:
+        lines.append(f"CPU seconds used in the {result.seconds:.1f} s (share of one core): " + ", ".join(
+            f"{name} {used:.1f} ({used / result.seconds:.0%})" for name, used in sorted(result.cpu.items())))
     return "\n".join(lines)
+
+
+def facts_report(result: RunResult) -> list[str]:
+    """Return the perception lines: facts sent, applied, refused, lost, not sent; latency; what is known."""
+    sent = [s for s in result.messages.values() if s.kind == "facts"]
+    if not sent and not result.busy:
+        return []
+    applied = refused = lost = 0
+    errors: Counter = Counter()
+    for s in sent:
+        if not s.replies:
+            lost += s.facts
+            continue
+        data = s.replies[0][1]
+        if "results" in data:
+            applied += data.get("applied", 0)
+            refused += data.get("refused", 0)
+            errors.update(r.get("error", "")[:100] for r in data["results"] if not r.get("ok"))
+        elif data.get("ok"):
+            applied += 1
+        else:
+            refused += s.facts
+            errors[(data.get("error") or "")[:100]] += s.facts
+    dup = sum(1 for s in sent if len(s.replies) > 1)
+    per = max((s.facts for s in sent), default=1)
+    ms = latencies(result, "facts")
+    lines = [f"facts  sent {sum(s.facts for s in sent)} ({len(sent)} messages of {per}), applied {applied}, "
+             f"refused {refused}, lost {lost}, not sent (publisher refused) {result.busy} messages, duplicated "
+             f"{dup}; latency ms p50 {percentile(ms, 50):.1f} p95 {percentile(ms, 95):.1f} "
+             f"p99 {percentile(ms, 99):.1f} max {max(ms, default=float('nan')):.1f}"]
+    if result.known is not None:
+        lines.append(f"  the consultant knows {result.known[0]} of the {result.known[1]} perceived entities")
+    lines += [f"  refused x{n}: {text}" for text, n in errors.most_common(3)]
+    return lines
 
 
 def answer(sent: Sent) -> object:
@@ -344,6 +476,12 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument("--requests", type=int, default=1000, help="REG requests (default 1000)")
     parser.add_argument("--rate", type=float, default=20.0, help="human turns and REG requests per second, each "
                         "(default 20)")
+    parser.add_argument("--facts-rate", type=float, default=0.0, metavar="N",
+                        help="also assert N facts per second on ltm/assert (default 0: none)")
+    parser.add_argument("--batch", type=int, default=1, metavar="K",
+                        help="facts per ltm/assert message (default 1: one message per fact)")
+    parser.add_argument("--facts-entities", type=int, default=100, metavar="P",
+                        help="perceived entities the facts are about, new at their first fact (default 100)")
     parser.add_argument("--step", action="store_true", help=f"raise the rate stage by stage until REG p99 passes "
                         f"{STEP_LIMIT_MS:g} ms")
     parser.add_argument("--max-rate", type=float, default=400.0, help="highest rate --step tries (default 400)")
@@ -358,6 +496,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     if not 0 < args.rate <= args.max_rate or args.turns < 0 or args.requests < 0 or args.turns + args.requests == 0:
         parser.error("--rate must be positive and at most --max-rate; --turns and --requests not negative, "
                      "not both 0")
+    if not (math.isfinite(args.facts_rate) and 0 <= args.facts_rate <= 1_000_000):
+        parser.error(f"--facts-rate must be a number in [0, 1000000], got {args.facts_rate:g}")
+    if not 1 <= args.batch <= 1000 or not 1 <= args.facts_entities <= 1_000_000:
+        parser.error("--batch must be in [1, 1000] (the consultants' max_list_items) and --facts-entities in "
+                     "[1, 1000000]")
     if not args.scenario.is_file():
         parser.error(f"scenario not found: {args.scenario}")
     base = run(args, args.rate, None)

@@ -126,16 +126,17 @@ from .endpoints import (
 )
 from .export import fields_of, json_schemas, message_table
 from .limits import LIMIT_RANGES, Limits
-from .ltm import LtmAssert, LtmAssertResult
+from .ltm import LtmAssert, LtmAssertResult, LtmFact, LtmFactResult
 from .manager import DomainReadiness, ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
 from .naming import GRAPH_FIELD, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from .policy import PolicySettings
-from .qos import (ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, SERVICE_QOS, STATE_PUB_QOS, STATE_QOS,
-                  QosSpec)
+from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS,
+                  SERVICE_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec)
 from .wm import Origin, WMEventMessage, WMState
 
 __all__ = [
-    "ALIVE", "ALIVE_QOS", "ANNOUNCE", "CLOCK", "CONSULTANT", "CONSULTANT_OPS", "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
+    "ALIVE", "ALIVE_QOS", "ANNOUNCE", "ASSERT_QOS", "ASSERT_RESULT_QOS", "CLOCK", "CONSULTANT", "CONSULTANT_OPS",
+    "DEBUG", "DEBUG_OPS", "DEFAULT_QOS",
     "EVENTS_QOS", "HUMAN", "LIMIT_RANGES", "LTM_ASSERT", "LTM_ASSERT_RESULT", "MANAGE", "MANAGE_OPS",
     "PIPELINE_QOS", "READY_QOS", "REG_EXPRESSION", "REG_REQUEST", "RR_RESULT", "SEMANTICS", "SERVICES", "SERVICE_QOS",
     "STATE_PUB_QOS", "STATE_QOS", "STATUS", "SYNC", "TOPICS", "WM_EVENTS", "WM_STATE", "AffirmRequest",
@@ -143,7 +144,8 @@ __all__ = [
     "ConsultantRequest", "DebugReply", "DebugRequest", "DecayReply", "DecayRequest", "AdvanceReply", "AdvanceRequest",
     "EncodeReply", "EncodeRequest",
     "ErrorReply", "EvictReply", "EvictRequest", "HoldsReply", "HoldsRequest", "HumanUtterance", "Id", "InfoReply",
-    "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "ManageReply", "ManageRequest", "Message", "Name",
+    "InfoRequest", "Limits", "LtmAssert", "LtmAssertResult", "LtmFact", "LtmFactResult", "ManageReply",
+    "ManageRequest", "Message", "Name",
     "NameNumbers", "Names", "NarrowReply", "NarrowRequest", "Narrowing", "Number", "OpenReply", "OpenRequest",
     "Origin", "PolicySettings", "QosSpec", "QueueReply", "RRResult", "RegError", "RegExpression", "RegRequest",
     "Request", "RequestRef", "ResetReply", "ResetRequest", "RestoredState", "RuleOutReply", "RuleOutRequest",

@@ -9,7 +9,6 @@ check, e.g. ``field 'time': a number too large ...``), raised as
 
 from __future__ import annotations
 
-import types
 from functools import lru_cache
 from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
 
@@ -105,11 +104,19 @@ def _is_tag(part: Any) -> bool:
     return isinstance(part, str) and (part in _UNION_TAGS or "[" in part)
 
 
-def _item_spec(spec: Any) -> Any:
-    """Return the spec of one item of a list/dict spec (or of the first such member of a union)."""
-    for member in spec if isinstance(spec, tuple) else (spec,):
-        if isinstance(member, types.GenericAlias):
-            return member.__args__[-1]
+def _inner(annotation: Any, part: Any) -> Any:
+    """Return the annotation of item or field ``part`` of a value of ``annotation`` (``object``: unknown)."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:
+        return _inner(args[0], part)
+    if origin is Union:
+        inner = [_inner(a, part) for a in args if a is not type(None)]
+        known = [a for a in inner if a is not object]
+        return known[0] if known else object
+    if origin in (list, dict) and args:
+        return args[-1]
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel) and part in annotation.model_fields:
+        return annotation.model_fields[part].annotation
     return object
 
 
@@ -120,15 +127,16 @@ def _first_problem(schema: Any, data: Any, err: ValidationError) -> str:
     field = loc[0] if loc and isinstance(loc[0], str) and loc[0] in model.model_fields else None
     if field is None:  # a check of the whole message (e.g. "exactly one of text and description")
         return printable(message, 200)
-    if first.get("type") == "missing":
-        return f"missing field '{field}'"
     keys = [p for p in loc[1:] if not _is_tag(p) and p != "[key]"]
+    if first.get("type") == "missing":  # of the message, or of an object inside it (a batch's fact)
+        return f"missing field '{field}'" + "".join(f"[{printable(repr(p), 40)}]" for p in keys)
     is_key = "[key]" in loc  # the problem is a key of a mapping, not its value
     path = keys[:-1] if is_key else keys
     where = f"field '{field}'" + "".join(f"[{printable(repr(p), 40)}]" for p in path)
-    spec = _field_spec(model.model_fields[field].annotation)
-    for _ in path:
-        spec = _item_spec(spec)
+    annotation = model.model_fields[field].annotation
+    for part in path:
+        annotation = _inner(annotation, part)
+    spec = _field_spec(annotation)
     if is_key:
         where, spec = f"{where} key {printable(repr(keys[-1]), 40)}", str
     got = printable(_show(first.get("input")), 60)

@@ -23,7 +23,8 @@ from .consultant import (
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
-from .qos import ALIVE_QOS, DEFAULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, STATE_PUB_QOS, STATE_QOS, QosSpec
+from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, STATE_PUB_QOS,
+                  STATE_QOS, QosSpec)
 from .wm import WMEventMessage, WMState
 
 
@@ -69,8 +70,8 @@ ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consu
               "wm_manager (readiness), reference_resolution, reg")
 READY = Topic("wm_manager/ready", ManagerReady, READY_QOS, "wm_manager", "reference_resolution, reg (restarts), "
               "clients (fsreg-up, fsreg-ctl, fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
-LTM_ASSERT = Topic("ltm/assert", LtmAssert, DEFAULT_QOS, "perception, dialogue manager", "consultants")
-LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], DEFAULT_QOS, "consultants",
+LTM_ASSERT = Topic("ltm/assert", LtmAssert, ASSERT_QOS, "perception, dialogue manager", "consultants")
+LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], ASSERT_RESULT_QOS, "consultants",
                           "asserter")
 
 CONSULTANT = Service("consultant/<domain>", ConsultantRequest, ConsultantReply, "consultant",

@@ -15,6 +15,7 @@ entities still in play).  The algorithms reach a consultant through the port
 from __future__ import annotations
 
 import math
+from collections import abc
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Optional, Sequence
 
@@ -274,30 +275,39 @@ class Consultant:
                     retracted.append((entity, prop))
         return retracted
 
-    def preview_assert(self, entity: str, facts: Mapping[str, Any], exclude: bool = True) -> tuple[bool, list[str]]:
+    def preview_assert(self, entity: str, facts: Mapping[str, Any], exclude: bool = True,
+                       pending: Optional[dict[str, dict[str, float]]] = None) -> tuple[bool, list[str]]:
         """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
         properties are in preference order, including those an asserted property
-        excludes (:meth:`effective_update`); they are forgotten from WM only when
-        ``retract_on_update`` is True.
+        excludes (:meth:`effective_update`; ``exclude`` False takes the facts as given);
+        they are forgotten from WM only when ``retract_on_update`` is True.  ``pending``
+        previews a batch: it maps each entity an earlier fact of the batch (previewed,
+        not yet applied) changed to its facts as that fact leaves them, and is updated
+        with this one's (nothing else is).
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
-        if not isinstance(facts, Mapping) or not facts:
+        if not isinstance(facts, abc.Mapping) or not facts:
             raise KnowledgeError(f"properties for '{entity}' must be a non-empty mapping of property to certainty")
         self._check_facts(entity, facts)
-        effective = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
-        new = entity not in self._certainty
+        earlier = pending.get(entity) if pending is not None else None
+        new = entity not in self._certainty and earlier is None
+        current = earlier if earlier is not None else self._certainty.get(entity, {})
+        effective = (self.effective_update(entity, facts, current) if exclude
+                     else {p: float(c) for p, c in facts.items()})
+        after = {**current, **effective}
+        if pending is not None:
+            pending[entity] = {p: c for p, c in after.items() if c > 0}
         if new:
             return new, []
-        current = self._certainty[entity]
-        after = {**current, **effective}
         threshold = self.threshold
         return False, [p for p in self.preference
                        if current.get(p, 0.0) >= threshold and after.get(p, 0.0) < threshold]
 
-    def effective_update(self, entity: str, facts: Mapping[str, Any]) -> dict[str, float]:
+    def effective_update(self, entity: str, facts: Mapping[str, Any],
+                         current: Optional[Mapping[str, float]] = None) -> dict[str, float]:
         """Return the LTM update ``facts`` makes for ``entity`` (checked facts): the facts, then what they exclude.
 
         A property asserted to hold (certainty > 0 and >= the threshold) retracts the
@@ -305,12 +315,15 @@ class Consultant:
         holding or not) and the update does not name: they are set to 0, after the
         given facts.  Two properties of one group asserted to hold in one update
         contradict each other: KnowledgeError (kind ``contradiction``), nothing changes.
+        ``current``: the entity's facts to exclude from (default: as LTM holds them now;
+        a batch's preview passes them as its earlier facts leave them).
         """
         values = {p: float(c) for p, c in facts.items()}
         if not self.excludes:
             return values
         threshold = self.threshold
-        current = self._certainty.get(entity, {})
+        if current is None:
+            current = self._certainty.get(entity, {})
         excluded: dict[str, float] = {}
         for prop, c in values.items():
             others = self.excludes.get(prop)
@@ -327,7 +340,8 @@ class Consultant:
                     excluded[other] = 0.0
         return {**values, **excluded}
 
-    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float, exclude: bool = True) -> AssertResult:
+    def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float, exclude: bool = True,
+                     previewed: Optional[tuple[bool, list[str]]] = None) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
@@ -339,8 +353,10 @@ class Consultant:
         lists those properties either way.  Everything is validated
         (:meth:`preview_assert`) before anything changes.  ``exclude`` False applies
         the facts as given (a restore: the stored facts carry their exclusions already).
+        ``previewed``: what :meth:`preview_assert` returned for exactly this update just
+        now (a batch previews every fact first; not validated again).
         """
-        new, retracted = self.preview_assert(entity, facts, exclude)
+        new, retracted = previewed if previewed is not None else self.preview_assert(entity, facts, exclude)
         update = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         if new:
             self._index[entity] = len(self.entities)

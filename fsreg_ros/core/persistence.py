@@ -9,7 +9,8 @@ that keeps its state database (:mod:`fsreg_ros.core.store`) in step with memory.
 * **clock epochs**: at the first ``configure`` of an incarnation, stored WM on a clock
   of another kind, or ahead of the clock (a restarted simulation), is dropped;
 * **writing**: each call's journal records committed once (:meth:`Persistence.finish`),
-  an LTM fact stored and fsynced *before* memory changes (:meth:`Persistence.store_facts`),
+  LTM facts stored and fsynced *before* memory changes, a batch in one transaction
+  (:meth:`Persistence.store_facts`),
   a failed WM write kept pending and retried (at most once a second) as a checkpoint;
 * **checkpoints**: every queue changed since the last one (read off the buffer's change
   record), written when the journal grows long, after a failure, and at shutdown;
@@ -374,22 +375,25 @@ class Persistence:
             self._unsaved_meta["decay_until"] = -math.inf
 
     # ============================================================ writing
-    def store_facts(self, entity: str, values: dict[str, float], new: bool, retracted: Sequence[str],
-                    when: float) -> None:
-        """Store an LTM update durably (fsynced) before it is applied; raises StoreError, having stored nothing.
+    def store_facts(self, facts: Sequence[tuple[str, dict[str, float], bool, Sequence[str]]], when: float) -> None:
+        """Store LTM updates durably (one fsynced transaction) before they are applied.
 
-        ``retracted``: the properties it removes from WM, journalled with it when the
-        journal is usable, else left to the next write (a checkpoint).
+        Raises StoreError, having stored nothing.  ``facts``: (entity, {property:
+        certainty}, new entity?, retracted) per update, in order (a batch of ``ltm/assert``
+        is one call); ``retracted``: the properties an update removes from WM, journalled
+        with it when the journal is usable, else left to the next write (a checkpoint).
+        Nothing to store: nothing is written.
         """
-        if self.store is None:
+        if self.store is None or not facts:
             return
-        journalled = bool(retracted) and self.recording and self._journal_ok and self.journals()
-        records = [journal.remove(entity, retracted, when)] if journalled else []
-        self.store.commit(Batch(facts=(entity, values, new), records=records))  # fsynced first
-        if journalled:
-            self._journal_rows += 1
-            self._journal_names += 1
-        elif retracted and self.recording:
+        journalled = self.recording and self._journal_ok and self.journals()
+        records = [journal.remove(entity, retracted, when) for entity, _, _, retracted in facts
+                   if retracted and journalled]
+        self.store.commit(Batch(facts=[(entity, values, new) for entity, values, new, _ in facts],
+                                records=records))  # fsynced first
+        self._journal_rows += len(records)
+        self._journal_names += len(records)
+        if not journalled and self.recording and any(retracted for *_, retracted in facts):
             self._journal_ok = False  # the retraction must reach the store as a checkpoint
 
     def finish(self, changes: Any) -> None:

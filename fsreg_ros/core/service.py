@@ -69,7 +69,7 @@ class Changes:
     the thousands of queues a rule-3 narrowing touches would cost more than the call);
     ``records``: the journal records of the call's WM operations; ``policy``: the
     settings installed, if it installed a policy; ``decay_until``: the new decay mark, if
-    ticks were applied; ``facts``: the LTM update, if any.
+    ticks were applied; ``facts``: the LTM updates applied (entity, facts, new entity?), if any.
     """
 
     wm: bool = False
@@ -77,7 +77,7 @@ class Changes:
     records: list[list] = field(default_factory=list)
     policy: Optional[dict] = None
     decay_until: Optional[float] = None
-    facts: Optional[tuple[str, dict[str, float], bool]] = None
+    facts: list[tuple[str, dict[str, float], bool]] = field(default_factory=list)
 
 
 @dataclass
@@ -187,24 +187,74 @@ class ConsultantService:
 
     def ltm_assert(self, entity: str, facts: Mapping[str, Any], time: Optional[float] = None,
                    listening: bool = False) -> Outcome:
-        """Add or update LTM facts (``ltm/assert``): stored durably first, then applied.
+        """Add or update LTM facts about one entity (``ltm/assert``): stored durably first, then applied.
 
         Raises KnowledgeError (invalid: nothing changes) or StoreError (not stored:
         nothing changes).  The reply is the :class:`~fsreg_ros.core.consultant.AssertResult` as JSON.
         """
-        def run() -> dict:
-            when = self.request_time(time)
-            new, stopped = self.consultant.preview_assert(entity, facts)
-            retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
-            _check_storable([entity, *facts])
-            values = self.consultant.effective_update(entity, facts)  # with what it excludes, at 0
-            self.persistence.store_facts(entity, values, new, retracted, when)  # fsynced first
-            result = self.consultant.assert_facts(entity, facts, when)
-            self.touch(when, wm=bool(retracted))
-            return result.to_json()
-        outcome = self.run(run, listening)
-        outcome.changes.facts = (outcome.reply["entity"], outcome.reply["updated"], outcome.reply["new_entity"])
+        outcome, refusals = self._assert_batch([(entity, facts)], time, listening)
+        if refusals[0] is not None:
+            raise refusals[0]
+        result = outcome.reply["results"][0]
+        outcome.reply = {key: result[key] for key in ("entity", "new_entity", "updated", "retracted")}
         return outcome
+
+    def ltm_assert_batch(self, facts: Sequence[tuple[str, Mapping[str, Any]]], time: Optional[float] = None,
+                         listening: bool = False) -> Outcome:
+        """Add or update LTM facts about many entities (a batch of ``ltm/assert``) in ONE commit.
+
+        All-or-nothing per fact, one transaction for the accepted ones: each fact
+        ``(entity, properties)`` is validated in order, as if the accepted ones before it
+        were applied (a refused fact does not stop the others); the accepted ones are
+        stored in one fsynced transaction, then applied in order.  The reply's
+        ``results`` hold, per fact and in order, its :class:`~fsreg_ros.core.consultant.AssertResult`
+        as JSON with ``ok: true``, or ``ok: false`` with ``error`` and ``kind``;
+        ``applied`` and ``refused`` count them.  Raises StoreError (nothing stored,
+        nothing changed) or RequestError (a bad ``time``: nothing changed).
+        """
+        return self._assert_batch(facts, time, listening)[0]
+
+    def _assert_batch(self, facts: Sequence[tuple[str, Mapping[str, Any]]], time: Optional[float],
+                      listening: bool) -> tuple[Outcome, list[Optional[KnowledgeError]]]:
+        """Run :meth:`ltm_assert_batch`; also return each fact's refusal (None: applied)."""
+        refusals: list[Optional[KnowledgeError]] = []
+        applied: list[tuple[str, dict[str, float], bool]] = []
+
+        def body() -> dict:
+            when = self.request_time(time)
+            pending: dict[str, dict[str, float]] = {}  # entity -> its facts as the accepted ones so far leave them
+            accepted = []  # (entity, properties, values, new, retracted)
+            for entity, props in facts:
+                try:
+                    before = dict(pending[entity]) if entity in pending else None  # as earlier facts leave it
+                    new, stopped = self.consultant.preview_assert(entity, props, pending=pending)
+                    _check_storable([entity, *props])
+                    values = self.consultant.effective_update(entity, props, before)  # with what it excludes, at 0
+                except KnowledgeError as err:
+                    refusals.append(err)
+                    continue
+                refusals.append(None)
+                retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
+                accepted.append((entity, props, values, new, stopped, retracted))
+            self.persistence.store_facts([(e, values, new, gone) for e, _, values, new, _, gone in accepted],
+                                         when)  # one transaction, fsynced, before memory changes
+            results = iter(self.consultant.assert_facts(entity, props, when, (new, stopped)).to_json()
+                           for entity, props, _, new, stopped, _ in accepted)
+            replies = []
+            for (entity, _), refusal in zip(facts, refusals):
+                if refusal is None:
+                    result = next(results)
+                    applied.append((result["entity"], result["updated"], result["new_entity"]))
+                    replies.append({**result, "ok": True})
+                else:
+                    replies.append({"entity": entity if isinstance(entity, str) else None, "ok": False,
+                                    "error": str(refusal), "kind": refusal.kind or type(refusal).__name__})
+            if accepted:
+                self.touch(when, wm=any(gone for *_, gone in accepted))
+            return {"results": replies, "applied": len(accepted), "refused": len(facts) - len(accepted)}
+        outcome = self.run(body, listening)
+        outcome.changes.facts = applied
+        return outcome, refusals
 
     def set_threshold(self, threshold: float, time: Optional[float] = None, listening: bool = False) -> Outcome:
         """Change the domain's threshold (not stored: it comes from the parameters); retractions are journalled."""

@@ -181,20 +181,27 @@ class Checkpoint:
 class Batch:
     """Everything one consultant call writes, in one transaction.
 
-    ``facts`` (entity, {property: certainty}, new entity) makes it durable (fsynced
-    before it returns); ``records`` are appended to the journal (after the
-    ``checkpoint``, if any); ``meta`` keys are set (``policy``, ``decay_until``,
+    ``facts``: LTM updates, each (entity, {property: certainty}, new entity), in order
+    (one such tuple is taken as a list of one); any makes the batch durable (fsynced
+    before :meth:`DomainStore.commit` returns); ``records`` are appended to the journal
+    (after the ``checkpoint``, if any); ``meta`` keys are set (``policy``, ``decay_until``,
     ``clock``, ``latest``).
     """
 
-    facts: Optional[tuple[str, Mapping[str, float], bool]] = None
+    facts: Sequence[tuple[str, Mapping[str, float], bool]] = ()
     records: Sequence[Any] = ()
     checkpoint: Optional[Checkpoint] = None
     meta: Mapping[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if self.facts is None:
+            self.facts = ()
+        elif isinstance(self.facts, tuple) and self.facts and isinstance(self.facts[0], str):
+            self.facts = [self.facts]  # one update
+
     @property
     def durable(self) -> bool:
-        return self.facts is not None
+        return bool(self.facts)
 
 
 @dataclass
@@ -236,6 +243,9 @@ class DomainStore:
         self._db: Optional[sqlite3.Connection] = None
         self._lock: Optional[int] = None
         self._lock_id: tuple[int, int] = (0, 0)
+        #: Transactions :meth:`commit` committed since this object was made (fsynced ones in ``durable_commits``).
+        self.commits = 0
+        self.durable_commits = 0
 
     # ---------------------------------------------------------------- opening
     def open(self, reset: bool = False, after: int = 0) -> StoreContents:
@@ -296,8 +306,8 @@ class DomainStore:
                 db.execute("PRAGMA synchronous=FULL")
             try:
                 with _Transaction(db):
-                    if batch.facts is not None:
-                        self._facts(db, *batch.facts)
+                    if batch.facts:
+                        self._many_facts(db, batch.facts)
                     if batch.checkpoint is not None:
                         self._checkpoint(db, batch.checkpoint)
                     if batch.records:
@@ -310,6 +320,8 @@ class DomainStore:
                     db.execute("PRAGMA synchronous=NORMAL")
         except (sqlite3.Error, UnicodeEncodeError, ValueError) as err:
             raise StoreError(f"state database {self.path}: {err}") from None
+        self.commits += 1
+        self.durable_commits += batch.durable
 
     def rewrite(self, state: StoreContents, backup: bool = True) -> Optional[Path]:
         """Replace everything stored with ``state`` (a migration to this KB); return the backup's path.
@@ -516,6 +528,15 @@ class DomainStore:
             "INSERT INTO facts (entity, property, certainty) VALUES (?, ?, ?) "
             "ON CONFLICT(entity, property) DO UPDATE SET certainty = excluded.certainty",
             [(entity, prop, float(c)) for prop, c in facts.items()])
+
+    @staticmethod
+    def _many_facts(db: sqlite3.Connection, updates: Sequence[tuple[str, Mapping[str, float], bool]]) -> None:
+        """Store LTM updates in order: one statement for the new entities, one for every fact."""
+        db.executemany("INSERT OR IGNORE INTO entities (name) VALUES (?)", [(e,) for e, _, new in updates if new])
+        db.executemany(
+            "INSERT INTO facts (entity, property, certainty) VALUES (?, ?, ?) "
+            "ON CONFLICT(entity, property) DO UPDATE SET certainty = excluded.certainty",
+            [(entity, prop, float(c)) for entity, facts, _ in updates for prop, c in facts.items()])
 
     def _checkpoint(self, db: sqlite3.Connection, checkpoint: Checkpoint) -> None:
         if checkpoint.clear:

@@ -43,7 +43,7 @@ from ..core.service import ConsultantService, NotReady, Outcome, RequestError
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
-from ..ros.carrier import CarrierError, publish, publisher, reply_kind, serve, subscribe
+from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe_batches
 from ..ros.diagnostics import ERROR, OK, WARN
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
@@ -53,6 +53,9 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
+#: Most facts one ``ltm/assert`` commit takes from the messages waiting, and the most seconds spent taking them
+#: (RR's and REG's calls wait meanwhile; docs/semantics.md, "Facts in batches").
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 500, 0.02
 
 
 class ConsultantNode(Node):
@@ -125,8 +128,10 @@ class ConsultantNode(Node):
         for service, ops in services:  # each request validated once, by serve(), against its op's schema
             serve(self, service, {op: self._reset if op == "reset" else partial(self._call, op) for op in ops},
                   limits=self.limits, domain=domain)
-        subscribe(self, contract.LTM_ASSERT, self._on_assert, reject=self._reject_assert, limits=self.limits,
-                  accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain)
+        subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
+                          accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
+                          size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
+                          max_seconds=MAX_DRAIN_SECONDS)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -244,29 +249,60 @@ class ConsultantNode(Node):
             reply["id"] = request_id
         publish(self._assert_results, reply)
 
-    def _on_assert(self, data: dict) -> None:
-        """Apply one ``ltm/assert`` of this domain (routed by ``accept``, validated by subscribe()); answer it."""
-        reply: dict[str, Any] = {"domain": self.domain, "entity": data.get("entity")}
-        if "id" in data:
-            reply["id"] = data["id"]
+    def _on_asserts(self, messages: list[dict]) -> None:
+        """Apply ``ltm/assert`` messages of this domain in ONE commit; answer each.
+
+        They were routed by ``accept``, validated and drained together by
+        :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
+        or a batch (``facts``); every fact of every message is one fact of one
+        :meth:`~fsreg_ros.core.service.ConsultantService.ltm_assert_batch`
+        (all-or-nothing per fact, one fsynced transaction for the accepted ones), and each
+        message gets one ``ltm/assert/result``: a batch's lists every fact in order.
+        """
+        facts: list[tuple[str, dict]] = []
+        for data in messages:
+            facts.extend(_facts_of(data))
         log = self.get_logger()
         try:
-            outcome = self._guarded(lambda listening: self.service.ltm_assert(
-                data["entity"], data["properties"], listening=listening))
+            outcome = self._guarded(lambda listening: self.service.ltm_assert_batch(facts, listening=listening))
         except StoreError as err:  # memory unchanged: nothing was applied
-            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored: {err}"))
-            reply.update(ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
-        except ValueError as err:  # MessageError, KnowledgeError: nothing changed
-            log.warning(printable(f"{contract.LTM_ASSERT.name}: {err}"))
-            reply.update(ok=False, error=printable(err), kind=reply_kind(err))
-        else:
-            result = outcome.reply
-            reply.update(ok=True, new_entity=result["new_entity"], updated=result["updated"],
-                         retracted=result["retracted"])
-            log.info(printable(f"LTM {'added' if result['new_entity'] else 'updated'} '{result['entity']}': "
-                               f"{result['updated']}" + (f", retracted {result['retracted']}"
-                                                         if result["retracted"] else "")))
+            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored ({len(facts)} facts): {err}"))
+            for data in messages:
+                self._answer_assert(data, ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
+            return
+        results = iter(outcome.reply["results"])
+        for data in messages:
+            mine = [next(results) for _ in range(len(data["facts"]) if data.get("facts") is not None else 1)]
+            for result in mine:
+                if not result["ok"]:
+                    log.warning(printable(f"{contract.LTM_ASSERT.name}: {result['error']}"))
+            if data.get("facts") is None:
+                self._answer_assert(data, **{k: v for k, v in mine[0].items() if k != "entity"})
+            else:
+                applied = sum(r["ok"] for r in mine)
+                self._answer_assert(data, ok=applied == len(mine), results=mine, applied=applied,
+                                    refused=len(mine) - applied)
+        applied = outcome.reply["applied"]
+        if applied:
+            new = sum(1 for _, _, is_new in outcome.changes.facts if is_new)
+            retracted = sum(len(r.get("retracted") or ()) for r in outcome.reply["results"] if r["ok"])
+            if applied == 1:
+                entity, updated, is_new = outcome.changes.facts[0]
+                log.info(printable(f"LTM {'added' if is_new else 'updated'} '{entity}': {updated}"
+                                   + (f", retracted {retracted} propert{'y' if retracted == 1 else 'ies'}"
+                                      if retracted else "")))
+            else:
+                log.info(f"LTM: {applied} facts applied in one commit ({len(messages)} messages, {new} new "
+                         f"entities, {retracted} properties retracted)")
             self._published(outcome)
+
+    def _answer_assert(self, data: dict, **fields: Any) -> None:
+        reply: dict[str, Any] = {"domain": self.domain}
+        if data.get("facts") is None:
+            reply["entity"] = data.get("entity")
+        if "id" in data:
+            reply["id"] = data["id"]
+        reply.update(fields)
         publish(self._assert_results, reply)
 
     def _after_set_parameters(self, params) -> None:
@@ -358,6 +394,13 @@ class ConsultantNode(Node):
         if service is not None:
             service.shutdown()
         super().destroy_node()
+
+
+def _facts_of(data: dict) -> list[tuple[str, dict]]:
+    """Return the facts of a validated ``ltm/assert``: (entity, properties) per fact, in order."""
+    if data.get("facts") is not None:
+        return [(fact["entity"], fact["properties"]) for fact in data["facts"]]
+    return [(data["entity"], data["properties"])]
 
 
 def main(args: Optional[list[str]] = None) -> int:

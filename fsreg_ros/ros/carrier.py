@@ -58,6 +58,7 @@ from pydantic import BaseModel
 from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidHandle
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
@@ -290,7 +291,7 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
 
 # ----------------------------------------------------------------- messages
 def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
-    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth``, latched or volatile.
+    """Return the rclpy profile of a contract QoS spec: reliable, keep last ``depth`` (or all), latched or volatile.
 
     A ``lease`` makes liveliness automatic with that lease duration.
     """
@@ -299,6 +300,10 @@ def qos_profile(spec: Union[QosSpec, QoSProfile]) -> QoSProfile:
     lease = {}
     if spec.lease is not None:
         lease = {"liveliness": LivelinessPolicy.AUTOMATIC, "liveliness_lease_duration": Duration(seconds=spec.lease)}
+    if spec.keep_all:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+                          **lease)
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=spec.depth,
@@ -413,6 +418,108 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group, event_callbacks=event_callbacks)
+
+
+def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None], *, reject: Reject,
+                      limits: LimitsSource = None, accept: Optional[Callable[[dict], bool]] = None,
+                      size: Callable[[dict], int] = lambda data: 1, max_size: int = 1000,
+                      max_seconds: float = 0.02):
+    """Subscribe like :func:`subscribe`, but hand ``handler`` every message already waiting, at once.
+
+    When a message arrives, the messages waiting behind it in the reader are taken too
+    (until their ``size`` sum reaches ``max_size``, or taking them has taken ``max_seconds``,
+    so the node's other callbacks wait at most that long), each decoded and validated alone (a
+    bad one is rejected alone, as :func:`subscribe` does); ``handler(messages)`` then
+    gets the valid ones in arrival order, in one call, so a node can apply them in one
+    commit (the consultant's ``ltm/assert``).  If it raises, every one of them is
+    rejected with its id.  Returns the subscription.
+    """
+    logger = node.get_logger()
+    validate = _checker(topic.schema, limits)
+    max_bytes = (lambda: _limit(limits).max_message_bytes) if limits is not None else None  # noqa: E731
+    stats = request_stats(node)
+    subscription = None
+
+    def refuse(rid: Any, error: str, internal: bool, kind: str) -> None:
+        text = f"{_context(topic.name, rid)}: {error}"
+        (log_error if internal else log_warning)(logger, text)
+        try:
+            reject(rid, printable(error), kind)
+        except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
+            log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
+
+    ignored = [0]
+
+    def decoded(text: str) -> Optional[dict]:
+        """Return the message if it is valid and for this node; None (rejected or ignored) otherwise."""
+        seen: dict = {}
+        try:
+            payload = parse(text, max_bytes=_limit(max_bytes))
+        except TooLarge as err:
+            refuse(leading_id(text), printable(err), internal=False, kind=reply_kind(err))
+            return None
+        except ValueError as err:
+            refuse(None, printable(err), internal=False, kind=reply_kind(err))
+            return None
+        seen["id"] = request_id(payload)
+        if accept is not None and not accept(payload):
+            ignored[0] += 1
+            return None
+        try:
+            validate(payload)
+        except ValueError as err:
+            refuse(seen["id"], printable(err), internal=False, kind=reply_kind(err))
+            return None
+        return payload
+
+    def callback(msg: String) -> None:
+        started = time.monotonic()
+        ignored[0] = 0
+        first = decoded(msg.data)
+        batch = [first] if first is not None else []
+        total = sum(size(data) for data in batch)
+        taken = 1
+        while total < max_size and time.monotonic() - started < max_seconds:
+            waiting = take_waiting(subscription)
+            if waiting is None:
+                break
+            taken += 1
+            data = decoded(waiting.data)
+            if data is not None:
+                batch.append(data)
+                total += size(data)
+        refused = len(batch) + ignored[0] < taken
+        if batch:
+            try:
+                handler(batch)
+            except (ValueError, CarrierError) as err:
+                refused = True
+                for data in batch:
+                    refuse(request_id(data), printable(err), internal=False, kind=reply_kind(err))
+            except Exception as err:  # noqa: BLE001 - log with context, keep serving
+                refused = True
+                for data in batch:
+                    refuse(request_id(data), f"internal error: {type(err).__name__}: {printable(err)}",
+                           internal=True, kind="internal")
+        if taken > ignored[0]:  # messages for another node are not counted
+            stats.record(time.monotonic() - started, refused=refused)
+
+    subscription = node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos))
+    return subscription
+
+
+def take_waiting(subscription) -> Optional[String]:
+    """Take the next message waiting in ``subscription``'s reader now (None: none waits).
+
+    What the executor would deliver to the callback next, taken the way it takes it
+    (``rclpy.executors.Executor._take_subscription``), so a callback can drain a burst.
+    """
+    try:
+        with subscription.handle:
+            taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+    except InvalidHandle:
+        return None
+    return None if taken is None else taken[0]
 
 
 # ----------------------------------------------------------------- timers

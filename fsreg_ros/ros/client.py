@@ -37,6 +37,7 @@ from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParametersAtomically
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rosgraph_msgs.msg import Clock
 
 from .. import contract
@@ -75,10 +76,11 @@ class ClientError(RuntimeError):
     ``kind``: ``not-ready`` (no graph, or not serving yet), ``timeout`` (no answer in
     time), ``gone`` (the graph left while the client waited: its WM Manager stopped, or
     its readiness was lost), ``clash`` (two graphs on one name), ``foreign`` (an answer
-    stamped by another graph), ``rejected`` (a parameter change refused), ``refused`` (a
-    clock the graph does not take), ``usage`` (a request that cannot be made: a name the
-    graph does not have, a value out of range, a message over the graph's size limits),
-    or the error kind a service reported.
+    stamped by another graph), ``busy`` (a message not sent: its receivers are too far
+    behind, see :meth:`GraphClient.send`), ``rejected`` (a parameter change refused),
+    ``refused`` (a clock the graph does not take), ``usage`` (a request that cannot be
+    made: a name the graph does not have, a value out of range, a message over the
+    graph's size limits), or the error kind a service reported.
     """
 
     def __init__(self, message: str, kind: str = "error") -> None:
@@ -99,6 +101,11 @@ def clock_message(seconds: float) -> Clock:
     stamp = Clock()
     stamp.clock.sec, stamp.clock.nanosec = divmod(int(round(seconds * 1e9)), 10**9)
     return stamp
+
+
+def _facts(properties: Mapping[str, float] | Iterable[str]) -> dict[str, float]:
+    """Return facts as property -> certainty (a list of properties: each certain)."""
+    return dict(properties) if isinstance(properties, Mapping) else {p: 1.0 for p in properties}
 
 
 def describe_graph(graph: Any) -> str:
@@ -356,12 +363,20 @@ class GraphClient:
     def send(self, kind: str, message: Mapping[str, Any]) -> str:
         """Publish one request of ``kind`` (say, describe, assert) now; return its id.
 
-        Its answers collect in ``answers`` under that id.
+        Its answers collect in ``answers`` under that id.  ClientError ``busy`` when the
+        message could not be sent: ``ltm/assert`` keeps every message until the consultants
+        took it, and a sender about 10,000 messages ahead of them waits up to 100 ms, then
+        is refused (backpressure: send it again later; nothing of it was delivered).
         """
         self.check_message(kind, message)
         key = str(message["id"])
         self.answers.setdefault(key, [])
-        publish(self._publishers[kind], message)
+        try:
+            publish(self._publishers[kind], message)
+        except _rclpy.RCLError as err:
+            self.answers.pop(key, None)
+            raise ClientError(f"{KIND_TOPICS[kind][0].name} {key!r} not sent (the receivers are too far behind): "
+                              f"{printable(str(err).split(',')[0], 200)}", "busy") from None
         return key
 
     def check_message(self, kind: str, message: Mapping[str, Any]) -> None:
@@ -449,19 +464,40 @@ class GraphClient:
             message["turn"] = turn
         return self.exchange("describe", self._stamp(message, time), timeout)
 
-    def assert_facts(self, entity: str, properties: Mapping[str, float] | Iterable[str], *,
+    def assert_facts(self, entity: str | Mapping[str, Mapping[str, float] | Iterable[str]],
+                     properties: Mapping[str, float] | Iterable[str] | None = None, *,
                      domain: Optional[str] = None, timeout: Optional[float] = None) -> dict:
         """Tell the consultant of ``domain`` facts about ``entity`` (property -> certainty); its ``ltm/assert/result``.
 
         ``properties`` may be a list (each certain, 1.0).  Without ``domain``: the
-        graph's only domain, or the one whose consultant knows ``entity``.
+        graph's only domain, or the one whose consultant knows ``entity``.  A batch: a
+        mapping entity -> properties as ``entity`` (no ``properties``), sent as one
+        message (``facts``) and applied in one commit; its result lists each fact's in
+        ``results``, in order (docs/semantics.md, "Facts in batches").
         """
-        facts = dict(properties) if isinstance(properties, Mapping) else {p: 1.0 for p in properties}
         if domain is not None and domain not in self.domains():
             raise ClientError(f"the graph has no domain {printable(repr(domain), 80)} (its domains: "
                               f"{', '.join(self.domains())})", "usage")
-        domain = domain or self.domain_of(entity, new_ok=True)
-        message = {"id": self.new_id("assert"), "domain": domain, "entity": entity, "properties": facts}
+        if isinstance(entity, Mapping):
+            if properties is not None:
+                raise ClientError("assert_facts: give a batch (entity -> properties) or an entity and its "
+                                  "properties, not both", "usage")
+            if not entity:
+                raise ClientError("assert_facts: an empty batch", "usage")
+            batch = [{"entity": name, "properties": _facts(props)} for name, props in entity.items()]
+            if domain is None:
+                domains = {self.domain_of(name, new_ok=True) for name in entity}
+                if len(domains) > 1:
+                    raise ClientError(f"assert_facts: a batch is for one domain; its entities are in "
+                                      f"{', '.join(sorted(domains))} (name the domain)", "usage")
+                domain = domains.pop()
+            message: dict[str, Any] = {"id": self.new_id("assert"), "domain": domain, "facts": batch}
+        else:
+            if properties is None:
+                raise ClientError(f"assert_facts: no properties for {entity!r}", "usage")
+            domain = domain or self.domain_of(entity, new_ok=True)
+            message = {"id": self.new_id("assert"), "domain": domain, "entity": entity,
+                       "properties": _facts(properties)}
         answer = self.exchange("assert", message, timeout)
         self._entities.pop(domain, None)
         return answer

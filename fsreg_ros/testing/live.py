@@ -224,9 +224,14 @@ class LiveGraph:
         """Ask the robot to describe ``target``; return the ``reg/expression`` (``text``, ``description``, ...)."""
         return self._client().describe(target, context=context, time=time, timeout=timeout)
 
-    def assert_facts(self, entity: str, properties: Union[Mapping[str, float], Sequence[str]], *,
+    def assert_facts(self, entity: Union[str, Mapping[str, Union[Mapping[str, float], Sequence[str]]]],
+                     properties: Union[Mapping[str, float], Sequence[str], None] = None, *,
                      domain: Optional[str] = None, timeout: float = 10.0) -> dict:
-        """Assert LTM facts (property -> certainty, or a list of certain properties); the ``ltm/assert/result``."""
+        """Assert LTM facts (property -> certainty, or a list of certain properties); the ``ltm/assert/result``.
+
+        A batch: a mapping entity -> properties as ``entity``, applied in one commit
+        (:meth:`~fsreg_ros.ros.client.GraphClient.assert_facts`).
+        """
         return self._client().assert_facts(entity, properties, domain=domain, timeout=timeout)
 
     def wm(self, entity: str, domain: Optional[str] = None) -> list[str]:

@@ -290,7 +290,7 @@ def test_facts_are_stored_before_memory_changes_and_a_refused_write_changes_noth
     service.maintain()
     assert service.status()["persisted"] and service.store.journal_length() == 0
     out = service.ltm_assert("face2", {"glasses": 0.0}, 4.0)
-    assert out.reply["retracted"] == ["glasses"] and out.changes.facts == ("face2", {"glasses": 0.0}, False)
+    assert out.reply["retracted"] == ["glasses"] and out.changes.facts == [("face2", {"glasses": 0.0}, False)]
     expected = service.buffer.snapshot()
     again = replayed(tmp_path, service)
     assert again.buffer.snapshot() == expected == {"face2": ["female"], "face1": ["male"]}
@@ -464,3 +464,63 @@ def test_a_restore_applies_the_stored_facts_as_stored_without_excluding_again(tm
     assert again.ltm_assert("face3", {"male": 1.0}, 2.0).reply["updated"] == {"male": 1.0, "female": 0.0}
     again.shutdown()
     assert make(tmp_path, exclusive=EXCLUSIVE).consultant.properties_of("face3") == ["dark-hair", "male"]
+
+
+# ------------------------------------------------------------------ facts in batches (issue 28.10)
+def test_a_batch_is_one_commit_all_or_nothing_per_fact_and_replays(tmp_path):
+    service = make(tmp_path)
+    configure(service)
+    encode(service, "face2", ["glasses", "female"], 1.0)
+    store = service.store
+    commits, rows = store.durable_commits, store.journal_length()
+    out = service.ltm_assert_batch([
+        ("face9", {"male": 1.0}),  # a new entity ...
+        ("face9", {"glasses": 0.9}),  # ... and a second fact about it, in the same batch: not new any more
+        ("face1", {"wings": 1.0, "male": 0.0}),  # refused whole (an unknown property): male stays
+        ("face2", {"glasses": 0.0}),  # a retraction: leaves WM, journalled in the same commit
+        ("face3", {"male": 1.5}),  # refused: a certainty out of range
+    ], 2.0)
+    assert out.reply == {"applied": 3, "refused": 2, "results": [
+        {"entity": "face9", "ok": True, "new_entity": True, "updated": {"male": 1.0}, "retracted": []},
+        {"entity": "face9", "ok": True, "new_entity": False, "updated": {"glasses": 0.9}, "retracted": []},
+        {"entity": "face1", "ok": False, "kind": "unknown-property",
+         "error": "domain 'faces', entity 'face1': unknown property 'wings' (not in the domain's preference order)"},
+        {"entity": "face2", "ok": True, "new_entity": False, "updated": {"glasses": 0.0}, "retracted": ["glasses"]},
+        {"entity": "face3", "ok": False, "kind": "KnowledgeError",
+         "error": "certainty of 'male' for 'face3' must be in [0, 1], got 1.5"},
+    ]}
+    assert store.durable_commits == commits + 1  # one fsynced transaction for the three accepted facts
+    assert store.journal_length() == rows + 1  # the retraction's record, in that transaction
+    assert out.changes.facts == [("face9", {"male": 1.0}, True), ("face9", {"glasses": 0.9}, False),
+                                 ("face2", {"glasses": 0.0}, False)]
+    c = service.consultant
+    assert c.entities[-1] == "face9" and c.entities.count("face9") == 1
+    assert c.certainty("face9", "glasses") == 0.9 and c.certainty("face1", "male") == 1.0
+    assert service.buffer.queue("face2") == ("female",)
+    again = replayed(tmp_path, service)
+    assert again.consultant.entities == c.entities and again.consultant.certainty("face9", "male") == 1.0
+    assert again.consultant.certainty("face2", "glasses") == 0.0 and again.buffer.queue("face2") == ("female",)
+
+
+def test_a_batch_the_store_refuses_changes_nothing_and_single_asserts_keep_their_errors(tmp_path):
+    service = make(tmp_path)
+    configure(service)
+    encode(service, "face2", ["glasses"], 1.0)
+
+    def full(batch):
+        raise StoreError("state database x: database or disk is full")
+
+    real, service.store.commit = service.store.commit, full
+    with pytest.raises(StoreError, match="disk is full"):
+        service.ltm_assert_batch([("face9", {"male": 1.0}), ("face2", {"glasses": 0.0})], 2.0)
+    assert not service.consultant.knows_entity("face9") and service.buffer.queue("face2") == ("glasses",)
+    service.store.commit = real
+    # a batch of refused facts writes nothing; a single assert raises its fact's refusal, kind and all
+    commits = service.store.durable_commits
+    assert service.ltm_assert_batch([("face1", {"wings": 1.0})], 3.0).reply["refused"] == 1
+    assert service.store.durable_commits == commits
+    with pytest.raises(KnowledgeError, match="unknown property 'wings'") as refused:
+        service.ltm_assert("face1", {"wings": 1.0}, 3.0)
+    assert refused.value.kind == "unknown-property"
+    assert service.ltm_assert("face9", {"male": 1.0}, 3.0).reply == {
+        "entity": "face9", "new_entity": True, "updated": {"male": 1.0}, "retracted": []}

@@ -631,6 +631,58 @@ def test_hostile_ltm_assertions_are_rejected_with_a_reason(graph: RosSession):
     assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3"]
 
 
+# ------------------------------------------------------------------ facts at robot rates (issue 28.10)
+def test_a_batch_on_ltm_assert_is_one_commit_with_a_result_per_fact(graph: RosSession):
+    node = start(graph)
+    configure(graph, "displacement", capacity=4)
+    graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses"], "cause": "speaker", "time": 1.0})
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    commits = node.service.store.durable_commits
+    graph.publish(contract.LTM_ASSERT.name, {"id": "b1", "domain": "faces", "facts": [
+        {"entity": "face7", "properties": {"female": 1.0}},
+        {"entity": "face2", "properties": {"wings": 1.0}},
+        {"entity": "face1", "properties": {"glasses": 0.0}},
+    ]}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: results.latest(id="b1"), what="the batch's result")
+    per_fact = [
+        {"entity": "face7", "ok": True, "new_entity": True, "updated": {"female": 1.0}, "retracted": []},
+        {"entity": "face2", "ok": False, "kind": "unknown-property",
+         "error": "domain 'faces', entity 'face2': unknown property 'wings' (not in the domain's preference order)"},
+        {"entity": "face1", "ok": True, "new_entity": False, "updated": {"glasses": 0.0}, "retracted": ["glasses"]},
+    ]
+    assert results.latest(id="b1") == {"domain": "faces", "id": "b1", "ok": False, "applied": 2, "refused": 1,
+                                       "results": per_fact}
+    assert node.service.store.durable_commits == commits + 1
+    assert graph.call(Q, {"op": "info"})["entities"] == ["face1", "face2", "face3", "face7"]
+    assert graph.call(D, {"op": "wm", "entity": "face1"})["queue"] == []
+    # a malformed batch is refused whole, naming the fact
+    graph.publish(contract.LTM_ASSERT.name, {"id": "b2", "domain": "faces", "facts": [
+        {"entity": "face8", "properties": {"male": 1.0}}, {"entity": "face9"}]}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: results.latest(id="b2"), what="the malformed batch's result")
+    assert results.latest(id="b2") == {"domain": None, "consultant": "faces", "entity": None, "ok": False,
+                                       "id": "b2", "kind": "bad-request",
+                                       "error": "missing field 'facts'[1]['properties']"}
+    assert graph.call(Q, {"op": "info"})["entity_count"] == 4
+
+
+def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answered(graph: RosSession):
+    node = start(graph)
+    configure(graph, "displacement", capacity=4)
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    commits = node.service.store.durable_commits
+    burst = 500
+    for i in range(burst):  # published without spinning: the consultant takes none until all are sent
+        graph.publish(contract.LTM_ASSERT.name, {"id": f"f{i}", "domain": "faces", "entity": f"new{i}",
+                                                 "properties": {"male": 1.0}}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(results) >= burst, 30.0, what=f"{burst} results")
+    graph.spin_for(0.2)  # no duplicates after
+    assert sorted(r["id"] for r in results) == sorted(f"f{i}" for i in range(burst))
+    assert all(r["ok"] and r["new_entity"] for r in results)
+    info = graph.call(Q, {"op": "info"})
+    assert info["entity_count"] == 3 + burst and info["entities"][3:] == [f"new{i}" for i in range(burst)]
+    assert node.service.store.durable_commits - commits <= burst // 10  # drained: many facts per commit
+
+
 # ------------------------------------------------------------------ the production protocol
 def test_the_debug_service_is_served_only_when_asked_for(graph: RosSession):
     node = start(graph, debug=False)

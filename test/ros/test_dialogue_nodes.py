@@ -433,4 +433,13 @@ def test_an_assert_for_a_domain_no_consultant_serves_is_answered_by_the_wm_manag
     graph.spin_until(lambda: results.latest(id="p3") is not None, 10.0, what="the too-large reply")
     graph.spin_for(0.3)
     assert [r["kind"] for r in results.where(id="p3")] == ["too-large"]
+    # several waiting at once are taken together (drained), and each is answered once
+    for key, domain in (("p4", "planets"), ("p5", "moons"), ("p6", "faces"), ("p7", "stars")):
+        graph.publish(contract.LTM_ASSERT.name, {"id": key, "domain": domain, "entity": "face1",
+                                                 "properties": {"wings": 1.0}}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: all(results.latest(id=k) for k in ("p4", "p5", "p6", "p7")), 10.0, what="4 replies")
+    graph.spin_for(0.3)
+    assert [(r["id"], r["domain"], r["kind"]) for r in results if r["id"] in ("p4", "p5", "p7")] == [
+        ("p4", "planets", "unknown-domain"), ("p5", "moons", "unknown-domain"), ("p7", "stars", "unknown-domain")]
+    assert [r["kind"] for r in results.where(id="p6")] == ["unknown-property"]
     assert snapshot(graph) == {}

@@ -77,6 +77,21 @@ def test_a_graph_on_a_ros_domain_of_its_own(table1_path):
         assert robot.say("female, glasses")["resolved"] == "face2"
 
 
+def test_the_client_asserts_a_batch_in_one_message(table1_path):
+    with LiveGraph(table1_path) as robot:
+        answer = robot.assert_facts({"face17": ["female", "light-hair"], "face2": {"glasses": 0.0},
+                                     "face3": {"wings": 1.0}})
+        assert answer["ok"] is False and (answer["applied"], answer["refused"]) == (2, 1)
+        assert [(r["entity"], r["ok"], r.get("kind")) for r in answer["results"]] == [
+            ("face17", True, None), ("face2", True, None), ("face3", False, "unknown-property")]
+        assert answer["results"][0]["new_entity"] is True
+        robot.set_clock(1.0)
+        assert robot.say(description=["female", "light-hair"])["resolved"] == "face17"
+        with pytest.raises(ClientError, match="not both") as usage:
+            robot.assert_facts({"face17": ["male"]}, ["male"])
+        assert usage.value.kind == "usage"
+
+
 def test_an_answer_from_another_graph_is_rejected(table1_path):
     with LiveGraph(table1_path) as robot:
         client = robot.client

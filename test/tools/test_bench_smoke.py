@@ -76,3 +76,26 @@ def test_soak_sends_open_loop_and_accounts_for_every_message():
     assert any(line.startswith("human  sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
     assert any(line.startswith("reg    sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
     assert any(line.strip().startswith("consultant_faces") for line in lines)
+
+
+@pytest.mark.slow  # starts node processes
+def test_soak_with_perception_accounts_for_every_fact():
+    proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), "--turns", "10", "--requests", "10", "--rate", "10",
+                           "--facts-rate", "100", "--batch", "5", "--facts-entities", "7"],
+                          capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    facts = [line for line in lines if line.startswith("facts  ")]
+    assert facts and facts[0].startswith("facts  sent 100 (20 messages of 5), applied 100, refused 0, lost 0, "
+                                         "not sent (publisher refused) 0 messages, duplicated 0;"), proc.stdout
+    assert "  the consultant knows 7 of the 7 perceived entities" in lines
+    assert any(line.startswith("reg    sent 10, lost 0,") for line in lines), proc.stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--facts-rate", "nan"], "--facts-rate must be a number in [0, 1000000], got nan"),
+    (["--facts-rate", "10", "--batch", "0"], "--batch must be in [1, 1000]"),
+])
+def test_soak_refuses_bad_perception_arguments(args, fragment):
+    proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
