@@ -392,7 +392,7 @@ def test_an_exclusive_retraction_is_stored_with_its_fact_and_restored(tmp_path, 
     out = service.ltm_assert("face2", {"lab-coat": 1.0}, 2.0)
     assert out.reply == {"entity": "face2", "new_entity": False, "updated": {"lab-coat": 1.0, "glasses": 0.0},
                          "retracted": ["glasses"]}
-    assert out.changes.facts == ("face2", {"lab-coat": 1.0, "glasses": 0.0}, False)
+    assert out.changes.facts == [("face2", {"lab-coat": 1.0, "glasses": 0.0}, False)]
     assert service.buffer.snapshot() == {"face2": ["female"]}
     assert stored_facts(service) == {"face2": {"lab-coat": 1.0, "glasses": 0.0}}  # one commit carries both
     if checkpoint:
