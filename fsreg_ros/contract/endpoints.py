@@ -23,6 +23,7 @@ from .consultant import (
 from .dialogue import HumanUtterance, RegExpression, RegError, RegRequest, RRResult, Semantics
 from .ltm import LtmAssert, LtmAssertResult
 from .manager import ManagerReady, StatusReply, StatusRequest, SyncReply, SyncRequest
+from .naming import CLOCK, normalise_namespace  # CLOCK: re-exported with the endpoints; naming owns it
 from .qos import (ALIVE_QOS, ASSERT_QOS, ASSERT_RESULT_QOS, EVENTS_QOS, PIPELINE_QOS, READY_QOS, STATE_PUB_QOS,
                   STATE_QOS, QosSpec)
 from .wm import WMEventMessage, WMState
@@ -86,9 +87,6 @@ TOPICS: tuple[Topic, ...] = (HUMAN, SEMANTICS, RR_RESULT, REG_REQUEST, REG_EXPRE
                              ANNOUNCE, ALIVE, READY, LTM_ASSERT, LTM_ASSERT_RESULT)
 SERVICES: tuple[Service, ...] = (CONSULTANT, MANAGE, DEBUG, SYNC, STATUS)
 
-#: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.
-CLOCK = "/clock"
-
 
 def consultant_service(domain: str) -> str:
     """Return the (relative) query service of a domain's consultant."""
@@ -142,8 +140,6 @@ def graph_topics(namespace: str = "", clock: Optional[str] = None) -> tuple[Grap
     namespace (:func:`fsreg_ros.contract.clock_remap`) and ``/clock`` without one.  What a
     recorder or a viewer subscribes to.
     """
-    from .naming import normalise_namespace  # naming imports this module
-
     ns = normalise_namespace(namespace)
     out = [GraphTopic(f"{ns}/{t.name}", STRING_TYPE, t.qos, t.subscriber_qos, t)
            for t in TOPICS if t not in NOT_RECORDED]

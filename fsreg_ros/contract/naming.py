@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .endpoints import CLOCK
+#: The simulated clock: absolute (ROS convention), ``rosgraph_msgs/msg/Clock``.
+#: (:mod:`fsreg_ros.contract.endpoints` re-exports it beside the other endpoint names.)
+CLOCK = "/clock"
 
 #: The field in which every published message names its graph (``fsreg_ros.ros.carrier.publish`` stamps it).
 GRAPH_FIELD = "graph"

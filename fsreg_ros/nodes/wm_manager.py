@@ -342,7 +342,7 @@ class WMManagerNode(Node):
             if attached and not dom.configured and dom.configuring is None:
                 self.manager.detach(dom.name)  # acknowledged while it seemed gone: configure it again
                 attached = False
-            if not attached and dom.client.ready():
+            if not attached and dom.caller.ready():
                 self._attach(dom)
             return
         log.warning(f"consultant '{dom.name}' is unreachable (its liveliness lapsed): the graph is not ready "

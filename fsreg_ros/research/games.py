@@ -44,43 +44,14 @@ from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation import Options, Simulation, human_record
 from ..core.wm_manager import WMManager
 from .listener import Listener, ListenerOptions
+from .world import (  # noqa: F401 (ATTRIBUTES, OBJECTS, ROBOT_ORDER: the world's names stay importable from here)
+    ATTRIBUTES, DOMAIN, DOMAIN_ATTRIBUTES, EXCLUSIVE, MUTABLE, OBJECTS, PROPERTY_ATTRIBUTE, ROBOT_ORDER, ROBOT_ORDERS,
+    WORLDS,
+)
 
-DOMAIN = "faces"
-OBJECTS = "objects"
-#: Each domain's attributes and their values (property names as in the shipped lexicon where it has them).
-DOMAIN_ATTRIBUTES: dict[str, dict[str, tuple[str, ...]]] = {
-    DOMAIN: {
-        "hair-colour": ("light-hair", "dark-hair"),
-        "hair-length": ("short-hair", "long-hair"),
-        "gender": ("male", "female"),
-        "clothing": ("lab-coat", "hoodie", "t-shirt"),
-        "glasses": ("glasses", "no-glasses"),
-    },
-    OBJECTS: {
-        "kind": ("mug", "ball", "box"),
-        "colour": ("red", "green", "blue", "yellow"),
-        "size": ("large", "small"),
-        "place": ("on-table", "on-shelf", "in-drawer", "on-floor"),
-    },
-}
-ATTRIBUTES = DOMAIN_ATTRIBUTES[DOMAIN]
-#: What can change mid-game, as perception would report it: glasses taken off or put on,
-#: clothes changed, an object moved.
-MUTABLE = {DOMAIN: ("glasses", "clothing"), OBJECTS: ("place",)}
-#: The worlds a game can be played in: their domains, in order.
-WORLDS = {"faces": (DOMAIN,), "faces+objects": (DOMAIN, OBJECTS)}
 BOARD_SIZE = 16
 #: Board sizes a world allows (at least two entities; at most every distinct entity of the smallest domain).
 MAX_BOARD_SIZE = 48
-#: The robot's preference order per domain (the same in every game).
-ROBOT_ORDERS = {d: tuple(v for values in attrs.values() for v in values) for d, attrs in DOMAIN_ATTRIBUTES.items()}
-ROBOT_ORDER = ROBOT_ORDERS[DOMAIN]
-PROPERTY_ATTRIBUTE = {
-    value: a for attrs in DOMAIN_ATTRIBUTES.values() for a, values in attrs.items() for value in values
-}
-#: Each domain's exclusive groups: an entity has one value of each attribute, so its values exclude each other
-#: (a fact change names the old value with certainty 0 itself, so the exclusion retracts nothing more).
-EXCLUSIVE = {d: tuple(values for values in attrs.values()) for d, attrs in DOMAIN_ATTRIBUTES.items()}
 
 
 @dataclass(frozen=True)
@@ -355,7 +326,7 @@ def play(
     if listener is not None:
         partner = listener.partner == "robot"
         own = listener.partner_memory if listener.partner_memory is not None else memory
-        hearer = Listener(game, listener, own if partner else None)
+        hearer = Listener(game, listener, scenario, own if partner else None)
         if partner:
             human = hearer  # the second fsreg agent plays the human's role: it speaks, hears and sees
     changes = list(game.changes)

@@ -55,7 +55,9 @@ from ..core.port import run_sync
 from ..core.describe import describe
 from ..core.generation import algorithm_for
 from ..core.resolution import AMBIGUOUS, NO_MATCH, RESOLVED, resolve
+from ..core.scenario import Scenario
 from ..core.wm_manager import WMManager
+from .world import DOMAIN_ATTRIBUTES, PROPERTY_ATTRIBUTE, ROBOT_ORDERS
 
 #: The listener's preference orders (what it says in robot-robot mode).
 ORDERS = ("human", "robot", "reversed")
@@ -119,8 +121,6 @@ class Heard:
 
 def listener_order(name: str, domain: str, human_order: Sequence[str]) -> tuple:
     """Return the listener's preference order over ``domain``'s properties for ``name`` (:data:`ORDERS`)."""
-    from .games import DOMAIN_ATTRIBUTES, ROBOT_ORDERS
-
     if name == "human":
         return tuple(human_order)
     if name == "robot":
@@ -137,8 +137,6 @@ def perceive(boards: Mapping[str, Mapping[str, Sequence[str]]], seed: int, missi
     Drawn from ``random.Random(f"listener:{seed}")``: per domain (board order), entity
     and attribute, three draws (missing?, misperceived?, which other value).
     """
-    from .games import DOMAIN_ATTRIBUTES
-
     rng = random.Random(f"listener:{seed}")
     seen: dict = {}
     errors: dict = {}
@@ -166,39 +164,35 @@ class Listener:
 
     ``memory`` (a robot partner's WM settings) makes it a speaker too (:meth:`say`,
     SD-PIA over its WM, DIST-PIA under ``none``); without it, it only listens, in a
-    WM nobody reads.
+    WM nobody reads.  ``scenario`` is the game's (:func:`.games.scenario_of`, which the
+    caller passes so that this module need not import the games): the world's exclusive
+    groups, and with ``memory`` the policy per domain.
     """
 
-    def __init__(self, game: Any, options: ListenerOptions, memory: Optional[Mapping[str, Any]] = None) -> None:
-        from .games import EXCLUSIVE, scenario_of
-
+    def __init__(self, game: Any, options: ListenerOptions, scenario: Scenario,
+                 memory: Optional[Mapping[str, Any]] = None) -> None:
         self.options = options
         boards, self.errors = perceive(game.boards, game.seed, options.missing, options.noise)
         self.consultants: dict[str, Consultant] = {}
         self.algorithms: dict[str, str] = {}
         self.manager = WMManager()
-        scenario = scenario_of(game) if memory is not None else None
         for domain, board in boards.items():
             order = listener_order(options.order_name(), domain, game.human_orders[domain])
             self.consultants[domain] = Consultant(domain, {e: {p: 1.0 for p in ps} for e, ps in board.items()}, order,
-                                                  exclusive=EXCLUSIVE[domain])
-            if scenario is not None:
+                                                  exclusive=scenario.domains[domain].exclusive)
+            if memory is not None:
                 policy = scenario.policy_for(domain, dict(memory))  # type: ignore[arg-type]
                 self.manager.manage(self.consultants[domain].wm, policy, now=0.0)
                 self.algorithms[domain] = algorithm_for(policy.retains, None)
 
     def say(self, target: str, domain: str, time: float, turn: int) -> list[str]:
         """Return the listener's description of ``target`` (encoding it in its WM); needs a memory."""
-        from .games import PROPERTY_ATTRIBUTE
-
         self.manager.advance(time)
         return describe(target, self.consultants[domain], self.algorithms[domain], attributes=PROPERTY_ATTRIBUTE,
                         writes=True, time=time, turn=turn).description
 
     def see(self, change: Any) -> None:
         """Take in a fact change as it is: the entity's attribute now has the new value."""
-        from .games import DOMAIN_ATTRIBUTES, PROPERTY_ATTRIBUTE
-
         self.manager.advance(change.time)
         values = DOMAIN_ATTRIBUTES[change.domain][PROPERTY_ATTRIBUTE[change.new]]
         facts = {v: 0.0 for v in values}

@@ -219,8 +219,6 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
     Every setting is in exactly one panel; a panel's lines are its first parameter's
     values (grid order), WM told of fact changes or not.
     """
-    from .sweep import GRID
-
     panels: dict[tuple, list] = {}
     for setting in settings:
         params = [p for p in GRID if getattr(setting, p) is not None]
@@ -234,8 +232,6 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
 
 
 def _line_label(setting: Any) -> str:
-    from .sweep import GRID
-
     params = [p for p in GRID if getattr(setting, p) is not None]
     label = f"{SHORT[params[0]]} = {getattr(setting, params[0]):g}" if params else setting.policy
     return label if setting.retraction else label + " (not told)"

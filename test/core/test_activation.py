@@ -157,6 +157,7 @@ def test_activation_with_displacement_and_an_encoding_after_a_crossing():
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
     the histories: the restarted consultant forgets at the same crossing times."""
+    from fsreg_ros.contract.consultant_codec import apply
     from fsreg_ros.core.consultant import Consultant
     from fsreg_ros.core.service import ConsultantService
     from fsreg_ros.core.store import DomainStore, fingerprint
@@ -173,7 +174,7 @@ def test_a_restart_restores_the_encoding_histories(tmp_path):
         return service
 
     def call(service, op, **fields):
-        return service.apply(op, {"op": op, **fields}).reply
+        return apply(service, op, {"op": op, **fields}).reply
 
     service = make()
     call(service, "configure", policy=settings, time=0.0)

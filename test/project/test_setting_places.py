@@ -20,7 +20,10 @@ the contract's wire field, spelled wherever a policy travels.
 leave the list, a new one fails): the research modules' axis labels and short names
 (``research/plot.py``, ``research/sweep.py``, ``tools/figures.py``) still key their
 own dicts by the setting names (the labels would be columns of the table; other work
-was editing those modules), and ``seed`` is also the name of the sweep's game seed.
+was editing those modules); ``research/tangrams.py`` keys its fitting grids, the
+parameters it holds and the paper's values by the setting names (research data, not
+the table's: a fitting grid is no property of the setting); and ``seed`` is also the
+name of the sweep's game seed (``research/ledger.py`` keys a game's record by it).
 """
 
 from __future__ import annotations
@@ -38,13 +41,20 @@ DOCS = "docs"
 MOST = 3
 #: Places beyond the limit, not fixed yet (setting -> modules): must be exact.
 KNOWN: dict[str, set[str]] = {
-    "decay_period": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py", "fsreg_ros/tools/figures.py"},
-    "capacity": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py", "fsreg_ros/tools/figures.py"},
+    "decay_period": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py",
+                     "fsreg_ros/tools/figures.py"},
+    "capacity": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py",
+                 "fsreg_ros/tools/figures.py"},
     "global_capacity": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py",
-                        "fsreg_ros/tools/figures.py"},
-    "seed": {"fsreg_ros/research/sweep.py", "fsreg_ros/tools/figures.py"},  # also the games' seed (a CSV column)
+                        "fsreg_ros/research/tangrams.py", "fsreg_ros/tools/figures.py"},
+    # also the games' seed (a CSV column, a ledger record's key)
+    "seed": {"fsreg_ros/research/ledger.py", "fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py",
+             "fsreg_ros/tools/figures.py"},
     "shared_capacity": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py",
-                        "fsreg_ros/tools/figures.py"},
+                        "fsreg_ros/research/tangrams.py", "fsreg_ros/tools/figures.py"},
+    "activation_decay": {"fsreg_ros/research/tangrams.py"},
+    "activation_threshold": {"fsreg_ros/research/plot.py", "fsreg_ros/research/sweep.py",
+                             "fsreg_ros/research/tangrams.py"},
 }
 
 

@@ -5,7 +5,7 @@ import csv
 import pytest
 
 from fsreg_ros.research import cli
-from fsreg_ros.research.games import DOMAIN, ROBOT_ORDER, Game, _consultant, make_game, play
+from fsreg_ros.research.games import DOMAIN, ROBOT_ORDER, Game, _consultant, make_game, play, scenario_of
 from fsreg_ros.research.listener import Listener, ListenerOptions, perceive
 from fsreg_ros.research.sweep import COLUMNS, LISTENER_METRICS
 
@@ -53,7 +53,7 @@ def test_a_listener_missing_a_fact_fails_then_succeeds_after_a_repair_with_one_a
     game = tiny_game()
     robot = _consultant(DOMAIN, game.board, ROBOT_ORDER)
     partial = {**BOARD, "face1": ["short-hair", "male", "lab-coat", "glasses"]}  # face1's hair colour unknown
-    listener = knowing(Listener(game, ListenerOptions()), partial)
+    listener = knowing(Listener(game, ListenerOptions(), scenario_of(game)), partial)
     heard = listener.hear(["light-hair", "short-hair"], "face1", DOMAIN, robot, 2.0, 1)
     # None fits; without light-hair face1 and face2 do, so the listener disputes light-hair; the robot drops it
     # and adds its first property (robot order) that rules face2 out: glasses.
@@ -67,13 +67,13 @@ def test_a_listener_missing_a_fact_fails_then_succeeds_after_a_repair_with_one_a
 def test_an_ambiguous_reference_is_repaired_with_the_next_distinguishing_property():
     game = tiny_game()
     robot = _consultant(DOMAIN, game.board, ROBOT_ORDER)
-    listener = knowing(Listener(game, ListenerOptions()), BOARD)
+    listener = knowing(Listener(game, ListenerOptions(), scenario_of(game)), BOARD)
     heard = listener.hear(["short-hair"], "face1", DOMAIN, robot, 2.0, 1)  # face1 and face2 are short-haired
     assert heard.outcomes == ["ambiguous", "resolved"]
     assert heard.attempts == [["short-hair"], ["short-hair", "light-hair"]]
     wrong = {**BOARD, "face1": ["dark-hair", "short-hair", "male", "lab-coat", "no-glasses"],
              "face2": ["light-hair", "short-hair", "male", "lab-coat", "no-glasses"]}  # misperceived
-    listener = knowing(Listener(game, ListenerOptions(max_repairs=1)), wrong)
+    listener = knowing(Listener(game, ListenerOptions(max_repairs=1), scenario_of(game)), wrong)
     heard = listener.hear(["light-hair", "short-hair"], "face1", DOMAIN, robot, 2.0, 1)
     # The listener takes face2; the robot rules it out with glasses, which the listener sees on nobody.
     assert heard.outcomes == ["wrong-referent", "no-match"]

@@ -16,6 +16,8 @@ What lives where (one module per job; each docstring says what it owns):
 ``changes``        the change record: which queues changed since they were persisted
 ``columns``        column queues (numpy) for rule 2 and 3 encodings in a large domain
 ``persistence``    export of queues and restore from a store
+``host``           :class:`HostBuffer`: what the collaborators above use of the buffer
+                   (a protocol, so that none imports ``buffer``)
 =================  ================================================================
 
 *What* is forgotten, and when, is decided by the WM Manager

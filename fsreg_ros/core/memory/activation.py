@@ -32,14 +32,12 @@ than its lifetime is never solved for.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 from ..decay import TIME_EPSILON
+from .host import HostBuffer
 from .limits import Limits
 from .queue import Queue
-
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
 #: Encoding times an entry keeps exactly (the Petrov approximation covers older ones).
 HISTORY = 8
@@ -187,7 +185,7 @@ class LazyActivation:
     queues, so the other rules' hot paths carry nothing for it.
     """
 
-    def __init__(self, wm: "WMBuffer", decay: float, threshold: float, clock: float) -> None:
+    def __init__(self, wm: HostBuffer, decay: float, threshold: float, clock: float) -> None:
         self.wm = wm
         self.decay, self.threshold = decay, threshold
         self.span = lifetime(decay, threshold)  # one encoding's stay; NEVER-long spans give inf
@@ -272,7 +270,7 @@ class LazyActivation:
             self.due.pop(entity, None)
 
 
-def install_activation(wm: "WMBuffer", limits: Limits, time: float) -> None:
+def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
     """Start, change or stop ``wm``'s activation rule per ``limits``; entries without a trace get one at ``time``."""
     old = wm.activation
     if limits.activation is None:

@@ -17,14 +17,12 @@ record is taken.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Union
+from typing import Union
 
 import numpy as np
 
+from .host import HostBuffer
 from .queue import Queue
-
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
 #: The record is compacted when it holds this many column-operation marks.
 CHANGE_MARKS_MAX = 4096
@@ -33,7 +31,7 @@ CHANGE_MARKS_MAX = 4096
 class ChangeRecord:
     """Entity names and column marks, in first-change order (a name may recur)."""
 
-    def __init__(self, wm: "WMBuffer") -> None:
+    def __init__(self, wm: HostBuffer) -> None:
         self.wm = wm
         self.entries: list[Union[str, int]] = []
         self.marks = 0

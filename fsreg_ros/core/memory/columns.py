@@ -31,15 +31,13 @@ so every other code path only ever sees dicts.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping, Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
+from .host import HostBuffer
 from .limits import Limits
 from .queue import Entry, Origin, Queue
-
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
 #: :meth:`WMBuffer.encode_members` keeps the queues of a domain of at least this many
 #: entities as columns; smaller domains go queue by queue.  A column operation costs
@@ -232,7 +230,7 @@ class ColumnQueues:
     to as ``-(i + 1)``) are numbered here.
     """
 
-    def __init__(self, wm: "WMBuffer") -> None:
+    def __init__(self, wm: HostBuffer) -> None:
         self.wm = wm
         self.clear()
         self.bound: Optional[list[str]] = None

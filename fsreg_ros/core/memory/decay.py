@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING, Optional, Sequence
 import numpy as np
 
 from ..decay import TickLedger, TickRun
+from .host import HostBuffer
 from .queue import Queue, WMEvent
 
 if TYPE_CHECKING:
-    from .buffer import WMBuffer
     from .columns import QueueColumns
 
 #: No column rows.
@@ -64,7 +64,7 @@ class LazyDecay:
     queue has been brought up to (by :meth:`flush`, :meth:`now` or a restore).
     """
 
-    def __init__(self, wm: "WMBuffer") -> None:
+    def __init__(self, wm: HostBuffer) -> None:
         self.wm = wm
         self.ticks = TickLedger()
         self.settled = 0

@@ -22,15 +22,13 @@ from __future__ import annotations
 
 import heapq
 import random
-from typing import TYPE_CHECKING, Callable, Optional
+from typing import Callable, Optional
 
 import numpy as np
 
+from .host import HostBuffer
 from .limits import Limits, attribute_of
 from .queue import Queue, WMEvent
-
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
 
 def lru_victim(q: Queue, newest: str) -> str:
@@ -48,7 +46,7 @@ def lfu_victim(q: Queue, newest: str) -> str:
 class Interference:
     """One buffer's displacement victim choice and trimming primitives (see the module docstring)."""
 
-    def __init__(self, wm: "WMBuffer") -> None:
+    def __init__(self, wm: HostBuffer) -> None:
         self.wm = wm
         self.install(wm.limits)
 

@@ -13,12 +13,10 @@ those from time to time.
 from __future__ import annotations
 
 from bisect import bisect_right
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
+from .host import HostBuffer
 from .queue import Entry, Origin
-
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
 #: The log is pruned when it reaches twice its size after the last pruning, or this.
 ORIGIN_LOG_MIN = 1024
@@ -27,7 +25,7 @@ ORIGIN_LOG_MIN = 1024
 class OriginLog:
     """Stamp -> origin for one buffer, as runs (see the module docstring)."""
 
-    def __init__(self, wm: "WMBuffer") -> None:
+    def __init__(self, wm: HostBuffer) -> None:
         self.wm = wm
         self.starts: list[int] = []
         self.runs: list[Origin] = []

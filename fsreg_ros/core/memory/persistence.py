@@ -9,17 +9,15 @@ them back (:mod:`fsreg_ros.core.store`, :mod:`fsreg_ros.core.journal`).
 from __future__ import annotations
 
 from bisect import bisect_right
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Mapping, Sequence
 
+from .host import HostBuffer
 from .limits import Limits
 from .activation import LazyActivation, Trace
 from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, TracedItem, is_origin
 
-if TYPE_CHECKING:
-    from .buffer import WMBuffer
 
-
-def export_queue(wm: "WMBuffer", entity: str) -> list[QueueItem]:
+def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:
     """Return Q[entity] as :class:`QueueItem` items, LRU first.
 
     ``hits`` is the LFU count (1 when LFU is not in force); ``cause`` and ``turn``
@@ -35,7 +33,7 @@ def export_queue(wm: "WMBuffer", entity: str) -> list[QueueItem]:
     return _items(wm, q)
 
 
-def _items(wm: "WMBuffer", q: Mapping) -> list[QueueItem]:
+def _items(wm: HostBuffer, q: Mapping) -> list[QueueItem]:
     hits = ((q.hits if q.__class__ is Queue else None) or {}).get  # a column queue's copy has none (LRU)
     starts, runs = wm.origin_log.starts, wm.origin_log.runs
     items = []
@@ -49,7 +47,7 @@ def _items(wm: "WMBuffer", q: Mapping) -> list[QueueItem]:
     return items
 
 
-def restore(wm: "WMBuffer", queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
+def restore(wm: HostBuffer, queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
     """Replace ``wm``'s state with a stored one (queues LRU first, no events, no changes).
 
     Items are :class:`QueueItem` (or tuples of its five fields) or
