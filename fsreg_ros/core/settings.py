@@ -125,6 +125,9 @@ TABLE: tuple[Setting, ...] = (
             1, 1_000_000, rules=("global-capacity",)),
     Setting("seed", int, 0, -1, "displacement-random: seed of the random victim choice", 0, 2**31 - 1,
             rules=("displacement-random",), fallback=0),
+    Setting("shared_capacity", int, 12, 0,
+            "shared-capacity: at most this many properties in the pool of every domain with that rule "
+            "(the smallest value wins), trimmed before each turn", 1, 1_000_000, rules=("shared-capacity",)),
     Setting("activation_decay", float, 0.5, 0.0,
             "activation: decay rate d of a property's ACT-R base-level activation ln sum_j (t - t_j)^-d",
             MIN_ACTIVATION_DECAY, MAX_ACTIVATION_DECAY, rules=("activation",), fallback=0.5, metavar="D"),
@@ -132,9 +135,6 @@ TABLE: tuple[Setting, ...] = (
             "activation: a property leaves WM when its activation falls below this threshold (tau; one encoding "
             "stays exp(-tau/d) seconds)", -MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD,
             rules=("activation",), metavar="TAU"),
-    Setting("shared_capacity", int, 12, 0,
-            "shared-capacity: at most this many properties in the pool of every domain with that rule "
-            "(the smallest value wins), trimmed before each turn", 1, 1_000_000, rules=("shared-capacity",)),
 )
 
 
