@@ -34,12 +34,15 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Optional
 
+import numpy as np
+
 from ..decay import TIME_EPSILON
 from .limits import Limits
 from .queue import Queue
 
 if TYPE_CHECKING:
     from .buffer import WMBuffer
+    from .columns import QueueColumns
 
 #: Encoding times an entry keeps exactly (the Petrov approximation covers older ones).
 HISTORY = 8
@@ -49,6 +52,8 @@ NEVER = math.inf
 _LONGEST = 1e12
 #: The crossing time is solved to this relative precision.
 _PRECISION = 1e-13
+#: No column slots.
+_NO_SLOTS = np.zeros(0, dtype=np.intp)
 
 
 class Trace:
@@ -256,12 +261,92 @@ class LazyActivation:
         if self.settled == self.clock:
             return
         now = self.clock + TIME_EPSILON
+        columns = self.wm.columns
+        if columns.entities and columns.store.traces is not None:
+            rows = columns.store.non_empty()
+            if self.wm.sink is None:
+                self.settle_columns(rows)
+            else:  # what went must be reported: those queues become dict queues, brought up below
+                store = columns.store
+                for row in np.unique(self.passed(store, rows) % store.rows).tolist():
+                    columns.to_dict(columns.bound[row])
         queues = self.wm._queues
         for entity in [e for e, due in self.due.items() if due <= now]:
             q = queues.get(entity)
             if q is not None:
                 self.sync(entity, q)
         self.settled = self.clock
+
+    # ------------------------------------------------------------ column queues
+    def release(self, entity: str) -> dict[str, Trace]:
+        """Hand over the traces of Q[entity] (moving to the column queues); this rule keeps them no longer."""
+        self.due.pop(entity, None)
+        return self.traces.pop(entity, {})
+
+    def take(self, entity: str, traces: dict[str, Trace]) -> None:
+        """Keep ``traces``, those of Q[entity] (back from the column queues)."""
+        self.traces[entity] = traces
+        self._refresh(entity)
+
+    def passed(self, store: "QueueColumns", rows: np.ndarray) -> np.ndarray:
+        """Return the slots (flat indices) of column ``rows`` whose entry's crossing is at or before the clock.
+
+        Decided exactly as :meth:`sync` decides for a dict queue: a slot whose lower
+        bound passed is solved in numpy (:func:`crossings`, all at once); a root within
+        :data:`_MARGIN` of the clock, or one :func:`crossings` does not handle, is solved
+        by :func:`crossing` itself.  A numpy root is kept as a lower bound just below it.
+        """
+        traces = store.traces
+        now = self.clock + TIME_EPSILON
+        hit = (np.take(traces.due, rows, axis=1) <= now) & (np.take(store.prop, rows, axis=1) >= 0)
+        if not hit.any():
+            return _NO_SLOTS
+        slot, col = np.nonzero(hit)
+        flat = slot * store.rows + rows[col]
+        vague = ~np.take(traces.exact.reshape(-1), flat)
+        if vague.any():
+            self._solve(traces, flat[vague], now)
+            flat = flat[np.take(traces.due.reshape(-1), flat) <= now]
+        return flat
+
+    def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
+        n, first, times = traces.ordered(flat)
+        due, exact = traces.due.reshape(-1), traces.exact.reshape(-1)
+        if self.span > _LONGEST:
+            due[flat], exact[flat] = NEVER, True
+            return
+        roots, other = crossings(n, first, times, self.decay, self.threshold)
+        margin = _MARGIN * np.maximum(1.0, np.abs(roots))
+        due[flat] = roots - margin  # a lower bound of crossing()'s root
+        close = other | (np.abs(roots - now) <= margin)
+        width_rows = traces.n.shape[1]
+        for f in flat[close].tolist():  # too close to call: crossing() itself
+            trace = traces.get(f // width_rows, f % width_rows)
+            due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
+
+    def forget_rows(self, rows: np.ndarray) -> np.ndarray:
+        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
+
+        The buffer's size follows; its non-empty queues and change record are the caller's.
+        """
+        store = self.wm.columns.store
+        flat = self.passed(store, rows)
+        if not len(flat):
+            return _NO_SLOTS
+        store.prop.reshape(-1)[flat] = -1
+        owners, counts = np.unique(flat % store.rows, return_counts=True)
+        store.length[owners] -= counts
+        self.wm._size -= len(flat)
+        return owners
+
+    def settle_columns(self, rows: np.ndarray) -> None:
+        """Bring column ``rows`` up to the clock (no events: only called without a sink)."""
+        if not len(rows):
+            return
+        owners = self.forget_rows(rows)
+        if len(owners):
+            self.wm.columns.emptied(owners)
+            self.wm.changes.mark_rows(owners)
 
     def _refresh(self, entity: str) -> None:
         traces = self.traces.get(entity)
@@ -282,5 +367,169 @@ def install_activation(wm: "WMBuffer", limits: Limits, time: float) -> None:
     decay, threshold = limits.activation
     act = LazyActivation(wm, decay, threshold, max(time, old.clock) if old is not None else time)
     for entity in wm._nonempty:
-        act.adopt(entity, wm._queues[entity], time, old.traces.get(entity) if old is not None else None)
+        q = wm._queues.get(entity)
+        if q is not None:  # a column queue keeps its traces (the limits' d and tau did not change: columns.fits)
+            act.adopt(entity, q, time, old.traces.get(entity) if old is not None else None)
     wm.activation = act
+
+
+#: A root found by :func:`crossings` (numpy) may differ from :func:`crossing`'s (Python floats, another
+#: ``pow``) in its last bits; both are within this relative distance of each other by far.
+_MARGIN = 1e-9
+#: :func:`crossings` leaves to :func:`crossing` the traces whose older presentations span less than
+#: 1/_ILL of their age (the Petrov term's rounding grows as that share shrinks).
+_ILL = 1e4
+
+
+class TraceColumns:
+    """The :class:`Trace` of every entry of column queues: one per slot, as arrays (slots x rows).
+
+    Slot (k, r) holds the trace of the entry in slot k of row r (unused where that slot
+    is empty: an encoding into an empty or displaced slot starts a new trace).  ``n``
+    counts its encodings, ``first`` is the first time, ``recent[i % HISTORY]`` the
+    time of the i-th encoding (from 0; the last :data:`HISTORY` are kept), ``due`` and
+    ``exact`` as in :class:`Trace`.  A crossing solved here (:func:`crossings`, in
+    numpy) is kept only as a lower bound, ``due`` just below it, ``exact`` False,
+    unless it is :func:`crossing`'s own: so whether and when an entry goes is decided
+    exactly as for a dict queue, bit for bit (see :meth:`LazyActivation.passed`).
+    """
+
+    def __init__(self, width: int, rows: int) -> None:
+        self.n = np.zeros((width, rows), dtype=np.int64)
+        self.first = np.zeros((width, rows))
+        self.recent = np.zeros((HISTORY, width, rows))
+        self.due = np.full((width, rows), NEVER)
+        self.exact = np.zeros((width, rows), dtype=bool)
+
+    def grow(self, extra: int) -> None:
+        """Add ``extra`` rows."""
+        width = self.n.shape[0]
+        self.n = np.concatenate([self.n, np.zeros((width, extra), dtype=np.int64)], axis=1)
+        self.first = np.concatenate([self.first, np.zeros((width, extra))], axis=1)
+        self.recent = np.concatenate([self.recent, np.zeros((HISTORY, width, extra))], axis=2)
+        self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
+        self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+
+    def get(self, slot: int, row: int) -> Trace:
+        """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
+        n = int(self.n[slot, row])
+        trace = Trace(float(self.first[slot, row]))
+        trace.n = n
+        trace.recent = [float(self.recent[i % HISTORY, slot, row]) for i in range(max(0, n - HISTORY), n)]
+        trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
+        return trace
+
+    def put(self, slot: int, row: int, trace: Trace) -> None:
+        """Keep ``trace`` in slot ``(slot, row)``."""
+        n = trace.n
+        self.n[slot, row], self.first[slot, row] = n, trace.first
+        for i, time in zip(range(n - len(trace.recent), n), trace.recent):
+            self.recent[i % HISTORY, slot, row] = time
+        self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
+
+    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (flat index): a refresh where ``present``.
+
+        ``span`` is one encoding's :func:`lifetime` under decay ``d``.  A new entry's
+        ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
+        ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every term
+        is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
+        latter not where :func:`crossing`'s own rounding of the Petrov term may undercut
+        it (older presentations spanning little of their age: :data:`_ILL`).
+        """
+        n = self.n.reshape(-1)
+        counts = np.where(present, np.take(n, flat) + 1, 1)
+        n[flat] = counts
+        first = self.first.reshape(-1)
+        first[flat[~present]] = time
+        size = n.shape[0]
+        self.recent.reshape(-1)[(counts - 1) % HISTORY * size + flat] = time
+        with np.errstate(over="ignore", invalid="ignore"):
+            begin = np.take(first, flat)
+            bound = begin + counts.astype(float) ** (1.0 / d) * span
+            bound -= _MARGIN * np.maximum(1.0, np.abs(bound))
+            usable = present
+            petrov = counts > HISTORY
+            if petrov.any():  # crossing() rounds an ill-conditioned Petrov term as it may: no bound but the last term's
+                spread = self.recent.reshape(-1)[(counts - HISTORY) % HISTORY * size + flat] - begin
+                usable = present & ~(petrov & (spread > 0.0) & (spread * _ILL < bound - begin))
+        self.due.reshape(-1)[flat] = np.fmax(time + span, np.where(usable, bound, -np.inf))
+        self.exact.reshape(-1)[flat] = ~present
+
+    def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the counts, first times and kept times (HISTORY x len(flat), oldest first; unused: -inf) of ``flat``."""
+        n = np.take(self.n.reshape(-1), flat)
+        kept = np.minimum(n, HISTORY)
+        start = n - kept  # index of the oldest encoding kept
+        size = self.n.size
+        times = np.full((HISTORY, len(flat)), -np.inf)
+        recent = self.recent.reshape(-1)
+        for j in range(HISTORY):
+            use = j < kept
+            times[j, use] = np.take(recent, (start[use] + j) % HISTORY * size + flat[use])
+        return n, np.take(self.first.reshape(-1), flat), times
+
+
+def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
+
+    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them.  The same
+    Newton iteration, step for step, in numpy arithmetic, whose ``pow`` may differ from
+    Python's in the last bit: the roots are :func:`crossing`'s within :data:`_MARGIN`
+    (relative), not bit for bit.  Returns the roots and a mask of the traces this does
+    not handle (the crossing is past ``_LONGEST`` or the start overflows): solve those
+    with :func:`crossing`.
+    """
+    span = lifetime(d, tau)
+    kept = np.minimum(n, HISTORY)
+    last = times[kept - 1, np.arange(len(n))]
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = last + span * n.astype(float) ** (1.0 / d)
+        other = ~np.isfinite(t) | (t - last > _LONGEST) | (span > _LONGEST)
+        t[other] = last[other]
+        older = (n - kept).astype(float)
+        with_older = older > 0
+        oldest = times[0]
+        spread = oldest - first
+        # The Petrov term cancels when the older presentations span little of their age: its
+        # rounding (another pow's) could move the root past _MARGIN.  Those go to crossing().
+        other |= with_older & (spread > 0.0) & (spread * _ILL < t - first)
+        t[other] = last[other]
+        floor = last + span
+        root = t.copy()
+        active = np.flatnonzero(~other)
+        for _ in range(100):
+            if not len(active):
+                break
+            ta = t[active]
+            ages = ta - times[:, active]  # unused times are -inf: age inf, term 0
+            terms = ages ** -d
+            total = terms.sum(axis=0)
+            slope = -d * (terms / ages).sum(axis=0)
+            wo = with_older[active]
+            if wo.any():
+                sub = np.flatnonzero(wo)
+                idx = active[sub]
+                tt = ta[sub]
+                f = first[idx]
+                o = oldest[idx]
+                sp = spread[idx]
+                k = older[idx]
+                first_term = (tt - f) ** -d
+                oldest_term = (tt - o) ** -d
+                flat_case = sp <= 0.0
+                add = np.where(flat_case, k * first_term,
+                               k * ((tt - f) * first_term - (tt - o) * oldest_term) / ((1.0 - d) * sp))
+                ds = np.where(flat_case, -(k * d * first_term / (tt - f)), k * (first_term - oldest_term) / sp)
+                total[sub] += add
+                slope[sub] += ds
+            value = total ** (-1.0 / d) - span
+            step = -value / (-(1.0 / d) * total ** (-1.0 / d - 1.0) * slope)
+            ta = np.maximum(ta + step, floor[active])
+            t[active] = ta
+            done = np.abs(step) <= _PRECISION * np.maximum(1.0, np.abs(ta))
+            root[active[done]] = ta[done]
+            active = active[~done]
+        root[active] = t[active]
+    return root, other

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Mapping, Optional, Sequence
 
 import numpy as np
 
+from .activation import HISTORY, Trace, TraceColumns
 from .limits import Limits
 from .queue import Entry, Origin, Queue
 
@@ -51,16 +52,23 @@ COLUMN_MIN = 4096
 #: width x entities stays within this many slots (20 bytes each, held for every entity).
 COLUMN_MAX_WIDTH = 64
 COLUMN_MAX_SLOTS = 2**22
+#: Under rule ``activation`` each slot also keeps its entry's trace (HISTORY + 4 numbers).
+COLUMN_MAX_TRACED_SLOTS = COLUMN_MAX_SLOTS // (HISTORY + 4)
 
 #: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
 
 
 class QueueColumns:
-    """Queues of ``width`` slots, one row per entity (see the module docstring)."""
+    """Queues of ``width`` slots, one row per entity (see the module docstring).
 
-    def __init__(self, width: int, rows: int) -> None:
+    ``traces`` (rule ``activation``): each slot's entry's trace
+    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.
+    """
+
+    def __init__(self, width: int, rows: int, traced: bool = False) -> None:
         self.width = width
+        self.traces = TraceColumns(width, rows) if traced else None
         self.prop = np.full((width, rows), -1, dtype=np.int32)
         self.stamp = np.zeros((width, rows), dtype=np.int64)
         self.entry = np.zeros((width, rows), dtype=np.int64)
@@ -86,6 +94,8 @@ class QueueColumns:
         self.synced = np.concatenate([self.synced, np.zeros(extra, dtype=np.int64)])
         self.changed = np.concatenate([self.changed, np.zeros(extra, dtype=np.int64)])
         self.held = np.concatenate([self.held, np.zeros(extra, dtype=bool)])
+        if self.traces is not None:
+            self.traces.grow(extra)
 
     # ------------------------------------------------------------ one row
     def read(self, row: int) -> list[tuple[int, int, int]]:
@@ -100,6 +110,11 @@ class QueueColumns:
         ]
         items.sort(key=lambda item: item[1])
         return items
+
+    def slots(self, row: int) -> list[int]:
+        """Return the slots of row ``row`` that hold an entry, LRU first."""
+        stamps = self.stamp[:, row].tolist()
+        return sorted((k for k, prop in enumerate(self.prop[:, row].tolist()) if prop >= 0), key=stamps.__getitem__)
 
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
@@ -158,7 +173,9 @@ class QueueColumns:
         where = props >= 0
         return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
 
-    def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
+    def encode(self, rows: np.ndarray, prop: int, first_stamp: int,
+               traced: Optional[tuple[float, float, float]] = None
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
 
         The rows must be up to date with decay (:func:`~fsreg_ros.core.memory.decay.pop_owed`)
@@ -168,6 +185,8 @@ class QueueColumns:
         one key per slot (the property itself -2, an empty slot -1, else its stamp) and
         its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
         ``argmax`` along the short axis would each cost more than the whole encoding.
+        ``traced`` (rule ``activation``): ``(time, lifetime, d)`` of the encoding, noted
+        in the encoded slots' traces (a displaced front's slot starts a new one).
         """
         props = np.take(self.prop, rows, axis=1)
         key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
@@ -180,6 +199,8 @@ class QueueColumns:
         self.prop.reshape(-1)[flat] = prop
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
+        if traced is not None:
+            self.traces.encoded(flat, present, *traced)
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
@@ -201,6 +222,11 @@ class QueueColumns:
         """Return every origin reference that is a stamp (> 0) held in any slot."""
         refs = self.entry[self.prop >= 0]
         return refs[refs > 0]
+
+
+def _columnar(limits: Limits) -> bool:
+    """Tell whether column queues can hold queues under ``limits``: an LRU capacity at most, and activation."""
+    return limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
 
 
 #: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
@@ -255,7 +281,8 @@ class ColumnQueues:
         """
         if self.store is None or not limits.retains:
             return True
-        return limits.lru_only and limits.capacity == self.store.width
+        return (_columnar(limits) and limits.capacity == self.store.width
+                and limits.activation == self.wm.limits.activation)  # activation: the traces' d and tau
 
     def usable(self, entities: Sequence[str], limits: Limits) -> bool:
         """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``."""
@@ -263,10 +290,10 @@ class ColumnQueues:
         return (
             len(entities) >= self.wm.column_min
             and self.wm.sink is None
-            and limits.lru_only
+            and _columnar(limits)
             and capacity is not None
             and capacity <= COLUMN_MAX_WIDTH
-            and capacity * len(entities) <= COLUMN_MAX_SLOTS
+            and capacity * len(entities) <= (COLUMN_MAX_SLOTS if limits.activation is None else COLUMN_MAX_TRACED_SLOTS)
             and self.bind(entities, capacity)
         )
 
@@ -276,13 +303,14 @@ class ColumnQueues:
             self.bound = entities  # type: ignore[assignment]
         elif entities is not self.bound:
             return False
-        if self.store is not None and self.store.width != width:
+        traced = self.wm.activation is not None
+        if self.store is not None and (self.store.width != width or (self.store.traces is not None) != traced):
             self.drop()
         if len(self.row) < len(entities):  # new entities were appended
             for i in range(len(self.row), len(entities)):
                 self.row[entities[i]] = i
         if self.store is None:
-            self.store = QueueColumns(width, len(entities))
+            self.store = QueueColumns(width, len(entities), traced)
         self.store.grow(len(entities))
         return True
 
@@ -302,9 +330,15 @@ class ColumnQueues:
         if any(len(queues[name]) > store.width for name in moving):
             return False
         store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
+        act = self.wm.activation
         for name in moving:
             q = queues.pop(name)
-            store.write(self.row[name], [self.item(prop, value) for prop, value in q.items()], q.synced)
+            row = self.row[name]
+            store.write(row, [self.item(prop, value) for prop, value in q.items()], q.synced)
+            if act is not None:  # each entry's trace goes with it (slot k: the k-th item written)
+                traces = act.release(name)
+                for k, prop in enumerate(q):
+                    store.traces.put(k, row, traces[prop])
         self.entities.update(names)
         return True
 
@@ -348,9 +382,20 @@ class ColumnQueues:
         if store.synced[row] != wm.lazy_decay.ticks.count and store.length[row]:
             if wm.sink is not None:
                 wm.lazy_decay.catch_up(entity)
-                return wm._queues[entity]
+                return wm._readable(entity)
             wm.lazy_decay.settle_columns(np.array([row]))
+        if wm.activation is not None and store.length[row]:
+            if wm.sink is not None:  # what went must be reported: as a dict queue
+                self.to_dict(entity)
+                return wm._readable(entity)
+            wm.activation.settle_columns(np.array([row]))
         return self.row_dict(row)
+
+    def traces_of(self, entity: str) -> dict[str, Trace]:
+        """Return the traces of the entries of the column queue of ``entity`` (rule ``activation``)."""
+        row, store = self.row[entity], self.store
+        names = self.prop_name
+        return {names[int(store.prop[k, row])]: store.traces.get(k, row) for k in store.slots(row)}
 
     def to_dict(self, entity: str) -> Queue:
         """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
@@ -359,6 +404,8 @@ class ColumnQueues:
         q.synced = int(store.synced[row])
         q.hits = None
         q.marked = False  # if it changed since the last take, a column mark says so
+        if self.wm.activation is not None and store.traces is not None:
+            self.wm.activation.take(entity, self.traces_of(entity))
         store.release(row)
         self.entities.discard(entity)
         return q
