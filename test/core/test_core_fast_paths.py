@@ -414,6 +414,7 @@ def test_crossings_in_numpy_are_crossing_itself(params, gaps):
     if not flat:
         return
     n, first, times = columns.ordered(np.array(flat))
-    roots, other = activation.crossings(n, first, times, d, tau)
-    for root, fallback, want in zip(roots.tolist(), other.tolist(), expected):
-        assert fallback or abs(root - want) <= activation._MARGIN * max(1.0, abs(want)) / 100, (root, want)
+    for start in (None, np.take(columns.due.reshape(-1), flat)):  # from the right, or from the lower bounds
+        roots, other = activation.crossings(n, first, times, d, tau, start)
+        for root, fallback, want in zip(roots.tolist(), other.tolist(), expected):
+            assert fallback or abs(root - want) <= activation._MARGIN * max(1.0, abs(want)) / 100, (root, want)

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from .buffer import WMBuffer
     from .columns import QueueColumns
 
-#: Encoding times an entry keeps exactly (the Petrov approximation covers older ones).
+#: Encoding times an entry keeps exactly (the Petrov approximation covers older ones; a power of 2).
 HISTORY = 8
 #: No crossing (an entry that never falls below the threshold within the clock's range).
 NEVER = math.inf
@@ -268,7 +268,7 @@ class LazyActivation:
                 self.settle_columns(rows)
             else:  # what went must be reported: those queues become dict queues, brought up below
                 store = columns.store
-                for row in np.unique(self.passed(store, rows) % store.rows).tolist():
+                for row in np.unique(self.passed(store, rows) % store.rows).tolist():  # (in row order)
                     columns.to_dict(columns.bound[row])
         queues = self.wm._queues
         for entity in [e for e, due in self.due.items() if due <= now]:
@@ -298,9 +298,10 @@ class LazyActivation:
         """
         traces = store.traces
         now = self.clock + TIME_EPSILON
-        hit = (np.take(traces.due, rows, axis=1) <= now) & (np.take(store.prop, rows, axis=1) >= 0)
-        if not hit.any():
+        due = np.take(traces.due, rows, axis=1)
+        if not len(rows) or due.min() > now:
             return _NO_SLOTS
+        hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
         vague = ~np.take(traces.exact.reshape(-1), flat)
@@ -315,7 +316,7 @@ class LazyActivation:
         if self.span > _LONGEST:
             due[flat], exact[flat] = NEVER, True
             return
-        roots, other = crossings(n, first, times, self.decay, self.threshold)
+        roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
         margin = _MARGIN * np.maximum(1.0, np.abs(roots))
         due[flat] = roots - margin  # a lower bound of crossing()'s root
         close = other | (np.abs(roots - now) <= margin)
@@ -325,7 +326,7 @@ class LazyActivation:
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
-        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
+        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some (may recur).
 
         The buffer's size follows; its non-empty queues and change record are the caller's.
         """
@@ -334,8 +335,9 @@ class LazyActivation:
         if not len(flat):
             return _NO_SLOTS
         store.prop.reshape(-1)[flat] = -1
-        owners, counts = np.unique(flat % store.rows, return_counts=True)
-        store.length[owners] -= counts
+        store.traces.due.reshape(-1)[flat] = NEVER
+        owners = flat % store.rows  # a row may recur
+        store.length[owners] = np.count_nonzero(np.take(store.prop, owners, axis=1) >= 0, axis=0)
         self.wm._size -= len(flat)
         return owners
 
@@ -379,6 +381,11 @@ _MARGIN = 1e-9
 #: :func:`crossings` leaves to :func:`crossing` the traces whose older presentations span less than
 #: 1/_ILL of their age (the Petrov term's rounding grows as that share shrinks).
 _ILL = 1e4
+#: Encoding counts up to which the crossing's lower bound ``n^(1/d)`` lifetimes is tabled (a larger count
+#: takes the last entry's, still a lower bound).
+_REACH = 1024
+#: :func:`crossings` stops when a step is this small (relative): Newton's error after it is far smaller.
+_SOLVED = 1e-11
 
 
 class TraceColumns:
@@ -400,6 +407,7 @@ class TraceColumns:
         self.recent = np.zeros((HISTORY, width, rows))
         self.due = np.full((width, rows), NEVER)
         self.exact = np.zeros((width, rows), dtype=bool)
+        self.reach_of: Optional[tuple[float, float]] = None
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
@@ -434,60 +442,82 @@ class TraceColumns:
         ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
         ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every term
         is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
-        latter not where :func:`crossing`'s own rounding of the Petrov term may undercut
-        it (older presentations spanning little of their age: :data:`_ILL`).
+        latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
+        (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
         """
-        n = self.n.reshape(-1)
-        counts = np.where(present, np.take(n, flat) + 1, 1)
+        n, first, recent = self.n.reshape(-1), self.first.reshape(-1), self.recent.reshape(-1)
+        fresh = ~present
+        counts = np.take(n, flat)
+        counts += 1
+        counts[fresh] = 1
         n[flat] = counts
-        first = self.first.reshape(-1)
-        first[flat[~present]] = time
-        size = n.shape[0]
-        self.recent.reshape(-1)[(counts - 1) % HISTORY * size + flat] = time
-        with np.errstate(over="ignore", invalid="ignore"):
-            begin = np.take(first, flat)
-            bound = begin + counts.astype(float) ** (1.0 / d) * span
-            bound -= _MARGIN * np.maximum(1.0, np.abs(bound))
-            usable = present
-            petrov = counts > HISTORY
-            if petrov.any():  # crossing() rounds an ill-conditioned Petrov term as it may: no bound but the last term's
-                spread = self.recent.reshape(-1)[(counts - HISTORY) % HISTORY * size + flat] - begin
-                usable = present & ~(petrov & (spread > 0.0) & (spread * _ILL < bound - begin))
-        self.due.reshape(-1)[flat] = np.fmax(time + span, np.where(usable, bound, -np.inf))
-        self.exact.reshape(-1)[flat] = ~present
+        first[flat[fresh]] = time
+        recent[((counts - 1) & (HISTORY - 1)) * n.shape[0] + flat] = time
+        begin = np.take(first, flat)
+        reach = np.take(self._reach(d, span), np.minimum(counts, _REACH))  # reach[1] < span
+        if counts.max() > HISTORY:  # Petrov terms: crossing() rounds them well enough?
+            older = counts > HISTORY
+            spread = np.take(recent, ((counts - HISTORY) & (HISTORY - 1)) * n.shape[0] + flat) - begin
+            with np.errstate(over="ignore", invalid="ignore"):
+                right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
+            reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
+        bound = begin + reach
+        # Within _MARGIN (1 + |time| + reach) of crossing()'s own root: the root is within 1e-13 of that size.
+        bound -= _MARGIN * (1.0 + abs(time))
+        self.due.reshape(-1)[flat] = np.maximum(bound, time + span)
+        self.exact.reshape(-1)[flat] = fresh
+
+    def _reach(self, d: float, span: float) -> np.ndarray:
+        """Return ``k -> k^(1/d) span`` less :data:`_MARGIN`, for k < :data:`_REACH` (then that of ``_REACH - 1``)."""
+        if self.reach_of != (d, span):
+            reach = [-math.inf]
+            for k in range(1, _REACH):
+                try:
+                    reach.append(k ** (1.0 / d) * span * (1.0 - _MARGIN))
+                except OverflowError:
+                    reach.append(math.inf)
+            reach.append(reach[-1])
+            self.reach, self.reach_of = np.array(reach), (d, span)
+        return self.reach
 
     def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return the counts, first times and kept times (HISTORY x len(flat), oldest first; unused: -inf) of ``flat``."""
+        """Return the counts, first times and kept times of ``flat``.
+
+        The times are a (k x len(flat)) array, oldest first, k the most any of them keeps;
+        unused places hold -inf.
+        """
         n = np.take(self.n.reshape(-1), flat)
         kept = np.minimum(n, HISTORY)
         start = n - kept  # index of the oldest encoding kept
         size = self.n.size
-        times = np.full((HISTORY, len(flat)), -np.inf)
+        depth = int(kept.max(initial=1))
+        times = np.full((depth, len(flat)), -np.inf)
         recent = self.recent.reshape(-1)
-        for j in range(HISTORY):
+        for j in range(depth):
             use = j < kept
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY * size + flat[use])
         return n, np.take(self.first.reshape(-1), flat), times
 
 
-def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float
-              ) -> tuple[np.ndarray, np.ndarray]:
+def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
+              start: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
     """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
 
-    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them.  The same
-    Newton iteration, step for step, in numpy arithmetic, whose ``pow`` may differ from
-    Python's in the last bit: the roots are :func:`crossing`'s within :data:`_MARGIN`
+    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them; ``start``:
+    lower bounds of the roots, if known.  Newton's method on the same function as
+    :func:`crossing`, in numpy arithmetic (another ``pow``), from the lower bound when
+    given (F is concave and increasing: from the left it climbs to the root), stopped
+    at :data:`_SOLVED`: the roots are :func:`crossing`'s within :data:`_MARGIN`
     (relative), not bit for bit.  Returns the roots and a mask of the traces this does
-    not handle (the crossing is past ``_LONGEST`` or the start overflows): solve those
-    with :func:`crossing`.
+    not handle (the crossing is past ``_LONGEST``, the start overflows, or the Petrov
+    term is ill-conditioned): solve those with :func:`crossing`.
     """
     span = lifetime(d, tau)
     kept = np.minimum(n, HISTORY)
     last = times[kept - 1, np.arange(len(n))]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        t = last + span * n.astype(float) ** (1.0 / d)
+        t = last + span * n.astype(float) ** (1.0 / d)  # crossing()'s start, right of the root
         other = ~np.isfinite(t) | (t - last > _LONGEST) | (span > _LONGEST)
-        t[other] = last[other]
         older = (n - kept).astype(float)
         with_older = older > 0
         oldest = times[0]
@@ -495,16 +525,19 @@ def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau
         # The Petrov term cancels when the older presentations span little of their age: its
         # rounding (another pow's) could move the root past _MARGIN.  Those go to crossing().
         other |= with_older & (spread > 0.0) & (spread * _ILL < t - first)
-        t[other] = last[other]
         floor = last + span
+        if start is not None:
+            t = np.maximum(np.minimum(start, t), floor)
+        t[other] = last[other]
         root = t.copy()
         active = np.flatnonzero(~other)
+        half = d == 0.5  # ACT-R's default: a square root is cheaper than a power
         for _ in range(100):
             if not len(active):
                 break
             ta = t[active]
             ages = ta - times[:, active]  # unused times are -inf: age inf, term 0
-            terms = ages ** -d
+            terms = 1.0 / np.sqrt(ages) if half else ages ** -d
             total = terms.sum(axis=0)
             slope = -d * (terms / ages).sum(axis=0)
             wo = with_older[active]
@@ -524,11 +557,12 @@ def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau
                 ds = np.where(flat_case, -(k * d * first_term / (tt - f)), k * (first_term - oldest_term) / sp)
                 total[sub] += add
                 slope[sub] += ds
-            value = total ** (-1.0 / d) - span
-            step = -value / (-(1.0 / d) * total ** (-1.0 / d - 1.0) * slope)
+            power = total ** (-1.0 / d)
+            # F(t) = strength^(-1/d) - span, F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
+            step = -(power - span) / (-(1.0 / d) * (power / total) * slope)
             ta = np.maximum(ta + step, floor[active])
             t[active] = ta
-            done = np.abs(step) <= _PRECISION * np.maximum(1.0, np.abs(ta))
+            done = np.abs(step) <= _SOLVED * np.maximum(1.0, np.abs(ta))
             root[active[done]] = ta[done]
             active = active[~done]
         root[active] = t[active]

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .activation import HISTORY, Trace, TraceColumns
+from .activation import HISTORY, NEVER, Trace, TraceColumns
 from .limits import Limits
 from .queue import Entry, Origin, Queue
 
@@ -119,6 +119,8 @@ class QueueColumns:
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
         self.prop[:, row] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, row] = NEVER
         for k, (prop, stamp, entry) in enumerate(items):
             self.prop[k, row], self.stamp[k, row], self.entry[k, row] = prop, stamp, entry
         self.length[row] = len(items)
@@ -128,6 +130,8 @@ class QueueColumns:
     def start_empty(self, rows: np.ndarray, synced: int) -> None:
         """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
         self.prop[:, rows] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, rows] = NEVER
         self.length[rows] = 0
         self.synced[rows] = synced
         self.held[rows] = True
@@ -135,6 +139,8 @@ class QueueColumns:
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
         self.prop[:, row] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, row] = NEVER
         self.length[row] = 0
         self.held[row] = False
 
@@ -148,12 +154,17 @@ class QueueColumns:
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
         self.prop[:, gone] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, gone] = NEVER
         self.length[gone] = 0
         partial, counts = targets[~emptied], counts[~emptied]
         for done in range(int(counts.max(initial=0))):  # fewer than width rounds
             now = partial[counts > done]
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
-            self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
+            popped = _first_minimum(stamps)[0] * self.rows + now
+            self.prop.reshape(-1)[popped] = -1
+            if self.traces is not None:
+                self.traces.due.reshape(-1)[popped] = NEVER
             self.length[now] -= 1
 
     def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
