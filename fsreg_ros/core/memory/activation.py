@@ -311,16 +311,20 @@ class LazyActivation:
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
-        n, first, times = traces.ordered(flat)
         due, exact = traces.due.reshape(-1), traces.exact.reshape(-1)
         if self.span > _LONGEST:
             due[flat], exact[flat] = NEVER, True
             return
+        width_rows = traces.n.shape[1]
+        if len(flat) <= _FEW:  # crossing() itself is cheaper for a few
+            for f in flat.tolist():
+                due[f], exact[f] = crossing(traces.get(f // width_rows, f % width_rows), self.decay, self.threshold), True
+            return
+        n, first, times = traces.ordered(flat)
         roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
         margin = _MARGIN * np.maximum(1.0, np.abs(roots))
         due[flat] = roots - margin  # a lower bound of crossing()'s root
         close = other | (np.abs(roots - now) <= margin)
-        width_rows = traces.n.shape[1]
         for f in flat[close].tolist():  # too close to call: crossing() itself
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
@@ -384,6 +388,8 @@ _ILL = 1e4
 #: Encoding counts up to which the crossing's lower bound ``n^(1/d)`` lifetimes is tabled (a larger count
 #: takes the last entry's, still a lower bound).
 _REACH = 1024
+#: Up to this many crossings at once, :func:`crossing` solves them one by one (cheaper than numpy's fixed cost).
+_FEW = 24
 #: :func:`crossings` stops when a step is this small (relative): Newton's error after it is far smaller.
 _SOLVED = 1e-11
 
