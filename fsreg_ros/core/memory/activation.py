@@ -311,7 +311,7 @@ class LazyActivation:
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
-        due, exact = traces.due.reshape(-1), traces.exact.reshape(-1)
+        due, exact = traces.flat_due, traces.flat_exact
         if self.span > _LONGEST:
             due[flat], exact[flat] = NEVER, True
             return
@@ -397,39 +397,48 @@ _SOLVED = 1e-11
 class TraceColumns:
     """The :class:`Trace` of every entry of column queues: one per slot, as arrays (slots x rows).
 
-    Slot (k, r) holds the trace of the entry in slot k of row r (unused where that slot
-    is empty: an encoding into an empty or displaced slot starts a new trace).  ``n``
-    counts its encodings, ``first`` is the first time, ``recent[i % HISTORY]`` the
-    time of the i-th encoding (from 0; the last :data:`HISTORY` are kept), ``due`` and
-    ``exact`` as in :class:`Trace`.  A crossing solved here (:func:`crossings`, in
-    numpy) is kept only as a lower bound, ``due`` just below it, ``exact`` False,
-    unless it is :func:`crossing`'s own: so whether and when an entry goes is decided
-    exactly as for a dict queue, bit for bit (see :meth:`LazyActivation.passed`).
+    Slot (k, r) holds the trace of the entry in slot k of row r (meaningless where that
+    slot is empty, whose ``due`` is :data:`NEVER`; an encoding into an empty or
+    displaced slot starts a new trace).  ``n`` counts its encodings, ``recent[k, r, i %
+    HISTORY]`` is the time of its i-th encoding (from 0; the last :data:`HISTORY` are
+    kept), so ``recent[k, r, 0]`` is its first time until the ring wraps; ``first`` keeps
+    the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
+    :class:`Trace`.  A crossing solved in numpy (:func:`crossings`) is kept only as a
+    lower bound just below it, ``exact`` False: so whether and when an entry goes is
+    decided exactly as for a dict queue (see :meth:`LazyActivation.passed`).
     """
 
     def __init__(self, width: int, rows: int) -> None:
         self.n = np.zeros((width, rows), dtype=np.int64)
         self.first = np.zeros((width, rows))
-        self.recent = np.zeros((HISTORY, width, rows))
+        self.recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
         self.due = np.full((width, rows), NEVER)
         self.exact = np.zeros((width, rows), dtype=bool)
         self.reach_of: Optional[tuple[float, float]] = None
+        self._flatten()
+
+    def _flatten(self) -> None:
+        self.flat_n, self.flat_first, self.flat_recent = self.n.reshape(-1), self.first.reshape(-1), \
+            self.recent.reshape(-1)
+        self.flat_due, self.flat_exact = self.due.reshape(-1), self.exact.reshape(-1)
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
         width = self.n.shape[0]
         self.n = np.concatenate([self.n, np.zeros((width, extra), dtype=np.int64)], axis=1)
         self.first = np.concatenate([self.first, np.zeros((width, extra))], axis=1)
-        self.recent = np.concatenate([self.recent, np.zeros((HISTORY, width, extra))], axis=2)
+        self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
         self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
         self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self._flatten()
 
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
         n = int(self.n[slot, row])
-        trace = Trace(float(self.first[slot, row]))
+        ring = self.recent[slot, row].tolist()
+        trace = Trace(float(self.first[slot, row]) if n > HISTORY else ring[0])
         trace.n = n
-        trace.recent = [float(self.recent[i % HISTORY, slot, row]) for i in range(max(0, n - HISTORY), n)]
+        trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
         trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
         return trace
 
@@ -437,8 +446,10 @@ class TraceColumns:
         """Keep ``trace`` in slot ``(slot, row)``."""
         n = trace.n
         self.n[slot, row], self.first[slot, row] = n, trace.first
+        ring = [0.0] * HISTORY
         for i, time in zip(range(n - len(trace.recent), n), trace.recent):
-            self.recent[i % HISTORY, slot, row] = time
+            ring[i & (HISTORY - 1)] = time
+        self.recent[slot, row] = ring
         self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float) -> None:
@@ -451,38 +462,45 @@ class TraceColumns:
         latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
         (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
         """
-        n, first, recent = self.n.reshape(-1), self.first.reshape(-1), self.recent.reshape(-1)
-        fresh = ~present
-        counts = np.take(n, flat)
-        counts += 1
-        counts[fresh] = 1
+        n, recent = self.flat_n, self.flat_recent
+        old = n[flat]
+        old *= present  # encodings before this one (a new entry: none)
+        counts = old + 1
         n[flat] = counts
-        first[flat[fresh]] = time
-        recent[((counts - 1) & (HISTORY - 1)) * n.shape[0] + flat] = time
-        begin = np.take(first, flat)
-        reach = np.take(self._reach(d, span), np.minimum(counts, _REACH))  # reach[1] < span
-        if counts.max() > HISTORY:  # Petrov terms: crossing() rounds them well enough?
+        wrapping = counts.max() > HISTORY
+        if wrapping:
+            first = self.flat_first
+            wraps = flat[counts == HISTORY + 1]
+        at = flat * HISTORY
+        if wrapping:  # the first time leaves the ring: keep it
+            first[wraps] = recent[wraps * HISTORY]
+        old &= HISTORY - 1
+        old += at
+        recent[old] = time
+        begin = recent[at]  # the first time (while n <= HISTORY)
+        reach = np.take(self._reach(d, span), counts, mode="clip")  # reach[1] < span
+        if wrapping:
             older = counts > HISTORY
-            spread = np.take(recent, ((counts - HISTORY) & (HISTORY - 1)) * n.shape[0] + flat) - begin
+            begin[older] = first[flat[older]]
+            spread = recent[((counts - HISTORY) & (HISTORY - 1)) + at] - begin
             with np.errstate(over="ignore", invalid="ignore"):
                 right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
             reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
-        bound = begin + reach
+        begin += reach
         # Within _MARGIN (1 + |time| + reach) of crossing()'s own root: the root is within 1e-13 of that size.
-        bound -= _MARGIN * (1.0 + abs(time))
-        self.due.reshape(-1)[flat] = np.maximum(bound, time + span)
-        self.exact.reshape(-1)[flat] = fresh
+        begin -= _MARGIN * (1.0 + abs(time))
+        self.flat_due[flat] = np.maximum(begin, time + span)
+        self.flat_exact[flat] = ~present
 
     def _reach(self, d: float, span: float) -> np.ndarray:
-        """Return ``k -> k^(1/d) span`` less :data:`_MARGIN`, for k < :data:`_REACH` (then that of ``_REACH - 1``)."""
+        """Return ``k -> k^(1/d) span`` less :data:`_MARGIN`, for k <= :data:`_REACH` (a larger k: take the last)."""
         if self.reach_of != (d, span):
             reach = [-math.inf]
-            for k in range(1, _REACH):
+            for k in range(1, _REACH + 1):
                 try:
                     reach.append(k ** (1.0 / d) * span * (1.0 - _MARGIN))
                 except OverflowError:
                     reach.append(math.inf)
-            reach.append(reach[-1])
             self.reach, self.reach_of = np.array(reach), (d, span)
         return self.reach
 
@@ -492,17 +510,18 @@ class TraceColumns:
         The times are a (k x len(flat)) array, oldest first, k the most any of them keeps;
         unused places hold -inf.
         """
-        n = np.take(self.n.reshape(-1), flat)
+        n = np.take(self.flat_n, flat)
         kept = np.minimum(n, HISTORY)
         start = n - kept  # index of the oldest encoding kept
-        size = self.n.size
         depth = int(kept.max(initial=1))
         times = np.full((depth, len(flat)), -np.inf)
-        recent = self.recent.reshape(-1)
+        recent = self.flat_recent
+        at = flat * HISTORY
         for j in range(depth):
             use = j < kept
-            times[j, use] = np.take(recent, (start[use] + j) % HISTORY * size + flat[use])
-        return n, np.take(self.first.reshape(-1), flat), times
+            times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
+        first = np.where(n > HISTORY, np.take(self.flat_first, flat), np.take(recent, at))
+        return n, first, times
 
 
 def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
