@@ -316,9 +316,10 @@ class LazyActivation:
             due[flat], exact[flat] = NEVER, True
             return
         width_rows = traces.n.shape[1]
-        if len(flat) <= _FEW:  # crossing() itself is cheaper for a few
+        if len(flat) <= _FEW:  # one by one is cheaper for a few
             for f in flat.tolist():
-                due[f], exact[f] = crossing(traces.get(f // width_rows, f % width_rows), self.decay, self.threshold), True
+                trace = traces.get(f // width_rows, f % width_rows)
+                due[f], exact[f] = self._bracket(trace, now)
             return
         n, first, times = traces.ordered(flat)
         roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
@@ -328,6 +329,33 @@ class LazyActivation:
         for f in flat[close].tolist():  # too close to call: crossing() itself
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
+
+    def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
+        """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
+
+        :func:`crossing`'s root lies between two bounds: at most its start
+        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term; Newton
+        climbs to the root from the left), and, while n <= HISTORY, at least
+        ``mean(t_j) + n^(1/d) lifetime`` (x^-d is convex: the sum is at least n times the
+        term of the mean age).  With the clock clearly past the first (gone) or clearly
+        before the second (a new lower bound), no Newton step is needed.
+        """
+        d = self.decay
+        try:
+            reach = self.span * trace.n ** (1.0 / d)
+        except OverflowError:
+            reach = math.inf
+        last = trace.recent[-1]
+        if reach <= _LONGEST:
+            upper = last + reach
+            if upper + _MARGIN * max(1.0, abs(upper)) <= now:
+                return upper, False  # gone (a lower bound still: crossing() solves it if a queue must say when)
+            if trace.n <= HISTORY:
+                lower = math.fsum(trace.recent) / trace.n + reach
+                lower -= _MARGIN * max(1.0, abs(lower))
+                if lower > now:
+                    return lower, False
+        return crossing(trace, d, self.threshold), True
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some (may recur).
