@@ -260,7 +260,8 @@ ACT_OPS = st.lists(
         st.tuples(st.just("lazy"), st.integers(1, 2)),
         st.tuples(st.just("evict"), st.integers(0, 12)),
         st.tuples(st.just("clear")),
-        st.tuples(st.just("limits"), st.sampled_from([1, 2, 3]), st.sampled_from([None, (0.5, -0.9), (0.3, -0.4)])),
+        st.tuples(st.just("limits"), st.sampled_from([1, 2, 3, None]),
+                  st.sampled_from([None, (0.5, -0.9), (0.3, -0.4)])),
         st.tuples(st.just("remove"), st.integers(0, 7), st.sampled_from(WM_PROPS)),
         st.tuples(st.just("take")),
     ),
@@ -269,9 +270,13 @@ ACT_OPS = st.lists(
 
 
 @settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
-@given(st.integers(1, 3), st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]), ACT_OPS)
-def test_column_queues_under_activation_as_dict_queues(capacity, params, ops):
+@given(st.sampled_from([1, 2, 3, None, None]), st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]),
+       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), ACT_OPS)
+def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, ops):
     """Rule ``activation`` on column queues (traces in slots, crossings solved in numpy) is the dict queues' own.
+
+    With a capacity (the rows' width) and without one (rows that widen as queues grow,
+    from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).
 
     As :func:`test_column_queues_decay_evict_and_clear_as_dict_queues`: ``plain`` keeps
     dict queues, ``heard`` column queues with an event sink except while encoding members,
@@ -280,8 +285,8 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, ops):
     for many slots at once.  Events (in order), queues, origins, exported items with
     their traces, sizes and the change record (in order) must be equal.
     """
-    from fsreg_ros.core.decay import TickRun
-    from fsreg_ros.core.memory import Limits, WMBuffer, activation
+    from fsreg_ros.core.memory import Limits, WMBuffer
+    from fsreg_ros.core.memory import columns as column_queues
 
     heard_events: list = []
     plain_events: list = []
@@ -293,6 +298,20 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, ops):
         b.column_min = 1
     for b in buffers:
         b.set_limits(Limits(capacity=capacity, activation=params), 0.0)
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH
+    column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
+    try:
+        _activation_ops(ops, plain, heard, quiet, plain_events, heard_events)
+    finally:
+        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = kept
+
+
+def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
+    """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing."""
+    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory import Limits, activation
+
+    buffers = (plain, heard, quiet)
     ticks = seen = 0
     now = 0.0
     trimmed = False

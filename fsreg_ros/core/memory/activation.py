@@ -358,9 +358,9 @@ class LazyActivation:
         return crossing(trace, d, self.threshold), True
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
-        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some (may recur).
+        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
 
-        The buffer's size follows; its non-empty queues and change record are the caller's.
+        A row may recur in the result.  The buffer's size follows; its non-empty queues and change record are the caller's.
         """
         store = self.wm.columns.store
         flat = self.passed(store, rows)
@@ -458,6 +458,16 @@ class TraceColumns:
         self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
         self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
         self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self._flatten()
+
+    def widen(self, extra: int) -> None:
+        """Add ``extra`` slots to every row."""
+        rows = self.n.shape[1]
+        self.n = np.concatenate([self.n, np.zeros((extra, rows), dtype=np.int64)])
+        self.first = np.concatenate([self.first, np.zeros((extra, rows))])
+        self.recent = np.concatenate([self.recent, np.zeros((extra, rows, HISTORY))])
+        self.due = np.concatenate([self.due, np.full((extra, rows), NEVER)])
+        self.exact = np.concatenate([self.exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
 
     def get(self, slot: int, row: int) -> Trace:

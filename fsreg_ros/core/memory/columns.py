@@ -55,6 +55,9 @@ COLUMN_MAX_SLOTS = 2**22
 #: Under rule ``activation`` each slot also keeps its entry's trace (HISTORY + 4 numbers).
 COLUMN_MAX_TRACED_SLOTS = COLUMN_MAX_SLOTS // (HISTORY + 4)
 
+#: The first width of rows that widen (rule ``activation`` without a capacity).
+_FIRST_WIDTH = 4
+
 #: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
 
@@ -62,12 +65,15 @@ _NO_STAMP = np.iinfo(np.int64).max
 class QueueColumns:
     """Queues of ``width`` slots, one row per entity (see the module docstring).
 
-    ``traces`` (rule ``activation``): each slot's entry's trace
+    ``bounded``: the width is the displacement capacity (a full row loses its front);
+    otherwise (rule ``activation`` without a capacity) no queue is ever full, the
+    caller widening the rows first (:meth:`widen`).  ``traces`` (rule ``activation``): each slot's entry's trace
     (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.
     """
 
-    def __init__(self, width: int, rows: int, traced: bool = False) -> None:
+    def __init__(self, width: int, rows: int, traced: bool = False, bounded: bool = True) -> None:
         self.width = width
+        self.bounded = bounded  # width is the displacement capacity (else it grows: widen)
         self.traces = TraceColumns(width, rows) if traced else None
         self.prop = np.full((width, rows), -1, dtype=np.int32)
         self.stamp = np.zeros((width, rows), dtype=np.int64)
@@ -76,6 +82,16 @@ class QueueColumns:
         self.synced = np.zeros(rows, dtype=np.int64)  # decay ticks the row is up to date with
         self.held = np.zeros(rows, dtype=bool)  # the row's queue lives here
         self.changed = np.zeros(rows, dtype=np.int64)  # change-record mark of its first change (0: none)
+
+    def widen(self, width: int) -> None:
+        """Give every row ``width`` slots (more than now; the new ones empty)."""
+        extra, rows = width - self.width, self.rows
+        self.prop = np.concatenate([self.prop, np.full((extra, rows), -1, dtype=np.int32)])
+        self.stamp = np.concatenate([self.stamp, np.zeros((extra, rows), dtype=np.int64)])
+        self.entry = np.concatenate([self.entry, np.zeros((extra, rows), dtype=np.int64)])
+        if self.traces is not None:
+            self.traces.widen(extra)
+        self.width = width
 
     @property
     def rows(self) -> int:
@@ -292,38 +308,73 @@ class ColumnQueues:
         """
         if self.store is None or not limits.retains:
             return True
-        return (_columnar(limits) and limits.capacity == self.store.width
+        store = self.store
+        return (_columnar(limits) and limits.capacity == (store.width if store.bounded else None)
                 and limits.activation == self.wm.limits.activation)  # activation: the traces' d and tau
 
     def usable(self, entities: Sequence[str], limits: Limits) -> bool:
-        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``."""
+        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``.
+
+        An LRU capacity is the rows' width; rule ``activation`` without a capacity
+        keeps rows that widen as their queues grow (:meth:`room`).
+        """
         capacity = limits.capacity
+        if capacity is None and limits.activation is None:
+            return False
+        width = capacity if capacity is not None else _FIRST_WIDTH
         return (
             len(entities) >= self.wm.column_min
             and self.wm.sink is None
             and _columnar(limits)
-            and capacity is not None
-            and capacity <= COLUMN_MAX_WIDTH
-            and capacity * len(entities) <= (COLUMN_MAX_SLOTS if limits.activation is None else COLUMN_MAX_TRACED_SLOTS)
+            and width <= COLUMN_MAX_WIDTH
+            and width * len(entities) <= self._max_slots(limits.activation is not None)
             and self.bind(entities, capacity)
         )
 
-    def bind(self, entities: Sequence[str], width: int) -> bool:
-        """Bind rows to ``entities`` (the first list given) and size the store; False for another list."""
+    def bind(self, entities: Sequence[str], capacity: Optional[int]) -> bool:
+        """Bind rows to ``entities`` (the first list given) and size the store; False for another list.
+
+        ``capacity`` is the rows' width, or None for rows that widen (:meth:`room`).
+        """
         if self.bound is None:
             self.bound = entities  # type: ignore[assignment]
         elif entities is not self.bound:
             return False
         traced = self.wm.activation is not None
-        if self.store is not None and (self.store.width != width or (self.store.traces is not None) != traced):
+        store = self.store
+        if store is not None and (store.bounded != (capacity is not None) or (store.traces is not None) != traced
+                                  or store.bounded and store.width != capacity):
             self.drop()
         if len(self.row) < len(entities):  # new entities were appended
             for i in range(len(self.row), len(entities)):
                 self.row[entities[i]] = i
         if self.store is None:
-            self.store = QueueColumns(width, len(entities), traced)
+            self.store = QueueColumns(capacity if capacity is not None else _FIRST_WIDTH, len(entities), traced,
+                                      capacity is not None)
         self.store.grow(len(entities))
         return True
+
+    def room(self, rows: np.ndarray, longest: int = 0) -> bool:
+        """Make room for one more entry in each of ``rows`` (and for ``longest`` entries) in rows that widen.
+
+        False if that would pass :data:`COLUMN_MAX_WIDTH` or the slot limit (the caller
+        then goes queue by queue).  Bounded rows always have room (a full one displaces).
+        """
+        store = self.store
+        if store.bounded:
+            return True
+        need = max(int(store.length[rows].max(initial=0)) + 1, longest)
+        if need <= store.width:
+            return True
+        width = max(2 * store.width, need)
+        if width > COLUMN_MAX_WIDTH or width * store.rows > self._max_slots(store.traces is not None):
+            return False
+        store.widen(width)
+        return True
+
+    @staticmethod
+    def _max_slots(traced: bool) -> int:
+        return COLUMN_MAX_TRACED_SLOTS if traced else COLUMN_MAX_SLOTS
 
     def adopt(self, rows: np.ndarray) -> bool:
         """Move the queues of ``rows`` into the store (those not there yet); False, moving none, if one is longer.
@@ -338,7 +389,8 @@ class ColumnQueues:
         names = list(map(self.bound.__getitem__, fresh.tolist()))
         queues = self.wm._queues
         moving = sorted(queues.keys() & names, key=self.row.__getitem__)  # in entity order
-        if any(len(queues[name]) > store.width for name in moving):
+        longest = max((len(queues[name]) for name in moving), default=0)
+        if longest > store.width and (store.bounded or not self.room(rows[:0], longest)):
             return False
         store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
         act = self.wm.activation
