@@ -27,6 +27,15 @@ term alone keeps activation above tau until then; for one encoding it is c itsel
 and c is solved (:func:`crossing`, a few Newton steps) once the clock passes that
 bound, if the entry was not encoded again meanwhile.  An entry refreshed more often
 than its lifetime is never solved for.
+
+The queues of a large domain's rule 2 and 3 encodings are column queues
+(:mod:`fsreg_ros.core.memory.columns`): there each slot keeps its entry's trace
+(:class:`TraceColumns`), an encoding updates the traces of all its rows at once, and
+the entries of many rows whose bound passed are solved at once (:func:`crossings`,
+Newton's method in numpy).  numpy's ``pow`` is not Python's, so a numpy root is only
+kept as a lower bound a hair (:data:`_MARGIN`) below it; where the clock falls within
+that hair, :func:`crossing` itself decides, so an entry goes exactly when it would
+from a dict queue (:meth:`LazyActivation.passed`; test_core_fast_paths).
 """
 
 from __future__ import annotations

@@ -8,10 +8,14 @@ encoding about three times dearer than at 1,000 (measured with a bare dict loop)
 :class:`QueueColumns` keeps such queues as arrays instead, so one call of
 :meth:`QueueColumns.encode` is Encode(e, [p]) (Algorithm 1) with displacement
 (Algorithm 3, LRU) for every row at once; owed decay ticks (Algorithm 2) are popped
-from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`.
+from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`, and, under
+rule ``activation``, entries whose activation fell below the threshold by
+:meth:`~fsreg_ros.core.memory.activation.LazyActivation.forget_rows` (each slot keeps
+its entry's trace: :class:`~fsreg_ros.core.memory.activation.TraceColumns`).
 
 Row r holds the queue of the r-th entity of the buffer's entity list in ``width``
-slots (the displacement capacity).  A slot holds a property id (-1: empty), the
+slots (the displacement capacity; rule ``activation`` without a capacity: as many as
+the longest queue needs, :meth:`ColumnQueues.room`).  A slot holds a property id (-1: empty), the
 entry's stamp and its origin reference: the stamp of the encoding that made the
 property enter the queue, or ``-(i + 1)`` for the buffer's i-th explicit origin (one
 restored from a store).  Slots are unordered: stamps are unique and grow, so a
@@ -24,7 +28,8 @@ columns (each queue lives in exactly one place, a dict :class:`Queue` or a row),
 entity list the rows are numbered by, property ids and restored origins, and the
 moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
 rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
-no event sink listens and the limits are at most an LRU capacity; anything else that
+no event sink listens and the limits are at most an LRU capacity and rule
+``activation``; anything else that
 touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
 so every other code path only ever sees dicts.
 """
