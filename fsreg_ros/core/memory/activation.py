@@ -369,7 +369,8 @@ class LazyActivation:
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
 
-        A row may recur in the result.  The buffer's size follows; its non-empty queues and change record are the caller's.
+        A row may recur in the result.  The buffer's size follows; its non-empty queues
+        and change record are the caller's.
         """
         store = self.wm.columns.store
         flat = self.passed(store, rows)
