@@ -526,7 +526,7 @@ class TraceColumns:
         old += at
         recent[old] = time
         begin = recent[at]  # the first time (while n <= HISTORY)
-        reach = np.take(self._reach(d, span), counts, mode="clip")  # reach[1] < span
+        reach = np.take(self._reach(d, span, time), counts, mode="clip")  # reach[1] < span
         if wrapping:
             older = counts > HISTORY
             begin[older] = first[flat[older]]
@@ -535,13 +535,16 @@ class TraceColumns:
                 right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
             reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
         begin += reach
-        # Within _MARGIN (1 + |time| + reach) of crossing()'s own root: the root is within 1e-13 of that size.
-        begin -= _MARGIN * (1.0 + abs(time))
         self.flat_due[flat] = np.maximum(begin, time + span)
         self.flat_exact[flat] = ~present
 
-    def _reach(self, d: float, span: float) -> np.ndarray:
-        """Return ``k -> k^(1/d) span`` less :data:`_MARGIN`, for k <= :data:`_REACH` (a larger k: take the last)."""
+    def _reach(self, d: float, span: float, time: float) -> np.ndarray:
+        """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.
+
+        The margin, ``_MARGIN (1 + |time| + k^(1/d) span)``, keeps ``first + reach[k]``
+        below :func:`crossing`'s own root, which is within 1e-13 of that size of the
+        true one.  Made once per (d, span) and shifted once per encoding time.
+        """
         if self.reach_of != (d, span):
             reach = [-math.inf]
             for k in range(1, _REACH + 1):
@@ -549,8 +552,10 @@ class TraceColumns:
                     reach.append(k ** (1.0 / d) * span * (1.0 - _MARGIN))
                 except OverflowError:
                     reach.append(math.inf)
-            self.reach, self.reach_of = np.array(reach), (d, span)
-        return self.reach
+            self.reach, self.reach_of, self.shifted_at = np.array(reach), (d, span), None
+        if self.shifted_at != time:
+            self.shifted, self.shifted_at = self.reach - _MARGIN * (1.0 + abs(time)), time
+        return self.shifted
 
     def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the counts, first times and kept times of ``flat``.

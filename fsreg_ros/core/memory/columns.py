@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Mapping, Optional, Sequence
 
 import numpy as np
 
+from ..decay import TIME_EPSILON
 from .activation import HISTORY, NEVER, Trace, TraceColumns
 from .limits import Limits
 from .queue import Entry, Origin, Queue
@@ -452,7 +453,8 @@ class ColumnQueues:
                 wm.lazy_decay.catch_up(entity)
                 return wm._readable(entity)
             wm.lazy_decay.settle_columns(np.array([row]))
-        if wm.activation is not None and store.length[row]:
+        if wm.activation is not None and store.length[row] and store.traces.due[:, row].min() <= wm.activation.clock \
+                + TIME_EPSILON:  # something may have gone
             if wm.sink is not None:  # what went must be reported: as a dict queue
                 self.to_dict(entity)
                 return wm._readable(entity)
