@@ -490,6 +490,20 @@ class TraceColumns:
         trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
         return trace
 
+    def row(self, row: int, slots: list[int]) -> list[Trace]:
+        """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once)."""
+        ns, firsts = self.n[:, row].tolist(), self.first[:, row].tolist()
+        rings, dues, exacts = self.recent[:, row].tolist(), self.due[:, row].tolist(), self.exact[:, row].tolist()
+        out = []
+        for k in slots:
+            n, ring = ns[k], rings[k]
+            trace = Trace(firsts[k] if n > HISTORY else ring[0])
+            trace.n = n
+            trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+            trace.due, trace.exact = dues[k], exacts[k]
+            out.append(trace)
+        return out
+
     def put(self, slot: int, row: int, trace: Trace) -> None:
         """Keep ``trace`` in slot ``(slot, row)``."""
         n = trace.n

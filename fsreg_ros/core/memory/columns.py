@@ -464,8 +464,8 @@ class ColumnQueues:
     def traces_of(self, entity: str) -> dict[str, Trace]:
         """Return the traces of the entries of the column queue of ``entity`` (rule ``activation``)."""
         row, store = self.row[entity], self.store
-        names = self.prop_name
-        return {names[int(store.prop[k, row])]: store.traces.get(k, row) for k in store.slots(row)}
+        names, props, slots = self.prop_name, store.prop[:, row].tolist(), store.slots(row)
+        return dict(zip([names[props[k]] for k in slots], store.traces.row(row, slots)))
 
     def to_dict(self, entity: str) -> Queue:
         """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
