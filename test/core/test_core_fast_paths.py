@@ -240,3 +240,201 @@ def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
         assert all(s == state[0] for s in state), op
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)
+
+
+# ------------------------------------------- column queues under rule activation
+ACT_OPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("members"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS[:2])),
+        # the same members encoded again and again (traces longer than HISTORY), then the clock runs on
+        st.tuples(st.just("burst"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS[:2]),
+                  st.integers(2, 12), st.floats(0.0, 3.0), st.floats(0.0, 40.0)),
+        st.tuples(st.just("encode"), st.integers(0, 7), st.lists(st.sampled_from(WM_PROPS), min_size=1, max_size=3)),
+        st.tuples(st.just("wait"), st.sampled_from([0.0, 0.25, 1.0, 2.5, 6.0, 20.0])),
+        st.tuples(st.just("wait"), st.floats(0.0, 12.0)),
+        st.tuples(st.just("creep"), st.integers(5, 60)),  # the clock in small steps, WM read at each
+        # the clock to just before, at or just after one of the next crossings (as plain solves them)
+        st.tuples(st.just("cross"), st.integers(0, 3), st.sampled_from([-1e-8, -2e-9, 0.0, 1e-8])),
+        st.tuples(st.just("cross"), st.integers(0, 3), st.sampled_from([-1e-8, -2e-9, 0.0, 1e-8])),
+        st.tuples(st.just("lazy"), st.integers(1, 2)),
+        st.tuples(st.just("evict"), st.integers(0, 12)),
+        st.tuples(st.just("clear")),
+        st.tuples(st.just("limits"), st.sampled_from([1, 2, 3, None]),
+                  st.sampled_from([None, (0.5, -0.9), (0.3, -0.4)])),
+        st.tuples(st.just("remove"), st.integers(0, 7), st.sampled_from(WM_PROPS)),
+        st.tuples(st.just("take")),
+    ),
+    max_size=50,
+)
+
+
+@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
+@given(st.sampled_from([1, 2, 3, None, None]), st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]),
+       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), ACT_OPS)
+def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, ops):
+    """Rule ``activation`` on column queues (traces in slots, crossings solved in numpy) is the dict queues' own.
+
+    With a capacity (the rows' width) and without one (rows that widen as queues grow,
+    from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).
+
+    As :func:`test_column_queues_decay_evict_and_clear_as_dict_queues`: ``plain`` keeps
+    dict queues, ``heard`` column queues with an event sink except while encoding members,
+    ``quiet`` column queues and no sink.  Encodings often refresh (traces beyond
+    ``HISTORY`` too) and the clock jumps past lifetimes, so entries go at crossings solved
+    for many slots at once.  Events (in order), queues, origins, exported items with
+    their traces, sizes and the change record (in order) must be equal.
+    """
+    from fsreg_ros.core.memory import Limits, WMBuffer
+    from fsreg_ros.core.memory import columns as column_queues
+
+    heard_events: list = []
+    plain_events: list = []
+    plain = WMBuffer("d", plain_events.append)
+    plain.column_min = 10**9
+    heard, quiet = WMBuffer("d", heard_events.append), WMBuffer("d")
+    buffers = (plain, heard, quiet)
+    for b in buffers[1:]:
+        b.column_min = 1
+    for b in buffers:
+        b.set_limits(Limits(capacity=capacity, activation=params), 0.0)
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH
+    column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
+    try:
+        _activation_ops(ops, plain, heard, quiet, plain_events, heard_events)
+    finally:
+        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = kept
+
+
+def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
+    """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing."""
+    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory import Limits, activation
+
+    buffers = (plain, heard, quiet)
+    ticks = seen = 0
+    now = 0.0
+    trimmed = False
+    for op in ops:
+        kind = op[0]
+        if kind == "members":
+            members = bitset.from_indices(sorted(op[1]), len(WM_ENTITIES))
+            heard.sink = plain.sink = None  # nobody listens to these encodings
+            for b in buffers:
+                b.encode_members(members, WM_ENTITIES, op[2], "reg-distractor", now, 1)
+            heard.sink, plain.sink = heard_events.append, plain_events.append
+        elif kind == "burst":
+            members = bitset.from_indices(sorted(op[1]), len(WM_ENTITIES))
+            heard.sink = plain.sink = None
+            for _ in range(op[3]):
+                for b in buffers:
+                    b.encode_members(members, WM_ENTITIES, op[2], "reg-distractor", now, 1)
+                now += op[4]
+            heard.sink, plain.sink = heard_events.append, plain_events.append
+            now += op[5]
+            for b in buffers:
+                b.advance(now)
+        elif kind == "encode":
+            for b in buffers:
+                b.encode(WM_ENTITIES[op[1]], op[2], "speaker", now, 2)
+        elif kind == "wait":
+            now += op[1]
+            for b in buffers:
+                b.advance(now)
+        elif kind == "creep":
+            for _ in range(op[1]):
+                now += 0.1
+                for b in buffers:
+                    b.advance(now)
+                assert len({tuple(tuple(b.queue(e)) for e in WM_ENTITIES) for b in buffers}) == 1, (op, now)
+        elif kind == "cross":
+            act = plain.activation
+            upcoming = [] if act is None else sorted(
+                c for entity, traces in act.traces.items() for prop, trace in traces.items()
+                if prop in plain._queues.get(entity, ())
+                for c in [activation.crossing(trace, act.decay, act.threshold)] if now < c < 1e6)
+            if len(upcoming) > op[1]:
+                now = max(now, upcoming[op[1]] + op[2])
+                for b in buffers:
+                    b.advance(now)
+        elif kind == "lazy":
+            run = TickRun(now, 0.5, ticks + 1, op[1])
+            ticks += op[1]
+            for b in buffers:
+                b.decay(run)
+        elif kind == "evict":
+            for b in buffers:
+                b.evict_oldest(op[1], "shared-capacity", now)
+        elif kind == "clear":
+            for b in buffers:
+                b.clear("reset", now, 3)
+        elif kind == "limits":
+            for b in buffers:
+                b.set_limits(Limits(capacity=op[1], activation=op[2]), now)
+        elif kind == "remove":
+            for b in buffers:
+                b.remove(WM_ENTITIES[op[1]], op[2], "retract", now)
+        elif kind == "take":
+            changes = [b.take_changes() for b in buffers]
+            if trimmed:  # new limits trim queues in no specified order
+                assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
+            else:
+                assert all(c == changes[0] for c in changes), (op, changes)
+            trimmed = False
+        if kind == "limits":
+            assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
+            trimmed = True
+        else:
+            assert heard_events[seen:] == plain_events[seen:], op
+        seen = len(plain_events)
+        assert len(heard_events) == seen
+        state = [({e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES},
+                  {e: b.export_queue(e) for e in WM_ENTITIES}, len(b)) for b in buffers]
+        assert all(s == state[0] for s in state), op
+        assert heard_events[seen:] == plain_events[seen:], op  # what the reads caught up
+        seen = len(plain_events)
+    changes = [b.take_changes() for b in buffers]
+    assert all(set(c) == set(changes[0]) for c in changes)
+
+
+@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
+@given(st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2), (0.5, -0.5 * np.log(10.0))]),
+       # (gaps of 0 or at least 1 us: a subnormal spread makes crossing() itself divide by zero)
+       st.lists(st.lists(st.just(0.0) | st.floats(1e-6, 30.0), min_size=1, max_size=25), min_size=1, max_size=12))
+def test_crossings_in_numpy_are_crossing_itself(params, gaps):
+    """:func:`activation.crossings` (numpy, many traces at once) finds :func:`activation.crossing`'s roots.
+
+    Each trace is kept in a slot of :class:`activation.TraceColumns` by encodings (the
+    Petrov approximation past ``HISTORY`` encodings included) and read back equal to the
+    :class:`activation.Trace` the same encodings make; its numpy root is within
+    ``_MARGIN`` (relative) of the scalar one.
+    """
+    from fsreg_ros.core.memory import activation
+
+    d, tau = params
+    span = activation.lifetime(d, tau)
+    columns = activation.TraceColumns(2, len(gaps))
+    expected, flat = [], []
+    for row, steps in enumerate(gaps):
+        slot = row % 2
+        at = slot * len(gaps) + row
+        time = float(row)
+        trace = activation.Trace(time)
+        columns.encoded(np.array([at]), np.array([False]), time, span, d)
+        for gap in steps[1:]:
+            time += gap
+            trace.add(time)
+            columns.encoded(np.array([at]), np.array([True]), time, span, d)
+        got = columns.get(slot, row)
+        assert (got.n, got.first, got.recent) == (trace.n, trace.first, trace.recent)
+        assert got.due <= activation.crossing(trace, d, tau)  # a lower bound (the crossing, for one encoding)
+        if trace.n > 1:
+            expected.append(activation.crossing(trace, d, tau))
+            flat.append(at)
+    if not flat:
+        return
+    n, first, times = columns.ordered(np.array(flat))
+    for start in (None, np.take(columns.due.reshape(-1), flat)):  # from the right, or from the lower bounds
+        roots, other = activation.crossings(n, first, times, d, tau, start)
+        for root, fallback, want in zip(roots.tolist(), other.tolist(), expected):
+            assert fallback or abs(root - want) <= activation._MARGIN * max(1.0, abs(want)) / 100, (root, want)

@@ -15,6 +15,7 @@ What lives where (one module per job; each docstring says what it owns):
 ``origins``        the origin log: which encoding made each entry enter its queue
 ``changes``        the change record: which queues changed since they were persisted
 ``columns``        column queues (numpy) for rule 2 and 3 encodings in a large domain
+                   (with ``activation``'s traces, :class:`~.activation.TraceColumns`)
 ``persistence``    export of queues and restore from a store
 ``host``           :class:`HostBuffer`: what the collaborators above use of the buffer
                    (a protocol, so that none imports ``buffer``)

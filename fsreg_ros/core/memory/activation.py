@@ -27,19 +27,30 @@ term alone keeps activation above tau until then; for one encoding it is c itsel
 and c is solved (:func:`crossing`, a few Newton steps) once the clock passes that
 bound, if the entry was not encoded again meanwhile.  An entry refreshed more often
 than its lifetime is never solved for.
+
+The queues of a large domain's rule 2 and 3 encodings are column queues
+(:mod:`fsreg_ros.core.memory.columns`): there each slot keeps its entry's trace
+(:class:`TraceColumns`), an encoding updates the traces of all its rows at once, and
+the entries of many rows whose bound passed are solved at once (:func:`crossings`,
+Newton's method in numpy).  numpy's ``pow`` is not Python's, so a numpy root is only
+kept as a lower bound a hair (:data:`_MARGIN`) below it; where the clock falls within
+that hair, :func:`crossing` itself decides, so an entry goes exactly when it would
+from a dict queue (:meth:`LazyActivation.passed`; test_core_fast_paths).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Any, Optional
+
+import numpy as np
 
 from ..decay import TIME_EPSILON
 from .host import HostBuffer
 from .limits import Limits
 from .queue import Queue
 
-#: Encoding times an entry keeps exactly (the Petrov approximation covers older ones).
+#: Encoding times an entry keeps exactly (the Petrov approximation covers older ones; a power of 2).
 HISTORY = 8
 #: No crossing (an entry that never falls below the threshold within the clock's range).
 NEVER = math.inf
@@ -47,6 +58,8 @@ NEVER = math.inf
 _LONGEST = 1e12
 #: The crossing time is solved to this relative precision.
 _PRECISION = 1e-13
+#: No column slots.
+_NO_SLOTS = np.zeros(0, dtype=np.intp)
 
 
 class Trace:
@@ -254,12 +267,127 @@ class LazyActivation:
         if self.settled == self.clock:
             return
         now = self.clock + TIME_EPSILON
+        columns = self.wm.columns
+        if columns.entities and columns.store.traces is not None:
+            rows = columns.store.non_empty()
+            if self.wm.sink is None:
+                self.settle_columns(rows)
+            else:  # what went must be reported: those queues become dict queues, brought up below
+                store = columns.store
+                for row in np.unique(self.passed(store, rows) % store.rows).tolist():  # (in row order)
+                    columns.to_dict(columns.bound[row])
         queues = self.wm._queues
         for entity in [e for e, due in self.due.items() if due <= now]:
             q = queues.get(entity)
             if q is not None:
                 self.sync(entity, q)
         self.settled = self.clock
+
+    # ------------------------------------------------------------ column queues
+    def release(self, entity: str) -> dict[str, Trace]:
+        """Hand over the traces of Q[entity] (moving to the column queues); this rule keeps them no longer."""
+        self.due.pop(entity, None)
+        return self.traces.pop(entity, {})
+
+    def take(self, entity: str, traces: dict[str, Trace]) -> None:
+        """Keep ``traces``, those of Q[entity] (back from the column queues)."""
+        self.traces[entity] = traces
+        self._refresh(entity)
+
+    def passed(self, store: Any, rows: np.ndarray) -> np.ndarray:  # store: a QueueColumns (columns imports this)
+        """Return the slots (flat indices) of column ``rows`` whose entry's crossing is at or before the clock.
+
+        Decided exactly as :meth:`sync` decides for a dict queue: a slot whose lower
+        bound passed is solved in numpy (:func:`crossings`, all at once); a root within
+        :data:`_MARGIN` of the clock, or one :func:`crossings` does not handle, is solved
+        by :func:`crossing` itself.  A numpy root is kept as a lower bound just below it.
+        """
+        traces = store.traces
+        now = self.clock + TIME_EPSILON
+        due = np.take(traces.due, rows, axis=1)
+        if not len(rows) or due.min() > now:
+            return _NO_SLOTS
+        hit = due <= now  # an empty slot's due is NEVER
+        slot, col = np.nonzero(hit)
+        flat = slot * store.rows + rows[col]
+        vague = ~np.take(traces.exact.reshape(-1), flat)
+        if vague.any():
+            self._solve(traces, flat[vague], now)
+            flat = flat[np.take(traces.due.reshape(-1), flat) <= now]
+        return flat
+
+    def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
+        due, exact = traces.flat_due, traces.flat_exact
+        if self.span > _LONGEST:
+            due[flat], exact[flat] = NEVER, True
+            return
+        width_rows = traces.n.shape[1]
+        if len(flat) <= _FEW:  # one by one is cheaper for a few
+            for f in flat.tolist():
+                trace = traces.get(f // width_rows, f % width_rows)
+                due[f], exact[f] = self._bracket(trace, now)
+            return
+        n, first, times = traces.ordered(flat)
+        roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
+        margin = _MARGIN * np.maximum(1.0, np.abs(roots))
+        due[flat] = roots - margin  # a lower bound of crossing()'s root
+        close = other | (np.abs(roots - now) <= margin)
+        for f in flat[close].tolist():  # too close to call: crossing() itself
+            trace = traces.get(f // width_rows, f % width_rows)
+            due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
+
+    def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
+        """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
+
+        :func:`crossing`'s root lies between two bounds: at most its start
+        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term; Newton
+        climbs to the root from the left), and, while n <= HISTORY, at least
+        ``mean(t_j) + n^(1/d) lifetime`` (x^-d is convex: the sum is at least n times the
+        term of the mean age).  With the clock clearly past the first (gone) or clearly
+        before the second (a new lower bound), no Newton step is needed.
+        """
+        d = self.decay
+        try:
+            reach = self.span * trace.n ** (1.0 / d)
+        except OverflowError:
+            reach = math.inf
+        last = trace.recent[-1]
+        if reach <= _LONGEST:
+            upper = last + reach
+            if upper + _MARGIN * max(1.0, abs(upper)) <= now:
+                return upper, False  # gone (a lower bound still: crossing() solves it if a queue must say when)
+            if trace.n <= HISTORY:
+                lower = math.fsum(trace.recent) / trace.n + reach
+                lower -= _MARGIN * max(1.0, abs(lower))
+                if lower > now:
+                    return lower, False
+        return crossing(trace, d, self.threshold), True
+
+    def forget_rows(self, rows: np.ndarray) -> np.ndarray:
+        """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
+
+        A row may recur in the result.  The buffer's size follows; its non-empty queues
+        and change record are the caller's.
+        """
+        store = self.wm.columns.store
+        flat = self.passed(store, rows)
+        if not len(flat):
+            return _NO_SLOTS
+        store.prop.reshape(-1)[flat] = -1
+        store.traces.due.reshape(-1)[flat] = NEVER
+        owners = flat % store.rows  # a row may recur
+        store.length[owners] = np.count_nonzero(np.take(store.prop, owners, axis=1) >= 0, axis=0)
+        self.wm._size -= len(flat)
+        return owners
+
+    def settle_columns(self, rows: np.ndarray) -> None:
+        """Bring column ``rows`` up to the clock (no events: only called without a sink)."""
+        if not len(rows):
+            return
+        owners = self.forget_rows(rows)
+        if len(owners):
+            self.wm.columns.emptied(owners)
+            self.wm.changes.mark_rows(owners)
 
     def _refresh(self, entity: str) -> None:
         traces = self.traces.get(entity)
@@ -280,5 +408,251 @@ def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
     decay, threshold = limits.activation
     act = LazyActivation(wm, decay, threshold, max(time, old.clock) if old is not None else time)
     for entity in wm._nonempty:
-        act.adopt(entity, wm._queues[entity], time, old.traces.get(entity) if old is not None else None)
+        q = wm._queues.get(entity)
+        if q is not None:  # a column queue keeps its traces (the limits' d and tau did not change: columns.fits)
+            act.adopt(entity, q, time, old.traces.get(entity) if old is not None else None)
     wm.activation = act
+
+
+#: A root found by :func:`crossings` (numpy) may differ from :func:`crossing`'s (Python floats, another
+#: ``pow``) in its last bits; both are within this relative distance of each other by far.
+_MARGIN = 1e-9
+#: :func:`crossings` leaves to :func:`crossing` the traces whose older presentations span less than
+#: 1/_ILL of their age (the Petrov term's rounding grows as that share shrinks).
+_ILL = 1e4
+#: Encoding counts up to which the crossing's lower bound ``n^(1/d)`` lifetimes is tabled (a larger count
+#: takes the last entry's, still a lower bound).
+_REACH = 1024
+#: Up to this many crossings at once, :func:`crossing` solves them one by one (cheaper than numpy's fixed cost).
+_FEW = 24
+#: :func:`crossings` stops when a step is this small (relative): Newton's error after it is far smaller.
+_SOLVED = 1e-11
+
+
+class TraceColumns:
+    """The :class:`Trace` of every entry of column queues: one per slot, as arrays (slots x rows).
+
+    Slot (k, r) holds the trace of the entry in slot k of row r (meaningless where that
+    slot is empty, whose ``due`` is :data:`NEVER`; an encoding into an empty or
+    displaced slot starts a new trace).  ``n`` counts its encodings, ``recent[k, r, i %
+    HISTORY]`` is the time of its i-th encoding (from 0; the last :data:`HISTORY` are
+    kept), so ``recent[k, r, 0]`` is its first time until the ring wraps; ``first`` keeps
+    the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
+    :class:`Trace`.  A crossing solved in numpy (:func:`crossings`) is kept only as a
+    lower bound just below it, ``exact`` False: so whether and when an entry goes is
+    decided exactly as for a dict queue (see :meth:`LazyActivation.passed`).
+    """
+
+    def __init__(self, width: int, rows: int) -> None:
+        self.n = np.zeros((width, rows), dtype=np.int64)
+        self.first = np.zeros((width, rows))
+        self.recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
+        self.due = np.full((width, rows), NEVER)
+        self.exact = np.zeros((width, rows), dtype=bool)
+        self.reach_of: Optional[tuple[float, float]] = None
+        self._flatten()
+
+    def _flatten(self) -> None:
+        self.flat_n, self.flat_first, self.flat_recent = self.n.reshape(-1), self.first.reshape(-1), \
+            self.recent.reshape(-1)
+        self.flat_due, self.flat_exact = self.due.reshape(-1), self.exact.reshape(-1)
+
+    def grow(self, extra: int) -> None:
+        """Add ``extra`` rows."""
+        width = self.n.shape[0]
+        self.n = np.concatenate([self.n, np.zeros((width, extra), dtype=np.int64)], axis=1)
+        self.first = np.concatenate([self.first, np.zeros((width, extra))], axis=1)
+        self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
+        self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
+        self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self._flatten()
+
+    def widen(self, extra: int) -> None:
+        """Add ``extra`` slots to every row."""
+        rows = self.n.shape[1]
+        self.n = np.concatenate([self.n, np.zeros((extra, rows), dtype=np.int64)])
+        self.first = np.concatenate([self.first, np.zeros((extra, rows))])
+        self.recent = np.concatenate([self.recent, np.zeros((extra, rows, HISTORY))])
+        self.due = np.concatenate([self.due, np.full((extra, rows), NEVER)])
+        self.exact = np.concatenate([self.exact, np.zeros((extra, rows), dtype=bool)])
+        self._flatten()
+
+    def get(self, slot: int, row: int) -> Trace:
+        """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
+        n = int(self.n[slot, row])
+        ring = self.recent[slot, row].tolist()
+        trace = Trace(float(self.first[slot, row]) if n > HISTORY else ring[0])
+        trace.n = n
+        trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+        trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
+        return trace
+
+    def row(self, row: int, slots: list[int]) -> list[Trace]:
+        """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once)."""
+        ns, firsts = self.n[:, row].tolist(), self.first[:, row].tolist()
+        rings, dues, exacts = self.recent[:, row].tolist(), self.due[:, row].tolist(), self.exact[:, row].tolist()
+        out = []
+        for k in slots:
+            n, ring = ns[k], rings[k]
+            trace = Trace(firsts[k] if n > HISTORY else ring[0])
+            trace.n = n
+            trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+            trace.due, trace.exact = dues[k], exacts[k]
+            out.append(trace)
+        return out
+
+    def put(self, slot: int, row: int, trace: Trace) -> None:
+        """Keep ``trace`` in slot ``(slot, row)``."""
+        n = trace.n
+        self.n[slot, row], self.first[slot, row] = n, trace.first
+        ring = [0.0] * HISTORY
+        for i, time in zip(range(n - len(trace.recent), n), trace.recent):
+            ring[i & (HISTORY - 1)] = time
+        self.recent[slot, row] = ring
+        self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
+
+    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (flat index): a refresh where ``present``.
+
+        ``span`` is one encoding's :func:`lifetime` under decay ``d``.  A new entry's
+        ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
+        ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every term
+        is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
+        latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
+        (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
+        """
+        n, recent = self.flat_n, self.flat_recent
+        old = n[flat]
+        old *= present  # encodings before this one (a new entry: none)
+        counts = old + 1
+        n[flat] = counts
+        wrapping = counts.max() > HISTORY
+        if wrapping:
+            first = self.flat_first
+            wraps = flat[counts == HISTORY + 1]
+        at = flat * HISTORY
+        if wrapping:  # the first time leaves the ring: keep it
+            first[wraps] = recent[wraps * HISTORY]
+        old &= HISTORY - 1
+        old += at
+        recent[old] = time
+        begin = recent[at]  # the first time (while n <= HISTORY)
+        reach = np.take(self._reach(d, span, time), counts, mode="clip")  # reach[1] < span
+        if wrapping:
+            older = counts > HISTORY
+            begin[older] = first[flat[older]]
+            spread = recent[((counts - HISTORY) & (HISTORY - 1)) + at] - begin
+            with np.errstate(over="ignore", invalid="ignore"):
+                right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
+            reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
+        begin += reach
+        self.flat_due[flat] = np.maximum(begin, time + span)
+        self.flat_exact[flat] = ~present
+
+    def _reach(self, d: float, span: float, time: float) -> np.ndarray:
+        """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.
+
+        The margin, ``_MARGIN (1 + |time| + k^(1/d) span)``, keeps ``first + reach[k]``
+        below :func:`crossing`'s own root, which is within 1e-13 of that size of the
+        true one.  Made once per (d, span) and shifted once per encoding time.
+        """
+        if self.reach_of != (d, span):
+            reach = [-math.inf]
+            for k in range(1, _REACH + 1):
+                try:
+                    reach.append(k ** (1.0 / d) * span * (1.0 - _MARGIN))
+                except OverflowError:
+                    reach.append(math.inf)
+            self.reach, self.reach_of, self.shifted_at = np.array(reach), (d, span), None
+        if self.shifted_at != time:
+            self.shifted, self.shifted_at = self.reach - _MARGIN * (1.0 + abs(time)), time
+        return self.shifted
+
+    def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the counts, first times and kept times of ``flat``.
+
+        The times are a (k x len(flat)) array, oldest first, k the most any of them keeps;
+        unused places hold -inf.
+        """
+        n = np.take(self.flat_n, flat)
+        kept = np.minimum(n, HISTORY)
+        start = n - kept  # index of the oldest encoding kept
+        depth = int(kept.max(initial=1))
+        times = np.full((depth, len(flat)), -np.inf)
+        recent = self.flat_recent
+        at = flat * HISTORY
+        for j in range(depth):
+            use = j < kept
+            times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
+        first = np.where(n > HISTORY, np.take(self.flat_first, flat), np.take(recent, at))
+        return n, first, times
+
+
+def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
+              start: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+    """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
+
+    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them; ``start``:
+    lower bounds of the roots, if known.  Newton's method on the same function as
+    :func:`crossing`, in numpy arithmetic (another ``pow``), from the lower bound when
+    given (F is concave and increasing: from the left it climbs to the root), stopped
+    at :data:`_SOLVED`: the roots are :func:`crossing`'s within :data:`_MARGIN`
+    (relative), not bit for bit.  Returns the roots and a mask of the traces this does
+    not handle (the crossing is past ``_LONGEST``, the start overflows, or the Petrov
+    term is ill-conditioned): solve those with :func:`crossing`.
+    """
+    span = lifetime(d, tau)
+    kept = np.minimum(n, HISTORY)
+    last = times[kept - 1, np.arange(len(n))]
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = last + span * n.astype(float) ** (1.0 / d)  # crossing()'s start, right of the root
+        other = ~np.isfinite(t) | (t - last > _LONGEST) | (span > _LONGEST)
+        older = (n - kept).astype(float)
+        with_older = older > 0
+        oldest = times[0]
+        spread = oldest - first
+        # The Petrov term cancels when the older presentations span little of their age: its
+        # rounding (another pow's) could move the root past _MARGIN.  Those go to crossing().
+        other |= with_older & (spread > 0.0) & (spread * _ILL < t - first)
+        floor = last + span
+        if start is not None:
+            t = np.maximum(np.minimum(start, t), floor)
+        t[other] = last[other]
+        root = t.copy()
+        active = np.flatnonzero(~other)
+        half = d == 0.5  # ACT-R's default: a square root is cheaper than a power
+        for _ in range(100):
+            if not len(active):
+                break
+            ta = t[active]
+            ages = ta - times[:, active]  # unused times are -inf: age inf, term 0
+            terms = 1.0 / np.sqrt(ages) if half else ages ** -d
+            total = terms.sum(axis=0)
+            slope = -d * (terms / ages).sum(axis=0)
+            wo = with_older[active]
+            if wo.any():
+                sub = np.flatnonzero(wo)
+                idx = active[sub]
+                tt = ta[sub]
+                f = first[idx]
+                o = oldest[idx]
+                sp = spread[idx]
+                k = older[idx]
+                first_term = (tt - f) ** -d
+                oldest_term = (tt - o) ** -d
+                flat_case = sp <= 0.0
+                add = np.where(flat_case, k * first_term,
+                               k * ((tt - f) * first_term - (tt - o) * oldest_term) / ((1.0 - d) * sp))
+                ds = np.where(flat_case, -(k * d * first_term / (tt - f)), k * (first_term - oldest_term) / sp)
+                total[sub] += add
+                slope[sub] += ds
+            power = total ** (-1.0 / d)
+            # F(t) = strength^(-1/d) - span, F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
+            step = -(power - span) / (-(1.0 / d) * (power / total) * slope)
+            ta = np.maximum(ta + step, floor[active])
+            t[active] = ta
+            done = np.abs(step) <= _SOLVED * np.maximum(1.0, np.abs(ta))
+            root[active[done]] = ta[done]
+            active = active[~done]
+        root[active] = t[active]
+    return root, other

@@ -328,24 +328,31 @@ class WMBuffer:
         domain's entity list, which may only grow by appending).  Exactly
         ``self.encode_each(bitset.names(members, entities), prop, ...)``: same queues,
         stamps, origins, sizes and change record.  With no event sink, limits of at
-        most an LRU capacity (Algorithm 3) and a domain of at least ``column_min``
-        entities, it is one column operation over the members' queues
-        (:mod:`fsreg_ros.core.memory.columns`), with their owed decay (Algorithm 2)
-        applied the same way, instead of Python work per entity.
+        most an LRU capacity (Algorithm 3) and rule ``activation`` (with a capacity or
+        without) and a domain of at least ``column_min`` entities, it is one column operation over the
+        members' queues (:mod:`fsreg_ros.core.memory.columns`), with their owed decay
+        (Algorithm 2) and activation crossings applied the same way, instead of Python
+        work per entity.
         """
         if not self.limits.retains or not members:
             return
         columns = self.columns
         rows = bitset.index_array(members) if columns.usable(entities, self.limits) else None
-        if rows is None or not columns.adopt(rows):
-            # a small domain, events, other limits, or a queue longer than the capacity (restored so)
+        if rows is None or not columns.adopt(rows) or not columns.room(rows):
+            # a small domain, events, other limits, a queue longer than the capacity (restored so), or
+            # (activation without a capacity) longer than the columns' widest
             self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
             return
         self.origin_log.log(self._stamp + 1, cause, turn)
         store = columns.store
         pid = columns.prop(prop)
         popped = pop_owed(store, rows, self.lazy_decay.ticks.count)
-        grew, was_empty = store.encode(rows, pid, self._stamp + 1)
+        act = self.activation
+        if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
+            act.advance(time)
+            act.forget_rows(rows)
+        traced = (time, act.span, act.decay) if act is not None else None
+        grew, was_empty = store.encode(rows, pid, self._stamp + 1, traced)
         self._stamp += len(rows)
         self._size += int(grew.sum()) - int(popped.sum())
         nonempty, bound = self._nonempty, columns.bound

@@ -8,10 +8,14 @@ encoding about three times dearer than at 1,000 (measured with a bare dict loop)
 :class:`QueueColumns` keeps such queues as arrays instead, so one call of
 :meth:`QueueColumns.encode` is Encode(e, [p]) (Algorithm 1) with displacement
 (Algorithm 3, LRU) for every row at once; owed decay ticks (Algorithm 2) are popped
-from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`.
+from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`, and, under
+rule ``activation``, entries whose activation fell below the threshold by
+:meth:`~fsreg_ros.core.memory.activation.LazyActivation.forget_rows` (each slot keeps
+its entry's trace: :class:`~fsreg_ros.core.memory.activation.TraceColumns`).
 
 Row r holds the queue of the r-th entity of the buffer's entity list in ``width``
-slots (the displacement capacity).  A slot holds a property id (-1: empty), the
+slots (the displacement capacity; rule ``activation`` without a capacity: as many as
+the longest queue needs, :meth:`ColumnQueues.room`).  A slot holds a property id (-1: empty), the
 entry's stamp and its origin reference: the stamp of the encoding that made the
 property enter the queue, or ``-(i + 1)`` for the buffer's i-th explicit origin (one
 restored from a store).  Slots are unordered: stamps are unique and grow, so a
@@ -24,7 +28,8 @@ columns (each queue lives in exactly one place, a dict :class:`Queue` or a row),
 entity list the rows are numbered by, property ids and restored origins, and the
 moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
 rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
-no event sink listens and the limits are at most an LRU capacity; anything else that
+no event sink listens and the limits are at most an LRU capacity and rule
+``activation``; anything else that
 touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
 so every other code path only ever sees dicts.
 """
@@ -35,6 +40,8 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
+from ..decay import TIME_EPSILON
+from .activation import HISTORY, NEVER, Trace, TraceColumns
 from .host import HostBuffer
 from .limits import Limits
 from .queue import Entry, Origin, Queue
@@ -49,16 +56,29 @@ COLUMN_MIN = 4096
 #: width x entities stays within this many slots (20 bytes each, held for every entity).
 COLUMN_MAX_WIDTH = 64
 COLUMN_MAX_SLOTS = 2**22
+#: Under rule ``activation`` each slot also keeps its entry's trace (HISTORY + 4 numbers).
+COLUMN_MAX_TRACED_SLOTS = COLUMN_MAX_SLOTS // (HISTORY + 4)
+
+#: The first width of rows that widen (rule ``activation`` without a capacity).
+_FIRST_WIDTH = 4
 
 #: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
 
 
 class QueueColumns:
-    """Queues of ``width`` slots, one row per entity (see the module docstring)."""
+    """Queues of ``width`` slots, one row per entity (see the module docstring).
 
-    def __init__(self, width: int, rows: int) -> None:
+    ``bounded``: the width is the displacement capacity (a full row loses its front);
+    otherwise (rule ``activation`` without a capacity) no queue is ever full, the
+    caller widening the rows first (:meth:`widen`).  ``traces`` (rule ``activation``): each slot's entry's trace
+    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.
+    """
+
+    def __init__(self, width: int, rows: int, traced: bool = False, bounded: bool = True) -> None:
         self.width = width
+        self.bounded = bounded  # width is the displacement capacity (else it grows: widen)
+        self.traces = TraceColumns(width, rows) if traced else None
         self.prop = np.full((width, rows), -1, dtype=np.int32)
         self.stamp = np.zeros((width, rows), dtype=np.int64)
         self.entry = np.zeros((width, rows), dtype=np.int64)
@@ -66,6 +86,16 @@ class QueueColumns:
         self.synced = np.zeros(rows, dtype=np.int64)  # decay ticks the row is up to date with
         self.held = np.zeros(rows, dtype=bool)  # the row's queue lives here
         self.changed = np.zeros(rows, dtype=np.int64)  # change-record mark of its first change (0: none)
+
+    def widen(self, width: int) -> None:
+        """Give every row ``width`` slots (more than now; the new ones empty)."""
+        extra, rows = width - self.width, self.rows
+        self.prop = np.concatenate([self.prop, np.full((extra, rows), -1, dtype=np.int32)])
+        self.stamp = np.concatenate([self.stamp, np.zeros((extra, rows), dtype=np.int64)])
+        self.entry = np.concatenate([self.entry, np.zeros((extra, rows), dtype=np.int64)])
+        if self.traces is not None:
+            self.traces.widen(extra)
+        self.width = width
 
     @property
     def rows(self) -> int:
@@ -84,6 +114,8 @@ class QueueColumns:
         self.synced = np.concatenate([self.synced, np.zeros(extra, dtype=np.int64)])
         self.changed = np.concatenate([self.changed, np.zeros(extra, dtype=np.int64)])
         self.held = np.concatenate([self.held, np.zeros(extra, dtype=bool)])
+        if self.traces is not None:
+            self.traces.grow(extra)
 
     # ------------------------------------------------------------ one row
     def read(self, row: int) -> list[tuple[int, int, int]]:
@@ -99,9 +131,16 @@ class QueueColumns:
         items.sort(key=lambda item: item[1])
         return items
 
+    def slots(self, row: int) -> list[int]:
+        """Return the slots of row ``row`` that hold an entry, LRU first."""
+        stamps = self.stamp[:, row].tolist()
+        return sorted((k for k, prop in enumerate(self.prop[:, row].tolist()) if prop >= 0), key=stamps.__getitem__)
+
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
         self.prop[:, row] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, row] = NEVER
         for k, (prop, stamp, entry) in enumerate(items):
             self.prop[k, row], self.stamp[k, row], self.entry[k, row] = prop, stamp, entry
         self.length[row] = len(items)
@@ -111,6 +150,8 @@ class QueueColumns:
     def start_empty(self, rows: np.ndarray, synced: int) -> None:
         """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
         self.prop[:, rows] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, rows] = NEVER
         self.length[rows] = 0
         self.synced[rows] = synced
         self.held[rows] = True
@@ -118,6 +159,8 @@ class QueueColumns:
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
         self.prop[:, row] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, row] = NEVER
         self.length[row] = 0
         self.held[row] = False
 
@@ -131,12 +174,17 @@ class QueueColumns:
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
         self.prop[:, gone] = -1
+        if self.traces is not None:  # an empty slot's trace is never due
+            self.traces.due[:, gone] = NEVER
         self.length[gone] = 0
         partial, counts = targets[~emptied], counts[~emptied]
         for done in range(int(counts.max(initial=0))):  # fewer than width rounds
             now = partial[counts > done]
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
-            self.prop.reshape(-1)[_first_minimum(stamps)[0] * self.rows + now] = -1
+            popped = _first_minimum(stamps)[0] * self.rows + now
+            self.prop.reshape(-1)[popped] = -1
+            if self.traces is not None:
+                self.traces.due.reshape(-1)[popped] = NEVER
             self.length[now] -= 1
 
     def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
@@ -156,7 +204,9 @@ class QueueColumns:
         where = props >= 0
         return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
 
-    def encode(self, rows: np.ndarray, prop: int, first_stamp: int) -> tuple[np.ndarray, np.ndarray]:
+    def encode(self, rows: np.ndarray, prop: int, first_stamp: int,
+               traced: Optional[tuple[float, float, float]] = None
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
 
         The rows must be up to date with decay (:func:`~fsreg_ros.core.memory.decay.pop_owed`)
@@ -166,6 +216,8 @@ class QueueColumns:
         one key per slot (the property itself -2, an empty slot -1, else its stamp) and
         its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
         ``argmax`` along the short axis would each cost more than the whole encoding.
+        ``traced`` (rule ``activation``): ``(time, lifetime, d)`` of the encoding, noted
+        in the encoded slots' traces (a displaced front's slot starts a new one).
         """
         props = np.take(self.prop, rows, axis=1)
         key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
@@ -178,6 +230,8 @@ class QueueColumns:
         self.prop.reshape(-1)[flat] = prop
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
+        if traced is not None:
+            self.traces.encoded(flat, present, *traced)
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
@@ -199,6 +253,11 @@ class QueueColumns:
         """Return every origin reference that is a stamp (> 0) held in any slot."""
         refs = self.entry[self.prop >= 0]
         return refs[refs > 0]
+
+
+def _columnar(limits: Limits) -> bool:
+    """Tell whether column queues can hold queues under ``limits``: an LRU capacity at most, and activation."""
+    return limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
 
 
 #: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
@@ -253,36 +312,73 @@ class ColumnQueues:
         """
         if self.store is None or not limits.retains:
             return True
-        return limits.lru_only and limits.capacity == self.store.width
+        store = self.store
+        return (_columnar(limits) and limits.capacity == (store.width if store.bounded else None)
+                and limits.activation == self.wm.limits.activation)  # activation: the traces' d and tau
 
     def usable(self, entities: Sequence[str], limits: Limits) -> bool:
-        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``."""
+        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``.
+
+        An LRU capacity is the rows' width; rule ``activation`` without a capacity
+        keeps rows that widen as their queues grow (:meth:`room`).
+        """
         capacity = limits.capacity
+        if capacity is None and limits.activation is None:
+            return False
+        width = capacity if capacity is not None else _FIRST_WIDTH
         return (
             len(entities) >= self.wm.column_min
             and self.wm.sink is None
-            and limits.lru_only
-            and capacity is not None
-            and capacity <= COLUMN_MAX_WIDTH
-            and capacity * len(entities) <= COLUMN_MAX_SLOTS
+            and _columnar(limits)
+            and width <= COLUMN_MAX_WIDTH
+            and width * len(entities) <= self._max_slots(limits.activation is not None)
             and self.bind(entities, capacity)
         )
 
-    def bind(self, entities: Sequence[str], width: int) -> bool:
-        """Bind rows to ``entities`` (the first list given) and size the store; False for another list."""
+    def bind(self, entities: Sequence[str], capacity: Optional[int]) -> bool:
+        """Bind rows to ``entities`` (the first list given) and size the store; False for another list.
+
+        ``capacity`` is the rows' width, or None for rows that widen (:meth:`room`).
+        """
         if self.bound is None:
             self.bound = entities  # type: ignore[assignment]
         elif entities is not self.bound:
             return False
-        if self.store is not None and self.store.width != width:
+        traced = self.wm.activation is not None
+        store = self.store
+        if store is not None and (store.bounded != (capacity is not None) or (store.traces is not None) != traced
+                                  or store.bounded and store.width != capacity):
             self.drop()
         if len(self.row) < len(entities):  # new entities were appended
             for i in range(len(self.row), len(entities)):
                 self.row[entities[i]] = i
         if self.store is None:
-            self.store = QueueColumns(width, len(entities))
+            self.store = QueueColumns(capacity if capacity is not None else _FIRST_WIDTH, len(entities), traced,
+                                      capacity is not None)
         self.store.grow(len(entities))
         return True
+
+    def room(self, rows: np.ndarray, longest: int = 0) -> bool:
+        """Make room for one more entry in each of ``rows`` (and for ``longest`` entries) in rows that widen.
+
+        False if that would pass :data:`COLUMN_MAX_WIDTH` or the slot limit (the caller
+        then goes queue by queue).  Bounded rows always have room (a full one displaces).
+        """
+        store = self.store
+        if store.bounded:
+            return True
+        need = max(int(store.length[rows].max(initial=0)) + 1, longest)
+        if need <= store.width:
+            return True
+        width = max(2 * store.width, need)
+        if width > COLUMN_MAX_WIDTH or width * store.rows > self._max_slots(store.traces is not None):
+            return False
+        store.widen(width)
+        return True
+
+    @staticmethod
+    def _max_slots(traced: bool) -> int:
+        return COLUMN_MAX_TRACED_SLOTS if traced else COLUMN_MAX_SLOTS
 
     def adopt(self, rows: np.ndarray) -> bool:
         """Move the queues of ``rows`` into the store (those not there yet); False, moving none, if one is longer.
@@ -297,12 +393,19 @@ class ColumnQueues:
         names = list(map(self.bound.__getitem__, fresh.tolist()))
         queues = self.wm._queues
         moving = sorted(queues.keys() & names, key=self.row.__getitem__)  # in entity order
-        if any(len(queues[name]) > store.width for name in moving):
+        longest = max((len(queues[name]) for name in moving), default=0)
+        if longest > store.width and (store.bounded or not self.room(rows[:0], longest)):
             return False
         store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
+        act = self.wm.activation
         for name in moving:
             q = queues.pop(name)
-            store.write(self.row[name], [self.item(prop, value) for prop, value in q.items()], q.synced)
+            row = self.row[name]
+            store.write(row, [self.item(prop, value) for prop, value in q.items()], q.synced)
+            if act is not None:  # each entry's trace goes with it (slot k: the k-th item written)
+                traces = act.release(name)
+                for k, prop in enumerate(q):
+                    store.traces.put(k, row, traces[prop])
         self.entities.update(names)
         return True
 
@@ -346,9 +449,21 @@ class ColumnQueues:
         if store.synced[row] != wm.lazy_decay.ticks.count and store.length[row]:
             if wm.sink is not None:
                 wm.lazy_decay.catch_up(entity)
-                return wm._queues[entity]
+                return wm._readable(entity)
             wm.lazy_decay.settle_columns(np.array([row]))
+        if wm.activation is not None and store.length[row] and store.traces.due[:, row].min() <= wm.activation.clock \
+                + TIME_EPSILON:  # something may have gone
+            if wm.sink is not None:  # what went must be reported: as a dict queue
+                self.to_dict(entity)
+                return wm._readable(entity)
+            wm.activation.settle_columns(np.array([row]))
         return self.row_dict(row)
+
+    def traces_of(self, entity: str) -> dict[str, Trace]:
+        """Return the traces of the entries of the column queue of ``entity`` (rule ``activation``)."""
+        row, store = self.row[entity], self.store
+        names, props, slots = self.prop_name, store.prop[:, row].tolist(), store.slots(row)
+        return dict(zip([names[props[k]] for k in slots], store.traces.row(row, slots)))
 
     def to_dict(self, entity: str) -> Queue:
         """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
@@ -357,6 +472,8 @@ class ColumnQueues:
         q.synced = int(store.synced[row])
         q.hits = None
         q.marked = False  # if it changed since the last take, a column mark says so
+        if self.wm.activation is not None and store.traces is not None:
+            self.wm.activation.take(entity, self.traces_of(entity))
         store.release(row)
         self.entities.discard(entity)
         return q

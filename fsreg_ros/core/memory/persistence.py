@@ -28,7 +28,8 @@ def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:
     if not q:
         return []
     if wm.activation is not None:
-        traces = wm.activation.traces.get(entity, {})
+        traces = (wm.columns.traces_of(entity) if entity in wm.columns.entities
+                  else wm.activation.traces.get(entity, {}))
         return [TracedItem(*item, traces[item[0]].to_json()) for item in _items(wm, q)]
     return _items(wm, q)
 
