@@ -11,7 +11,7 @@ from fsreg_ros.research.sweep import SweepConfig, metrics, summarise_runs, sweep
 def swept():
     config = SweepConfig(("decay", "decay+displacement", "none"), (5.0, 10.0, 80.0), (1, 2), (0, 1), 8,
                          changes=20.0, retraction=(True, False), listener=ListenerOptions(missing=0.1))
-    rows, curves, _ = sweep(config, progress=False)
+    rows, curves, _, _ = sweep(config, progress=False)
     return summarise_runs(rows, metrics(config)), curves
 
 

@@ -139,8 +139,9 @@ def record_live_session(path: Path) -> dict:
         recorder = Recorder(robot.session.probe, path, segment_seconds=0.5, attach={"scenario": SCENARIO},
                             custom={"fsreg.graph": robot.identity})
         robot.session.spin_until(lambda: recorder.matched()[f"{robot.namespace}/rr/result"] >= 1
-                                 and recorder.matched()[f"{robot.namespace}/wm/events"] >= 1, 10.0,
-                                 what="the recorder matched with the graph")
+                                 and recorder.matched()[f"{robot.namespace}/wm/events"] >= 1
+                                 and recorder.counts[f"{robot.namespace}/wm/state"] >= 1, 10.0,
+                                 what="the recorder matched with the graph and holds its latched state")
         robot.client.wait_matched("say", 10.0)
         said = robot.say("male, lab-coat, light-hair, glasses", time=1.0)
         assert said["resolved"] == "face1"
