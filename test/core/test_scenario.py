@@ -487,8 +487,8 @@ CASES = [
         "unknown-memory-key",
         FACES + "memory: {policy: decay, period: 3}\n",
         "memory.period",
-        "unknown key 'period' (known: policy, decay_period, capacity, global_capacity, seed, activation_decay, "
-        "activation_threshold, shared_capacity)",
+        "unknown key 'period' (known: policy, decay_period, capacity, global_capacity, seed, shared_capacity, "
+        "activation_decay, activation_threshold)",
         8,
     ),
     (
