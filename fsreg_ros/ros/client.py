@@ -57,6 +57,9 @@ CLASH_WAIT = 2.0
 DISCOVERY_WAIT = 2.5
 #: Seconds a waiting client lets its graph stay not ready (after it was ready) before reporting it gone.
 GONE_AFTER = 1.5
+#: Seconds the ready writer's liveliness must stay lapsed before the graph counts as gone (a stall
+#: of the WM Manager's process beyond its 1 s lease, as on a loaded machine, is not a death).
+LAPSE_CONFIRM = 0.8
 #: Seconds ``set_clock`` waits for the graph's nodes to subscribe the clock topic before publishing.
 CLOCK_DISCOVERY = 2.5
 #: Seconds between two ``/clock`` messages while ``set_clock`` waits for the graph's clock to reach the time.
@@ -142,6 +145,7 @@ class GraphClient:
         self.notice_leaving = False  # every wait checks that the graph is still there (:meth:`gone`)
         self._was_ready = False
         self._unready_since: Optional[float] = None
+        self._lapsed_since: Optional[float] = None  # when the ready writer's liveliness lapsed (None: alive)
         self._gone_checked = 0.0
         self.limits = Limits()  # the graph's size limits (the nodes' defaults), checked before sending
         self._clock = node.create_publisher(Clock, contract.CLOCK, 10)
@@ -167,13 +171,19 @@ class GraphClient:
 
     def _on_liveliness(self, info) -> None:
         self._ready_alive = info.alive_count
+        if info.alive_count == 0:
+            self._lapsed_since = self._lapsed_since or time.monotonic()
+        else:
+            self._lapsed_since = None
 
     def gone(self) -> Optional[str]:
         """Return why this client's graph has left (None while it is there, or before it was found).
 
         Gone: its WM Manager's ``wm_manager/ready`` writer is no longer matched (the
-        process stopped), or its liveliness lapsed (the process died: within the topic's
-        1 s lease), or the graph said ``ready`` and then not for :data:`GONE_AFTER` s.
+        process stopped), or its liveliness lapsed for :data:`LAPSE_CONFIRM` s (the process
+        died: within the topic's 1 s lease and that; a process that only stalled for a
+        moment, as on a loaded machine, comes back within it), or the graph said ``ready``
+        and then not for :data:`GONE_AFTER` s.
         """
         message = self.readiness()
         if message is None:
@@ -181,9 +191,9 @@ class GraphClient:
         who = f"graph {describe_graph(self.graph or message.get(contract.GRAPH_FIELD))} in {self.where()}"
         if self._ready_sub.get_publisher_count() == 0:
             return f"{who} left: its WM Manager stopped"
-        if self._ready_alive == 0:
-            return f"{who} left: its WM Manager's liveliness lapsed (the process died)"
         now = time.monotonic()
+        if self._ready_alive == 0 and self._lapsed_since is not None and now - self._lapsed_since >= LAPSE_CONFIRM:
+            return f"{who} left: its WM Manager's liveliness lapsed (the process died)"
         if message["ready"]:
             self._was_ready, self._unready_since = True, None
         elif self._was_ready:
