@@ -114,6 +114,7 @@ def test_two_graphs_on_one_namespace_are_refused(table1_path):
         with RosSession(robot.namespace) as intruder:
             intruder.add(WMManagerNode, name="wm_manager", domains=["faces"], graph="intruder-0001")
             fresh = GraphClient(robot.session.probe, robot.session.executor)
+
             def both() -> bool:  # the intruder's executor serves its node too (it publishes as it runs)
                 intruder.executor.spin_once(timeout_sec=0.0)
                 return len(fresh.ready_messages) >= 2
