@@ -43,7 +43,7 @@ from ..core.resolution import NO_MATCH, resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation import Options, Simulation, human_record
 from ..core.wm_manager import WMManager
-from .listener import Listener, ListenerOptions
+from .listener import Listener, ListenerOptions, speak
 from .world import (  # noqa: F401 (ATTRIBUTES, OBJECTS, ROBOT_ORDER: the world's names stay importable from here)
     ATTRIBUTES, DOMAIN, DOMAIN_ATTRIBUTES, EXCLUSIVE, MUTABLE, OBJECTS, PROPERTY_ATTRIBUTE, ROBOT_ORDER, ROBOT_ORDERS,
     WORLDS,
@@ -274,9 +274,7 @@ class HumanSpeaker:
 
     def say(self, target: str, domain: str, time: float, turn: int) -> list[str]:
         """Return the human's description of ``target`` at ``time`` (encoding it in the human's WM)."""
-        self.manager.advance(time)
-        return describe(target, self.consultants[domain], self.algorithms[domain], attributes=PROPERTY_ATTRIBUTE,
-                        writes=True, time=time, turn=turn).description
+        return speak(self, target, domain, time, turn)
 
     def hear(self, description: Sequence[str], domain: str, time: float, turn: int) -> None:
         """Resolve the robot's description in the human's WM."""

@@ -159,6 +159,18 @@ def perceive(boards: Mapping[str, Mapping[str, Sequence[str]]], seed: int, missi
     return seen, errors
 
 
+def speak(agent: Any, target: str, domain: str, time: float, turn: int) -> list[str]:
+    """Return an agent's description of ``target`` at ``time``, encoding it in the agent's own WM.
+
+    ``agent`` has a ``manager`` (its WMManager), ``consultants`` and ``algorithms`` per domain:
+    the listener and the human speaker of :mod:`.games` describe the same way (SD-PIA over
+    their WM, DIST-PIA under ``none``).
+    """
+    agent.manager.advance(time)
+    return describe(target, agent.consultants[domain], agent.algorithms[domain], attributes=PROPERTY_ATTRIBUTE,
+                    writes=True, time=time, turn=turn).description
+
+
 class Listener:
     """The agent the robot speaks to: its own knowledge per domain, optionally a WM and a voice of its own.
 
@@ -187,9 +199,7 @@ class Listener:
 
     def say(self, target: str, domain: str, time: float, turn: int) -> list[str]:
         """Return the listener's description of ``target`` (encoding it in its WM); needs a memory."""
-        self.manager.advance(time)
-        return describe(target, self.consultants[domain], self.algorithms[domain], attributes=PROPERTY_ATTRIBUTE,
-                        writes=True, time=time, turn=turn).description
+        return speak(self, target, domain, time, turn)
 
     def see(self, change: Any) -> None:
         """Take in a fact change as it is: the entity's attribute now has the new value."""
