@@ -238,3 +238,28 @@ def test_a_node_started_without_any_fsreg_environment_listens_on_loopback_only(t
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+@pytest.mark.graph
+def test_fast_dds_errors_go_to_stderr_not_into_a_tools_answer(tmp_path):
+    """Fast DDS's default log consumer writes to stdout; when it cannot lock a shared-memory port (a stale or
+    busy ``/dev/shm/fastrtps_port*`` lock, seen on loaded CI machines) its error lines would sit in front of a
+    tool's answer, which scripts read.  The loopback profile sends Fast DDS's log to stderr.  Here the lock
+    file of the first ports of a domain of its own is a symlink loop, so opening it fails as it did in CI."""
+    domain = (int(os.environ["ROS_DOMAIN_ID"]) + 117) % 230
+    locks = [Path(f"/dev/shm/fastrtps_port{7400 + 250 * domain + 11 + 2 * i}_el") for i in range(4)]
+    for lock in locks:
+        lock.unlink(missing_ok=True)
+        lock.symlink_to(lock)
+    try:
+        proc = subprocess.run([str(BIN / "fsreg-ctl"), "--namespace", "nobody_here", "status", "--json",
+                               "--timeout", "1"], env={**node_env(), "ROS_DOMAIN_ID": str(domain)}, cwd=tmp_path,
+                              capture_output=True, text=True, timeout=60)
+    finally:
+        for lock in locks:
+            lock.unlink(missing_ok=True)
+    assert "open_and_lock_file failed" in proc.stderr  # the fault was provoked...
+    assert proc.stdout == ""  # ...and is not in the answer
+    assert proc.returncode == 3
+    assert proc.stderr.splitlines()[-1] == (f"fsreg-ctl: error: no fsreg graph answers in namespace /nobody_here on "
+                                            f"ROS domain {domain} (is fsreg-up running there?): nothing within 1 s")
