@@ -1,6 +1,6 @@
 """The public test harness, ``fsreg_ros.testing``: as a robot builder's test uses it, and what it guarantees.
 
-The README's integration test is run as it stands, by pytest in a subprocess (so the
+The integration test of docs/testing.md is run as it stands, by pytest in a subprocess (so the
 ``fsreg_graph`` fixture comes from the installed plugin, as for any user).  Then: a graph
 of processes that survives a consultant restart, a graph on a private ROS domain, an
 answer stamped by another graph rejected, two graphs on one namespace refused (by the
@@ -27,16 +27,16 @@ REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
 
-def readme_block(marker: str) -> str:
-    """Return the README's python block that contains ``marker``."""
-    blocks = re.findall(r"```python\n(.*?)```", (REPO / "README.md").read_text(), re.S)
+def docs_block(marker: str) -> str:
+    """Return docs/testing.md's python block that contains ``marker``."""
+    blocks = re.findall(r"```python\n(.*?)```", (REPO / "docs" / "testing.md").read_text(), re.S)
     (block,) = [b for b in blocks if marker in b]
     return block
 
 
-def test_the_readme_integration_test_runs_as_it_stands(tmp_path):
+def test_the_documented_integration_test_runs_as_it_stands(tmp_path):
     test = tmp_path / "test_robot.py"
-    test.write_text(readme_block("from fsreg_ros.testing import LiveGraph"))
+    test.write_text(docs_block("from fsreg_ros.testing import LiveGraph"))
     assert len(test.read_text().splitlines()) <= 20  # "a dozen lines" per test
     proc = subprocess.run([sys.executable, "-m", "pytest", str(test), "-q", "-p", "no:cacheprovider"], cwd=REPO,
                           capture_output=True, text=True, timeout=300)
