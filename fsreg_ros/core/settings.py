@@ -45,6 +45,8 @@ class Setting:
     per-domain parameter value meaning "use the node-wide one" (outside the bounds, so
     it cannot be a real value).  ``rules`` are the forgetting rules that read the
     setting; a rule needs it unless ``fallback`` is set (the value used when unset).
+    ``symbol`` names the setting in figures and tables (``δ``), ``word`` in plain-text
+    labels such as a sweep's (``delta``), ``axis`` on a plot's axis.
     """
 
     name: str
@@ -58,6 +60,9 @@ class Setting:
     fallback: Optional[Number] = None
     unit: str = ""
     metavar: str = "N"
+    symbol: str = ""
+    word: str = ""
+    axis: str = ""
 
     @property
     def option(self) -> str:
@@ -118,23 +123,29 @@ TABLE: tuple[Setting, ...] = (
             "not both", metavar="P"),
     Setting("decay_period", float, 10.0, 0.0,
             "decay: seconds between ticks (delta); a tick at time T is applied before any turn stamped T",
-            MIN_DECAY_PERIOD, MAX_DECAY_PERIOD, rules=("decay",), unit="seconds", metavar="S"),
+            MIN_DECAY_PERIOD, MAX_DECAY_PERIOD, rules=("decay",), unit="seconds", metavar="S",
+            symbol="δ", word="delta", axis="decay period δ (s)"),
     Setting("capacity", int, 2, 0, "displacement rules: at most this many properties per entity's WM queue (alpha)",
-            1, 10_000, rules=("displacement", "displacement-lfu", "displacement-random")),
+            1, 10_000, rules=("displacement", "displacement-lfu", "displacement-random"),
+            symbol="α", word="alpha", axis="capacity α (properties per entity)"),
     Setting("global_capacity", int, 6, 0, "global-capacity: at most this many properties in the domain's WM",
-            1, 1_000_000, rules=("global-capacity",)),
+            1, 1_000_000, rules=("global-capacity",), symbol="global", word="global",
+            axis="global capacity (properties per domain)"),
     Setting("seed", int, 0, -1, "displacement-random: seed of the random victim choice", 0, 2**31 - 1,
-            rules=("displacement-random",), fallback=0),
+            rules=("displacement-random",), fallback=0, symbol="seed", word="seed", axis="seed"),
     Setting("shared_capacity", int, 12, 0,
             "shared-capacity: at most this many properties in the pool of every domain with that rule "
-            "(the smallest value wins), trimmed before each turn", 1, 1_000_000, rules=("shared-capacity",)),
+            "(the smallest value wins), trimmed before each turn", 1, 1_000_000, rules=("shared-capacity",),
+            symbol="pool", word="pool", axis="shared pool (properties, all domains)"),
     Setting("activation_decay", float, 0.5, 0.0,
             "activation: decay rate d of a property's ACT-R base-level activation ln sum_j (t - t_j)^-d",
-            MIN_ACTIVATION_DECAY, MAX_ACTIVATION_DECAY, rules=("activation",), fallback=0.5, metavar="D"),
+            MIN_ACTIVATION_DECAY, MAX_ACTIVATION_DECAY, rules=("activation",), fallback=0.5, metavar="D",
+            symbol="d", word="d", axis="activation decay d (ACT-R)"),
     Setting("activation_threshold", float, -1.0, -1000.0,
             "activation: a property leaves WM when its activation falls below this threshold (tau; one encoding "
             "stays exp(-tau/d) seconds)", -MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD,
-            rules=("activation",), metavar="TAU"),
+            rules=("activation",), metavar="TAU", symbol="τ", word="tau",
+            axis="activation threshold τ (ACT-R; d = activation_decay)"),
 )
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from ..core import settings
 from .grid import BOUNDS, GRID
 from .stats import METHOD, bootstrap_ci
 
@@ -41,14 +42,10 @@ CAUSE_COLOURS = {
 }
 TURN_STYLE = {"human": ("dimgray", ":"), "robot": ("darkgray", "--"), None: ("silver", "-")}
 #: Names of the grid parameters on plot axes, with units.
-AXIS = {"decay_period": "decay period δ (s)", "capacity": "capacity α (properties per entity)",
-        "global_capacity": "global capacity (properties per domain)",
-        "shared_capacity": "shared pool (properties, all domains)",
-        "activation_threshold": "activation threshold τ (ACT-R; d = activation_decay)"}
-#: Short names of the grid parameters in legends.
-SHORT = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool",
-         "activation_threshold": "τ"}
-INTEGER = ("capacity", "global_capacity", "shared_capacity")
+AXIS = {row.name: row.axis for row in settings.parameters()}
+#: Each grid parameter's short name in legends and titles: ``δ = 10``.
+SHORT = {row.name: row.symbol for row in settings.parameters()}
+INTEGER = tuple(row.name for row in settings.parameters() if row.kind is int)
 #: What each policy plot shows, panel by panel: (metric, title, y-axis label with its unit); dynamic games add one.
 PANELS = (
     ("entrainment_gain", "entrainment gain over none", "Δ Dice with the human's\nlast description"),
@@ -109,10 +106,10 @@ def _grid_parameters(entries: Sequence[dict]) -> list[str]:
 
 
 def _x_axis(ax, x_param: Optional[str], xs_all: Sequence[float]) -> None:
-    """Ticks at the grid's values; a logarithmic axis (said in its label) for decay periods over decades."""
+    """Ticks at the grid's values; a logarithmic axis (said in its label) for positive values over decades."""
     label = AXIS.get(x_param, "") if x_param else ""
-    if x_param == "decay_period" and len(xs_all) > 2 and xs_all[-1] / xs_all[0] > 8:
-        ax.set_xscale("log")  # periods spread over decades: equal steps for doublings
+    if x_param not in INTEGER and len(xs_all) > 2 and xs_all[0] > 0 and xs_all[-1] / xs_all[0] > 8:
+        ax.set_xscale("log")  # values (decay periods) spread over decades: equal steps for doublings
         ax.minorticks_off()
         label += ", log scale"
     ax.set_xticks(xs_all)

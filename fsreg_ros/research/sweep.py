@@ -66,6 +66,7 @@ from typing import Any, Mapping, Optional, Sequence
 from ..core.alignment import ORIGINS, entrainment_gain, length_matched
 from ..core.forgetting import RULE_PARAMETERS, parse_rules
 from ..core.lexicon import Lexicon
+from ..core.settings import setting as memory_setting
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
 from .grid import BOUNDS, GRID
@@ -173,9 +174,7 @@ class Setting:
 
     def label(self) -> str:
         """Return e.g. ``decay delta=10`` or ``displacement alpha=2, not told``."""
-        names = {"decay_period": "delta", "capacity": "alpha", "global_capacity": "global",
-                 "shared_capacity": "pool", "activation_threshold": "tau"}
-        params = ", ".join(f"{names[p]}={_number(v)}" for p, v in self.parameters().items())
+        params = ", ".join(f"{memory_setting(p).word}={_number(v)}" for p, v in self.parameters().items())
         text = f"{self.policy} {params}".strip()
         return text if self.retraction else f"{text} (not told)"
 

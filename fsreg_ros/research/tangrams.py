@@ -852,8 +852,7 @@ def setting_text(fit: Fit) -> str:
     s = fit.setting
     if fit.kind == "recency":
         return ", ".join(f"{k} {v:+.3f}" for k, v in s.items())
-    names = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool"}
-    params = [f"{names.get(k, k)} = {v:g}" for k, v in s.items() if k not in ("policy", "p_in", "p_out")]
+    params = [f"{table.setting(k).symbol} = {v:g}" for k, v in s.items() if k not in ("policy", "p_in", "p_out")]
     if fit.in_wm == 0.0 or fit.name in ("constant", "none"):
         link = f"rate {s['p_out']:.3f}"
     elif fit.name == "no-forgetting":

@@ -29,6 +29,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
+from ..core.settings import setting as memory_setting
+from ..research.grid import GRID
+
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ("README.md", "docs/research.md")
 OUT = "out/figures"
@@ -236,8 +239,7 @@ def max_outdated(figure: "Figure", output: Output) -> str:
 
 
 def _setting_label(row: dict) -> str:
-    names = {"decay_period": "δ", "capacity": "α", "global_capacity": "global", "shared_capacity": "pool"}
-    params = ", ".join(f"{names[p]} = {float(row[p]):g}" for p in names if row.get(p))
+    params = ", ".join(f"{memory_setting(p).symbol} = {float(row[p]):g}" for p in GRID if row.get(p))
     told = "" if row.get("retraction", "on") == "on" else " (not told)"
     return f"{row['policy']} {params}".strip() + told
 
