@@ -159,7 +159,9 @@ class LiveGraph:
         for the parser, RR and REG one answer that changes nothing (an empty
         description; a target nobody knows).
         """
-        spec = next(s for s in self.specs if s.name == name)
+        spec = next((s for s in self.specs if s.name == name), None)
+        if spec is None:
+            raise ValueError(f"no node '{name}' in this graph (its nodes: {', '.join(s.name for s in self.specs)})")
         client = self._client()
         before = client.readiness() or {}
         if self.graph is not None:

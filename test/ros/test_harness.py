@@ -67,6 +67,9 @@ def test_a_graph_of_processes_keeps_its_facts_across_a_consultant_restart(table1
         described = robot.describe("face17")  # the runtime facts too, and WM first (SD-PIA); first send succeeds
         assert described["description"] == ["female", "light-hair"] and described["sources"] == ["wm", "wm"]
         assert robot.say(description=["female", "light-hair"])["resolved"] == "face17"  # RR's first, too
+        with pytest.raises(ValueError, match=r"no node 'faces' in this graph \(its nodes: consultant_faces, "
+                                             r"wm_manager, parser, reference_resolution, reg\)"):
+            robot.restart("faces")  # the node's name, not the domain's: said, not a StopIteration
 
 
 def test_a_graph_on_a_ros_domain_of_its_own(table1_path):

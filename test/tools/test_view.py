@@ -194,3 +194,58 @@ def test_view_in_a_browser(tmp_path):
     assert unescape(expression["text"]) in unescape(dom)
     assert 'id="ready" class="yes"' in dom
     assert re.search(r'data-resolved="face1"', dom)
+
+
+@pytest.mark.slow
+@pytest.mark.graph
+def test_the_view_follows_a_consultant_restart_and_a_clock_jump_in_a_browser(tmp_path):
+    """The view keeps serving while the consultant is killed and restarted (its state restored, a new
+    incarnation), then the clock jumps two decay ticks at once: Chromium shows incarnation 2, face1's WM
+    after both pops with the times of the next ones, and what the human said after the restart."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from fsreg_ros.testing import LiveGraph
+
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "guess_who_table1.yaml"
+    with LiveGraph(scenario, processes=True, policy="decay", decay_period=10.0, state_dir=tmp_path) as robot:
+        view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
+                                 "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env=dict(os.environ))
+        try:
+            line = view.stdout.readline()
+            match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
+            assert match, line + view.stderr.read() if view.poll() is not None else line
+            url = match.group(1)
+            robot.set_clock(1.0)
+            assert robot.say("male, lab-coat, light-hair, glasses")["resolved"] == "face1"
+            robot.restart("consultant_faces")
+            robot.set_clock(25.0)  # a jump over the ticks at 10 and 20
+            assert robot.say("female, glasses")["resolved"] == "face2"
+            expected = {entity: robot.wm(entity) for entity in ("face1", "face2")}
+            assert len(expected["face1"]) == 2
+            deadline = time.monotonic() + 10
+            while True:  # the view has heard the state the graph holds now
+                snap = json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())
+                faces = snap["domains"].get("faces", {})
+                shown = {e: [p["property"] for p in faces.get("entities", {}).get(e, [])] for e in expected}
+                if faces.get("incarnation") == 2 and shown == expected:
+                    break
+                assert time.monotonic() < deadline, (snap, expected)
+                time.sleep(0.1)
+            assert view.poll() is None  # it kept serving throughout
+            dom = page_dom(url)
+        finally:
+            view.terminate()
+            view.wait(timeout=10)
+    assert "faces (incarnation 2)" in dom
+    rows = dict(re.findall(r'<tr class="entity" data-entity="(face\d)">(.*?)</tr>', dom))
+    entries = {entity: re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="[^"]+" '
+                                  r'data-forget-at="([^"]+)"', rows[entity]) for entity in expected}
+    assert [p for p, _ in entries["face1"]] == expected["face1"]
+    assert [float(t) for _, t in entries["face1"]] == [30.0, 40.0]  # the next two ticks, front first
+    assert [p for p, _ in entries["face2"]] == expected["face2"]
+    assert re.search(r'data-resolved="face2"', dom)
