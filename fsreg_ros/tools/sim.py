@@ -189,7 +189,7 @@ def write_run_files(args: argparse.Namespace, runs: dict[str, tuple], results: d
 
             path = args.plot_dir / f"{name}.png"
             wm_timeline(trace, path, results[label], f"{args.scenario.stem} under {label}: working memory over time")
-            written.append(path)
+            written += [path, path.with_suffix(".pdf")]  # wm_timeline draws both formats
     return written
 
 

@@ -170,7 +170,9 @@ def test_trace_dir_and_plot_dir_write_one_file_per_policy(table1_path, tmp_path,
 def test_plot_dir_in_text_mode_says_where(table1_path, tmp_path, capsys):
     assert sim_main([str(table1_path), "--policy", "decay", "--plot-dir", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert out.splitlines()[-1] == f"files written: {tmp_path / 'guess_who_table1-decay.png'}"
+    assert out.splitlines()[-1] == (f"files written: {tmp_path / 'guess_who_table1-decay.png'}, "
+                                    f"{tmp_path / 'guess_who_table1-decay.pdf'}")
+    assert (tmp_path / "guess_who_table1-decay.pdf").read_bytes().startswith(b"%PDF")
 
 
 def test_unwritable_plot_dir_is_one_line_exit_2(table1_path, tmp_path, capsys):
