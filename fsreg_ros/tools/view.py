@@ -28,7 +28,8 @@ from .view_page import PAGE, SNAPSHOT_SLOT
 #: Where the page is served by default (``--port 0`` takes a free port).
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
-#: How often the WM Manager's status (next decay tick, settings) is asked for, seconds.
+#: The WM Manager's status (each domain's next decay tick) is asked for when it may have
+#: changed (:meth:`ViewModel.status_wanted`), at most once every so many seconds.
 STATUS_EVERY = 0.5
 #: How long the view waits for its subscriptions to match the graph's publishers before serving, seconds.
 MATCH_WAIT = 5.0
@@ -138,8 +139,9 @@ class LiveView:
     """The view of one graph: its model, its server and the client that feeds them.
 
     ``start`` binds the address (OSError if it cannot) and subscribes; ``step`` spins the
-    client's executor once and asks the WM Manager's status every :data:`STATUS_EVERY`
-    seconds; ``stop`` closes the server.  ``fsreg-ctl view`` loops on ``step``; so does
+    client's executor once and, when the model wants it (at the start, after a readiness
+    message, once a decay tick is reached), asks the WM Manager's status, at most every
+    :data:`STATUS_EVERY` seconds; ``stop`` closes the server.  ``fsreg-ctl view`` loops on ``step``; so does
     ``fsreg-up --view`` between its supervision of the nodes.
     """
 
@@ -165,7 +167,7 @@ class LiveView:
         self.client.executor.spin_once(timeout_sec=timeout)
         if self.client.foreign is not None:
             raise ClientError(self.client.foreign, "foreign")
-        if time.monotonic() >= self._next_status:
+        if self.model.status_wanted() and time.monotonic() >= self._next_status:
             self._next_status = time.monotonic() + STATUS_EVERY
             try:
                 self.model.on_status(self.client.status(timeout=2.0))

@@ -53,6 +53,7 @@ class ViewModel:
         self._said: dict[str, int] = {}  # request id -> index of its line in the dialogue
         self._ready: Optional[dict] = None
         self._status: Optional[dict] = None
+        self._ready_since_status = False  # a ready message (settings, incarnations) newer than the status
         self._time: Optional[float] = None
 
     # ------------------------------------------------------------ input
@@ -120,6 +121,7 @@ class ViewModel:
         """``wm_manager/ready``: readiness and each domain's running memory settings."""
         with self._lock:
             self._ready = dict(ready)
+            self._ready_since_status = True
             self._clock(ready.get("time"))
             self._changed()
 
@@ -127,8 +129,22 @@ class ViewModel:
         """Take the WM Manager's status (the next decay tick of each domain, its settings)."""
         with self._lock:
             self._status = dict(status)
+            self._ready_since_status = False
             self._clock(status.get("time"))
             self._changed()
+
+    def status_wanted(self) -> bool:
+        """Whether the WM Manager's status may have changed since the last one taken.
+
+        It only adds each domain's next decay tick to what the topics say, so it is
+        wanted at the start, after a ``wm_manager/ready`` (settings or an incarnation
+        changed) and once the clock has reached a next tick (the tick after it is due).
+        """
+        with self._lock:
+            if self._status is None or self._ready_since_status:
+                return True
+            ticks = [t for t in (self._status.get("next_tick") or {}).values() if isinstance(t, (int, float))]
+            return self._time is not None and any(self._time >= t for t in ticks)
 
     def _clock(self, t: Any) -> None:
         if isinstance(t, (int, float)) and (self._time is None or t > self._time):

@@ -85,6 +85,26 @@ def test_a_restarted_consultant_replaces_its_state():
     assert (snap["incarnation"], snap["entities"]) == (2, {})
 
 
+def test_the_status_is_wanted_only_when_it_may_have_changed():
+    """The view asks the WM Manager's status (each domain's next decay tick) at the start, after a readiness
+    message and once the clock reaches a next tick; not otherwise (it used to ask twice a second)."""
+    model = ViewModel()
+    assert model.status_wanted()  # nothing known yet
+    model.on_status({"time": 1.0, "next_tick": {"faces": 10.0}, "memory": {}})
+    assert not model.status_wanted()
+    model.on_state(state("faces", 9.5, {"face1": ["male"]}))
+    assert not model.status_wanted()  # before the tick
+    model.on_state(state("faces", 10.0, {"face1": []}, version=2))
+    assert model.status_wanted()  # the tick at 10 is reached: the next one is due
+    model.on_status({"time": 10.0, "next_tick": {"faces": 20.0}, "memory": {}})
+    assert not model.status_wanted()
+    model.on_ready({"ready": True, "time": 10.5, "domains": {"faces": {"configured": True, "incarnation": 2}}})
+    assert model.status_wanted()  # settings or an incarnation changed
+    model.on_status({"time": 10.5, "next_tick": {"faces": None}, "memory": {}})  # decay switched off
+    model.on_state(state("faces", 1e6, {}, version=3))
+    assert not model.status_wanted()  # no tick to wait for
+
+
 def test_server_binds_loopback_and_pushes_changes_within_200_ms():
     model = ViewModel()
     server = ViewServer(model, "127.0.0.1", 0)
