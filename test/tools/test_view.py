@@ -7,7 +7,12 @@ Chromium (Debian's ``chromium``, installed by scripts/venv.sh where missing).
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import re
+import subprocess
+import sys
 import time
 import urllib.request
 
@@ -150,7 +155,6 @@ def chromium() -> str:
 
 def page_dom(url: str) -> str:
     """The page as Chromium renders it after its scripts ran (headless, no sandbox as root)."""
-    import subprocess
     import tempfile
 
     with tempfile.TemporaryDirectory() as profile:
@@ -161,14 +165,26 @@ def page_dom(url: str) -> str:
     return result.stdout
 
 
+@contextlib.contextmanager
+def served_view(robot):
+    """``fsreg-ctl view --port 0`` of ``robot``'s graph, as a user starts it; yields the page's URL and the process."""
+    view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
+                             "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ))
+    try:
+        line = view.stdout.readline()
+        match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
+        assert match, line + view.stderr.read() if view.poll() is not None else line
+        yield match.group(1), view
+    finally:
+        view.terminate()
+        view.wait(timeout=10)
+
+
 @pytest.mark.slow
 @pytest.mark.graph
 def test_view_in_a_browser(tmp_path):
     """fsreg-ctl view serves a live graph; after a scripted dialogue Chromium shows its WM and REG's sources."""
-    import os
-    import re
-    import subprocess
-    import sys
     from html import unescape
     from pathlib import Path
 
@@ -176,14 +192,7 @@ def test_view_in_a_browser(tmp_path):
 
     scenario = Path(__file__).resolve().parents[2] / "scenarios" / "guess_who_table1.yaml"
     with LiveGraph(scenario, processes=True, policy="decay", decay_period=10.0) as robot:
-        view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
-                                 "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env=dict(os.environ))
-        try:
-            line = view.stdout.readline()
-            match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
-            assert match, line + view.stderr.read() if view.poll() is not None else line
-            url = match.group(1)
+        with served_view(robot) as (url, view):
             robot.set_clock(1.0)
             assert robot.say("male, lab-coat, light-hair, glasses")["resolved"] == "face1"
             robot.set_clock(2.0)
@@ -198,9 +207,6 @@ def test_view_in_a_browser(tmp_path):
                 time.sleep(0.1)
             expected_wm = robot.wm("face1")
             dom = page_dom(url)
-        finally:
-            view.terminate()
-            view.wait(timeout=10)
     row = re.search(r'<tr class="entity" data-entity="face1">(.*?)</tr>', dom)
     assert row, dom[:3000]
     entries = re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="([^"]+)" data-forget-at="([^"]+)"',
@@ -222,24 +228,13 @@ def test_the_view_follows_a_consultant_restart_and_a_clock_jump_in_a_browser(tmp
     """The view keeps serving while the consultant is killed and restarted (its state restored, a new
     incarnation), then the clock jumps two decay ticks at once: Chromium shows incarnation 2, face1's WM
     after both pops with the times of the next ones, and what the human said after the restart."""
-    import os
-    import re
-    import subprocess
-    import sys
     from pathlib import Path
 
     from fsreg_ros.testing import LiveGraph
 
     scenario = Path(__file__).resolve().parents[2] / "scenarios" / "guess_who_table1.yaml"
     with LiveGraph(scenario, processes=True, policy="decay", decay_period=10.0, state_dir=tmp_path) as robot:
-        view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
-                                 "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env=dict(os.environ))
-        try:
-            line = view.stdout.readline()
-            match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
-            assert match, line + view.stderr.read() if view.poll() is not None else line
-            url = match.group(1)
+        with served_view(robot) as (url, view):
             robot.set_clock(1.0)
             assert robot.say("male, lab-coat, light-hair, glasses")["resolved"] == "face1"
             robot.restart("consultant_faces")
@@ -258,9 +253,6 @@ def test_the_view_follows_a_consultant_restart_and_a_clock_jump_in_a_browser(tmp
                 time.sleep(0.1)
             assert view.poll() is None  # it kept serving throughout
             dom = page_dom(url)
-        finally:
-            view.terminate()
-            view.wait(timeout=10)
     assert "faces (incarnation 2)" in dom
     rows = dict(re.findall(r'<tr class="entity" data-entity="(face\d)">(.*?)</tr>', dom))
     entries = {entity: re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="[^"]+" '
