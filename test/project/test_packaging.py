@@ -207,3 +207,20 @@ def test_every_script_the_docs_run_is_executable():
             continue
         assert path.read_text().startswith("#!"), name
         assert os.access(path, os.X_OK), f"scripts/{name} is not executable"
+
+
+def test_package_xml_names_every_runtime_requirement():
+    """``rosdep install`` on a colcon workspace installs what ``pip install`` would: each of setup.py's
+    install_requires has its rosdep key in package.xml, or a comment there saying pip installs it."""
+    import ast
+    import xml.etree.ElementTree as ET
+
+    keys = {"pyyaml": "python3-yaml", "pydantic": "python3-pydantic", "numpy": "python3-numpy",
+            "rosbags": "python3-rosbags-pip"}
+    setup = ast.parse((REPO / "setup.py").read_text())
+    call = next(n for n in ast.walk(setup) if isinstance(n, ast.keyword) and n.arg == "install_requires")
+    required = {re.split(r"[<>=\[]", ast.literal_eval(e))[0] for e in call.value.elts} - {"setuptools"}
+    text = (REPO / "package.xml").read_text()
+    depends = {e.text for e in ET.fromstring(text).iter("exec_depend")}
+    for name in sorted(required):
+        assert keys.get(name) in depends or f"{name} " in text and "has no rosdep key" in text, name
