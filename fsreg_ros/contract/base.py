@@ -35,6 +35,8 @@ def _representable(value: Union[int, float]) -> Union[int, float]:
 
 
 Number = Annotated[Union[int, float], AfterValidator(_representable)]
+#: A whole number a float can hold (a count).
+Whole = Annotated[int, AfterValidator(_representable)]
 
 
 def _limits(info: ValidationInfo) -> Any:

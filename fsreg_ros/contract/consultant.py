@@ -22,7 +22,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field
 
-from .base import Message, Name, Names, Number, Stamp, bounded_list
+from .base import Message, Name, Names, Number, Stamp, Whole, bounded_list
 from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
 
@@ -369,7 +369,7 @@ class EvictRequest(Stamp):
     """Manage op ``evict``: forget the domain's ``count`` least recently encoded fronts (cause ``shared-capacity``)."""
 
     op: Literal["evict"]
-    count: int
+    count: Whole
 
 
 class SizeRequest(Message):

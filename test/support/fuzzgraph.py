@@ -159,6 +159,10 @@ def templates(scenario: Scenario) -> dict[str, list[Template]]:
         Template({"op": "configure", "policy": {"policy": "decay", "decay_period": 10.0}, "time": TIME},
                  ("op", "policy"), ("op",)),
         Template({"op": "decay", "ticks": [TIME]}, ("op", "ticks"), ("op",), ("ticks",)),
+        Template({"op": "advance", "time": TIME}, ("op",), ("op",), ("time",)),
+        Template({"op": "evict", "count": 1, "time": TIME}, ("op", "count"), ("op",), ("count", "time")),
+        Template({"op": "size"}, ("op",), ("op",)),
+        Template({"op": "reset", "client": "fuzzer"}, ("op",), ("op",)),
     ]
     return {
         CONSULTANT.format(domain=domain): consultant,
@@ -499,6 +503,19 @@ class Fuzzer:
             == marker, REPLY_TIMEOUT, what=f"announce marker {marker}")
         self.state = None  # the status now reports the marker
 
+    def _configured(self, incarnation: int) -> None:
+        """After an accepted ``reset``: wait until the WM Manager has configured the new incarnation.
+
+        (The reset's reply comes before that configure, so a snapshot taken at once would
+        see the graph become ready again and blame the next input.)
+        """
+        domain = self.domains[0]
+
+        def configured() -> bool:
+            status = self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)
+            return status["incarnation"][domain] == incarnation and status["ready"] is True
+        self.g.spin_until(configured, REPLY_TIMEOUT, what=f"incarnation {incarnation} configured after a reset")
+
     def _names_a_consultant(self, text: str) -> bool:
         """Whether an ``/ltm/assert`` message is due a reply: malformed, or for a known domain."""
         try:
@@ -540,6 +557,8 @@ class Fuzzer:
         if reason is None:
             outcome.accepted += 1
             self.state = None
+            if endpoint == MANAGE.format(domain=self.domains[0]) and "cleared" in reply:
+                self._configured(reply["incarnation"])
             if given.invalid:
                 outcome.accepted_invalid.append(f"{label} -> {_clip(json.dumps(reply))}")
             return
