@@ -304,16 +304,24 @@ class LazyActivation:
         """
         traces = store.traces
         now = self.clock + TIME_EPSILON
-        due = np.take(traces.due, rows, axis=1)
-        if not len(rows) or due.min() > now:
+        if not len(rows):
             return _NO_SLOTS
+        row_due = traces.row_due
+        soon = np.take(row_due, rows)
+        if soon.min() > now:  # one number per row: most calls end here
+            return _NO_SLOTS
+        rows = rows[soon <= now]
+        due = np.take(traces.due, rows, axis=1)
         hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
         vague = ~np.take(traces.exact.reshape(-1), flat)
         if vague.any():
             self._solve(traces, flat[vague], now)
+            due = np.take(traces.due, rows, axis=1)
             flat = flat[np.take(traces.due.reshape(-1), flat) <= now]
+        # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
+        row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
@@ -438,7 +446,8 @@ class TraceColumns:
     HISTORY]`` is the time of its i-th encoding (from 0; the last :data:`HISTORY` are
     kept), so ``recent[k, r, 0]`` is its first time until the ring wraps; ``first`` keeps
     the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
-    :class:`Trace`.  A crossing solved in numpy (:func:`crossings`) is kept only as a
+    :class:`Trace`; ``row_due[r]`` is at most the earliest ``due`` of row r (so a row with
+    nothing due costs one number to check; :meth:`LazyActivation.passed` renews it).  A crossing solved in numpy (:func:`crossings`) is kept only as a
     lower bound just below it, ``exact`` False: so whether and when an entry goes is
     decided exactly as for a dict queue (see :meth:`LazyActivation.passed`).
     """
@@ -449,6 +458,7 @@ class TraceColumns:
         self.recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
         self.due = np.full((width, rows), NEVER)
         self.exact = np.zeros((width, rows), dtype=bool)
+        self.row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
         self.reach_of: Optional[tuple[float, float]] = None
         self._flatten()
 
@@ -465,6 +475,7 @@ class TraceColumns:
         self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
         self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
         self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self.row_due = np.concatenate([self.row_due, np.full(extra, NEVER)])
         self._flatten()
 
     def widen(self, extra: int) -> None:
@@ -510,9 +521,11 @@ class TraceColumns:
             ring[i & (HISTORY - 1)] = time
         self.recent[slot, row] = ring
         self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
+        self.row_due[row] = min(self.row_due[row], trace.due)
 
-    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float) -> None:
-        """Note one encoding at ``time`` in each slot ``flat`` (flat index): a refresh where ``present``.
+    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
+                rows: Optional[np.ndarray] = None) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
         ``span`` is one encoding's :func:`lifetime` under decay ``d``.  A new entry's
         ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
@@ -546,8 +559,13 @@ class TraceColumns:
                 right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
             reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
         begin += reach
-        self.flat_due[flat] = np.maximum(begin, time + span)
+        due = np.maximum(begin, time + span)
+        self.flat_due[flat] = due
         self.flat_exact[flat] = ~present
+        if rows is None:
+            rows = flat % self.n.shape[1]
+        row_due = self.row_due
+        row_due[rows] = np.minimum(np.take(row_due, rows), due)
 
     def _reach(self, d: float, span: float, time: float) -> np.ndarray:
         """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.

@@ -231,7 +231,7 @@ class QueueColumns:
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
         if traced is not None:
-            self.traces.encoded(flat, present, *traced)
+            self.traces.encoded(flat, present, *traced, rows)
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
