@@ -56,8 +56,10 @@ HISTORY = 8
 NEVER = math.inf
 #: Crossings further than this after the last encoding are :data:`NEVER` (decay.MAX_TIME).
 _LONGEST = 1e12
-#: The crossing time is solved to this relative precision.
-_PRECISION = 1e-13
+#: The crossing time is solved to this relative precision (of the logarithm of its age).
+_PRECISION = 1e-15
+#: ln(_LONGEST).
+_LOG_LONGEST = math.log(_LONGEST)
 #: No column slots.
 _NO_SLOTS = np.zeros(0, dtype=np.intp)
 
@@ -89,33 +91,28 @@ class Trace:
         older = self.n - len(self.recent)
         if older > 0:
             oldest = self.recent[0]
-            span = oldest - self.first
-            if span <= 0.0:
-                total += older * (t - self.first) ** -d
-            else:
-                total += older * ((t - self.first) ** (1.0 - d) - (t - oldest) ** (1.0 - d)) / ((1.0 - d) * span)
+            total += _older_terms(older, t - oldest, oldest - self.first, d)[0]
         return total
 
-    def strength_and_slope(self, t: float, d: float) -> tuple[float, float]:
-        """Return :meth:`strength` at ``t`` and its derivative there (negative), in one pass."""
+    def strength_at_age(self, age: float, d: float) -> tuple[float, float]:
+        """Return :meth:`strength` ``age`` after the last encoding and its derivative there (negative).
+
+        The ages are ``age`` plus each encoding's distance from the last one, so a small
+        ``age`` keeps its own precision however large the times are.
+        """
+        last = self.recent[-1]
         total = slope = 0.0
         for r in self.recent:
-            age = t - r
-            term = age ** -d
+            since = age + (last - r)
+            term = since ** -d
             total += term
-            slope -= d * term / age
+            slope -= d * term / since
         older = self.n - len(self.recent)
         if older > 0:
             oldest = self.recent[0]
-            span = oldest - self.first
-            first_term = (t - self.first) ** -d
-            if span <= 0.0:
-                total += older * first_term
-                slope -= older * d * first_term / (t - self.first)
-            else:
-                oldest_term = (t - oldest) ** -d
-                total += older * ((t - self.first) * first_term - (t - oldest) * oldest_term) / ((1.0 - d) * span)
-                slope += older * (first_term - oldest_term) / span
+            term, dterm = _older_terms(older, age + (last - oldest), oldest - self.first, d)
+            total += term
+            slope += dterm
         return total, slope
 
     def to_json(self) -> list:
@@ -151,41 +148,86 @@ def lifetime(d: float, tau: float) -> float:
         return math.inf
 
 
+def _older_terms(older: int, age: float, spread: float, d: float) -> tuple[float, float]:
+    """Return Petrov's term for ``older`` presentations spread evenly over ages [age, age + spread], and its slope.
+
+    The term is ``older`` times the mean of x^(-d) over that interval,
+    ``((age + spread)^(1-d) - age^(1-d)) / ((1-d) spread)`` (``age^(-d)`` for no spread).
+    Written as ``age^(-d) ((1+s)^(1-d) - 1) / ((1-d) s)`` with s = spread / age and
+    ``log1p``/``expm1``, nothing cancels when the spread is small beside the age, and a
+    subnormal spread divides nothing by zero (below s = 1e-8 the series to s, whose next
+    term is under 1e-16).  The slope (in t) is ``older ((age + spread)^(-d) - age^(-d)) / spread``,
+    written the same way.
+    """
+    s = spread / age
+    term = age ** -d
+    if s < 1e-8:
+        mean = 1.0 - 0.5 * d * s
+        change = -d * (1.0 - 0.5 * (1.0 + d) * s)
+    else:
+        log = math.log1p(s)
+        mean = math.expm1((1.0 - d) * log) / ((1.0 - d) * s)
+        change = math.expm1(-d * log) / s
+    return older * term * mean, older * term * change / age
+
+
 def crossing(trace: Trace, d: float, tau: float) -> float:
     """Return the time activation falls to ``tau`` after the last encoding (:data:`NEVER` past ``MAX_TIME``).
 
-    With one encoding it is ``t_1 + lifetime``.  Otherwise the root of
-    ``F(t) = strength(t)^(-1/d) - exp(-tau/d)`` on ``(t_n, inf)``.  F increases and is
-    concave there (``strength^(-1/d)`` is n^(-1/d) times the power mean of order -d of
-    the ages, concave in t; linear for one encoding), and ``F(t_n + lifetime) <= 0``
-    (the last term alone reaches the threshold there).  So Newton's method started
-    from the left climbs to the root without overshooting, quadratically near it;
-    started from the right (at the bound ``t_n + n^(1/d) lifetime``: ``strength`` is at
-    most n times its last term), its first step lands left of the root, closer than
-    ``t_n + lifetime`` is.  Three or four steps per encoding.
+    With one encoding it is ``t_1 + lifetime``.  Otherwise ``t_n + a``, a the age (time
+    since the last encoding) where ``ln strength = tau``: Newton's method on ``ln a`` (ln
+    strength is nearly linear in it: exactly, for one encoding), kept within the bracket
+    ``lifetime <= a <= n^(1/d) lifetime`` (strength is at least the last term and at
+    most n times it), bisecting where a step would leave it.  Solved in logarithms, no
+    intermediate overflows or underflows however small the lifetime; solved for the age,
+    a crossing close to the last encoding keeps its precision however late the clock.
+    The root is within 1e-12 of its age of the exact one, plus one rounding of the sum
+    (test_activation's 50-digit reference).
     """
-    last, span = trace.recent[-1], lifetime(d, tau)
-    if span > _LONGEST:
-        return NEVER
+    last = trace.recent[-1]
     if trace.n == 1:
-        return last + span
-    try:
-        t = last + span * trace.n ** (1.0 / d)
-    except OverflowError:
+        span = lifetime(d, tau)
+        return NEVER if span > _LONGEST else last + span
+    lo = -tau / d  # ln of the ages bracketing the root
+    hi = lo + math.log(trace.n) / d
+    if lo > _LOG_LONGEST:
         return NEVER
-    if t - last > _LONGEST:
-        t = last + _LONGEST
-        if trace.strength(t, d) ** (-1.0 / d) < span:
+    if hi > _LOG_LONGEST:
+        hi = _LOG_LONGEST
+        if _excess(trace, hi, d, tau)[0] > 0.0:  # still above the threshold there
             return NEVER
-    for _ in range(100):
-        total, slope = trace.strength_and_slope(t, d)
-        value = total ** (-1.0 / d) - span
-        # F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
-        step = -value / (-(1.0 / d) * total ** (-1.0 / d - 1.0) * slope)
-        t = max(t + step, last + span)  # from the right, never left of the lower bound
-        if abs(step) <= _PRECISION * max(1.0, abs(t)):
+    if math.exp(hi) + last == last:  # the whole bracket is below the last time's resolution
+        return last + math.exp(hi)
+    v = hi
+    for _ in range(200):
+        value, slope = _excess(trace, v, d, tau)
+        if value > 0.0:
+            lo = v
+        else:
+            hi = v
+        step = -value / slope if slope < 0.0 else 0.0
+        new = v + step
+        if not lo < new < hi:
+            new = 0.5 * (lo + hi)
+        if abs(new - v) <= _PRECISION * max(1.0, abs(v)) or hi - lo <= _PRECISION * max(1.0, abs(lo)):
+            v = new
             break
-    return t
+        v = new
+    return last + math.exp(v)
+
+
+def _excess(trace: Trace, v: float, d: float, tau: float) -> tuple[float, float]:
+    """Return ``ln strength - tau`` at age ``exp(v)`` and its derivative in v (+inf, 0 where the age underflows)."""
+    age = math.exp(v)
+    if age == 0.0:
+        return math.inf, 0.0
+    try:
+        total, slope = trace.strength_at_age(age, d)
+    except (OverflowError, ZeroDivisionError):  # an age so small a term overflows: far above the threshold
+        return math.inf, 0.0
+    if total == math.inf:
+        return math.inf, 0.0
+    return math.log(total) - tau, age * slope / total
 
 
 class LazyActivation:
