@@ -158,7 +158,7 @@ def test_crossing_is_the_root_to_the_last_bits(start_gaps, d, tau):
 @_EXAMPLES
 @given(_TRACES, _D, st.floats(1e-6, 1e4))
 def test_activation_is_the_defined_sum_to_the_last_bits(start_gaps, d, age):
-    """activation() is ln of the defined sum (Petrov's term for the older presentations) within 1e-12, never an error."""
+    """activation() is ln of the defined sum (Petrov's term for the older ones) within 1e-12, never an error."""
     trace = _trace_from(*start_gaps)
     t = trace.recent[-1] + age
     if t <= trace.recent[-1]:

@@ -489,9 +489,10 @@ class TraceColumns:
     kept), so ``recent[k, r, 0]`` is its first time until the ring wraps; ``first`` keeps
     the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
     :class:`Trace`; ``row_due[r]`` is at most the earliest ``due`` of row r (so a row with
-    nothing due costs one number to check; :meth:`LazyActivation.passed` renews it).  A crossing solved in numpy (:func:`crossings`) is kept only as a
-    lower bound just below it, ``exact`` False: so whether and when an entry goes is
-    decided exactly as for a dict queue (see :meth:`LazyActivation.passed`).
+    nothing due costs one number to check; :meth:`LazyActivation.passed` renews it).  A
+    crossing solved in numpy (:func:`crossings`) is kept only as a lower bound just below
+    it, ``exact`` False: so whether and when an entry goes is decided exactly as for a
+    dict queue (see :meth:`LazyActivation.passed`).
     """
 
     def __init__(self, width: int, rows: int) -> None:
