@@ -205,14 +205,17 @@ def crossing(trace: Trace, d: float, tau: float) -> float:
             lo = v
         else:
             hi = v
-        step = -value / slope if slope < 0.0 else 0.0
-        new = v + step
-        if not lo < new < hi:
-            new = 0.5 * (lo + hi)
-        if abs(new - v) <= _PRECISION * max(1.0, abs(v)) or hi - lo <= _PRECISION * max(1.0, abs(lo)):
-            v = new
+        if slope < 0.0:  # (not where the age underflowed or a term overflowed: far left of the root)
+            step = -value / slope
+            if abs(step) <= _PRECISION * max(1.0, abs(v)):
+                v += step
+                break
+            if lo < v + step < hi:
+                v += step
+                continue
+        if hi - lo <= _PRECISION * max(1.0, abs(lo)):
             break
-        v = new
+        v = 0.5 * (lo + hi)
     return last + math.exp(v)
 
 
