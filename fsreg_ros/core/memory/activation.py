@@ -351,22 +351,24 @@ class LazyActivation:
         now = self.clock + TIME_EPSILON
         if not len(rows):
             return _NO_SLOTS
-        row_due = traces.row_due
+        if self.clock != traces.pending_clock:
+            traces.settle()  # (at the clock they were made at, encodings not noted yet are not due)
+        row_due = traces._row_due
         soon = np.take(row_due, rows)
         if soon.min() > now:  # one number per row: most calls end here
             return _NO_SLOTS
         rows = rows[soon <= now]
-        due = np.take(traces.due, rows, axis=1)
+        due = np.take(traces._due, rows, axis=1)
         hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
-        vague = ~np.take(traces.exact.reshape(-1), flat)
+        vague = ~np.take(traces._flat_exact, flat)
         if vague.any():
             self._solve(traces, flat[vague], now)
-            due = np.take(traces.due, rows, axis=1)
-            flat = flat[np.take(traces.due.reshape(-1), flat) <= now]
+            due = np.take(traces._due, rows, axis=1)
+            flat = flat[np.take(traces._flat_due, flat) <= now]
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
-        row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
+        traces._row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
@@ -499,55 +501,73 @@ class TraceColumns:
     """
 
     def __init__(self, width: int, rows: int) -> None:
-        self.n = np.zeros((width, rows), dtype=np.int64)
-        self.first = np.zeros((width, rows))
-        self.recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
-        self.due = np.full((width, rows), NEVER)
-        self.exact = np.zeros((width, rows), dtype=bool)
-        self.row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
+        self._n = np.zeros((width, rows), dtype=np.int64)
+        self._first = np.zeros((width, rows))
+        self._recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
+        self._due = np.full((width, rows), NEVER)
+        self._exact = np.zeros((width, rows), dtype=bool)
+        self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
         self.reach_of: Optional[tuple[float, float]] = None
+        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
+        self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
+        self.pending_clock = -math.inf  # the clock when they were made
         self._flatten()
 
+    # Every read or write from outside notes the pending encodings first (:meth:`settle`).
+    n = property(lambda self: self.settle() or self._n)
+    first = property(lambda self: self.settle() or self._first)
+    recent = property(lambda self: self.settle() or self._recent)
+    due = property(lambda self: self.settle() or self._due)
+    exact = property(lambda self: self.settle() or self._exact)
+    row_due = property(lambda self: self.settle() or self._row_due)
+    flat_due = property(lambda self: self.settle() or self._flat_due)
+    flat_exact = property(lambda self: self.settle() or self._flat_exact)
+
     def _flatten(self) -> None:
-        self.flat_n, self.flat_first, self.flat_recent = self.n.reshape(-1), self.first.reshape(-1), \
-            self.recent.reshape(-1)
-        self.flat_due, self.flat_exact = self.due.reshape(-1), self.exact.reshape(-1)
+        self._flat_n, self._flat_first, self._flat_recent = self._n.reshape(-1), self._first.reshape(-1), \
+            self._recent.reshape(-1)
+        self._flat_due, self._flat_exact = self._due.reshape(-1), self._exact.reshape(-1)
+        self._mark = np.zeros(self._flat_due.shape[0], dtype=np.intp)  # scratch: which pending slots recur
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
-        width = self.n.shape[0]
-        self.n = np.concatenate([self.n, np.zeros((width, extra), dtype=np.int64)], axis=1)
-        self.first = np.concatenate([self.first, np.zeros((width, extra))], axis=1)
-        self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
-        self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
-        self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
-        self.row_due = np.concatenate([self.row_due, np.full(extra, NEVER)])
+        self.settle()
+        width = self._n.shape[0]
+        self._n = np.concatenate([self._n, np.zeros((width, extra), dtype=np.int64)], axis=1)
+        self._first = np.concatenate([self._first, np.zeros((width, extra))], axis=1)
+        self._recent = np.concatenate([self._recent, np.zeros((width, extra, HISTORY))], axis=1)
+        self._due = np.concatenate([self._due, np.full((width, extra), NEVER)], axis=1)
+        self._exact = np.concatenate([self._exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
         self._flatten()
 
     def widen(self, extra: int) -> None:
         """Add ``extra`` slots to every row."""
-        rows = self.n.shape[1]
-        self.n = np.concatenate([self.n, np.zeros((extra, rows), dtype=np.int64)])
-        self.first = np.concatenate([self.first, np.zeros((extra, rows))])
-        self.recent = np.concatenate([self.recent, np.zeros((extra, rows, HISTORY))])
-        self.due = np.concatenate([self.due, np.full((extra, rows), NEVER)])
-        self.exact = np.concatenate([self.exact, np.zeros((extra, rows), dtype=bool)])
+        self.settle()
+        rows = self._n.shape[1]
+        self._n = np.concatenate([self._n, np.zeros((extra, rows), dtype=np.int64)])
+        self._first = np.concatenate([self._first, np.zeros((extra, rows))])
+        self._recent = np.concatenate([self._recent, np.zeros((extra, rows, HISTORY))])
+        self._due = np.concatenate([self._due, np.full((extra, rows), NEVER)])
+        self._exact = np.concatenate([self._exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
 
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
-        n = int(self.n[slot, row])
-        ring = self.recent[slot, row].tolist()
-        trace = Trace(float(self.first[slot, row]) if n > HISTORY else ring[0])
+        self.settle()
+        n = int(self._n[slot, row])
+        ring = self._recent[slot, row].tolist()
+        trace = Trace(float(self._first[slot, row]) if n > HISTORY else ring[0])
         trace.n = n
         trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
-        trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
+        trace.due, trace.exact = float(self._due[slot, row]), bool(self._exact[slot, row])
         return trace
 
     def row(self, row: int, slots: list[int]) -> list[Trace]:
         """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once)."""
-        ns, firsts = self.n[:, row].tolist(), self.first[:, row].tolist()
-        rings, dues, exacts = self.recent[:, row].tolist(), self.due[:, row].tolist(), self.exact[:, row].tolist()
+        self.settle()
+        ns, firsts = self._n[:, row].tolist(), self._first[:, row].tolist()
+        rings, dues, exacts = self._recent[:, row].tolist(), self._due[:, row].tolist(), self._exact[:, row].tolist()
         out = []
         for k in slots:
             n, ring = ns[k], rings[k]
@@ -560,34 +580,78 @@ class TraceColumns:
 
     def put(self, slot: int, row: int, trace: Trace) -> None:
         """Keep ``trace`` in slot ``(slot, row)``."""
+        self.settle()
         n = trace.n
-        self.n[slot, row], self.first[slot, row] = n, trace.first
+        self._n[slot, row], self._first[slot, row] = n, trace.first
         ring = [0.0] * HISTORY
         for i, time in zip(range(n - len(trace.recent), n), trace.recent):
             ring[i & (HISTORY - 1)] = time
-        self.recent[slot, row] = ring
-        self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
-        self.row_due[row] = min(self.row_due[row], trace.due)
+        self._recent[slot, row] = ring
+        self._due[slot, row], self._exact[slot, row] = trace.due, trace.exact
+        self._row_due[row] = min(self._row_due[row], trace.due)
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
-                rows: Optional[np.ndarray] = None) -> None:
+                rows: Optional[np.ndarray] = None, clock: float = -math.inf) -> None:
         """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
-        ``span`` is one encoding's :func:`lifetime` under decay ``d``.  A new entry's
-        ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
-        ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every term
-        is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
+        ``span`` is one encoding's :func:`lifetime` under decay ``d``; ``clock`` the
+        activation clock then.  Noted lazily: the encodings of the calls made at one time
+        and clock (a REG call's rule-3 encodings) are noted together, by the first read or
+        write of the traces from outside (:meth:`settle`) or :meth:`LazyActivation.passed`
+        at a later clock.  Until then a slot keeps its previous ``due``: after the queue
+        lost whatever was due at that clock (see :meth:`LazyActivation.passed`), none is.
+        The arrays given are kept: the caller does not change them.
+        """
+        if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock):
+            self.settle()
+        if not self._pending:
+            self._pending_of, self.pending_clock = (time, span, d), clock
+        self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
+
+    def settle(self) -> None:
+        """Note the pending encodings (:meth:`encoded`) as one batch (call by call if a slot is refreshed twice)."""
+        pending = self._pending
+        if not pending:
+            return
+        self._pending = []
+        time, span, d = self._pending_of
+        if len(pending) == 1:
+            self._note(*pending[0], time, span, d)
+            return
+        flat = np.concatenate([p[0] for p in pending])
+        present = np.concatenate([p[1] for p in pending])
+        rows = np.concatenate([p[2] for p in pending])
+        order = np.arange(len(flat))
+        mark = self._mark
+        mark[flat] = order  # (of a slot that recurs, the last place wins)
+        last = mark[flat] == order
+        if not last.all():  # a slot encoded again at that time
+            if present[mark[flat[~last]]].any():  # refreshed again: the encodings in turn
+                for p in pending:
+                    self._note(*p, time, span, d)
+                return
+            # Displaced (or emptied and refilled) again: only the new entry's encoding counts.
+            flat, present, rows = flat[last], present[last], rows[last]
+        self._note(flat, present, rows, time, span, d)
+
+    def _note(self, flat: np.ndarray, present: np.ndarray, rows: np.ndarray, time: float, span: float,
+              d: float) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (distinct slots; ``rows`` may recur).
+
+        A new entry's ``due`` is its crossing; a refreshed one's a lower bound of it: the
+        later of ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every
+        term is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
         latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
         (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
         """
-        n, recent = self.flat_n, self.flat_recent
+        n, recent = self._flat_n, self._flat_recent
         old = n[flat]
         old *= present  # encodings before this one (a new entry: none)
         counts = old + 1
         n[flat] = counts
         wrapping = counts.max() > HISTORY
         if wrapping:
-            first = self.flat_first
+            first = self._flat_first
             wraps = flat[counts == HISTORY + 1]
         at = flat * HISTORY
         if wrapping:  # the first time leaves the ring: keep it
@@ -606,12 +670,9 @@ class TraceColumns:
             reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
         begin += reach
         due = np.maximum(begin, time + span)
-        self.flat_due[flat] = due
-        self.flat_exact[flat] = ~present
-        if rows is None:
-            rows = flat % self.n.shape[1]
-        row_due = self.row_due
-        row_due[rows] = np.minimum(np.take(row_due, rows), due)
+        self._flat_due[flat] = due
+        self._flat_exact[flat] = ~present
+        np.minimum.at(self._row_due, rows, due)  # (rows recur in a batch)
 
     def _reach(self, d: float, span: float, time: float) -> np.ndarray:
         """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.
@@ -638,17 +699,18 @@ class TraceColumns:
         The times are a (k x len(flat)) array, oldest first, k the most any of them keeps;
         unused places hold -inf.
         """
-        n = np.take(self.flat_n, flat)
+        self.settle()
+        n = np.take(self._flat_n, flat)
         kept = np.minimum(n, HISTORY)
         start = n - kept  # index of the oldest encoding kept
         depth = int(kept.max(initial=1))
         times = np.full((depth, len(flat)), -np.inf)
-        recent = self.flat_recent
+        recent = self._flat_recent
         at = flat * HISTORY
         for j in range(depth):
             use = j < kept
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
-        first = np.where(n > HISTORY, np.take(self.flat_first, flat), np.take(recent, at))
+        first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
 
 
