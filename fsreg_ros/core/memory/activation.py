@@ -661,13 +661,14 @@ class TraceColumns:
         recent[old] = time
         begin = recent[at]  # the first time (while n <= HISTORY)
         reach = np.take(self._reach(d, span, time), counts, mode="clip")  # reach[1] < span
-        if wrapping:
-            older = counts > HISTORY
-            begin[older] = first[flat[older]]
-            spread = recent[((counts - HISTORY) & (HISTORY - 1)) + at] - begin
+        if wrapping:  # (the few slots with older presentations only)
+            older = np.flatnonzero(counts > HISTORY)
+            many = counts[older]
+            start = begin[older] = first[flat[older]]
+            spread = recent[((many - HISTORY) & (HISTORY - 1)) + at[older]] - start
             with np.errstate(over="ignore", invalid="ignore"):
-                right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
-            reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
+                right = time + span * many.astype(float) ** (1.0 / d) - start  # an age at the root, at most
+            reach[older[(spread > 0.0) & (spread * _ILL < right)]] = -np.inf
         begin += reach
         due = np.maximum(begin, time + span)
         self._flat_due[flat] = due
