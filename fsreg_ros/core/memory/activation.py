@@ -24,14 +24,18 @@ touched at or after c (:class:`LazyActivation`), the way lazy decay pops owed fr
 so the clock costs nothing while no queue is touched.  Nor is c solved at every
 encoding: an encoding at t only sets the lower bound ``t + exp(-tau / d)`` (the last
 term alone keeps activation above tau until then; for one encoding it is c itself),
-and c is solved (:func:`crossing`, a few Newton steps) once the clock passes that
+and c is solved (:func:`crossing`, a few Newton steps on the logarithm of the age
+c - t_n, Petrov's term written without cancellation) once the clock passes that
 bound, if the entry was not encoded again meanwhile.  An entry refreshed more often
 than its lifetime is never solved for.
 
 The queues of a large domain's rule 2 and 3 encodings are column queues
 (:mod:`fsreg_ros.core.memory.columns`): there each slot keeps its entry's trace
-(:class:`TraceColumns`), an encoding updates the traces of all its rows at once, and
-the entries of many rows whose bound passed are solved at once (:func:`crossings`,
+(:class:`TraceColumns`), the encodings of all the calls made at one time and clock
+(a REG call's rule-3 encodings) update the traces in one batch, when the traces are
+next read or the clock moves on (:meth:`TraceColumns.settle`), each row keeps a lower
+bound of its slots' crossings (so a row with nothing due costs one number to check),
+and the entries of many rows whose bound passed are solved at once (:func:`crossings`,
 Newton's method in numpy).  numpy's ``pow`` is not Python's, so a numpy root is only
 kept as a lower bound a hair (:data:`_MARGIN`) below it; where the clock falls within
 that hair, :func:`crossing` itself decides, so an entry goes exactly when it would
@@ -394,9 +398,9 @@ class LazyActivation:
     def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
         """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
 
-        :func:`crossing`'s root lies between two bounds: at most its start
-        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term; Newton
-        climbs to the root from the left), and, while n <= HISTORY, at least
+        :func:`crossing`'s root lies between two bounds: at most
+        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term), and,
+        while n <= HISTORY, at least
         ``mean(t_j) + n^(1/d) lifetime`` (x^-d is convex: the sum is at least n times the
         term of the mean age).  With the clock clearly past the first (gone) or clearly
         before the second (a new lower bound), no Newton step is needed.
@@ -720,9 +724,10 @@ def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau
     """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
 
     ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them; ``start``:
-    lower bounds of the roots, if known.  Newton's method on the same function as
-    :func:`crossing`, in numpy arithmetic (another ``pow``), from the lower bound when
-    given (F is concave and increasing: from the left it climbs to the root), stopped
+    lower bounds of the roots, if known.  Newton's method on
+    ``F(t) = strength(t)^(-1/d) - lifetime`` (the root :func:`crossing` solves for in the
+    logarithm of the age), in numpy arithmetic (another ``pow``), from the lower bound
+    when given (F is concave and increasing: from the left it climbs to the root), stopped
     at :data:`_SOLVED`: the roots are :func:`crossing`'s within :data:`_MARGIN`
     (relative), not bit for bit.  Returns the roots and a mask of the traces this does
     not handle (the crossing is past ``_LONGEST``, the start overflows, or the Petrov
