@@ -435,7 +435,7 @@ class LazyActivation:
         store.prop.reshape(-1)[flat] = -1
         store.traces.due.reshape(-1)[flat] = NEVER
         owners = flat % store.rows  # a row may recur
-        store.length[owners] = np.count_nonzero(np.take(store.prop, owners, axis=1) >= 0, axis=0)
+        np.subtract.at(store.length, owners, 1)  # (one number per entry gone, not the row's every slot)
         self.wm._size -= len(flat)
         return owners
 
