@@ -94,25 +94,39 @@ def _reference_strength(trace: Trace, age: Decimal, d: Decimal) -> Decimal:
 
 
 def _reference_crossing_age(trace: Trace, d: float, tau: float) -> Decimal:
-    """The age (time since the last encoding) at which A meets ``tau``: bisection on ln(age), in decimals.
+    """The age (time since the last encoding) at which A meets ``tau``: regula falsi (Illinois) on ln(age), in decimals.
 
     The root lies between one encoding's lifetime exp(-tau/d) and n^(1/d) times it (each
-    of the n terms is at most the last one's).
+    of the n terms is at most the last one's); A is nearly linear in ln(age) there.
     """
     with localcontext() as ctx:
         ctx.prec = 50
-        dd, target = Decimal(d), Decimal(tau).exp()
-        lo = -Decimal(tau) / dd  # ln of the ages
+        dd, target = Decimal(d), Decimal(tau)
+
+        def excess(v: Decimal) -> Decimal:
+            return _reference_strength(trace, v.exp(), dd).ln() - target
+
+        lo = -target / dd  # ln of the ages
         hi = lo + Decimal(trace.n).ln() / dd
-        for _ in range(400):
-            if hi - lo <= abs(lo) * Decimal("1e-30") + Decimal("1e-30"):
+        f_lo, f_hi, side = excess(lo), excess(hi), 0
+        if f_lo <= 0 or f_hi >= 0:  # (one encoding: lo = hi)
+            return (lo if f_lo <= 0 else hi).exp()
+        for _ in range(200):
+            v = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            f = excess(v)
+            if abs(f) <= Decimal("1e-40") or hi - lo <= Decimal("1e-40") * (1 + abs(lo)):
                 break
-            mid = (lo + hi) / 2
-            if _reference_strength(trace, mid.exp(), dd) > target:
-                lo = mid
+            if f > 0:
+                lo, f_lo = v, f
+                if side == 1:
+                    f_hi /= 2
+                side = 1
             else:
-                hi = mid
-        return ((lo + hi) / 2).exp()
+                hi, f_hi = v, f
+                if side == -1:
+                    f_lo /= 2
+                side = -1
+        return v.exp()
 
 
 # Encoding gaps: repeats at one time, subnormal and tiny ones (the older presentations may span
