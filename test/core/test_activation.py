@@ -9,14 +9,19 @@ test_properties.py.
 from __future__ import annotations
 
 import math
+import os
+from decimal import Decimal, localcontext
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pyactr.utilities import baselevel_learning
 
 from fsreg_ros.core.forgetting import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import WMBuffer, WMEvent
-from fsreg_ros.core.memory.activation import HISTORY, Trace, activation, crossing, lifetime
+from fsreg_ros.core.memory.activation import _LONGEST, HISTORY, NEVER, Trace, activation, crossing, lifetime
+from fsreg_ros.core.settings import MAX_ACTIVATION_DECAY, MAX_ACTIVATION_THRESHOLD, MIN_ACTIVATION_DECAY
 from fsreg_ros.core.wm_manager import WMManager
 
 
@@ -64,6 +69,130 @@ def test_the_crossing_is_where_activation_meets_the_threshold():
         assert c > times[-1] + lifetime(d, tau) - 1e-9
         assert activation(trace, c, d) == pytest.approx(tau, abs=1e-9)
         assert activation(trace, c - 1e-6, d) > tau > activation(trace, c + 1e-6, d)
+
+
+# ------------------------------------------- the crossing, to the last bits
+def _reference_strength(trace: Trace, age: Decimal, d: Decimal) -> Decimal:
+    """sum_j (t - t_j)^-d at ``age`` after the last encoding, Petrov's term for the older ones, in decimals.
+
+    50 digits, and for Petrov's term as many more as its spread is smaller than its age,
+    so that its difference of powers, written as docs/semantics.md defines it, does not cancel.
+    """
+    last = Decimal(trace.recent[-1])
+    total = sum(((age + (last - Decimal(r))) ** -d for r in trace.recent), Decimal(0))
+    older = trace.n - len(trace.recent)
+    if older:
+        first, oldest = Decimal(trace.first), Decimal(trace.recent[0])
+        a, spread = age + (last - oldest), oldest - first
+        if spread == 0:
+            return total + older * a ** -d
+        with localcontext() as ctx:
+            ctx.prec = 50 + max(0, int((a / spread).log10()) + 1)
+            b = a + spread
+            total += older * (b ** (1 - d) - a ** (1 - d)) / ((1 - d) * spread)
+    return +total
+
+
+def _reference_crossing_age(trace: Trace, d: float, tau: float) -> Decimal:
+    """The age (time since the last encoding) at which A meets ``tau``: regula falsi (Illinois) on ln(age), in decimals.
+
+    The root lies between one encoding's lifetime exp(-tau/d) and n^(1/d) times it (each
+    of the n terms is at most the last one's); A is nearly linear in ln(age) there.
+    """
+    with localcontext() as ctx:
+        ctx.prec = 50
+        dd, target = Decimal(d), Decimal(tau)
+
+        def excess(v: Decimal) -> Decimal:
+            return _reference_strength(trace, v.exp(), dd).ln() - target
+
+        lo = -target / dd  # ln of the ages
+        hi = lo + Decimal(trace.n).ln() / dd
+        f_lo, f_hi, side = excess(lo), excess(hi), 0
+        if f_lo <= 0 or f_hi >= 0:  # (one encoding: lo = hi)
+            return (lo if f_lo <= 0 else hi).exp()
+        for _ in range(200):
+            v = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            f = excess(v)
+            if abs(f) <= Decimal("1e-40") or hi - lo <= Decimal("1e-40") * (1 + abs(lo)):
+                break
+            if f > 0:
+                lo, f_lo = v, f
+                if side == 1:
+                    f_hi /= 2
+                side = 1
+            else:
+                hi, f_hi = v, f
+                if side == -1:
+                    f_lo /= 2
+                side = -1
+        return v.exp()
+
+
+# Encoding gaps: repeats at one time, subnormal and tiny ones (the older presentations may span
+# almost nothing of their age: Petrov's term cancels), and ordinary ones; d and tau over their whole range.
+_GAPS = st.one_of(st.just(0.0), st.floats(5e-324, 1e-300), st.floats(1e-12, 1e-6), st.floats(1e-3, 50.0))
+_TRACES = st.tuples(st.one_of(st.just(0.0), st.floats(1e-3, 1e6)), st.lists(_GAPS, max_size=20))
+_D = st.floats(MIN_ACTIVATION_DECAY, MAX_ACTIVATION_DECAY)
+_TAU = st.floats(-MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD)
+_EXAMPLES = settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "200")), deadline=None)
+
+
+def _trace_from(start: float, gaps: list) -> Trace:
+    times = [start]
+    for gap in gaps:
+        times.append(times[-1] + gap)
+    return trace_of(times)
+
+
+@_EXAMPLES
+@given(_TRACES, _D, _TAU)
+def test_crossing_is_the_root_to_the_last_bits(start_gaps, d, tau):
+    """crossing() is the root of A(t) = tau (as docs/semantics.md defines A) within 1e-12 of its age and one
+    rounding of the time, or NEVER past the clock's range; never an error.
+
+    A 50-digit bisection is the reference.  Before the fix a subnormal spread of the older
+    presentations divided by zero, a lifetime below the last time's resolution evaluated an
+    age of 0, and a spread much smaller than its age (Petrov's term cancelling) moved the root.
+    """
+    trace = _trace_from(*start_gaps)
+    last = trace.recent[-1]
+    age = _reference_crossing_age(trace, d, tau)
+    c = crossing(trace, d, tau)
+    if age > Decimal(_LONGEST) * Decimal("1.000001"):
+        assert c == NEVER
+        return
+    if age > Decimal(_LONGEST) * Decimal("0.999999"):
+        return  # on the edge of the clock's range: either answer
+    want = Decimal(last) + age
+    assert c != NEVER and c >= last
+    assert abs(Decimal(c) - want) <= age * Decimal("1e-12") + Decimal(math.ulp(float(want))), (c, float(want))
+
+
+@_EXAMPLES
+@given(_TRACES, _D, st.floats(1e-6, 1e4))
+def test_activation_is_the_defined_sum_to_the_last_bits(start_gaps, d, age):
+    """activation() is ln of the defined sum (Petrov's term for the older ones) within 1e-12, never an error."""
+    trace = _trace_from(*start_gaps)
+    t = trace.recent[-1] + age
+    if t <= trace.recent[-1]:
+        return
+    with localcontext() as ctx:
+        ctx.prec = 50
+        want = _reference_strength(trace, Decimal(t) - Decimal(trace.recent[-1]), Decimal(d)).ln()  # age exact
+    assert abs(Decimal(activation(trace, t, d)) - want) <= Decimal("1e-12") * max(1, abs(want))
+
+
+def test_crossing_where_the_older_presentations_span_little_of_their_age():
+    """Hand-made cases the property test found: a subnormal spread, and a spread of 1e-9 s among ages of ~100 s."""
+    subnormal = trace_of([0.0, 5e-324, *[1.0 + k for k in range(HISTORY)]])  # Petrov span 5e-324
+    age = _reference_crossing_age(subnormal, 0.9, -1.0)
+    c = crossing(subnormal, 0.9, -1.0)  # (1 - d) times the spread underflowed to 0: ZeroDivisionError
+    assert abs(Decimal(c) - Decimal(subnormal.recent[-1]) - age) <= age * Decimal("1e-12")
+    tight = trace_of([1.0, 1.0 + 1e-9, 1.0 + 2e-9, *[1.0 + 3e-9 + 1e-9 * k for k in range(HISTORY)]])
+    for d, tau in [(0.5, -2.0), (0.9, -3.0), (0.2, -0.5)]:
+        want = Decimal(tight.recent[-1]) + _reference_crossing_age(tight, d, tau)
+        assert abs(Decimal(crossing(tight, d, tau)) - want) <= want * Decimal("1e-13")
 
 
 def test_trace_round_trip_and_refusals():

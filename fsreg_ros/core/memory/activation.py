@@ -24,14 +24,18 @@ touched at or after c (:class:`LazyActivation`), the way lazy decay pops owed fr
 so the clock costs nothing while no queue is touched.  Nor is c solved at every
 encoding: an encoding at t only sets the lower bound ``t + exp(-tau / d)`` (the last
 term alone keeps activation above tau until then; for one encoding it is c itself),
-and c is solved (:func:`crossing`, a few Newton steps) once the clock passes that
+and c is solved (:func:`crossing`, a few Newton steps on the logarithm of the age
+c - t_n, Petrov's term written without cancellation) once the clock passes that
 bound, if the entry was not encoded again meanwhile.  An entry refreshed more often
 than its lifetime is never solved for.
 
 The queues of a large domain's rule 2 and 3 encodings are column queues
 (:mod:`fsreg_ros.core.memory.columns`): there each slot keeps its entry's trace
-(:class:`TraceColumns`), an encoding updates the traces of all its rows at once, and
-the entries of many rows whose bound passed are solved at once (:func:`crossings`,
+(:class:`TraceColumns`), the encodings of all the calls made at one time and clock
+(a REG call's rule-3 encodings) update the traces in one batch, when the traces are
+next read or the clock moves on (:meth:`TraceColumns.settle`), each row keeps a lower
+bound of its slots' crossings (so a row with nothing due costs one number to check),
+and the entries of many rows whose bound passed are solved at once (:func:`crossings`,
 Newton's method in numpy).  numpy's ``pow`` is not Python's, so a numpy root is only
 kept as a lower bound a hair (:data:`_MARGIN`) below it; where the clock falls within
 that hair, :func:`crossing` itself decides, so an entry goes exactly when it would
@@ -56,8 +60,10 @@ HISTORY = 8
 NEVER = math.inf
 #: Crossings further than this after the last encoding are :data:`NEVER` (decay.MAX_TIME).
 _LONGEST = 1e12
-#: The crossing time is solved to this relative precision.
-_PRECISION = 1e-13
+#: The crossing time is solved to this relative precision (of the logarithm of its age).
+_PRECISION = 1e-15
+#: ln(_LONGEST).
+_LOG_LONGEST = math.log(_LONGEST)
 #: No column slots.
 _NO_SLOTS = np.zeros(0, dtype=np.intp)
 
@@ -89,33 +95,28 @@ class Trace:
         older = self.n - len(self.recent)
         if older > 0:
             oldest = self.recent[0]
-            span = oldest - self.first
-            if span <= 0.0:
-                total += older * (t - self.first) ** -d
-            else:
-                total += older * ((t - self.first) ** (1.0 - d) - (t - oldest) ** (1.0 - d)) / ((1.0 - d) * span)
+            total += _older_terms(older, t - oldest, oldest - self.first, d)[0]
         return total
 
-    def strength_and_slope(self, t: float, d: float) -> tuple[float, float]:
-        """Return :meth:`strength` at ``t`` and its derivative there (negative), in one pass."""
+    def strength_at_age(self, age: float, d: float) -> tuple[float, float]:
+        """Return :meth:`strength` ``age`` after the last encoding and its derivative there (negative).
+
+        The ages are ``age`` plus each encoding's distance from the last one, so a small
+        ``age`` keeps its own precision however large the times are.
+        """
+        last = self.recent[-1]
         total = slope = 0.0
         for r in self.recent:
-            age = t - r
-            term = age ** -d
+            since = age + (last - r)
+            term = since ** -d
             total += term
-            slope -= d * term / age
+            slope -= d * term / since
         older = self.n - len(self.recent)
         if older > 0:
             oldest = self.recent[0]
-            span = oldest - self.first
-            first_term = (t - self.first) ** -d
-            if span <= 0.0:
-                total += older * first_term
-                slope -= older * d * first_term / (t - self.first)
-            else:
-                oldest_term = (t - oldest) ** -d
-                total += older * ((t - self.first) * first_term - (t - oldest) * oldest_term) / ((1.0 - d) * span)
-                slope += older * (first_term - oldest_term) / span
+            term, dterm = _older_terms(older, age + (last - oldest), oldest - self.first, d)
+            total += term
+            slope += dterm
         return total, slope
 
     def to_json(self) -> list:
@@ -151,41 +152,89 @@ def lifetime(d: float, tau: float) -> float:
         return math.inf
 
 
+def _older_terms(older: int, age: float, spread: float, d: float) -> tuple[float, float]:
+    """Return Petrov's term for ``older`` presentations spread evenly over ages [age, age + spread], and its slope.
+
+    The term is ``older`` times the mean of x^(-d) over that interval,
+    ``((age + spread)^(1-d) - age^(1-d)) / ((1-d) spread)`` (``age^(-d)`` for no spread).
+    Written as ``age^(-d) ((1+s)^(1-d) - 1) / ((1-d) s)`` with s = spread / age and
+    ``log1p``/``expm1``, nothing cancels when the spread is small beside the age, and a
+    subnormal spread divides nothing by zero (below s = 1e-8 the series to s, whose next
+    term is under 1e-16).  The slope (in t) is ``older ((age + spread)^(-d) - age^(-d)) / spread``,
+    written the same way.
+    """
+    s = spread / age
+    term = age ** -d
+    if s < 1e-8:
+        mean = 1.0 - 0.5 * d * s
+        change = -d * (1.0 - 0.5 * (1.0 + d) * s)
+    else:
+        log = math.log1p(s)
+        mean = math.expm1((1.0 - d) * log) / ((1.0 - d) * s)
+        change = math.expm1(-d * log) / s
+    return older * term * mean, older * term * change / age
+
+
 def crossing(trace: Trace, d: float, tau: float) -> float:
     """Return the time activation falls to ``tau`` after the last encoding (:data:`NEVER` past ``MAX_TIME``).
 
-    With one encoding it is ``t_1 + lifetime``.  Otherwise the root of
-    ``F(t) = strength(t)^(-1/d) - exp(-tau/d)`` on ``(t_n, inf)``.  F increases and is
-    concave there (``strength^(-1/d)`` is n^(-1/d) times the power mean of order -d of
-    the ages, concave in t; linear for one encoding), and ``F(t_n + lifetime) <= 0``
-    (the last term alone reaches the threshold there).  So Newton's method started
-    from the left climbs to the root without overshooting, quadratically near it;
-    started from the right (at the bound ``t_n + n^(1/d) lifetime``: ``strength`` is at
-    most n times its last term), its first step lands left of the root, closer than
-    ``t_n + lifetime`` is.  Three or four steps per encoding.
+    With one encoding it is ``t_1 + lifetime``.  Otherwise ``t_n + a``, a the age (time
+    since the last encoding) where ``ln strength = tau``: Newton's method on ``ln a`` (ln
+    strength is nearly linear in it: exactly, for one encoding), kept within the bracket
+    ``lifetime <= a <= n^(1/d) lifetime`` (strength is at least the last term and at
+    most n times it), bisecting where a step would leave it.  Solved in logarithms, no
+    intermediate overflows or underflows however small the lifetime; solved for the age,
+    a crossing close to the last encoding keeps its precision however late the clock.
+    The root is within 1e-12 of its age of the exact one, plus one rounding of the sum
+    (test_activation's 50-digit reference).
     """
-    last, span = trace.recent[-1], lifetime(d, tau)
-    if span > _LONGEST:
-        return NEVER
+    last = trace.recent[-1]
     if trace.n == 1:
-        return last + span
-    try:
-        t = last + span * trace.n ** (1.0 / d)
-    except OverflowError:
+        span = lifetime(d, tau)
+        return NEVER if span > _LONGEST else last + span
+    lo = -tau / d  # ln of the ages bracketing the root
+    hi = lo + math.log(trace.n) / d
+    if lo > _LOG_LONGEST:
         return NEVER
-    if t - last > _LONGEST:
-        t = last + _LONGEST
-        if trace.strength(t, d) ** (-1.0 / d) < span:
+    if hi > _LOG_LONGEST:
+        hi = _LOG_LONGEST
+        if _excess(trace, hi, d, tau)[0] > 0.0:  # still above the threshold there
             return NEVER
-    for _ in range(100):
-        total, slope = trace.strength_and_slope(t, d)
-        value = total ** (-1.0 / d) - span
-        # F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
-        step = -value / (-(1.0 / d) * total ** (-1.0 / d - 1.0) * slope)
-        t = max(t + step, last + span)  # from the right, never left of the lower bound
-        if abs(step) <= _PRECISION * max(1.0, abs(t)):
+    if math.exp(hi) + last == last:  # the whole bracket is below the last time's resolution
+        return last + math.exp(hi)
+    v = hi
+    for _ in range(200):
+        value, slope = _excess(trace, v, d, tau)
+        if value > 0.0:
+            lo = v
+        else:
+            hi = v
+        if slope < 0.0:  # (not where the age underflowed or a term overflowed: far left of the root)
+            step = -value / slope
+            if abs(step) <= _PRECISION * max(1.0, abs(v)):
+                v += step
+                break
+            if lo < v + step < hi:
+                v += step
+                continue
+        if hi - lo <= _PRECISION * max(1.0, abs(lo)):
             break
-    return t
+        v = 0.5 * (lo + hi)
+    return last + math.exp(v)
+
+
+def _excess(trace: Trace, v: float, d: float, tau: float) -> tuple[float, float]:
+    """Return ``ln strength - tau`` at age ``exp(v)`` and its derivative in v (+inf, 0 where the age underflows)."""
+    age = math.exp(v)
+    if age == 0.0:
+        return math.inf, 0.0
+    try:
+        total, slope = trace.strength_at_age(age, d)
+    except (OverflowError, ZeroDivisionError):  # an age so small a term overflows: far above the threshold
+        return math.inf, 0.0
+    if total == math.inf:
+        return math.inf, 0.0
+    return math.log(total) - tau, age * slope / total
 
 
 class LazyActivation:
@@ -304,16 +353,26 @@ class LazyActivation:
         """
         traces = store.traces
         now = self.clock + TIME_EPSILON
-        due = np.take(traces.due, rows, axis=1)
-        if not len(rows) or due.min() > now:
+        if not len(rows):
             return _NO_SLOTS
+        if self.clock != traces.pending_clock:
+            traces.settle()  # (at the clock they were made at, encodings not noted yet are not due)
+        row_due = traces._row_due
+        soon = np.take(row_due, rows)
+        if soon.min() > now:  # one number per row: most calls end here
+            return _NO_SLOTS
+        rows = rows[soon <= now]
+        due = np.take(traces._due, rows, axis=1)
         hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
-        vague = ~np.take(traces.exact.reshape(-1), flat)
+        vague = ~np.take(traces._flat_exact, flat)
         if vague.any():
             self._solve(traces, flat[vague], now)
-            flat = flat[np.take(traces.due.reshape(-1), flat) <= now]
+            due = np.take(traces._due, rows, axis=1)
+            flat = flat[np.take(traces._flat_due, flat) <= now]
+        # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
+        traces._row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
@@ -339,9 +398,9 @@ class LazyActivation:
     def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
         """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
 
-        :func:`crossing`'s root lies between two bounds: at most its start
-        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term; Newton
-        climbs to the root from the left), and, while n <= HISTORY, at least
+        :func:`crossing`'s root lies between two bounds: at most
+        ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term), and,
+        while n <= HISTORY, at least
         ``mean(t_j) + n^(1/d) lifetime`` (x^-d is convex: the sum is at least n times the
         term of the mean age).  With the clock clearly past the first (gone) or clearly
         before the second (a new lower bound), no Newton step is needed.
@@ -376,7 +435,7 @@ class LazyActivation:
         store.prop.reshape(-1)[flat] = -1
         store.traces.due.reshape(-1)[flat] = NEVER
         owners = flat % store.rows  # a row may recur
-        store.length[owners] = np.count_nonzero(np.take(store.prop, owners, axis=1) >= 0, axis=0)
+        np.subtract.at(store.length, owners, 1)  # (one number per entry gone, not the row's every slot)
         self.wm._size -= len(flat)
         return owners
 
@@ -438,59 +497,81 @@ class TraceColumns:
     HISTORY]`` is the time of its i-th encoding (from 0; the last :data:`HISTORY` are
     kept), so ``recent[k, r, 0]`` is its first time until the ring wraps; ``first`` keeps
     the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
-    :class:`Trace`.  A crossing solved in numpy (:func:`crossings`) is kept only as a
-    lower bound just below it, ``exact`` False: so whether and when an entry goes is
-    decided exactly as for a dict queue (see :meth:`LazyActivation.passed`).
+    :class:`Trace`; ``row_due[r]`` is at most the earliest ``due`` of row r (so a row with
+    nothing due costs one number to check; :meth:`LazyActivation.passed` renews it).  A
+    crossing solved in numpy (:func:`crossings`) is kept only as a lower bound just below
+    it, ``exact`` False: so whether and when an entry goes is decided exactly as for a
+    dict queue (see :meth:`LazyActivation.passed`).
     """
 
     def __init__(self, width: int, rows: int) -> None:
-        self.n = np.zeros((width, rows), dtype=np.int64)
-        self.first = np.zeros((width, rows))
-        self.recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
-        self.due = np.full((width, rows), NEVER)
-        self.exact = np.zeros((width, rows), dtype=bool)
+        self._n = np.zeros((width, rows), dtype=np.int64)
+        self._first = np.zeros((width, rows))
+        self._recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
+        self._due = np.full((width, rows), NEVER)
+        self._exact = np.zeros((width, rows), dtype=bool)
+        self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
         self.reach_of: Optional[tuple[float, float]] = None
+        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
+        self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
+        self.pending_clock = -math.inf  # the clock when they were made
         self._flatten()
 
+    # Every read or write from outside notes the pending encodings first (:meth:`settle`).
+    n = property(lambda self: self.settle() or self._n)
+    first = property(lambda self: self.settle() or self._first)
+    recent = property(lambda self: self.settle() or self._recent)
+    due = property(lambda self: self.settle() or self._due)
+    exact = property(lambda self: self.settle() or self._exact)
+    row_due = property(lambda self: self.settle() or self._row_due)
+    flat_due = property(lambda self: self.settle() or self._flat_due)
+    flat_exact = property(lambda self: self.settle() or self._flat_exact)
+
     def _flatten(self) -> None:
-        self.flat_n, self.flat_first, self.flat_recent = self.n.reshape(-1), self.first.reshape(-1), \
-            self.recent.reshape(-1)
-        self.flat_due, self.flat_exact = self.due.reshape(-1), self.exact.reshape(-1)
+        self._flat_n, self._flat_first, self._flat_recent = self._n.reshape(-1), self._first.reshape(-1), \
+            self._recent.reshape(-1)
+        self._flat_due, self._flat_exact = self._due.reshape(-1), self._exact.reshape(-1)
+        self._mark = np.zeros(self._flat_due.shape[0], dtype=np.intp)  # scratch: which pending slots recur
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
-        width = self.n.shape[0]
-        self.n = np.concatenate([self.n, np.zeros((width, extra), dtype=np.int64)], axis=1)
-        self.first = np.concatenate([self.first, np.zeros((width, extra))], axis=1)
-        self.recent = np.concatenate([self.recent, np.zeros((width, extra, HISTORY))], axis=1)
-        self.due = np.concatenate([self.due, np.full((width, extra), NEVER)], axis=1)
-        self.exact = np.concatenate([self.exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self.settle()
+        width = self._n.shape[0]
+        self._n = np.concatenate([self._n, np.zeros((width, extra), dtype=np.int64)], axis=1)
+        self._first = np.concatenate([self._first, np.zeros((width, extra))], axis=1)
+        self._recent = np.concatenate([self._recent, np.zeros((width, extra, HISTORY))], axis=1)
+        self._due = np.concatenate([self._due, np.full((width, extra), NEVER)], axis=1)
+        self._exact = np.concatenate([self._exact, np.zeros((width, extra), dtype=bool)], axis=1)
+        self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
         self._flatten()
 
     def widen(self, extra: int) -> None:
         """Add ``extra`` slots to every row."""
-        rows = self.n.shape[1]
-        self.n = np.concatenate([self.n, np.zeros((extra, rows), dtype=np.int64)])
-        self.first = np.concatenate([self.first, np.zeros((extra, rows))])
-        self.recent = np.concatenate([self.recent, np.zeros((extra, rows, HISTORY))])
-        self.due = np.concatenate([self.due, np.full((extra, rows), NEVER)])
-        self.exact = np.concatenate([self.exact, np.zeros((extra, rows), dtype=bool)])
+        self.settle()
+        rows = self._n.shape[1]
+        self._n = np.concatenate([self._n, np.zeros((extra, rows), dtype=np.int64)])
+        self._first = np.concatenate([self._first, np.zeros((extra, rows))])
+        self._recent = np.concatenate([self._recent, np.zeros((extra, rows, HISTORY))])
+        self._due = np.concatenate([self._due, np.full((extra, rows), NEVER)])
+        self._exact = np.concatenate([self._exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
 
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
-        n = int(self.n[slot, row])
-        ring = self.recent[slot, row].tolist()
-        trace = Trace(float(self.first[slot, row]) if n > HISTORY else ring[0])
+        self.settle()
+        n = int(self._n[slot, row])
+        ring = self._recent[slot, row].tolist()
+        trace = Trace(float(self._first[slot, row]) if n > HISTORY else ring[0])
         trace.n = n
         trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
-        trace.due, trace.exact = float(self.due[slot, row]), bool(self.exact[slot, row])
+        trace.due, trace.exact = float(self._due[slot, row]), bool(self._exact[slot, row])
         return trace
 
     def row(self, row: int, slots: list[int]) -> list[Trace]:
         """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once)."""
-        ns, firsts = self.n[:, row].tolist(), self.first[:, row].tolist()
-        rings, dues, exacts = self.recent[:, row].tolist(), self.due[:, row].tolist(), self.exact[:, row].tolist()
+        self.settle()
+        ns, firsts = self._n[:, row].tolist(), self._first[:, row].tolist()
+        rings, dues, exacts = self._recent[:, row].tolist(), self._due[:, row].tolist(), self._exact[:, row].tolist()
         out = []
         for k in slots:
             n, ring = ns[k], rings[k]
@@ -503,32 +584,78 @@ class TraceColumns:
 
     def put(self, slot: int, row: int, trace: Trace) -> None:
         """Keep ``trace`` in slot ``(slot, row)``."""
+        self.settle()
         n = trace.n
-        self.n[slot, row], self.first[slot, row] = n, trace.first
+        self._n[slot, row], self._first[slot, row] = n, trace.first
         ring = [0.0] * HISTORY
         for i, time in zip(range(n - len(trace.recent), n), trace.recent):
             ring[i & (HISTORY - 1)] = time
-        self.recent[slot, row] = ring
-        self.due[slot, row], self.exact[slot, row] = trace.due, trace.exact
+        self._recent[slot, row] = ring
+        self._due[slot, row], self._exact[slot, row] = trace.due, trace.exact
+        self._row_due[row] = min(self._row_due[row], trace.due)
 
-    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float) -> None:
-        """Note one encoding at ``time`` in each slot ``flat`` (flat index): a refresh where ``present``.
+    def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
+                rows: Optional[np.ndarray] = None, clock: float = -math.inf) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
-        ``span`` is one encoding's :func:`lifetime` under decay ``d``.  A new entry's
-        ``due`` is its crossing; a refreshed one's a lower bound of it: the later of
-        ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every term
-        is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
+        ``span`` is one encoding's :func:`lifetime` under decay ``d``; ``clock`` the
+        activation clock then.  Noted lazily: the encodings of the calls made at one time
+        and clock (a REG call's rule-3 encodings) are noted together, by the first read or
+        write of the traces from outside (:meth:`settle`) or :meth:`LazyActivation.passed`
+        at a later clock.  Until then a slot keeps its previous ``due``: after the queue
+        lost whatever was due at that clock (see :meth:`LazyActivation.passed`), none is.
+        The arrays given are kept: the caller does not change them.
+        """
+        if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock):
+            self.settle()
+        if not self._pending:
+            self._pending_of, self.pending_clock = (time, span, d), clock
+        self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
+
+    def settle(self) -> None:
+        """Note the pending encodings (:meth:`encoded`) as one batch (call by call if a slot is refreshed twice)."""
+        pending = self._pending
+        if not pending:
+            return
+        self._pending = []
+        time, span, d = self._pending_of
+        if len(pending) == 1:
+            self._note(*pending[0], time, span, d)
+            return
+        flat = np.concatenate([p[0] for p in pending])
+        present = np.concatenate([p[1] for p in pending])
+        rows = np.concatenate([p[2] for p in pending])
+        order = np.arange(len(flat))
+        mark = self._mark
+        mark[flat] = order  # (of a slot that recurs, the last place wins)
+        last = mark[flat] == order
+        if not last.all():  # a slot encoded again at that time
+            if present[mark[flat[~last]]].any():  # refreshed again: the encodings in turn
+                for p in pending:
+                    self._note(*p, time, span, d)
+                return
+            # Displaced (or emptied and refilled) again: only the new entry's encoding counts.
+            flat, present, rows = flat[last], present[last], rows[last]
+        self._note(flat, present, rows, time, span, d)
+
+    def _note(self, flat: np.ndarray, present: np.ndarray, rows: np.ndarray, time: float, span: float,
+              d: float) -> None:
+        """Note one encoding at ``time`` in each slot ``flat`` (distinct slots; ``rows`` may recur).
+
+        A new entry's ``due`` is its crossing; a refreshed one's a lower bound of it: the
+        later of ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every
+        term is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
         latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
         (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
         """
-        n, recent = self.flat_n, self.flat_recent
+        n, recent = self._flat_n, self._flat_recent
         old = n[flat]
         old *= present  # encodings before this one (a new entry: none)
         counts = old + 1
         n[flat] = counts
         wrapping = counts.max() > HISTORY
         if wrapping:
-            first = self.flat_first
+            first = self._flat_first
             wraps = flat[counts == HISTORY + 1]
         at = flat * HISTORY
         if wrapping:  # the first time leaves the ring: keep it
@@ -538,16 +665,19 @@ class TraceColumns:
         recent[old] = time
         begin = recent[at]  # the first time (while n <= HISTORY)
         reach = np.take(self._reach(d, span, time), counts, mode="clip")  # reach[1] < span
-        if wrapping:
-            older = counts > HISTORY
-            begin[older] = first[flat[older]]
-            spread = recent[((counts - HISTORY) & (HISTORY - 1)) + at] - begin
+        if wrapping:  # (the few slots with older presentations only)
+            older = np.flatnonzero(counts > HISTORY)
+            many = counts[older]
+            start = begin[older] = first[flat[older]]
+            spread = recent[((many - HISTORY) & (HISTORY - 1)) + at[older]] - start
             with np.errstate(over="ignore", invalid="ignore"):
-                right = time + span * counts.astype(float) ** (1.0 / d) - begin  # an age at the root, at most
-            reach[older & (spread > 0.0) & (spread * _ILL < right)] = -np.inf
+                right = time + span * many.astype(float) ** (1.0 / d) - start  # an age at the root, at most
+            reach[older[(spread > 0.0) & (spread * _ILL < right)]] = -np.inf
         begin += reach
-        self.flat_due[flat] = np.maximum(begin, time + span)
-        self.flat_exact[flat] = ~present
+        due = np.maximum(begin, time + span)
+        self._flat_due[flat] = due
+        self._flat_exact[flat] = ~present
+        np.minimum.at(self._row_due, rows, due)  # (rows recur in a batch)
 
     def _reach(self, d: float, span: float, time: float) -> np.ndarray:
         """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.
@@ -574,17 +704,18 @@ class TraceColumns:
         The times are a (k x len(flat)) array, oldest first, k the most any of them keeps;
         unused places hold -inf.
         """
-        n = np.take(self.flat_n, flat)
+        self.settle()
+        n = np.take(self._flat_n, flat)
         kept = np.minimum(n, HISTORY)
         start = n - kept  # index of the oldest encoding kept
         depth = int(kept.max(initial=1))
         times = np.full((depth, len(flat)), -np.inf)
-        recent = self.flat_recent
+        recent = self._flat_recent
         at = flat * HISTORY
         for j in range(depth):
             use = j < kept
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
-        first = np.where(n > HISTORY, np.take(self.flat_first, flat), np.take(recent, at))
+        first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
 
 
@@ -593,9 +724,10 @@ def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau
     """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
 
     ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them; ``start``:
-    lower bounds of the roots, if known.  Newton's method on the same function as
-    :func:`crossing`, in numpy arithmetic (another ``pow``), from the lower bound when
-    given (F is concave and increasing: from the left it climbs to the root), stopped
+    lower bounds of the roots, if known.  Newton's method on
+    ``F(t) = strength(t)^(-1/d) - lifetime`` (the root :func:`crossing` solves for in the
+    logarithm of the age), in numpy arithmetic (another ``pow``), from the lower bound
+    when given (F is concave and increasing: from the left it climbs to the root), stopped
     at :data:`_SOLVED`: the roots are :func:`crossing`'s within :data:`_MARGIN`
     (relative), not bit for bit.  Returns the roots and a mask of the traces this does
     not handle (the crossing is past ``_LONGEST``, the start overflows, or the Petrov

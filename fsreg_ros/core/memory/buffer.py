@@ -351,7 +351,7 @@ class WMBuffer:
         if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
             act.advance(time)
             act.forget_rows(rows)
-        traced = (time, act.span, act.decay) if act is not None else None
+        traced = (time, act.span, act.decay, act.clock) if act is not None else None
         grew, was_empty = store.encode(rows, pid, self._stamp + 1, traced)
         self._stamp += len(rows)
         self._size += int(grew.sum()) - int(popped.sum())

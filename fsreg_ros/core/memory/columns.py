@@ -205,7 +205,7 @@ class QueueColumns:
         return np.take(self.stamp, rows, axis=1)[where], np.broadcast_to(rows, props.shape)[where], props[where]
 
     def encode(self, rows: np.ndarray, prop: int, first_stamp: int,
-               traced: Optional[tuple[float, float, float]] = None
+               traced: Optional[tuple[float, float, float, float]] = None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
 
@@ -216,7 +216,7 @@ class QueueColumns:
         one key per slot (the property itself -2, an empty slot -1, else its stamp) and
         its column minimum (:func:`_first_minimum`): one reduction, where ``argmin`` and
         ``argmax`` along the short axis would each cost more than the whole encoding.
-        ``traced`` (rule ``activation``): ``(time, lifetime, d)`` of the encoding, noted
+        ``traced`` (rule ``activation``): ``(time, lifetime, d, clock)`` of the encoding, noted
         in the encoded slots' traces (a displaced front's slot starts a new one).
         """
         props = np.take(self.prop, rows, axis=1)
@@ -231,7 +231,8 @@ class QueueColumns:
         self.stamp.reshape(-1)[flat] = stamps
         entries[flat] = kept
         if traced is not None:
-            self.traces.encoded(flat, present, *traced)
+            time, span, d, clock = traced
+            self.traces.encoded(flat, present, time, span, d, rows, clock)
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
