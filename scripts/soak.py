@@ -193,15 +193,18 @@ def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
             raise SystemExit(f"soak.py: error: the warm-up {kind} message was refused: {reply['error']}")
 
 
-def cpu_seconds(graph) -> dict[str, float]:
-    """Return the CPU seconds (user + system) each node process and this sender have used so far."""
+def cpu_seconds(graph, recorder: Optional["Recording"] = None) -> dict[str, float]:
+    """Return the CPU seconds (user + system) each node process, this sender and the recorder have used so far."""
     out = {}
-    for spec, proc in list(graph.procs) + [(None, psutil.Process())]:
+    procs = [(spec.name, proc.pid) for spec, proc in graph.procs] + [("sender (soak.py)", os.getpid())]
+    if recorder is not None:
+        procs.append(("recorder (fsreg-ctl)", recorder.proc.pid))
+    for name, pid in procs:
         try:
-            times = psutil.Process(proc.pid).cpu_times()
+            times = psutil.Process(pid).cpu_times()
         except psutil.NoSuchProcess:
             continue
-        out[spec.name if spec is not None else "sender (soak.py)"] = times.user + times.system
+        out[name] = times.user + times.system
     return out
 
 
@@ -253,7 +256,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
-        cpu_before = cpu_seconds(graph)
+        cpu_before = cpu_seconds(graph, recorder)
         start = time.monotonic()
         next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
@@ -294,7 +297,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
-        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph).items()}
+        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph, recorder).items()}
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         if recorder is not None:
@@ -445,6 +448,10 @@ def recording_report(result: RunResult, path: Path) -> str:
         dropped += missing
         lines.append(f"  {request}: {len(sent & got_requests)} of {len(sent)} sent; {reply}: "
                      f"{len(answered & got_replies)} of {len(answered)} answers")
+        gone = sorted(result.messages[k].index for k in (sent - got_requests) | (answered - got_replies))
+        if gone:
+            lines.append(f"    missing from the bag (message indices): {', '.join(map(str, gone[:20]))}"
+                         + (" ..." if len(gone) > 20 else ""))
     events = [m.data for m in recording.on("events") if isinstance(m.data, dict)]
     try:
         check_events(str(path), events)
