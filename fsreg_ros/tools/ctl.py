@@ -752,8 +752,11 @@ def record(ctl: Ctl, client) -> int:
                 raise
             print(f"{PROG}: note: no graph answered in {client.where()} within {ctl.timeout:g} s; recording "
                   "whatever comes (a replay will need --scenario)", file=sys.stderr, flush=True)
+        # The recorder's own thread records; this process's client is not spun meanwhile (its
+        # subscriptions to the answers are not needed, and an executor wake-up per answer is
+        # what recording must not cost).
         while deadline is None or time.monotonic() < deadline:
-            client.executor.spin_once(timeout_sec=0.05)
+            time.sleep(0.05 if deadline is None else max(0.0, min(0.05, deadline - time.monotonic())))
     except KeyboardInterrupt:
         pass
     finally:
