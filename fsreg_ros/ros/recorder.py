@@ -125,6 +125,7 @@ class Recorder:
             self.subscriptions.append(self._readers.create_subscription(
                 kind, topic.name, _never_called, qos_profile(reader), raw=True))
         self.closed = False
+        self.error: Optional[BaseException] = None  # what stopped the drain thread (writing failed), if anything
         self._lock = threading.Lock()  # the bag: the drain thread's, and close()'s
         self._stop = threading.Event()
         self._nice = nice
@@ -137,8 +138,12 @@ class Recorder:
             with self._lock:
                 if self.closed:
                     return
-                self.drain()
-                self.bag.poll()
+                try:
+                    self.drain()
+                    self.bag.poll()
+                except Exception as err:  # noqa: BLE001 - e.g. a full disk: kept for the owner to report
+                    self.error = err
+                    return
 
     def drain(self) -> int:
         """Write every message waiting in any recorded topic's reader, in receive-time order; return how many."""

@@ -755,7 +755,7 @@ def record(ctl: Ctl, client) -> int:
         # The recorder's own thread records; this process's client is not spun meanwhile (its
         # subscriptions to the answers are not needed, and an executor wake-up per answer is
         # what recording must not cost).
-        while deadline is None or time.monotonic() < deadline:
+        while (deadline is None or time.monotonic() < deadline) and recorder.error is None:
             time.sleep(0.05 if deadline is None else max(0.0, min(0.05, deadline - time.monotonic())))
     except KeyboardInterrupt:
         pass
@@ -763,6 +763,9 @@ def record(ctl: Ctl, client) -> int:
         for sig in previous:  # closing the bag is not interrupted
             signal.signal(sig, signal.SIG_IGN)
         path = recorder.close()
+    if recorder.error is not None:
+        raise ClientError(f"record: writing {path} failed: {printable(recorder.error)}; what was written before "
+                          "is kept there", "failed")
     counts = recorder.counts
     ctl.emit({"recorded": str(path), "messages": sum(counts.values()), "counts": counts},
              f"recorded {recorder.summary()}")
