@@ -175,6 +175,28 @@ def record_live_session(path: Path, second: Path) -> dict:
             robot.session.probe.get_publishers_info_by_topic(f"{ns}/rr/result")[0].topic_type_hash)}
 
 
+@pytest.mark.graph
+def test_a_write_that_fails_stops_the_recorder_and_is_kept_for_its_owner(tmp_path):
+    from fsreg_ros import contract
+    from fsreg_ros.ros.recorder import Recorder
+    from fsreg_ros.testing.ros_session import RosSession
+
+    with RosSession("/full") as session:
+        recorder = Recorder(session.probe, tmp_path / "bag")
+
+        def full(*_args) -> None:
+            raise OSError(28, "No space left on device")
+
+        recorder.bag.write = full  # the disk fills up
+        answer = {"id": "r1", "resolved": "face1"}
+        session.publish("/full/rr/result", answer, contract.PIPELINE_QOS)  # the writer (matched or not yet)
+        session.spin_until(lambda: recorder.matched()["/full/rr/result"] >= 1, 10.0, what="the recorder matched")
+        session.publish("/full/rr/result", answer, contract.PIPELINE_QOS)
+        session.spin_until(lambda: recorder.error is not None, 10.0, what="the recorder's thread to stop")
+        assert isinstance(recorder.error, OSError) and recorder.error.errno == 28
+        assert not recorder._thread.is_alive()
+
+
 @pytest.fixture(scope="module")
 def live(tmp_path_factory):
     folder = tmp_path_factory.mktemp("live")
