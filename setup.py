@@ -38,7 +38,7 @@ setup(
     # ROS wheels are deliberately not listed: a real ROS install provides rclpy and
     # the message packages itself (requirements-ros.txt pins them for a venv).
     install_requires=["setuptools", "pyyaml>=6", "pydantic>=2.5", "numpy>=1.24", "rosbags>=0.11.9",
-                      "snowballstemmer>=3.1"],
+                      "ruamel.yaml.clib>=0.2.15; platform_python_implementation == 'CPython'", "snowballstemmer>=3.1"],
     # Dask for research jobs beyond one machine (fsreg-sweep --cluster/--scheduler): pip install fsreg_ros[cluster].
     # The same pin is in requirements-dev.txt, so the test suite always runs the cluster tests.
     extras_require={"cluster": ["dask[distributed]==2026.8.0"]},

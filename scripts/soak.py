@@ -176,32 +176,38 @@ def spin_until(live: LiveGraph, predicate, deadline: float) -> bool:
     return True
 
 
-def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> None:
-    """One real round trip per pipeline (the first call to a new server can be slow), at time 0."""
+def warm_up(live: LiveGraph, plan: list[tuple[float, str, dict]]) -> set[str]:
+    """One real round trip per pipeline (the first call to a new server can be slow), at time 0; return the ids."""
     live.client.set_clock(0.0, READY_TIMEOUT)
+    ids = set()
     for kind in KINDS:
         msg = next((m for _, k, m in plan if k == kind), None)
         if msg is None:
             continue
         stamp = {} if kind == "facts" else {"time": 0.0}
         try:
-            reply = live.client.exchange(KINDS[kind], {**msg, "id": live.client.new_id("warm"), **stamp},
-                                         READY_TIMEOUT)
+            key = live.client.new_id("warm")
+            ids.add(key)
+            reply = live.client.exchange(KINDS[kind], {**msg, "id": key, **stamp}, READY_TIMEOUT)
         except ClientError as err:
             raise SystemExit(f"soak.py: error: no reply to the warm-up {kind} message: {err}") from None
         if reply.get("error"):
             raise SystemExit(f"soak.py: error: the warm-up {kind} message was refused: {reply['error']}")
+    return ids
 
 
-def cpu_seconds(graph) -> dict[str, float]:
-    """Return the CPU seconds (user + system) each node process and this sender have used so far."""
+def cpu_seconds(graph, recorder: Optional["Recording"] = None) -> dict[str, float]:
+    """Return the CPU seconds (user + system) each node process, this sender and the recorder have used so far."""
     out = {}
-    for spec, proc in list(graph.procs) + [(None, psutil.Process())]:
+    procs = [(spec.name, proc.pid) for spec, proc in graph.procs] + [("sender (soak.py)", os.getpid())]
+    if recorder is not None:
+        procs.append(("recorder (fsreg-ctl)", recorder.proc.pid))
+    for name, pid in procs:
         try:
-            times = psutil.Process(proc.pid).cpu_times()
+            times = psutil.Process(pid).cpu_times()
         except psutil.NoSuchProcess:
             continue
-        out[spec.name if spec is not None else "sender (soak.py)"] = times.user + times.system
+        out[name] = times.user + times.system
     return out
 
 
@@ -229,6 +235,22 @@ class Recording:
                           time.monotonic() + READY_TIMEOUT):
             raise SystemExit("soak.py: error: the recorder did not subscribe in time")
 
+    def holds(self, ids: set[str]) -> bool:
+        """Whether the recording's closed segments hold an answer to each of ``ids`` and a WM event.
+
+        Only then is the recorder matched with every writer the soak's answers come from
+        (discovery is per pair of processes: the recorder can hear the sender before RR).
+        """
+        from fsreg_ros.core.recording import RecordingError, open_recording
+
+        try:
+            recording = open_recording(self.path)
+        except RecordingError:  # no segment closed yet
+            return False
+        answered = {m.data.get("id") for role in ("rr", "expression", "assert_result") for m in recording.on(role)
+                    if isinstance(m.data, dict)}
+        return ids <= answered and bool(recording.on("events"))
+
     def stop(self) -> None:
         import signal
 
@@ -249,11 +271,18 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         rss: dict[str, list[tuple[int, float]]] = {}
         messages: dict[str, Sent] = {}
         recorder = Recording(live, record) if record is not None else None
-        warm_up(live, plan)
+        ids = warm_up(live, plan)
+        deadline = time.monotonic() + READY_TIMEOUT
+        while recorder is not None and not recorder.holds(ids):  # again until the recorder hears every writer
+            if time.monotonic() > deadline:
+                raise SystemExit("soak.py: error: the recorder did not hear the warm-up's answers in time")
+            spin_until(live, lambda: False, time.monotonic() + 1.0)
+            if not recorder.holds(ids):
+                ids = warm_up(live, plan)
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
-        cpu_before = cpu_seconds(graph)
+        cpu_before = cpu_seconds(graph, recorder)
         start = time.monotonic()
         next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
@@ -294,7 +323,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
-        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph).items()}
+        cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph, recorder).items()}
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         if recorder is not None:
@@ -445,6 +474,10 @@ def recording_report(result: RunResult, path: Path) -> str:
         dropped += missing
         lines.append(f"  {request}: {len(sent & got_requests)} of {len(sent)} sent; {reply}: "
                      f"{len(answered & got_replies)} of {len(answered)} answers")
+        gone = sorted(result.messages[k].index for k in (sent - got_requests) | (answered - got_replies))
+        if gone:
+            lines.append(f"    missing from the bag (message indices): {', '.join(map(str, gone[:20]))}"
+                         + (" ..." if len(gone) > 20 else ""))
     events = [m.data for m in recording.on("events") if isinstance(m.data, dict)]
     try:
         check_events(str(path), events)

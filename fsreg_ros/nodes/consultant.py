@@ -6,7 +6,8 @@ The node is wiring: it validates each request with the contract's models
 protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
 :class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
-``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes),
+``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes; a call's
+events go out right after its reply, so listening costs the caller nothing),
 ``wm/state`` (latched, so it always holds the current state: after every request that
 changed WM, whether or not anyone listens, coalesced to at most one per ``state_period``;
 a session's steps wait for its ``close``), ``ltm/assert/result``, and its announcement on
@@ -122,6 +123,9 @@ class ConsultantNode(Node):
         self._announced: Optional[tuple] = None
         self._announcement: dict = {}
         self._state_due, self._state_sent = False, float("-inf")
+        self._unsent: list[dict] = []  # events of calls answered, published by _flush right after
+        self._flush_wait = True  # every call since the last flush was a session step (wm/state waits for close)
+        self._flush_guard = self.create_guard_condition(self._flush)
         services = [(contract.CONSULTANT, contract.CONSULTANT_OPS), (contract.MANAGE, contract.MANAGE_OPS)]
         if debug:
             services.append((contract.DEBUG, contract.DEBUG_OPS))
@@ -234,10 +238,25 @@ class ConsultantNode(Node):
             self._log_notices()
 
     def _published(self, outcome: Outcome, wait: bool = False) -> None:
-        for event in outcome.events:
-            publish(self._events, event)
+        """Publish what came of a call right after its reply (the executor's next step: :meth:`_flush`).
+
+        A call's events (a dozen per turn, hundreds for a decay tick) cost the call's caller
+        nothing this way: measured while a recorder listened, publishing them before the
+        reply added their cost to every RR and REG round trip.  Their order, their ``seq``
+        and what follows them (``wm/state``, the announcement) are unchanged.
+        """
+        self._unsent.extend(outcome.events)
         if outcome.changes.wm:
             self._state_due = True
+        self._flush_wait = self._flush_wait and wait
+        self._flush_guard.trigger()
+
+    def _flush(self) -> None:
+        """Publish the events of the calls answered since the last flush, a due ``wm/state``, the announcement."""
+        events, self._unsent = self._unsent, []
+        for event in events:
+            publish(self._events, event)
+        wait, self._flush_wait = self._flush_wait, True
         if not wait:
             self._publish_due()
         self.announce(only_if_changed=True)
@@ -390,6 +409,8 @@ class ConsultantNode(Node):
         return bool(self.declare_parameter(name, default, descriptor(description, read_only=True)).value)
 
     def destroy_node(self) -> None:
+        if getattr(self, "_unsent", None):
+            self._flush()  # stopping: what was answered is published
         service = getattr(self, "service", None)
         if service is not None:
             service.shutdown()

@@ -694,6 +694,9 @@ def _record_arguments(parser: argparse.ArgumentParser) -> None:
                         help="stop after S seconds (wall clock)")
     parser.add_argument("--segment", type=number(0.0, 3600, above=True, unit="seconds"), default=1.0, metavar="S",
                         help="close a segment every S seconds: what a killed recorder can lose at most (default 1)")
+    parser.add_argument("--nice", type=number(0, 19, integer=True), default=10, metavar="N",
+                        help="run the recorder N nice levels below where it was started, so it never takes the "
+                        "graph's CPU (0-19, default 10)")
 
 
 def check_record(args: argparse.Namespace) -> None:
@@ -717,12 +720,13 @@ def record(ctl: Ctl, client) -> int:
 
     from ..core.recording import RecordingError
     from ..ros.client import ClientError
-    from ..ros.recorder import Recorder, graph_knowledge
+    from ..ros.recorder import Recorder, graph_knowledge, lower_priority
 
     args = ctl.args
+    lower_priority(args.nice)  # every thread of this process, DDS's too; the recorder's thread inherits it
     try:  # recording starts at once: nothing that comes while the graph is looked for is lost
         recorder = Recorder(client.node, Path(args.directory), segment_seconds=args.segment,
-                            custom={"fsreg.namespace": ctl.namespace or "/"})
+                            custom={"fsreg.namespace": ctl.namespace or "/"}, nice=0)
     except (RecordingError, OSError) as err:
         raise UsageError(f"record: {err}") from None
 
@@ -748,14 +752,20 @@ def record(ctl: Ctl, client) -> int:
                 raise
             print(f"{PROG}: note: no graph answered in {client.where()} within {ctl.timeout:g} s; recording "
                   "whatever comes (a replay will need --scenario)", file=sys.stderr, flush=True)
-        while deadline is None or time.monotonic() < deadline:
-            client.executor.spin_once(timeout_sec=0.05)
+        # The recorder's own thread records; this process's client is not spun meanwhile (its
+        # subscriptions to the answers are not needed, and an executor wake-up per answer is
+        # what recording must not cost).
+        while (deadline is None or time.monotonic() < deadline) and recorder.error is None:
+            time.sleep(0.05 if deadline is None else max(0.0, min(0.05, deadline - time.monotonic())))
     except KeyboardInterrupt:
         pass
     finally:
         for sig in previous:  # closing the bag is not interrupted
             signal.signal(sig, signal.SIG_IGN)
         path = recorder.close()
+    if recorder.error is not None:
+        raise ClientError(f"record: writing {path} failed: {printable(recorder.error)}; what was written before "
+                          "is kept there", "failed")
     counts = recorder.counts
     ctl.emit({"recorded": str(path), "messages": sum(counts.values()), "counts": counts},
              f"recorded {recorder.summary()}")

@@ -54,6 +54,7 @@ from typing import Optional, Sequence
 from .. import contract
 from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options_from_args
 from ..contract import normalise_namespace
+from ..contract.codec import printable
 from ..core.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon
 from ..core.persistence import time_text
@@ -339,6 +340,9 @@ class Up:
                       file=sys.stderr)
             if recorder is not None:
                 recorder.close()
+                if recorder.error is not None:  # the recorder's thread stopped when a write failed (a full disk)
+                    print(printable(f"{PROG}: error: --record: writing {self.args.record} failed: {recorder.error}; "
+                                    "what was written before is kept there"), file=sys.stderr)
                 print(f"{PROG}: recorded {recorder.summary()}", file=sys.stderr)
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()

@@ -59,6 +59,8 @@ def run(capsys, *argv: str) -> tuple[int, str, str]:
     (["record", "/tmp", "--duration", "nan"], "argument --duration: expected a finite number of seconds in (0,"),
     (["record", "/tmp", "--segment", "0"], "argument --segment: expected a finite number of seconds in (0, 3600]"),
     (["record", "/"], "record: / exists already; a recording goes to a new folder"),
+    (["record", "/tmp/x", "--nice", "20"], "argument --nice: expected a whole number in [0, 19], got 20"),
+    (["record", "/tmp/x", "--nice", "1.5"], "argument --nice: expected a whole number in [0, 19], got '1.5'"),
     (["record"], "the following arguments are required: DIR"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(capsys, argv, said):

@@ -4,7 +4,8 @@ The bag is written by ``rosbags`` (:mod:`fsreg_ros.core.recording`) and read bac
 independently, by the ``mcap`` package.  A live session (the public harness, in-process
 graph, sim time) is recorded with exact message counts, replayed (equal), doctored (one
 expression changed: exit 1 naming the turn), damaged (one line naming the file, exit 2),
-and cut short by SIGKILL (the closed segments still open, and what was lost is said).
+and cut short by SIGKILL (the closed segments still open, and what was lost is said).  Two
+recorders at once (one on a ROS context of its own) both hold the whole session.
 """
 
 from __future__ import annotations
@@ -129,19 +130,25 @@ def test_plot_accepts_watch_output_with_states_between_the_events(tmp_path, caps
 
 
 # ------------------------------------------------------------------ a live session
-def record_live_session(path: Path) -> dict:
-    """Record a scripted session of the in-process graph (sim time); return what was sent and the graph's counts."""
+def record_live_session(path: Path, second: Path) -> dict:
+    """Record a scripted session of the in-process graph (sim time); return what was sent and the graph's counts.
+
+    Two recorders at once: one on the harness's node, one on a node and ROS context of its
+    own (``second``, as ``fsreg-graph --record`` runs it).
+    """
     from fsreg_ros import contract
-    from fsreg_ros.ros.recorder import Recorder
+    from fsreg_ros.ros.recorder import Recorder, RecorderThread
     from fsreg_ros.testing import LiveGraph
 
     with LiveGraph(SCENARIO, policy="decay", decay_period=10.0) as robot:
         recorder = Recorder(robot.session.probe, path, segment_seconds=0.5, attach={"scenario": SCENARIO},
                             custom={"fsreg.graph": robot.identity})
-        robot.session.spin_until(lambda: recorder.matched()[f"{robot.namespace}/rr/result"] >= 1
-                                 and recorder.matched()[f"{robot.namespace}/wm/events"] >= 1
-                                 and recorder.counts[f"{robot.namespace}/wm/state"] >= 1, 10.0,
-                                 what="the recorder matched with the graph and holds its latched state")
+        other = RecorderThread(second, robot.namespace, attach={"scenario": SCENARIO})
+        both = (recorder, other.recorder)
+        robot.session.spin_until(lambda: all(r.matched()[f"{robot.namespace}/rr/result"] >= 1
+                                             and r.matched()[f"{robot.namespace}/wm/events"] >= 1
+                                             and r.counts[f"{robot.namespace}/wm/state"] >= 1 for r in both), 10.0,
+                                 what="both recorders matched with the graph and hold its latched state")
         robot.client.wait_matched("say", 10.0)
         said = robot.say("male, lab-coat, light-hair, glasses", time=1.0)
         assert said["resolved"] == "face1"
@@ -160,17 +167,41 @@ def record_live_session(path: Path) -> dict:
         ns = robot.namespace
         wanted = {f"{ns}/rr/result": 2, f"{ns}/reg/expression": 4, f"{ns}/wm/events": info["events"],
                   f"{ns}/ltm/assert/result": 1}
-        robot.session.spin_until(lambda: all(recorder.counts[t] >= n for t, n in wanted.items()), 10.0,
-                                 what="every answer and event in the recording")
+        robot.session.spin_until(lambda: all(r.counts[t] >= n for t, n in wanted.items() for r in both), 10.0,
+                                 what="every answer and event in both recordings")
         recorder.close()
+        other.close()
         return {"namespace": ns, "events": info["events"], "hash": str(
             robot.session.probe.get_publishers_info_by_topic(f"{ns}/rr/result")[0].topic_type_hash)}
 
 
+@pytest.mark.graph
+def test_a_write_that_fails_stops_the_recorder_and_is_kept_for_its_owner(tmp_path):
+    from fsreg_ros import contract
+    from fsreg_ros.ros.recorder import Recorder
+    from fsreg_ros.testing.ros_session import RosSession
+
+    with RosSession("/full") as session:
+        recorder = Recorder(session.probe, tmp_path / "bag")
+
+        def full(*_args) -> None:
+            raise OSError(28, "No space left on device")
+
+        recorder.bag.write = full  # the disk fills up
+        answer = {"id": "r1", "resolved": "face1"}
+        session.publish("/full/rr/result", answer, contract.PIPELINE_QOS)  # the writer (matched or not yet)
+        session.spin_until(lambda: recorder.matched()["/full/rr/result"] >= 1, 10.0, what="the recorder matched")
+        session.publish("/full/rr/result", answer, contract.PIPELINE_QOS)
+        session.spin_until(lambda: recorder.error is not None, 10.0, what="the recorder's thread to stop")
+        assert isinstance(recorder.error, OSError) and recorder.error.errno == 28
+        assert not recorder._thread.is_alive()
+
+
 @pytest.fixture(scope="module")
 def live(tmp_path_factory):
-    path = tmp_path_factory.mktemp("live") / "session"
-    sent = record_live_session(path)
+    folder = tmp_path_factory.mktemp("live")
+    path = folder / "session"
+    sent = record_live_session(path, folder / "second")
     return path, sent
 
 
@@ -195,6 +226,24 @@ def test_a_live_session_is_recorded_with_nothing_dropped(live):
     # the type hash in the bag is the one the live publisher announces
     meta = (path / "metadata.yaml").read_text()
     assert sent["hash"].startswith("RIHS01_") and f"type_description_hash: {sent['hash']}" in " ".join(meta.split())
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_two_recorders_at_once_both_hold_the_whole_session(live):
+    path, sent = live
+    second = path.parent / "second"
+    ns = sent["namespace"]
+    first_counts, _, _ = mcap_summary(path / f"{path.name}.mcap")
+    second_counts, _, _ = mcap_summary(second / f"{second.name}.mcap")
+    for topic, n in (("dialogue/human", 2), ("dialogue/semantics", 2), ("rr/result", 2), ("reg/request", 4),
+                     ("reg/expression", 4), ("ltm/assert", 1), ("ltm/assert/result", 1),
+                     ("wm/events", sent["events"]), ("clock", 5)):
+        assert first_counts[f"{ns}/{topic}"] == second_counts[f"{ns}/{topic}"] == n, topic
+    first, other = open_recording(path), open_recording(second)
+    for role in ("human", "rr", "request", "expression", "events", "assert", "assert_result"):
+        assert [m.data for m in first.on(role)] == [m.data for m in other.on(role)], role
+    assert [m.data["seq"] for m in other.on("events")] == list(range(1, sent["events"] + 1))
 
 
 @pytest.mark.graph
