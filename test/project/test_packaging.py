@@ -223,4 +223,4 @@ def test_package_xml_names_every_runtime_requirement():
     text = (REPO / "package.xml").read_text()
     depends = {e.text for e in ET.fromstring(text).iter("exec_depend")}
     for name in sorted(required):
-        assert keys.get(name) in depends or f"{name} " in text and "has no rosdep key" in text, name
+        assert keys.get(name) in depends or f"{name} " in text and "no rosdep key" in text, name
