@@ -47,7 +47,8 @@ from rosgraph_msgs.msg import Clock
 from .. import contract
 from ..ros.carrier import (CarrierError, ServiceCaller, drop_timer, graph_identity, publish, publisher, subscribe,
                            wait_until)
-from ..ros.client import clock_message, describe_graph
+from ..ros.client_base import describe_graph
+from ..ros.graph_clock import clock_message
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation import dumps, human_record, robot_record, trace_order

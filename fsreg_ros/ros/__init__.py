@@ -14,7 +14,10 @@ What lives here, one module per job (the wire codec, ROS-free, is
 * :mod:`.network`: the DDS environment of every process (loopback unless widened);
 * :mod:`.graph_spec`: the one definition of the node graph (nodes, names, parameters);
 * :mod:`.remote`: :class:`~.remote.RemotePort`, a consultant port over a consultant node's service;
-* :mod:`.client`: :class:`~.client.GraphClient`, the client side of a live graph (tools, harness);
+* :mod:`.client`: :class:`~.client.GraphClient`, the client side of a live graph (tools, harness), its
+  jobs one module each: :mod:`.client_base` (errors, bounded waits), :mod:`.readiness`,
+  :mod:`.exchange` (the dialogue topics), :mod:`.graph_queries` (services, WM reads),
+  :mod:`.graph_clock`, :mod:`.parameter_access`;
 * node support shared by several nodes: :mod:`.node_base` (the main runner, parameter
   helpers, the clock watchdog), :mod:`.asking` (the base of RR and REG),
   :mod:`.manage_link` and :mod:`.memory_parameters` (the WM Manager's links and

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from .. import contract
-from .client import describe_graph
+from .client_base import describe_graph
 
 #: Fields a consultant adds to an event for transport; the trace keeps the event itself (docs/semantics.md §2).
 TRANSPORT_FIELDS = ("seq", "incarnation", contract.GRAPH_FIELD)

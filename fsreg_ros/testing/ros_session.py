@@ -31,7 +31,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from ..ros.carrier import CarrierError, ServiceCaller, qos_profile, to_msg
-from ..ros.client import clock_message
+from ..ros.graph_clock import clock_message
 from ..contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace
 from ..ros.network import enforce_loopback
 

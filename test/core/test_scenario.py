@@ -1186,11 +1186,19 @@ def test_exclusive_group_errors(block, path, fragment):
 @pytest.mark.parametrize("facts, fragment", [
     ("[male, female]", "entity 'p1' holds both 'male' and 'female', which exclude each other"),
     ("[colour=red, colour=blue]", "entity 'p1' holds both 'colour=red' and 'colour=blue'"),
+    # two properties in no group besides the pair (the check's second tier)
+    ("[glasses, male, no-glasses, female]", "entity 'p1' holds both 'male' and 'female', which exclude each other"),
 ])
 def test_an_entity_holding_two_exclusive_properties_is_refused(facts, fragment):
     err = error_of(EXCL + "    exclusive: [[male, female]]\n    entities:\n      p1: " + facts + "\n")
     assert (err.path, err.line) == ("domains.t.entities.p1", 6)
     assert fragment in err.message
+
+
+def test_properties_in_no_group_or_in_distinct_groups_go_together():
+    text = EXCL + "    exclusive: [[male, female]]\n    entities:\n      p1: [glasses, no-glasses, male, colour=red]\n"
+    assert parse_scenario(text, source="t.yaml").domains["t"].entities["p1"] == {
+        "glasses": 1.0, "no-glasses": 1.0, "male": 1.0, "colour=red": 1.0}
 
 
 def test_an_entity_may_have_an_exclusive_property_below_the_threshold():

@@ -8,6 +8,7 @@ What lives where (one module per job; each docstring says what it owns):
 ``queue``          :class:`Queue` (Q[entity]) and its entries, :class:`WMEvent`,
                    :class:`QueueItem`, origins, the event causes
 ``limits``         :class:`Limits`: what the WM Manager lets a buffer hold
+``install``        installing new limits: applied to every queue at once
 ``decay``          decay's pops (Algorithm 2): lazy catch-up, flush, eager ticks, and
                    the column queues' pops; tick *times* are :mod:`fsreg_ros.core.decay`
 ``displacement``   interference: displacement (Algorithm 3) and its victims,
@@ -16,7 +17,7 @@ What lives where (one module per job; each docstring says what it owns):
 ``changes``        the change record: which queues changed since they were persisted
 ``columns``        column queues (numpy) for rule 2 and 3 encodings in a large domain
                    (with ``activation``'s traces, :class:`~.activation.TraceColumns`)
-``persistence``    export of queues and restore from a store
+``persistence``    export of queues and restore from a store; the snapshot of all queues
 ``host``           :class:`HostBuffer`: what the collaborators above use of the buffer
                    (a protocol, so that none imports ``buffer``)
 =================  ================================================================

@@ -9,7 +9,8 @@ everything), with its collaborators:
 * ``activation`` (:mod:`fsreg_ros.core.memory.activation`, while rule ``activation``
   is in force): ACT-R base-level activation, its clock and lazy pops;
 * ``interference`` (:mod:`fsreg_ros.core.memory.displacement`): Algorithm 3,
-  similarity and the global and shared limits, enforced after every encoding event;
+  similarity and the global and shared limits, enforced after every encoding event
+  (new limits are installed by :mod:`fsreg_ros.core.memory.install`);
 * ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`), ``changes``
   (:mod:`fsreg_ros.core.memory.changes`) and ``columns``
   (:mod:`fsreg_ros.core.memory.columns`): the records kept beside the queues and the
@@ -26,11 +27,12 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from .. import bitset
 from ..decay import TickLedger, TickRun
-from .activation import LazyActivation, install_activation
+from .activation import LazyActivation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
-from .decay import NO_ROWS, LazyDecay, pop_owed, pop_quietly
+from .decay import NO_ROWS, LazyDecay, pop_quietly
 from .displacement import Interference
+from .install import install_limits
 from .limits import UNLIMITED, Limits
 from . import persistence
 from .origins import OriginLog
@@ -105,15 +107,8 @@ class WMBuffer:
         return self._size
 
     def snapshot(self) -> dict[str, list[str]]:
-        """Every non-empty queue, LRU first, keyed by entity (insertion order)."""
-        self.flush()
-        columns = self.columns
-        if not columns.entities:
-            return {e: list(self._queues[e]) for e in self._nonempty}
-        return {
-            e: list(columns.row_dict(columns.row[e])) if e in columns.entities else list(self._queues[e])
-            for e in self._nonempty
-        }
+        """Every non-empty queue, LRU first, keyed by entity (insertion order; :mod:`.persistence`)."""
+        return persistence.snapshot(self)
 
     def front_stamp(self, entity: str) -> int:
         """Stamp of Q[entity]'s front (call only on a caught-up, non-empty queue)."""
@@ -151,34 +146,8 @@ class WMBuffer:
 
     # ---------------------------------------------------------------- limits
     def set_limits(self, limits: Limits, time: float) -> None:
-        """Install new limits and apply them to every queue at once (docs/semantics.md section 7).
-
-        Not retaining forgets everything (cause ``reset``); a capacity trims every
-        queue; a global limit trims the domain.  Similarity applies from the next
-        encoding on.  Queues are trimmed one after the other, in no specified order
-        (what each loses depends on itself only; the global victims on stamps only).
-        """
-        limits.check()
-        if not self.columns.fits(limits):
-            self.columns.drop()
-        self.limits = limits
-        self.interference.install(limits)
-        install_activation(self, limits, time)
-        for entity, q in self._queues.items():
-            hits = q.hits
-            if hits is not None:  # the LFU counts restart: an exported count may change
-                if any(hits.get(prop, 1) != 1 for prop in q):
-                    self.changes.record(entity, q)
-                q.hits = None
-        if not limits.retains:
-            self._forget_all("reset", time, None)
-            return
-        if limits.capacity is not None:
-            self.flush()
-            for entity, q in self._queues.items():
-                self.interference.displace(entity, q, limits.capacity, "", time, None)
-        if limits.global_capacity is not None:
-            self.interference.evict_global(limits.global_capacity, time, None)
+        """Install new limits and apply them to every queue at once (:mod:`.install`; docs/semantics.md section 7)."""
+        install_limits(self, limits, time)
 
     def evict_oldest(self, count: int, cause: str, time: float) -> None:
         """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim)."""
@@ -343,23 +312,7 @@ class WMBuffer:
             # (activation without a capacity) longer than the columns' widest
             self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
             return
-        self.origin_log.log(self._stamp + 1, cause, turn)
-        store = columns.store
-        pid = columns.prop(prop)
-        popped = pop_owed(store, rows, self.lazy_decay.ticks.count)
-        act = self.activation
-        if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
-            act.advance(time)
-            act.forget_rows(rows)
-        traced = (time, act.span, act.decay, act.clock) if act is not None else None
-        grew, was_empty = store.encode(rows, pid, self._stamp + 1, traced)
-        self._stamp += len(rows)
-        self._size += int(grew.sum()) - int(popped.sum())
-        nonempty, bound = self._nonempty, columns.bound
-        for row in rows[was_empty].tolist():  # (re)joins the non-empty queues last, as queue by queue
-            nonempty.pop(bound[row], None)
-            nonempty[bound[row]] = None
-        self.changes.mark_rows(rows)
+        columns.encode_rows(rows, prop, cause, time, turn)
 
     def pop_front(self, entity: str, cause: str, time: float, turn: Optional[int] = None) -> Optional[str]:
         """Forget Q[entity]'s LRU property; returns it, or None if Q is empty."""

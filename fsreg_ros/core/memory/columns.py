@@ -42,6 +42,7 @@ import numpy as np
 
 from ..decay import TIME_EPSILON
 from .activation import HISTORY, NEVER, Trace, TraceColumns
+from .decay import pop_owed
 from .host import HostBuffer
 from .limits import Limits
 from .queue import Entry, Origin, Queue
@@ -409,6 +410,31 @@ class ColumnQueues:
                     store.traces.put(k, row, traces[prop])
         self.entities.update(names)
         return True
+
+    def encode_rows(self, rows: np.ndarray, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
+        """Encode(e, [prop]) for the queues of ``rows`` (adopted, with room) as one column operation.
+
+        :meth:`WMBuffer.encode_members`'s column path: their owed decay (Algorithm 2) and
+        activation crossings applied first, as queue by queue; then the same stamps,
+        origins, sizes and change record as Encode queue by queue would leave.
+        """
+        wm, store = self.wm, self.store
+        wm.origin_log.log(wm._stamp + 1, cause, turn)
+        pid = self.prop(prop)
+        popped = pop_owed(store, rows, wm.lazy_decay.ticks.count)
+        act = wm.activation
+        if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
+            act.advance(time)
+            act.forget_rows(rows)
+        traced = (time, act.span, act.decay, act.clock) if act is not None else None
+        grew, was_empty = store.encode(rows, pid, wm._stamp + 1, traced)
+        wm._stamp += len(rows)
+        wm._size += int(grew.sum()) - int(popped.sum())
+        nonempty, bound = wm._nonempty, self.bound
+        for row in rows[was_empty].tolist():  # (re)joins the non-empty queues last, as queue by queue
+            nonempty.pop(bound[row], None)
+            nonempty[bound[row]] = None
+        wm.changes.mark_rows(rows)
 
     def prop(self, name: str) -> int:
         """Return the id of property ``name`` (numbered on first use)."""

@@ -18,16 +18,13 @@ Tick *times* (the schedule, runs of ticks, the ledger) are arithmetic of
 from __future__ import annotations
 
 from itertools import islice
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
 from ..decay import TickLedger, TickRun
 from .host import HostBuffer
 from .queue import Queue, WMEvent
-
-if TYPE_CHECKING:
-    from .columns import QueueColumns
 
 #: No column rows.
 NO_ROWS = np.zeros(0, dtype=np.intp)
@@ -45,7 +42,7 @@ def pop_quietly(q: Queue, ticks: int) -> int:
     return owed
 
 
-def pop_owed(columns: "QueueColumns", rows: np.ndarray, ticks: int) -> np.ndarray:
+def pop_owed(columns: Any, rows: np.ndarray, ticks: int) -> np.ndarray:  # a QueueColumns (columns imports this)
     """Apply the decay ticks the held column ``rows`` owe, up to ``ticks``; return the pops per row.
 
     Each owed tick pops the row's front (its oldest stamp).

@@ -1,4 +1,4 @@
-"""A buffer's state as a store keeps it: exported queues, counters, and the restore.
+"""A buffer's state as a store keeps it: exported queues, counters, and the restore; the snapshot of all queues.
 
 A consultant persists the queues :meth:`WMBuffer.take_changes` names, each as
 :meth:`WMBuffer.export_queue` returns it (:class:`QueueItem`: property, stamp, LFU
@@ -15,6 +15,18 @@ from .host import HostBuffer
 from .limits import Limits
 from .activation import LazyActivation, Trace
 from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, TracedItem, is_origin
+
+
+def snapshot(wm: HostBuffer) -> dict[str, list[str]]:
+    """Return every non-empty queue, LRU first, keyed by entity (insertion order; :meth:`WMBuffer.snapshot`)."""
+    wm.flush()
+    columns = wm.columns
+    if not columns.entities:
+        return {e: list(wm._queues[e]) for e in wm._nonempty}
+    return {
+        e: list(columns.row_dict(columns.row[e])) if e in columns.entities else list(wm._queues[e])
+        for e in wm._nonempty
+    }
 
 
 def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:

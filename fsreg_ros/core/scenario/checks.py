@@ -132,7 +132,16 @@ class Checker:
         groups = exclusive_groups(block.preference, block.exclusive)
         if groups:
             group_of = {prop: k for k, group in enumerate(groups) for prop in group}
+            get, grouped = group_of.get, group_of.keys()
             for entity, facts in entities.items():
+                # No two held properties of one group: decided in C for nearly every entity (a world
+                # of 10,000 entities x 40 attr=value facts spent 40 ms here); the loop below only
+                # runs when two of its properties share a group, to weigh certainties and say which.
+                if len(set(map(get, facts))) == len(facts):
+                    continue  # distinct groups (at most one property in none)
+                in_groups = grouped & facts.keys()
+                if len(set(map(group_of.__getitem__, in_groups))) == len(in_groups):
+                    continue
                 seen: dict[int, str] = {}
                 for prop, certainty in facts.items():
                     k = group_of.get(prop)

@@ -1,0 +1,46 @@
+"""Installing new limits in a buffer: applied to every queue at once (docs/semantics.md section 7).
+
+:meth:`WMBuffer.set_limits` runs :func:`install_limits` when the WM Manager changes a
+domain's :class:`~fsreg_ros.core.memory.limits.Limits`: the column queues are given up
+when the new limits are beyond them, displacement and activation are installed, the
+LFU counts restart, and what the new limits no longer allow is forgotten now (not
+retaining: everything, cause ``reset``; a capacity: each queue trimmed, Algorithm 3; a
+global limit: the domain trimmed).  After every later encoding event the limits are
+enforced by :mod:`fsreg_ros.core.memory.displacement`.
+"""
+
+from __future__ import annotations
+
+from .activation import install_activation
+from .host import HostBuffer
+from .limits import Limits
+
+
+def install_limits(wm: HostBuffer, limits: Limits, time: float) -> None:
+    """Install ``limits`` in ``wm`` and apply them to every queue at once.
+
+    Similarity applies from the next encoding on.  Queues are trimmed one after the
+    other, in no specified order (what each loses depends on itself only; the global
+    victims on stamps only).
+    """
+    limits.check()
+    if not wm.columns.fits(limits):
+        wm.columns.drop()
+    wm.limits = limits
+    wm.interference.install(limits)
+    install_activation(wm, limits, time)
+    for entity, q in wm._queues.items():
+        hits = q.hits
+        if hits is not None:  # the LFU counts restart: an exported count may change
+            if any(hits.get(prop, 1) != 1 for prop in q):
+                wm.changes.record(entity, q)
+            q.hits = None
+    if not limits.retains:
+        wm._forget_all("reset", time, None)
+        return
+    if limits.capacity is not None:
+        wm.flush()
+        for entity, q in wm._queues.items():
+            wm.interference.displace(entity, q, limits.capacity, "", time, None)
+    if limits.global_capacity is not None:
+        wm.interference.evict_global(limits.global_capacity, time, None)
