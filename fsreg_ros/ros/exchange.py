@@ -23,6 +23,8 @@ from .client_base import Answer, ClientError, Spinning, describe_graph
 
 #: Seconds a client waits after its request and reply topics first match before sending (see wait_matched).
 MATCH_SETTLE = 0.25
+#: Seconds at most a new client waits for every discovered reader of a request topic to match (see wait_matched).
+MATCH_EVERY = 1.0
 #: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
 KIND_TOPICS = {"say": (contract.HUMAN, contract.RR_RESULT), "describe": (contract.REG_REQUEST, contract.REG_EXPRESSION),
                "assert": (contract.LTM_ASSERT, contract.LTM_ASSERT_RESULT)}
@@ -62,8 +64,16 @@ class DialogueExchange(Spinning):
                         "not-ready")
         # This side sees the other; the other side's discovery of this one usually completes within this
         # settle time.  Without it, a first request or answer was sometimes lost to the half-made match
-        # and the request went out twice (the second copy answered from the node's cache).
-        self.spin_for(MATCH_SETTLE)
+        # and the request went out twice (the second copy answered from the node's cache).  Other readers
+        # this client has discovered (a recorder, a view) get up to MATCH_EVERY to match as well, so a
+        # one-shot command's request is in a recording too; one that never matches (QoS) is not waited for.
+        settled, every = time.monotonic() + MATCH_SETTLE, time.monotonic() + MATCH_EVERY
+        while time.monotonic() < settled or (time.monotonic() < every and not self._every_reader_matched(pub)):
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def _every_reader_matched(self, pub) -> bool:
+        """Whether ``pub`` has matched every reader of its topic that this client's node has discovered."""
+        return pub.get_subscription_count() >= self.node.count_subscribers(pub.topic_name)
 
     # ---------------------------------------------------------------- topics
     def new_id(self, kind: str) -> str:
