@@ -24,6 +24,7 @@ docs/deployment.md ("State").
 from __future__ import annotations
 
 import gc
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from time import monotonic
@@ -39,7 +40,8 @@ from ..contract import consultant_codec
 from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
-from ..core.service import ConsultantService, NotReady, Outcome, RequestError
+from ..core.fact_writer import FactWriter
+from ..core.service import ConsultantService, NotReady, Outcome, PreparedFacts, RequestError
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
@@ -53,9 +55,10 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
-#: Most facts one ``ltm/assert`` commit takes from the messages waiting, and the most seconds spent taking them
-#: (RR's and REG's calls wait meanwhile; docs/semantics.md, "Facts in batches").
-MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 500, 0.02
+#: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most seconds spent taking them
+#: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
+#: docs/semantics.md, "Facts in batches").
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 200, 0.005
 
 
 class ConsultantNode(Node):
@@ -115,6 +118,8 @@ class ConsultantNode(Node):
                 f"a state database from before ROS domain ids were part of the path is at {legacy}; "
                 f"not used: move it to {self._state_path} if it belongs to this robot")
         self.service.maintain()  # compact a replayed journal now
+        self._committed = self.create_guard_condition(self._on_committed)  # the writer's batches, back here
+        self._writer = self._start_writer()
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
@@ -174,6 +179,12 @@ class ConsultantNode(Node):
             log.info(printable(f"state {path}: {restored.summary()}"))
         return service
 
+    def _start_writer(self) -> FactWriter:
+        """Start the thread that stores this incarnation's facts (each group of batches in one fsynced commit)."""
+        store = self.service.persistence.store_facts
+        return FactWriter(lambda batches: store([fact for b in batches for fact in b.prepared.stored]),
+                          self._committed.trigger, name=f"facts-{self.domain}")
+
     def _reset(self, request: dict) -> dict:
         """Manage op ``reset``: set the state database aside, serve the KB file's domain afresh (a new incarnation).
 
@@ -188,6 +199,8 @@ class ConsultantNode(Node):
             raise MessageError(f"reset refused, nothing changed: {err}") from None
         if spec is None:
             raise MessageError(f"reset refused, nothing changed: {self._kb} has no domain '{self.domain}' any more")
+        self._settle_all()  # every fact in flight applied and answered before the state is set aside
+        self._writer.close()
         old = self.service
         cleared = {**old.consultant.differences(self._spec.entities),
                    "queues": len(old.buffer.nonempty_entities())}
@@ -200,6 +213,8 @@ class ConsultantNode(Node):
             self.service = self._open_state(self._spec, threshold, reset=False, after=old.incarnation)
             raise CarrierError(printable(f"reset failed: {err}; the old state is served again"),
                                kind="not-stored") from None
+        finally:
+            self._writer = self._start_writer()
         self._spec = spec
         self.service.maintain()
         restored = self.service.persistence.restored
@@ -250,26 +265,46 @@ class ConsultantNode(Node):
         publish(self._assert_results, reply)
 
     def _on_asserts(self, messages: list[dict]) -> None:
-        """Apply ``ltm/assert`` messages of this domain in ONE commit; answer each.
+        """Prepare ``ltm/assert`` messages of this domain as ONE batch and hand it to the writer thread.
 
         They were routed by ``accept``, validated and drained together by
         :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
         or a batch (``facts``); every fact of every message is one fact of one
-        :meth:`~fsreg_ros.core.service.ConsultantService.ltm_assert_batch`
-        (all-or-nothing per fact, one fsynced transaction for the accepted ones), and each
-        message gets one ``ltm/assert/result``: a batch's lists every fact in order.
+        :meth:`~fsreg_ros.core.service.ConsultantService.prepare_facts` (all-or-nothing per
+        fact, checked against LTM as the batches already in flight leave it).  The
+        :class:`~fsreg_ros.core.fact_writer.FactWriter` stores it (with whatever else
+        waits, in one fsynced transaction) while this thread serves RR and REG;
+        :meth:`_on_committed` then applies it and answers each message.
         """
         facts: list[tuple[str, dict]] = []
         for data in messages:
             facts.extend(_facts_of(data))
-        log = self.get_logger()
         try:
-            outcome = self._guarded(lambda listening: self.service.ltm_assert_batch(facts, listening=listening))
-        except StoreError as err:  # memory unchanged: nothing was applied
-            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored ({len(facts)} facts): {err}"))
+            prepared = self.service.prepare_facts(facts)
+        except RequestError as err:
+            raise MessageError(str(err)) from None
+        self._writer.submit(_Submitted(messages, prepared, self.service))
+
+    def _on_committed(self) -> None:
+        """Apply and answer the next batch the writer is done with (one per executor round: queries go between)."""
+        for submitted, error in self._writer.take_done(1):
+            self._settle(submitted, error)
+        if self._writer.has_done():
+            self._committed.trigger()
+
+    def _settle(self, submitted: "_Submitted", error: Optional[StoreError]) -> None:
+        """Apply a committed batch and answer each of its messages, or answer them all ``not-stored``."""
+        messages, prepared = submitted.messages, submitted.prepared
+        log = self.get_logger()
+        if submitted.service is not self.service:  # stored before a reset set that database aside: not served
+            error = StoreError("the state was reset before this batch was applied; it is in the database set aside")
+        if error is not None:  # memory unchanged: nothing was applied
+            submitted.service.abandon_facts(prepared)
+            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored ({len(prepared.facts)} facts): {error}"))
             for data in messages:
-                self._answer_assert(data, ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
+                self._answer_assert(data, ok=False, error=printable(f"not stored: {error}"), kind="not-stored")
             return
+        outcome = self._guarded(lambda listening: self.service.apply_facts(prepared, listening=listening))
         results = iter(outcome.reply["results"])
         for data in messages:
             mine = [next(results) for _ in range(len(data["facts"]) if data.get("facts") is not None else 1)]
@@ -296,6 +331,12 @@ class ConsultantNode(Node):
                          f"entities, {retracted} properties retracted)")
             self._published(outcome)
 
+    def _settle_all(self) -> None:
+        """Wait for the writer, then apply and answer every batch in flight (before LTM changes otherwise)."""
+        self._writer.flush()
+        for submitted, error in self._writer.take_done():
+            self._settle(submitted, error)
+
     def _answer_assert(self, data: dict, **fields: Any) -> None:
         reply: dict[str, Any] = {"domain": self.domain}
         if data.get("facts") is None:
@@ -308,6 +349,7 @@ class ConsultantNode(Node):
     def _after_set_parameters(self, params) -> None:
         for param in params:
             if param.name == "threshold" and float(param.value) != self.service.consultant.threshold:
+                self._settle_all()  # the facts in flight were checked against the old threshold
                 outcome = self._guarded(lambda listening: self.service.set_threshold(
                     float(param.value), listening=listening))
                 retracted = outcome.reply["retracted"]
@@ -390,10 +432,32 @@ class ConsultantNode(Node):
         return bool(self.declare_parameter(name, default, descriptor(description, read_only=True)).value)
 
     def destroy_node(self) -> None:
+        writer = getattr(self, "_writer", None)
+        if writer is not None:  # what was submitted is stored; answered if the node still can
+            writer.close()
+            try:
+                for submitted, error in writer.take_done():
+                    self._settle(submitted, error)
+            except Exception as err:  # noqa: BLE001 - shutting down: the facts are stored, the answers may not go
+                self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: stored, not answered at shutdown: "
+                                                    f"{type(err).__name__}: {err}"))
         service = getattr(self, "service", None)
         if service is not None:
             service.shutdown()
         super().destroy_node()
+
+
+@dataclass
+class _Submitted:
+    """A batch handed to the writer: its messages (to answer), the prepared facts and the service that made them."""
+
+    messages: list[dict]
+    prepared: PreparedFacts
+    service: ConsultantService
+
+    @property
+    def generation(self) -> int:
+        return self.prepared.generation
 
 
 def _facts_of(data: dict) -> list[tuple[str, dict]]:

@@ -7,6 +7,7 @@ as good as SIGKILL for the database); ``test_restart_graph.py`` SIGKILLs real pr
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sqlite3
@@ -18,9 +19,10 @@ from pathlib import Path
 import pytest
 import yaml
 from rclpy.callback_groups import ReentrantCallbackGroup
+from std_msgs.msg import String
 
 from fsreg_ros import contract
-from fsreg_ros.ros.carrier import CarrierError
+from fsreg_ros.ros.carrier import CarrierError, qos_profile
 from fsreg_ros.contract import STATE_QOS
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.store import StoreError
@@ -150,6 +152,43 @@ def test_namespaces_get_their_own_files_and_a_second_live_opener_is_refused_with
     text = str(err.value)
     assert str(db_path(graph, tmp_path)) in text and f"in use by process {os.getpid()}" in text
     assert "\n" not in text
+
+
+def test_every_fact_is_stored_and_in_memory_when_its_answer_goes_out_and_comes_back_after_a_restart(
+        graph: RosSession, tmp_path):
+    """The facts' commit runs on a writer thread; the answer waits for it and for memory (issue 28.10)."""
+    node = start(graph, tmp_path)
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
+    encode(graph, "face1", ["glasses", "male"], 1.0)
+    reader = sqlite3.connect(f"file:{db_path(graph, tmp_path)}?mode=ro", uri=True)
+    seen: list[tuple] = []
+
+    def on_result(msg) -> None:  # at the moment the answer arrives: in the database (committed) and in LTM?
+        data = json.loads(msg.data)
+        facts = {(r["entity"], p, c) for r in data["results"] if r["ok"] for p, c in r["updated"].items()}
+        stored = set(reader.execute("SELECT entity, property, certainty FROM facts"))
+        seen.append((data["id"], facts <= stored, all(node.service.consultant.certainty(e, p) == c
+                                                      for e, p, c in facts), data["applied"]))
+
+    graph.probe.create_subscription(String, contract.LTM_ASSERT_RESULT.name, on_result,
+                                    qos_profile(contract.LTM_ASSERT_RESULT.qos))
+    batches = 20
+    for b in range(batches):  # published without spinning: they wait together, in several groups of commits
+        facts = [{"entity": f"seen{b}_{i}", "properties": {"male": 1.0}} for i in range(25)]
+        if b == batches - 1:
+            facts.append({"entity": "face1", "properties": {"glasses": 0.0}})  # a retraction, last
+        graph.publish(contract.LTM_ASSERT.name, {"id": f"b{b}", "domain": "faces", "facts": facts},
+                      contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(seen) == batches, 30.0, what=f"{batches} answers")
+    assert seen == [(f"b{b}", True, True, 25 + (b == batches - 1)) for b in range(batches)]  # in order, too
+    info = graph.call(Q, {"op": "info"})
+    assert info["entity_count"] == 3 + 25 * batches  # a query after the answers sees every fact
+    assert graph.call(D, {"op": "wm", "entity": "face1"})["queue"] == ["male"]
+    reader.close()
+    graph.remove(node)
+    start(graph, tmp_path)
+    assert graph.call(Q, {"op": "info"})["entities"][3:] == [f"seen{b}_{i}" for b in range(batches)
+                                                             for i in range(25)]
 
 
 def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy(graph: RosSession, tmp_path):
