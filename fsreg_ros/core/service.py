@@ -297,7 +297,8 @@ class ConsultantService:
 
         def body() -> dict:
             when = prepared.when
-            results = iter(self.consultant.assert_facts(entity, props, when, (new, stopped)).to_json()
+            records = [journal.remove(entity, gone, when) for entity, gone in self._retractions(prepared)]
+            results = iter(self.consultant.assert_facts(entity, props, when, previewed=(new, stopped)).to_json()
                            for entity, props, _, new, stopped, _ in prepared.accepted)
             replies = []
             for (entity, _), refusal in zip(prepared.facts, prepared.refusals):
@@ -308,9 +309,8 @@ class ConsultantService:
                 else:
                     replies.append({"entity": entity if isinstance(entity, str) else None, "ok": False,
                                     "error": str(refusal), "kind": refusal.kind or type(refusal).__name__})
-            for entity, _, _, _, _, retracted in prepared.accepted:
-                if retracted:
-                    self._record(journal.remove(entity, retracted, when))
+            for record in records:
+                self._record(record)
             if prepared.accepted:
                 self.touch(when, wm=any(gone for *_, gone in prepared.accepted))
             return {"results": replies, "applied": len(prepared.accepted),
@@ -321,6 +321,26 @@ class ConsultantService:
         outcome = self.run(body, listening)
         outcome.changes.facts = applied
         return outcome
+
+    def _retractions(self, prepared: "PreparedFacts") -> list[tuple[str, list[str]]]:
+        """Return (entity, properties) per accepted fact whose retractions change WM, before they are applied.
+
+        Without rule ``activation`` (where a removal also moves its clock), a retraction
+        of nothing WM holds is a no-op and is not journalled (perception mostly
+        retracts facts of entities no one spoke about).
+        """
+        if not self._recording:
+            return []
+        out = []
+        for entity, _, _, _, _, retracted in prepared.accepted:
+            if not retracted:
+                continue
+            if self.buffer.activation is None:
+                held = self.buffer.queue(entity)
+                retracted = [p for p in retracted if p in held]  # later facts of the batch: kept if held now
+            if retracted:
+                out.append((entity, retracted))
+        return out
 
     def abandon_facts(self, prepared: "PreparedFacts") -> None:
         """Forget a prepared batch that could not be stored, with every batch prepared against it.
