@@ -58,7 +58,7 @@ ALIVE_PERIOD = 0.25
 #: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most seconds spent taking them
 #: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
 #: docs/semantics.md, "Facts in batches").
-MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 200, 0.005
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 100, 0.003
 
 
 class ConsultantNode(Node):
@@ -288,7 +288,13 @@ class ConsultantNode(Node):
     def _on_committed(self) -> None:
         """Apply and answer the next batch the writer is done with (one per executor round: queries go between)."""
         for submitted, error in self._writer.take_done(1):
-            self._settle(submitted, error)
+            try:
+                self._settle(submitted, error)
+            except Exception as err:  # noqa: BLE001 - a guard condition's error would stop the node: answer, serve on
+                text = printable(f"internal error: {type(err).__name__}: {err}")
+                self.get_logger().error(f"{contract.LTM_ASSERT.name}: {text}")
+                for data in submitted.messages:
+                    self._answer_assert(data, ok=False, error=text, kind="internal")
         if self._writer.has_done():
             self._committed.trigger()
 
