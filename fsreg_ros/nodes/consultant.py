@@ -55,6 +55,9 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
+#: Most requests waiting on a service answered in one go, ahead of the executor's next round (queries are not
+#: served one per round behind the facts: :func:`~fsreg_ros.ros.carrier.serve`'s ``drain``).
+MAX_DRAIN_REQUESTS = 64
 #: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most seconds spent taking them
 #: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
 #: docs/semantics.md, "Facts in batches").
@@ -132,7 +135,7 @@ class ConsultantNode(Node):
             services.append((contract.DEBUG, contract.DEBUG_OPS))
         for service, ops in services:  # each request validated once, by serve(), against its op's schema
             serve(self, service, {op: self._reset if op == "reset" else partial(self._call, op) for op in ops},
-                  limits=self.limits, domain=domain)
+                  limits=self.limits, domain=domain, drain=MAX_DRAIN_REQUESTS)
         subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
                           size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
