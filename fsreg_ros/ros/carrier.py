@@ -244,7 +244,10 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
     at the start of the executor's next round, ahead of its other callbacks, instead of
     one per round (an executor takes one request per service per round, so a node whose
     rounds also carry other work, the consultant's facts, otherwise serves only a few
-    requests a round however many wait).  Same order, same answers.
+    requests a round however many wait).  Same order, same answers; the answers leave
+    in a burst, which a client reads whole with the contract's depth (:data:`SERVICE_QOS
+    <fsreg_ros.contract.SERVICE_QOS>`, 1000; a reader of depth 10 taking one answer a
+    round would lose some).
     """
     logger = node.get_logger()
     if isinstance(service, Service):
