@@ -13,6 +13,12 @@ a session's steps wait for its ``close``), ``ltm/assert/result``, and its announ
 ``consultant/announce`` and ``consultant/<domain>/alive`` (latched; the latter with a
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
+Facts on ``ltm/assert`` are drained and checked on the executor thread, stored by a
+:class:`~fsreg_ros.core.fact_writer.FactWriter` thread (one fsynced transaction for every
+batch waiting), then applied and answered back on the executor thread (a guard
+condition), so RR and REG are answered while the disk works; the services answer the
+requests waiting behind one ahead of the next round (``serve(drain=...)``).
+
 Services: ``consultant/<domain>`` (RR, REG), ``consultant/<domain>/manage`` (the WM
 Manager) and, only with ``debug`` true, ``consultant/<domain>/debug``.  Until the WM
 Manager configures this incarnation, every query but ``info`` is refused with kind
