@@ -119,7 +119,7 @@ class FactWriter:
 
     def _write(self, group: list, refused_upto: int) -> list[tuple[Any, Optional[StoreError]]]:
         """Commit the batches of ``group`` that may be; return (batch, error) for each, in order."""
-        earlier = StoreError(f"an earlier commit of facts failed (this batch was checked against its facts); "
+        earlier = StoreError("an earlier commit of facts failed (this batch was checked against its facts); "
                              "nothing of this one was stored or applied")
         usable = [b for b in group if b.generation > refused_upto]
         error: Optional[StoreError] = None
