@@ -5,7 +5,7 @@ transaction fsynced with ``synchronous=FULL``) costs a write to disk.  A
 :class:`FactWriter` takes that cost on a thread of its own: the serving thread
 *prepares* a batch (validates every fact against LTM as the facts already in flight
 will leave it: :meth:`ConsultantService.prepare_facts
-<fsreg_ros.core.service.ConsultantService.prepare_facts>`) and :meth:`FactWriter.submit`\\ s
+<fsreg_ros.core.service.ConsultantService.prepare_facts>`) and submits (:meth:`FactWriter.submit`)
 it; the writer commits everything submitted meanwhile in ONE fsynced transaction (group
 commit: at high rates one fsync serves many batches) and hands each batch back, in the
 order submitted, through :meth:`FactWriter.take_done`; the serving thread then applies
