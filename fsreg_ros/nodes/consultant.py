@@ -33,7 +33,7 @@ import gc
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from time import monotonic
+from time import monotonic, thread_time
 from typing import Any, Optional
 
 from rclpy.clock import Clock, ClockType
@@ -64,10 +64,10 @@ ALIVE_PERIOD = 0.25
 #: Most requests waiting on a service answered in one go, ahead of the executor's next round (queries are not
 #: served one per round behind the facts: :func:`~fsreg_ros.ros.carrier.serve`'s ``drain``).
 MAX_DRAIN_REQUESTS = 64
-#: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most seconds spent taking them
+#: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most CPU seconds spent taking them
 #: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
 #: docs/semantics.md, "Facts in batches").
-MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 100, 0.003
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 250, 0.005
 
 
 class ConsultantNode(Node):
@@ -145,7 +145,7 @@ class ConsultantNode(Node):
         subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
                           size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
-                          max_seconds=MAX_DRAIN_SECONDS)
+                          max_seconds=MAX_DRAIN_SECONDS, clock=thread_time)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
