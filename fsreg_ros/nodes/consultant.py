@@ -292,7 +292,11 @@ class ConsultantNode(Node):
             prepared = self.service.prepare_facts(facts)
         except RequestError as err:
             raise MessageError(str(err)) from None
-        self._writer.submit(_Submitted(messages, prepared, self.service))
+        try:
+            self._writer.submit(_Submitted(messages, prepared, self.service))
+        except RuntimeError as err:  # the writer is closed (shutting down): nothing stored, nothing applied
+            self.service.abandon_facts(prepared)
+            raise CarrierError(f"not stored: {err}", kind="not-stored") from None
 
     def _on_committed(self) -> None:
         """Apply and answer the next batch the writer is done with (one per executor round: queries go between)."""
