@@ -272,36 +272,51 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
         response = await answer(request, response)
         stats.record(time.monotonic() - started, refused=not response.success)
         if drain and not draining[0] and node.executor is not None:
-            draining[0] = True
-            try:
-                node.executor.create_task(answer_waiting)  # run first in the next round
-            except Exception:  # noqa: BLE001 - an executor shutting down: the executor takes them one by one
-                draining[0] = False
+            waiting = take_request()  # a cheap look: nothing waits, nothing is scheduled
+            if waiting is not None:
+                draining[0] = True
+                try:
+                    node.executor.create_task(answer_waiting, waiting)  # run first in the next round
+                except Exception:  # noqa: BLE001 - an executor shutting down: answer it now
+                    draining[0] = False
+                    await answer_taken(*waiting)
         return response
 
     draining = [False]
 
-    async def answer_waiting() -> None:
-        """Answer the requests waiting now (bounded), each as the executor would, in order."""
+    def take_request() -> Optional[tuple]:
+        """Take the next request waiting (request, header), or None, as the executor takes one."""
+        try:
+            with server.handle:
+                request, header = server.handle.service_take_request(server.srv_type.Request)
+        except InvalidHandle:
+            return None
+        return None if header is None else (request, header)
+
+    async def answer_taken(request, header) -> bool:
+        """Answer one taken request as the executor would; False once the service is gone."""
+        begun = time.monotonic()
+        reply = await answer(request, server.srv_type.Response())
+        stats.record(time.monotonic() - begun, refused=not reply.success)
+        try:
+            server.send_response(reply, header)
+        except InvalidHandle:
+            return False
+        return True
+
+    async def answer_waiting(first: tuple) -> None:
+        """Answer ``first`` and the requests waiting behind it now (bounded), in order."""
         try:
             budget = time.thread_time()  # CPU time: a process kept waiting by the OS still answers as many
+            waiting: Optional[tuple] = first
             for _ in range(drain):
-                try:
-                    with server.handle:
-                        request, header = server.handle.service_take_request(server.srv_type.Request)
-                except InvalidHandle:
-                    return
-                if header is None:
-                    return
-                begun = time.monotonic()
-                reply = await answer(request, server.srv_type.Response())
-                stats.record(time.monotonic() - begun, refused=not reply.success)
-                try:
-                    server.send_response(reply, header)
-                except InvalidHandle:
+                if waiting is None or not await answer_taken(*waiting):
                     return
                 if time.thread_time() - budget >= DRAIN_SECONDS:
                     return
+                waiting = take_request()
+            if waiting is not None:  # over the count: answered now, the rest as the executor takes them
+                await answer_taken(*waiting)
         finally:
             draining[0] = False
 
