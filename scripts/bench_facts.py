@@ -95,7 +95,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         cmd = [str(Path(sys.executable).parent / "consultant"), "--ros-args", "-r", f"__node:=consultant_{domain}",
                "-r", f"__ns:={namespace}", "-p", f"domain:={domain}", "-p", f"kb:={args.scenario}",
                "-p", f"state_dir:={state}", "-p", "debug:=false"]
-        proc = subprocess.Popen(cmd, env=os.environ, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        with open(Path(state) / "consultant.log", "wb") as log:  # a pipe nobody reads would stall it
+            proc = subprocess.Popen(cmd, env=os.environ, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
         try:
             return run(args, session, proc, domain, targets, preference, namespace, service, manage)
         finally:
