@@ -299,8 +299,11 @@ class ConsultantNode(Node):
             raise CarrierError(f"not stored: {err}", kind="not-stored") from None
 
     def _on_committed(self) -> None:
-        """Apply and answer the next batch the writer is done with (one per executor round: queries go between)."""
-        for submitted, error in self._writer.take_done(1):
+        """Apply and answer the batches the writer is done with, up to MAX_DRAIN_FACTS a round (queries go between)."""
+        facts = 0
+        while facts < MAX_DRAIN_FACTS and (done := self._writer.take_done(1)):
+            submitted, error = done[0]
+            facts += max(1, len(submitted.prepared.facts))
             try:
                 self._settle(submitted, error)
             except Exception as err:  # noqa: BLE001 - a guard condition's error would stop the node: answer, serve on
