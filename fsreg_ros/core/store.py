@@ -337,6 +337,10 @@ class DomainStore:
 
         The old database is first copied aside (``<file>.<time>.old``) when ``backup``.
         """
+        with self._writing:
+            return self._rewrite(state, backup)
+
+    def _rewrite(self, state: StoreContents, backup: bool) -> Optional[Path]:
         db = self._require()
         copy = None
         try:
@@ -368,11 +372,13 @@ class DomainStore:
 
     def journal_length(self) -> int:
         """Return how many records the journal holds."""
-        return int(self._require().execute("SELECT count(*) FROM journal").fetchone()[0])
+        with self._writing:  # not inside another thread's transaction on this connection
+            return int(self._require().execute("SELECT count(*) FROM journal").fetchone()[0])
 
     def execute(self, sql: str) -> None:
         """Run one SQL statement on the connection (tests: ``PRAGMA max_page_count`` to fill the disk)."""
-        self._require().execute(sql)
+        with self._writing:
+            self._require().execute(sql)
 
     # -------------------------------------------------------------- internals
     def _take_lock(self) -> None:
