@@ -272,10 +272,9 @@ class ConsultantService:
         accepted = []  # (entity, properties, values, new, stopped, retracted)
         for entity, props in facts:
             try:
-                before = dict(pending[entity]) if entity in pending else None  # as earlier facts leave it
-                new, stopped = self.consultant.preview_assert(entity, props, pending=pending)
+                values: dict[str, float] = {}  # the update with what it excludes, at 0
+                new, stopped = self.consultant.preview_assert(entity, props, pending=pending, effective=values)
                 _check_storable([entity, *props])
-                values = self.consultant.effective_update(entity, props, before)  # with what it excludes, at 0
             except KnowledgeError as err:
                 refusals.append(err)
                 continue
@@ -298,8 +297,9 @@ class ConsultantService:
         def body() -> dict:
             when = prepared.when
             records = [journal.remove(entity, gone, when) for entity, gone in self._retractions(prepared)]
-            results = iter(self.consultant.assert_facts(entity, props, when, previewed=(new, stopped)).to_json()
-                           for entity, props, _, new, stopped, _ in prepared.accepted)
+            results = iter(self.consultant.assert_facts(entity, props, when, previewed=(new, stopped),
+                                                        update=values).to_json()
+                           for entity, props, values, new, stopped, _ in prepared.accepted)
             replies = []
             for (entity, _), refusal in zip(prepared.facts, prepared.refusals):
                 if refusal is None:

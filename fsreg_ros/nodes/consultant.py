@@ -61,6 +61,8 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
+#: Least seconds between two log lines about facts applied (steady clock): a stream is summarised.
+FACTS_LOG_PERIOD = 5.0
 #: Most requests waiting on a service answered in one go, ahead of the executor's next round (queries are not
 #: served one per round behind the facts: :func:`~fsreg_ros.ros.carrier.serve`'s ``drain``).
 MAX_DRAIN_REQUESTS = 64
@@ -127,6 +129,7 @@ class ConsultantNode(Node):
                 f"a state database from before ROS domain ids were part of the path is at {legacy}; "
                 f"not used: move it to {self._state_path} if it belongs to this robot")
         self.service.maintain()  # compact a replayed journal now
+        self._facts_logged, self._facts_unlogged = float("-inf"), [0] * 5  # see _log_facts
         self._committed = self.create_guard_condition(self._on_committed)  # the writer's batches, back here
         self._writer = self._start_writer()
         self._events = publisher(self, contract.WM_EVENTS)
@@ -343,15 +346,40 @@ class ConsultantNode(Node):
         if applied:
             new = sum(1 for _, _, is_new in outcome.changes.facts if is_new)
             retracted = sum(len(r.get("retracted") or ()) for r in outcome.reply["results"] if r["ok"])
+            self._log_facts(outcome, applied, len(messages), new, retracted)
+            self._published(outcome)
+
+    def _log_facts(self, outcome: Outcome, applied: int, messages: int, new: int, retracted: int) -> None:
+        """Log what a batch changed: at once after a quiet FACTS_LOG_PERIOD, else in the period's summary.
+
+        A perception stream would otherwise log hundreds of lines a second (and rclpy's
+        logging, which inspects the caller's frame, cost a tenth of the consultant's CPU).
+        """
+        now = monotonic()
+        if now - self._facts_logged >= FACTS_LOG_PERIOD and not self._facts_unlogged[0]:
+            self._facts_logged = now
             if applied == 1:
                 entity, updated, is_new = outcome.changes.facts[0]
-                log.info(printable(f"LTM {'added' if is_new else 'updated'} '{entity}': {updated}"
-                                   + (f", retracted {retracted} propert{'y' if retracted == 1 else 'ies'}"
-                                      if retracted else "")))
+                self.get_logger().info(printable(
+                    f"LTM {'added' if is_new else 'updated'} '{entity}': {updated}"
+                    + (f", retracted {retracted} propert{'y' if retracted == 1 else 'ies'}" if retracted else "")))
             else:
-                log.info(f"LTM: {applied} facts applied in one commit ({len(messages)} messages, {new} new "
-                         f"entities, {retracted} properties retracted)")
-            self._published(outcome)
+                self.get_logger().info(f"LTM: {applied} facts applied in one batch ({messages} messages, {new} new "
+                                       f"entities, {retracted} properties retracted)")
+            return
+        for i, n in enumerate((applied, 1, messages, new, retracted)):
+            self._facts_unlogged[i] += n
+
+    def _log_facts_summary(self) -> None:
+        """Log the facts applied since the last line, once FACTS_LOG_PERIOD has passed (the timer calls it)."""
+        now = monotonic()
+        if self._facts_unlogged[0] and now - self._facts_logged >= FACTS_LOG_PERIOD:
+            facts, batches, messages, new, retracted = self._facts_unlogged
+            self.get_logger().info(f"LTM: {facts} facts applied in {batches} batches in the last "
+                                   f"{now - self._facts_logged:.1f} s ({messages} messages, {new} new entities, "
+                                   f"{retracted} properties retracted)")
+            self._facts_unlogged = [0] * 5
+            self._facts_logged = now
 
     def _settle_all(self) -> None:
         """Wait for the writer, then apply and answer every batch in flight (before LTM changes otherwise)."""
@@ -433,6 +461,7 @@ class ConsultantNode(Node):
         self.publish_state()
 
     def _tick(self) -> None:
+        self._log_facts_summary()
         self._publish_due(waiting=True)
         self.service.maintain()
         self._log_notices()
