@@ -62,6 +62,11 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
 
 
+def number(value: float) -> str:
+    """Return a bound as people write it: 1000000, 0.1."""
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+
 def figures(name: str, ms: list[float]) -> str:
     return (f"{name} latency ms p50 {percentile(ms, 50):.1f} p95 {percentile(ms, 95):.1f} "
             f"p99 {percentile(ms, 99):.1f} max {max(ms, default=float('nan')):.1f}")
@@ -80,7 +85,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     for name, value, low, high in (("--facts-rate", args.facts_rate, 0, 1_000_000),
                                    ("--queries", args.queries, 0.1, 10_000), ("--seconds", args.seconds, 0.1, 3600)):
         if not (math.isfinite(value) and low <= value <= high):
-            parser.error(f"{name} must be a number in [{low:g}, {high:g}], got {value:g}")
+            parser.error(f"{name} must be a number in [{number(low)}, {number(high)}], got {value:g}")
     if not 1 <= args.batch <= 1000 or not 1 <= args.facts_entities <= 1_000_000:
         parser.error("--batch must be in [1, 1000] and --facts-entities in [1, 1000000]")
     if not args.scenario.is_file():
