@@ -13,6 +13,7 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -189,6 +190,35 @@ def test_every_fact_is_stored_and_in_memory_when_its_answer_goes_out_and_comes_b
     start(graph, tmp_path)
     assert graph.call(Q, {"op": "info"})["entities"][3:] == [f"seen{b}_{i}" for b in range(batches)
                                                              for i in range(25)]
+
+
+def test_queries_are_answered_while_the_facts_commit_and_see_the_facts_once_answered(graph: RosSession, tmp_path):
+    """The fsync is on the writer thread: RR's and REG's queries do not wait for it (issue 28.10)."""
+    node = start(graph, tmp_path)
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
+    store, real = node.service.store, node.service.store.commit
+    entered, go = threading.Event(), threading.Event()
+
+    def held(batch):  # the facts' commit holds until the test lets it go
+        if batch.durable:
+            entered.set()
+            assert go.wait(30)
+        real(batch)
+
+    store.commit = held
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    try:
+        graph.publish(contract.LTM_ASSERT.name, {"id": "h1", "domain": "faces", "entity": "face9",
+                                                 "properties": {"male": 1.0}}, contract.LTM_ASSERT.qos)
+        graph.spin_until(entered.is_set, what="the facts' commit under way")
+        info = graph.call(Q, {"op": "info"})  # answered while the commit holds; the fact is not acknowledged yet
+        assert "face9" not in info["entities"] and not results.latest(id="h1")
+        session = graph.call(Q, {"op": "open", "target": "face1", "client": "reg"})["session"]
+        assert graph.call(Q, {"op": "close", "session": session})["members"] == ["face2", "face3"]
+    finally:
+        go.set()
+    graph.spin_until(lambda: results.latest(id="h1"), what="the answer once stored")
+    assert results.latest(id="h1")["ok"] and graph.call(Q, {"op": "info"})["entities"][-1] == "face9"
 
 
 def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy(graph: RosSession, tmp_path):
