@@ -13,7 +13,10 @@ stamped with it), so decay ticks as it would on a robot.  The turns and targets 
 through the scenario's dialogue, each with a fresh id.
 
 Latency is measured from each message's *scheduled* moment to its reply (a sender
-that falls behind its schedule is not hidden; the largest lateness is reported).
+that falls behind its schedule is not hidden; the largest lateness is reported).  The
+sender's cyclic garbage collector is off while it sends and collects the replies (it
+keeps every reply, ~10^5 objects with perception, and a full collection paused it ~200 ms
+every ~5 s: the whole graph's latency spiked at those moments).
 Prints per path: sent, lost (no reply by the end), duplicated (more than one reply),
 error replies, p50/p95/p99/max latency; and per node the RSS at start and end and its
 slope in MB per 1,000 requests (least squares over samples taken once a second), and the
@@ -49,6 +52,7 @@ answers per id, and each consultant's ``wm/events`` numbered without a gap).
 from __future__ import annotations
 
 import argparse
+import gc
 import itertools
 import math
 import os
@@ -283,6 +287,8 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
         cpu_before = cpu_seconds(graph, recorder)
+        gc.collect()
+        gc.disable()  # the sender's own pauses: see quiet_gc()
         start = time.monotonic()
         next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
@@ -321,6 +327,7 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
             if len(waiting) == before:
                 break
         spin_until(live, lambda: False, time.monotonic() + 0.5)  # late duplicates
+        gc.enable()
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
         cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph, recorder).items()}

@@ -276,7 +276,8 @@ class Consultant:
         return retracted
 
     def preview_assert(self, entity: str, facts: Mapping[str, Any], exclude: bool = True,
-                       pending: Optional[dict[str, dict[str, float]]] = None) -> tuple[bool, list[str]]:
+                       pending: Optional[dict[str, dict[str, float]]] = None,
+                       effective: Optional[dict[str, float]] = None) -> tuple[bool, list[str]]:
         """Validate an LTM update without applying it: (new entity?, properties that would stop holding).
 
         Raises KnowledgeError for anything :meth:`assert_facts` would refuse.  The
@@ -285,7 +286,8 @@ class Consultant:
         they are forgotten from WM only when ``retract_on_update`` is True.  ``pending``
         previews a batch: it maps each entity an earlier fact of the batch (previewed,
         not yet applied) changed to its facts as that fact leaves them, and is updated
-        with this one's (nothing else is).
+        with this one's (nothing else is).  ``effective``, a dict, receives the update as
+        :meth:`effective_update` makes it (what to store; :meth:`assert_facts` takes it as ``update``).
         """
         if not isinstance(entity, str) or not entity:
             raise KnowledgeError(f"entity must be a non-empty string, got {entity!r}")
@@ -295,9 +297,11 @@ class Consultant:
         earlier = pending.get(entity) if pending is not None else None
         new = entity not in self._certainty and earlier is None
         current = earlier if earlier is not None else self._certainty.get(entity, {})
-        effective = (self.effective_update(entity, facts, current) if exclude
-                     else {p: float(c) for p, c in facts.items()})
-        after = {**current, **effective}
+        update = (self.effective_update(entity, facts, current) if exclude
+                  else {p: float(c) for p, c in facts.items()})
+        if effective is not None:
+            effective.update(update)
+        after = {**current, **update}
         if pending is not None:
             pending[entity] = {p: c for p, c in after.items() if c > 0}
         if new:
@@ -341,7 +345,8 @@ class Consultant:
         return {**values, **excluded}
 
     def assert_facts(self, entity: str, facts: Mapping[str, Any], time: float, exclude: bool = True,
-                     previewed: Optional[tuple[bool, list[str]]] = None) -> AssertResult:
+                     previewed: Optional[tuple[bool, list[str]]] = None,
+                     update: Optional[Mapping[str, float]] = None) -> AssertResult:
         """Add or update LTM facts for one entity (perception, a user); atomic.
 
         A new entity joins the domain (last in entity order).  Certainty 0 retracts
@@ -354,10 +359,12 @@ class Consultant:
         (:meth:`preview_assert`) before anything changes.  ``exclude`` False applies
         the facts as given (a restore: the stored facts carry their exclusions already).
         ``previewed``: what :meth:`preview_assert` returned for exactly this update just
-        now (a batch previews every fact first; not validated again).
+        now (a batch previews every fact first; not validated again), and ``update`` the
+        effective update it computed (with ``previewed`` only).
         """
         new, retracted = previewed if previewed is not None else self.preview_assert(entity, facts, exclude)
-        update = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
+        if update is None or previewed is None:
+            update = self.effective_update(entity, facts) if exclude else {p: float(c) for p, c in facts.items()}
         if new:
             self._index[entity] = len(self.entities)
             self.entities.append(entity)

@@ -10,7 +10,7 @@ that keeps its state database (:mod:`fsreg_ros.core.store`) in step with memory.
   of another kind, or ahead of the clock (a restarted simulation), is dropped;
 * **writing**: each call's journal records committed once (:meth:`Persistence.finish`),
   LTM facts stored and fsynced *before* memory changes, a batch in one transaction
-  (:meth:`Persistence.store_facts`),
+  (:meth:`Persistence.store_facts`, which may run on a writer thread of its own),
   a failed WM write kept pending and retried (at most once a second) as a checkpoint;
 * **checkpoints**: every queue changed since the last one (read off the buffer's change
   record), written when the journal grows long, after a failure, and at shutdown;
@@ -375,26 +375,21 @@ class Persistence:
             self._unsaved_meta["decay_until"] = -math.inf
 
     # ============================================================ writing
-    def store_facts(self, facts: Sequence[tuple[str, dict[str, float], bool, Sequence[str]]], when: float) -> None:
+    def store_facts(self, facts: Sequence[tuple[str, dict[str, float], bool]]) -> None:
         """Store LTM updates durably (one fsynced transaction) before they are applied.
 
         Raises StoreError, having stored nothing.  ``facts``: (entity, {property:
-        certainty}, new entity?, retracted) per update, in order (a batch of ``ltm/assert``
-        is one call); ``retracted``: the properties an update removes from WM, journalled
-        with it when the journal is usable, else left to the next write (a checkpoint).
-        Nothing to store: nothing is written.
+        certainty}, new entity?) per update, in order (a batch of ``ltm/assert``, or the
+        batches a :class:`~fsreg_ros.core.fact_writer.FactWriter` groups, is one call).
+        The WM retractions they cause are journalled when they are applied, as that
+        call's records (a restart between the two removes them from the restored WM:
+        :meth:`restore` drops every property whose stored certainty is below the
+        threshold).  Nothing to store: nothing is written.  Touches nothing but the
+        store, so it may run on a thread of its own (the store serialises its commits).
         """
         if self.store is None or not facts:
             return
-        journalled = self.recording and self._journal_ok and self.journals()
-        records = [journal.remove(entity, retracted, when) for entity, _, _, retracted in facts
-                   if retracted and journalled]
-        self.store.commit(Batch(facts=[(entity, values, new) for entity, values, new, _ in facts],
-                                records=records))  # fsynced first
-        self._journal_rows += len(records)
-        self._journal_names += len(records)
-        if not journalled and self.recording and any(retracted for *_, retracted in facts):
-            self._journal_ok = False  # the retraction must reach the store as a checkpoint
+        self.store.commit(Batch(facts=list(facts)))  # fsynced before it returns
 
     def finish(self, changes: Any) -> None:
         """Account for a call's :class:`~fsreg_ros.core.service.Changes`; write them (once) unless nothing needs it."""
@@ -405,7 +400,7 @@ class Persistence:
             return
         if self.recording:
             if not changes.records and not self._unsaved_meta and self._journal_ok:
-                return  # nothing to write, or written already (a retraction goes with its fact)
+                return  # nothing to write
         elif not self._unsaved_meta:
             return
         if self.served.steady() - self._failed_at < RETRY_AFTER:

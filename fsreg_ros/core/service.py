@@ -81,6 +81,28 @@ class Changes:
 
 
 @dataclass
+class PreparedFacts:
+    """A batch of facts validated by :meth:`ConsultantService.prepare_facts`, to be stored, then applied.
+
+    ``facts`` as given; ``refusals`` one per fact (None: accepted); ``accepted`` per
+    accepted fact (entity, properties, values to store, new entity?, properties that stop
+    holding, properties that leave WM); ``when`` the time it is applied at;
+    ``generation`` the previews it was checked against (:meth:`ConsultantService.abandon_facts`).
+    """
+
+    facts: list[tuple[str, Mapping[str, Any]]]
+    refusals: list[Optional[KnowledgeError]]
+    accepted: list[tuple[str, Mapping[str, Any], dict[str, float], bool, list[str], list[str]]]
+    when: float
+    generation: int
+
+    @property
+    def stored(self) -> list[tuple[str, dict[str, float], bool]]:
+        """Return what the state database must hold before the batch is applied: (entity, values, new) per fact."""
+        return [(entity, values, new) for entity, _, values, new, _, _ in self.accepted]
+
+
+@dataclass
 class Outcome:
     """The result of one call: the reply, its :class:`Changes`, and the events to publish (numbered)."""
 
@@ -135,6 +157,9 @@ class ConsultantService:
         self._records: list[list] = []
         self._events: list[WMEvent] = []
         self._touched = False  # the current call changed WM
+        self._in_flight = 0  # batches of facts prepared, neither applied nor abandoned
+        self._in_flight_facts: dict[str, dict[str, float]] = {}  # entity -> its facts as those batches leave them
+        self._facts_generation = 0  # a failed commit voids the batches prepared up to it
 
     # ================================================================ calls
     def require_ready(self) -> None:
@@ -210,38 +235,73 @@ class ConsultantService:
         ``results`` hold, per fact and in order, its :class:`~fsreg_ros.core.consultant.AssertResult`
         as JSON with ``ok: true``, or ``ok: false`` with ``error`` and ``kind``;
         ``applied`` and ``refused`` count them.  Raises StoreError (nothing stored,
-        nothing changed) or RequestError (a bad ``time``: nothing changed).
+        nothing changed) or RequestError (a bad ``time``: nothing changed).  The same
+        in three steps, the commit on another thread: :meth:`prepare_facts`,
+        :meth:`Persistence.store_facts <fsreg_ros.core.persistence.Persistence.store_facts>`
+        of :attr:`PreparedFacts.stored`, :meth:`apply_facts` (:mod:`fsreg_ros.core.fact_writer`).
         """
         return self._assert_batch(facts, time, listening)[0]
 
     def _assert_batch(self, facts: Sequence[tuple[str, Mapping[str, Any]]], time: Optional[float],
                       listening: bool) -> tuple[Outcome, list[Optional[KnowledgeError]]]:
         """Run :meth:`ltm_assert_batch`; also return each fact's refusal (None: applied)."""
+        prepared = self.prepare_facts(facts, time)
+        try:
+            self.persistence.store_facts(prepared.stored)  # one transaction, fsynced, before memory changes
+        except BaseException:
+            self.abandon_facts(prepared)
+            raise
+        return self.apply_facts(prepared, listening), prepared.refusals
+
+    def prepare_facts(self, facts: Sequence[tuple[str, Mapping[str, Any]]],
+                      time: Optional[float] = None) -> "PreparedFacts":
+        """Validate a batch of facts without changing anything; return what to store and then apply.
+
+        Each fact is checked as LTM will be once every batch prepared before it (and not
+        yet applied or abandoned: in flight) and the accepted facts before it in this
+        batch are applied, so batches may be prepared while earlier ones are being
+        stored.  Raises RequestError (a bad ``time``).  Hand the result to
+        :meth:`apply_facts` once :attr:`PreparedFacts.stored` is durable, or to
+        :meth:`abandon_facts` if storing it failed; batches are applied in the order
+        they were prepared, and nothing else may change LTM meanwhile (the threshold
+        waits for them: :meth:`set_threshold`).
+        """
+        when = self.request_time(time)
+        pending = self._in_flight_facts  # entity -> its facts as the batches in flight leave them
         refusals: list[Optional[KnowledgeError]] = []
+        accepted = []  # (entity, properties, values, new, stopped, retracted)
+        for entity, props in facts:
+            try:
+                values: dict[str, float] = {}  # the update with what it excludes, at 0
+                new, stopped = self.consultant.preview_assert(entity, props, pending=pending, effective=values)
+                _check_storable([entity, *props])
+            except KnowledgeError as err:
+                refusals.append(err)
+                continue
+            refusals.append(None)
+            retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
+            accepted.append((entity, props, values, new, stopped, retracted))
+        self._in_flight += 1
+        return PreparedFacts(list(facts), refusals, accepted, when, self._facts_generation)
+
+    def apply_facts(self, prepared: "PreparedFacts", listening: bool = False) -> Outcome:
+        """Apply a prepared batch whose facts are stored (in preparation order); return its :class:`Outcome`.
+
+        The facts change LTM in order and their retractions leave WM (journalled as this
+        call's records, like any WM change); the reply is :meth:`ltm_assert_batch`'s.
+        """
+        if prepared.generation != self._facts_generation:
+            raise RuntimeError("a batch of facts prepared before a failed commit cannot be applied")
         applied: list[tuple[str, dict[str, float], bool]] = []
 
         def body() -> dict:
-            when = self.request_time(time)
-            pending: dict[str, dict[str, float]] = {}  # entity -> its facts as the accepted ones so far leave them
-            accepted = []  # (entity, properties, values, new, retracted)
-            for entity, props in facts:
-                try:
-                    before = dict(pending[entity]) if entity in pending else None  # as earlier facts leave it
-                    new, stopped = self.consultant.preview_assert(entity, props, pending=pending)
-                    _check_storable([entity, *props])
-                    values = self.consultant.effective_update(entity, props, before)  # with what it excludes, at 0
-                except KnowledgeError as err:
-                    refusals.append(err)
-                    continue
-                refusals.append(None)
-                retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
-                accepted.append((entity, props, values, new, stopped, retracted))
-            self.persistence.store_facts([(e, values, new, gone) for e, _, values, new, _, gone in accepted],
-                                         when)  # one transaction, fsynced, before memory changes
-            results = iter(self.consultant.assert_facts(entity, props, when, (new, stopped)).to_json()
-                           for entity, props, _, new, stopped, _ in accepted)
+            when = prepared.when
+            records = [journal.remove(entity, gone, when) for entity, gone in self._retractions(prepared)]
+            results = iter(self.consultant.assert_facts(entity, props, when, previewed=(new, stopped),
+                                                        update=values).to_json()
+                           for entity, props, values, new, stopped, _ in prepared.accepted)
             replies = []
-            for (entity, _), refusal in zip(facts, refusals):
+            for (entity, _), refusal in zip(prepared.facts, prepared.refusals):
                 if refusal is None:
                     result = next(results)
                     applied.append((result["entity"], result["updated"], result["new_entity"]))
@@ -249,15 +309,64 @@ class ConsultantService:
                 else:
                     replies.append({"entity": entity if isinstance(entity, str) else None, "ok": False,
                                     "error": str(refusal), "kind": refusal.kind or type(refusal).__name__})
-            if accepted:
-                self.touch(when, wm=any(gone for *_, gone in accepted))
-            return {"results": replies, "applied": len(accepted), "refused": len(facts) - len(accepted)}
+            for record in records:
+                self._record(record)
+            if prepared.accepted:
+                self.touch(when, wm=any(gone for *_, gone in prepared.accepted))
+            return {"results": replies, "applied": len(prepared.accepted),
+                    "refused": len(prepared.facts) - len(prepared.accepted)}
+        self._in_flight -= 1
+        if not self._in_flight:
+            self._in_flight_facts = {}  # LTM holds them all now
         outcome = self.run(body, listening)
         outcome.changes.facts = applied
-        return outcome, refusals
+        return outcome
+
+    def _retractions(self, prepared: "PreparedFacts") -> list[tuple[str, list[str]]]:
+        """Return (entity, properties) per accepted fact whose retractions change WM, before they are applied.
+
+        Without rule ``activation`` (where a removal also moves its clock), a retraction
+        of nothing WM holds is a no-op and is not journalled (perception mostly
+        retracts facts of entities no one spoke about).
+        """
+        if not self._recording:
+            return []
+        out = []
+        for entity, _, _, _, _, retracted in prepared.accepted:
+            if not retracted:
+                continue
+            if self.buffer.activation is None:
+                held = self.buffer.queue(entity)
+                retracted = [p for p in retracted if p in held]  # later facts of the batch: kept if held now
+            if retracted:
+                out.append((entity, retracted))
+        return out
+
+    def abandon_facts(self, prepared: "PreparedFacts") -> None:
+        """Forget a prepared batch that could not be stored, with every batch prepared against it.
+
+        The batches in flight of its generation are void (each was checked as if it would
+        be applied); a new generation starts from LTM as it is.  A batch of an older
+        generation changes nothing.
+        """
+        if prepared.generation == self._facts_generation:
+            self._facts_generation += 1
+            self._in_flight, self._in_flight_facts = 0, {}
+
+    def facts_in_flight(self) -> int:
+        """Return the prepared batches neither applied nor abandoned yet."""
+        return self._in_flight
 
     def set_threshold(self, threshold: float, time: Optional[float] = None, listening: bool = False) -> Outcome:
-        """Change the domain's threshold (not stored: it comes from the parameters); retractions are journalled."""
+        """Change the domain's threshold (not stored: it comes from the parameters); retractions are journalled.
+
+        Not while batches of facts are in flight (they were checked against the threshold
+        in force): apply them first (RuntimeError).
+        """
+        if self._in_flight:
+            raise RuntimeError(f"{self._in_flight} batches of facts are in flight; apply them before the threshold "
+                               "changes")
+
         def run() -> dict:
             when = self.request_time(time)
             retracted = self.consultant.set_threshold(threshold, when)

@@ -68,6 +68,7 @@ import sqlite3
 import stat
 import struct
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -246,6 +247,8 @@ class DomainStore:
         #: Transactions :meth:`commit` committed since this object was made (fsynced ones in ``durable_commits``).
         self.commits = 0
         self.durable_commits = 0
+        #: One transaction at a time: a consultant's facts are committed on a writer thread of their own.
+        self._writing = threading.Lock()
 
     # ---------------------------------------------------------------- opening
     def open(self, reset: bool = False, after: int = 0) -> StoreContents:
@@ -287,8 +290,9 @@ class DomainStore:
     def close(self) -> None:
         """Close the database and release the lock."""
         if self._db is not None:
-            self._db.close()
-            self._db = None
+            with self._writing:
+                self._db.close()
+                self._db = None
         if self._lock is not None:
             _HELD.pop(self._lock_id, None)
             os.close(self._lock)  # releases the flock and the record lock
@@ -299,7 +303,12 @@ class DomainStore:
         """Write one call's changes in one transaction (fsynced first when ``batch.durable``).
 
         Raises :class:`StoreError` (nothing written) when SQLite refuses, e.g. a full disk.
+        Safe to call from several threads: one commit at a time.
         """
+        with self._writing:
+            self._commit(batch)
+
+    def _commit(self, batch: Batch) -> None:
         db = self._require()
         try:
             if batch.durable:
@@ -328,6 +337,10 @@ class DomainStore:
 
         The old database is first copied aside (``<file>.<time>.old``) when ``backup``.
         """
+        with self._writing:
+            return self._rewrite(state, backup)
+
+    def _rewrite(self, state: StoreContents, backup: bool) -> Optional[Path]:
         db = self._require()
         copy = None
         try:
@@ -359,11 +372,13 @@ class DomainStore:
 
     def journal_length(self) -> int:
         """Return how many records the journal holds."""
-        return int(self._require().execute("SELECT count(*) FROM journal").fetchone()[0])
+        with self._writing:  # not inside another thread's transaction on this connection
+            return int(self._require().execute("SELECT count(*) FROM journal").fetchone()[0])
 
     def execute(self, sql: str) -> None:
         """Run one SQL statement on the connection (tests: ``PRAGMA max_page_count`` to fill the disk)."""
-        self._require().execute(sql)
+        with self._writing:
+            self._require().execute(sql)
 
     # -------------------------------------------------------------- internals
     def _take_lock(self) -> None:

@@ -14,6 +14,12 @@ a session's steps wait for its ``close``), ``ltm/assert/result``, and its announ
 ``consultant/announce`` and ``consultant/<domain>/alive`` (latched; the latter with a
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
+Facts on ``ltm/assert`` are drained and checked on the executor thread, stored by a
+:class:`~fsreg_ros.core.fact_writer.FactWriter` thread (one fsynced transaction for every
+batch waiting), then applied and answered back on the executor thread (a guard
+condition), so RR and REG are answered while the disk works; the services answer the
+requests waiting behind one ahead of the next round (``serve(drain=...)``).
+
 Services: ``consultant/<domain>`` (RR, REG), ``consultant/<domain>/manage`` (the WM
 Manager) and, only with ``debug`` true, ``consultant/<domain>/debug``.  Until the WM
 Manager configures this incarnation, every query but ``info`` is refused with kind
@@ -25,9 +31,10 @@ docs/deployment.md ("State").
 from __future__ import annotations
 
 import gc
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from time import monotonic
+from time import monotonic, thread_time
 from typing import Any, Optional
 
 from rclpy.clock import Clock, ClockType
@@ -40,7 +47,8 @@ from ..contract import consultant_codec
 from ..contract.codec import MessageError, printable
 from ..core.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
-from ..core.service import ConsultantService, NotReady, Outcome, RequestError
+from ..core.fact_writer import FactWriter
+from ..core.service import ConsultantService, NotReady, Outcome, PreparedFacts, RequestError
 from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
@@ -54,9 +62,15 @@ SESSION_STEPS = ("open", "narrow", "walk", "rule_out")
 MAX_STATE_DELAY = 1.0
 #: Seconds between two writes of the alive topic (its liveliness lease is 1 s).
 ALIVE_PERIOD = 0.25
-#: Most facts one ``ltm/assert`` commit takes from the messages waiting, and the most seconds spent taking them
-#: (RR's and REG's calls wait meanwhile; docs/semantics.md, "Facts in batches").
-MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 500, 0.02
+#: Least seconds between two log lines about facts applied (steady clock): a stream is summarised.
+FACTS_LOG_PERIOD = 5.0
+#: Most requests waiting on a service answered in one go, ahead of the executor's next round (queries are not
+#: served one per round behind the facts: :func:`~fsreg_ros.ros.carrier.serve`'s ``drain``).
+MAX_DRAIN_REQUESTS = 64
+#: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most CPU seconds spent taking them
+#: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
+#: docs/semantics.md, "Facts in batches").
+MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 250, 0.005
 
 
 class ConsultantNode(Node):
@@ -116,6 +130,9 @@ class ConsultantNode(Node):
                 f"a state database from before ROS domain ids were part of the path is at {legacy}; "
                 f"not used: move it to {self._state_path} if it belongs to this robot")
         self.service.maintain()  # compact a replayed journal now
+        self._facts_logged, self._facts_unlogged = float("-inf"), [0] * 5  # see _log_facts
+        self._committed = self.create_guard_condition(self._on_committed)  # the writer's batches, back here
+        self._writer = self._start_writer()
         self._events = publisher(self, contract.WM_EVENTS)
         self._state = publisher(self, contract.WM_STATE)
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
@@ -131,11 +148,11 @@ class ConsultantNode(Node):
             services.append((contract.DEBUG, contract.DEBUG_OPS))
         for service, ops in services:  # each request validated once, by serve(), against its op's schema
             serve(self, service, {op: self._reset if op == "reset" else partial(self._call, op) for op in ops},
-                  limits=self.limits, domain=domain)
+                  limits=self.limits, domain=domain, drain=MAX_DRAIN_REQUESTS)
         subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
                           size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
-                          max_seconds=MAX_DRAIN_SECONDS)
+                          max_seconds=MAX_DRAIN_SECONDS, clock=thread_time)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -178,6 +195,12 @@ class ConsultantNode(Node):
             log.info(printable(f"state {path}: {restored.summary()}"))
         return service
 
+    def _start_writer(self) -> FactWriter:
+        """Start the thread that stores this incarnation's facts (each group of batches in one fsynced commit)."""
+        store = self.service.persistence.store_facts
+        return FactWriter(lambda batches: store([fact for b in batches for fact in b.prepared.stored]),
+                          self._committed.trigger, name=f"facts-{self.domain}")
+
     def _reset(self, request: dict) -> dict:
         """Manage op ``reset``: set the state database aside, serve the KB file's domain afresh (a new incarnation).
 
@@ -192,6 +215,8 @@ class ConsultantNode(Node):
             raise MessageError(f"reset refused, nothing changed: {err}") from None
         if spec is None:
             raise MessageError(f"reset refused, nothing changed: {self._kb} has no domain '{self.domain}' any more")
+        self._settle_all()  # every fact in flight applied and answered before the state is set aside
+        self._writer.close()
         old = self.service
         cleared = {**old.consultant.differences(self._spec.entities),
                    "queues": len(old.buffer.nonempty_entities())}
@@ -204,6 +229,8 @@ class ConsultantNode(Node):
             self.service = self._open_state(self._spec, threshold, reset=False, after=old.incarnation)
             raise CarrierError(printable(f"reset failed: {err}; the old state is served again"),
                                kind="not-stored") from None
+        finally:
+            self._writer = self._start_writer()
         self._spec = spec
         self.service.maintain()
         restored = self.service.persistence.restored
@@ -269,26 +296,59 @@ class ConsultantNode(Node):
         publish(self._assert_results, reply)
 
     def _on_asserts(self, messages: list[dict]) -> None:
-        """Apply ``ltm/assert`` messages of this domain in ONE commit; answer each.
+        """Prepare ``ltm/assert`` messages of this domain as ONE batch and hand it to the writer thread.
 
         They were routed by ``accept``, validated and drained together by
         :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
         or a batch (``facts``); every fact of every message is one fact of one
-        :meth:`~fsreg_ros.core.service.ConsultantService.ltm_assert_batch`
-        (all-or-nothing per fact, one fsynced transaction for the accepted ones), and each
-        message gets one ``ltm/assert/result``: a batch's lists every fact in order.
+        :meth:`~fsreg_ros.core.service.ConsultantService.prepare_facts` (all-or-nothing per
+        fact, checked against LTM as the batches already in flight leave it).  The
+        :class:`~fsreg_ros.core.fact_writer.FactWriter` stores it (with whatever else
+        waits, in one fsynced transaction) while this thread serves RR and REG;
+        :meth:`_on_committed` then applies it and answers each message.
         """
         facts: list[tuple[str, dict]] = []
         for data in messages:
             facts.extend(_facts_of(data))
-        log = self.get_logger()
         try:
-            outcome = self._guarded(lambda listening: self.service.ltm_assert_batch(facts, listening=listening))
-        except StoreError as err:  # memory unchanged: nothing was applied
-            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored ({len(facts)} facts): {err}"))
+            prepared = self.service.prepare_facts(facts)
+        except RequestError as err:
+            raise MessageError(str(err)) from None
+        try:
+            self._writer.submit(_Submitted(messages, prepared, self.service))
+        except RuntimeError as err:  # the writer is closed (shutting down): nothing stored, nothing applied
+            self.service.abandon_facts(prepared)
+            raise CarrierError(f"not stored: {err}", kind="not-stored") from None
+
+    def _on_committed(self) -> None:
+        """Apply and answer the batches the writer is done with, up to MAX_DRAIN_FACTS a round (queries go between)."""
+        facts = 0
+        while facts < MAX_DRAIN_FACTS and (done := self._writer.take_done(1)):
+            submitted, error = done[0]
+            facts += max(1, len(submitted.prepared.facts))
+            try:
+                self._settle(submitted, error)
+            except Exception as err:  # noqa: BLE001 - a guard condition's error would stop the node: answer, serve on
+                text = printable(f"internal error: {type(err).__name__}: {err}")
+                self.get_logger().error(f"{contract.LTM_ASSERT.name}: {text}")
+                for data in submitted.messages:
+                    self._answer_assert(data, ok=False, error=text, kind="internal")
+        if self._writer.has_done():
+            self._committed.trigger()
+
+    def _settle(self, submitted: "_Submitted", error: Optional[StoreError]) -> None:
+        """Apply a committed batch and answer each of its messages, or answer them all ``not-stored``."""
+        messages, prepared = submitted.messages, submitted.prepared
+        log = self.get_logger()
+        if submitted.service is not self.service:  # stored before a reset set that database aside: not served
+            error = StoreError("the state was reset before this batch was applied; it is in the database set aside")
+        if error is not None:  # memory unchanged: nothing was applied
+            submitted.service.abandon_facts(prepared)
+            log.error(printable(f"{contract.LTM_ASSERT.name}: not stored ({len(prepared.facts)} facts): {error}"))
             for data in messages:
-                self._answer_assert(data, ok=False, error=printable(f"not stored: {err}"), kind="not-stored")
+                self._answer_assert(data, ok=False, error=printable(f"not stored: {error}"), kind="not-stored")
             return
+        outcome = self._guarded(lambda listening: self.service.apply_facts(prepared, listening=listening))
         results = iter(outcome.reply["results"])
         for data in messages:
             mine = [next(results) for _ in range(len(data["facts"]) if data.get("facts") is not None else 1)]
@@ -305,15 +365,46 @@ class ConsultantNode(Node):
         if applied:
             new = sum(1 for _, _, is_new in outcome.changes.facts if is_new)
             retracted = sum(len(r.get("retracted") or ()) for r in outcome.reply["results"] if r["ok"])
+            self._log_facts(outcome, applied, len(messages), new, retracted)
+            self._published(outcome)
+
+    def _log_facts(self, outcome: Outcome, applied: int, messages: int, new: int, retracted: int) -> None:
+        """Log what a batch changed: at once after a quiet FACTS_LOG_PERIOD, else in the period's summary.
+
+        A perception stream would otherwise log hundreds of lines a second (and rclpy's
+        logging, which inspects the caller's frame, cost a tenth of the consultant's CPU).
+        """
+        now = monotonic()
+        if now - self._facts_logged >= FACTS_LOG_PERIOD and not self._facts_unlogged[0]:
+            self._facts_logged = now
             if applied == 1:
                 entity, updated, is_new = outcome.changes.facts[0]
-                log.info(printable(f"LTM {'added' if is_new else 'updated'} '{entity}': {updated}"
-                                   + (f", retracted {retracted} propert{'y' if retracted == 1 else 'ies'}"
-                                      if retracted else "")))
+                self.get_logger().info(printable(
+                    f"LTM {'added' if is_new else 'updated'} '{entity}': {updated}"
+                    + (f", retracted {retracted} propert{'y' if retracted == 1 else 'ies'}" if retracted else "")))
             else:
-                log.info(f"LTM: {applied} facts applied in one commit ({len(messages)} messages, {new} new "
-                         f"entities, {retracted} properties retracted)")
-            self._published(outcome)
+                self.get_logger().info(f"LTM: {applied} facts applied in one batch ({messages} messages, {new} new "
+                                       f"entities, {retracted} properties retracted)")
+            return
+        for i, n in enumerate((applied, 1, messages, new, retracted)):
+            self._facts_unlogged[i] += n
+
+    def _log_facts_summary(self) -> None:
+        """Log the facts applied since the last line, once FACTS_LOG_PERIOD has passed (the timer calls it)."""
+        now = monotonic()
+        if self._facts_unlogged[0] and now - self._facts_logged >= FACTS_LOG_PERIOD:
+            facts, batches, messages, new, retracted = self._facts_unlogged
+            self.get_logger().info(f"LTM: {facts} facts applied in {batches} batches in the last "
+                                   f"{now - self._facts_logged:.1f} s ({messages} messages, {new} new entities, "
+                                   f"{retracted} properties retracted)")
+            self._facts_unlogged = [0] * 5
+            self._facts_logged = now
+
+    def _settle_all(self) -> None:
+        """Wait for the writer, then apply and answer every batch in flight (before LTM changes otherwise)."""
+        self._writer.flush()
+        for submitted, error in self._writer.take_done():
+            self._settle(submitted, error)
 
     def _answer_assert(self, data: dict, **fields: Any) -> None:
         reply: dict[str, Any] = {"domain": self.domain}
@@ -327,6 +418,7 @@ class ConsultantNode(Node):
     def _after_set_parameters(self, params) -> None:
         for param in params:
             if param.name == "threshold" and float(param.value) != self.service.consultant.threshold:
+                self._settle_all()  # the facts in flight were checked against the old threshold
                 outcome = self._guarded(lambda listening: self.service.set_threshold(
                     float(param.value), listening=listening))
                 retracted = outcome.reply["retracted"]
@@ -388,6 +480,7 @@ class ConsultantNode(Node):
         self.publish_state()
 
     def _tick(self) -> None:
+        self._log_facts_summary()
         self._publish_due(waiting=True)
         self.service.maintain()
         self._log_notices()
@@ -409,12 +502,34 @@ class ConsultantNode(Node):
         return bool(self.declare_parameter(name, default, descriptor(description, read_only=True)).value)
 
     def destroy_node(self) -> None:
+        writer = getattr(self, "_writer", None)
+        if writer is not None:  # what was submitted is stored; answered if the node still can
+            writer.close()
+            try:
+                for submitted, error in writer.take_done():
+                    self._settle(submitted, error)
+            except Exception as err:  # noqa: BLE001 - shutting down: the facts are stored, the answers may not go
+                self.get_logger().warning(printable(f"{contract.LTM_ASSERT.name}: stored, not answered at shutdown: "
+                                                    f"{type(err).__name__}: {err}"))
         if getattr(self, "_unsent", None):
             self._flush()  # stopping: what was answered is published
         service = getattr(self, "service", None)
         if service is not None:
             service.shutdown()
         super().destroy_node()
+
+
+@dataclass
+class _Submitted:
+    """A batch handed to the writer: its messages (to answer), the prepared facts and the service that made them."""
+
+    messages: list[dict]
+    prepared: PreparedFacts
+    service: ConsultantService
+
+    @property
+    def generation(self) -> int:
+        return self.prepared.generation
 
 
 def _facts_of(data: dict) -> list[tuple[str, dict]]:

@@ -171,9 +171,11 @@ class WMManagerNode(Node):
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
         # Drained like the consultants' (carrier.subscribe_batches): at a perception stream's rate one executor
-        # round per message cost this node a quarter of a core for messages it only looks at.
+        # round per message cost this node a quarter of a core for messages it only looks at.  At most 3 ms a
+        # round of CPU: sync (one request a round), which every human turn and REG request waits for, goes between.
         subscribe_batches(self, contract.LTM_ASSERT, self._on_foreign_asserts, reject=self._reject_assert,
-                          accept=self._foreign_domain, limits=contract.Limits())
+                          accept=self._foreign_domain, limits=contract.Limits(), max_seconds=0.003,
+                          clock=wallclock.thread_time)
         for name, dom in self._domains.items():
             dom.alive_sub = subscribe(
                 self, contract.alive_topic(name), partial(self._on_alive, dom),

@@ -7,6 +7,8 @@ state database in a temporary directory.
 from __future__ import annotations
 
 import math
+import threading
+from dataclasses import dataclass
 
 import pytest
 
@@ -18,7 +20,8 @@ from fsreg_ros.core.generation import generate
 from fsreg_ros.core.local_port import LocalPort
 from fsreg_ros.core.persistence import CHECKPOINT_RECORDS
 from fsreg_ros.core.port import Walked, WalkStep, run_sync, walk_by_narrowing
-from fsreg_ros.core.service import ConsultantService, NotReady, RequestError
+from fsreg_ros.core.fact_writer import FactWriter
+from fsreg_ros.core.service import ConsultantService, NotReady, PreparedFacts, RequestError
 from fsreg_ros.core.store import DomainStore, StateDamaged, StoreError, fingerprint
 from fsreg_ros.core.views import SessionError, ViewTable
 
@@ -490,7 +493,7 @@ def test_a_batch_is_one_commit_all_or_nothing_per_fact_and_replays(tmp_path):
          "error": "certainty of 'male' for 'face3' must be in [0, 1], got 1.5"},
     ]}
     assert store.durable_commits == commits + 1  # one fsynced transaction for the three accepted facts
-    assert store.journal_length() == rows + 1  # the retraction's record, in that transaction
+    assert store.journal_length() == rows + 1  # the retraction's record, journalled as it is applied
     assert out.changes.facts == [("face9", {"male": 1.0}, True), ("face9", {"glasses": 0.9}, False),
                                  ("face2", {"glasses": 0.0}, False)]
     c = service.consultant
@@ -524,3 +527,105 @@ def test_a_batch_the_store_refuses_changes_nothing_and_single_asserts_keep_their
     assert refused.value.kind == "unknown-property"
     assert service.ltm_assert("face9", {"male": 1.0}, 3.0).reply == {
         "entity": "face9", "new_entity": True, "updated": {"male": 1.0}, "retracted": []}
+
+
+# ------------------------------------------------------------------ facts stored off the serving thread (28.10)
+def test_batches_prepared_while_earlier_ones_are_stored_apply_as_if_one_after_the_other(tmp_path):
+    service = make(tmp_path)
+    configure(service, {"policy": "displacement", "capacity": 4})
+    encode(service, "face1", ["glasses", "male"], 1.0)
+    held, go = threading.Event(), threading.Event()
+
+    def commit(batches):  # the writer thread: held in the commit until the test lets it go
+        held.set()
+        assert go.wait(30)
+        service.persistence.store_facts([fact for b in batches for fact in b.prepared.stored])
+
+    writer = FactWriter(commit)
+    try:
+        first = service.prepare_facts([("face9", {"male": 1.0})], 2.0)
+        writer.submit(Submitted(first))
+        assert held.wait(30)
+        second = service.prepare_facts([("face9", {"glasses": 1.0}), ("face1", {"glasses": 0.0})], 2.0)
+        writer.submit(Submitted(second))
+        assert second.stored[0] == ("face9", {"glasses": 1.0}, False)  # not new: the batch in flight adds it
+        assert not service.consultant.knows_entity("face9")  # stored but not acknowledged: queries do not see it
+        rows = service.store.journal_length()
+        go.set()
+        writer.flush()
+        done = writer.take_done()
+        assert [err for _, err in done] == [None, None] and writer.commits == 2
+        outcomes = [service.apply_facts(s.prepared) for s, _ in done]
+    finally:
+        go.set()
+        writer.close()
+    assert [o.reply["results"] for o in outcomes] == [
+        [{"entity": "face9", "ok": True, "new_entity": True, "updated": {"male": 1.0}, "retracted": []}],
+        [{"entity": "face9", "ok": True, "new_entity": False, "updated": {"glasses": 1.0}, "retracted": []},
+         {"entity": "face1", "ok": True, "new_entity": False, "updated": {"glasses": 0.0}, "retracted": ["glasses"]}]]
+    assert service.consultant.certainty("face9", "glasses") == 1.0 and service.buffer.queue("face1") == ("male",)
+    assert service.store.journal_length() == rows + 1  # the retraction, journalled when applied
+    assert service.facts_in_flight() == 0
+    again = replayed(tmp_path, service)  # killed after the acknowledgements: everything acknowledged is back
+    assert again.consultant.entities[-1] == "face9" and again.consultant.certainty("face9", "male") == 1.0
+    assert again.consultant.certainty("face1", "glasses") == 0.0 and again.buffer.queue("face1") == ("male",)
+
+
+def test_a_kill_between_the_commit_and_the_retraction_keeps_the_retraction(tmp_path):
+    service = make(tmp_path)
+    configure(service, {"policy": "displacement", "capacity": 4})
+    encode(service, "face2", ["glasses", "female"], 1.0)
+    prepared = service.prepare_facts([("face2", {"glasses": 0.0})], 2.0)
+    service.persistence.store_facts(prepared.stored)  # durable; killed before it was applied and journalled
+    again = replayed(tmp_path, service)
+    assert again.consultant.certainty("face2", "glasses") == 0.0 and again.buffer.queue("face2") == ("female",)
+
+
+def test_a_failed_commit_voids_the_batches_checked_against_it_and_the_next_starts_from_ltm(tmp_path):
+    service = make(tmp_path)
+    configure(service)
+    real = service.store.commit
+
+    def full(batch):
+        raise StoreError("state database x: database or disk is full")
+
+    service.store.commit = full
+    first = service.prepare_facts([("face9", {"male": 1.0})], 2.0)
+    second = service.prepare_facts([("face9", {"glasses": 1.0})], 2.0)  # checked as if the first were applied
+    with pytest.raises(StoreError):
+        service.persistence.store_facts(first.stored)
+    service.abandon_facts(first)
+    service.abandon_facts(second)  # of the voided generation: nothing more changes
+    with pytest.raises(RuntimeError, match="prepared before a failed commit"):
+        service.apply_facts(second)
+    assert service.facts_in_flight() == 0 and not service.consultant.knows_entity("face9")
+    service.store.commit = real
+    third = service.prepare_facts([("face9", {"glasses": 1.0})], 3.0)
+    assert third.stored == [("face9", {"glasses": 1.0}, True)]  # new again: nothing of the failed ones holds
+    service.persistence.store_facts(third.stored)
+    assert service.apply_facts(third).reply["results"][0]["new_entity"] is True
+    again = replayed(tmp_path, service)
+    assert again.consultant.certainty("face9", "glasses") == 1.0 and again.consultant.certainty("face9", "male") == 0
+
+
+def test_the_threshold_waits_for_the_facts_in_flight(tmp_path):
+    service = make(tmp_path)
+    configure(service)
+    prepared = service.prepare_facts([("face9", {"male": 0.6})], 1.0)
+    with pytest.raises(RuntimeError, match="1 batches of facts are in flight"):
+        service.set_threshold(0.7)
+    service.persistence.store_facts(prepared.stored)
+    service.apply_facts(prepared)
+    assert service.set_threshold(0.7).reply["threshold"] == 0.7
+    assert service.consultant.holds("male", ["face1", "face9"]) == ["face1"]
+
+
+@dataclass
+class Submitted:
+    """What a node hands the writer: the prepared batch (its generation decides a failure's reach)."""
+
+    prepared: PreparedFacts
+
+    @property
+    def generation(self) -> int:
+        return self.prepared.generation

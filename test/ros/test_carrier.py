@@ -16,9 +16,10 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.ros.carrier import CarrierError, ServiceCaller, from_msg, serve, to_msg, wait_until  # noqa: E402
+from fsreg_ros.ros.carrier import (CarrierError, ServiceCaller, from_msg, qos_profile, serve, to_msg,  # noqa: E402
+                                   wait_until)
 from fsreg_ros.contract.codec import MessageError  # noqa: E402
-from fsreg_ros.contract import STATE_QOS, Message, check  # noqa: E402
+from fsreg_ros.contract import SERVICE_QOS, STATE_QOS, Message, check  # noqa: E402
 from fsreg_ros.ros.node_base import error_reply  # noqa: E402
 from rosutil import RosSession, call, ros_graph  # noqa: E402
 
@@ -394,3 +395,28 @@ def test_subscribe_ignores_what_accept_refuses_before_validating_it(graph: RosSe
         graph.publish("/" + contract.LTM_ASSERT.name, text, contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: handled == [4], what="the one valid assertion for faces")
     assert rejected == [2, 3]  # the objects message was not this node's to refuse
+
+
+def test_a_draining_service_answers_every_waiting_request_in_order_and_once(graph: RosSession):
+    server = Node("drained", context=graph.context)
+    seen: list[int] = []
+
+    def handler(request: dict) -> dict:
+        seen.append(request["n"])
+        if request["n"] == 7:
+            raise MessageError("seven is refused")
+        return {"n": request["n"]}
+
+    serve(server, "/carrier/drained", handler, drain=4)  # 20 waiting: answered four at a time, ahead of the round
+    graph.executor.add_node(server)
+    graph.nodes.append(server)
+    graph.wait_service("/carrier/drained")
+    # a client as deep as the contract's (a reader of depth 10 taking one answer a round would lose some)
+    plain = graph.probe.create_client(AddDiagnostics, "/carrier/drained", qos_profile=qos_profile(SERVICE_QOS))
+    futures = [plain.call_async(AddDiagnostics.Request(load_namespace=f'{{"n": {n}}}')) for n in range(20)]
+    graph.spin_until(lambda: all(f.done() for f in futures), 10.0, what="20 answers")
+    replies = [(f.result().success, from_msg(String(data=f.result().message))) for f in futures]
+    refused = {"error": "seven is refused", "kind": "MessageError", "detail": "bad-request"}
+    assert replies == [(n != 7, {"n": n} if n != 7 else refused)
+                       for n in range(20)]
+    assert seen == list(range(20))  # each once, in the order sent

@@ -7,20 +7,23 @@ as good as SIGKILL for the database); ``test_restart_graph.py`` SIGKILLs real pr
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
 import pytest
 import yaml
 from rclpy.callback_groups import ReentrantCallbackGroup
+from std_msgs.msg import String
 
 from fsreg_ros import contract
-from fsreg_ros.ros.carrier import CarrierError
+from fsreg_ros.ros.carrier import CarrierError, qos_profile
 from fsreg_ros.contract import STATE_QOS
 from fsreg_ros.core.generation import generate
 from fsreg_ros.core.store import StoreError
@@ -150,6 +153,72 @@ def test_namespaces_get_their_own_files_and_a_second_live_opener_is_refused_with
     text = str(err.value)
     assert str(db_path(graph, tmp_path)) in text and f"in use by process {os.getpid()}" in text
     assert "\n" not in text
+
+
+def test_every_fact_is_stored_and_in_memory_when_its_answer_goes_out_and_comes_back_after_a_restart(
+        graph: RosSession, tmp_path):
+    """The facts' commit runs on a writer thread; the answer waits for it and for memory (issue 28.10)."""
+    node = start(graph, tmp_path)
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
+    encode(graph, "face1", ["glasses", "male"], 1.0)
+    reader = sqlite3.connect(f"file:{db_path(graph, tmp_path)}?mode=ro", uri=True)
+    seen: list[tuple] = []
+
+    def on_result(msg) -> None:  # at the moment the answer arrives: in the database (committed) and in LTM?
+        data = json.loads(msg.data)
+        facts = {(r["entity"], p, c) for r in data["results"] if r["ok"] for p, c in r["updated"].items()}
+        stored = set(reader.execute("SELECT entity, property, certainty FROM facts"))
+        seen.append((data["id"], facts <= stored, all(node.service.consultant.certainty(e, p) == c
+                                                      for e, p, c in facts), data["applied"]))
+
+    graph.probe.create_subscription(String, contract.LTM_ASSERT_RESULT.name, on_result,
+                                    qos_profile(contract.LTM_ASSERT_RESULT.qos))
+    batches = 20
+    for b in range(batches):  # published without spinning: they wait together, in several groups of commits
+        facts = [{"entity": f"seen{b}_{i}", "properties": {"male": 1.0}} for i in range(25)]
+        if b == batches - 1:
+            facts.append({"entity": "face1", "properties": {"glasses": 0.0}})  # a retraction, last
+        graph.publish(contract.LTM_ASSERT.name, {"id": f"b{b}", "domain": "faces", "facts": facts},
+                      contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(seen) == batches, 30.0, what=f"{batches} answers")
+    assert seen == [(f"b{b}", True, True, 25 + (b == batches - 1)) for b in range(batches)]  # in order, too
+    info = graph.call(Q, {"op": "info"})
+    assert info["entity_count"] == 3 + 25 * batches  # a query after the answers sees every fact
+    assert graph.call(D, {"op": "wm", "entity": "face1"})["queue"] == ["male"]
+    reader.close()
+    graph.remove(node)
+    start(graph, tmp_path)
+    assert graph.call(Q, {"op": "info"})["entities"][3:] == [f"seen{b}_{i}" for b in range(batches)
+                                                             for i in range(25)]
+
+
+def test_queries_are_answered_while_the_facts_commit_and_see_the_facts_once_answered(graph: RosSession, tmp_path):
+    """The fsync is on the writer thread: RR's and REG's queries do not wait for it (issue 28.10)."""
+    node = start(graph, tmp_path)
+    graph.call(M, {"op": "configure", "policy": POLICY, "time": 0.0})
+    store, real = node.service.store, node.service.store.commit
+    entered, go = threading.Event(), threading.Event()
+
+    def held(batch):  # the facts' commit holds until the test lets it go
+        if batch.durable:
+            entered.set()
+            assert go.wait(30)
+        real(batch)
+
+    store.commit = held
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    try:
+        graph.publish(contract.LTM_ASSERT.name, {"id": "h1", "domain": "faces", "entity": "face9",
+                                                 "properties": {"male": 1.0}}, contract.LTM_ASSERT.qos)
+        graph.spin_until(entered.is_set, what="the facts' commit under way")
+        info = graph.call(Q, {"op": "info"})  # answered while the commit holds; the fact is not acknowledged yet
+        assert "face9" not in info["entities"] and not results.latest(id="h1")
+        session = graph.call(Q, {"op": "open", "target": "face1", "client": "reg"})["session"]
+        assert graph.call(Q, {"op": "close", "session": session})["members"] == ["face2", "face3"]
+    finally:
+        go.set()
+    graph.spin_until(lambda: results.latest(id="h1"), what="the answer once stored")
+    assert results.latest(id="h1")["ok"] and graph.call(Q, {"op": "info"})["entities"][-1] == "face9"
 
 
 def test_a_restarted_simulation_drops_the_old_runs_wm_and_keeps_facts_and_policy(graph: RosSession, tmp_path):

@@ -99,3 +99,29 @@ def test_soak_with_perception_accounts_for_every_fact():
 def test_soak_refuses_bad_perception_arguments(args, fragment):
     proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), *args], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+BENCH_FACTS = Path(__file__).resolve().parents[2] / "scripts" / "bench_facts.py"
+
+
+@pytest.mark.slow  # starts a consultant process
+def test_bench_facts_answers_every_query_and_fact():
+    proc = subprocess.run([sys.executable, str(BENCH_FACTS), "--facts-rate", "200", "--batch", "10", "--queries", "10",
+                           "--seconds", "2", "--facts-entities", "7"], capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("== bench_facts: 200 facts/s in messages of 10, 10 queries/s, 2 s;"), proc.stdout
+    assert lines[1].startswith("queries 20, unanswered 0; query latency ms p50 "), proc.stdout
+    assert lines[2].startswith("facts sent 400, answered messages 40 of 40, applied 400; facts latency ms"), proc.stdout
+    assert lines[3].startswith("consultant CPU "), proc.stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--facts-rate", "inf"], "--facts-rate must be a number in [0, 1000000], got inf"),
+    (["--queries", "0"], "--queries must be a number in [0.1, 10000], got 0"),
+    (["--seconds", "nan"], "--seconds must be a number in [0.1, 3600], got nan"),
+    (["--batch", "1001"], "--batch must be in [1, 1000]"),
+])
+def test_bench_facts_refuses_bad_arguments(args, fragment):
+    proc = subprocess.run([sys.executable, str(BENCH_FACTS), *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
