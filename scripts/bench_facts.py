@@ -38,10 +38,9 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.ros.network import require_loopback, ros_environment  # noqa: E402
+from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
 
-require_loopback("bench_facts.py")
-os.environ.update(ros_environment())  # before rclpy loads
+use_loopback_environment("bench_facts.py")  # before rclpy loads
 
 import psutil  # noqa: E402
 from std_msgs.msg import String  # noqa: E402

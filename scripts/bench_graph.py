@@ -53,9 +53,9 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.ros.network import ros_environment  # noqa: E402
+from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
 
-os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
+use_loopback_environment("bench_graph.py")  # before rclpy loads
 
 from fsreg_ros import contract  # noqa: E402
 from fsreg_ros.core.local_port import LocalPort  # noqa: E402

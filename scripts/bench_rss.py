@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 import time
@@ -34,9 +33,11 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.tools.graph import Graph, graph_nodes, ros_environment  # noqa: E402
+from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
 
-os.environ.update(ros_environment())  # LOCALHOST discovery unless set; before rclpy loads
+use_loopback_environment("bench_rss.py")  # before rclpy loads
+
+from fsreg_ros.tools.graph import Graph, graph_nodes  # noqa: E402
 
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402

@@ -24,10 +24,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "test" / "support")]
 
-from fsreg_ros.ros.network import require_loopback, ros_environment  # noqa: E402
+from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
 
-require_loopback("fuzz.py")
-os.environ.update(ros_environment())  # before rclpy loads
+use_loopback_environment("fuzz.py")  # before rclpy loads
 
 from fuzzgraph import ENDPOINTS, Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
 

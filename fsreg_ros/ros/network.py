@@ -157,6 +157,16 @@ def require_loopback(prog: str, base: Optional[dict] = None) -> None:
         raise SystemExit(EXIT_REFUSED) from None
 
 
+def use_loopback_environment(prog: str) -> None:
+    """Give this process the fsreg ROS environment, or refuse a widening one (one line, exit 2).
+
+    For a script that starts ROS in its own process: call it before rclpy is imported
+    (:func:`require_loopback`, then :func:`ros_environment` into ``os.environ``).
+    """
+    require_loopback(prog)
+    os.environ.update(ros_environment())
+
+
 def shell_exports(env: dict, before: dict) -> str:
     """Return ``export`` lines for the variables of ``env`` that differ from ``before``."""
     changed = sorted(k for k, v in env.items() if before.get(k) != v)

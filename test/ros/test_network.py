@@ -159,7 +159,7 @@ def test_every_node_process_listens_on_loopback_only(table1_path, tmp_path):
         graph.stop()
 
 
-@pytest.mark.parametrize("script", ["soak.py", "fuzz.py"])
+@pytest.mark.parametrize("script", ["soak.py", "fuzz.py", "bench_facts.py", "bench_graph.py", "bench_rss.py"])
 def test_the_scripts_refuse_a_widening_environment(script):
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
     env.pop(ALLOW_NETWORK, None)
