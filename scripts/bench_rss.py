@@ -87,6 +87,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every", type=int, default=500)
     parser.add_argument("--json", type=Path, help="also write the samples here")
     args = parser.parse_args(argv)
+    if not 1 <= args.every <= 100_000:
+        parser.error(f"--every must be in [1, 100000], got {args.every}")
+    first = -(-(1024 + args.every) // args.every) * args.every  # the first sample fitted (see `full` below)
+    if not first + 2 * args.every <= args.requests <= 10_000_000:  # the slope needs 3 samples past REG's cache
+        parser.error(f"--requests must be in [{first + 2 * args.every}, 10000000] with --every {args.every} "
+                     f"(3 samples after REG's 1,024-entry cache filled), got {args.requests}")
 
     scenario = load_scenario(args.scenario)
     targets = [e for spec in scenario.domains.values() for e in spec.entities]

@@ -125,3 +125,18 @@ def test_bench_facts_answers_every_query_and_fact():
 def test_bench_facts_refuses_bad_arguments(args, fragment):
     proc = subprocess.run([sys.executable, str(BENCH_FACTS), *args], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+BENCH_RSS = BENCH_FACTS.parent / "bench_rss.py"
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--every", "0"], "--every must be in [1, 100000], got 0"),
+    (["--requests", "2999"], "--requests must be in [3000, 10000000] with --every 500 (3 samples after REG's "
+                             "1,024-entry cache filled), got 2999"),
+    (["--requests", "1000", "--every", "100"], "--requests must be in [1400, 10000000] with --every 100"),
+])
+def test_bench_rss_refuses_too_few_samples(args, fragment):
+    """Too few requests to fit a slope after the warm-up gave a silent 'nan bytes/request'; now one line, exit 2."""
+    proc = subprocess.run([sys.executable, str(BENCH_RSS), *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
