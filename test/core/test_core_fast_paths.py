@@ -164,6 +164,43 @@ def _limits(capacity):
     return Limits(retains=False) if capacity is None else Limits(capacity=capacity)
 
 
+def _state(b) -> tuple:
+    """What two buffers that did the same must hold alike: queues, origins, size."""
+    return {e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}, len(b)
+
+
+def _state_with_exports(b) -> tuple:
+    """:func:`_state` and each queue as persistence exports it (activation's traces included)."""
+    return (*_state(b)[:2], {e: b.export_queue(e) for e in WM_ENTITIES}, len(b))
+
+
+def _agree(op, buffers, heard_events, plain_events, seen: int, trimmed: bool, state) -> tuple[int, bool]:
+    """Check that ``op`` did the same in every buffer; return (events seen, queues trimmed since the last take).
+
+    ``take`` compares the change records (as sets once new limits trimmed queues, which they do in
+    no specified order); the events since ``seen`` must be equal (as multisets after new limits);
+    ``state(b)`` must be equal for every buffer.
+    """
+    kind = op[0]
+    if kind == "take":
+        changes = [b.take_changes() for b in buffers]
+        if trimmed:
+            assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
+        else:
+            assert all(c == changes[0] for c in changes), (op, changes)
+        trimmed = False
+    if kind == "limits":
+        assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
+        trimmed = True
+    else:
+        assert heard_events[seen:] == plain_events[seen:], op
+    seen = len(plain_events)
+    assert len(heard_events) == seen
+    states = [state(b) for b in buffers]
+    assert all(x == states[0] for x in states), op
+    return seen, trimmed
+
+
 @settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
 @given(st.integers(1, 3), WM_OPS)
 def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
@@ -221,23 +258,7 @@ def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
         elif kind == "remove":
             for b in buffers:
                 b.remove(WM_ENTITIES[op[1]], op[2], "retract", float(t))
-        elif kind == "take":
-            changes = [b.take_changes() for b in buffers]
-            if trimmed:  # new limits trim queues in no specified order
-                assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
-            else:
-                assert all(c == changes[0] for c in changes), (op, changes)
-            trimmed = False
-        if kind == "limits":
-            assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
-            trimmed = True
-        else:
-            assert heard_events[seen:] == plain_events[seen:], op
-        seen = len(plain_events)
-        assert len(heard_events) == seen
-        state = [({e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}, len(b))
-                 for b in buffers]
-        assert all(s == state[0] for s in state), op
+        seen, trimmed = _agree(op, buffers, heard_events, plain_events, seen, trimmed, _state)
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)
 
@@ -374,23 +395,7 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
         elif kind == "remove":
             for b in buffers:
                 b.remove(WM_ENTITIES[op[1]], op[2], "retract", now)
-        elif kind == "take":
-            changes = [b.take_changes() for b in buffers]
-            if trimmed:  # new limits trim queues in no specified order
-                assert all(set(c) == set(changes[0]) for c in changes), (op, changes)
-            else:
-                assert all(c == changes[0] for c in changes), (op, changes)
-            trimmed = False
-        if kind == "limits":
-            assert Counter(heard_events[seen:]) == Counter(plain_events[seen:])
-            trimmed = True
-        else:
-            assert heard_events[seen:] == plain_events[seen:], op
-        seen = len(plain_events)
-        assert len(heard_events) == seen
-        state = [({e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES},
-                  {e: b.export_queue(e) for e in WM_ENTITIES}, len(b)) for b in buffers]
-        assert all(s == state[0] for s in state), op
+        seen, trimmed = _agree(op, buffers, heard_events, plain_events, seen, trimmed, _state_with_exports)
         assert heard_events[seen:] == plain_events[seen:], op  # what the reads caught up
         seen = len(plain_events)
     changes = [b.take_changes() for b in buffers]
