@@ -71,6 +71,10 @@ MAX_DRAIN_REQUESTS = 64
 #: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
 #: docs/semantics.md, "Facts in batches").
 MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 250, 0.005
+#: Seconds between two takes of a stream of ``ltm/assert`` messages (the first of a stream is taken at once):
+#: one fact a message at 1,000/s is then ~10 messages a round, one commit and one apply, instead of a round,
+#: a commit and an apply each (:func:`~fsreg_ros.ros.carrier.subscribe_batches`' ``gather``).
+FACTS_GATHER = 0.01
 
 
 class ConsultantNode(Node):
@@ -152,7 +156,7 @@ class ConsultantNode(Node):
         subscribe_batches(self, contract.LTM_ASSERT, self._on_asserts, reject=self._reject_assert, limits=self.limits,
                           accept=lambda data: not isinstance(data.get("domain"), str) or data["domain"] == self.domain,
                           size=lambda data: len(data.get("facts") or ()) or 1, max_size=MAX_DRAIN_FACTS,
-                          max_seconds=MAX_DRAIN_SECONDS, clock=thread_time)
+                          max_seconds=MAX_DRAIN_SECONDS, clock=thread_time, gather=FACTS_GATHER)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._clock_watch = watch_clock(self)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -264,19 +268,21 @@ class ConsultantNode(Node):
         finally:
             self._log_notices()
 
-    def _published(self, outcome: Outcome, wait: bool = False) -> None:
+    def _published(self, outcome: Outcome, wait: bool = False, later: bool = True) -> None:
         """Publish what came of a call right after its reply (the executor's next step: :meth:`_flush`).
 
         A call's events (a dozen per turn, hundreds for a decay tick) cost the call's caller
         nothing this way: measured while a recorder listened, publishing them before the
         reply added their cost to every RR and REG round trip.  Their order, their ``seq``
         and what follows them (``wm/state``, the announcement) are unchanged.
+        ``later=False``: the caller flushes itself once its answers are out (no round of its own).
         """
         self._unsent.extend(outcome.events)
         if outcome.changes.wm:
             self._state_due = True
         self._flush_wait = self._flush_wait and wait
-        self._flush_guard.trigger()
+        if later:
+            self._flush_guard.trigger()
 
     def _flush(self) -> None:
         """Publish the events of the calls answered since the last flush, a due ``wm/state``, the announcement."""
@@ -321,7 +327,11 @@ class ConsultantNode(Node):
             raise CarrierError(f"not stored: {err}", kind="not-stored") from None
 
     def _on_committed(self) -> None:
-        """Apply and answer the batches the writer is done with, up to MAX_DRAIN_FACTS a round (queries go between)."""
+        """Apply and answer the batches the writer is done with, up to MAX_DRAIN_FACTS a round (queries go between).
+
+        What they changed is published right after their answers, in this round (at 1,000
+        single facts/s a flush of its own cost an executor round per batch).
+        """
         facts = 0
         while facts < MAX_DRAIN_FACTS and (done := self._writer.take_done(1)):
             submitted, error = done[0]
@@ -333,6 +343,7 @@ class ConsultantNode(Node):
                 self.get_logger().error(f"{contract.LTM_ASSERT.name}: {text}")
                 for data in submitted.messages:
                     self._answer_assert(data, ok=False, error=text, kind="internal")
+        self._flush()
         if self._writer.has_done():
             self._committed.trigger()
 
@@ -366,7 +377,7 @@ class ConsultantNode(Node):
             new = sum(1 for _, _, is_new in outcome.changes.facts if is_new)
             retracted = sum(len(r.get("retracted") or ()) for r in outcome.reply["results"] if r["ok"])
             self._log_facts(outcome, applied, len(messages), new, retracted)
-            self._published(outcome)
+            self._published(outcome, later=False)  # _on_committed flushes once the round's answers are out
 
     def _log_facts(self, outcome: Outcome, applied: int, messages: int, new: int, retracted: int) -> None:
         """Log what a batch changed: at once after a quiet FACTS_LOG_PERIOD, else in the period's summary.

@@ -96,6 +96,9 @@ TIMEOUT_RANGE = (0.01, 3600.0)
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
+#: Seconds between two takes of a stream of ``ltm/assert`` messages, read only to answer those naming a domain no
+#: consultant serves (the first of a stream is taken at once; :func:`~fsreg_ros.ros.carrier.subscribe_batches`).
+FOREIGN_GATHER = 0.05
 
 
 class WMManagerNode(Node):
@@ -170,12 +173,13 @@ class WMManagerNode(Node):
         # A message no consultant can read (not JSON, too large) is answered by every consultant, not here.
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
-        # Drained like the consultants' (carrier.subscribe_batches): at a perception stream's rate one executor
-        # round per message cost this node a quarter of a core for messages it only looks at.  At most 3 ms a
-        # round of CPU: sync (one request a round), which every human turn and REG request waits for, goes between.
+        # Drained like the consultants' (carrier.subscribe_batches), and a stream gathered every FOREIGN_GATHER
+        # seconds: at a perception stream's rate one executor round per message cost this node a quarter to a
+        # third of a core for messages it only looks at.  At most 3 ms a round of CPU: sync (one request a
+        # round), which every human turn and REG request waits for, goes between.
         subscribe_batches(self, contract.LTM_ASSERT, self._on_foreign_asserts, reject=self._reject_assert,
                           accept=self._foreign_domain, limits=contract.Limits(), max_seconds=0.003,
-                          clock=wallclock.thread_time)
+                          clock=wallclock.thread_time, gather=FOREIGN_GATHER)
         for name, dom in self._domains.items():
             dom.alive_sub = subscribe(
                 self, contract.alive_topic(name), partial(self._on_alive, dom),

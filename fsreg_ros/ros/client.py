@@ -42,9 +42,9 @@ from rosgraph_msgs.msg import Clock
 
 from .. import contract
 from ..contract import Limits
-from .carrier import ServiceCaller, publisher, subscribe
+from .carrier import ServiceCaller, publisher, subscribe, subscribe_batches
 from .client_base import DEFAULT_TIMEOUT, RETRY_AFTER, Answer, ClientError, describe_graph
-from .exchange import KIND_TOPICS, MATCH_SETTLE, DialogueExchange
+from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_SETTLE, DialogueExchange
 from .graph_clock import CLOCK_DISCOVERY, CLOCK_RESEND, ClockControl, check_clock, clock_message
 from .graph_queries import GraphQueries, state_version
 from .parameter_access import ParameterAccess, parameter_value, python_value, range_problem
@@ -80,7 +80,12 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         self.ready_messages: dict[tuple, dict] = {}  # (graph, pid, host) -> latest wm_manager/ready
         self._ready_heard: dict[tuple, float] = {}  # when each was heard (monotonic)
         self._publishers = {kind: publisher(node, topics[0]) for kind, topics in KIND_TOPICS.items()}
-        self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()}
+        self._reply_subs = {kind: subscribe(node, topics[1], self._on_answer) for kind, topics in KIND_TOPICS.items()
+                            if kind != "assert"}
+        # A perception stream's answers (one per ltm/assert) are gathered as the consultants gather the stream.
+        self._reply_subs["assert"] = subscribe_batches(
+            node, contract.LTM_ASSERT_RESULT, lambda answers: [self._on_answer(data) for data in answers],
+            reject=None, gather=ANSWERS_GATHER)
         # The reader asks the writer's liveliness lease: only then does Fast DDS report the writer's death.
         ready_topic = dataclasses.replace(contract.READY, reader_qos=contract.READY_QOS)
         self._ready_sub = subscribe(node, ready_topic, self._on_ready,

@@ -25,6 +25,9 @@ from .client_base import Answer, ClientError, Spinning, describe_graph
 MATCH_SETTLE = 0.25
 #: Seconds at most a new client waits for every discovered reader of a request topic to match (see wait_matched).
 MATCH_EVERY = 1.0
+#: Seconds between two takes of a stream of ``ltm/assert/result`` answers (the first is taken at once): a client
+#: sending facts at 1,000/s is not woken a thousand times a second (:func:`~.carrier.subscribe_batches`' gather).
+ANSWERS_GATHER = 0.01
 #: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
 KIND_TOPICS = {"say": (contract.HUMAN, contract.RR_RESULT), "describe": (contract.REG_REQUEST, contract.REG_EXPRESSION),
                "assert": (contract.LTM_ASSERT, contract.LTM_ASSERT_RESULT)}

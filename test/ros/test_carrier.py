@@ -420,3 +420,67 @@ def test_a_draining_service_answers_every_waiting_request_in_order_and_once(grap
     assert replies == [(n != 7, {"n": n} if n != 7 else refused)
                        for n in range(20)]
     assert seen == list(range(20))  # each once, in the order sent
+
+
+def _gathering_node(graph: RosSession, name: str, **options):
+    """A node with a gathered ltm/assert subscription; the batches handled and the ids rejected."""
+    from fsreg_ros import contract
+    from fsreg_ros.ros.carrier import subscribe_batches
+
+    node = Node(name, context=graph.context)
+    graph.executor.add_node(node)
+    graph.nodes.append(node)
+    batches: list[list] = []
+    rejected: list = []
+    subscription = subscribe_batches(node, contract.LTM_ASSERT, lambda batch: batches.append([d["id"] for d in batch]),
+                                     reject=lambda rid, error, kind: rejected.append((rid, kind)),
+                                     limits=contract.Limits(), **options)
+    return subscription, batches, rejected
+
+
+def _fact(n: int) -> dict:
+    return {"domain": "faces", "id": n, "entity": f"e{n}", "properties": {"glasses": 1.0}}
+
+
+def test_a_gathered_stream_is_taken_a_period_at_a_time_and_a_quiet_reader_at_once(graph: RosSession):
+    """subscribe_batches(gather=): the first message of a stream is handled at once; while the
+    stream lasts the executor does not wait on the reader (the group holds it) and the timer takes
+    what came in each period in one batch; a period with nothing hands the reader back."""
+    from fsreg_ros import contract
+
+    topic = "/" + contract.LTM_ASSERT.name
+    subscription, batches, rejected = _gathering_node(graph, "gathering", gather=0.2)
+    group = subscription.callback_group
+    graph.publish(topic, _fact(0), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: batches == [[0]], what="the first message, handled at once")
+    assert group.holding and not group.timer.is_canceled()  # a stream may be starting: gather it
+    for n in range(1, 21):  # 20 more, one a message, while nothing spins: they wait in the reader
+        graph.publish(topic, _fact(n), contract.LTM_ASSERT.qos)
+    graph.publish(topic, '{"domain": "faces", "id": 21, "entity": "e21", "properties": "bad"}', contract.LTM_ASSERT.qos)
+    time.sleep(0.5)  # delivered to the reader meanwhile (no spinning: nothing is taken)
+    graph.spin_until(lambda: len(batches) == 2, what="the period's batch")
+    assert batches == [[0], list(range(1, 21))]  # the 20 valid ones in one batch, in order
+    assert rejected == [(21, "bad-request")]  # the bad one refused alone, with its id
+    graph.spin_until(lambda: not group.holding, what="the reader handed back after a quiet period")
+    assert group.timer.is_canceled()  # an idle node pays nothing
+    graph.publish(topic, _fact(30), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(batches) == 3, what="a message into the quiet reader")
+    assert batches[2] == [30]
+
+
+def test_a_gathered_stream_over_the_budget_is_handed_back_at_once_and_nothing_is_lost(graph: RosSession):
+    """A period's drain stops at max_size; what is left is taken at once (the executor waits on
+    the reader again), in batches within the budget, each message once and in order."""
+    from fsreg_ros import contract
+
+    topic = "/" + contract.LTM_ASSERT.name
+    subscription, batches, rejected = _gathering_node(graph, "gathering_budget", gather=0.2, max_size=5)
+    graph.publish(topic, _fact(0), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: batches == [[0]], what="the first message")
+    for n in range(1, 18):
+        graph.publish(topic, _fact(n), contract.LTM_ASSERT.qos)
+    time.sleep(0.5)
+    graph.spin_until(lambda: sum(map(len, batches)) == 18, what="all 18")
+    assert [n for batch in batches for n in batch] == list(range(18))
+    assert [len(batch) for batch in batches] == [1, 5, 5, 5, 2]  # the budget, not the period, sets the rest
+    assert rejected == []
