@@ -683,6 +683,34 @@ def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answere
     assert node.service.store.durable_commits - commits <= burst // 10  # drained: many facts per commit
 
 
+def test_a_stream_of_single_asserts_is_gathered_while_queries_are_answered_between(graph: RosSession):
+    """The first fact of a stream is answered at once; while the stream lasts the consultant takes its
+    ltm/assert every FACTS_GATHER seconds (the reader held from the executor), still answering queries
+    between; a quiet period hands the reader back."""
+    node = start(graph)
+    configure(graph, "displacement", capacity=4)
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    group = next(sub for sub in node.subscriptions if sub.topic_name.endswith(contract.LTM_ASSERT.name)).callback_group
+
+    def fact(i: int) -> dict:
+        return {"id": f"s{i}", "domain": "faces", "entity": f"seen{i}", "properties": {"male": 1.0}}
+
+    graph.publish(contract.LTM_ASSERT.name, fact(0), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(results) == 1, what="the first fact's answer")
+    assert group.holding  # a stream may be starting: the reader is gathered, not waited on
+    counts = []
+    for round_ in range(5):
+        for i in range(1 + 10 * round_, 11 + 10 * round_):
+            graph.publish(contract.LTM_ASSERT.name, fact(i), contract.LTM_ASSERT.qos)
+        counts.append(graph.call(Q, {"op": "info"})["entity_count"])  # served while the reader is held
+    assert counts == sorted(counts) and 3 + 1 <= counts[0] and counts[-1] <= 3 + 51  # what was applied by then
+    graph.spin_until(lambda: len(results) == 51, 10.0, what="51 answers")
+    assert [r["id"] for r in results] == [f"s{i}" for i in range(51)]  # each once, in the order sent
+    assert all(r["ok"] and r["new_entity"] for r in results)
+    assert graph.call(Q, {"op": "info"})["entities"][3:] == [f"seen{i}" for i in range(51)]
+    graph.spin_until(lambda: not group.holding, what="the reader handed back after the stream")
+
+
 # ------------------------------------------------------------------ the production protocol
 def test_the_debug_service_is_served_only_when_asked_for(graph: RosSession):
     node = start(graph, debug=False)
