@@ -180,10 +180,11 @@ class CloseRequest(Stamp):
 
 
 class Versioned(Message):
-    """A reply that says which LTM it was answered from: ``"<incarnation>:<changes>"``.
+    """A reply that says which catalogue it was answered from: ``"<incarnation>:<entities>"``.
 
-    It changes whenever LTM does (``ltm/assert``, the threshold) and when the consultant
-    restarts, so a caller's cached preference order and entity list are known stale.
+    It changes whenever the catalogue does (an entity added by ``ltm/assert``) and when the
+    consultant restarts, so a caller's cached preference order and entity list are known
+    stale; facts about known entities and the threshold do not change it.
     """
 
     version: str

@@ -92,7 +92,7 @@ class RemotePort:
     """The consultant of ``domain``, reached through its node's service.
 
     The preference order and the entity list are cached (:class:`Catalogue`) until a
-    reply's ``version`` says LTM changed or the consultant restarted; then the next
+    reply's ``version`` says an entity was added or the consultant restarted; then the next
     use asks ``info`` for the entities added since (they are only ever appended).
     """
 

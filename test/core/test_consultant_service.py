@@ -73,7 +73,7 @@ def encode(service, entity, props, time, listening=False):
 def test_queries_wait_for_the_wm_manager_but_info_and_manage_ops_do_not():
     service = make()
     info = apply(service, "info", {"op": "info"}).reply
-    assert info["policy"] == "none" and info["events"] == 0 and info["version"] == "1:0"
+    assert info["policy"] == "none" and info["events"] == 0 and info["version"] == "1:3"
     assert info["state"] == {"wm": "empty", "persisted": True}
     for op, request in (("open", {"op": "open"}), ("snapshot", {"op": "snapshot"})):
         with pytest.raises(NotReady, match="incarnation 1"):
@@ -106,14 +106,14 @@ def test_every_op_reports_whether_it_changed_wm_and_manage_ops_exactly_which_que
     session = opened.reply["session"]
     step = {"op": "narrow", "session": session, "cause": "reg-distractor", "time": 3.0, "turn": 2}
     out = apply(service, "narrow", {**step, "property": "male"}, listening=True)
-    assert out.reply == {"target_holds": True, "size": 1, "version": "1:0"}
+    assert out.reply == {"target_holds": True, "size": 1, "version": "1:3"}
     assert out.changes.wm and take() == ["face3"] and [e["seq"] for e in out.events] == [3]  # no gap
     out = apply(service, "narrow", {**step, "property": "female"})  # not the target's: nothing
     assert not out.changes.wm and take() == []
     assert not apply(service, "rule_out", {"op": "rule_out", "session": session}).changes.wm and take() == []
     out = apply(service, "close", {"op": "close", "session": session, "encode": ["light-hair"], "time": 3.0,
                                    "turn": 2})
-    assert out.reply == {"members": ["face3"], "version": "1:0"} and out.changes.wm and take() == ["face1"]
+    assert out.reply == {"members": ["face3"], "version": "1:3"} and out.changes.wm and take() == ["face1"]
     assert apply(service, "snapshot", {"op": "snapshot"}).reply == {
         "queues": {"face1": ["male", "glasses", "light-hair"], "face2": ["glasses"], "face3": ["male"]}, "events": 3}
     encode(service, "face2", ["female"], 4.0)  # not taken: the next manage op does not count it
@@ -173,7 +173,7 @@ def test_a_walk_is_one_call_doing_what_its_narrows_do(tmp_path):
     session = apply(walked, "open", {"op": "open", "target": "face3"}).reply["session"]
     out = apply(walked, "walk", {"op": "walk", "session": session, "steps": WALK, "cause": "reg-distractor",
                                  "time": 2.0, "turn": 4}, listening=True)
-    assert out.reply == {"taken": [1, 3], "size": 0, "narrowed": 3, "version": "1:0"}
+    assert out.reply == {"taken": [1, 3], "size": 0, "narrowed": 3, "version": "1:3"}
     assert [(e["entity"], e["property"], e["cause"], e["turn"]) for e in out.events] == [
         ("face2", "dark-hair", "reg-distractor", 4)]
     # The same walk as one narrow per step (how ports without a walk of their own run it): the same answer, WM, events.

@@ -65,7 +65,7 @@ def test_info_and_latched_start_state(graph: RosSession):
     start(graph)
     info = graph.call(Q, {"op": "info"})
     version = info.pop("version")
-    assert version.endswith(":0")  # "<incarnation>:<LTM changes>"
+    assert version.endswith(":3")  # "<incarnation>:<entities>"
     assert info == {
         "domain": "faces",
         "entities": ["face1", "face2", "face3"],
@@ -479,6 +479,31 @@ def test_remote_port_refreshes_its_catalogue_when_ltm_changes(graph: RosSession)
     graph.spin_until(lambda: graph.call(Q, {"op": "info", "entities_from": 3})["entities"], what="new entity")
     assert graph.run(port.knows("face4", refresh=True))
     assert graph.run(port.preference())[0] == "light-hair"
+
+
+def test_the_catalogue_version_follows_the_entities_not_facts_about_known_ones(graph: RosSession):
+    """A perception stream updating known entities must not make every RR turn and REG request
+    ask ``info`` again: replies' ``version`` is ``<incarnation>:<entities>``."""
+    start(graph)
+    configure(graph, "displacement", capacity=4)
+    port = RemotePort(graph.probe, "faces", ReentrantCallbackGroup())
+    graph.run(port.wait_ready(5.0))
+    results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
+    cached = graph.run(port.catalogue())
+    assert cached.version == "1:3"
+    graph.publish(contract.LTM_ASSERT.name, {"id": "k1", "domain": "faces", "entity": "face1",
+                                             "properties": {"glasses": 0.9}}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: results.latest(id="k1") is not None, what="the update's answer")
+    assert results.latest(id="k1")["ok"]
+    view = graph.run(port.open("face1"))  # a reply after the update: the same catalogue version
+    graph.run(port.close(view))
+    assert graph.run(port.catalogue()) is cached and cached.version == "1:3"  # not asked again
+    graph.publish(contract.LTM_ASSERT.name, {"id": "k2", "domain": "faces", "entity": "face4",
+                                             "properties": {"male": 1.0}}, contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: results.latest(id="k2") is not None, what="the new entity's answer")
+    graph.run(port.close(graph.run(port.open("face1"))))
+    refreshed = graph.run(port.catalogue())
+    assert refreshed.version == "1:4" and refreshed.entities == ["face1", "face2", "face3", "face4"]
 
 
 def test_startup_errors(graph: RosSession):
