@@ -496,9 +496,21 @@ class GatheringGroup(MutuallyExclusiveCallbackGroup):
         super().__init__()
         self.holding = False
         self.timer = None  # the entity never held
+        self.drain: Optional[Callable[[], Any]] = None  # takes what waits in the reader now (subscribe_batches')
 
     def can_execute(self, entity) -> bool:
         return (not self.holding or entity is self.timer) and super().can_execute(entity)
+
+    def release(self) -> None:
+        """Take what waits in the held reader now and hand it back to the executor (a caller blocked on one message).
+
+        Call it from the thread that spins the node, outside its callbacks (``GraphClient``
+        waiting for the answer to its own request): the answer is then taken as it arrives,
+        not at the period's end.  Nothing happens while the reader is not held.
+        """
+        if self.holding and self.drain is not None:
+            self.drain()
+            self.holding = False
 
 
 def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None], *, reject: Optional[Reject],
@@ -630,7 +642,7 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
 
     timer = node.create_timer(gather, gathered, callback_group=group, clock=Clock(clock_type=ClockType.STEADY_TIME),
                               autostart=False)
-    group.timer = timer
+    group.timer, group.drain = timer, lambda: drain(None)
     subscription = node.create_subscription(String, topic.name, arrived, qos_profile(topic.subscriber_qos),
                                             callback_group=group)
     return subscription

@@ -18,7 +18,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
 from .. import contract
 from ..contract.codec import MessageError, printable, safe_dumps
-from .carrier import publish
+from .carrier import GatheringGroup, publish
 from .client_base import Answer, ClientError, Spinning, describe_graph
 
 #: Seconds a client waits after its request and reply topics first match before sending (see wait_matched).
@@ -140,8 +140,8 @@ class DialogueExchange(Spinning):
         try:
             while True:
                 try:
-                    self.spin_until(lambda: self.answers[key], min(self.retry_after, deadline - time.monotonic()),
-                                    "answer")
+                    self.spin_until(lambda: self._answered(kind, key),
+                                    min(self.retry_after, deadline - time.monotonic()), "answer")
                     return self.answer_of(key) or {}
                 except ClientError as err:
                     if err.kind != "timeout" or time.monotonic() >= deadline:
@@ -152,6 +152,17 @@ class DialogueExchange(Spinning):
                 publish(self._publishers[kind], message)
         finally:
             self.answers.pop(key, None)
+
+    def _answered(self, kind: str, key: str) -> bool:
+        """Whether request ``key`` has an answer; a held answer reader (ANSWERS_GATHER) is released first.
+
+        A caller waiting for its own answer is not kept waiting for the period's end; a
+        stream sent open loop (:meth:`send`) still has its answers gathered.
+        """
+        group = self._reply_subs[kind].callback_group
+        if isinstance(group, GatheringGroup):
+            group.release()
+        return bool(self.answers[key])
 
     def _stamp(self, message: dict, time_: Optional[float]) -> dict:
         when = self.time if time_ is None else time_

@@ -449,7 +449,7 @@ def test_a_gathered_stream_is_taken_a_period_at_a_time_and_a_quiet_reader_at_onc
     from fsreg_ros import contract
 
     topic = "/" + contract.LTM_ASSERT.name
-    subscription, batches, rejected = _gathering_node(graph, "gathering", gather=0.2)
+    subscription, batches, rejected = _gathering_node(graph, "gathering", gather=0.2, max_seconds=30.0)
     group = subscription.callback_group
     graph.publish(topic, _fact(0), contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: batches == [[0]], what="the first message, handled at once")
@@ -461,8 +461,8 @@ def test_a_gathered_stream_is_taken_a_period_at_a_time_and_a_quiet_reader_at_onc
     graph.spin_until(lambda: len(batches) == 2, what="the period's batch")
     assert batches == [[0], list(range(1, 21))]  # the 20 valid ones in one batch, in order
     assert rejected == [(21, "bad-request")]  # the bad one refused alone, with its id
-    graph.spin_until(lambda: not group.holding, what="the reader handed back after a quiet period")
-    assert group.timer.is_canceled()  # an idle node pays nothing
+    graph.spin_until(lambda: not group.holding and group.timer.is_canceled(),  # an idle node pays nothing
+                     what="the reader handed back and the timer stopped after a quiet period")
     graph.publish(topic, _fact(30), contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: len(batches) == 3, what="a message into the quiet reader")
     assert batches[2] == [30]
@@ -474,7 +474,8 @@ def test_a_gathered_stream_over_the_budget_is_handed_back_at_once_and_nothing_is
     from fsreg_ros import contract
 
     topic = "/" + contract.LTM_ASSERT.name
-    subscription, batches, rejected = _gathering_node(graph, "gathering_budget", gather=0.2, max_size=5)
+    subscription, batches, rejected = _gathering_node(graph, "gathering_budget", gather=0.2, max_size=5,
+                                                      max_seconds=30.0)
     graph.publish(topic, _fact(0), contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: batches == [[0]], what="the first message")
     for n in range(1, 18):
@@ -484,3 +485,29 @@ def test_a_gathered_stream_over_the_budget_is_handed_back_at_once_and_nothing_is
     assert [n for batch in batches for n in batch] == list(range(18))
     assert [len(batch) for batch in batches] == [1, 5, 5, 5, 2]  # the budget, not the period, sets the rest
     assert rejected == []
+
+
+def test_releasing_a_held_reader_takes_what_waits_at_once_and_hands_it_back(graph: RosSession):
+    """GatheringGroup.release (a client blocked on its own answer): what waits is taken now, not
+    at the period's end, and the executor waits on the reader again."""
+    from fsreg_ros import contract
+
+    topic = "/" + contract.LTM_ASSERT.name
+    # a period never reached
+    subscription, batches, rejected = _gathering_node(graph, "releasing", gather=30.0, max_seconds=30.0)
+    group = subscription.callback_group
+    group.release()  # not held: nothing happens
+    assert batches == [] and not group.holding
+    graph.publish(topic, _fact(0), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: batches == [[0]], what="the first message")
+    assert group.holding
+    for n in (1, 2, 3):
+        graph.publish(topic, _fact(n), contract.LTM_ASSERT.qos)
+    time.sleep(0.5)
+    graph.spin_for(0.2)
+    assert batches == [[0]]  # held: the executor does not take them
+    group.release()
+    assert batches == [[0], [1, 2, 3]] and not group.holding  # taken at the call, without spinning
+    graph.publish(topic, _fact(4), contract.LTM_ASSERT.qos)
+    graph.spin_until(lambda: len(batches) == 3, what="the next message, taken as it arrives")
+    assert batches[2] == [4] and rejected == []
