@@ -507,7 +507,7 @@ class TraceColumns:
     def __init__(self, width: int, rows: int) -> None:
         self._n = np.zeros((width, rows), dtype=np.int64)
         self._first = np.zeros((width, rows))
-        self._recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
+        self._recent = _lines((width, rows))  # a slot's ring in one cache line
         self._due = np.full((width, rows), NEVER)
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
@@ -539,7 +539,7 @@ class TraceColumns:
         width = self._n.shape[0]
         self._n = np.concatenate([self._n, np.zeros((width, extra), dtype=np.int64)], axis=1)
         self._first = np.concatenate([self._first, np.zeros((width, extra))], axis=1)
-        self._recent = np.concatenate([self._recent, np.zeros((width, extra, HISTORY))], axis=1)
+        self._recent = _lines((width, self._recent.shape[1] + extra), self._recent)
         self._due = np.concatenate([self._due, np.full((width, extra), NEVER)], axis=1)
         self._exact = np.concatenate([self._exact, np.zeros((width, extra), dtype=bool)], axis=1)
         self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
@@ -551,7 +551,7 @@ class TraceColumns:
         rows = self._n.shape[1]
         self._n = np.concatenate([self._n, np.zeros((extra, rows), dtype=np.int64)])
         self._first = np.concatenate([self._first, np.zeros((extra, rows))])
-        self._recent = np.concatenate([self._recent, np.zeros((extra, rows, HISTORY))])
+        self._recent = _lines((self._recent.shape[0] + extra, rows), self._recent)
         self._due = np.concatenate([self._due, np.full((extra, rows), NEVER)])
         self._exact = np.concatenate([self._exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
@@ -717,6 +717,21 @@ class TraceColumns:
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
         first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
+
+
+def _lines(shape: tuple[int, int], old: Optional[np.ndarray] = None) -> np.ndarray:
+    """Return zeros of ``shape`` x :data:`HISTORY` floats, each ring on one 64-byte cache line (``old`` copied in).
+
+    numpy aligns an array to 16 bytes only: a ring starting elsewhere than a line's start
+    would span two lines, and noting an encoding would touch both.
+    """
+    size = shape[0] * shape[1] * HISTORY
+    raw = np.zeros(size + HISTORY)
+    skip = (-raw.ctypes.data % 64) // raw.itemsize
+    lines = raw[skip:skip + size].reshape(*shape, HISTORY)
+    if old is not None:
+        lines[:old.shape[0], :old.shape[1]] = old
+    return lines
 
 
 def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
