@@ -362,14 +362,14 @@ class LazyActivation:
         if soon.min() > now:  # one number per row: most calls end here
             return _NO_SLOTS
         rows = rows[soon <= now]
-        due = np.take(traces._due, rows, axis=1)
+        due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)  # (slots never used are never due)
         hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
         vague = ~np.take(traces._flat_exact, flat)
         if vague.any():
             self._solve(traces, flat[vague], now)
-            due = np.take(traces._due, rows, axis=1)
+            due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)
             flat = flat[np.take(traces._flat_due, flat) <= now]
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
         traces._row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
