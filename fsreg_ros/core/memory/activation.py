@@ -382,9 +382,15 @@ class LazyActivation:
             return
         width_rows = traces.n.shape[1]
         if len(flat) <= _FEW:  # one by one is cheaper for a few
+            counts, recent = traces._flat_n, traces._flat_recent
             for f in flat.tolist():
-                trace = traces.get(f // width_rows, f % width_rows)
-                due[f], exact[f] = self._bracket(trace, now)
+                n = int(counts[f])
+                ring = recent[f * HISTORY:(f + 1) * HISTORY].tolist()
+                times = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+                found = self._bracket(n, times, now)
+                if found is None:
+                    found = crossing(traces.get(f // width_rows, f % width_rows), self.decay, self.threshold), True
+                due[f], exact[f] = found
             return
         n, first, times = traces.ordered(flat)
         roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
@@ -395,8 +401,11 @@ class LazyActivation:
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
 
-    def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
-        """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
+    def _bracket(self, n: int, recent: list[float], now: float) -> Optional[tuple[float, bool]]:
+        """Return ``(due, False)`` for a trace whose lower bound passed, if two bounds decide it; else None.
+
+        ``n`` and ``recent`` are the trace's count and kept times (:class:`Trace`); None:
+        solve :func:`crossing`.
 
         :func:`crossing`'s root lies between two bounds: at most
         ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term), and,
@@ -405,22 +414,20 @@ class LazyActivation:
         term of the mean age).  With the clock clearly past the first (gone) or clearly
         before the second (a new lower bound), no Newton step is needed.
         """
-        d = self.decay
         try:
-            reach = self.span * trace.n ** (1.0 / d)
+            reach = self.span * n ** (1.0 / self.decay)
         except OverflowError:
             reach = math.inf
-        last = trace.recent[-1]
         if reach <= _LONGEST:
-            upper = last + reach
+            upper = recent[-1] + reach
             if upper + _MARGIN * max(1.0, abs(upper)) <= now:
                 return upper, False  # gone (a lower bound still: crossing() solves it if a queue must say when)
-            if trace.n <= HISTORY:
-                lower = math.fsum(trace.recent) / trace.n + reach
+            if n <= HISTORY:
+                lower = math.fsum(recent) / n + reach
                 lower -= _MARGIN * max(1.0, abs(lower))
                 if lower > now:
                     return lower, False
-        return crossing(trace, d, self.threshold), True
+        return None
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
