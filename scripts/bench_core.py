@@ -32,6 +32,19 @@
    ``WMBuffer.encode_members`` (what ``Consultant.narrow`` calls; column queues at this
    size) against a vectorised numpy assignment of one stamp-matrix column.
 
+   Paired (``reg_paired`` in the JSON), at the largest size: ``sd-pia/displ``,
+   ``sd-pia/act`` and ``sd-pia/act1`` again, each with its own consultant and WM, on
+   the same seeded targets at the same clock, interleaved in blocks of 10 trials (the
+   order of the configurations alternating from block to block) and timed in process
+   CPU time (``time.process_time``): trial k of two configurations is a pair measured
+   within milliseconds, so load from elsewhere on the machine falls on both.  Reported:
+   each configuration's median over all trials, and the ratio of medians to
+   ``sd-pia/displ`` with a percentile bootstrap 95 % interval over the pairs
+   (``--resamples``, seeded by ``--seed``).  ``--repeat N`` plays N such sessions (fresh
+   WMs) and pools their pairs; each session's ratio is listed too.  The 1.5x target of
+   activation is judged on this paired ratio (the unpaired rows' ratio when it is
+   missing).
+
 2. Decay-tick cost, "mostly idle".  Q queues each start with ticks + 1 properties
    (so the eager version really pops every queue at every tick).  Between two ticks
    1 % of the queues are touched (one encoding each).  Lazy = ``WMBuffer`` under
@@ -42,10 +55,13 @@
    including the lazy catch-ups), and, for the lazy buffer, the final ``flush()``
    that materialises every owed pop (what a caller pays if it then reads all of WM).
 
-Usage: ``scripts/bench_core.py [--quick] [--json FILE] [--seed N] [--trials N] [--repeat N]``.
+Usage: ``scripts/bench_core.py [--quick] [--json FILE] [--seed N] [--trials N] [--warmup N] [--ticks N]
+[--repeat N] [--resamples N] [--skip-reg] [--skip-decay] [-v]``.
 On a shared machine use ``--repeat 3``: each REG configuration is run three times
-and the run with the lowest median is reported (every run's median is in the JSON).
-No timing is asserted anywhere; the targets are printed as met / missed.
+and the run with the lowest median is reported (every run's median is in the JSON),
+and the paired comparison plays three sessions.  A count out of range is refused with
+one line and exit status 2.  No timing is asserted anywhere; the targets are printed as
+met / missed.
 """
 
 from __future__ import annotations
