@@ -5,6 +5,8 @@ per-game *paired* difference; its uncertainty comes from which games were drawn.
 :func:`bootstrap_ci` resamples games with replacement (``RESAMPLES`` times, from
 ``numpy.random.default_rng(SEED)``) and reports the 2.5th and 97.5th percentiles of
 the resampled means: the same values give the same interval on every run.
+:func:`median_ratio_ci` does the same for a ratio of medians over pairs (the CPU times
+of two configurations on the same trials, ``scripts/bench_core.py``).
 """
 
 from __future__ import annotations
