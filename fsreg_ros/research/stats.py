@@ -5,6 +5,8 @@ per-game *paired* difference; its uncertainty comes from which games were drawn.
 :func:`bootstrap_ci` resamples games with replacement (``RESAMPLES`` times, from
 ``numpy.random.default_rng(SEED)``) and reports the 2.5th and 97.5th percentiles of
 the resampled means: the same values give the same interval on every run.
+:func:`median_ratio_ci` does the same for a ratio of medians over pairs (the CPU times
+of two configurations on the same trials, ``scripts/bench_core.py``).
 """
 
 from __future__ import annotations
@@ -78,6 +80,34 @@ def ratio_bootstrap_ci(numerators: Sequence[float], denominators: Sequence[float
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, n, size=(resamples, n))
     ratios = num[draws].sum(axis=1) / np.maximum(den[draws].sum(axis=1), 1e-300)
+    tail = (1 - level) / 2 * 100
+    low, high = np.percentile(ratios, [tail, 100 - tail])
+    return Estimate(value, float(low), float(high), n)
+
+
+def median_ratio_ci(numerators: Sequence[float], denominators: Sequence[float], resamples: int = RESAMPLES,
+                    seed: int = SEED, level: float = LEVEL) -> Estimate:
+    """Return median(numerators) / median(denominators) and its percentile bootstrap interval over pairs.
+
+    ``numerators[i]`` and ``denominators[i]`` are one pair (e.g. the CPU time of one
+    trial under two configurations, same target, measured back to back): pairs are
+    resampled with replacement, both members together, as :func:`bootstrap_ci` resamples
+    values (same seed, same draws), so what the two share (load on the machine at that
+    moment) cancels in each resample's ratio.
+    """
+    import numpy as np
+
+    num = np.asarray(numerators, dtype=float)
+    den = np.asarray(denominators, dtype=float)
+    n = len(num)
+    if n == 0 or n != len(den) or np.median(den) <= 0:
+        return Estimate(float("nan"), float("nan"), float("nan"), n)
+    value = float(np.median(num) / np.median(den))
+    if n == 1:
+        return Estimate(value, value, value, n)
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, n, size=(resamples, n))
+    ratios = np.median(num[draws], axis=1) / np.maximum(np.median(den[draws], axis=1), 1e-300)
     tail = (1 - level) / 2 * 100
     low, high = np.percentile(ratios, [tail, 100 - tail])
     return Estimate(value, float(low), float(high), n)

@@ -205,6 +205,23 @@ def test_trace_round_trip_and_refusals():
             Trace.from_json(bad)
 
 
+def test_trace_columns_keep_each_ring_on_one_cache_line_as_they_grow():
+    """Each slot's ring of :data:`HISTORY` times starts a 64-byte line, after growing and widening too; traces kept."""
+    from fsreg_ros.core.memory.activation import TraceColumns
+
+    columns = TraceColumns(2, 3)
+    span = lifetime(0.5, -1.0)
+    for k, time in enumerate([0.0, 1.0, 2.5] + [3.0 + t for t in range(HISTORY)]):  # (slot 1 of row 2 wraps)
+        columns.encoded(np.array([0, 5]), np.array([k > 0, k > 0]), time, span, 0.5)
+    before = [(t.n, t.first, t.recent, t.due) for t in (columns.get(0, 0), columns.get(1, 2))]
+    for change in (lambda: None, lambda: columns.grow(5), lambda: columns.widen(3)):
+        change()
+        assert columns.recent.ctypes.data % 64 == 0 and columns.recent.shape[2] * 8 == 64
+        assert columns.recent.flags.c_contiguous
+        assert [(t.n, t.first, t.recent, t.due) for t in (columns.get(0, 0), columns.get(1, 2))] == before
+    assert before[1][0] == 3 + HISTORY and before[1][2] == [3.0 + t for t in range(HISTORY)]
+
+
 # --------------------------------------------------------------- the rule
 def test_policy_parsing():
     assert policy(-1.0).to_json() == {"policy": "activation", "activation_decay": 0.5, "activation_threshold": -1.0}

@@ -397,6 +397,12 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                 b.remove(WM_ENTITIES[op[1]], op[2], "retract", now)
         seen, trimmed = _agree(op, buffers, heard_events, plain_events, seen, trimmed, _state_with_exports)
         assert heard_events[seen:] == plain_events[seen:], op  # what the reads caught up
+        for b in buffers[1:]:  # slots past those ever used are empty in every row, and never due
+            store = b.columns.store
+            if store is not None:
+                assert (store.prop[store.used:] < 0).all() and store.used <= store.width, op
+                if store.traces is not None:
+                    assert (store.traces.due[store.used:] == activation.NEVER).all(), op
         seen = len(plain_events)
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)

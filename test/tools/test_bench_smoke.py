@@ -39,6 +39,59 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
     assert all(eager[f"{label}_ms"] > 0 for label in ("columns", "columns+sink", "dicts"))
     # SD-PIA under a retaining policy really has WM content to walk.
     assert any(r["config"] == "sd-pia" and r["from_wm_mean"] > 0 for r in data["reg"])
+    # The paired comparison: each configuration on the same targets; ratios to displacement with their intervals.
+    paired = data["reg_paired"]
+    assert (paired["entities"], paired["properties"], paired["trials"], paired["sessions"]) == (1000, 20, 15, 1)
+    assert set(paired["configs"]) == {"sd-pia/displ", "sd-pia/act", "sd-pia/act1"}
+    unpaired = {r["config"]: r for r in data["reg"] if r["entities"] == 1000}
+    for label, figures in paired["configs"].items():  # the same targets, so the same encodings as unpaired
+        assert figures["encodings_median"] == unpaired[label]["encodings_median"] and figures["median_ms"] > 0
+    assert [(r["config"], r["baseline"], r["pairs"]) for r in paired["ratios"]] == [
+        ("sd-pia/act", "sd-pia/displ", 15), ("sd-pia/act1", "sd-pia/displ", 15)]
+    for r in paired["ratios"]:
+        assert r["ci"][0] <= r["ratio"] <= r["ci"][1] and r["resamples"] == 1000
+        assert r["ratio"] == pytest.approx(paired["configs"][r["config"]]["median_ms"]
+                                           / paired["configs"]["sd-pia/displ"]["median_ms"])
+    assert "Paired, 1,000 x 20 (CPU time;" in text and "sd-pia/act / sd-pia/displ: x" in text
+
+
+def test_bench_core_paired_targets_judge_the_paired_ratio(monkeypatch):
+    """``targets()`` judges activation's 1.5x on the paired ratio when there is one, else on the unpaired medians."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_core_module", SCRIPT)
+    bench_core = importlib.util.module_from_spec(spec)
+    monkeypatch.syspath_prepend(str(SCRIPT.parent))
+    spec.loader.exec_module(bench_core)
+    rows = [{"config": c, "entities": 10_000, "properties": 200, "median_ms": m}
+            for c, m in (("sd-pia/displ", 1.0), ("sd-pia/act", 1.4), ("sd-pia/act1", 2.0))]
+    paired = {"entities": 10_000, "properties": 200, "ratios": [
+        {"config": "sd-pia/act", "ratio": 1.62, "ci": [1.55, 1.70]},
+        {"config": "sd-pia/act1", "ratio": 1.45, "ci": [1.40, 1.52]}]}
+    judged = {t["name"].split(" under ")[1].split(" /")[0]: t
+              for t in bench_core.targets({"reg": rows, "reg_ratios": [], "decay": [], "reg_paired": paired})
+              if " under " in t["name"]}
+    assert judged["activation+displacement"]["value"] == "x1.62 [1.55, 1.70] paired"
+    assert judged["activation+displacement"]["verdict"] == "MISSED"
+    assert judged["activation alone"]["verdict"] == "met" and judged["activation alone"]["basis"] == "paired"
+    unpaired = {t["name"].split(" under ")[1].split(" /")[0]: t
+                for t in bench_core.targets({"reg": rows, "reg_ratios": [], "decay": [], "reg_paired": {}})
+                if " under " in t["name"]}
+    assert unpaired["activation+displacement"]["value"] == "x1.40" and unpaired["activation+displacement"]["verdict"] \
+        == "met" and unpaired["activation alone"]["verdict"] == "MISSED"
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--repeat", "0"], "--repeat must be in [1, 100], got 0"),
+    (["--trials", "0"], "--trials must be in [1, 100000], got 0"),
+    (["--warmup", "-1"], "--warmup must be in [0, 100000], got -1"),
+    (["--ticks", "0"], "--ticks must be in [1, 100000], got 0"),
+    (["--resamples", "10"], "--resamples must be in [100, 1000000], got 10"),
+])
+def test_bench_core_refuses_bad_counts(args, fragment):
+    proc = subprocess.run([sys.executable, str(SCRIPT), "--quick", *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stdout == ""
 
 
 # ------------------------------------------------------------------ the graph's benchmarks

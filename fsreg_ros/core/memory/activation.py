@@ -362,14 +362,14 @@ class LazyActivation:
         if soon.min() > now:  # one number per row: most calls end here
             return _NO_SLOTS
         rows = rows[soon <= now]
-        due = np.take(traces._due, rows, axis=1)
+        due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)  # (slots never used are never due)
         hit = due <= now  # an empty slot's due is NEVER
         slot, col = np.nonzero(hit)
         flat = slot * store.rows + rows[col]
         vague = ~np.take(traces._flat_exact, flat)
         if vague.any():
             self._solve(traces, flat[vague], now)
-            due = np.take(traces._due, rows, axis=1)
+            due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)
             flat = flat[np.take(traces._flat_due, flat) <= now]
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
         traces._row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
@@ -382,9 +382,15 @@ class LazyActivation:
             return
         width_rows = traces.n.shape[1]
         if len(flat) <= _FEW:  # one by one is cheaper for a few
+            counts, recent = traces._flat_n, traces._flat_recent
             for f in flat.tolist():
-                trace = traces.get(f // width_rows, f % width_rows)
-                due[f], exact[f] = self._bracket(trace, now)
+                n = int(counts[f])
+                ring = recent[f * HISTORY:(f + 1) * HISTORY].tolist()
+                times = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+                found = self._bracket(n, times, now)
+                if found is None:
+                    found = crossing(traces.get(f // width_rows, f % width_rows), self.decay, self.threshold), True
+                due[f], exact[f] = found
             return
         n, first, times = traces.ordered(flat)
         roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
@@ -395,8 +401,11 @@ class LazyActivation:
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
 
-    def _bracket(self, trace: Trace, now: float) -> tuple[float, bool]:
-        """Return ``(due, exact)`` for a trace whose lower bound passed, solving :func:`crossing` only if need be.
+    def _bracket(self, n: int, recent: list[float], now: float) -> Optional[tuple[float, bool]]:
+        """Return ``(due, False)`` for a trace whose lower bound passed, if two bounds decide it; else None.
+
+        ``n`` and ``recent`` are the trace's count and kept times (:class:`Trace`); None:
+        solve :func:`crossing`.
 
         :func:`crossing`'s root lies between two bounds: at most
         ``t_n + n^(1/d) lifetime`` (strength is at most n times its last term), and,
@@ -405,22 +414,20 @@ class LazyActivation:
         term of the mean age).  With the clock clearly past the first (gone) or clearly
         before the second (a new lower bound), no Newton step is needed.
         """
-        d = self.decay
         try:
-            reach = self.span * trace.n ** (1.0 / d)
+            reach = self.span * n ** (1.0 / self.decay)
         except OverflowError:
             reach = math.inf
-        last = trace.recent[-1]
         if reach <= _LONGEST:
-            upper = last + reach
+            upper = recent[-1] + reach
             if upper + _MARGIN * max(1.0, abs(upper)) <= now:
                 return upper, False  # gone (a lower bound still: crossing() solves it if a queue must say when)
-            if trace.n <= HISTORY:
-                lower = math.fsum(trace.recent) / trace.n + reach
+            if n <= HISTORY:
+                lower = math.fsum(recent) / n + reach
                 lower -= _MARGIN * max(1.0, abs(lower))
                 if lower > now:
                     return lower, False
-        return crossing(trace, d, self.threshold), True
+        return None
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
@@ -507,7 +514,7 @@ class TraceColumns:
     def __init__(self, width: int, rows: int) -> None:
         self._n = np.zeros((width, rows), dtype=np.int64)
         self._first = np.zeros((width, rows))
-        self._recent = np.zeros((width, rows, HISTORY))  # a slot's ring in one cache line
+        self._recent = _lines((width, rows))  # a slot's ring in one cache line
         self._due = np.full((width, rows), NEVER)
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
@@ -539,7 +546,7 @@ class TraceColumns:
         width = self._n.shape[0]
         self._n = np.concatenate([self._n, np.zeros((width, extra), dtype=np.int64)], axis=1)
         self._first = np.concatenate([self._first, np.zeros((width, extra))], axis=1)
-        self._recent = np.concatenate([self._recent, np.zeros((width, extra, HISTORY))], axis=1)
+        self._recent = _lines((width, self._recent.shape[1] + extra), self._recent)
         self._due = np.concatenate([self._due, np.full((width, extra), NEVER)], axis=1)
         self._exact = np.concatenate([self._exact, np.zeros((width, extra), dtype=bool)], axis=1)
         self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
@@ -551,7 +558,7 @@ class TraceColumns:
         rows = self._n.shape[1]
         self._n = np.concatenate([self._n, np.zeros((extra, rows), dtype=np.int64)])
         self._first = np.concatenate([self._first, np.zeros((extra, rows))])
-        self._recent = np.concatenate([self._recent, np.zeros((extra, rows, HISTORY))])
+        self._recent = _lines((self._recent.shape[0] + extra, rows), self._recent)
         self._due = np.concatenate([self._due, np.full((extra, rows), NEVER)])
         self._exact = np.concatenate([self._exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
@@ -717,6 +724,21 @@ class TraceColumns:
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
         first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
+
+
+def _lines(shape: tuple[int, int], old: Optional[np.ndarray] = None) -> np.ndarray:
+    """Return zeros of ``shape`` x :data:`HISTORY` floats, each ring on one 64-byte cache line (``old`` copied in).
+
+    numpy aligns an array to 16 bytes only: a ring starting elsewhere than a line's start
+    would span two lines, and noting an encoding would touch both.
+    """
+    size = shape[0] * shape[1] * HISTORY
+    raw = np.zeros(size + HISTORY)
+    skip = (-raw.ctypes.data % 64) // raw.itemsize
+    lines = raw[skip:skip + size].reshape(*shape, HISTORY)
+    if old is not None:
+        lines[:old.shape[0], :old.shape[1]] = old
+    return lines
 
 
 def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,

@@ -87,6 +87,7 @@ class QueueColumns:
         self.synced = np.zeros(rows, dtype=np.int64)  # decay ticks the row is up to date with
         self.held = np.zeros(rows, dtype=bool)  # the row's queue lives here
         self.changed = np.zeros(rows, dtype=np.int64)  # change-record mark of its first change (0: none)
+        self.used = 0  # slots ever written, in any row: slots used..width-1 are empty in every row
 
     def widen(self, width: int) -> None:
         """Give every row ``width`` slots (more than now; the new ones empty)."""
@@ -147,6 +148,7 @@ class QueueColumns:
         self.length[row] = len(items)
         self.synced[row] = synced
         self.held[row] = True
+        self.used = max(self.used, len(items))
 
     def start_empty(self, rows: np.ndarray, synced: int) -> None:
         """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
@@ -219,10 +221,21 @@ class QueueColumns:
         ``argmax`` along the short axis would each cost more than the whole encoding.
         ``traced`` (rule ``activation``): ``(time, lifetime, d, clock)`` of the encoding, noted
         in the encoded slots' traces (a displaced front's slot starts a new one).
+
+        Rows that widen (not ``bounded``) always have room, so no front is displaced and
+        only the slots ever used (``used``) and the first beyond are read: the property
+        is in the former, and a row with none of them empty holds ``used`` entries, so
+        slot ``used`` is its first empty one.  The same slot as reading every one, without
+        reading the width the longest queue once needed.
         """
-        props = np.take(self.prop, rows, axis=1)
-        key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
+        if self.bounded:
+            props = np.take(self.prop, rows, axis=1)
+            key = np.where(props == prop, -2, np.where(props < 0, -1, np.take(self.stamp, rows, axis=1)))
+        else:
+            props = np.take(self.prop[:min(self.used + 1, self.width)], rows, axis=1)
+            key = np.where(props == prop, -2, np.where(props < 0, -1, 0))
         slot, best = _first_minimum(key)
+        self.used = max(self.used, int(slot.max(initial=-1)) + 1)
         present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
         flat = slot * self.rows + rows
         stamps = np.arange(first_stamp, first_stamp + len(rows), dtype=np.int64)
