@@ -708,11 +708,14 @@ def test_a_burst_of_single_asserts_far_deeper_than_10_is_all_applied_and_answere
     assert node.service.store.durable_commits - commits <= burst // 10  # drained: many facts per commit
 
 
-def test_a_stream_of_single_asserts_is_gathered_while_queries_are_answered_between(graph: RosSession):
+@pytest.mark.parametrize("sim_time", [False, True], ids=["wall-clock", "sim-time-stopped"])
+def test_a_stream_of_single_asserts_is_gathered_while_queries_are_answered_between(graph: RosSession, sim_time):
     """The first fact of a stream is answered at once; while the stream lasts the consultant takes its
     ltm/assert every FACTS_GATHER seconds (the reader held from the executor), still answering queries
-    between; a quiet period hands the reader back."""
-    node = start(graph)
+    between; a quiet period hands the reader back.  The gathering timer is steady: under sim time
+    with no /clock at all the stream is taken just the same."""
+    node = start(graph, use_sim_time=sim_time)
+    assert node.get_parameter("use_sim_time").value is sim_time
     configure(graph, "displacement", capacity=4)
     results = graph.listen(contract.LTM_ASSERT_RESULT.name, contract.LTM_ASSERT_RESULT.qos)
     group = next(sub for sub in node.subscriptions if sub.topic_name.endswith(contract.LTM_ASSERT.name)).callback_group
