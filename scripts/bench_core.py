@@ -568,7 +568,8 @@ def targets(result: dict) -> list[dict]:
             "verdict": "met" if value >= TARGET_DECAY_RATIO else "MISSED",
         })
     else:
-        out.append({"name": "decay tick over 100k queues", "value": "not run", "verdict": "n/a (--quick)"})
+        skipped = "--skip-decay" if result.get("meta", {}).get("skip_decay") else "--quick"
+        out.append({"name": "decay tick over 100k queues", "value": "not run", "verdict": f"n/a ({skipped})"})
     return out
 
 
@@ -615,6 +616,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     result: dict = {
         "meta": {
             "quick": args.quick,
+            "skip_decay": args.skip_decay,
             "seed": args.seed,
             "trials": trials,
             "warmup": warmup,

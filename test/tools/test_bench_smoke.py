@@ -79,6 +79,12 @@ def test_bench_core_paired_targets_judge_the_paired_ratio(monkeypatch):
                 if " under " in t["name"]}
     assert unpaired["activation+displacement"]["value"] == "x1.40" and unpaired["activation+displacement"]["verdict"] \
         == "met" and unpaired["activation alone"]["verdict"] == "MISSED"
+    # a decay benchmark not run says which option left it out
+    for meta, reason in (({"quick": True, "skip_decay": False}, "n/a (--quick)"),
+                         ({"quick": False, "skip_decay": True}, "n/a (--skip-decay)")):
+        verdicts = {t["name"]: t["verdict"] for t in bench_core.targets(
+            {"reg": rows, "reg_ratios": [], "decay": [], "reg_paired": paired, "meta": meta})}
+        assert verdicts["decay tick over 100k queues"] == reason
 
 
 @pytest.mark.parametrize("args, fragment", [
