@@ -30,7 +30,9 @@ from its own.  An empty ``graph`` (a node started by hand) stamps nothing.
 Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
 object of the topic's schema within the limits, or whose handler raises, is rejected
 (``reject(id, error, kind)`` publishes the reply the contract has for it, if any) and logged
-with the topic and id.
+with the topic and id.  :func:`subscribe_batches` hands over every message waiting at once,
+and with ``gather`` takes a stream once a period instead of a round per message
+(:class:`GatheringGroup` holds the reader from the executor meanwhile).
 
 Logging: :func:`log_warning` and :func:`log_error` never raise (rclpy raises when one call
 site logs with two severities, which a failing message after a malformed one did).
