@@ -25,6 +25,9 @@ same fsreg_ros source as the caller (:func:`code_fingerprint`), so a worker host
 other code fails the job audibly instead of changing results.  A callback sees each result as it arrives, in the calling
 process, so a tool can persist finished work before the job ends (``fsreg-sweep
 --resume``).  The same tqdm bar (tasks done / total, rate, ETA) is drawn for every engine.
+A Dask job stopped early (Ctrl-C, a task's error) tears its client down quietly
+(:func:`quiet_teardown`): the tool's one line says what happened, not Dask's tracebacks of
+connections its stopping closed.
 """
 
 from __future__ import annotations
@@ -226,7 +229,8 @@ def run_tasks(
         if not tasks:
             return TaskRun(results, engine, engine.workers)
         if engine.dask or client is not None:
-            return _run_dask(fn, tasks, engine, finish, results, client)
+            with quiet_teardown() as quieten:
+                return _run_dask(fn, tasks, engine, finish, results, client, quieten)
         return _run_local(fn, tasks, engine, finish, results)
     finally:
         bar.close()
@@ -252,6 +256,50 @@ def _run_local(fn: Callable, tasks: Sequence, engine: Engine, finish: Callable, 
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return TaskRun(results, engine, workers)
+
+
+#: The loggers of Dask's and tornado's background threads, quietened while a failed or interrupted job is torn down.
+DASK_LOGGERS = ("distributed", "tornado")
+
+
+class _ClosedComms(logging.Filter):
+    """Drops tornado's "Exception in callback" records of a Dask connection that closed (the job's own end says why)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        return type(error).__name__ not in ("CommClosedError", "StreamClosedError")
+
+
+@contextmanager
+def quiet_teardown() -> Iterator[Callable[[], None]]:
+    """Yield ``quieten()``: after it, Dask's and tornado's loggers say nothing until the block ends.
+
+    A job that stops early (Ctrl-C, which also stops the LocalCluster's processes, or a
+    task's error) tears down a client whose scheduler may already be gone: its background
+    thread then logs ``CommClosedError`` tracebacks ("Exception in callback ...") that are
+    not the user's error; the tool's own one line says what happened.  Their levels (the
+    loggers' own, as Dask configures them) are restored when the block ends.  For the whole
+    block, tornado's traceback of a closed Dask connection is dropped even before
+    ``quieten()`` (its thread can log before the interrupted thread gets there); Dask
+    reschedules what such a connection carried, or the job fails with its own error.
+    """
+    saved: dict[str, int] = {}
+    closed, callbacks = _ClosedComms(), logging.getLogger("tornado.application")
+    callbacks.addFilter(closed)
+
+    def quieten() -> None:
+        names = [n for n in logging.root.manager.loggerDict if n.split(".")[0] in DASK_LOGGERS]
+        for name in [*DASK_LOGGERS, *names]:
+            logger = logging.getLogger(name)
+            saved.setdefault(name, logger.level)
+            logger.setLevel(logging.CRITICAL + 1)
+
+    try:
+        yield quieten
+    finally:
+        callbacks.removeFilter(closed)
+        for name, level in saved.items():
+            logging.getLogger(name).setLevel(level)
 
 
 @contextmanager
@@ -288,10 +336,10 @@ def dask_client(engine: Engine) -> Iterator[Any]:
 
 
 def _run_dask(fn: Callable, tasks: Sequence, engine: Engine, finish: Callable, results: list,
-              client: Any = None) -> TaskRun:
+              client: Any = None, quieten: Callable[[], None] = lambda: None) -> TaskRun:
     if client is None:
         with dask_client(engine) as own:
-            return _run_dask(fn, tasks, engine, finish, results, own)
+            return _run_dask(fn, tasks, engine, finish, results, own, quieten)
     from distributed import as_completed
 
     # Keys of our own (a shared scheduler may run other jobs); pure=False: every task runs.
@@ -306,6 +354,9 @@ def _run_dask(fn: Callable, tasks: Sequence, engine: Engine, finish: Callable, r
                 _raise_task_error(future)
             finish(index_of[future.key], result)
             future.release()
+    except BaseException:  # interrupted or failed: tearing down a cluster already stopping is not the user's error
+        quieten()
+        raise
     finally:
         client.cancel([f for f in futures if not f.done()])
     attempts = retried_tasks(client, index_of)

@@ -71,6 +71,57 @@ def test_dask_engine_returns_results_in_task_order_and_raises_a_task_error(clust
         run_tasks(fails_on_three, [1, 2, 3, 4], engine, progress=False, client=client)
 
 
+def test_a_failed_dask_job_quietens_dask_logs_for_its_teardown_and_restores_them(cluster, monkeypatch):
+    """A job that stops early (a task's error here; Ctrl-C in test_research_shards) tears down a
+    client whose scheduler may be gone: Dask's and tornado's loggers say nothing meanwhile (their
+    CommClosedError tracebacks are not the user's error), and get their own levels back after."""
+    import logging
+
+    local, client = cluster
+    names = ("distributed.client", "tornado.application", "distributed")
+    before = {name: logging.getLogger(name).level for name in names}
+    seen = {}
+    real = client.cancel
+
+    def cancel(futures):  # the teardown of the failed job: what the loggers would let through now
+        seen.update({name: logging.getLogger(name).isEnabledFor(logging.CRITICAL) for name in names})
+        return real(futures)
+
+    monkeypatch.setattr(client, "cancel", cancel)
+    with pytest.raises(ValueError, match="task three is bad"):
+        run_tasks(fails_on_three, [1, 2, 3, 4], Engine("scheduler", 0, local.scheduler_address), progress=False,
+                  client=client)
+    assert seen == {name: False for name in names}  # quiet while tearing down
+    assert {name: logging.getLogger(name).level for name in names} == before  # and restored
+    seen.clear()
+    assert run_tasks(square, [1, 2], Engine("scheduler", 0, local.scheduler_address), progress=False,
+                     client=client).results == [1, 4]
+    assert seen == {name: True for name in names}  # a job that finishes is not quietened
+
+
+def test_a_closed_dask_connection_is_not_a_traceback_during_a_job(caplog):
+    """tornado's "Exception in callback" for a closed Dask connection (logged by the client's thread,
+    maybe before an interrupted job gets to quieten its teardown) is dropped during a job, and only it."""
+    import logging
+
+    from distributed.comm.core import CommClosedError
+
+    log = logging.getLogger("tornado.application")
+
+    def callback_error(error):
+        try:
+            raise error
+        except Exception:
+            log.error("Exception in callback %r", "_track_future", exc_info=True)
+
+    with execution.quiet_teardown():
+        callback_error(CommClosedError("in <TCP (closed) ConnectionPool.gather>: Stream is closed"))
+        callback_error(RuntimeError("a real bug"))
+    callback_error(CommClosedError("after the job"))
+    logged = [str(r.exc_info[1]) for r in caplog.records if r.name == "tornado.application"]
+    assert logged == ["a real bug", "after the job"]  # the closed connection during the job alone is dropped
+
+
 def test_a_worker_with_other_code_fails_the_job_audibly(cluster):
     _, client = cluster
     assert execution.SameCode(square, execution.code_fingerprint())(3) == 9
