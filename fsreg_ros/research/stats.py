@@ -74,15 +74,7 @@ def ratio_bootstrap_ci(numerators: Sequence[float], denominators: Sequence[float
     n = len(num)
     if n == 0 or den.sum() == 0:
         return Estimate(float("nan"), float("nan"), float("nan"), n)
-    value = float(num.sum() / den.sum())
-    if n == 1:
-        return Estimate(value, value, value, n)
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, n, size=(resamples, n))
-    ratios = num[draws].sum(axis=1) / np.maximum(den[draws].sum(axis=1), 1e-300)
-    tail = (1 - level) / 2 * 100
-    low, high = np.percentile(ratios, [tail, 100 - tail])
-    return Estimate(value, float(low), float(high), n)
+    return _resampled_ratio(num, den, float(num.sum() / den.sum()), np.sum, resamples, seed, level)
 
 
 def median_ratio_ci(numerators: Sequence[float], denominators: Sequence[float], resamples: int = RESAMPLES,
@@ -102,12 +94,18 @@ def median_ratio_ci(numerators: Sequence[float], denominators: Sequence[float], 
     n = len(num)
     if n == 0 or n != len(den) or np.median(den) <= 0:
         return Estimate(float("nan"), float("nan"), float("nan"), n)
-    value = float(np.median(num) / np.median(den))
+    return _resampled_ratio(num, den, float(np.median(num) / np.median(den)), np.median, resamples, seed, level)
+
+
+def _resampled_ratio(num, den, value: float, statistic, resamples: int, seed: int, level: float) -> Estimate:
+    """Return ``value`` with the interval of ``statistic(num) / statistic(den)`` over pairs resampled together."""
+    import numpy as np
+
+    n = len(num)
     if n == 1:
         return Estimate(value, value, value, n)
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, n, size=(resamples, n))
-    ratios = np.median(num[draws], axis=1) / np.maximum(np.median(den[draws], axis=1), 1e-300)
+    draws = np.random.default_rng(seed).integers(0, n, size=(resamples, n))
+    ratios = statistic(num[draws], axis=1) / np.maximum(statistic(den[draws], axis=1), 1e-300)
     tail = (1 - level) / 2 * 100
     low, high = np.percentile(ratios, [tail, 100 - tail])
     return Estimate(value, float(low), float(high), n)
