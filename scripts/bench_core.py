@@ -147,14 +147,19 @@ def p95(values: list[float]) -> float:
     return statistics.quantiles(values, n=20, method="inclusive")[18]
 
 
+def _session(facts: dict, props: list, policy: str, sink=None) -> tuple:
+    """A consultant of the world under ``policy``, its WM Manager and its local port (``sink``: its event sink)."""
+    consultant = Consultant("d", facts, props, sink=sink)
+    manager = WMManager()
+    manager.manage(consultant.wm, policy_of(policy))
+    return consultant, manager, LocalPort(consultant)
+
+
 def bench_reg_config(
     facts: dict, props: list, algorithm: str, policy: str, sink: bool, trials: int, warmup: int, seed: int
 ) -> dict:
     events: list = []
-    consultant = Consultant("d", facts, props, sink=events.append if sink else None)
-    manager = WMManager()
-    manager.manage(consultant.wm, policy_of(policy))
-    port = LocalPort(consultant)
+    consultant, manager, port = _session(facts, props, policy, sink=events.append if sink else None)
     rng = random.Random(seed)
     names = consultant.entities
     clock = 0.0
@@ -218,13 +223,6 @@ def bench_reg(sizes: list[tuple[int, int]], trials: int, warmup: int, seed: int,
         if (n_entities, n_props) == largest:
             paired = bench_reg_paired(facts, props, trials, warmup, seed, repeat, resamples, log)
     return rows, paired
-
-
-def _session(facts: dict, props: list, policy: str) -> tuple:
-    consultant = Consultant("d", facts, props)
-    manager = WMManager()
-    manager.manage(consultant.wm, policy_of(policy))
-    return consultant, manager, LocalPort(consultant)
 
 
 def bench_reg_paired(facts: dict, props: list, trials: int, warmup: int, seed: int, sessions: int,
