@@ -148,7 +148,7 @@ def p95(values: list[float]) -> float:
 
 
 def _session(facts: dict, props: list, policy: str, sink=None) -> tuple:
-    """A consultant of the world under ``policy``, its WM Manager and its local port (``sink``: its event sink)."""
+    """Return a consultant of the world under ``policy``, its WM Manager and its port (``sink``: its event sink)."""
     consultant = Consultant("d", facts, props, sink=sink)
     manager = WMManager()
     manager.manage(consultant.wm, policy_of(policy))
