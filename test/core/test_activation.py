@@ -299,6 +299,32 @@ def test_activation_with_displacement_and_an_encoding_after_a_crossing():
     assert buffer.queue("e") == ("d", "f") and events[-1].cause == "displacement"
 
 
+@pytest.mark.parametrize("columns", [False, True])
+def test_a_late_encoding_counts_at_the_clock(columns):
+    """An encoding stamped before the clock (a late message, a clock that jumped back) counts at the clock.
+
+    tau = 0: one encoding stays 1 s, two at one time 4 s (the previous release failed on
+    the late one: a negative age, a complex power).  ``columns``: the rule-3 path over
+    column queues (no event sink), as a REG call over many distractors takes it.
+    """
+    from fsreg_ros.core import bitset
+
+    tau = 0.0
+    buffer, manager, events = managed(policy(tau, rules="activation+displacement", capacity=3))
+    buffer.column_min = 1 if columns else 10**9
+    if columns:
+        buffer.sink = None
+    names = ["e", "f"]
+    buffer.encode_members(bitset.from_indices([0, 1], 2), names, "a", "reg-distractor", 10.0, 0)
+    manager.advance(10.0)
+    buffer.encode_members(bitset.from_indices([0], 2), names, "a", "reg-distractor", 7.0, 1)  # late: at 10
+    assert buffer.export_queue("e")[0][5] == [2, 10.0, 10.0, 10.0]  # count, first time, kept times
+    manager.advance(13.999)
+    assert buffer.queue("e") == ("a",) and buffer.queue("f") == ()  # f's one encoding at 10 went at 11
+    manager.advance(14.001)
+    assert buffer.queue("e") == ()
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore

@@ -272,6 +272,9 @@ ACT_OPS = st.lists(
         st.tuples(st.just("burst"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS[:2]),
                   st.integers(2, 12), st.floats(0.0, 3.0), st.floats(0.0, 40.0)),
         st.tuples(st.just("encode"), st.integers(0, 7), st.lists(st.sampled_from(WM_PROPS), min_size=1, max_size=3)),
+        # members encoded at a time the clock already passed (a late message): due at once, maybe
+        st.tuples(st.just("stale"), st.sets(st.integers(0, 7), min_size=1), st.sampled_from(WM_PROPS[:2]),
+                  st.sampled_from([0.5, 3.0, 30.0])),
         st.tuples(st.just("wait"), st.sampled_from([0.0, 0.25, 1.0, 2.5, 6.0, 20.0])),
         st.tuples(st.just("wait"), st.floats(0.0, 12.0)),
         st.tuples(st.just("creep"), st.integers(5, 60)),  # the clock in small steps, WM read at each
@@ -292,12 +295,14 @@ ACT_OPS = st.lists(
 
 @settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
 @given(st.sampled_from([1, 2, 3, None, None]), st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]),
-       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), ACT_OPS)
-def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, ops):
-    """Rule ``activation`` on column queues (traces in slots, crossings solved in numpy) is the dict queues' own.
+       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), st.booleans(), ACT_OPS)
+def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, in_numpy, ops):
+    """Rule ``activation`` on column queues (traces in slots, crossings decided in numpy) is the dict queues' own.
 
     With a capacity (the rows' width) and without one (rows that widen as queues grow,
-    from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).
+    from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).  ``in_numpy``:
+    every slot whose bound passed is decided by :func:`activation.passages`, however few
+    (otherwise up to ``_FEW`` go one by one, as here they mostly would).
 
     As :func:`test_column_queues_decay_evict_and_clear_as_dict_queues`: ``plain`` keeps
     dict queues, ``heard`` column queues with an event sink except while encoding members,
@@ -306,7 +311,7 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
     for many slots at once.  Events (in order), queues, origins, exported items with
     their traces, sizes and the change record (in order) must be equal.
     """
-    from fsreg_ros.core.memory import Limits, WMBuffer
+    from fsreg_ros.core.memory import Limits, WMBuffer, activation
     from fsreg_ros.core.memory import columns as column_queues
 
     heard_events: list = []
@@ -319,12 +324,14 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
         b.column_min = 1
     for b in buffers:
         b.set_limits(Limits(capacity=capacity, activation=params), 0.0)
-    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW
     column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
+    if in_numpy:
+        activation._FEW = 0
     try:
         _activation_ops(ops, plain, heard, quiet, plain_events, heard_events)
     finally:
-        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = kept
+        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW = kept
 
 
 def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
@@ -358,6 +365,12 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
         elif kind == "encode":
             for b in buffers:
                 b.encode(WM_ENTITIES[op[1]], op[2], "speaker", now, 2)
+        elif kind == "stale":
+            members = bitset.from_indices(sorted(op[1]), len(WM_ENTITIES))
+            heard.sink = plain.sink = None
+            for b in buffers:
+                b.encode_members(members, WM_ENTITIES, op[2], "reg-distractor", now - op[3], 1)
+            heard.sink, plain.sink = heard_events.append, plain_events.append
         elif kind == "wait":
             now += op[1]
             for b in buffers:
@@ -412,21 +425,26 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
 @given(st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2), (0.5, -0.5 * np.log(10.0))]),
        # (gaps of 0, subnormal ones, tiny ones: the older presentations may span almost nothing)
        st.lists(st.lists(st.just(0.0) | st.floats(5e-324, 1e-300) | st.floats(1e-12, 1e-6) | st.floats(1e-6, 30.0),
-                         min_size=1, max_size=25), min_size=1, max_size=12))
-def test_crossings_in_numpy_are_crossing_itself(params, gaps):
-    """:func:`activation.crossings` (numpy, many traces at once) finds :func:`activation.crossing`'s roots.
+                         min_size=1, max_size=25), min_size=1, max_size=12),
+       st.sampled_from([-1e-3, -1e-8, -2e-9, -1e-12, 0.0, 1e-12, 2e-9, 1e-8, 1e-3, 1.0]))
+def test_passages_in_numpy_decide_as_crossing(params, gaps, offset):
+    """:func:`activation.passages` (numpy, many traces at once) decides as :func:`activation.crossing`.
 
     Each trace is kept in a slot of :class:`activation.TraceColumns` by encodings (the
     Petrov approximation past ``HISTORY`` encodings included) and read back equal to the
-    :class:`activation.Trace` the same encodings make; its numpy root is within
-    ``_MARGIN`` (relative) of the scalar one.
+    :class:`activation.Trace` the same encodings make; the slot's ``due`` is at most its
+    crossing.  At a clock ``offset`` (relative) from each crossing, a trace said gone
+    crossed by then, one said staying crosses later and its bound, less ``_MARGIN``, is at
+    most the crossing, and one left undecided is within 1e-8 (relative) of the clock or one
+    :class:`activation._Newton` leaves to :func:`activation.crossing`; the one-by-one
+    decision (:meth:`activation.LazyActivation._gone`) likewise.
     """
     from fsreg_ros.core.memory import activation
 
     d, tau = params
     span = activation.lifetime(d, tau)
     columns = activation.TraceColumns(2, len(gaps))
-    expected, flat = [], []
+    traces, flat = [], []
     for row, steps in enumerate(gaps):
         slot = row % 2
         at = slot * len(gaps) + row
@@ -441,12 +459,28 @@ def test_crossings_in_numpy_are_crossing_itself(params, gaps):
         assert (got.n, got.first, got.recent) == (trace.n, trace.first, trace.recent)
         assert got.due <= activation.crossing(trace, d, tau)  # a lower bound (the crossing, for one encoding)
         if trace.n > 1:
-            expected.append(activation.crossing(trace, d, tau))
+            traces.append(trace)
             flat.append(at)
     if not flat:
         return
-    n, first, times = columns.ordered(np.array(flat))
-    for start in (None, np.take(columns.due.reshape(-1), flat)):  # from the right, or from the lower bounds
-        roots, other = activation.crossings(n, first, times, d, tau, start)
-        for root, fallback, want in zip(roots.tolist(), other.tolist(), expected):
-            assert fallback or abs(root - want) <= activation._MARGIN * max(1.0, abs(want)) / 100, (root, want)
+    rule = activation.LazyActivation(None, d, tau, 0.0)
+    n, first, times = columns.ordered(np.array(flat, dtype=np.intp))
+    others = activation._Newton(n, first, times, d, tau).other.tolist()
+    for k, trace in enumerate(traces):
+        want = activation.crossing(trace, d, tau)
+        if want == activation.NEVER:
+            continue
+        now = want + offset * max(1.0, abs(want))
+        gone, bound = activation.passages(n[k:k + 1], first[k:k + 1], times[:, k:k + 1], d, tau, now)
+        close = abs(now - want) <= 1e-8 * max(1.0, abs(want))
+        if gone[0]:
+            assert want <= now, (want, now)
+        elif bound[0] > -np.inf:
+            later = float(bound[0])
+            assert want > now and later - activation._MARGIN * max(1.0, abs(later)) <= want, (want, now, later)
+        else:
+            assert close or others[k], (want, now)
+        if rule._gone(trace, now):
+            assert want <= now, (want, now)
+        else:
+            assert want > now - 1e-8 * max(1.0, abs(want)), (want, now)

@@ -168,3 +168,24 @@ def test_node_classes_take_a_name_and_a_namespace(tmp_path):
                 assert node.get_fully_qualified_name() == "/robot7/mine", cls
             finally:
                 node.destroy_node()
+
+
+def test_a_message_stamped_before_the_clock_counts_at_the_clock_under_activation(table1_path):
+    """A say stamped 3 s before the graph's clock (a client whose clock jumped back) under rule activation.
+
+    tau = -1, d = 0.5: n encodings at one time stay (n e)^2 seconds.  Each say encodes
+    "female" and "glasses" twice into face2's WM (the speaker's words, and reference
+    resolution affirming them for the candidates).  The late say is answered and counts
+    at the clock, 10: four encodings at 10 stay until 10 + 16 e^2 = 128.22 (the first
+    say's two alone would have gone at 10 + 4 e^2 = 39.56).  The previous release noted
+    it at 7, before the entry's last encoding: a history out of order.
+    """
+    with LiveGraph(table1_path, policy="activation", activation_threshold=-1.0) as robot:
+        robot.set_clock(10.0)
+        assert robot.say(description=["female", "glasses"])["resolved"] == "face2"
+        late = robot.say(description=["female", "glasses"], time=7.0)
+        assert late["resolved"] == "face2"
+        robot.set_clock(128.0)
+        assert robot.wm("face2") == ["female", "glasses"]
+        robot.set_clock(128.5)
+        assert robot.wm("face2") == []

@@ -35,15 +35,20 @@ The queues of a large domain's rule 2 and 3 encodings are column queues
 (a REG call's rule-3 encodings) update the traces in one batch, when the traces are
 next read or the clock moves on (:meth:`TraceColumns.settle`), each row keeps a lower
 bound of its slots' crossings (so a row with nothing due costs one number to check),
-and the entries of many rows whose bound passed are solved at once (:func:`crossings`,
-Newton's method in numpy).  numpy's ``pow`` is not Python's, so a numpy root is only
-kept as a lower bound a hair (:data:`_MARGIN`) below it; where the clock falls within
-that hair, :func:`crossing` itself decides, so an entry goes exactly when it would
-from a dict queue (:meth:`LazyActivation.passed`; test_core_fast_paths).
+and the rows encoded again at one clock are not checked again
+(:meth:`LazyActivation.forget_members`).  Column queues report no events, so there only
+whether an entry's crossing passed matters, not when: the entries of many rows whose
+bound passed are decided at once (:func:`passages`, Newton's method in numpy, stopped
+for each entry as soon as it is decided), a few one by one (:meth:`LazyActivation._gone`).
+numpy's ``pow`` is not Python's, so an entry is only decided where the clock is more
+than a hair (:data:`_MARGIN`) from its crossing; within that hair :func:`crossing`
+itself decides, so an entry goes exactly when it would from a dict queue
+(:meth:`LazyActivation.passed`; test_core_fast_paths).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Optional
 
@@ -255,6 +260,7 @@ class LazyActivation:
         self.settled = -math.inf  # the clock every queue was last brought up to (flush)
         self.traces: dict[str, dict[str, Trace]] = {}
         self.due: dict[str, float] = {}
+        self.swept: tuple[Optional[tuple[float, int]], int] = (None, 0)  # (clock, traces' edit), member rows
 
     def advance(self, time: float) -> None:
         """Note that the clock reached ``time`` (it never goes back)."""
@@ -271,7 +277,12 @@ class LazyActivation:
         self._refresh(entity)
 
     def record(self, entity: str, prop: str, time: float, present: bool) -> None:
-        """Note an encoding of ``prop`` into Q[entity] at ``time`` (``present``: a refresh)."""
+        """Note an encoding of ``prop`` into Q[entity] at ``time`` (``present``: a refresh).
+
+        An encoding stamped before the clock (a late message) counts at the clock: an
+        entry's encoding times never go back.
+        """
+        time = max(time, self.clock)
         traces = self.traces.get(entity)
         if traces is None:
             traces = self.traces[entity] = {}
@@ -347,9 +358,10 @@ class LazyActivation:
         """Return the slots (flat indices) of column ``rows`` whose entry's crossing is at or before the clock.
 
         Decided exactly as :meth:`sync` decides for a dict queue: a slot whose lower
-        bound passed is solved in numpy (:func:`crossings`, all at once); a root within
-        :data:`_MARGIN` of the clock, or one :func:`crossings` does not handle, is solved
-        by :func:`crossing` itself.  A numpy root is kept as a lower bound just below it.
+        bound passed is decided in numpy (:func:`passages`, all at once) or, for a few,
+        one by one (:meth:`_bracket`, :meth:`_gone`); a crossing within :data:`_MARGIN`
+        of the clock, or one :func:`passages` leaves out, is solved by :func:`crossing`
+        itself.  A slot that stays keeps a new lower bound.
         """
         traces = store.traces
         now = self.clock + TIME_EPSILON
@@ -368,11 +380,15 @@ class LazyActivation:
         flat = slot * store.rows + rows[col]
         vague = ~np.take(traces._flat_exact, flat)
         if vague.any():
-            self._solve(traces, flat[vague], now)
-            due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)
-            flat = flat[np.take(traces._flat_due, flat) <= now]
+            unsure = flat[vague]
+            self._solve(traces, unsure, now)
+            renewed = np.take(traces._flat_due, unsure)
+            due[slot[vague], col[vague]] = renewed
+            flat = np.concatenate((flat[~vague], unsure[renewed <= now]))
+            hit = due <= now
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
-        traces._row_due[rows] = np.where(due <= now, NEVER, due).min(axis=0)
+        due[hit] = NEVER
+        traces._row_due[rows] = due.min(axis=0)
         return flat
 
     def _solve(self, traces: TraceColumns, flat: np.ndarray, now: float) -> None:
@@ -382,24 +398,38 @@ class LazyActivation:
             return
         width_rows = traces.n.shape[1]
         if len(flat) <= _FEW:  # one by one is cheaper for a few
-            counts, recent = traces._flat_n, traces._flat_recent
+            counts, recent, firsts = traces._flat_n, traces._flat_recent, traces._flat_first
             for f in flat.tolist():
                 n = int(counts[f])
                 ring = recent[f * HISTORY:(f + 1) * HISTORY].tolist()
                 times = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
                 found = self._bracket(n, times, now)
                 if found is None:
-                    found = crossing(traces.get(f // width_rows, f % width_rows), self.decay, self.threshold), True
+                    trace = Trace(float(firsts[f]) if n > HISTORY else times[0])  # (as traces.get builds it)
+                    trace.n, trace.recent = n, times
+                    if self._gone(trace, now):  # (its bound stays: at most the clock)
+                        continue
+                    found = crossing(trace, self.decay, self.threshold), True
                 due[f], exact[f] = found
             return
         n, first, times = traces.ordered(flat)
-        roots, other = crossings(n, first, times, self.decay, self.threshold, np.take(due, flat))
-        margin = _MARGIN * np.maximum(1.0, np.abs(roots))
-        due[flat] = roots - margin  # a lower bound of crossing()'s root
-        close = other | (np.abs(roots - now) <= margin)
-        for f in flat[close].tolist():  # too close to call: crossing() itself
+        gone, bound = passages(n, first, times, self.decay, self.threshold, now)
+        staying = bound > -np.inf
+        later = bound[staying]
+        due[flat[staying]] = later - _MARGIN * np.maximum(1.0, np.abs(later))  # a lower bound of crossing()'s root
+        # (what went keeps its bound, at most the clock; too close to call: crossing() itself)
+        for f in flat[~(gone | staying)].tolist():
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
+
+    def _gone(self, trace: Trace, now: float) -> bool:
+        """Tell whether the crossing of ``trace`` is before ``now`` by more than :data:`_MARGIN` (relative).
+
+        One evaluation of the activation just before ``now``, where :func:`crossing`
+        would iterate to the root: below the threshold there, the root is before it.
+        """
+        age = now - _MARGIN * max(1.0, abs(now)) - trace.recent[-1]
+        return age > 0.0 and _excess(trace, math.log(age), self.decay, self.threshold)[0] < 0.0
 
     def _bracket(self, n: int, recent: list[float], now: float) -> Optional[tuple[float, bool]]:
         """Return ``(due, False)`` for a trace whose lower bound passed, if two bounds decide it; else None.
@@ -428,6 +458,26 @@ class LazyActivation:
                 if lower > now:
                     return lower, False
         return None
+
+    def forget_members(self, rows: np.ndarray, members: int) -> None:
+        """Before encoding into the column rows ``rows`` (bitset ``members``), forget what is due there.
+
+        As :meth:`forget_rows`, skipped when every member was brought up to this clock
+        already and nothing came into the columns since (:attr:`TraceColumns.edit`): the
+        rules 2 and 3 encodings of one REG call or resolution turn are made at one
+        clock, each into a subset of the rows before, and what they encoded is not due
+        before the clock plus a lifetime (encodings count at the clock at the earliest).
+        Only for a lifetime that takes them past the clock's
+        :data:`~fsreg_ros.core.decay.TIME_EPSILON`.
+        """
+        traces = self.wm.columns.store.traces
+        now = self.clock
+        at = (now, traces.edit) if now + self.span > now + TIME_EPSILON else None
+        then, swept = self.swept
+        if at is not None and at == then and not members & ~swept:
+            return
+        self.forget_rows(rows)
+        self.swept = (at, (swept if at == then else 0) | members) if at is not None else (None, 0)
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
@@ -480,18 +530,21 @@ def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
     wm.activation = act
 
 
-#: A root found by :func:`crossings` (numpy) may differ from :func:`crossing`'s (Python floats, another
-#: ``pow``) in its last bits; both are within this relative distance of each other by far.
+#: numpy's arithmetic (another ``pow``) may place a crossing a few last bits from :func:`crossing`'s (Python
+#: floats); a crossing is only decided in numpy, or by one evaluation, this far (relative) from the clock.
 _MARGIN = 1e-9
-#: :func:`crossings` leaves to :func:`crossing` the traces whose older presentations span less than
+#: :func:`passages` leaves to :func:`crossing` the traces whose older presentations span less than
 #: 1/_ILL of their age (the Petrov term's rounding grows as that share shrinks).
 _ILL = 1e4
-#: Encoding counts up to which the crossing's lower bound ``n^(1/d)`` lifetimes is tabled (a larger count
-#: takes the last entry's, still a lower bound).
-_REACH = 1024
-#: Up to this many crossings at once, :func:`crossing` solves them one by one (cheaper than numpy's fixed cost).
+#: k -> 1/k for k <= HISTORY (index 0 unused): the last of k kept times' share of a lower bound of their mean.
+_SHARE = np.array([0.0] + [1.0 / k for k in range(1, HISTORY + 1)])
+#: k -> the oldest kept time's share of it, 1 - 1/k.
+_KEEP = 1.0 - _SHARE
+#: Numbers :attr:`TraceColumns.edit` (unique across stores: a store made anew never repeats an old one's).
+_EDITS = itertools.count()
+#: Up to this many entries whose bound passed, one by one decides them (cheaper than numpy's fixed cost).
 _FEW = 24
-#: :func:`crossings` stops when a step is this small (relative): Newton's error after it is far smaller.
+#: :func:`passages` gives up on a trace when a step is this small (relative): converged, too close to call.
 _SOLVED = 1e-11
 
 
@@ -506,7 +559,7 @@ class TraceColumns:
     the first time from then on (n > HISTORY).  ``due`` and ``exact`` are as in
     :class:`Trace`; ``row_due[r]`` is at most the earliest ``due`` of row r (so a row with
     nothing due costs one number to check; :meth:`LazyActivation.passed` renews it).  A
-    crossing solved in numpy (:func:`crossings`) is kept only as a lower bound just below
+    bound found in numpy (:func:`passages`) is kept only as a lower bound a margin below
     it, ``exact`` False: so whether and when an entry goes is decided exactly as for a
     dict queue (see :meth:`LazyActivation.passed`).
     """
@@ -518,6 +571,7 @@ class TraceColumns:
         self._due = np.full((width, rows), NEVER)
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
+        self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put`)
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
         self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
@@ -538,7 +592,7 @@ class TraceColumns:
         self._flat_n, self._flat_first, self._flat_recent = self._n.reshape(-1), self._first.reshape(-1), \
             self._recent.reshape(-1)
         self._flat_due, self._flat_exact = self._due.reshape(-1), self._exact.reshape(-1)
-        self._mark = np.zeros(self._flat_due.shape[0], dtype=np.intp)  # scratch: which pending slots recur
+        self._mark = np.zeros(self._flat_due.shape[0], dtype=np.int32)  # scratch: which pending slots recur
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
@@ -600,6 +654,7 @@ class TraceColumns:
         self._recent[slot, row] = ring
         self._due[slot, row], self._exact[slot, row] = trace.due, trace.exact
         self._row_due[row] = min(self._row_due[row], trace.due)
+        self.edit = next(_EDITS)
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
                 rows: Optional[np.ndarray] = None, clock: float = -math.inf) -> None:
@@ -650,60 +705,61 @@ class TraceColumns:
         """Note one encoding at ``time`` in each slot ``flat`` (distinct slots; ``rows`` may recur).
 
         A new entry's ``due`` is its crossing; a refreshed one's a lower bound of it: the
-        later of ``time + span`` (the last term alone) and ``first + n^(1/d) span`` (every
-        term is at least the first one's, the Petrov terms too), less :data:`_MARGIN`; the
-        latter not where :func:`crossing`'s rounding of an ill-conditioned Petrov term
-        (older presentations spanning little of their age, :data:`_ILL`) may undercut it.
+        later of ``time + span`` (the last term alone) and ``m + k^(1/d) span``, less
+        :data:`_MARGIN`.  There the k = min(n, :data:`HISTORY`) kept times, the oldest
+        t_o and the last ``time``, have a mean of at least m = t_o + (time - t_o) / k,
+        and x^-d is convex: their terms alone sum to at least k (t - m)^-d, and the
+        Petrov term of older presentations only adds to them.  Leaving that term out,
+        the bound needs no look at how well :func:`crossing` rounds it, and costs the
+        same few array operations for every slot (in a long session most are past
+        HISTORY encodings).
         """
         n, recent = self._flat_n, self._flat_recent
         old = n[flat]
         old *= present  # encodings before this one (a new entry: none)
         counts = old + 1
         n[flat] = counts
-        wrapping = counts.max() > HISTORY
-        if wrapping:
-            first = self._flat_first
-            wraps = flat[counts == HISTORY + 1]
         at = flat * HISTORY
-        if wrapping:  # the first time leaves the ring: keep it
-            first[wraps] = recent[wraps * HISTORY]
+        if counts.max() > HISTORY:  # the first time leaves the ring: keep it (crossing()'s Petrov term)
+            wraps = flat[counts == HISTORY + 1]
+            self._flat_first[wraps] = recent[wraps * HISTORY]
         old &= HISTORY - 1
         old += at
         recent[old] = time
-        begin = recent[at]  # the first time (while n <= HISTORY)
-        reach = np.take(self._reach(d, span, time), counts, mode="clip")  # reach[1] < span
-        if wrapping:  # (the few slots with older presentations only)
-            older = np.flatnonzero(counts > HISTORY)
-            many = counts[older]
-            start = begin[older] = first[flat[older]]
-            spread = recent[((many - HISTORY) & (HISTORY - 1)) + at[older]] - start
-            with np.errstate(over="ignore", invalid="ignore"):
-                right = time + span * many.astype(float) ** (1.0 / d) - start  # an age at the root, at most
-            reach[older[(spread > 0.0) & (spread * _ILL < right)]] = -np.inf
-        begin += reach
-        due = np.maximum(begin, time + span)
+        oldest = counts - HISTORY  # the oldest kept encoding's place in the ring: max(n - HISTORY, 0) % HISTORY
+        np.maximum(oldest, 0, out=oldest)
+        oldest &= HISTORY - 1
+        oldest += at
+        keep, add = self._bounds(d, span, time)  # (k = min(n, HISTORY))
+        begin = np.take(recent, oldest)
+        begin *= np.take(keep, counts, mode="clip")
+        begin += np.take(add, counts, mode="clip")  # m + reach[k], m = t_o + (time - t_o) / k
+        due = np.maximum(begin, time + span)  # (reach[1] < span)
         self._flat_due[flat] = due
         self._flat_exact[flat] = ~present
         np.minimum.at(self._row_due, rows, due)  # (rows recur in a batch)
 
-    def _reach(self, d: float, span: float, time: float) -> np.ndarray:
-        """Return ``k -> k^(1/d) span`` for k <= :data:`_REACH` (a larger k: take the last), less a margin.
+    def _bounds(self, d: float, span: float, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return the tables ``keep`` and ``add`` of :meth:`_note`'s bound ``t_o keep[k] + add[k]`` at ``time``.
 
-        The margin, ``_MARGIN (1 + |time| + k^(1/d) span)``, keeps ``first + reach[k]``
-        below :func:`crossing`'s own root, which is within 1e-13 of that size of the
-        true one.  Made once per (d, span) and shifted once per encoding time.
+        That is ``m + reach[k]`` for k <= :data:`HISTORY` kept times, the oldest t_o:
+        m = t_o + (time - t_o) / k, and reach[k] = ``k^(1/d) span`` less a margin,
+        ``_MARGIN (1 + |time| + k^(1/d) span)``, which keeps the bound below
+        :func:`crossing`'s own root (within 1e-13 of that size of the true one).  Made
+        once per (d, span) and shifted once per encoding time.
         """
         if self.reach_of != (d, span):
             reach = [-math.inf]
-            for k in range(1, _REACH + 1):
+            for k in range(1, HISTORY + 1):
                 try:
                     reach.append(k ** (1.0 / d) * span * (1.0 - _MARGIN))
                 except OverflowError:
                     reach.append(math.inf)
             self.reach, self.reach_of, self.shifted_at = np.array(reach), (d, span), None
         if self.shifted_at != time:
-            self.shifted, self.shifted_at = self.reach - _MARGIN * (1.0 + abs(time)), time
-        return self.shifted
+            self.shifted = time * _SHARE + self.reach - _MARGIN * (1.0 + abs(time))
+            self.shifted_at = time
+        return _KEEP, self.shifted
 
     def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the counts, first times and kept times of ``flat``.
@@ -741,72 +797,101 @@ def _lines(shape: tuple[int, int], old: Optional[np.ndarray] = None) -> np.ndarr
     return lines
 
 
-def crossings(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
-              start: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
-    """Solve :func:`crossing` for many traces of at least two encodings at once (numpy; see :class:`TraceColumns`).
+class _Newton:
+    """Newton's method on ``F(t) = strength(t)^(-1/d) - lifetime`` for many traces at once (numpy).
 
-    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them; ``start``:
-    lower bounds of the roots, if known.  Newton's method on
-    ``F(t) = strength(t)^(-1/d) - lifetime`` (the root :func:`crossing` solves for in the
-    logarithm of the age), in numpy arithmetic (another ``pow``), from the lower bound
-    when given (F is concave and increasing: from the left it climbs to the root), stopped
-    at :data:`_SOLVED`: the roots are :func:`crossing`'s within :data:`_MARGIN`
-    (relative), not bit for bit.  Returns the roots and a mask of the traces this does
-    not handle (the crossing is past ``_LONGEST``, the start overflows, or the Petrov
-    term is ill-conditioned): solve those with :func:`crossing`.
+    F is increasing and concave in t, and its root is the crossing: a step from any t
+    lands at most on the root (the tangent lies above F), so from the left every iterate
+    is a lower bound of the crossing.  Built from :meth:`TraceColumns.ordered`'s arrays
+    for traces of at least two encodings; ``other`` marks those left to
+    :func:`crossing` (the crossing is past ``_LONGEST``, or the Petrov term is
+    ill-conditioned: older presentations spanning less than 1/:data:`_ILL` of their age,
+    where its rounding, another ``pow``'s, could move the root past :data:`_MARGIN`).
     """
-    span = lifetime(d, tau)
-    kept = np.minimum(n, HISTORY)
-    last = times[kept - 1, np.arange(len(n))]
+
+    def __init__(self, n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float) -> None:
+        self.d, self.span, self.times, self.first = d, lifetime(d, tau), times, first
+        kept = np.minimum(n, HISTORY)
+        self.last = times[kept - 1, np.arange(len(n))]
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            right = self.last + self.span * n.astype(float) ** (1.0 / d)  # at least the crossing
+            self.other = ~np.isfinite(right) | (right - self.last > _LONGEST) | (self.span > _LONGEST)
+            self.older = (n - kept).astype(float)
+            self.with_older = self.older > 0
+            self.oldest = times[0]
+            self.spread = self.oldest - first
+            self.other |= self.with_older & (self.spread > 0.0) & (self.spread * _ILL < right - first)
+        self.floor = self.last + self.span  # the last term alone: at most the crossing
+        self.half = d == 0.5  # ACT-R's default: a square root is cheaper than a power
+
+    def step(self, t: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return F at times ``t`` of traces ``active`` and Newton's step there, -F/F' (call under np.errstate)."""
+        d = self.d
+        ages = t - self.times[:, active]  # unused times are -inf: age inf, term 0
+        terms = 1.0 / np.sqrt(ages) if self.half else ages ** -d
+        total = terms.sum(axis=0)
+        slope = -d * (terms / ages).sum(axis=0)
+        wo = self.with_older[active]
+        if wo.any():
+            sub = np.flatnonzero(wo)
+            idx = active[sub]
+            tt = t[sub]
+            f = self.first[idx]
+            o = self.oldest[idx]
+            sp = self.spread[idx]
+            k = self.older[idx]
+            first_term = (tt - f) ** -d
+            oldest_term = (tt - o) ** -d
+            flat_case = sp <= 0.0
+            add = np.where(flat_case, k * first_term,
+                           k * ((tt - f) * first_term - (tt - o) * oldest_term) / ((1.0 - d) * sp))
+            ds = np.where(flat_case, -(k * d * first_term / (tt - f)), k * (first_term - oldest_term) / sp)
+            total[sub] += add
+            slope[sub] += ds
+        power = total ** (-1.0 / d)
+        value = power - self.span
+        # F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
+        return value, -value / (-(1.0 / d) * (power / total) * slope)
+
+
+def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
+             now: float) -> tuple[np.ndarray, np.ndarray]:
+    """Decide for many traces of at least two encodings whether each crossed the threshold by ``now``.
+
+    ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them.  Only the
+    answer is needed, not the crossing itself (column queues report no events), so
+    Newton's method (:class:`_Newton`, in numpy arithmetic) stops for each trace as soon
+    as it is decided:
+
+    * gone: F is above 0 at ``now`` less :data:`_MARGIN` (relative), so the crossing is
+      before ``now`` by more than numpy's arithmetic may move it from :func:`crossing`'s;
+    * staying: an iterate from the left, a lower bound of the crossing, passed ``now``
+      by that margin (returned: keep it, less the margin, as the trace's new bound).
+
+    Returns ``gone`` (a mask) and ``bound`` (the staying traces' iterate, -inf for
+    the rest); a trace neither gone nor staying is :func:`crossing`'s to decide (too
+    close to ``now`` to call, or one :class:`_Newton` leaves out).  Most traces are
+    decided by one evaluation, where solving for the crossing would take several.
+    """
+    newton = _Newton(n, first, times, d, tau)
+    gone = np.zeros(len(n), dtype=bool)
+    bound = np.full(len(n), -np.inf)
+    start = now - _MARGIN * max(1.0, abs(now))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        t = last + span * n.astype(float) ** (1.0 / d)  # crossing()'s start, right of the root
-        other = ~np.isfinite(t) | (t - last > _LONGEST) | (span > _LONGEST)
-        older = (n - kept).astype(float)
-        with_older = older > 0
-        oldest = times[0]
-        spread = oldest - first
-        # The Petrov term cancels when the older presentations span little of their age: its
-        # rounding (another pow's) could move the root past _MARGIN.  Those go to crossing().
-        other |= with_older & (spread > 0.0) & (spread * _ILL < t - first)
-        floor = last + span
-        if start is not None:
-            t = np.maximum(np.minimum(start, t), floor)
-        t[other] = last[other]
-        root = t.copy()
-        active = np.flatnonzero(~other)
-        half = d == 0.5  # ACT-R's default: a square root is cheaper than a power
-        for _ in range(100):
+        t = np.maximum(start, newton.floor)
+        active = np.flatnonzero(~newton.other)
+        ta = t[active]
+        for i in range(100):
             if not len(active):
                 break
-            ta = t[active]
-            ages = ta - times[:, active]  # unused times are -inf: age inf, term 0
-            terms = 1.0 / np.sqrt(ages) if half else ages ** -d
-            total = terms.sum(axis=0)
-            slope = -d * (terms / ages).sum(axis=0)
-            wo = with_older[active]
-            if wo.any():
-                sub = np.flatnonzero(wo)
-                idx = active[sub]
-                tt = ta[sub]
-                f = first[idx]
-                o = oldest[idx]
-                sp = spread[idx]
-                k = older[idx]
-                first_term = (tt - f) ** -d
-                oldest_term = (tt - o) ** -d
-                flat_case = sp <= 0.0
-                add = np.where(flat_case, k * first_term,
-                               k * ((tt - f) * first_term - (tt - o) * oldest_term) / ((1.0 - d) * sp))
-                ds = np.where(flat_case, -(k * d * first_term / (tt - f)), k * (first_term - oldest_term) / sp)
-                total[sub] += add
-                slope[sub] += ds
-            power = total ** (-1.0 / d)
-            # F(t) = strength^(-1/d) - span, F'(t) = -(1/d) strength^(-1/d - 1) strength'(t) > 0
-            step = -(power - span) / (-(1.0 / d) * (power / total) * slope)
-            ta = np.maximum(ta + step, floor[active])
-            t[active] = ta
-            done = np.abs(step) <= _SOLVED * np.maximum(1.0, np.abs(ta))
-            root[active[done]] = ta[done]
-            active = active[~done]
-        root[active] = t[active]
-    return root, other
+            value, step = newton.step(ta, active)
+            if i == 0:  # F(now - margin) > 0: crossed before
+                over = (value > 0.0) & (ta == start)
+                gone[active[over]] = True
+                active, ta, step = active[~over], ta[~over], step[~over]
+            ta = np.maximum(ta + step, newton.floor[active])  # from the left: at most the crossing
+            later = ta - _MARGIN * np.maximum(1.0, np.abs(ta)) > now
+            bound[active[later]] = ta[later]
+            going = ~later & (np.abs(step) > _SOLVED * np.maximum(1.0, np.abs(ta)))  # (converged near now: too close)
+            active, ta = active[going], ta[going]
+    return gone, bound

@@ -312,7 +312,7 @@ class WMBuffer:
             # (activation without a capacity) longer than the columns' widest
             self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
             return
-        columns.encode_rows(rows, prop, cause, time, turn)
+        columns.encode_rows(rows, members, prop, cause, time, turn)
 
     def pop_front(self, entity: str, cause: str, time: float, turn: Optional[int] = None) -> Optional[str]:
         """Forget Q[entity]'s LRU property; returns it, or None if Q is empty."""

@@ -424,12 +424,14 @@ class ColumnQueues:
         self.entities.update(names)
         return True
 
-    def encode_rows(self, rows: np.ndarray, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
+    def encode_rows(self, rows: np.ndarray, members: int, prop: str, cause: str, time: float,
+                    turn: Optional[int]) -> None:
         """Encode(e, [prop]) for the queues of ``rows`` (adopted, with room) as one column operation.
 
-        :meth:`WMBuffer.encode_members`'s column path: their owed decay (Algorithm 2) and
-        activation crossings applied first, as queue by queue; then the same stamps,
-        origins, sizes and change record as Encode queue by queue would leave.
+        :meth:`WMBuffer.encode_members`'s column path (``members``: the rows as a bitset):
+        their owed decay (Algorithm 2) and activation crossings applied first, as queue
+        by queue; then the same stamps, origins, sizes and change record as Encode queue
+        by queue would leave.
         """
         wm, store = self.wm, self.store
         wm.origin_log.log(wm._stamp + 1, cause, turn)
@@ -438,15 +440,17 @@ class ColumnQueues:
         act = wm.activation
         if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
             act.advance(time)
-            act.forget_rows(rows)
-        traced = (time, act.span, act.decay, act.clock) if act is not None else None
+            act.forget_members(rows, members)
+        # (an encoding stamped before the clock counts at the clock: LazyActivation.record)
+        traced = (act.clock, act.span, act.decay, act.clock) if act is not None else None
         grew, was_empty = store.encode(rows, pid, wm._stamp + 1, traced)
         wm._stamp += len(rows)
         wm._size += int(grew.sum()) - int(popped.sum())
-        nonempty, bound = wm._nonempty, self.bound
-        for row in rows[was_empty].tolist():  # (re)joins the non-empty queues last, as queue by queue
-            nonempty.pop(bound[row], None)
-            nonempty[bound[row]] = None
+        nonempty = wm._nonempty
+        joining = list(map(self.bound.__getitem__, rows[was_empty].tolist()))
+        for name in joining:  # (re)joins the non-empty queues last, as queue by queue
+            nonempty.pop(name, None)
+        nonempty.update(dict.fromkeys(joining))
         wm.changes.mark_rows(rows)
 
     def prop(self, name: str) -> int:
