@@ -32,16 +32,17 @@
    ``WMBuffer.encode_members`` (what ``Consultant.narrow`` calls; column queues at this
    size) against a vectorised numpy assignment of one stamp-matrix column.
 
-   Paired (``reg_paired`` in the JSON), at the largest size: ``sd-pia/displ``,
-   ``sd-pia/act`` and ``sd-pia/act1`` again, each with its own consultant and WM, on
-   the same seeded targets at the same clock, interleaved in blocks of 10 trials (the
-   order of the configurations alternating from block to block) and timed in process
-   CPU time (``time.process_time``): trial k of two configurations is a pair measured
+   Paired (``reg_paired`` in the JSON), at the largest size: ``sd-pia/act`` and
+   ``sd-pia/act1`` each against ``sd-pia/displ``, in sessions of their own (two
+   consultants at a time, each with its own WM: a third's arrays would take the shared
+   cache from both), on the same seeded targets at the same clock, interleaved in blocks
+   of 10 trials (the order of the two alternating from block to block) and timed in
+   process CPU time (``time.process_time``): trial k of the two is a pair measured
    within milliseconds, so load from elsewhere on the machine falls on both.  Reported:
-   each configuration's median over all trials, and the ratio of medians to
-   ``sd-pia/displ`` with a percentile bootstrap 95 % interval over the pairs
-   (``--resamples``, seeded by ``--seed``).  ``--repeat N`` plays N such sessions (fresh
-   WMs) and pools their pairs; each session's ratio is listed too.  The 1.5x target of
+   each configuration's median over all trials, and the ratio of the two medians of a
+   pairing with a percentile bootstrap 95 % interval over its pairs (``--resamples``,
+   seeded by ``--seed``).  ``--repeat N`` plays N such sessions per pairing (fresh WMs)
+   and pools their pairs; each session's ratio is listed too.  The 1.5x target of
    activation is judged on this paired ratio (the unpaired rows' ratio when it is
    missing).
 
@@ -59,7 +60,7 @@ Usage: ``scripts/bench_core.py [--quick] [--json FILE] [--seed N] [--trials N] [
 [--repeat N] [--resamples N] [--skip-reg] [--skip-decay] [-v]``.
 On a shared machine use ``--repeat 3``: each REG configuration is run three times
 and the run with the lowest median is reported (every run's median is in the JSON),
-and the paired comparison plays three sessions.  A count out of range is refused with
+and each paired comparison plays three sessions.  A count out of range is refused with
 one line and exit status 2.  No timing is asserted anywhere; the targets are printed as
 met / missed.
 """
@@ -101,12 +102,15 @@ WM_POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4
 TARGET_REG_MS = 5.0  # SD-PIA, one target among 10,000 entities x 200 properties
 TARGET_ACTIVATION_RATIO = 1.5  # SD-PIA under activation+displacement / under displacement, 10,000 x 200
 ACTIVATION_THRESHOLD = -0.5 * math.log(10.0)  # d = 0.5: one encoding stays exp(-tau / d) = 10 s
-#: The paired comparison: (label, policy); the first is every ratio's denominator.
+#: The paired comparisons: (label, policy); the first is every ratio's denominator, and each
+#: other configuration is paired with it in sessions of their own (two consultants at a time,
+#: as the ratio compares two: a third's arrays, activation alone's widened rows, would take
+#: the shared cache from both).
 PAIRED = (("sd-pia/displ", "displacement"), ("sd-pia/act", "activation"), ("sd-pia/act1", "activation-alone"))
-#: Paired trials run in blocks of this many per configuration, the order of the
-#: configurations alternating from block to block: each configuration's arrays stay in the
-#: caches from one call to its next as in a single consultant's run, and a pair is still
-#: measured within milliseconds.
+#: Paired trials run in blocks of this many per configuration, the order of the two
+#: alternating from block to block: each configuration's arrays stay in the caches from
+#: one call to its next as in a single consultant's run, and a pair is still measured
+#: within milliseconds.
 PAIRED_BLOCK = 10
 RESAMPLES = 1000
 TARGET_DECAY_RATIO = 100.0  # naive / lazy, tick over 100k mostly idle queues
@@ -227,24 +231,60 @@ def bench_reg(sizes: list[tuple[int, int]], trials: int, warmup: int, seed: int,
 
 def bench_reg_paired(facts: dict, props: list, trials: int, warmup: int, seed: int, sessions: int,
                      resamples: int, log) -> dict:
-    """SD-PIA under each policy of :data:`PAIRED`, paired trials interleaved, in process CPU time.
+    """SD-PIA under each policy of :data:`PAIRED` against the first, paired trials interleaved, in CPU time.
 
-    Each session gives every configuration its own consultant and WM and plays the same
-    targets at the same clock (the unpaired rows' seeded sequence): trial k of one
-    configuration and trial k of another form a pair, measured within milliseconds of
-    each other (blocks of :data:`PAIRED_BLOCK` trials, the configurations' order
-    alternating), so load on the machine from elsewhere falls on both.  Timed with
-    ``time.process_time``: CPU time of this process, so time spent waiting for a core
-    is not counted.  Reported per configuration: the median over every session's
-    trials; per ratio to the first configuration: the ratio of medians with a percentile
-    bootstrap 95 % interval over the pairs (:func:`~fsreg_ros.research.stats.median_ratio_ci`).
+    Each other configuration is paired with the first in ``sessions`` sessions of their
+    own (:func:`_paired_sessions`); the ratio of the two medians comes with a percentile
+    bootstrap 95 % interval over the pairs
+    (:func:`~fsreg_ros.research.stats.median_ratio_ci`).  Reported per configuration:
+    the median over its trials (the baseline's over every pairing's sessions).
     """
-    labels = [label for label, _ in PAIRED]
+    (base, base_policy), others = PAIRED[0], PAIRED[1:]
+    times: dict[str, list[float]] = {base: []}
+    encodings: dict[str, list[int]] = {base: []}
+    by_session: dict[str, list[float]] = {base: []}
+    ratios = []
+    for label, policy in others:
+        mine, counts, medians = _paired_sessions(facts, props, ((base, base_policy), (label, policy)), trials,
+                                                 warmup, seed, sessions, log)
+        for key in (base, label):
+            times.setdefault(key, []).extend(mine[key])
+            encodings.setdefault(key, []).extend(counts[key])
+            by_session.setdefault(key, []).extend(medians[key])
+        estimate = median_ratio_ci(mine[label], mine[base], resamples=resamples, seed=seed)
+        ratios.append({
+            "config": label, "baseline": base, "ratio": estimate.mean, "ci": [estimate.low, estimate.high],
+            "pairs": estimate.n, "resamples": resamples,
+            "median_ms": statistics.median(mine[label]), "baseline_median_ms": statistics.median(mine[base]),
+            "by_session": [a / b for a, b in zip(medians[label], medians[base])],
+        })
+    return {
+        "entities": len(facts), "properties": len(props), "trials": trials, "warmup": warmup,
+        "sessions": sessions, "block": PAIRED_BLOCK, "clock": "process_time", "baseline": base,
+        "configs": {label: {"median_ms": statistics.median(times[label]), "p95_ms": p95(times[label]),
+                            "encodings_median": statistics.median(encodings[label]),
+                            "medians_by_session_ms": by_session[label]} for label, _ in PAIRED},
+        "ratios": ratios,
+    }
+
+
+def _paired_sessions(facts: dict, props: list, pair: tuple, trials: int, warmup: int, seed: int, sessions: int,
+                     log) -> tuple[dict, dict, dict]:
+    """Play ``sessions`` sessions of the two configurations ``pair``; return their times, encodings, session medians.
+
+    Each session gives both configurations their own consultant and WM and plays the
+    same targets at the same clock (the unpaired rows' seeded sequence): trial k of the
+    one and trial k of the other form a pair, measured within milliseconds of each
+    other (blocks of :data:`PAIRED_BLOCK` trials, the order alternating), so load on
+    the machine from elsewhere falls on both.  Timed with ``time.process_time``: CPU
+    time of this process, so time spent waiting for a core is not counted.
+    """
+    labels = [label for label, _ in pair]
     times: dict[str, list[float]] = {label: [] for label in labels}
     encodings: dict[str, list[int]] = {label: [] for label in labels}
-    by_session: dict[str, list[float]] = {label: [] for label in labels}
+    medians: dict[str, list[float]] = {label: [] for label in labels}
     for session in range(sessions):
-        runs = {label: _session(facts, props, policy) for label, policy in PAIRED}
+        runs = {label: _session(facts, props, policy) for label, policy in pair}
         rng = random.Random(seed)
         names = runs[labels[0]][0].entities
         targets = [rng.choice(names) for _ in range(warmup + trials)]  # (as bench_reg_config draws them)
@@ -266,28 +306,12 @@ def bench_reg_paired(facts: dict, props: list, trials: int, warmup: int, seed: i
                         encodings[label].append(consultant.wm._stamp - stamp)
         for label in labels:
             times[label] += mine[label]
-            by_session[label].append(statistics.median(mine[label]))
-        log("  paired session " + str(session + 1) + ": " + "  ".join(
-            f"{label} {by_session[label][-1]:.3f} ms" for label in labels))
+            medians[label].append(statistics.median(mine[label]))
+        log(f"  paired session {session + 1}: " + "  ".join(
+            f"{label} {medians[label][-1]:.3f} ms" for label in labels))
         del runs
         gc.collect()
-    base = labels[0]
-    ratios = []
-    for label in labels[1:]:
-        estimate = median_ratio_ci(times[label], times[base], resamples=resamples, seed=seed)
-        ratios.append({
-            "config": label, "baseline": base, "ratio": estimate.mean, "ci": [estimate.low, estimate.high],
-            "pairs": estimate.n, "resamples": resamples,
-            "by_session": [a / b for a, b in zip(by_session[label], by_session[base])],
-        })
-    return {
-        "entities": len(facts), "properties": len(props), "trials": trials, "warmup": warmup,
-        "sessions": sessions, "block": PAIRED_BLOCK, "clock": "process_time",
-        "configs": {label: {"median_ms": statistics.median(times[label]), "p95_ms": p95(times[label]),
-                            "encodings_median": statistics.median(encodings[label]),
-                            "medians_by_session_ms": by_session[label]} for label in labels},
-        "ratios": ratios,
-    }
+    return times, encodings, medians
 
 
 def reg_ratios(rows: list[dict]) -> list[dict]:
@@ -473,17 +497,19 @@ def render(result: dict) -> str:
     paired = result.get("reg_paired")
     if paired:
         lines.append("")
-        lines.append(f"Paired, {paired['entities']:,} x {paired['properties']} (CPU time; the configurations "
-                     f"interleaved in blocks of {paired['block']} trials on the same targets; "
-                     f"{paired['trials']} trials x {paired['sessions']} session(s); "
-                     "95 % bootstrap interval over the pairs)")
+        lines.append(f"Paired, {paired['entities']:,} x {paired['properties']} (CPU time; each configuration "
+                     f"against {paired['baseline']} in sessions of its own, the two interleaved in blocks of "
+                     f"{paired['block']} trials on the same targets; {paired['trials']} trials x "
+                     f"{paired['sessions']} session(s); 95 % bootstrap interval over the pairs)")
         for label, figures in paired["configs"].items():
             lines.append(f"  {label:<14} median {figures['median_ms']:.3f} ms   p95 {figures['p95_ms']:.3f} ms   "
-                         f"enc/call {figures['encodings_median']:.0f}")
+                         f"enc/call {figures['encodings_median']:.0f}"
+                         + ("   (every pairing's sessions)" if label == paired["baseline"] else ""))
         for r in paired["ratios"]:
             sessions = ", ".join(f"x{x:.2f}" for x in r["by_session"])
             lines.append(f"  {r['config']} / {r['baseline']}: x{r['ratio']:.2f} [{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]"
-                         + (f"   (sessions: {sessions})" if len(r["by_session"]) > 1 else ""))
+                         f"   (medians {r['median_ms']:.3f} / {r['baseline_median_ms']:.3f} ms"
+                         + (f"; sessions: {sessions})" if len(r["by_session"]) > 1 else ")"))
     lines.append("")
     lines.append(f"Decay tick, mostly idle ({IDLE_TOUCHED:.0%} of queues touched between ticks; microseconds)")
     header = (

@@ -325,6 +325,35 @@ def test_a_late_encoding_counts_at_the_clock(columns):
     assert buffer.queue("e") == ()
 
 
+def test_rows_checked_at_a_clock_are_not_taken_for_rows_not_checked():
+    """Column rows brought up to a clock are not checked again at it; the others still are, before encoding.
+
+    tau = 0, capacity 2: one encoding stays 1 s, three at one time 9 s.  e and f get "a"
+    three times at 0, e "b" once at 0.5 (gone at 1.5; "a" is e's least recently used).
+    At 2, "c" goes into f (f's row checked at 2), then "d" into e and f: e's row was not
+    checked at 2, so "b" goes before "d" comes in, and "a" stays (had "b" still been
+    there, the full row would have lost "a" to "d").  As from dict queues.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f"]
+    queues = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, events = managed(policy(0.0, rules="activation+displacement", capacity=2))
+        buffer.sink, buffer.column_min = None, column_min
+        both, e, f = (bitset.from_indices(rows, 2) for rows in ([0, 1], [0], [1]))
+        for _ in range(3):
+            buffer.encode_members(both, names, "a", "reg-distractor", 0.0, 0)
+        manager.advance(0.5)
+        buffer.encode_members(e, names, "b", "reg-distractor", 0.5, 1)
+        manager.advance(2.0)
+        buffer.encode_members(f, names, "c", "reg-distractor", 2.0, 2)
+        buffer.encode_members(both, names, "d", "reg-distractor", 2.0, 2)
+        queues.append((buffer.queue("e"), buffer.queue("f"), len(buffer), set(buffer.columns.entities)))
+    assert queues[0] == (("a", "d"), ("c", "d"), 4, {"e", "f"})
+    assert queues[1][:3] == queues[0][:3] and queues[1][3] == set()
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
