@@ -451,7 +451,7 @@ class LazyActivation:
         if reach <= _LONGEST:
             upper = recent[-1] + reach
             if upper + _MARGIN * max(1.0, abs(upper)) <= now:
-                return upper, False  # gone (a lower bound still: crossing() solves it if a queue must say when)
+                return upper, False  # gone (the upper bound, not exact: crossing() solves it if a queue must say when)
             if n <= HISTORY:
                 lower = math.fsum(recent) / n + reach
                 lower -= _MARGIN * max(1.0, abs(lower))
