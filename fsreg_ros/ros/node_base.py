@@ -31,7 +31,9 @@ from __future__ import annotations
 
 import inspect
 import os
+import signal
 import sys
+import threading
 import traceback
 import weakref
 from dataclasses import dataclass
@@ -231,6 +233,29 @@ def _node_name(node_cls) -> str:
     return default if isinstance(default, str) and default else node_cls.__name__
 
 
+def _interrupt_quietly() -> Any:
+    """Make Ctrl-C shut ROS down instead of raising; return the SIGINT handler this replaced (None off the main thread).
+
+    The first Ctrl-C shuts the context down (as rclpy's own signal handler, installed by
+    ``rclpy.init`` and chaining to this one, does too), so the executor leaves ``spin``
+    with ``ExternalShutdownException`` and a job's loop ends.  Python's default handler
+    would raise ``KeyboardInterrupt`` wherever the main thread is: half-way through rclpy
+    building a ``Task``, whose ``__del__`` then printed a traceback on exit.  A second
+    Ctrl-C raises ``KeyboardInterrupt`` (a node stuck in a callback can still be stopped).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    heard = []
+
+    def interrupted(signum: int, frame: Any) -> None:
+        if heard:
+            raise KeyboardInterrupt
+        heard.append(signum)
+        rclpy.try_shutdown()
+
+    return signal.signal(signal.SIGINT, interrupted)
+
+
 def run_node(
     node_cls: Callable[..., Any],
     args: Optional[list[str]] = None,
@@ -246,6 +271,18 @@ def run_node(
     except NetworkRefused as err:
         print(printable(f"{_node_name(node_cls)}: error: {err}"), file=sys.stderr)
         return EXIT_STARTUP
+    previous = _interrupt_quietly()  # before rclpy.init, which chains to it
+    try:
+        return _run(node_cls, args, logger, job, on_done, job_errors)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(node_cls: Callable[..., Any], args: Optional[list[str]], logger: Any,
+         job: Optional[Callable[[Any], Awaitable[Any]]], on_done: Optional[Callable[[Any, Any], None]],
+         job_errors: tuple[type[BaseException], ...]) -> int:
+    """:func:`run_node` once the network is checked and Ctrl-C handled: initialise ROS, run, shut down."""
     try:
         rclpy.init(args=args)
     except Exception as err:  # noqa: BLE001 - e.g. a bad --ros-args or params file
@@ -260,6 +297,8 @@ def run_node(
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as err:  # noqa: BLE001 - any start-up problem: one line, exit 2
+            if not rclpy.ok():  # Ctrl-C or SIGTERM while starting: ROS is shut down, nothing to report
+                return EXIT_OK
             text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
             logger.error(printable(f"cannot start: {text}"))
             logger.debug(printable("".join(traceback.format_exception(err)), 20000))
@@ -297,6 +336,8 @@ def run_node(
     except (KeyboardInterrupt, ExternalShutdownException):
         code = EXIT_OK
     except Exception as err:  # noqa: BLE001 - a callback outside the wrappers failed: stop, in one line
+        if not rclpy.ok():  # Ctrl-C or SIGTERM shut ROS down between the executor's check and its wait
+            return EXIT_OK
         logger.error(printable(f"stopped by a failing callback: {type(err).__name__}: {err}"))
         logger.debug(printable("".join(traceback.format_exception(err)), 20000))
         code = EXIT_FAILED

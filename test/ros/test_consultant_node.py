@@ -616,6 +616,59 @@ def test_run_node_exit_codes():
     assert "Traceback" not in proc.stderr
 
 
+STOPPED_SCRIPT = r'''
+import os, signal, sys
+import rclpy
+from rclpy.node import Node
+from fsreg_ros.ros.node_base import run_node
+
+class Late(Node):  # ROS shut down (SIGTERM) between the executor's check and its next wait
+    NODE_NAME = "late"
+    def __init__(self):
+        super().__init__("late")
+        self.create_timer(0.05, self.tick)
+    def tick(self):
+        rclpy.try_shutdown()
+        raise RuntimeError("the context is not valid")
+
+class Starting(Node):  # ROS shut down while the node was still starting
+    NODE_NAME = "starting"
+    def __init__(self):
+        super().__init__("starting")
+        rclpy.try_shutdown()
+        self.create_publisher(__import__("std_msgs.msg").msg.String, "x", 1)
+
+class Idle(Node):
+    NODE_NAME = "idle"
+    def __init__(self):
+        super().__init__("idle")
+        from rclpy.task import Future
+        self.never = Future()
+
+async def interrupted(node):  # Ctrl-C while the job waits: rclpy stops it, no KeyboardInterrupt
+    os.kill(os.getpid(), signal.SIGINT)
+    return await node.never
+
+codes = [run_node(Late, ["x"]), run_node(Starting, ["x"]), run_node(Idle, ["x"], job=interrupted)]
+print(codes, signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+'''
+
+
+def test_run_node_stopped_by_ros_shutdown_or_ctrl_c_exits_0_quietly():
+    """Ctrl-C or SIGTERM shuts ROS down at any moment: in a callback, while starting, while a job waits.
+
+    Exit 0 with nothing logged, no traceback: the first Ctrl-C leaves the stopping to
+    rclpy (no ``KeyboardInterrupt`` raised half-way through rclpy's own code, whose
+    ``Task.__del__`` then printed one), and an error from a ROS already shut down is
+    the shutdown, not a failure.  The Ctrl-C handler in place before is put back.
+    """
+    proc = subprocess.run([sys.executable, "-c", STOPPED_SCRIPT], env=dict(os.environ), capture_output=True,
+                          text=True, timeout=30)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[0, 0, 0] True"
+    assert "Traceback" not in proc.stderr and "ERROR" not in proc.stderr, proc.stderr
+
+
 # ------------------------------------------------------------------ hostile input (issue 10 items 5, 6)
 @pytest.mark.parametrize(
     "request_text, kind, fragment",
