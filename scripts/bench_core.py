@@ -68,6 +68,7 @@ met / missed.
 from __future__ import annotations
 
 import argparse
+import collections
 import gc
 import json
 import math
@@ -240,17 +241,17 @@ def bench_reg_paired(facts: dict, props: list, trials: int, warmup: int, seed: i
     the median over its trials (the baseline's over every pairing's sessions).
     """
     (base, base_policy), others = PAIRED[0], PAIRED[1:]
-    times: dict[str, list[float]] = {base: []}
-    encodings: dict[str, list[int]] = {base: []}
-    by_session: dict[str, list[float]] = {base: []}
+    times: dict[str, list[float]] = collections.defaultdict(list)
+    encodings: dict[str, list[int]] = collections.defaultdict(list)
+    by_session: dict[str, list[float]] = collections.defaultdict(list)
     ratios = []
     for label, policy in others:
         mine, counts, medians = _paired_sessions(facts, props, ((base, base_policy), (label, policy)), trials,
                                                  warmup, seed, sessions, log)
         for key in (base, label):
-            times.setdefault(key, []).extend(mine[key])
-            encodings.setdefault(key, []).extend(counts[key])
-            by_session.setdefault(key, []).extend(medians[key])
+            times[key] += mine[key]
+            encodings[key] += counts[key]
+            by_session[key] += medians[key]
         estimate = median_ratio_ci(mine[label], mine[base], resamples=resamples, seed=seed)
         ratios.append({
             "config": label, "baseline": base, "ratio": estimate.mean, "ci": [estimate.low, estimate.high],

@@ -400,13 +400,9 @@ class LazyActivation:
         if len(flat) <= _FEW:  # one by one is cheaper for a few
             counts, recent, firsts = traces._flat_n, traces._flat_recent, traces._flat_first
             for f in flat.tolist():
-                n = int(counts[f])
-                ring = recent[f * HISTORY:(f + 1) * HISTORY].tolist()
-                times = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
-                found = self._bracket(n, times, now)
+                trace = _ring_trace(int(counts[f]), float(firsts[f]), recent[f * HISTORY:(f + 1) * HISTORY].tolist())
+                found = self._bracket(trace.n, trace.recent, now)
                 if found is None:
-                    trace = Trace(float(firsts[f]) if n > HISTORY else times[0])  # (as traces.get builds it)
-                    trace.n, trace.recent = n, times
                     if self._gone(trace, now):  # (its bound stays: at most the clock)
                         continue
                     found = crossing(trace, self.decay, self.threshold), True
@@ -620,11 +616,7 @@ class TraceColumns:
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
         self.settle()
-        n = int(self._n[slot, row])
-        ring = self._recent[slot, row].tolist()
-        trace = Trace(float(self._first[slot, row]) if n > HISTORY else ring[0])
-        trace.n = n
-        trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+        trace = _ring_trace(int(self._n[slot, row]), float(self._first[slot, row]), self._recent[slot, row].tolist())
         trace.due, trace.exact = float(self._due[slot, row]), bool(self._exact[slot, row])
         return trace
 
@@ -635,10 +627,7 @@ class TraceColumns:
         rings, dues, exacts = self._recent[:, row].tolist(), self._due[:, row].tolist(), self._exact[:, row].tolist()
         out = []
         for k in slots:
-            n, ring = ns[k], rings[k]
-            trace = Trace(firsts[k] if n > HISTORY else ring[0])
-            trace.n = n
-            trace.recent = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+            trace = _ring_trace(ns[k], firsts[k], rings[k])
             trace.due, trace.exact = dues[k], exacts[k]
             out.append(trace)
         return out
@@ -730,17 +719,16 @@ class TraceColumns:
         np.maximum(oldest, 0, out=oldest)
         oldest &= HISTORY - 1
         oldest += at
-        keep, add = self._bounds(d, span, time)  # (k = min(n, HISTORY))
-        begin = np.take(recent, oldest)
-        begin *= np.take(keep, counts, mode="clip")
-        begin += np.take(add, counts, mode="clip")  # m + reach[k], m = t_o + (time - t_o) / k
+        begin = np.take(recent, oldest)  # (k = min(n, HISTORY))
+        begin *= np.take(_KEEP, counts, mode="clip")
+        begin += np.take(self._bounds(d, span, time), counts, mode="clip")  # m + reach[k], m = t_o + (time - t_o) / k
         due = np.maximum(begin, time + span)  # (reach[1] < span)
         self._flat_due[flat] = due
         self._flat_exact[flat] = ~present
         np.minimum.at(self._row_due, rows, due)  # (rows recur in a batch)
 
-    def _bounds(self, d: float, span: float, time: float) -> tuple[np.ndarray, np.ndarray]:
-        """Return the tables ``keep`` and ``add`` of :meth:`_note`'s bound ``t_o keep[k] + add[k]`` at ``time``.
+    def _bounds(self, d: float, span: float, time: float) -> np.ndarray:
+        """Return the table ``add`` of :meth:`_note`'s bound ``t_o _KEEP[k] + add[k]`` at ``time``.
 
         That is ``m + reach[k]`` for k <= :data:`HISTORY` kept times, the oldest t_o:
         m = t_o + (time - t_o) / k, and reach[k] = ``k^(1/d) span`` less a margin,
@@ -759,7 +747,7 @@ class TraceColumns:
         if self.shifted_at != time:
             self.shifted = time * _SHARE + self.reach - _MARGIN * (1.0 + abs(time))
             self.shifted_at = time
-        return _KEEP, self.shifted
+        return self.shifted
 
     def ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the counts, first times and kept times of ``flat``.
@@ -780,6 +768,18 @@ class TraceColumns:
             times[j, use] = np.take(recent, (start[use] + j) % HISTORY + at[use])
         first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
+
+
+def _ring_trace(n: int, first: float, ring: list[float]) -> Trace:
+    """Return the :class:`Trace` of ``n`` encodings kept in ``ring`` (encoding i at ``i % HISTORY``).
+
+    ``first`` is the first time, read only once the ring has wrapped (n > HISTORY);
+    ``due`` and ``exact`` are the caller's.
+    """
+    kept = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+    trace = Trace(first if n > HISTORY else ring[0])
+    trace.n, trace.recent = n, kept
+    return trace
 
 
 def _lines(shape: tuple[int, int], old: Optional[np.ndarray] = None) -> np.ndarray:
