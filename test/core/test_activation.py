@@ -398,3 +398,12 @@ def test_a_restart_restores_the_encoding_histories(tmp_path):
     assert call(service, "advance", time=4.999)["queues_changed"] == 0
     assert call(service, "advance", time=5.001)["queues_changed"] == 1
     assert service.buffer.snapshot() == {}
+    # A late encoding (stamped 7, the clock at 10) counts at 10, and a restart from the journal replays it so.
+    call(service, "encode", entity="f2", properties=["glasses"], cause="speaker", time=10.0)
+    call(service, "advance", time=10.0)
+    call(service, "encode", entity="f2", properties=["glasses"], cause="speaker", time=7.0)
+    late = {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()}
+    assert late == {"f2": [("glasses", 5, 1, "speaker", None, [2, 10.0, 10.0, 10.0])]}
+    service.store.close()
+    service = make()
+    assert {e: service.buffer.export_queue(e) for e in service.buffer.nonempty_entities()} == late
