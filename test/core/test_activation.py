@@ -354,6 +354,37 @@ def test_rows_checked_at_a_clock_are_not_taken_for_rows_not_checked():
     assert queues[1][:3] == queues[0][:3] and queues[1][3] == set()
 
 
+def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_do():
+    """The encodings made at one time and clock are noted together; a row that refreshes an entry, then displaces it,
+    displaces its own new entries, and gets one property twice keeps the traces a dict queue keeps.
+
+    Capacity 2, tau -1 (nothing goes).  At 0, e and f get a and b.  At 1, e gets a (a
+    refresh), c (b out), d (a out: refreshed, then displaced), g (c out: new, then
+    displaced) and g again; f gets g.  Items are (property, ..., trace) as a store keeps
+    them: count, first time, kept times.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f"]
+    got = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+        buffer.sink, buffer.column_min = None, column_min
+        both, e = bitset.from_indices([0, 1], 2), bitset.from_indices([0], 2)
+        for prop in ("a", "b"):
+            buffer.encode_members(both, names, prop, "reg-distractor", 0.0, 0)
+        manager.advance(1.0)
+        for prop in ("a", "c", "d", "g"):
+            buffer.encode_members(e, names, prop, "reg-distractor", 1.0, 1)
+        buffer.encode_members(both, names, "g", "reg-distractor", 1.0, 1)
+        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        if column_min == 1:
+            assert set(buffer.columns.entities) == {"e", "f"}
+    assert got[0] == [[("d", [1, 1.0, 1.0]), ("g", [2, 1.0, 1.0, 1.0])],
+                      [("b", [1, 0.0, 0.0]), ("g", [1, 1.0, 1.0])]]
+    assert got[1] == got[0]
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore

@@ -567,11 +567,14 @@ class TraceColumns:
         self._due = np.full((width, rows), NEVER)
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
-        self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put`)
+        self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put_row`)
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
         self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
         self.pending_clock = -math.inf  # the clock when they were made
+        self._origins: Optional[np.ndarray] = None  # their store's origin references
+        self._first_stamp = 0  # the first stamp among them
+        self._props: set[int] = set()  # their properties
         self._flatten()
 
     # Every read or write from outside notes the pending encodings first (:meth:`settle`).
@@ -588,7 +591,6 @@ class TraceColumns:
         self._flat_n, self._flat_first, self._flat_recent = self._n.reshape(-1), self._first.reshape(-1), \
             self._recent.reshape(-1)
         self._flat_due, self._flat_exact = self._due.reshape(-1), self._exact.reshape(-1)
-        self._mark = np.zeros(self._flat_due.shape[0], dtype=np.int32)  # scratch: which pending slots recur
 
     def grow(self, extra: int) -> None:
         """Add ``extra`` rows."""
@@ -632,21 +634,31 @@ class TraceColumns:
             out.append(trace)
         return out
 
-    def put(self, slot: int, row: int, trace: Trace) -> None:
-        """Keep ``trace`` in slot ``(slot, row)``."""
+    def put_row(self, row: int, traces: list[Trace]) -> None:
+        """Keep ``traces`` in slots 0, 1, ... of row ``row`` (the others are the caller's)."""
         self.settle()
-        n = trace.n
-        self._n[slot, row], self._first[slot, row] = n, trace.first
-        ring = [0.0] * HISTORY
-        for i, time in zip(range(n - len(trace.recent), n), trace.recent):
-            ring[i & (HISTORY - 1)] = time
-        self._recent[slot, row] = ring
-        self._due[slot, row], self._exact[slot, row] = trace.due, trace.exact
-        self._row_due[row] = min(self._row_due[row], trace.due)
+        if not traces:
+            return
+        k = len(traces)
+        rings = []
+        for trace in traces:
+            ring = [0.0] * HISTORY
+            n = trace.n
+            for i, time in zip(range(n - len(trace.recent), n), trace.recent):
+                ring[i & (HISTORY - 1)] = time
+            rings.append(ring)
+        dues = [trace.due for trace in traces]
+        self._n[:k, row] = [trace.n for trace in traces]
+        self._first[:k, row] = [trace.first for trace in traces]
+        self._recent[:k, row] = rings
+        self._due[:k, row] = dues
+        self._exact[:k, row] = [trace.exact for trace in traces]
+        self._row_due[row] = min(self._row_due[row], min(dues))
         self.edit = next(_EDITS)
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
-                rows: Optional[np.ndarray] = None, clock: float = -math.inf) -> None:
+                rows: Optional[np.ndarray] = None, clock: float = -math.inf,
+                origins: Optional[np.ndarray] = None, stamp: int = 0, prop: int = -1) -> None:
         """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
         ``span`` is one encoding's :func:`lifetime` under decay ``d``; ``clock`` the
@@ -656,15 +668,26 @@ class TraceColumns:
         at a later clock.  Until then a slot keeps its previous ``due``: after the queue
         lost whatever was due at that clock (see :meth:`LazyActivation.passed`), none is.
         The arrays given are kept: the caller does not change them.
+
+        ``origins`` (the store's array of each slot's origin reference, slots x rows, as
+        it is after this encoding), ``stamp`` (this encoding's first stamp) and ``prop`` (its
+        property id) let the calls of one batch encode a slot more than once (a row
+        displacing its own new entry): a batch holds each property once, so a slot is
+        refreshed at most once in it, before any displacement, and its entry at the end is
+        new exactly when its origin is a stamp of the batch (:meth:`settle`).  Without
+        them, each call is a batch of its own.
         """
-        if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock):
+        if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock
+                              or origins is None or origins is not self._origins or prop in self._props):
             self.settle()
         if not self._pending:
             self._pending_of, self.pending_clock = (time, span, d), clock
+            self._origins, self._first_stamp, self._props = origins, stamp, set()
+        self._props.add(prop)
         self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
 
     def settle(self) -> None:
-        """Note the pending encodings (:meth:`encoded`) as one batch (call by call if a slot is refreshed twice)."""
+        """Note the pending encodings (:meth:`encoded`) as one batch."""
         pending = self._pending
         if not pending:
             return
@@ -673,25 +696,18 @@ class TraceColumns:
         if len(pending) == 1:
             self._note(*pending[0], time, span, d)
             return
+        # A slot's entry at the end is a refresh (once) if it entered before the batch, else new
+        # however often its slot was written: every place a slot recurs notes the same thing.
         flat = np.concatenate([p[0] for p in pending])
-        present = np.concatenate([p[1] for p in pending])
-        rows = np.concatenate([p[2] for p in pending])
-        order = np.arange(len(flat))
-        mark = self._mark
-        mark[flat] = order  # (of a slot that recurs, the last place wins)
-        last = mark[flat] == order
-        if not last.all():  # a slot encoded again at that time
-            if present[mark[flat[~last]]].any():  # refreshed again: the encodings in turn
-                for p in pending:
-                    self._note(*p, time, span, d)
-                return
-            # Displaced (or emptied and refilled) again: only the new entry's encoding counts.
-            flat, present, rows = flat[last], present[last], rows[last]
-        self._note(flat, present, rows, time, span, d)
+        present = np.take(self._origins.reshape(-1), flat) < self._first_stamp
+        self._note(flat, present, np.concatenate([p[2] for p in pending]), time, span, d)
 
     def _note(self, flat: np.ndarray, present: np.ndarray, rows: np.ndarray, time: float, span: float,
               d: float) -> None:
-        """Note one encoding at ``time`` in each slot ``flat`` (distinct slots; ``rows`` may recur).
+        """Note one encoding at ``time`` in each slot ``flat`` (``rows`` may recur; a slot only as a new entry).
+
+        A slot recurs (:meth:`settle`) only where each place notes a new entry: the same
+        writes, in whatever order numpy makes them.
 
         A new entry's ``due`` is its crossing; a refreshed one's a lower bound of it: the
         later of ``time + span`` (the last term alone) and ``m + k^(1/d) span``, less

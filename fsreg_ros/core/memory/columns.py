@@ -246,7 +246,7 @@ class QueueColumns:
         entries[flat] = kept
         if traced is not None:
             time, span, d, clock = traced
-            self.traces.encoded(flat, present, time, span, d, rows, clock)
+            self.traces.encoded(flat, present, time, span, d, rows, clock, self.entry, first_stamp, prop)
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
@@ -419,8 +419,7 @@ class ColumnQueues:
             store.write(row, [self.item(prop, value) for prop, value in q.items()], q.synced)
             if act is not None:  # each entry's trace goes with it (slot k: the k-th item written)
                 traces = act.release(name)
-                for k, prop in enumerate(q):
-                    store.traces.put(k, row, traces[prop])
+                store.traces.put_row(row, [traces[prop] for prop in q])
         self.entities.update(names)
         return True
 
