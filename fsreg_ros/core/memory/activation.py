@@ -369,25 +369,27 @@ class LazyActivation:
             return _NO_SLOTS
         if self.clock != traces.pending_clock:
             traces.settle()  # (at the clock they were made at, encodings not noted yet are not due)
-        row_due = traces._row_due
-        soon = np.take(row_due, rows)
-        if soon.min() > now:  # one number per row: most calls end here
+        soon = traces._row_due.take(rows)
+        due_rows = soon <= now
+        if not due_rows.any():  # one number per row: most calls end here
             return _NO_SLOTS
-        rows = rows[soon <= now]
-        due = np.take(traces._due[:max(store.used, 1)], rows, axis=1)  # (slots never used are never due)
-        hit = due <= now  # an empty slot's due is NEVER
-        slot, col = np.nonzero(hit)
-        flat = slot * store.rows + rows[col]
-        vague = ~np.take(traces._flat_exact, flat)
+        rows = rows.compress(due_rows)
+        width = max(store.used, 1)  # (slots never used are never due)
+        due = traces._due[:width].take(rows, axis=1)
+        at = np.flatnonzero(due <= now)  # places in ``due`` (an empty slot's due is NEVER)
+        starts = np.arange(0, width * store.rows, store.rows)[:, None]  # each slot's flat index in row 0
+        flat = (starts + rows).reshape(-1).take(at)  # (a 2-D nonzero would cost four times more)
+        vague = ~traces._flat_exact.take(flat)
         if vague.any():
             unsure = flat[vague]
             self._solve(traces, unsure, now)
-            renewed = np.take(traces._flat_due, unsure)
-            due[slot[vague], col[vague]] = renewed
-            flat = np.concatenate((flat[~vague], unsure[renewed <= now]))
-            hit = due <= now
+            renewed = traces._flat_due.take(unsure)
+            due.reshape(-1)[at[vague]] = renewed
+            staying = renewed > now
+            at = np.concatenate((at[~vague], at[vague][~staying]))
+            flat = np.concatenate((flat[~vague], unsure[~staying]))
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
-        due[hit] = NEVER
+        due.reshape(-1)[at] = NEVER
         traces._row_due[rows] = due.min(axis=0)
         return flat
 
