@@ -195,7 +195,7 @@ class WMBuffer:
             return
         self.origin_log.log(self._stamp + 1, cause, turn)
         if self.sink is None and limits.lru_only:
-            self._encode_quiet(entities, prop, limits.capacity)
+            self._encode_quiet(entities, prop, limits.capacity, time)
             return
         lfu = limits.victim == "lfu"
         act = self.activation
@@ -233,13 +233,15 @@ class WMBuffer:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
 
-    def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int]) -> None:
-        """Run :meth:`encode_each` with no events and at most an LRU capacity.
+    def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int], time: float) -> None:
+        """Run :meth:`encode_each` with no events and at most an LRU capacity and rule ``activation``.
 
         Per entity: the decay ticks it owes (:func:`~fsreg_ros.core.memory.decay.pop_quietly`,
         only when it owes some), one dict assignment and, when the queue is full, one
         front deletion; the entity joins the change record.  No event objects, no
-        calls per entity otherwise, no object per entry (see :class:`Queue`).
+        calls per entity otherwise, no object per entry (see :class:`Queue`).  Under
+        rule ``activation``, what crossed goes first (:meth:`LazyActivation.sync`) and
+        the rule notes the encoding and the displaced front.
         """
         queues = self._queues
         nonempty = self._nonempty
@@ -247,6 +249,9 @@ class WMBuffer:
         in_columns = self.columns.entities
         ticks = self.lazy_decay.ticks.count  # nothing below gives new ticks
         limit = capacity if capacity is not None else sys.maxsize
+        act = self.activation
+        if act is not None:
+            act.advance(time)
         stamp = self._stamp
         size = self._size
         for entity in entities:
@@ -262,6 +267,8 @@ class WMBuffer:
                     stamp += 1
                     q[prop] = stamp
                     size += 1
+                    if act is not None:
+                        act.record(entity, prop, time, False)
                     continue
                 q = self.columns.to_dict(entity)
             if not q.marked:
@@ -273,20 +280,31 @@ class WMBuffer:
                     if not q:
                         del nonempty[entity]
                 q.synced = ticks
+            if act is not None and q:  # what crossed goes (its size and non-empty queues kept by _forget)
+                self._size = size
+                act.sync(entity, q)
+                size = self._size
             # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
             if prop in q:  # a refresh: same size, the entry keeps its origin
                 old = q.pop(prop)
                 stamp += 1
                 q[prop] = (stamp, old if old.__class__ is int else old[1])
+                if act is not None:
+                    act.record(entity, prop, time, True)
                 continue
             if not q:
                 nonempty[entity] = None
             stamp += 1
             q[prop] = stamp
             if len(q) > limit:  # Algorithm 3, LRU out (capacity >= 1: never prop itself)
-                del q[next(iter(q))]
+                front = next(iter(q))
+                del q[front]
+                if act is not None:
+                    act.forget(entity, front)
             else:
                 size += 1
+            if act is not None:
+                act.record(entity, prop, time, False)
         self._stamp, self._size = stamp, size
 
     def encode_members(self, members: int, entities: Sequence[str], prop: str, cause: str, time: float,

@@ -50,9 +50,8 @@ class Limits:
 
     @property
     def lru_only(self) -> bool:
-        """True when nothing beyond an LRU capacity is in force (what the fast encoding paths handle)."""
-        return (self.victim == "lru" and not self.similarity and self.global_capacity is None
-                and self.activation is None)
+        """True when nothing beyond an LRU capacity and rule ``activation`` is in force (the fast encoding paths)."""
+        return self.victim == "lru" and not self.similarity and self.global_capacity is None
 
 
 UNLIMITED = Limits()
