@@ -200,7 +200,8 @@ def test_trace_round_trip_and_refusals():
     assert trace.to_json() == [12, 0.0, *[float(t) for t in range(4, 12)]]
     copy = Trace.from_json(trace.to_json())
     assert (copy.n, copy.first, copy.recent) == (trace.n, trace.first, trace.recent)
-    for bad in ([1, 0.0], [1, 0.0, 1.0, 2.0], [3, 0.0, 2.0, 1.0], [3, 0.0, float("nan")], "x", [True, 0.0, 1.0]):
+    for bad in ([1, 0.0], [1, 0.0, 1.0, 2.0], [3, 0.0, 2.0, 1.0], [3, 0.0, float("nan")], "x", [True, 0.0, 1.0],
+                [3, 0.0, 1.0, 2.0], [12, 0.0, *[float(t) for t in range(5, 12)]]):  # (fewer times than it keeps)
         with pytest.raises(ValueError, match="activation trace"):
             Trace.from_json(bad)
 

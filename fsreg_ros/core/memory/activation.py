@@ -132,11 +132,12 @@ class Trace:
     def from_json(cls, data: object) -> "Trace":
         """Rebuild a trace from :meth:`to_json`'s list; ValueError if malformed."""
         if (not isinstance(data, (list, tuple)) or len(data) < 3 or len(data) > HISTORY + 2
-                or isinstance(data[0], bool) or not isinstance(data[0], int) or data[0] < len(data) - 2
+                or isinstance(data[0], bool) or not isinstance(data[0], int) or min(data[0], HISTORY) != len(data) - 2
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
                            for x in data[1:])
                 or any(a > b for a, b in zip(data[1:], data[2:]))):
-            raise ValueError(f"activation trace {data!r} is not [count, first time, recent times...] in order")
+            raise ValueError(f"activation trace {data!r} is not [count, first time, the last min(count, {HISTORY}) "
+                             "times...] in order")
         trace = cls(float(data[1]))
         trace.n, trace.recent = data[0], [float(x) for x in data[2:]]
         return trace
@@ -643,12 +644,13 @@ class TraceColumns:
             return
         k = len(traces)
         rings = []
-        for trace in traces:
-            ring = [0.0] * HISTORY
-            n = trace.n
-            for i, time in zip(range(n - len(trace.recent), n), trace.recent):
-                ring[i & (HISTORY - 1)] = time
-            rings.append(ring)
+        for trace in traces:  # encoding i at i % HISTORY (_ring_trace's inverse)
+            recent = trace.recent
+            if trace.n <= HISTORY:
+                rings.append(recent + [0.0] * (HISTORY - len(recent)))
+            else:
+                turn = HISTORY - (trace.n & (HISTORY - 1))
+                rings.append(recent[turn:] + recent[:turn])
         dues = [trace.due for trace in traces]
         self._n[:k, row] = [trace.n for trace in traces]
         self._first[:k, row] = [trace.first for trace in traces]
@@ -794,7 +796,11 @@ def _ring_trace(n: int, first: float, ring: list[float]) -> Trace:
     ``first`` is the first time, read only once the ring has wrapped (n > HISTORY);
     ``due`` and ``exact`` are the caller's.
     """
-    kept = [ring[i & (HISTORY - 1)] for i in range(max(0, n - HISTORY), n)]
+    if n <= HISTORY:
+        kept = ring[:n]
+    else:  # encoding n - HISTORY + j is at (n + j) % HISTORY
+        turn = n & (HISTORY - 1)
+        kept = ring[turn:] + ring[:turn]
     trace = Trace(first if n > HISTORY else ring[0])
     trace.n, trace.recent = n, kept
     return trace
