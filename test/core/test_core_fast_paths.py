@@ -480,7 +480,10 @@ def test_passages_in_numpy_decide_as_crossing(params, gaps, offset):
             assert want > now and later - activation._MARGIN * max(1.0, abs(later)) <= want, (want, now, later)
         else:
             assert close or others[k], (want, now)
-        if rule._gone(trace, now):
-            assert want <= now, (want, now)
+        gone, later = rule._gone(trace, now)
+        if gone:
+            assert want <= now and later is None, (want, now)
         else:
             assert want > now - 1e-8 * max(1.0, abs(want)), (want, now)
+            if later is not None:  # staying: a lower bound of the crossing, past the clock
+                assert now < later <= want, (want, now, later)

@@ -406,9 +406,10 @@ class LazyActivation:
                 trace = _ring_trace(int(counts[f]), float(firsts[f]), recent[f * HISTORY:(f + 1) * HISTORY].tolist())
                 found = self._bracket(trace.n, trace.recent, now)
                 if found is None:
-                    if self._gone(trace, now):  # (its bound stays: at most the clock)
+                    gone, bound = self._gone(trace, now)
+                    if gone:  # (its bound stays: at most the clock)
                         continue
-                    found = crossing(trace, self.decay, self.threshold), True
+                    found = (bound, False) if bound is not None else (crossing(trace, self.decay, self.threshold), True)
                 due[f], exact[f] = found
             return
         n, first, times = traces.ordered(flat)
@@ -421,14 +422,30 @@ class LazyActivation:
             trace = traces.get(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, self.decay, self.threshold), True
 
-    def _gone(self, trace: Trace, now: float) -> bool:
-        """Tell whether the crossing of ``trace`` is before ``now`` by more than :data:`_MARGIN` (relative).
+    def _gone(self, trace: Trace, now: float) -> tuple[bool, Optional[float]]:
+        """Decide ``trace`` by one evaluation of its activation just before ``now`` (``now`` less :data:`_MARGIN`).
 
-        One evaluation of the activation just before ``now``, where :func:`crossing`
-        would iterate to the root: below the threshold there, the root is before it.
+        Returns ``(True, None)``: below the threshold there, so the crossing is before it;
+        ``(False, bound)``: one step of Newton's method on :class:`_Newton`'s F from there,
+        a lower bound of the crossing (F is increasing and concave: from the left a step
+        lands at most on the root), passed ``now`` by the margin (``bound`` is the step
+        less it); ``(False, None)``: neither, :func:`crossing` decides.  Where
+        :func:`crossing` would iterate to the root, one evaluation mostly decides.
         """
-        age = now - _MARGIN * max(1.0, abs(now)) - trace.recent[-1]
-        return age > 0.0 and _excess(trace, math.log(age), self.decay, self.threshold)[0] < 0.0
+        start = now - _MARGIN * max(1.0, abs(now))
+        age = start - trace.recent[-1]
+        if age <= 0.0:
+            return False, None
+        value, slope = _excess(trace, math.log(age), self.decay, self.threshold)  # ln strength - tau, d/d(ln age)
+        if value < 0.0:
+            return True, None
+        if not (slope < 0.0 and value < _LOG_LONGEST):
+            return False, None
+        # F = span (exp(-value/d) - 1) and F' = -(span/d) exp(-value/d) slope/age, so -F/F' is:
+        step = -self.decay * age * math.expm1(value / self.decay) / slope
+        later = start + step
+        bound = later - _MARGIN * max(1.0, abs(later))
+        return False, (bound if bound > now else None)
 
     def _bracket(self, n: int, recent: list[float], now: float) -> Optional[tuple[float, bool]]:
         """Return ``(due, False)`` for a trace whose lower bound passed, if two bounds decide it; else None.
