@@ -386,6 +386,65 @@ def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_d
     assert got[1] == got[0]
 
 
+def test_a_description_joins_the_batch_of_its_time_and_is_noted_as_a_dict_queue_notes_it():
+    """Rule 1 into column queues at the time of rule-3 encodings: a refresh of what the batch wrote counts twice.
+
+    Capacity 2, tau -1 (nothing goes).  At 1, e and f get a (rule 3); then e's description
+    a, b, c (a refreshed: two encodings; c displaces a) and f's a, a (three).  Items are
+    (property, trace) as a store keeps them.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f"]
+    got = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+        buffer.sink, buffer.column_min = None, column_min
+        manager.advance(1.0)
+        buffer.encode_members(bitset.from_indices([0, 1], 2), names, "a", "reg-distractor", 1.0, 0)
+        buffer.encode("e", ["a", "b", "c"], "speaker", 1.0, 0)
+        buffer.encode("f", ["a", "a"], "speaker", 1.0, 0)
+        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        if column_min == 1:
+            assert set(buffer.columns.entities) == {"e", "f"}
+    assert got[0] == [[("b", [1, 1.0, 1.0]), ("c", [1, 1.0, 1.0])], [("a", [3, 1.0, 1.0, 1.0, 1.0])]]
+    assert got[1] == got[0]
+
+
+def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
+    """Rule 1 into a column queue (no sink) stays in its row and forgets what crossed first, as a dict queue does.
+
+    tau -1, capacity 2: one encoding stays L = e^2 s, two at one time 4 L.  e and f get b
+    twice at 0 and a at 0.5 (b is the front).  At L + 0.6, a has crossed: "c" into e takes
+    its place (no displacement of b), and "a" into f comes in anew (one encoding, not a
+    refresh).  Items are (property, trace) as a store keeps them.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f"]
+    L = math.exp(2.0)
+    got = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+        buffer.sink, buffer.column_min = None, column_min
+        both = bitset.from_indices([0, 1], 2)
+        for _ in range(2):
+            buffer.encode_members(both, names, "b", "reg-distractor", 0.0, 0)
+        manager.advance(0.5)
+        buffer.encode_members(both, names, "a", "reg-distractor", 0.5, 1)
+        manager.advance(L + 0.6)
+        buffer.encode("e", ["c"], "speaker", L + 0.6, 2)
+        buffer.encode("f", ["a"], "speaker", L + 0.6, 2)
+        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        got.append((len(buffer), buffer.nonempty_entities(), buffer.take_changes()))
+        if column_min == 1:
+            assert set(buffer.columns.entities) == {"e", "f"}  # (encoded in their rows)
+    assert got[0] == [[("b", [2, 0.0, 0.0, 0.0]), ("c", [1, L + 0.6, L + 0.6])],
+                      [("b", [2, 0.0, 0.0, 0.0]), ("a", [1, L + 0.6, L + 0.6])]]
+    assert got[1] == (4, ["e", "f"], ["e", "f"])
+    assert got[2:] == got[:2]
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore

@@ -679,7 +679,7 @@ class TraceColumns:
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
                 rows: Optional[np.ndarray] = None, clock: float = -math.inf,
-                origins: Optional[np.ndarray] = None, stamp: int = 0, prop: int = -1) -> None:
+                origins: Optional[np.ndarray] = None, stamp: int = 0, prop: int = -1, fresh: bool = False) -> None:
         """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
         ``span`` is one encoding's :func:`lifetime` under decay ``d``; ``clock`` the
@@ -696,16 +696,24 @@ class TraceColumns:
         displacing its own new entry): a batch holds each property once, so a slot is
         refreshed at most once in it, before any displacement, and its entry at the end is
         new exactly when its origin is a stamp of the batch (:meth:`settle`).  Without
-        them, each call is a batch of its own.
+        them, each call is a batch of its own.  ``fresh``: no slot of ``flat`` that the
+        batch wrote so far is refreshed here (:meth:`pending_since`), so it joins whatever
+        its property (a description's rule-1 encodings, one slot each; a new entry
+        displacing one the batch wrote is noted as new wherever it recurs).
         """
         if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock
-                              or origins is None or origins is not self._origins or prop in self._props):
+                              or origins is None or origins is not self._origins
+                              or (prop in self._props and not fresh)):
             self.settle()
         if not self._pending:
             self._pending_of, self.pending_clock = (time, span, d), clock
             self._origins, self._first_stamp, self._props = origins, stamp, set()
         self._props.add(prop)
         self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
+
+    def pending_since(self, stamp: int) -> bool:
+        """Tell whether an entry stamped ``stamp`` may have been encoded in the pending batch (stamps only grow)."""
+        return bool(self._pending) and stamp >= self._first_stamp
 
     def settle(self) -> None:
         """Note the pending encodings (:meth:`encoded`) as one batch."""

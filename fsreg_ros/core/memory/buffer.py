@@ -174,6 +174,11 @@ class WMBuffer:
         """
         if not self.retains:
             return
+        if self.sink is None and self.limits.lru_only and entity in self.columns.entities:
+            if not isinstance(properties, (list, tuple)):
+                properties = list(properties)
+            if self.columns.encode_entity(entity, properties, cause, time, turn):
+                return  # (a column queue with room: encoded in its row, as the loop below would)
         for prop in properties:
             self.encode_each((entity,), prop, cause, time, turn)
 

@@ -29,7 +29,8 @@ entity list the rows are numbered by, property ids and restored origins, and the
 moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
 rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
 no event sink listens and the limits are at most an LRU capacity and rule
-``activation``; anything else that
+``activation``, and :meth:`WMBuffer.encode` then encodes a column queue in its row
+(:meth:`ColumnQueues.encode_entity`: a description's rule-1 encodings); anything else that
 touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
 so every other code path only ever sees dicts.
 """
@@ -251,6 +252,38 @@ class QueueColumns:
         self.length[rows] = length + grew
         return grew, length == 0
 
+    def encode_one(self, row: int, prop: int, stamp: int,
+                   traced: Optional[tuple[float, float, float, float]] = None) -> bool:
+        """Encode(e, [prop]) for held row ``row`` alone, with Python scalars (:meth:`encode` for one row).
+
+        The row must be up to date with decay and, if it widens, have room.  Returns
+        whether the queue grew.  The slot is the one :meth:`encode` picks: the
+        property's, else the first empty one, else (a full bounded row) the front's.
+        """
+        width = self.width if self.bounded else min(self.used + 1, self.width)
+        props = self.prop[:width, row].tolist()
+        present = prop in props
+        if present:
+            slot = props.index(prop)
+        elif -1 in props:
+            slot = props.index(-1)
+        else:  # a full row: its front (stamps are unique)
+            stamps = self.stamp[:width, row].tolist()
+            slot = stamps.index(min(stamps))
+        grew = not present and props[slot] < 0
+        entry = int(self.entry[slot, row]) if present else stamp
+        before = int(self.stamp[slot, row])
+        self.prop[slot, row], self.stamp[slot, row], self.entry[slot, row] = prop, stamp, entry
+        self.used = max(self.used, slot + 1)
+        if traced is not None:
+            time, span, d, clock = traced
+            traces = self.traces
+            traces.encoded(np.array([slot * self.rows + row]), np.array([present]), time, span, d,
+                           np.array([row]), clock, self.entry, stamp, prop,
+                           fresh=not (present and traces.pending_since(before)))
+        self.length[row] += grew
+        return grew
+
     def mark_changed(self, rows: np.ndarray, mark: int) -> None:
         """Record ``mark`` as the first change of each of ``rows`` not changed yet."""
         fresh = rows[self.changed[rows] == 0]
@@ -470,6 +503,48 @@ class ColumnQueues:
             nonempty.pop(name, None)
         nonempty.update(dict.fromkeys(joining))
         wm.changes.mark_rows(rows)
+
+    def encode_entity(self, entity: str, props: Sequence[str], cause: str, time: float,
+                      turn: Optional[int]) -> bool:
+        """Encode(entity, props) (Algorithm 1) into its column queue, property by property; False if it needs room.
+
+        :meth:`WMBuffer.encode`'s column path (no event sink, at most an LRU capacity and
+        rule ``activation``): a description's rule-1 encodings leave the queue in its
+        row instead of moving it to a dict queue and back.  Its owed decay (Algorithm 2)
+        and activation crossings are applied first, then each property as
+        :meth:`WMBuffer.encode_each` would (same stamps, origins, size, non-empty queues
+        and change record).  A row that widens without room for every property is left
+        to the dict path (False, nothing done).
+        """
+        wm, store = self.wm, self.store
+        row = self.row[entity]
+        if not props:
+            return True
+        if not store.bounded and store.length[row] + len(props) > store.width:
+            return False
+        ticks = wm.lazy_decay.ticks.count
+        if store.synced[row] != ticks:  # lazy decay catch-up (Algorithm 2)
+            wm._size -= int(pop_owed(store, np.array([row]), ticks)[0])
+        act = wm.activation
+        traced = None
+        if act is not None:  # what crossed goes first, as queue by queue
+            act.advance(time)
+            traces = store.traces
+            if act.clock != traces.pending_clock:  # (at the clock they were made at, those not noted are not due)
+                traces.settle()
+            if store.length[row] and traces._row_due[row] <= act.clock + TIME_EPSILON:
+                act.forget_rows(np.array([row]))
+            traced = (act.clock, act.span, act.decay, act.clock)
+        was_empty = not store.length[row]
+        for prop in props:
+            wm.origin_log.log(wm._stamp + 1, cause, turn)
+            wm._stamp += 1
+            wm._size += store.encode_one(row, self.prop(prop), wm._stamp, traced)
+        if was_empty:  # (re)joins the non-empty queues last, as queue by queue
+            wm._nonempty.pop(entity, None)
+            wm._nonempty[entity] = None
+        wm.changes.note(entity)
+        return True
 
     def prop(self, name: str) -> int:
         """Return the id of property ``name`` (numbered on first use)."""
