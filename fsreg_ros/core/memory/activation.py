@@ -590,6 +590,7 @@ class TraceColumns:
         self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put_row`)
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
+        self._ones: list[tuple[int, int]] = []  # and those given one slot at a time (encoded_one): slot, row
         self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
         self.pending_clock = -math.inf  # the clock when they were made
         self._origins: Optional[np.ndarray] = None  # their store's origin references
@@ -701,30 +702,48 @@ class TraceColumns:
         its property (a description's rule-1 encodings, one slot each; a new entry
         displacing one the batch wrote is noted as new wherever it recurs).
         """
-        if self._pending and (self._pending_of != (time, span, d) or clock != self.pending_clock
-                              or origins is None or origins is not self._origins
-                              or (prop in self._props and not fresh)):
+        self._join(time, span, d, clock, origins, stamp, prop, fresh)
+        self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
+
+    def encoded_one(self, flat: int, row: int, time: float, span: float, d: float, clock: float,
+                    origins: np.ndarray, stamp: int, prop: int, fresh: bool) -> None:
+        """As :meth:`encoded` for one slot given as Python numbers (:meth:`QueueColumns.encode_one`: rule 1).
+
+        Whether it is a refresh is told by its origin when the batch is noted (:meth:`settle`).
+        """
+        self._join(time, span, d, clock, origins, stamp, prop, fresh)
+        self._ones.append((flat, row))
+
+    def _join(self, time: float, span: float, d: float, clock: float, origins: Optional[np.ndarray], stamp: int,
+              prop: int, fresh: bool) -> None:
+        """Settle the pending batch if the next encoding cannot join it (:meth:`encoded`); start one if none."""
+        pending = self._pending or self._ones
+        if pending and (self._pending_of != (time, span, d) or clock != self.pending_clock
+                        or origins is None or origins is not self._origins or (prop in self._props and not fresh)):
             self.settle()
-        if not self._pending:
+            pending = False
+        if not pending:
             self._pending_of, self.pending_clock = (time, span, d), clock
             self._origins, self._first_stamp, self._props = origins, stamp, set()
         self._props.add(prop)
-        self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
 
     def pending_since(self, stamp: int) -> bool:
         """Tell whether an entry stamped ``stamp`` may have been encoded in the pending batch (stamps only grow)."""
-        return bool(self._pending) and stamp >= self._first_stamp
+        return bool(self._pending or self._ones) and stamp >= self._first_stamp
 
     def settle(self) -> None:
-        """Note the pending encodings (:meth:`encoded`) as one batch."""
-        pending = self._pending
-        if not pending:
+        """Note the pending encodings (:meth:`encoded`, :meth:`encoded_one`) as one batch."""
+        pending, ones = self._pending, self._ones
+        if not (pending or ones):
             return
-        self._pending = []
+        self._pending, self._ones = [], []
         time, span, d = self._pending_of
-        if len(pending) == 1:
+        if len(pending) == 1 and not ones:
             self._note(*pending[0], time, span, d)
             return
+        if ones:
+            flats, rows = zip(*ones)
+            pending.append((np.array(flats, dtype=np.intp), None, np.array(rows, dtype=np.intp)))
         # A slot's entry at the end is a refresh (once) if it entered before the batch, else new
         # however often its slot was written: every place a slot recurs notes the same thing.
         flat = np.concatenate([p[0] for p in pending])

@@ -278,9 +278,8 @@ class QueueColumns:
         if traced is not None:
             time, span, d, clock = traced
             traces = self.traces
-            traces.encoded(np.array([slot * self.rows + row]), np.array([present]), time, span, d,
-                           np.array([row]), clock, self.entry, stamp, prop,
-                           fresh=not (present and traces.pending_since(before)))
+            traces.encoded_one(slot * self.rows + row, row, time, span, d, clock, self.entry, stamp, prop,
+                               not (present and traces.pending_since(before)))
         self.length[row] += grew
         return grew
 
