@@ -495,6 +495,22 @@ class LazyActivation:
         self.forget_rows(rows)
         self.swept = (at, (swept if at == then else 0) | members) if at is not None else (None, 0)
 
+    def forget_row(self, row: int) -> None:
+        """As :meth:`forget_rows` for one column row, its bound checked first as one number (most rows: nothing due)."""
+        traces = self.wm.columns.store.traces
+        if self.clock != traces.pending_clock:
+            traces.settle()  # (at the clock they were made at, encodings not noted yet are not due)
+        if traces._row_due[row] <= self.clock + TIME_EPSILON:
+            self.forget_rows(np.array([row]))
+
+    def noting(self) -> tuple[float, float, float, float]:
+        """Return ``(time, lifetime, d, clock)`` of an encoding made now, as column queues note it.
+
+        An encoding counts at the clock at the earliest (:meth:`record`), and the clock
+        has reached the encoding's time (:meth:`advance`).
+        """
+        return self.clock, self.span, self.decay, self.clock
+
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.
 
@@ -680,7 +696,7 @@ class TraceColumns:
 
     def encoded(self, flat: np.ndarray, present: np.ndarray, time: float, span: float, d: float,
                 rows: Optional[np.ndarray] = None, clock: float = -math.inf,
-                origins: Optional[np.ndarray] = None, stamp: int = 0, prop: int = -1, fresh: bool = False) -> None:
+                origins: Optional[np.ndarray] = None, stamp: int = 0, prop: int = -1) -> None:
         """Note one encoding at ``time`` in each slot ``flat`` (flat index; of ``rows``): a refresh where ``present``.
 
         ``span`` is one encoding's :func:`lifetime` under decay ``d``; ``clock`` the
@@ -697,12 +713,9 @@ class TraceColumns:
         displacing its own new entry): a batch holds each property once, so a slot is
         refreshed at most once in it, before any displacement, and its entry at the end is
         new exactly when its origin is a stamp of the batch (:meth:`settle`).  Without
-        them, each call is a batch of its own.  ``fresh``: no slot of ``flat`` that the
-        batch wrote so far is refreshed here (:meth:`pending_since`), so it joins whatever
-        its property (a description's rule-1 encodings, one slot each; a new entry
-        displacing one the batch wrote is noted as new wherever it recurs).
+        them, each call is a batch of its own.
         """
-        self._join(time, span, d, clock, origins, stamp, prop, fresh)
+        self._join(time, span, d, clock, origins, stamp, prop, False)
         self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
 
     def encoded_one(self, flat: int, row: int, time: float, span: float, d: float, clock: float,
@@ -710,6 +723,9 @@ class TraceColumns:
         """As :meth:`encoded` for one slot given as Python numbers (:meth:`QueueColumns.encode_one`: rule 1).
 
         Whether it is a refresh is told by its origin when the batch is noted (:meth:`settle`).
+        ``fresh``: the slot is not one the batch wrote and refreshed here (:meth:`pending_since`),
+        so it joins whatever its property (a new entry displacing one the batch wrote is
+        noted as new wherever it recurs).
         """
         self._join(time, span, d, clock, origins, stamp, prop, fresh)
         self._ones.append((flat, row))

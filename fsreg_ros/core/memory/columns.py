@@ -491,8 +491,7 @@ class ColumnQueues:
         if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
             act.advance(time)
             act.forget_members(rows, members)
-        # (an encoding stamped before the clock counts at the clock: LazyActivation.record)
-        traced = (act.clock, act.span, act.decay, act.clock) if act is not None else None
+        traced = act.noting() if act is not None else None
         grew, was_empty = store.encode(rows, pid, wm._stamp + 1, traced)
         wm._stamp += len(rows)
         wm._size += int(grew.sum()) - int(popped.sum())
@@ -528,12 +527,8 @@ class ColumnQueues:
         traced = None
         if act is not None:  # what crossed goes first, as queue by queue
             act.advance(time)
-            traces = store.traces
-            if act.clock != traces.pending_clock:  # (at the clock they were made at, those not noted are not due)
-                traces.settle()
-            if store.length[row] and traces._row_due[row] <= act.clock + TIME_EPSILON:
-                act.forget_rows(np.array([row]))
-            traced = (act.clock, act.span, act.decay, act.clock)
+            act.forget_row(row)
+            traced = act.noting()
         was_empty = not store.length[row]
         for prop in props:
             wm.origin_log.log(wm._stamp + 1, cause, turn)
