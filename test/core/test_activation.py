@@ -445,6 +445,43 @@ def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
     assert got[2:] == got[:2]
 
 
+def test_column_queues_written_by_a_description_restart_from_their_export_as_dict_queues_do():
+    """Column queues a description wrote in their rows are exported and restored with their traces (a restart).
+
+    Capacity 2, tau -1 (one encoding stays L = e^2 s, two at one time 4 L).  At 0, e and f
+    get a (rule 3) at 0.5, then e's description b, a.  The queues are exported, a fresh buffer
+    restores them, f and e get c at 1 (the restored queues move into rows with their
+    traces) and the clock passes L: b and f's a (one encoding each) go, e's a (two) stays.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f"]
+    L = math.exp(2.0)
+    got = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+        buffer.sink, buffer.column_min = None, column_min
+        both = bitset.from_indices([0, 1], 2)
+        manager.advance(0.5)
+        buffer.encode_members(both, names, "a", "reg-distractor", 0.5, 0)
+        buffer.encode("e", ["b", "a"], "speaker", 0.5, 0)
+        if column_min == 1:
+            assert set(buffer.columns.entities) == {"e", "f"}  # (the description stayed in e's row)
+        saved = {name: buffer.export_queue(name) for name in names}
+        stamp, ticks = buffer.counters()
+        restarted, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+        restarted.sink, restarted.column_min = None, column_min
+        restarted.restore(saved, stamp, ticks, restarted.limits)
+        manager.advance(1.0)
+        restarted.encode_members(both, names, "c", "reg-distractor", 1.0, 1)
+        manager.advance(L + 0.75)
+        got.append([[(item[0], item[5]) for item in restarted.export_queue(name)] for name in names])
+        got.append((saved, len(restarted)))
+    assert got[0] == [[("a", [2, 0.5, 0.5, 0.5]), ("c", [1, 1.0, 1.0])], [("c", [1, 1.0, 1.0])]]
+    assert got[1][1] == 3
+    assert got[2:] == got[:2]
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
