@@ -243,6 +243,16 @@ def managed(p: ForgettingPolicy):
     return buffer, manager, events
 
 
+def quiet(column_min: int) -> tuple[WMBuffer, WMManager]:
+    """Return a managed buffer under activation+displacement (tau -1, capacity 2) with no event sink.
+
+    ``column_min`` 1: column queues; 10**9: dict queues (the two paths a test compares).
+    """
+    buffer, manager, _ = managed(policy(-1.0, rules="activation+displacement", capacity=2))
+    buffer.sink, buffer.column_min = None, column_min
+    return buffer, manager
+
+
 def test_exact_wm_contents_at_given_times():
     """d = 0.5, tau = ln(20^-0.5 + 10^-0.5): one encoding at t stays until t + exp(-2 tau) = t + 3.4316 s."""
     tau = math.log(20 ** -0.5 + 10 ** -0.5)
@@ -369,8 +379,7 @@ def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_d
     names = ["e", "f"]
     got = []
     for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
-        buffer.sink, buffer.column_min = None, column_min
+        buffer, manager = quiet(column_min)
         both, e = bitset.from_indices([0, 1], 2), bitset.from_indices([0], 2)
         for prop in ("a", "b"):
             buffer.encode_members(both, names, prop, "reg-distractor", 0.0, 0)
@@ -398,8 +407,7 @@ def test_a_description_joins_the_batch_of_its_time_and_is_noted_as_a_dict_queue_
     names = ["e", "f"]
     got = []
     for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
-        buffer.sink, buffer.column_min = None, column_min
+        buffer, manager = quiet(column_min)
         manager.advance(1.0)
         buffer.encode_members(bitset.from_indices([0, 1], 2), names, "a", "reg-distractor", 1.0, 0)
         buffer.encode("e", ["a", "b", "c"], "speaker", 1.0, 0)
@@ -425,8 +433,7 @@ def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
     L = math.exp(2.0)
     got = []
     for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
-        buffer.sink, buffer.column_min = None, column_min
+        buffer, manager = quiet(column_min)
         both = bitset.from_indices([0, 1], 2)
         for _ in range(2):
             buffer.encode_members(both, names, "b", "reg-distractor", 0.0, 0)
@@ -459,8 +466,7 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
     L = math.exp(2.0)
     got = []
     for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
-        buffer.sink, buffer.column_min = None, column_min
+        buffer, manager = quiet(column_min)
         both = bitset.from_indices([0, 1], 2)
         manager.advance(0.5)
         buffer.encode_members(both, names, "a", "reg-distractor", 0.5, 0)
@@ -469,8 +475,7 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
             assert set(buffer.columns.entities) == {"e", "f"}  # (the description stayed in e's row)
         saved = {name: buffer.export_queue(name) for name in names}
         stamp, ticks = buffer.counters()
-        restarted, manager, events = managed(policy(-1.0, rules="activation+displacement", capacity=2))
-        restarted.sink, restarted.column_min = None, column_min
+        restarted, manager = quiet(column_min)
         restarted.restore(saved, stamp, ticks, restarted.limits)
         manager.advance(1.0)
         restarted.encode_members(both, names, "c", "reg-distractor", 1.0, 1)
