@@ -149,8 +149,8 @@ def open_view(
         view = View(candidates, size, [], consultant.wm.retains)
     else:
         holding = frozenset(consultant.properties_of(target))
-        view = View(candidates, size, consultant.queue(target), consultant.wm.retains, holding,
-                    origins=consultant.wm.origins(target))
+        queue, origins = consultant.wm.queue_with_origins(target)  # (open_set checked the target)
+        view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins)
     if first is not None:
         holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
         view.first = Narrowed(holds, candidates.size)

@@ -165,8 +165,11 @@ def _limits(capacity):
 
 
 def _state(b) -> tuple:
-    """What two buffers that did the same must hold alike: queues, origins, size."""
-    return {e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}, len(b)
+    """What two buffers that did the same must hold alike: queues, origins, size (also read at once)."""
+    together = {e: b.queue_with_origins(e) for e in WM_ENTITIES}
+    queues, origins = {e: list(b.queue(e)) for e in WM_ENTITIES}, {e: b.origins(e) for e in WM_ENTITIES}
+    assert together == {e: (tuple(queues[e]), origins[e]) for e in WM_ENTITIES}
+    return queues, origins, len(b)
 
 
 def _state_with_exports(b) -> tuple:
@@ -416,6 +419,8 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                 assert (store.prop[store.used:] < 0).all() and store.used <= store.width, op
                 if store.traces is not None:
                     assert (store.traces.due[store.used:] == activation.NEVER).all(), op
+                    # each row's bound is at most its slots' earliest due: a read checks it alone
+                    assert (store.traces.row_due <= store.traces.due.min(axis=0)).all(), op
         seen = len(plain_events)
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)

@@ -398,6 +398,8 @@ def test_origin_is_the_encoding_that_made_the_property_enter(sink):
     assert buffer.origins("e1") == [("speaker", 3), ("speaker", 4)]
     assert buffer.origins("e2") == [("rr", 0)]
     assert buffer.origins("nobody") == []
+    assert buffer.queue_with_origins("e1") == (("c", "b"), [("speaker", 3), ("speaker", 4)])  # one read, both
+    assert buffer.queue_with_origins("nobody") == ((), [])
     assert buffer.export_queue("e1") == [("c", 5, 1, "speaker", 3), ("b", 6, 1, "speaker", 4)]
     item = buffer.export_queue("e2")[0]
     assert item == QueueItem("a", 2, 1, "rr", 0)

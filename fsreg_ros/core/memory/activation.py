@@ -400,11 +400,12 @@ class LazyActivation:
             due[flat], exact[flat] = NEVER, True
             return
         width_rows = traces.n.shape[1]
-        if len(flat) <= _FEW:  # one by one is cheaper for a few
-            counts, recent, firsts = traces._flat_n, traces._flat_recent, traces._flat_first
-            for f in flat.tolist():
-                trace = _ring_trace(int(counts[f]), float(firsts[f]), recent[f * HISTORY:(f + 1) * HISTORY].tolist())
-                found = self._bracket(trace.n, trace.recent, now)
+        if len(flat) <= _FEW:  # one by one is cheaper for a few (read as Python numbers at once)
+            rings = traces._recent.reshape(-1, HISTORY).take(flat, axis=0).tolist()
+            for f, n, first, ring in zip(flat.tolist(), traces._flat_n.take(flat).tolist(),
+                                         traces._flat_first.take(flat).tolist(), rings):
+                trace = _ring_trace(n, first, ring)
+                found = self._bracket(n, trace.recent, now)
                 if found is None:
                     gone, bound = self._gone(trace, now)
                     if gone:  # (its bound stays: at most the clock)

@@ -96,6 +96,13 @@ class WMBuffer:
         q = self._readable(entity)
         return [self.origin_log.of(value) for value in q.values()] if q else []
 
+    def queue_with_origins(self, entity: str) -> tuple[tuple[str, ...], list[Origin]]:
+        """Return :meth:`queue` and :meth:`origins` of Q[entity] from one read (what a view opens with)."""
+        q = self._readable(entity)
+        if not q:
+            return (), []
+        return tuple(q), [self.origin_log.of(value) for value in q.values()]
+
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""
         q = self._readable(entity)

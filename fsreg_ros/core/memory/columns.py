@@ -125,10 +125,11 @@ class QueueColumns:
         """Return row ``row``'s entries as ``(property id, stamp, origin reference)``, LRU first."""
         if not self.length[row]:
             return []
+        used = self.used  # (slots never used hold nothing)
         items = [
             (prop, stamp, entry)
-            for prop, stamp, entry in zip(self.prop[:, row].tolist(), self.stamp[:, row].tolist(),
-                                          self.entry[:, row].tolist())
+            for prop, stamp, entry in zip(self.prop[:used, row].tolist(), self.stamp[:used, row].tolist(),
+                                          self.entry[:used, row].tolist())
             if prop >= 0
         ]
         items.sort(key=lambda item: item[1])
@@ -136,8 +137,9 @@ class QueueColumns:
 
     def slots(self, row: int) -> list[int]:
         """Return the slots of row ``row`` that hold an entry, LRU first."""
-        stamps = self.stamp[:, row].tolist()
-        return sorted((k for k, prop in enumerate(self.prop[:, row].tolist()) if prop >= 0), key=stamps.__getitem__)
+        stamps = self.stamp[:self.used, row].tolist()
+        return sorted((k for k, prop in enumerate(self.prop[:self.used, row].tolist()) if prop >= 0),
+                      key=stamps.__getitem__)
 
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
@@ -431,7 +433,7 @@ class ColumnQueues:
         then goes queue by queue).  Bounded rows always have room (a full one displaces).
         """
         store = self.store
-        if store.bounded:
+        if store.bounded or max(store.used + 1, longest) <= store.width:  # (no row holds more than ``used``)
             return True
         need = max(int(store.length[rows].max(initial=0)) + 1, longest)
         if need <= store.width:
@@ -582,8 +584,8 @@ class ColumnQueues:
                 wm.lazy_decay.catch_up(entity)
                 return wm._readable(entity)
             wm.lazy_decay.settle_columns(np.array([row]))
-        if wm.activation is not None and store.length[row] and store.traces.due[:, row].min() <= wm.activation.clock \
-                + TIME_EPSILON:  # something may have gone
+        if wm.activation is not None and store.length[row] and store.traces.row_due[row] <= wm.activation.clock \
+                + TIME_EPSILON:  # something may have gone (the row's bound: one number)
             if wm.sink is not None:  # what went must be reported: as a dict queue
                 self.to_dict(entity)
                 return wm._readable(entity)
