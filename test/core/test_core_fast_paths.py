@@ -298,14 +298,16 @@ ACT_OPS = st.lists(
 
 @settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
 @given(st.sampled_from([1, 2, 3, None, None]), st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2)]),
-       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), st.booleans(), ACT_OPS)
-def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, in_numpy, ops):
+       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), st.booleans(), st.sampled_from([None, 0, 40]), ACT_OPS)
+def test_column_queues_under_activation_as_dict_queues(capacity, params, widths, in_numpy, map_max, ops):
     """Rule ``activation`` on column queues (traces in slots, crossings decided in numpy) is the dict queues' own.
 
     With a capacity (the rows' width) and without one (rows that widen as queues grow,
     from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).  ``in_numpy``:
     every slot whose bound passed is decided by :func:`activation.passages`, however few
-    (otherwise up to ``_FEW`` go one by one, as here they mostly would).
+    (otherwise up to ``_FEW`` go one by one, as here they mostly would).  ``map_max``: the
+    bytes rows that widen may give their slot map (None: the default; 0: no map; 40: a map
+    dropped once a fifth property comes).
 
     As :func:`test_column_queues_decay_evict_and_clear_as_dict_queues`: ``plain`` keeps
     dict queues, ``heard`` column queues with an event sink except while encoding members,
@@ -327,14 +329,17 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
         b.column_min = 1
     for b in buffers:
         b.set_limits(Limits(capacity=capacity, activation=params), 0.0)
-    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW, column_queues.SLOT_MAP_MAX
     column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
     if in_numpy:
         activation._FEW = 0
+    if map_max is not None:
+        column_queues.SLOT_MAP_MAX = map_max
     try:
         _activation_ops(ops, plain, heard, quiet, plain_events, heard_events)
     finally:
-        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW = kept
+        (column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW,
+         column_queues.SLOT_MAP_MAX) = kept
 
 
 def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
@@ -421,6 +426,12 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                     assert (store.traces.due[store.used:] == activation.NEVER).all(), op
                     # each row's bound is at most its slots' earliest due: a read checks it alone
                     assert (store.traces.row_due <= store.traces.due.min(axis=0)).all(), op
+                if store.slot_of is not None:  # the slot map says where each row holds each property
+                    truth = np.full(store.slot_of.shape, -1, dtype=np.int8)
+                    for k in range(store.used):
+                        held = np.flatnonzero(store.prop[k] >= 0)
+                        truth[store.prop[k, held], held] = k
+                    assert (store.slot_of == truth).all(), op
         seen = len(plain_events)
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)

@@ -522,7 +522,7 @@ class LazyActivation:
         flat = self.passed(store, rows)
         if not len(flat):
             return _NO_SLOTS
-        store.prop.reshape(-1)[flat] = -1
+        store.clear_slots(flat)
         store.traces.due.reshape(-1)[flat] = NEVER
         owners = flat % store.rows  # a row may recur
         np.subtract.at(store.length, owners, 1)  # (one number per entry gone, not the row's every slot)

@@ -63,6 +63,10 @@ COLUMN_MAX_TRACED_SLOTS = COLUMN_MAX_SLOTS // (HISTORY + 4)
 
 #: The first width of rows that widen (rule ``activation`` without a capacity).
 _FIRST_WIDTH = 4
+#: Rows that widen find a property's slot in a map (property id x row -> slot, a byte
+#: each) while it takes at most this many bytes (:meth:`QueueColumns.encode`); past it,
+#: by reading their slots.
+SLOT_MAP_MAX = 2**24
 
 #: Larger than any stamp: an empty slot is never a queue's front.
 _NO_STAMP = np.iinfo(np.int64).max
@@ -74,7 +78,9 @@ class QueueColumns:
     ``bounded``: the width is the displacement capacity (a full row loses its front);
     otherwise (rule ``activation`` without a capacity) no queue is ever full, the
     caller widening the rows first (:meth:`widen`).  ``traces`` (rule ``activation``): each slot's entry's trace
-    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.
+    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.  ``slot_of``
+    (rows that widen, within :data:`SLOT_MAP_MAX`): ``slot_of[p, r]`` is the slot of row r
+    holding property id p, -1 if none; kept by every write and clear of a slot.
     """
 
     def __init__(self, width: int, rows: int, traced: bool = False, bounded: bool = True) -> None:
@@ -89,6 +95,7 @@ class QueueColumns:
         self.held = np.zeros(rows, dtype=bool)  # the row's queue lives here
         self.changed = np.zeros(rows, dtype=np.int64)  # change-record mark of its first change (0: none)
         self.used = 0  # slots ever written, in any row: slots used..width-1 are empty in every row
+        self.slot_of: Optional[np.ndarray] = None if bounded else np.full((0, rows), -1, dtype=np.int8)
 
     def widen(self, width: int) -> None:
         """Give every row ``width`` slots (more than now; the new ones empty)."""
@@ -117,8 +124,47 @@ class QueueColumns:
         self.synced = np.concatenate([self.synced, np.zeros(extra, dtype=np.int64)])
         self.changed = np.concatenate([self.changed, np.zeros(extra, dtype=np.int64)])
         self.held = np.concatenate([self.held, np.zeros(extra, dtype=bool)])
+        if self.slot_of is not None:
+            self.slot_of = self._within_map(np.concatenate(
+                [self.slot_of, np.full((self.slot_of.shape[0], extra), -1, dtype=np.int8)], axis=1))
         if self.traces is not None:
             self.traces.grow(extra)
+
+    # ------------------------------------------------------------ slot map
+    def _within_map(self, slot_of: np.ndarray) -> Optional[np.ndarray]:
+        """Return ``slot_of`` if it fits :data:`SLOT_MAP_MAX`, else None (no map from then on)."""
+        return slot_of if slot_of.size <= SLOT_MAP_MAX else None
+
+    def _map_line(self, prop: int) -> Optional[np.ndarray]:
+        """Return the slot map's line of property id ``prop`` (a view: writable), growing the map; None without one."""
+        if self.slot_of is None:
+            return None
+        if prop >= self.slot_of.shape[0]:
+            lines = max(prop + 1, 2 * self.slot_of.shape[0], 4)
+            self.slot_of = self._within_map(np.concatenate(
+                [self.slot_of, np.full((lines - self.slot_of.shape[0], self.rows), -1, dtype=np.int8)]))
+            if self.slot_of is None:
+                return None
+        return self.slot_of[prop]
+
+    def _unmap_slots(self, flat: np.ndarray) -> None:
+        """Take the entries of slots ``flat`` (flat indices) out of the slot map (before they are cleared)."""
+        if self.slot_of is not None:
+            props = self.prop.reshape(-1).take(flat)
+            held = props >= 0
+            self.slot_of[props[held], (flat % self.rows)[held]] = -1
+
+    def _unmap_rows(self, rows: np.ndarray) -> None:
+        """Take every entry of ``rows`` out of the slot map (before the rows are cleared)."""
+        if self.slot_of is not None:
+            props = self.prop[:self.used].take(rows, axis=1)
+            held = props >= 0
+            self.slot_of[props[held], np.broadcast_to(rows, props.shape)[held]] = -1
+
+    def clear_slots(self, flat: np.ndarray) -> None:
+        """Empty slots ``flat`` (flat indices; their traces and the rows' lengths are the caller's)."""
+        self._unmap_slots(flat)
+        self.prop.reshape(-1)[flat] = -1
 
     # ------------------------------------------------------------ one row
     def read(self, row: int) -> list[tuple[int, int, int]]:
@@ -143,11 +189,15 @@ class QueueColumns:
 
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
+        self._unmap_rows(np.array([row]))
         self.prop[:, row] = -1
         if self.traces is not None:  # an empty slot's trace is never due
             self.traces.due[:, row] = NEVER
         for k, (prop, stamp, entry) in enumerate(items):
             self.prop[k, row], self.stamp[k, row], self.entry[k, row] = prop, stamp, entry
+            line = self._map_line(prop)
+            if line is not None:
+                line[row] = k
         self.length[row] = len(items)
         self.synced[row] = synced
         self.held[row] = True
@@ -155,6 +205,7 @@ class QueueColumns:
 
     def start_empty(self, rows: np.ndarray, synced: int) -> None:
         """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
+        self._unmap_rows(rows)
         self.prop[:, rows] = -1
         if self.traces is not None:  # an empty slot's trace is never due
             self.traces.due[:, rows] = NEVER
@@ -164,6 +215,7 @@ class QueueColumns:
 
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
+        self._unmap_rows(np.array([row]))
         self.prop[:, row] = -1
         if self.traces is not None:  # an empty slot's trace is never due
             self.traces.due[:, row] = NEVER
@@ -179,6 +231,7 @@ class QueueColumns:
         targets, counts = rows[popping], counts[popping]
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
+        self._unmap_rows(gone)
         self.prop[:, gone] = -1
         if self.traces is not None:  # an empty slot's trace is never due
             self.traces.due[:, gone] = NEVER
@@ -188,7 +241,7 @@ class QueueColumns:
             now = partial[counts > done]
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
             popped = _first_minimum(stamps)[0] * self.rows + now
-            self.prop.reshape(-1)[popped] = -1
+            self.clear_slots(popped)
             if self.traces is not None:
                 self.traces.due.reshape(-1)[popped] = NEVER
             self.length[now] -= 1
@@ -237,7 +290,7 @@ class QueueColumns:
             slot, best = _first_minimum(key)
             present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
         else:
-            slot, present = _held_or_empty(np.take(self.prop[:min(self.used + 1, self.width)], rows, axis=1), prop)
+            slot, present = self._held_or_empty(rows, prop)
             grew = ~present
         self.used = max(self.used, int(slot.max(initial=-1)) + 1)
         flat = slot * self.rows + rows
@@ -253,6 +306,26 @@ class QueueColumns:
         length = self.length[rows]
         self.length[rows] = length + grew
         return grew, length == 0
+
+    def _held_or_empty(self, rows: np.ndarray, prop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Rows that widen: per row of ``rows``, the slot holding ``prop``, else its first empty one; and which.
+
+        With a slot map, one byte per row says where ``prop`` is, and only the rows
+        without it read their slots (for the first empty one, which it then maps);
+        without, every row reads its slots (:func:`_held_or_empty`).
+        """
+        line = self._map_line(prop)
+        if line is None:
+            return _held_or_empty(np.take(self.prop[:min(self.used + 1, self.width)], rows, axis=1), prop)
+        slot = line.take(rows).astype(np.intp)
+        present = slot >= 0
+        new = np.flatnonzero(~present)
+        if len(new):
+            fresh = rows.take(new)
+            empty = _held_or_empty(np.take(self.prop[:min(self.used + 1, self.width)], fresh, axis=1), -2)[0]
+            slot[new] = empty
+            line[fresh] = empty
+        return slot, present
 
     def encode_one(self, row: int, prop: int, stamp: int,
                    traced: Optional[tuple[float, float, float, float]] = None) -> bool:
@@ -277,6 +350,10 @@ class QueueColumns:
         before = int(self.stamp[slot, row])
         self.prop[slot, row], self.stamp[slot, row], self.entry[slot, row] = prop, stamp, entry
         self.used = max(self.used, slot + 1)
+        if not present and self.slot_of is not None:  # (rows that widen never displace)
+            line = self._map_line(prop)
+            if line is not None:
+                line[row] = slot
         if traced is not None:
             time, span, d, clock = traced
             traces = self.traces
