@@ -278,11 +278,11 @@ class QueueColumns:
         ``traced`` (rule ``activation``): ``(time, lifetime, d, clock)`` of the encoding, noted
         in the encoded slots' traces (a displaced front's slot starts a new one).
 
-        Rows that widen (not ``bounded``) always have room, so no front is displaced and
-        only the slots ever used (``used``) and the first beyond are read: the property
-        is in the former, and a row with none of them empty holds ``used`` entries, so
-        slot ``used`` is its first empty one.  The same slot as reading every one, without
-        reading the width the longest queue once needed.
+        Rows that widen (not ``bounded``) always have room, so no front is displaced: the
+        slot map (``slot_of``) says which rows hold the property and where, and only the
+        others read their slots for the first empty one (:meth:`_held_or_empty`), and
+        of those only the slots ever used (``used``) and the first beyond: a row with
+        none of them empty holds ``used`` entries, so slot ``used`` is its first empty one.
         """
         if self.bounded:
             props = np.take(self.prop, rows, axis=1)
