@@ -790,8 +790,8 @@ class TraceColumns:
         counts = old + 1
         n[flat] = counts
         at = flat * HISTORY
-        if counts.max() > HISTORY:  # the first time leaves the ring: keep it (crossing()'s Petrov term)
-            wraps = flat[counts == HISTORY + 1]
+        wraps = flat[counts == HISTORY + 1]  # the first time leaves the ring: keep it (crossing()'s Petrov term)
+        if len(wraps):
             self._flat_first[wraps] = recent[wraps * HISTORY]
         old &= HISTORY - 1
         old += at
@@ -801,8 +801,9 @@ class TraceColumns:
         oldest &= HISTORY - 1
         oldest += at
         begin = np.take(recent, oldest)  # (k = min(n, HISTORY))
-        begin *= np.take(_KEEP, counts, mode="clip")
-        begin += np.take(self._bounds(d, span, time), counts, mode="clip")  # m + reach[k], m = t_o + (time - t_o) / k
+        k = np.minimum(counts, HISTORY)
+        begin *= _KEEP.take(k)
+        begin += self._bounds(d, span, time).take(k)  # m + reach[k], m = t_o + (time - t_o) / k
         due = np.maximum(begin, time + span)  # (reach[1] < span)
         self._flat_due[flat] = due
         self._flat_exact[flat] = ~present
