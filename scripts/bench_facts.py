@@ -112,10 +112,10 @@ def main(argv: Optional[list[str]] = None) -> int:
 
 
 def run(args, session: RosSession, proc, domain, targets, preference, namespace, service, manage) -> int:
-    session.wait_service(service, READY_TIMEOUT)
-    session.wait_service(manage, READY_TIMEOUT)
+    # One real round trip each, read-only ops sent again if lost (a new server's first request can be).
+    session.wait_ready(service, {"op": "info"}, READY_TIMEOUT)
+    session.wait_ready(manage, {"op": "size"}, READY_TIMEOUT)
     session.call(manage, {"op": "configure", "policy": {"policy": "displacement", "capacity": 4}}, READY_TIMEOUT)
-    session.call(service, {"op": "info"}, READY_TIMEOUT)  # one real round trip
     arrival: dict[str, tuple[float, int]] = {}  # facts message id -> (answered at, facts applied)
 
     def on_result(msg: String) -> None:

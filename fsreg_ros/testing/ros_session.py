@@ -146,6 +146,14 @@ class RosSession:
         client = self.client(service)
         self.spin_until(client.ready, timeout, what=f"service {service}")
 
+    def wait_ready(self, service: str, payload: dict, timeout: float = 30.0) -> dict:
+        """Wait for one real round trip of ``payload`` (an idempotent op) to ``service``; its reply.
+
+        A new server's first request can be lost while discovery completes, so
+        attempts that time out are sent again (:meth:`ServiceCaller.wait_ready`).
+        """
+        return self.run(self.client(service).wait_ready(payload, timeout), timeout + 1.0)
+
     def call(self, service: str, payload: dict, timeout: float = 5.0) -> dict:
         """Call a JSON service; the reply (raises CarrierError on failure)."""
         self.wait_service(service, timeout)
