@@ -27,7 +27,9 @@ process, so a tool can persist finished work before the job ends (``fsreg-sweep
 --resume``).  The same tqdm bar (tasks done / total, rate, ETA) is drawn for every engine.
 A Dask job stopped early (Ctrl-C, a task's error) tears its client down quietly
 (:func:`quiet_teardown`): the tool's one line says what happened, not Dask's tracebacks of
-connections its stopping closed.
+connections its stopping closed.  A ``--jobs`` worker stops the task it runs on Ctrl-C (the
+calling process gets the interruption back) and ignores one between tasks, where the
+default handler would print a traceback from the worker (:class:`LocalTask`).
 """
 
 from __future__ import annotations
@@ -138,6 +140,42 @@ def engine_from_args(args: argparse.Namespace) -> Engine:
     return Engine("local", jobs)
 
 
+#: True while this ``--jobs`` worker process runs a task (:class:`LocalTask`).
+_RUNNING = False
+
+
+def _interrupt_a_running_task(signum: int, frame: Any) -> None:
+    """A ``--jobs`` worker's Ctrl-C handler: stop the task it runs; between tasks, nothing."""
+    if _RUNNING:
+        raise KeyboardInterrupt
+
+
+def _local_worker_start() -> None:
+    """Initializer of a ``--jobs`` worker: Ctrl-C stops a running task only; then take the Ctrl-C held at the fork."""
+    signal.signal(signal.SIGINT, _interrupt_a_running_task)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+@dataclass(frozen=True)
+class LocalTask:
+    """A task function as a ``--jobs`` worker runs it: marked running, so Ctrl-C stops it (and only it).
+
+    A worker waiting for its next task when Ctrl-C reaches the process group ignores it
+    (the default handler would print a traceback from the worker's queue); the calling
+    process stops the pool.
+    """
+
+    fn: Callable[[Any], Any]
+
+    def __call__(self, task: Any) -> Any:
+        global _RUNNING
+        _RUNNING = True
+        try:
+            return self.fn(task)
+        finally:
+            _RUNNING = False
+
+
 def dask_setup(worker: Any) -> None:
     """Dask preload hook of a LocalCluster's workers: Ctrl-C is the calling process's to handle.
 
@@ -242,10 +280,18 @@ def _run_local(fn: Callable, tasks: Sequence, engine: Engine, finish: Callable, 
             finish(index, fn(task))
         return TaskRun(results, engine, 1)
     workers = min(engine.workers, len(tasks))
-    # fork: the workers start at once with this process's modules (the research layer is pure Python).
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+    # fork: the workers start at once with this process's modules (the research layer is pure Python), every
+    # one at the first submit.  They are forked with Ctrl-C held (a Ctrl-C then reaches this process when the
+    # mask is restored), and take it up once their handler is in place (_local_worker_start).
+    task_fn = LocalTask(fn)
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"), initializer=_local_worker_start)
     try:
-        pending = {pool.submit(fn, task): index for index, task in enumerate(tasks)}
+        try:
+            pending = {pool.submit(task_fn, tasks[0]): 0}
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        pending.update((pool.submit(task_fn, task), index) for index, task in enumerate(tasks) if index)
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:

@@ -7,6 +7,7 @@ tests that need their own cluster (``--cluster local:N``, the binding check) sta
 import os
 import signal
 import sys
+import time
 
 import psutil
 import pytest
@@ -31,6 +32,11 @@ def fails_on_three(x):
     return x
 
 
+def interrupts_itself(_):
+    os.kill(os.getpid(), signal.SIGINT)  # as Ctrl-C to the process group reaches a busy worker
+    time.sleep(5)
+
+
 def rclpy_loaded():
     return "rclpy" in sys.modules
 
@@ -45,6 +51,22 @@ def cluster():
 
 
 # ------------------------------------------------------------------ engines
+def test_a_jobs_worker_stops_the_task_it_runs_on_ctrl_c_and_ignores_one_between_tasks():
+    """What a ``--jobs`` worker's initializer installs, run here: no traceback from a waiting worker."""
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        execution._local_worker_start()
+        os.kill(os.getpid(), signal.SIGINT)  # waiting for a task: ignored (the default handler raises)
+        assert square(3) == 9
+        with pytest.raises(KeyboardInterrupt):
+            execution.LocalTask(interrupts_itself)(None)
+        assert execution.LocalTask(square)(4) == 16 and not execution._RUNNING
+        os.kill(os.getpid(), signal.SIGINT)
+        assert square(2) == 4
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.parametrize("engine", [Engine("local", 1), Engine("local", 2)], ids=["jobs1", "jobs2"])
 def test_local_engines_return_results_in_task_order(engine):
     seen = []
