@@ -145,13 +145,13 @@ _RUNNING = False
 
 
 def _interrupt_a_running_task(signum: int, frame: Any) -> None:
-    """A ``--jobs`` worker's Ctrl-C handler: stop the task it runs; between tasks, nothing."""
+    """Stop the task this ``--jobs`` worker runs (its Ctrl-C handler); between tasks, do nothing."""
     if _RUNNING:
         raise KeyboardInterrupt
 
 
 def _local_worker_start() -> None:
-    """Initializer of a ``--jobs`` worker: Ctrl-C stops a running task only; then take the Ctrl-C held at the fork."""
+    """Set up a ``--jobs`` worker (its initializer): Ctrl-C stops a running task only; then unblock Ctrl-C."""
     signal.signal(signal.SIGINT, _interrupt_a_running_task)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
