@@ -523,7 +523,6 @@ class LazyActivation:
         if not len(flat):
             return _NO_SLOTS
         store.clear_slots(flat)
-        store.traces.due.reshape(-1)[flat] = NEVER
         owners = flat % store.rows  # a row may recur
         np.subtract.at(store.length, owners, 1)  # (one number per entry gone, not the row's every slot)
         self.wm._size -= len(flat)

@@ -154,17 +154,25 @@ class QueueColumns:
             held = props >= 0
             self.slot_of[props[held], (flat % self.rows)[held]] = -1
 
-    def _unmap_rows(self, rows: np.ndarray) -> None:
-        """Take every entry of ``rows`` out of the slot map (before the rows are cleared)."""
+    def clear_slots(self, flat: np.ndarray) -> None:
+        """Empty slots ``flat`` (flat indices): out of the slot map, no property, a trace never due.
+
+        The rows' lengths are the caller's.
+        """
+        self._unmap_slots(flat)
+        self.prop.reshape(-1)[flat] = -1
+        if self.traces is not None:
+            self.traces.due.reshape(-1)[flat] = NEVER
+
+    def clear_rows(self, rows: np.ndarray) -> None:
+        """Empty every slot of ``rows`` as :meth:`clear_slots` does (lengths: the caller's)."""
         if self.slot_of is not None:
             props = self.prop[:self.used].take(rows, axis=1)
             held = props >= 0
             self.slot_of[props[held], np.broadcast_to(rows, props.shape)[held]] = -1
-
-    def clear_slots(self, flat: np.ndarray) -> None:
-        """Empty slots ``flat`` (flat indices; their traces and the rows' lengths are the caller's)."""
-        self._unmap_slots(flat)
-        self.prop.reshape(-1)[flat] = -1
+        self.prop[:, rows] = -1
+        if self.traces is not None:
+            self.traces.due[:, rows] = NEVER
 
     # ------------------------------------------------------------ one row
     def read(self, row: int) -> list[tuple[int, int, int]]:
@@ -189,10 +197,7 @@ class QueueColumns:
 
     def write(self, row: int, items: list[tuple[int, int, int]], synced: int) -> None:
         """Hold ``items`` (at most ``width``, any order) as row ``row``, up to date with ``synced`` ticks."""
-        self._unmap_rows(np.array([row]))
-        self.prop[:, row] = -1
-        if self.traces is not None:  # an empty slot's trace is never due
-            self.traces.due[:, row] = NEVER
+        self.clear_rows(np.array([row]))
         for k, (prop, stamp, entry) in enumerate(items):
             self.prop[k, row], self.stamp[k, row], self.entry[k, row] = prop, stamp, entry
             line = self._map_line(prop)
@@ -205,20 +210,14 @@ class QueueColumns:
 
     def start_empty(self, rows: np.ndarray, synced: int) -> None:
         """Hold ``rows`` as empty queues, up to date with ``synced`` ticks."""
-        self._unmap_rows(rows)
-        self.prop[:, rows] = -1
-        if self.traces is not None:  # an empty slot's trace is never due
-            self.traces.due[:, rows] = NEVER
+        self.clear_rows(rows)
         self.length[rows] = 0
         self.synced[rows] = synced
         self.held[rows] = True
 
     def release(self, row: int) -> None:
         """Stop holding row ``row`` (its queue moves elsewhere)."""
-        self._unmap_rows(np.array([row]))
-        self.prop[:, row] = -1
-        if self.traces is not None:  # an empty slot's trace is never due
-            self.traces.due[:, row] = NEVER
+        self.clear_rows(np.array([row]))
         self.length[row] = 0
         self.held[row] = False
 
@@ -231,10 +230,7 @@ class QueueColumns:
         targets, counts = rows[popping], counts[popping]
         emptied = counts >= self.length[targets]
         gone = targets[emptied]
-        self._unmap_rows(gone)
-        self.prop[:, gone] = -1
-        if self.traces is not None:  # an empty slot's trace is never due
-            self.traces.due[:, gone] = NEVER
+        self.clear_rows(gone)
         self.length[gone] = 0
         partial, counts = targets[~emptied], counts[~emptied]
         for done in range(int(counts.max(initial=0))):  # fewer than width rounds
@@ -242,8 +238,6 @@ class QueueColumns:
             stamps = np.where(np.take(self.prop, now, axis=1) >= 0, np.take(self.stamp, now, axis=1), _NO_STAMP)
             popped = _first_minimum(stamps)[0] * self.rows + now
             self.clear_slots(popped)
-            if self.traces is not None:
-                self.traces.due.reshape(-1)[popped] = NEVER
             self.length[now] -= 1
 
     def in_order(self, rows: np.ndarray, depth: int) -> list[list[int]]:
@@ -280,7 +274,7 @@ class QueueColumns:
 
         Rows that widen (not ``bounded``) always have room, so no front is displaced: the
         slot map (``slot_of``) says which rows hold the property and where, and only the
-        others read their slots for the first empty one (:meth:`_held_or_empty`), and
+        others read their slots for the first empty one (:meth:`_slots_for`), and
         of those only the slots ever used (``used``) and the first beyond: a row with
         none of them empty holds ``used`` entries, so slot ``used`` is its first empty one.
         """
@@ -290,7 +284,7 @@ class QueueColumns:
             slot, best = _first_minimum(key)
             present, grew = best == -2, best == -1  # refreshed; took an empty slot (else displaced the front)
         else:
-            slot, present = self._held_or_empty(rows, prop)
+            slot, present = self._slots_for(rows, prop)
             grew = ~present
         self.used = max(self.used, int(slot.max(initial=-1)) + 1)
         flat = slot * self.rows + rows
@@ -307,22 +301,23 @@ class QueueColumns:
         self.length[rows] = length + grew
         return grew, length == 0
 
-    def _held_or_empty(self, rows: np.ndarray, prop: int) -> tuple[np.ndarray, np.ndarray]:
+    def _slots_for(self, rows: np.ndarray, prop: int) -> tuple[np.ndarray, np.ndarray]:
         """Rows that widen: per row of ``rows``, the slot holding ``prop``, else its first empty one; and which.
 
         With a slot map, one byte per row says where ``prop`` is, and only the rows
         without it read their slots (for the first empty one, which it then maps);
         without, every row reads its slots (:func:`_held_or_empty`).
         """
+        read = self.prop[:min(self.used + 1, self.width)]  # the slots ever used and the first beyond
         line = self._map_line(prop)
         if line is None:
-            return _held_or_empty(np.take(self.prop[:min(self.used + 1, self.width)], rows, axis=1), prop)
+            return _held_or_empty(np.take(read, rows, axis=1), prop)
         slot = line.take(rows).astype(np.intp)
         present = slot >= 0
         new = np.flatnonzero(~present)
         if len(new):
             fresh = rows.take(new)
-            empty = _held_or_empty(np.take(self.prop[:min(self.used + 1, self.width)], fresh, axis=1), -2)[0]
+            empty = _held_or_empty(np.take(read, fresh, axis=1), -2)[0]
             slot[new] = empty
             line[fresh] = empty
         return slot, present
