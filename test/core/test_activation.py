@@ -253,6 +253,17 @@ def quiet(column_min: int) -> tuple[WMBuffer, WMManager]:
     return buffer, manager
 
 
+def on_both_paths():
+    """Yield ``(column_min, buffer, manager)`` of :func:`quiet`: column queues, then dict queues."""
+    for column_min in (1, 10**9):
+        yield (column_min, *quiet(column_min))
+
+
+def kept(buffer: WMBuffer, names: list[str]) -> list:
+    """Return the queues of ``names`` as a store keeps them: (property, trace) per item, LRU first."""
+    return [[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names]
+
+
 def test_exact_wm_contents_at_given_times():
     """d = 0.5, tau = ln(20^-0.5 + 10^-0.5): one encoding at t stays until t + exp(-2 tau) = t + 3.4316 s."""
     tau = math.log(20 ** -0.5 + 10 ** -0.5)
@@ -378,8 +389,7 @@ def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_d
 
     names = ["e", "f"]
     got = []
-    for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager = quiet(column_min)
+    for column_min, buffer, manager in on_both_paths():
         both, e = bitset.from_indices([0, 1], 2), bitset.from_indices([0], 2)
         for prop in ("a", "b"):
             buffer.encode_members(both, names, prop, "reg-distractor", 0.0, 0)
@@ -387,7 +397,7 @@ def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_d
         for prop in ("a", "c", "d", "g"):
             buffer.encode_members(e, names, prop, "reg-distractor", 1.0, 1)
         buffer.encode_members(both, names, "g", "reg-distractor", 1.0, 1)
-        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        got.append(kept(buffer, names))
         if column_min == 1:
             assert set(buffer.columns.entities) == {"e", "f"}
     assert got[0] == [[("d", [1, 1.0, 1.0]), ("g", [2, 1.0, 1.0, 1.0])],
@@ -406,13 +416,12 @@ def test_a_description_joins_the_batch_of_its_time_and_is_noted_as_a_dict_queue_
 
     names = ["e", "f"]
     got = []
-    for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager = quiet(column_min)
+    for column_min, buffer, manager in on_both_paths():
         manager.advance(1.0)
         buffer.encode_members(bitset.from_indices([0, 1], 2), names, "a", "reg-distractor", 1.0, 0)
         buffer.encode("e", ["a", "b", "c"], "speaker", 1.0, 0)
         buffer.encode("f", ["a", "a"], "speaker", 1.0, 0)
-        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        got.append(kept(buffer, names))
         if column_min == 1:
             assert set(buffer.columns.entities) == {"e", "f"}
     assert got[0] == [[("b", [1, 1.0, 1.0]), ("c", [1, 1.0, 1.0])], [("a", [3, 1.0, 1.0, 1.0, 1.0])]]
@@ -432,8 +441,7 @@ def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
     names = ["e", "f"]
     L = math.exp(2.0)
     got = []
-    for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager = quiet(column_min)
+    for column_min, buffer, manager in on_both_paths():
         both = bitset.from_indices([0, 1], 2)
         for _ in range(2):
             buffer.encode_members(both, names, "b", "reg-distractor", 0.0, 0)
@@ -442,7 +450,7 @@ def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
         manager.advance(L + 0.6)
         buffer.encode("e", ["c"], "speaker", L + 0.6, 2)
         buffer.encode("f", ["a"], "speaker", L + 0.6, 2)
-        got.append([[(item[0], item[5]) for item in buffer.export_queue(name)] for name in names])
+        got.append(kept(buffer, names))
         got.append((len(buffer), buffer.nonempty_entities(), buffer.take_changes()))
         if column_min == 1:
             assert set(buffer.columns.entities) == {"e", "f"}  # (encoded in their rows)
@@ -465,8 +473,7 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
     names = ["e", "f"]
     L = math.exp(2.0)
     got = []
-    for column_min in (1, 10**9):  # column queues, dict queues
-        buffer, manager = quiet(column_min)
+    for column_min, buffer, manager in on_both_paths():
         both = bitset.from_indices([0, 1], 2)
         manager.advance(0.5)
         buffer.encode_members(both, names, "a", "reg-distractor", 0.5, 0)
@@ -480,7 +487,7 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
         manager.advance(1.0)
         restarted.encode_members(both, names, "c", "reg-distractor", 1.0, 1)
         manager.advance(L + 0.75)
-        got.append([[(item[0], item[5]) for item in restarted.export_queue(name)] for name in names])
+        got.append(kept(restarted, names))
         got.append((saved, len(restarted)))
     assert got[0] == [[("a", [2, 0.5, 0.5, 0.5]), ("c", [1, 1.0, 1.0])], [("c", [1, 1.0, 1.0])]]
     assert got[1][1] == 3
