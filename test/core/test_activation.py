@@ -494,6 +494,53 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
     assert got[2:] == got[:2]
 
 
+def test_rows_that_widen_restart_from_their_export_and_find_their_slots_again():
+    """Activation alone (no capacity): column rows widen past 4 slots, are exported, restored and encoded again.
+
+    tau -1 (one encoding stays L = e^2 s).  e, f and g get a, b, c, d, h at 0 (rows
+    widen to 8 slots) and e again a at 0.5.  A fresh buffer restores the export (a
+    restart); x and a go to every row at 1 (the restored queues move into rows, a
+    refreshed where it is); at L + 0.75 b, c, d and h (one encoding each, at 0) are gone.  The
+    slot map says where each row holds each property throughout; dict queues agree.
+    """
+    from fsreg_ros.core import bitset
+
+    names = ["e", "f", "g"]
+    L = math.exp(2.0)
+    everyone = bitset.from_indices([0, 1, 2], 3)
+    got = []
+    for column_min in (1, 10**9):  # column queues, dict queues
+        buffer, manager, _ = managed(policy(-1.0))
+        buffer.sink, buffer.column_min = None, column_min
+        for prop in ("a", "b", "c", "d", "h"):
+            buffer.encode_members(everyone, names, prop, "reg-distractor", 0.0, 0)
+        manager.advance(0.5)
+        buffer.encode_members(bitset.from_indices([0], 3), names, "a", "reg-distractor", 0.5, 1)
+        saved = {name: buffer.export_queue(name) for name in names}
+        restarted, manager, _ = managed(policy(-1.0))
+        restarted.sink, restarted.column_min = None, column_min
+        restarted.restore(saved, *buffer.counters(), restarted.limits)
+        manager.advance(1.0)
+        for prop in ("x", "a"):
+            restarted.encode_members(everyone, names, prop, "reg-distractor", 1.0, 2)
+        store = restarted.columns.store
+        if column_min == 1:
+            assert store is not None and not store.bounded and store.width == 8 and store.slot_of is not None
+            for row, name in enumerate(names):  # the map: each property's slot in each row
+                props = store.prop[:, row].tolist()
+                assert {restarted.columns.prop_name[p]: k for k, p in enumerate(props) if p >= 0} == {
+                    restarted.columns.prop_name[p]: int(store.slot_of[p, row]) for p in range(store.slot_of.shape[0])
+                    if store.slot_of[p, row] >= 0}
+        manager.advance(L + 0.75)
+        got.append([list(restarted.queue(name)) for name in names])
+        got.append(kept(restarted, names))
+    assert got[0] == [["x", "a"], ["x", "a"], ["x", "a"]]
+    assert got[1] == [[("x", [1, 1.0, 1.0]), ("a", [3, 0.0, 0.0, 0.5, 1.0])],
+                      [("x", [1, 1.0, 1.0]), ("a", [2, 0.0, 0.0, 1.0])],
+                      [("x", [1, 1.0, 1.0]), ("a", [2, 0.0, 0.0, 1.0])]]
+    assert got[2:] == got[:2]
+
+
 # ------------------------------------------------------------ persistence
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
