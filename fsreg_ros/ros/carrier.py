@@ -582,6 +582,10 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
         except ValueError as err:
             refuse(seen["id"], printable(err), internal=False, kind=reply_kind(err))
             return None
+        except Exception as err:  # noqa: BLE001 - out of a drain it would stop the node: log, refuse, go on
+            refuse(seen["id"], f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
+                   kind="internal")
+            return None
         return payload
 
     def drain(first: Optional[String]) -> Optional[bool]:
