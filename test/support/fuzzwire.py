@@ -107,7 +107,7 @@ class Tally:
 
 
 def _serialized(payload: bytes) -> bytes:
-    """The CDR of a ``std_msgs/String`` whose data are ``payload`` (any bytes, UTF-8 or not)."""
+    """Return the CDR of a ``std_msgs/String`` whose data are ``payload`` (any bytes, UTF-8 or not)."""
     header = serialize_message(String(data=""))[:4]  # the encapsulation header
     return header + struct.pack("<I", len(payload) + 1) + payload + b"\x00"
 
