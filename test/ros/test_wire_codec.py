@@ -3,9 +3,8 @@
 Issue 38.1: one ``ltm/assert`` of 76 kB whose ``id`` nested 3,000 deep killed the
 consultant and the WM Manager: the oversized path read the id with a decoder that
 raised ``RecursionError``.  Every reader of wire text (``parse``, ``id_of``,
-``leading_id``) now goes through one decoder that refuses too deep a nesting, a key
-given twice, a lone surrogate and non-finite numbers, and raises nothing but
-``MessageError``.
+``leading_id``) now goes through one decoder that refuses too deep a nesting, a lone
+surrogate and non-finite numbers, and raises nothing but ``MessageError``.
 """
 
 from __future__ import annotations
@@ -35,8 +34,6 @@ def test_the_oversized_message_of_issue_38_is_refused_and_its_id_read_without_ra
     (nested(100_000), f"nested deeper than {MAX_DEPTH} levels: "),
     ("[" * 100_000, f"nested deeper than {MAX_DEPTH} levels: "),
     ('{"a":' + '{"b":' * 5_000 + "1" + "}" * 5_001, f"nested deeper than {MAX_DEPTH} levels: "),
-    ('{"id": 1, "id": 2}', "field 'id' given twice"),
-    ('{"a": {"b": 1, "b": 1}}', "field 'b' given twice"),
     ('{"a": "x\\ud800"}', "a string with a lone surrogate (not Unicode): "),
     ('{"\\udfff": 1}', "a string with a lone surrogate (not Unicode): "),
     ('{"a": NaN}', "not JSON (NaN is not a JSON number)"),
@@ -44,8 +41,7 @@ def test_the_oversized_message_of_issue_38_is_refused_and_its_id_read_without_ra
     ('{"a": ' + "9" * 5000 + "}", "not JSON (Exceeds the limit (4300 digits)"),
     ("null", "expected a JSON object, got null"),
     ('{"a": 1} x', "not JSON (Extra data"),
-], ids=["33-deep", "100000-deep", "array-100000-deep", "objects-5000-deep", "duplicate-id", "duplicate-nested",
-        "lone-surrogate", "surrogate-key", "nan", "1e999", "5000-digits", "null", "trailing"])
+], ids=["33-deep", "100000-deep", "array-100000-deep", "objects-5000-deep", "lone-surrogate", "surrogate-key", "nan", "1e999", "5000-digits", "null", "trailing"])
 def test_every_hostile_text_is_refused_in_one_line_and_nothing_else_raises(text, expected):
     with pytest.raises(MessageError) as info:
         parse(text, max_bytes=1_000_000)
@@ -58,6 +54,7 @@ def test_the_contracts_depth_and_unicode_are_accepted():
     assert parse(nested(MAX_DEPTH))["a"]  # the deepest nesting allowed
     assert parse('{"a": "\\ud83d\\ude00 \\u00e9"}') == {"a": "\U0001F600 \u00e9"}  # a surrogate pair is a character
     assert parse('{"id": 7, "facts": [{"entity": "e", "properties": {"p": 1.0}}]}')["id"] == 7
+    assert parse('{"id": 1, "id": 2}') == {"id": 2}  # a key twice: the last counts, for every reader here
 
 
 @pytest.mark.parametrize("text, rid", [
