@@ -54,14 +54,15 @@ class Envelope:
 
     name: str
     make: Callable[[str], Union[str, bytes]]
+    keeps_id: bool = False  # its refusal must name its id (read off the head of an oversized message too)
 
 
 ENVELOPES = (
     Envelope("nested 5000 deep", lambda rid: '{"id": "%s", "a": %s%s}' % (rid, "[" * DEEP, "]" * DEEP)),
     Envelope("issue 38.1: 76 kB, id nested 3000 deep", lambda rid: ISSUE_38),
-    Envelope("76 kB with a readable id", lambda rid: '{"id": "%s", "pad": "%s"}' % (rid, "x" * 76_000)),
-    Envelope("1 MB string", lambda rid: '{"id": "%s", "x": "%s"}' % (rid, "y" * 1_000_000)),
-    Envelope("not UTF-8", lambda rid: b'{"id": "%s", "x": "\xff\xfe\xed\xa0\x80\xc0"}' % rid.encode()),
+    Envelope("76 kB with a readable id", lambda rid: '{"id": "%s", "pad": "%s"}' % (rid, "x" * 76_000), True),
+    Envelope("1 MB string", lambda rid: '{"id": "%s", "x": "%s"}' % (rid, "y" * 1_000_000), True),
+    Envelope("not UTF-8", lambda rid: b'{"id": "%s", "x": "\xff\xfe\xed\xa0\x80\xc0"}' % rid.encode(), True),
     Envelope("a 5000-digit number", lambda rid: '{"id": "%s", "x": %s}' % (rid, "9" * 5000)),
     Envelope("lone surrogate", lambda rid: '{"id": "%s", "x": "\\ud800"}' % rid),
     Envelope("NaN", lambda rid: '{"id": "%s", "x": NaN}' % rid),
@@ -157,7 +158,8 @@ class WireFuzz:
         self.g.wait_service(endpoint.name, REPLY_TIMEOUT)
         client = self.g.client(endpoint.name)
         for envelope in ENVELOPES:
-            text = envelope.make(f"fz-wire-{next(self._ids)}")
+            rid = f"fz-wire-{next(self._ids)}"
+            text = envelope.make(rid)
             if isinstance(text, bytes):
                 tally.unsendable += 1
                 continue
@@ -166,7 +168,7 @@ class WireFuzz:
             try:
                 reply = self.g.run(client.result(future, REPLY_TIMEOUT), REPLY_TIMEOUT + 1.0)
             except CarrierError as err:
-                self._judge(tally, envelope, err.kind, str(err), err.kind == "timeout")
+                self._judge(tally, envelope, rid, err.kind, str(err), err.kind == "timeout", err.reply)
             else:
                 tally.failures.append(f"{envelope.name}: accepted, {str(reply)[:100]}")
 
@@ -177,13 +179,14 @@ class WireFuzz:
             self.g.spin_until(lambda: pub.get_subscription_count() >= self.g.probe.count_subscribers(endpoint.name),
                               REPLY_TIMEOUT, what=f"the readers of {endpoint.name}")
             for envelope in ENVELOPES:
-                text = envelope.make(f"fz-wire-{next(self._ids)}")
+                rid = f"fz-wire-{next(self._ids)}"
+                text = envelope.make(rid)
                 tally.sent += 1
                 inbox = self.inboxes.get(topic.answered_on)
                 before = len(inbox) if inbox is not None else 0
                 pub.publish(_serialized(text) if isinstance(text, bytes) else String(data=text))
                 if inbox is not None:
-                    self._answered(endpoint, pub, inbox, before, envelope, tally)
+                    self._answered(endpoint, pub, inbox, before, envelope, rid, tally)
             if topic.answered_on is None:
                 if pub.wait_for_all_acked(Duration(seconds=REPLY_TIMEOUT)):
                     tally.taken += len(ENVELOPES)
@@ -192,7 +195,8 @@ class WireFuzz:
         finally:
             self.g.probe.destroy_publisher(pub)  # a latched topic keeps no junk for later readers
 
-    def _answered(self, endpoint: Endpoint, pub, inbox, before: int, envelope: Envelope, tally: Tally) -> None:
+    def _answered(self, endpoint: Endpoint, pub, inbox, before: int, envelope: Envelope, rid: str,
+                  tally: Tally) -> None:
         """Send a marker after the input; the replies before the marker's are the input's."""
         marker = f"fz-wire-marker-{next(self._ids)}"
         message = {"id": marker, **({"domain": self.domains[0]} if endpoint.entry is contract.LTM_ASSERT else {})}
@@ -207,15 +211,18 @@ class WireFuzz:
         if not replies:
             tally.failures.append(f"{envelope.name}: unanswered (the marker after it was answered)")
         for reply in replies:
-            self._judge(tally, envelope, reply.get("kind"), str(reply.get("error") or ""), False, reply)
+            self._judge(tally, envelope, rid, reply.get("kind"), str(reply.get("error") or ""), False, reply)
 
-    def _judge(self, tally: Tally, envelope: Envelope, kind, error: str, timed_out: bool, reply=None) -> None:
+    def _judge(self, tally: Tally, envelope: Envelope, rid: str, kind, error: str, timed_out: bool,
+               reply: Optional[dict]) -> None:
         if timed_out:
             tally.failures.append(f"{envelope.name}: unanswered ({error[:100]})")
         elif not error.strip():
             tally.failures.append(f"{envelope.name}: not refused: {str(reply)[:100]}")
         elif kind == "internal":
             tally.failures.append(f"{envelope.name}: refused as an internal error: {error[:160]}")
+        elif envelope.keeps_id and (reply or {}).get("id") != rid:
+            tally.failures.append(f"{envelope.name}: refused without its id {rid!r}: {str(reply)[:120]}")
         else:
             tally.refused += 1
 
