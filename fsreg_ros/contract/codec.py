@@ -192,7 +192,7 @@ def _decode(text: str, start: int = 0, *, whole: bool = True) -> tuple[Any, int]
     piece = text if whole and not start else text[start:end]
     if piece.count("[") + piece.count("{") > MAX_DEPTH and _too_deep(value):
         raise MessageError(f"nested deeper than {MAX_DEPTH} levels: {printable(piece, 80)}")
-    if _SURROGATE_ESCAPE.search(piece) and _lone_surrogate(value):
+    if (_SURROGATE_ESCAPE.search(piece) and _lone_surrogate(value)) or (not piece.isascii() and _lone_surrogate(piece)):
         raise MessageError(f"a string with a lone surrogate (not Unicode): {printable(piece, 80)}")
     if too_large:
         path = _non_finite_path(value) or ["?"]

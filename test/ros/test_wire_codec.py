@@ -36,13 +36,14 @@ def test_the_oversized_message_of_issue_38_is_refused_and_its_id_read_without_ra
     ('{"a":' + '{"b":' * 5_000 + "1" + "}" * 5_001, f"nested deeper than {MAX_DEPTH} levels: "),
     ('{"a": "x\\ud800"}', "a string with a lone surrogate (not Unicode): "),
     ('{"\\udfff": 1}', "a string with a lone surrogate (not Unicode): "),
+    ('{"a": "x\ud800"}', "a string with a lone surrogate (not Unicode): "),  # the character itself, not escaped
     ('{"a": NaN}', "not JSON (NaN is not a JSON number)"),
     ('{"a": [1e999]}', "field 'a'[0]: 1e999 is too large for a number (not finite)"),
     ('{"a": ' + "9" * 5000 + "}", "not JSON (Exceeds the limit (4300 digits)"),
     ("null", "expected a JSON object, got null"),
     ('{"a": 1} x', "not JSON (Extra data"),
-], ids=["33-deep", "100000-deep", "array-100000-deep", "objects-5000-deep", "lone-surrogate", "surrogate-key", "nan",
-        "1e999", "5000-digits", "null", "trailing"])
+], ids=["33-deep", "100000-deep", "array-100000-deep", "objects-5000-deep", "lone-surrogate", "surrogate-key",
+        "raw-surrogate", "nan", "1e999", "5000-digits", "null", "trailing"])
 def test_every_hostile_text_is_refused_in_one_line_and_nothing_else_raises(text, expected):
     with pytest.raises(MessageError) as info:
         parse(text, max_bytes=1_000_000)
