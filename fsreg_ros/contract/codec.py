@@ -1,11 +1,18 @@
 r"""The wire codec: one JSON object per ``std_msgs/String`` or service field (docs/semantics.md §7).
 
-Decoding (:func:`parse`) is bounded (a text longer than ``max_bytes`` is refused before it
-is parsed) and returns one JSON object, or raises :class:`MessageError` saying what is
-wrong: not JSON, not an object, too big.  NaN and infinities (``NaN``, ``Infinity``,
-``1e999``) are never valid JSON here, in any field (the error names the field).  What
-the object's fields must be is the contract's business (:func:`fsreg_ros.contract.check`,
-whose one-line errors use :func:`describe` for the expected types).
+Decoding is done in one place, :func:`_decode`, which every reader of wire text goes
+through (:func:`parse`, and :func:`id_of`/:func:`leading_id`, which read a request's id
+for an error reply): whatever the text, it returns a value or raises
+:class:`MessageError`, never anything else.  It refuses nesting deeper than
+:data:`MAX_DEPTH` (checked without recursion, so no ``RecursionError`` can leave it),
+a lone surrogate (``"\ud800"``: not Unicode), and NaN and infinities (``NaN``, ``Infinity``, ``1e999``:
+never valid JSON here, in any field; the error names the field).  :func:`parse` is
+also bounded in size (a text longer than ``max_bytes`` is refused before it is parsed)
+and returns one JSON object.  What the object's fields must be is the contract's
+business (:func:`fsreg_ros.contract.check`, whose one-line errors use :func:`describe`
+for the expected types).  Bytes that are not UTF-8 never get here: rclpy's generated
+message code decodes a string field with U+FFFD for each invalid byte (measured on a
+topic with this project's Jazzy wheels; a service request's field is the same code).
 
 Encoding (:func:`dumps`) refuses what is not JSON.  Error replies go
 through :func:`error_json`/:func:`safe_dumps`, which never raise: non-finite numbers,
@@ -20,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import types
 from typing import Any, Mapping, Optional, Union
 
@@ -99,6 +107,14 @@ def error_json(error: Any, kind: Optional[str] = None, rid: Any = None, **fields
     return safe_dumps(reply)
 
 
+#: Deepest nesting of arrays and objects in a message (the top-level object is level 1).
+#: The contract's deepest message nests 4 (a fact batch: object, ``facts``, a fact,
+#: its ``properties``); 32 leaves room for extra fields and stays far below Python's
+#: recursion limit, so nothing that walks a decoded message (validation, error
+#: replies) can run out of stack.
+MAX_DEPTH = 32
+
+
 def _reject_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a JSON number")
 
@@ -107,7 +123,7 @@ def _non_finite_path(value: Any, depth: int = 0) -> Optional[list]:
     """Return the path to the first non-finite float in a decoded value (None if there is none)."""
     if isinstance(value, float):
         return [] if not math.isfinite(value) else None
-    if depth > 200:
+    if depth > MAX_DEPTH:
         return None
     items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
     for key, item in items:
@@ -115,6 +131,74 @@ def _non_finite_path(value: Any, depth: int = 0) -> Optional[list]:
         if found is not None:
             return [key, *found]
     return None
+
+
+def _too_deep(value: Any, limit: int = MAX_DEPTH) -> bool:
+    """Whether a decoded value nests arrays and objects deeper than ``limit`` (level by level, no recursion)."""
+    level = [value] if type(value) in (dict, list) else []
+    for _ in range(limit):
+        below = []
+        for node in level:
+            for child in node.values() if type(node) is dict else node:
+                kind = type(child)
+                if kind is dict or kind is list:
+                    below.append(child)
+        if not below:
+            return False
+        level = below
+    return True
+
+
+#: An escaped UTF-16 surrogate in JSON text (``\ud800``); decoded alone it is no character.
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+
+
+def _lone_surrogate(value: Any) -> bool:
+    """Whether a decoded value holds a string (or key) with a lone surrogate."""
+    try:
+        json.dumps(value, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        return True
+    return False
+
+
+def _decode(text: str, start: int = 0, *, whole: bool = True) -> tuple[Any, int]:
+    """Decode the JSON value at ``text[start:]``: (value, end); :class:`MessageError` whatever is wrong.
+
+    The one place wire text is decoded.  ``whole``: the value must be all of the text
+    (but whitespace).  Refused: not JSON, ``NaN``/``Infinity``/``1e999``, nesting deeper than
+    :data:`MAX_DEPTH`, a lone surrogate.  Never raises anything else.  A key given twice in
+    one object: the last counts, as for every JSON reader of fsreg's (refusing it cost
+    about half again the decoding time of a fact batch).
+    """
+    too_large: list[str] = []
+
+    def parse_float(number: str) -> float:
+        value = float(number)
+        if not math.isfinite(value):  # 1e999: JSON syntax, but no number; located below
+            too_large.append(number)
+        return value
+
+    decoder = json.JSONDecoder(parse_constant=_reject_constant, parse_float=parse_float)
+    try:
+        if whole:
+            value, end = decoder.decode(text), len(text)
+        else:
+            value, end = decoder.raw_decode(text, start)
+    except RecursionError:
+        raise MessageError(f"nested deeper than {MAX_DEPTH} levels: {printable(text[start:], 80)}") from None
+    except (ValueError, TypeError) as err:  # json's errors, and int() of a number over its digit limit
+        raise MessageError(f"not JSON ({printable(err, 120)}): {printable(text[start:], 80)}") from None
+    piece = text if whole and not start else text[start:end]
+    if piece.count("[") + piece.count("{") > MAX_DEPTH and _too_deep(value):
+        raise MessageError(f"nested deeper than {MAX_DEPTH} levels: {printable(piece, 80)}")
+    if (_SURROGATE_ESCAPE.search(piece) and _lone_surrogate(value)) or (not piece.isascii() and _lone_surrogate(piece)):
+        raise MessageError(f"a string with a lone surrogate (not Unicode): {printable(piece, 80)}")
+    if too_large:
+        path = _non_finite_path(value) or ["?"]
+        where = f"field '{printable(path[0], 60)}'" + "".join(f"[{printable(repr(p), 40)}]" for p in path[1:])
+        raise MessageError(f"{where}: {_clip(too_large[0], 40)} is too large for a number (not finite)")
+    return value, end
 
 
 def parse(text: str, *, max_bytes: Optional[int] = None) -> dict:
@@ -128,24 +212,9 @@ def parse(text: str, *, max_bytes: Optional[int] = None) -> dict:
         size = len(text.encode("utf-8", "surrogatepass"))
         if size > max_bytes:
             raise TooLarge(f"message is {size} bytes, over the limit of {max_bytes}")
-    too_large: list[str] = []
-
-    def parse_float(number: str) -> float:
-        value = float(number)
-        if not math.isfinite(value):  # 1e999: JSON syntax, but no number; located below
-            too_large.append(number)
-        return value
-
-    try:
-        obj = json.loads(text, parse_constant=_reject_constant, parse_float=parse_float)
-    except (ValueError, RecursionError) as err:
-        raise MessageError(f"not JSON ({printable(err, 120)}): {printable(text, 80)}") from None
+    obj, _ = _decode(text)
     if not isinstance(obj, dict):
         raise MessageError(f"expected a JSON object, got {_json_kind(obj)}: {printable(text, 80)}")
-    if too_large:
-        path = _non_finite_path(obj) or ["?"]
-        where = f"field '{printable(path[0], 60)}'" + "".join(f"[{printable(repr(p), 40)}]" for p in path[1:])
-        raise MessageError(f"{where}: {_clip(too_large[0], 40)} is too large for a number (not finite)")
     return obj
 
 
@@ -161,9 +230,12 @@ def request_id(data: Any) -> Any:
 
 def id_of(text: Any) -> Any:
     """Return the usable ``id`` of raw JSON text (or a String message), None if there is none."""
+    text = getattr(text, "data", text)
+    if not isinstance(text, str):
+        return None
     try:
-        return request_id(json.loads(getattr(text, "data", text)))
-    except (TypeError, ValueError, RecursionError):
+        return request_id(_decode(text)[0])
+    except MessageError:
         return None
 
 
@@ -175,18 +247,18 @@ def leading_id(text: Any, limit: int = ID_SCAN_CHARS) -> Any:
     """Return the top-level ``id`` of JSON object text found within its first ``limit`` characters, else None.
 
     For a message refused as too large: its answer can still name the request (a
-    client writes ``id`` before the bulk), without parsing the whole text.
+    client writes ``id`` before the bulk), without parsing the whole text.  The key
+    and its value are decoded by :func:`_decode`, so no text makes this raise.
     """
     if not isinstance(text, str) or not text.lstrip().startswith("{"):
         return None
     head, depth, i, n = text[:limit], 0, 0, min(len(text), limit)
-    decoder = json.JSONDecoder()
     while i < n:
         ch = head[i]
         if ch == '"':
             try:
-                key, end = decoder.raw_decode(head, i)
-            except ValueError:
+                key, end = _decode(head, i, whole=False)
+            except MessageError:
                 return None
             j = end
             while j < n and head[j] in " \t\r\n":
@@ -196,8 +268,8 @@ def leading_id(text: Any, limit: int = ID_SCAN_CHARS) -> Any:
                 while j < n and head[j] in " \t\r\n":
                     j += 1
                 try:
-                    value, _ = decoder.raw_decode(head, j)
-                except ValueError:
+                    value, _ = _decode(head, j, whole=False)
+                except MessageError:
                     return None
                 return request_id({"id": value})
             i = end

@@ -39,6 +39,8 @@ class Topic:
     publishers: str
     subscribers: str
     reader_qos: Optional[QosSpec] = None
+    #: The topic its messages are answered on (a refusal included); None: no answer by contract.
+    answered_on: Optional[str] = None
 
     @property
     def subscriber_qos(self) -> QosSpec:
@@ -56,11 +58,13 @@ class Service:
     clients: str
 
 
-HUMAN = Topic("dialogue/human", HumanUtterance, PIPELINE_QOS, "the robot's speech input", "parser")
-SEMANTICS = Topic("dialogue/semantics", Semantics, PIPELINE_QOS, "parser", "reference_resolution")
+HUMAN = Topic("dialogue/human", HumanUtterance, PIPELINE_QOS, "the robot's speech input", "parser",
+              answered_on="rr/result")
+SEMANTICS = Topic("dialogue/semantics", Semantics, PIPELINE_QOS, "parser", "reference_resolution",
+                  answered_on="rr/result")
 RR_RESULT = Topic("rr/result", Union[RRResult, ErrorReply], PIPELINE_QOS, "reference_resolution, parser (errors)",
                   "dialogue manager")
-REG_REQUEST = Topic("reg/request", RegRequest, PIPELINE_QOS, "dialogue manager", "reg")
+REG_REQUEST = Topic("reg/request", RegRequest, PIPELINE_QOS, "dialogue manager", "reg", answered_on="reg/expression")
 REG_EXPRESSION = Topic("reg/expression", Union[RegExpression, RegError], PIPELINE_QOS, "reg", "dialogue manager")
 WM_STATE = Topic("wm/state", WMState, STATE_PUB_QOS, "consultants", "anyone", reader_qos=STATE_QOS)
 WM_EVENTS = Topic("wm/events", WMEventMessage, EVENTS_QOS, "consultants", "dialogue_player (trace)")
@@ -71,7 +75,8 @@ ALIVE = Topic("consultant/<domain>/alive", ConsultantAnnounce, ALIVE_QOS, "consu
               "wm_manager (readiness), reference_resolution, reg")
 READY = Topic("wm_manager/ready", ManagerReady, READY_QOS, "wm_manager", "reference_resolution, reg (restarts), "
               "clients (fsreg-up, fsreg-ctl, fsreg_ros.testing, dialogue_player)", reader_qos=STATE_QOS)
-LTM_ASSERT = Topic("ltm/assert", LtmAssert, ASSERT_QOS, "perception, dialogue manager", "consultants")
+LTM_ASSERT = Topic("ltm/assert", LtmAssert, ASSERT_QOS, "perception, dialogue manager", "consultants",
+                   answered_on="ltm/assert/result")
 LTM_ASSERT_RESULT = Topic("ltm/assert/result", Union[LtmAssertResult, ErrorReply], ASSERT_RESULT_QOS, "consultants",
                           "asserter")
 

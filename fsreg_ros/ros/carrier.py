@@ -70,7 +70,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from ..contract.codec import (MessageError, TooLarge, dumps, error_json, leading_id, parse, printable, request_id,
                               safe_dumps)
 from .diagnostics import request_stats
-from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Service, Topic, check
+from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, Limits, QosSpec, Service, Topic, check
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
@@ -233,8 +233,9 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
 
     ``service`` is a :class:`~fsreg_ros.contract.Service` (its ``<domain>`` filled in
     with ``domain``): each request must fit its request schema, names and lists within
-    ``limits`` (a :class:`~fsreg_ros.contract.Limits`, also the default ``max_bytes``),
-    else it gets an error reply naming the field and the handler never sees it.  (A
+    ``limits`` (a :class:`~fsreg_ros.contract.Limits`, also the default ``max_bytes``;
+    without either, the default ``Limits().max_message_bytes``), else it gets an error
+    reply naming the field and the handler never sees it.  (A
     plain name serves without a schema.)  ``handlers`` is one ``handler(request: dict)``
     or a mapping op -> handler; a handler may be sync or ``async`` and returns a dict or
     a contract model.  Errors never escape: see the module docstring.  An async handler
@@ -266,6 +267,8 @@ def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[s
             check_schema(data)
     if max_bytes is None and limits is not None:
         max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
+    if max_bytes is None:  # a service is never unbounded (the WM Manager's status read 1 MB requests whole)
+        max_bytes = Limits().max_message_bytes
 
     stats = request_stats(node)
 
@@ -581,6 +584,10 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
             validate(payload)
         except ValueError as err:
             refuse(seen["id"], printable(err), internal=False, kind=reply_kind(err))
+            return None
+        except Exception as err:  # noqa: BLE001 - out of a drain it would stop the node: log, refuse, go on
+            refuse(seen["id"], f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
+                   kind="internal")
             return None
         return payload
 

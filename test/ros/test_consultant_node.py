@@ -676,7 +676,7 @@ def test_run_node_stopped_by_ros_shutdown_or_ctrl_c_exits_0_quietly():
         ('{"op": "affirm", "property": "male", "cause": "rr", "entities": ['
          + ",".join(f'"e{i}"' for i in range(5000)) + "]}", "MessageError", "5000 items"),
         ('{"op": "wm", "entity": "' + "z" * 1000 + '"}', "MessageError", "1000 characters"),
-        ('{"op": "wm", "entity": "\\ud800"}', "KnowledgeError", "no entity"),
+        ('{"op": "wm", "entity": "\\ud800"}', "MessageError", "a string with a lone surrogate (not Unicode)"),
         ('{"op": "encode", "entity": "face1", "properties": ["male", "wings"], "cause": "speaker"}',
          "KnowledgeError", "wings"),
         ('{"op": "affirm", "property": "male", "entities": ["face1"], "cause": "rr", "time": 1e999}',

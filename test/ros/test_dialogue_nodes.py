@@ -326,7 +326,7 @@ def test_a_dead_consultant_fails_fast_for_the_requests_queued_behind(graph):
 @pytest.mark.parametrize(
     "text, fragment",
     [
-        ('{"id": "h1", "target": "\\ud800"}', "no consultant knows entity"),  # a lone surrogate
+        ('{"id": "h1", "target": "\\ud800"}', "a string with a lone surrogate (not Unicode)"),  # not Unicode
         ('{"id": "h2", "target": "face1", "time": 1e999}', "time"),  # not a finite number
         ('{"id": ' + "9" * 5000 + ', "target": "face1"}', "not JSON"),  # an integer too long to read
         ('{"id": "h4", "target": "' + "x" * 300 + '"}', "over the limit of 256"),

@@ -3,7 +3,10 @@
 See ``fuzzgraph`` for the inputs and the checks.  The quick suite sends every hostile
 input right after a malformed one on every endpoint; the catalogue (every hostile
 mutation, field by field) and the generated inputs (``FUZZ_EXAMPLES`` per endpoint) are
-marked slow, and ``scripts/fuzz.py`` runs the same fuzzer longer.
+marked slow, and ``scripts/fuzz.py`` runs the same fuzzer longer.  ``fuzzwire`` sends
+what no schema can save (deep nesting, the oversized message of issue 38.1, huge strings,
+bytes that are not UTF-8, ...) to every endpoint the contract declares, in this graph
+and in a graph of node processes, which must all still be running and answering after.
 """
 
 from __future__ import annotations
@@ -13,8 +16,11 @@ import pytest
 from fuzzgraph import ENDPOINTS, NOT_JSON, REPLY_TOPIC, Fuzzer, Outcome, fuzz_after_malformed, fuzz_catalogue, \
     fuzz_generated, start_graph, templates
 
+from fuzzwire import TIME as WIRE_TIME, WireFuzz, endpoints
+
 from fsreg_ros import contract
 from fsreg_ros.core.scenario import load_scenario
+from fsreg_ros.testing import LiveGraph
 
 pytestmark = pytest.mark.graph
 FUZZ_EXAMPLES = 20
@@ -76,3 +82,45 @@ def test_hostile_inputs_after_a_malformed_one_are_answered(fuzzer, endpoint):
     fuzzer.outcomes.pop(endpoint, None)
     fuzz_after_malformed(fuzzer, endpoint, first_id=50_000 + 1_000 * ENDPOINTS.index(endpoint))
     assert check_outcome(fuzzer, endpoint).tried >= 10
+
+
+def real_request_targets(scenario) -> tuple[str, str]:
+    """An entity and a property of the scenario's first domain, for the real requests after the fuzz."""
+    spec = next(iter(scenario.domains.values()))
+    return next(iter(spec.entities)), spec.preference[0]
+
+
+def check_wire(wire: WireFuzz, domains: list[str]) -> None:
+    assert sorted(wire.tallies) == sorted(e.name for e in endpoints(domains))  # every endpoint of the contract
+    assert not wire.failures(), "\n" + wire.report()
+    assert all(t.refused + t.taken == t.sent for t in wire.tallies.values()), "\n" + wire.report()
+
+
+@pytest.mark.slow
+def test_every_endpoint_refuses_what_no_schema_can_save_and_every_node_answers_after(table1_path, tmp_path):
+    """Issue 38.1 and its generalisation, in one process: every envelope to every endpoint is refused (never
+    as an internal error), no callback raises, and every node answers a real request after."""
+    scenario = load_scenario(table1_path)
+    graph = start_graph(table1_path, tmp_path)  # its own: the fuzzer fixture's probe listens on answer topics
+    try:
+        wire = WireFuzz(graph, list(scenario.domains))
+        wire.run()
+        check_wire(wire, list(scenario.domains))
+        assert wire.real_requests(*real_request_targets(scenario)) == []
+    finally:
+        graph.close()
+
+
+@pytest.mark.slow
+def test_no_node_process_exits_on_what_no_schema_can_save(table1_path, tmp_path):
+    """The same inputs to a graph of node processes (issue 38.1 killed two of them): every process still runs
+    and answers a real request after."""
+    scenario = load_scenario(table1_path)
+    with LiveGraph(table1_path, processes=True, log_dir=tmp_path / "logs", state_dir=tmp_path / "state") as live:
+        live.set_clock(WIRE_TIME)
+        wire = WireFuzz(live.session, list(scenario.domains))
+        wire.run()
+        failed = wire.real_requests(*real_request_targets(scenario))
+        dead = [f"{spec.name} exited {code}: {live.graph.tail(spec.name, 3)}" for spec, code in live.graph.dead()]
+        assert dead == [] and failed == [], "\n".join(dead + failed)
+        check_wire(wire, list(scenario.domains))
