@@ -51,6 +51,7 @@ from ..contract import CLOCK
 from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback
 from .process_stop import StopSignals
+from .sim_clock import follow_clock, refresh as refresh_clock
 
 #: Exit codes.
 EXIT_OK, EXIT_FAILED, EXIT_STARTUP = 0, 1, 2
@@ -64,7 +65,8 @@ class StartupError(Exception):
 
 # ------------------------------------------------------------------ clock
 def now_seconds(node) -> float:
-    """Return the node's clock in seconds (sim time when ``use_sim_time`` is set)."""
+    """Return the node's clock in seconds (sim time when ``use_sim_time`` is set: the latest ``/clock`` received)."""
+    refresh_clock(node)
     return node.get_clock().now().nanoseconds / 1e9
 
 
@@ -118,7 +120,11 @@ def guard_clock(node) -> None:
 
 
 def watch_clock(node, silence: float = CLOCK_SILENCE):
-    """Guard the clock (:func:`guard_clock`) and warn once if a sim-time node's clock stands still; return the timer.
+    """Guard the clock, read it on demand, and warn once if a sim-time node's clock stands still; return the timer.
+
+    The guard is :func:`guard_clock`; the reading :func:`~fsreg_ros.ros.sim_clock.follow_clock`:
+    the node does not wake for every ``/clock`` message: it reads the latest one when it
+    asks the time (:func:`now_seconds`) and every ``sim_clock.FOLLOW_PERIOD`` seconds.
 
     The warning comes when the clock has not moved for ``silence`` seconds and names the
     clock topic as this node resolves it (``/clock``, or the namespaced clock a
@@ -126,6 +132,7 @@ def watch_clock(node, silence: float = CLOCK_SILENCE):
     the wall clock.
     """
     guard_clock(node)
+    follow_clock(node)  # the node keeps its timer
     state = {"last": None, "since": None, "warned": False}
     steady = Clock(clock_type=ClockType.STEADY_TIME)
     topic = node.resolve_topic_name(CLOCK)
