@@ -257,10 +257,12 @@ def run_node(
         print(printable(f"{_node_name(node_cls)}: error: {err}"), file=sys.stderr)
         return EXIT_STARTUP
     stop = StopSignals(_node_name(node_cls)).install()  # before rclpy.init, which chains to it
+    code = EXIT_FAILED
     try:
-        return _run(node_cls, args, logger, job, on_done, job_errors, stop)
+        code = _run(node_cls, args, logger, job, on_done, job_errors, stop)
+        return code
     finally:
-        stop.restore()
+        stop.restore(code)
 
 
 def _run(node_cls: Callable[..., Any], args: Optional[list[str]], logger: Any,
