@@ -51,7 +51,7 @@ from ..contract import CLOCK
 from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback
 from .process_stop import StopSignals
-from .sim_clock import follow_clock, refresh as refresh_clock
+from .sim_clock import follow_clock, now_ns
 
 #: Exit codes.
 EXIT_OK, EXIT_FAILED, EXIT_STARTUP = 0, 1, 2
@@ -66,8 +66,7 @@ class StartupError(Exception):
 # ------------------------------------------------------------------ clock
 def now_seconds(node) -> float:
     """Return the node's clock in seconds (sim time when ``use_sim_time`` is set: the latest ``/clock`` received)."""
-    refresh_clock(node)
-    return node.get_clock().now().nanoseconds / 1e9
+    return now_ns(node) / 1e9
 
 
 @dataclass
@@ -140,7 +139,7 @@ def watch_clock(node, silence: float = CLOCK_SILENCE):
     def check() -> None:
         if not node.get_parameter("use_sim_time").value:
             return
-        now = node.get_clock().now().nanoseconds
+        now = now_ns(node)
         wall = steady.now().nanoseconds / 1e9
         if now != state["last"]:
             state.update(last=now, since=wall, warned=False)

@@ -55,6 +55,7 @@ def test_rclpy_keeps_the_clock_subscription_the_adapter_reads(graph: RosSession)
     assert sub.qos_profile.history == HistoryPolicy.KEEP_LAST and sub.qos_profile.depth == 1
     assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
     assert sub.raw is False and sub.callback == source.clock_callback
+    assert all(h.callback_group is sub.callback_group for h in sub.event_handlers)
     assert graph.executor.can_execute(sub)  # rclpy's own: dispatched per message
     group = OnDemand()
     sub.callback_group = group
@@ -85,7 +86,8 @@ def test_a_followed_node_reads_the_latest_clock_on_demand_and_never_per_message(
     node = graph.add(Plain, use_sim_time=True, name="follower")
     follow_clock(node, period=3600.0)  # no periodic read here: only on demand
     sub = clock_subscription(node)
-    assert not graph.executor.can_execute(sub)  # not in the executor's wait set
+    assert not graph.executor.can_execute(sub)  # not in the executor's wait set, nor its QoS events
+    assert sub.event_handlers and not any(graph.executor.can_execute(h) for h in sub.event_handlers)
     publisher = graph.probe.create_publisher(Clock, contract.CLOCK, 10)
     graph.spin_until(lambda: publisher.get_subscription_count() >= 1, 5.0, "the /clock subscription")
     for ms in range(1, 201):
