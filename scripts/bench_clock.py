@@ -46,7 +46,7 @@ WARM_UP = 4.0
 
 def share(node: str, hz: float, seconds: float, state: Path) -> float:
     """Return the node's CPU share of one core over ``seconds`` with ``/clock`` at ``hz`` (0: none)."""
-    spec = next(s for s in node_specs(str(KB), ["faces"], {"faces": {"policy": "decay", "decay_period": 10.0}},
+    spec = next(s for s in node_specs(str(KB), ["faces"], {"faces": {"policy": "none"}},
                                       state_dir=str(state)) if s.executable == node)
     env = dict(os.environ)
     proc = subprocess.Popen(command(spec), env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,

@@ -20,8 +20,9 @@ need not wake for every clock message to know the time.  :func:`follow_clock`:
 The cost is one cheap timer callback per :data:`FOLLOW_PERIOD` whatever the clock's rate.
 This is the one module that uses rclpy internals for it (the time source's ``_clock_sub``,
 ``Subscription.handle.take_message``, the subscription's ``event_handlers``);
-``test/ros/test_sim_clock.py`` fails if rclpy changes them.  A ``use_sim_time`` switched at run time makes rclpy create a new subscription: the
-next :func:`refresh` moves it out of the wait set too.
+``test/ros/test_sim_clock.py`` fails if rclpy changes them.  A ``use_sim_time`` switched at
+run time makes rclpy create a new subscription: the next :func:`refresh` moves it out of the
+wait set too.
 """
 
 from __future__ import annotations
@@ -112,7 +113,7 @@ def now_ns(node) -> int:
 
 
 def follow_clock(node, period: float = FOLLOW_PERIOD):
-    """Make the node read ``/clock`` on demand (and every ``period`` s) instead of waking for each message; the timer."""
+    """Make the node read ``/clock`` on demand (and every ``period`` s), not wake for each message; the timer."""
     _GROUPS.setdefault(node, OnDemand())
     subscription = clock_subscription(node)
     if subscription is not None:

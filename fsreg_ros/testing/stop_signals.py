@@ -101,7 +101,7 @@ def stop_round(kb: str, workdir: Path, case: str, gap: float = 0.005, namespace:
     """Start the graph's node processes, stop them with the two signals of ``case`` ``gap`` s apart; how each ended."""
     first, second = CASES[case]
     workdir.mkdir(parents=True, exist_ok=True)
-    specs = node_specs(kb, ["faces"], {"faces": {"policy": "decay", "decay_period": 10.0}}, use_sim_time=True,
+    specs = node_specs(kb, ["faces"], {"faces": {"policy": "none"}}, use_sim_time=True,
                        state_dir=str(workdir / "state"))
     env = ros_environment(dict(os.environ))
     procs: list[tuple[str, subprocess.Popen, Path]] = []
@@ -131,8 +131,9 @@ def stop_round(kb: str, workdir: Path, case: str, gap: float = 0.005, namespace:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-        return [Stopped(name, proc.returncode, ended.get(name, time.monotonic() - start),
-                         err.read_text(errors="replace")) for name, proc, err in procs]
+        now = time.monotonic()
+        return [Stopped(name, proc.returncode, ended.get(name, now - start), err.read_text(errors="replace"))
+                for name, proc, err in procs]
     finally:
         for _, proc, _ in procs:
             if proc.poll() is None:

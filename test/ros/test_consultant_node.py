@@ -652,7 +652,8 @@ async def interrupted(node):  # Ctrl-C while the job waits: rclpy stops it, no K
 codes = [run_node(Late, ["x"]), run_node(Starting, ["x"])]
 kept = signal.getsignal(signal.SIGINT) is signal.default_int_handler
 codes.append(run_node(Idle, ["x"], job=interrupted))
-print(codes, kept, signal.getsignal(signal.SIGINT) is signal.SIG_IGN, signal.getsignal(signal.SIGTERM) is signal.SIG_IGN)
+ignored = [signal.getsignal(s) is signal.SIG_IGN for s in (signal.SIGINT, signal.SIGTERM)]
+print(codes, kept, *ignored)
 '''
 
 

@@ -33,6 +33,7 @@ class Plain(Node):
     def __init__(self, node_name: str = "plain", **kwargs) -> None:
         super().__init__(node_name, **kwargs)
 
+
 STATUS, SYNC = contract.STATUS.name, contract.SYNC.name
 
 
@@ -131,7 +132,8 @@ def _decay_at(graph: RosSession, step: float) -> tuple:
     graph.spin_until(lambda: now_seconds(manager) == 9.0, 5.0, "the manager's clock at 9 s")
 
     def forgets() -> list:
-        return [(e["entity"], e["property"], e["time"]) for e in events if e["op"] == "forget" and e["cause"] == "decay"]
+        return [(e["entity"], e["property"], e["time"]) for e in events
+                if e["op"] == "forget" and e["cause"] == "decay"]
 
     graph.spin_until(lambda: len(forgets()) == 5, 10.0, "the ticks at 2, 4, 6 and 8 s")
     status = graph.call(STATUS, {})

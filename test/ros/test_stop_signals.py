@@ -17,6 +17,7 @@ import pytest
 from fsreg_ros.testing.stop_signals import stop_round
 from rosutil import KB
 
+
 @pytest.mark.slow
 @pytest.mark.graph
 @pytest.mark.parametrize("case, gap", [("int-int", 0.005), ("int-int", 0.02), ("int-term", 0.005)])
