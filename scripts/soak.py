@@ -43,6 +43,15 @@ supervisor would); prints, besides both runs' figures, the replies that differ.
     scripts/soak.py --turns 400 --requests 400 --rate 20 --facts-rate 10000 --batch 50
     scripts/soak.py --record      # the same run twice: without, then with `fsreg-ctl record` (cost, nothing dropped)
 
+``--clock-hz N``: the graph's clock comes from a simulator instead: a process of its own
+publishes ``/clock`` (the graph's clock topic) N times a second, following the wall clock
+from the run's start, as Gazebo does every physics step (N = 1000); the sender then
+publishes no clock and stamps its requests with the same wall-clock time.  That process's
+CPU is reported as ``clock``.
+
+    scripts/soak.py --turns 400 --requests 400 --rate 20 --clock-hz 1000
+    scripts/soak.py --turns 400 --requests 400 --rate 20 --clock-hz 1000 --facts-rate 500
+
 ``--record``: after the first run, run again with ``fsreg-ctl record`` recording the graph
 (its own process, as a robot would run it), print both runs' figures and the cost in p99,
 then count every message in the bag against what was sent and answered (the requests and
@@ -112,6 +121,7 @@ class RunResult:
     busy: int = 0  # facts messages the publisher refused (backpressure)
     cpu: dict[str, float] = field(default_factory=dict)  # node -> CPU seconds used during the run
     known: Optional[tuple[int, int]] = None  # (perceived entities the consultant knows, of how many)
+    clock_hz: float = 0.0  # --clock-hz (0: the sender publishes the clock with every message)
 
 
 def schedule(scenario: Scenario, turns: int, requests: int, rate: float, facts_rate: float = 0.0, batch: int = 1,
@@ -263,6 +273,37 @@ class Recording:
             raise SystemExit(f"soak.py: error: fsreg-ctl record exited {self.proc.returncode}: {err.decode()[-500:]}")
 
 
+class SimulatorClock:
+    """``--clock-hz``: a process publishing the graph's clock N times a second from ``epoch`` (CLOCK_MONOTONIC)."""
+
+    def __init__(self, live: LiveGraph, hz: float, epoch: float) -> None:
+        import subprocess
+
+        topic = live.client.node.resolve_topic_name(contract.CLOCK)
+        self.proc = subprocess.Popen([sys.executable, str(REPO / "scripts" / "simulator_clock.py"), topic, repr(hz),
+                                      repr(epoch)],
+                                     env=dict(os.environ), stdin=subprocess.DEVNULL)
+        self.ps = psutil.Process(self.proc.pid)
+
+    def cpu(self) -> float:
+        try:
+            times = self.ps.cpu_times()
+        except psutil.Error:
+            return 0.0
+        return times.user + times.system
+
+    def stop(self) -> None:
+        import signal
+
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout=5)
+        except Exception:  # noqa: BLE001 - a publisher that does not stop is killed
+            self.proc.kill()
+            self.proc.wait()
+
+
 def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: Optional[Path] = None) -> RunResult:
     scenario = load_scenario(args.scenario)
     plan = schedule(scenario, args.turns, args.requests, rate, args.facts_rate, args.batch, args.facts_entities)
@@ -285,10 +326,16 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         for kind in KINDS:
             client.wait_matched(KINDS[kind], READY_TIMEOUT)
         consultant = f"consultant_{next(iter(scenario.domains))}"
+        simulator = None
+        if args.clock_hz:
+            epoch = time.monotonic() + 3.0  # the clock starts at 0 when the run does, once the process is up
+            simulator = SimulatorClock(live, args.clock_hz, epoch)
+            spin_until(live, lambda: False, epoch)
         cpu_before = cpu_seconds(graph, recorder)
+        clock_cpu = simulator.cpu() if simulator else 0.0
         gc.collect()
         gc.disable()  # the sender's own pauses: see quiet_gc()
-        start = time.monotonic()
+        start = epoch if simulator else time.monotonic()
         next_sample, late, busy = start, 0.0, 0
         for i, (offset, kind, msg) in enumerate(plan):
             if kill_at is not None and i == kill_at:
@@ -310,7 +357,8 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
                 messages[key] = Sent(kind, i, due, time.monotonic(), facts=facts_in(msg))
                 continue
             stamp = now - start  # the robot's clock follows the wall clock
-            client.publish_clock(stamp)
+            if simulator is None:
+                client.publish_clock(stamp)
             messages[key] = Sent(kind, i, due, time.monotonic())
             client.send(KINDS[kind], {**msg, "id": key, "time": stamp})
         waiting = set(messages)  # wait for the last replies while they still come (DRAIN s without one: lost)
@@ -330,6 +378,9 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
         rss_sample(graph, len(plan), rss)
         seconds = time.monotonic() - start
         cpu = {name: used - cpu_before.get(name, 0.0) for name, used in cpu_seconds(graph, recorder).items()}
+        if simulator is not None:
+            cpu["clock"] = simulator.cpu() - clock_cpu
+            simulator.stop()
         for key, sent in messages.items():
             sent.replies = [(a.received, a.data) for a in client.answers.pop(key, [])]
         if recorder is not None:
@@ -346,7 +397,8 @@ def run(args: argparse.Namespace, rate: float, kill_at: Optional[int], record: O
                 print(f"soak.py: cannot ask the consultant of {domain} what it knows: {err}", file=sys.stderr)
         for spec, code in graph.dead():
             print(f"soak.py: node {spec.name} died (exit {code})\n{graph.tail(spec.name)}", file=sys.stderr)
-        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at, busy=busy, known=known, cpu=cpu)
+        return RunResult(rate, messages, rss, seconds, late * 1e3, kill_at, busy=busy, known=known, cpu=cpu,
+                         clock_hz=args.clock_hz)
 
 
 # ------------------------------------------------------------------- figures
@@ -372,7 +424,9 @@ def slope(points: list[tuple[int, float]]) -> float:
 
 def report(result: RunResult, title: str) -> str:
     load = os.getloadavg()
-    lines = [f"== {title}: open loop, {result.rate:g} human turns/s + {result.rate:g} REG requests/s, "
+    clock = f"/clock at {result.clock_hz:g} Hz from a simulator process" if result.clock_hz else \
+        "/clock with every message"
+    lines = [f"== {title}: open loop, {result.rate:g} human turns/s + {result.rate:g} REG requests/s, {clock}, "
              f"{len(result.messages)} messages in {result.seconds:.1f} s, sender at most {result.late_ms:.1f} ms "
              f"behind schedule; load average {load[0]:.2f} on {os.cpu_count()} cores"]
     for kind in ("human", "reg"):
@@ -531,7 +585,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                         help="also run once SIGKILLing and restarting the consultant before message K")
     parser.add_argument("--record", action="store_true",
                         help="also run once recording with fsreg-ctl record; the cost and a count of the bag")
+    parser.add_argument("--clock-hz", type=float, default=0.0, metavar="N",
+                        help="a simulator process publishes /clock N times a second (default 0: the sender "
+                             "publishes it with every message)")
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.clock_hz) and 0 <= args.clock_hz <= 10_000):
+        parser.error(f"--clock-hz must be a number in [0, 10000], got {args.clock_hz:g}")
     if not 0 < args.rate <= args.max_rate or args.turns < 0 or args.requests < 0 or args.turns + args.requests == 0:
         parser.error("--rate must be positive and at most --max-rate; --turns and --requests not negative, "
                      "not both 0")

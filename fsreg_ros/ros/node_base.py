@@ -15,8 +15,10 @@
   wrappers that install them (:func:`fsreg_ros.ros.carrier.serve`, :func:`~fsreg_ros.ros.carrier.subscribe`)
   log each failure with its topic or service and request id and answer it; spinning
   itself swallows nothing;
-* Ctrl-C / SIGTERM (``KeyboardInterrupt``, ``ExternalShutdownException``) end it
-  cleanly with exit code 0; the node is destroyed and rclpy shut down.
+* Ctrl-C / SIGTERM (rclpy's signal handler shuts ROS down: ``ExternalShutdownException``)
+  end it cleanly with exit code 0; the node is destroyed and rclpy shut down.  Any number
+  of further signals is ignored and the process ends within 1.5 s
+  (:mod:`fsreg_ros.ros.process_stop`).
 
 A node with a ``job`` (the dialogue player) runs ``job(node)`` as a task and exits
 when it is done: ``on_done(node, result)`` then exit 0, or exit 1 after logging a
@@ -31,9 +33,7 @@ from __future__ import annotations
 
 import inspect
 import os
-import signal
 import sys
-import threading
 import traceback
 import weakref
 from dataclasses import dataclass
@@ -50,6 +50,8 @@ from ..contract.codec import id_of, printable
 from ..contract import CLOCK
 from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback
+from .process_stop import StopSignals
+from .sim_clock import follow_clock, now_ns
 
 #: Exit codes.
 EXIT_OK, EXIT_FAILED, EXIT_STARTUP = 0, 1, 2
@@ -63,8 +65,8 @@ class StartupError(Exception):
 
 # ------------------------------------------------------------------ clock
 def now_seconds(node) -> float:
-    """Return the node's clock in seconds (sim time when ``use_sim_time`` is set)."""
-    return node.get_clock().now().nanoseconds / 1e9
+    """Return the node's clock in seconds (sim time when ``use_sim_time`` is set: the latest ``/clock`` received)."""
+    return now_ns(node) / 1e9
 
 
 @dataclass
@@ -117,7 +119,11 @@ def guard_clock(node) -> None:
 
 
 def watch_clock(node, silence: float = CLOCK_SILENCE):
-    """Guard the clock (:func:`guard_clock`) and warn once if a sim-time node's clock stands still; return the timer.
+    """Guard the clock, read it on demand, and warn once if a sim-time node's clock stands still; return the timer.
+
+    The guard is :func:`guard_clock`; the reading :func:`~fsreg_ros.ros.sim_clock.follow_clock`:
+    the node does not wake for every ``/clock`` message: it reads the latest one when it
+    asks the time (:func:`now_seconds`) and every ``sim_clock.FOLLOW_PERIOD`` seconds.
 
     The warning comes when the clock has not moved for ``silence`` seconds and names the
     clock topic as this node resolves it (``/clock``, or the namespaced clock a
@@ -125,6 +131,7 @@ def watch_clock(node, silence: float = CLOCK_SILENCE):
     the wall clock.
     """
     guard_clock(node)
+    follow_clock(node)  # the node keeps its timer
     state = {"last": None, "since": None, "warned": False}
     steady = Clock(clock_type=ClockType.STEADY_TIME)
     topic = node.resolve_topic_name(CLOCK)
@@ -132,7 +139,7 @@ def watch_clock(node, silence: float = CLOCK_SILENCE):
     def check() -> None:
         if not node.get_parameter("use_sim_time").value:
             return
-        now = node.get_clock().now().nanoseconds
+        now = now_ns(node)
         wall = steady.now().nanoseconds / 1e9
         if now != state["last"]:
             state.update(last=now, since=wall, warned=False)
@@ -233,29 +240,6 @@ def _node_name(node_cls) -> str:
     return default if isinstance(default, str) and default else node_cls.__name__
 
 
-def _interrupt_quietly() -> Any:
-    """Make Ctrl-C shut ROS down instead of raising; return the SIGINT handler this replaced (None off the main thread).
-
-    The first Ctrl-C shuts the context down (as rclpy's own signal handler, installed by
-    ``rclpy.init`` and chaining to this one, does too), so the executor leaves ``spin``
-    with ``ExternalShutdownException`` and a job's loop ends.  Python's default handler
-    would raise ``KeyboardInterrupt`` wherever the main thread is: half-way through rclpy
-    building a ``Task``, whose ``__del__`` then printed a traceback on exit.  A second
-    Ctrl-C raises ``KeyboardInterrupt`` (a node stuck in a callback can still be stopped).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    heard = []
-
-    def interrupted(signum: int, frame: Any) -> None:
-        if heard:
-            raise KeyboardInterrupt
-        heard.append(signum)
-        rclpy.try_shutdown()
-
-    return signal.signal(signal.SIGINT, interrupted)
-
-
 def run_node(
     node_cls: Callable[..., Any],
     args: Optional[list[str]] = None,
@@ -271,23 +255,29 @@ def run_node(
     except NetworkRefused as err:
         print(printable(f"{_node_name(node_cls)}: error: {err}"), file=sys.stderr)
         return EXIT_STARTUP
-    previous = _interrupt_quietly()  # before rclpy.init, which chains to it
+    stop = StopSignals(_node_name(node_cls)).install()  # before rclpy.init, which chains to it
+    code = EXIT_FAILED
     try:
-        return _run(node_cls, args, logger, job, on_done, job_errors)
+        code = _run(node_cls, args, logger, job, on_done, job_errors, stop)
+        return code
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        stop.restore(code)
 
 
 def _run(node_cls: Callable[..., Any], args: Optional[list[str]], logger: Any,
          job: Optional[Callable[[Any], Awaitable[Any]]], on_done: Optional[Callable[[Any, Any], None]],
-         job_errors: tuple[type[BaseException], ...]) -> int:
+         job_errors: tuple[type[BaseException], ...], stop: StopSignals) -> int:
     """:func:`run_node` once the network is checked and Ctrl-C handled: initialise ROS, run, shut down."""
     try:
         rclpy.init(args=args)
     except Exception as err:  # noqa: BLE001 - e.g. a bad --ros-args or params file
+        if stop.heard is not None:  # stopped while initialising
+            return EXIT_OK
         print(printable(f"{_node_name(node_cls)}: cannot initialise ROS: {err}"), file=sys.stderr)
         return EXIT_STARTUP
+    if stop.heard is not None:  # Ctrl-C or SIGTERM before rclpy's own handler was in place
+        rclpy.try_shutdown()
+        return EXIT_OK
     node = None
     executor = None
     code = EXIT_OK

@@ -37,6 +37,7 @@ from ..core.simulation import Options
 from ..tools.graph import Graph, live_nodes, new_graph_id, unique_namespace
 from ..ros.diagnostics import Diagnostics
 from ..ros.network import ros_environment
+from ..ros.sim_clock import now_ns
 from .ros_session import RosSession, Timeout
 
 PathLike = Union[str, os.PathLike]
@@ -254,7 +255,7 @@ class LiveGraph:
         if self.graph is None and self.use_sim_time:
             ns = int(round(t * 1e9))
             nodes = list(self.nodes.values())
-            self.session.spin_until(lambda: all(n.get_clock().now().nanoseconds >= ns for n in nodes), 5.0,
+            self.session.spin_until(lambda: all(now_ns(n) >= ns for n in nodes), 5.0,
                                     what=f"every node's clock at {t}")
         return reply
 

@@ -34,6 +34,7 @@ from ..ros.carrier import CarrierError, ServiceCaller, qos_profile, to_msg
 from ..ros.graph_clock import clock_message
 from ..contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace
 from ..ros.network import enforce_loopback
+from ..ros.sim_clock import now_ns
 
 
 class Timeout(AssertionError):
@@ -198,7 +199,7 @@ class RosSession:
         watch = [n for n in (nodes or self.nodes) if n.get_parameter("use_sim_time").value]
         self.spin_until(lambda: self._clock_pub.get_subscription_count() >= len(watch), 5.0, what="/clock subscribers")
         self._clock_pub.publish(msg)
-        self.spin_until(lambda: all(n.get_clock().now().nanoseconds >= ns for n in watch), 5.0, what=f"/clock = {t}")
+        self.spin_until(lambda: all(now_ns(n) >= ns for n in watch), 5.0, what=f"/clock = {t}")
         self.time = t
 
     set_time = set_clock  # the name the project's older tests use

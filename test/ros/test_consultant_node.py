@@ -649,8 +649,11 @@ async def interrupted(node):  # Ctrl-C while the job waits: rclpy stops it, no K
     os.kill(os.getpid(), signal.SIGINT)
     return await node.never
 
-codes = [run_node(Late, ["x"]), run_node(Starting, ["x"]), run_node(Idle, ["x"], job=interrupted)]
-print(codes, signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+codes = [run_node(Late, ["x"]), run_node(Starting, ["x"])]
+kept = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+codes.append(run_node(Idle, ["x"], job=interrupted))
+ignored = [signal.getsignal(s) is signal.SIG_IGN for s in (signal.SIGINT, signal.SIGTERM)]
+print(codes, kept, *ignored)
 '''
 
 
@@ -660,12 +663,13 @@ def test_run_node_stopped_by_ros_shutdown_or_ctrl_c_exits_0_quietly():
     Exit 0 with nothing logged, no traceback: the first Ctrl-C leaves the stopping to
     rclpy (no ``KeyboardInterrupt`` raised half-way through rclpy's own code, whose
     ``Task.__del__`` then printed one), and an error from a ROS already shut down is
-    the shutdown, not a failure.  The Ctrl-C handler in place before is put back.
+    the shutdown, not a failure.  The Ctrl-C handler in place before is put back, unless
+    a signal stopped the run: then SIGINT and SIGTERM stay ignored while the process exits.
     """
     proc = subprocess.run([sys.executable, "-c", STOPPED_SCRIPT], env=dict(os.environ), capture_output=True,
                           text=True, timeout=30)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "[0, 0, 0] True"
+    assert proc.stdout.strip() == "[0, 0, 0] True True True"
     assert "Traceback" not in proc.stderr and "ERROR" not in proc.stderr, proc.stderr
 
 

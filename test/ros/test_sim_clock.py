@@ -1,0 +1,153 @@
+"""A sim-time node reads ``/clock`` on demand, not on every message (issue 37 item 2).
+
+``fsreg_ros.ros.sim_clock`` is the one place that uses rclpy internals for it; the first
+tests fail if rclpy changes them.  Then: decay and readiness give exactly the same results
+when the clock comes in 1 ms steps (a simulator's 1 kHz ``/clock``) as in coarse steps.
+"""
+
+from __future__ import annotations
+
+import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, ReliabilityPolicy
+from rclpy.subscription import Subscription
+from rclpy.time_source import TimeSource
+from rosgraph_msgs.msg import Clock
+
+from fsreg_ros import contract
+from fsreg_ros.contract import EVENTS_QOS
+from fsreg_ros.nodes.consultant import ConsultantNode
+from fsreg_ros.nodes.wm_manager import WMManagerNode
+from fsreg_ros.ros.graph_clock import clock_message
+from fsreg_ros.ros.node_base import now_seconds
+from fsreg_ros.ros.sim_clock import OnDemand, clock_subscription, follow_clock, refresh
+from rosutil import KB, RosSession, ros_graph
+
+pytestmark = pytest.mark.graph
+
+
+class Plain(Node):
+    """A bare node (no fsreg wrapper), as rclpy makes it."""
+
+    def __init__(self, node_name: str = "plain", **kwargs) -> None:
+        super().__init__(node_name, **kwargs)
+
+
+STATUS, SYNC = contract.STATUS.name, contract.SYNC.name
+
+
+@pytest.fixture
+def graph():
+    yield from ros_graph()
+
+
+# ------------------------------------------------------------------ the rclpy internals the adapter uses
+def test_rclpy_keeps_the_clock_subscription_the_adapter_reads(graph: RosSession):
+    """rclpy's ``Node._time_source`` is a ``TimeSource`` whose ``_clock_sub`` is a depth-1 ``/clock`` subscription
+    (created when ``use_sim_time`` is set, destroyed when it is unset) with ``callback_group``, ``handle``,
+    ``msg_type``, ``raw`` and a ``callback`` that sets the clock; the executor leaves an entity whose group's
+    ``can_execute`` is false out of its wait set; ``handle.take_message`` returns ``(message, info)`` or None."""
+    node = graph.add(Plain, use_sim_time=True)
+    source = node._time_source
+    assert isinstance(source, TimeSource)
+    sub = source._clock_sub
+    assert isinstance(sub, Subscription) and sub.topic_name == "/clock" and sub.msg_type is Clock
+    assert sub.qos_profile.history == HistoryPolicy.KEEP_LAST and sub.qos_profile.depth == 1
+    assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert sub.raw is False and sub.callback == source.clock_callback
+    assert all(h.callback_group is sub.callback_group for h in sub.event_handlers)
+    assert graph.executor.can_execute(sub)  # rclpy's own: dispatched per message
+    group = OnDemand()
+    sub.callback_group = group
+    group.add_entity(sub)
+    assert not graph.executor.can_execute(sub)
+    publisher = graph.probe.create_publisher(Clock, contract.CLOCK, 10)
+    graph.spin_until(lambda: publisher.get_subscription_count() >= 1, 5.0, "the /clock subscription")
+    publisher.publish(clock_message(4.5))
+    taken = []
+
+    def take() -> bool:
+        with sub.handle:
+            got = sub.handle.take_message(sub.msg_type, sub.raw)
+        if got is not None:
+            taken.append(got[0])
+        return bool(taken)
+
+    graph.spin_until(take, 5.0, "the /clock message, taken on demand")
+    assert (taken[0].clock.sec, taken[0].clock.nanosec) == (4, 500_000_000)
+    assert node.get_clock().now().nanoseconds == 0  # the executor never ran its callback
+    sub.callback(taken[0])
+    assert node.get_clock().now().nanoseconds == 4_500_000_000
+    node.set_parameters([Parameter("use_sim_time", value=False)])
+    assert source._clock_sub is None
+
+
+def test_a_followed_node_reads_the_latest_clock_on_demand_and_never_per_message(graph: RosSession):
+    node = graph.add(Plain, use_sim_time=True, name="follower")
+    follow_clock(node, period=3600.0)  # no periodic read here: only on demand
+    sub = clock_subscription(node)
+    assert not graph.executor.can_execute(sub)  # not in the executor's wait set, nor its QoS events
+    assert sub.event_handlers and not any(graph.executor.can_execute(h) for h in sub.event_handlers)
+    publisher = graph.probe.create_publisher(Clock, contract.CLOCK, 10)
+    graph.spin_until(lambda: publisher.get_subscription_count() >= 1, 5.0, "the /clock subscription")
+    for ms in range(1, 201):
+        publisher.publish(clock_message(ms / 1000))
+        graph.executor.spin_once(timeout_sec=0)
+    assert node.get_clock().now().nanoseconds == 0  # 200 messages, no wake-up for any
+    graph.spin_until(lambda: now_seconds(node) == 0.2, 5.0, "the latest clock, read on demand")
+    assert refresh(node) == 0  # nothing newer
+    # use_sim_time switched off and on at run time: rclpy makes a new subscription, read on demand too
+    node.set_parameters([Parameter("use_sim_time", value=False)])
+    node.set_parameters([Parameter("use_sim_time", value=True)])
+    graph.spin_until(lambda: publisher.get_subscription_count() >= 1, 5.0, "the new /clock subscription")
+    publisher.publish(clock_message(7.0))
+    graph.spin_until(lambda: now_seconds(node) == 7.0, 5.0, "the clock through the new subscription")
+    assert not graph.executor.can_execute(clock_subscription(node))
+
+
+def test_every_fsreg_node_follows_the_clock_on_demand(graph: RosSession):
+    nodes = [graph.add(ConsultantNode, use_sim_time=True, domain="faces", kb=KB, name="consultant_faces"),
+             graph.add(WMManagerNode, use_sim_time=True, domains=["faces"])]
+    assert [graph.executor.can_execute(clock_subscription(n)) for n in nodes] == [False, False]
+
+
+# ------------------------------------------------------------------ decay and readiness at a fast clock
+def _decay_at(graph: RosSession, step: float) -> tuple:
+    """The timer-decay run of test_wm_manager_node's test_timer_decay_follows_the_clock, the clock in ``step`` s."""
+    graph.add(ConsultantNode, use_sim_time=True, domain="faces", kb=KB, name="consultant_faces", debug=True)
+    manager = graph.add(WMManagerNode, use_sim_time=True, domains=["faces"], policy="decay", decay_period=2.0)
+    events = graph.listen("/wm/events", EVENTS_QOS)
+    graph.wait_service(STATUS)
+    graph.spin_until(lambda: graph.call(STATUS, {})["ready"], what="the consultant configured (ready)")
+    for entity, props in (("face1", ["male", "glasses", "lab-coat", "light-hair", "dark-hair"]), ("face2", ["female"])):
+        graph.call("/consultant/faces/debug", {"op": "encode", "entity": entity, "properties": props,
+                                               "cause": "speaker", "time": 0.5})
+    publisher = graph.probe.create_publisher(Clock, contract.CLOCK, 10)
+    graph.spin_until(lambda: publisher.get_subscription_count() >= 2, 5.0, "both /clock subscriptions")
+    steps = int(round(9.0 / step))
+    for k in range(1, steps + 1):
+        publisher.publish(clock_message(k * step))
+        graph.executor.spin_once(timeout_sec=0)
+    graph.spin_until(lambda: now_seconds(manager) == 9.0, 5.0, "the manager's clock at 9 s")
+
+    def forgets() -> list:
+        return [(e["entity"], e["property"], e["time"]) for e in events
+                if e["op"] == "forget" and e["cause"] == "decay"]
+
+    graph.spin_until(lambda: len(forgets()) == 5, 10.0, "the ticks at 2, 4, 6 and 8 s")
+    status = graph.call(STATUS, {})
+    queues = graph.call("/consultant/faces/debug", {"op": "snapshot"})["queues"]
+    return (forgets(), queues, status["ready"], status["next_tick"], graph.call(SYNC, {"time": 9.0})["applied"])
+
+
+@pytest.mark.slow
+def test_decay_and_readiness_are_the_same_with_a_1_khz_clock_as_with_a_coarse_one():
+    results = {}
+    for step in (0.5, 0.001):
+        with RosSession() as graph:
+            results[step] = _decay_at(graph, step)
+    expected = ([("face1", "male", 2.0), ("face2", "female", 2.0), ("face1", "glasses", 4.0),
+                 ("face1", "lab-coat", 6.0), ("face1", "light-hair", 8.0)],
+                {"face1": ["dark-hair"]}, True, {"faces": 10.0}, {"faces": 0})
+    assert results == {0.5: expected, 0.001: expected}
