@@ -88,7 +88,8 @@ from ..core.wm_manager import WMManager
 from ..ros.diagnostics import OK, WARN
 from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
-from ..ros.memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
+from ..ros.memory_parameters import (SETTINGS, check_change, declare_memory_parameters, effective_policies,
+                                     parameter_names)
 
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
@@ -222,16 +223,11 @@ class WMManagerNode(Node):
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = self._values()
-        touched = False
-        for param in params:
-            if param.name not in values:
-                continue
-            values[param.name] = param.value
-            touched = True
-        if not touched:
+        changes = {param.name: param.value for param in params if param.name in values}
+        if not changes:
             return accepted()
         try:
-            self._effective(values)
+            check_change(values, changes, self._names)
         except ValueError as err:
             log_warning(self.get_logger(), f"rejected parameter change: {err}")
             return rejected(str(err))

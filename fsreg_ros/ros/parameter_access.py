@@ -100,7 +100,7 @@ class ParameterAccess(Spinning):
         back from the node after the change.
         """
         from . import node_parameters
-        from .memory_parameters import effective_policies, parameter_names
+        from .memory_parameters import check_change, parameter_names
 
         timeout = self.timeout if timeout is None else timeout
         self.require_node(node_name, timeout)
@@ -135,7 +135,7 @@ class ParameterAccess(Spinning):
         if node_name == "wm_manager" and any(n in parameter_names(self.domains()) for n in names):
             current = self.get_parameters(node_name, parameter_names(self.domains()), timeout)
             try:
-                effective_policies({**current, **typed}, self.domains())
+                check_change(current, typed, self.domains())
             except ValueError as err:
                 raise ClientError(f"{node_name}: {printable(str(err), 300)}", "usage") from None
         setter = self._param_client(node_name, SetParametersAtomically, "set_parameters_atomically")

@@ -207,7 +207,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             _check_topic(clock)
         file_params, memory = {}, None
         if args.params_file is not None:
-            file_params, memory = params_from_file(args.params_file, policies, namespace, options)
+            specs = live_nodes(scenario, args.scenario, options, lexicon=args.lexicon, state_dir=_state_dir(args),
+                               use_sim_time=not args.wall_time)
+            file_params, memory = params_from_file(args.params_file, specs, namespace, options)
     except INPUT_ERRORS as err:
         print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -230,16 +232,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             signal.signal(sig, handler)
 
 
-def params_from_file(path: Path, policies: dict, namespace: str, options) -> tuple[dict, dict]:
-    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid."""
-    from ..ros.graph_spec import policy_settings
+def params_from_file(path: Path, specs: Sequence, namespace: str, options) -> tuple[dict, dict]:
+    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid.
+
+    ``specs``: the graph's nodes as fsreg-up would start them (the file's runner-owned keys must agree).
+    """
     from .params_file import check_memory, overrides
 
-    domains = list(policies)
-    given = overrides(path, domains, namespace, options.memory)
-    manager = {f"{d}.{k}": v for d, p in policies.items() for k, v in policy_settings(p).items() if v is not None}
-    manager.update(given.get("wm_manager", {}))
-    return given, check_memory(path, manager, domains)
+    runner = {spec.name: spec.parameters for spec in specs}
+    domains = list(runner["wm_manager"]["domains"])
+    given = overrides(path, domains, namespace, options.memory, runner)
+    return given, check_memory(path, runner["wm_manager"], given.get("wm_manager", {}), domains)
+
+
+def _state_dir(args: argparse.Namespace) -> Optional[str]:
+    return str(args.state_dir.resolve()) if args.state_dir else None
 
 
 def _check_topic(name: str) -> None:
@@ -264,7 +271,7 @@ class Up:
         self.memory = {d: p.to_json() for d, p in policies.items()}
         self.log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="fsreg-up-"))
         self.specs = live_nodes(scenario, args.scenario, options, graph=self.graph_id, lexicon=args.lexicon,
-                                state_dir=str(args.state_dir.resolve()) if args.state_dir else None,
+                                state_dir=_state_dir(args),
                                 use_sim_time=not args.wall_time)
         for spec in self.specs:  # --params-file (checked): over the scenario's, under the command line's
             spec.parameters.update((file_params or {}).get(spec.name, {}))

@@ -83,7 +83,8 @@ def test_launch_file_builds_the_graph_spec(monkeypatch):
     assert {n.kwargs["executable"] for n in nodes} <= set(setup_entry_points())
     assert {n.kwargs["namespace"] for n in nodes} == {"/robot1"}
     assert all(n.kwargs["remappings"] == [("/clock", "/robot1/clock")] for n in nodes)
-    assert got[2][2][0]["faces.policy"] == "displacement" and got[2][2][0]["faces.capacity"] == 3
+    assert got[2][2][0]["policy"] == "displacement" and got[2][2][0]["capacity"] == 3  # every domain's: node-wide
+    assert not [k for k in got[2][2][0] if k.startswith(("faces.", "objects."))]
 
 
 def test_params_files_name_real_nodes():
