@@ -87,6 +87,28 @@ def test_launch_file_builds_the_graph_spec(monkeypatch):
     assert not [k for k in got[2][2][0] if k.startswith(("faces.", "objects."))]
 
 
+def test_launch_file_takes_a_state_dir_a_fresh_start_and_a_lexicon_as_fsreg_up_does(monkeypatch, tmp_path):
+    from fsreg_ros.core import settings
+    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.ros.graph_spec import node_specs, policy_settings
+
+    monkeypatch.chdir(tmp_path)
+    given = {"kb": "/tmp/kb.yaml", "policy": "decay", "state_dir": "state", "lexicon": "words.yaml", "fresh": "true"}
+    nodes = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, given)}
+    policy = ForgettingPolicy.from_settings({**{row.name: row.default for row in settings.TABLE}, "policy": "decay"})
+    expected = {s.name: s.parameters for s in node_specs(
+        "/tmp/kb.yaml", ["faces"], {"faces": policy_settings(policy)}, use_sim_time=False,
+        algorithm="auto", lexicon=str(tmp_path / "words.yaml"), state_dir=str(tmp_path / "state"))}
+    expected["consultant_faces"]["reset_state"] = True  # fresh: the database moved aside, as fsreg-up --fresh
+    assert nodes == expected
+    assert nodes["consultant_faces"]["state_dir"] == str(tmp_path / "state")
+    assert nodes["parser"]["lexicon"] == nodes["reg"]["lexicon"] == str(tmp_path / "words.yaml")
+    again = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml"})}
+    assert "reset_state" not in again["consultant_faces"] and "state_dir" not in again["consultant_faces"]
+    with pytest.raises(ValueError, match=r"^launch argument fresh:='yes': expected true or false$"):
+        _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml", "fresh": "yes"})
+
+
 def test_params_files_name_real_nodes():
     import yaml
 
