@@ -77,6 +77,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.validate_topic_name import validate_topic_name
 
+from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
                            subscribe_batches, wait_until)
@@ -109,6 +110,7 @@ class WMManagerNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
         super().__init__(node_name, namespace=namespace, **kwargs)
+        fix_use_sim_time(self)  # one clock for the whole graph
         self.declare_parameter(
             "domains",
             Parameter.Type.STRING_ARRAY,

@@ -37,6 +37,12 @@ KINDS = {"bool": "a boolean (true or false)", "int": "a whole number", "float": 
 AUTO = "auto"
 
 
+#: What sets each runner-owned parameter (``ParamSpec.runner``): where to change it instead.
+RUNNER_SOURCES = {"domains": "the scenario's domains", "domain": "the scenario's domains", "kb": "the scenario",
+                  "use_sim_time": "sim time, or --wall-time (one clock for the whole graph)",
+                  "state_dir": "--state-dir", "lexicon": "--lexicon", "graph": "the run (a new identity each start)"}
+
+
 class ParameterError(ValueError):
     """A parameter name or value that a node would refuse; the message says which and why."""
 
@@ -83,7 +89,7 @@ def _limits() -> list[ParamSpec]:
 
 
 def _common(*names: str) -> list[ParamSpec]:
-    specs = [ParamSpec("use_sim_time", "bool", runner=True), ParamSpec("graph", "str", True, runner=True),
+    specs = [ParamSpec("use_sim_time", "bool", True, runner=True), ParamSpec("graph", "str", True, runner=True),
              ParamSpec("start_type_description_service", "bool", True)]
     owned = {"domains": ParamSpec("domains", "str[]", True, runner=True),
              "kb": ParamSpec("kb", "str", True, runner=True),

@@ -211,6 +211,8 @@ def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str,
                 value = memory_value(item, name, value, domains)
             out.setdefault(node, {})[name] = value
         elif key in MEMORY_KEYS:
+            if key == "policy" and value.strip() != "inherit":  # the node-wide value, checked as the node does
+                _check_node_wide(item, key, value, domains)
             for domain in domains:
                 name = f"{domain}.{key}"
                 out.setdefault("wm_manager", {})[name] = memory_value(item, name, value, domains)
@@ -218,6 +220,17 @@ def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str,
             out.setdefault("wm_manager", {})[key] = memory_value(item, key, value, domains) \
                 if _memory_key(key, domains) else value
     return out
+
+
+def _check_node_wide(item: str, key: str, value: str, domains: Sequence[str]) -> None:
+    """Refuse a value the WM Manager refuses for its node-wide ``key`` (an empty policy: WM would silently be off)."""
+    from ..ros.node_parameters import ParameterError, check_parameter, node_parameters
+
+    try:
+        check_parameter(node_parameters("wm_manager", domains)[key], value)
+    except ParameterError as err:
+        said = str(err) if str(err).startswith(key) else f"{key}: {err}"
+        raise UsageError(f"set {printable(item, 120)}: wm_manager: {said}") from None
 
 
 def _memory_key(name: str, domains: Sequence[str]) -> bool:
@@ -519,13 +532,10 @@ def set_(ctl: Ctl, client) -> int:
                 close = difflib.get_close_matches(name, known, n=1)
                 hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
                 raise UsageError(f"set: node {node_name} has no parameter {printable(repr(name), 80)} ({hint})")
-    now: dict[str, dict[str, Any]] = {}
-    for node_name, values in changes.items():
-        try:
-            now[node_name] = client.set_parameters(node_name, values)
-        except ClientError as err:
-            done = f" (already set: {_assignments(now)})" if now else ""
-            raise ClientError(f"set: {err}{done}", err.kind) from None
+    try:
+        now = client.set_many(changes)  # every node's values checked first, then all set or none
+    except ClientError as err:
+        raise ClientError(f"set: {err}", err.kind) from None
     shown = {node: {k: "inherit" if node == "wm_manager" and _inherits(k, v, client.domains()) else v
                     for k, v in vals.items()} for node, vals in now.items()}
     ctl.emit({"set": now}, f"set {_assignments(shown)}")

@@ -23,7 +23,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from ..core import settings
-from ..ros.node_parameters import ParameterError, check_parameter, matches, node_parameters, read_params_file
+from ..ros.node_parameters import (RUNNER_SOURCES, ParameterError, check_parameter, matches, node_parameters,
+                                   read_params_file)
 from .sim import UsageError
 
 
@@ -32,11 +33,6 @@ def node_names(domains: Sequence[str]) -> dict[str, str]:
     names = {f"consultant_{d}": "consultant" for d in domains}
     names.update(wm_manager="wm_manager", parser="parser", reference_resolution="reference_resolution", reg="reg")
     return names
-
-
-#: What sets each runner-owned parameter (the option to change instead of the file).
-RUNNER_SOURCES = {"domains": "the scenario's domains", "domain": "the scenario's domains", "kb": "the scenario",
-                  "use_sim_time": "sim time, or --wall-time", "state_dir": "--state-dir", "lexicon": "--lexicon"}
 
 
 def overrides(path: Path, domains: Sequence[str], namespace: str, options_memory: Mapping[str, Any],
