@@ -108,7 +108,7 @@ def _memory(domains: Sequence[str]) -> list[ParamSpec]:
         kind = "str" if not row.is_parameter else ("float" if row.kind is float else "int")
         out.append(ParamSpec(row.name, kind, low=row.low, high=row.high, setting=row.name))
         out += [ParamSpec(f"{d}.{row.name}", kind, low=row.low, high=row.high, setting=row.name,
-                          inherit=row.inherit if row.is_parameter else None) for d in domains]
+                          inherit=row.inherit) for d in domains]
     return out
 
 
