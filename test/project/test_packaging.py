@@ -200,7 +200,7 @@ def test_documented_topic_pub_examples_fit_the_contract():
     topics = {"/" + t.name: t for t in contract.TOPICS}
     ids = []
     lines = [line for line in (REPO / "docs" / "deployment.md").read_text().splitlines()
-             if line.startswith("ros2 topic pub")]
+             if line.startswith("ros2 topic pub") and "std_msgs/String" in line]
     assert lines
     for line in lines:
         words = shlex.split(line)
@@ -215,6 +215,34 @@ def test_documented_topic_pub_examples_fit_the_contract():
         contract.check(models[0], message)
         ids.append(message["id"])
     assert len(ids) == len(set(ids))
+
+
+def _documented_topic_pubs() -> list[list[str]]:
+    """Every ``ros2 topic pub`` command of docs/deployment.md, in code blocks and tables, as its words."""
+    import shlex
+
+    text = (REPO / "docs" / "deployment.md").read_text()
+    commands = [line for line in text.splitlines() if line.startswith("ros2 topic pub")]
+    commands += re.findall(r"`(ros2 topic pub [^`]*)`", text)
+    return [shlex.split(command) for command in commands if " /" in command]  # not the prose's bare command
+
+
+@pytest.mark.graph
+def test_documented_topic_pubs_wait_for_every_reader_of_the_topic(table1_path):
+    """``ros2 topic pub --once`` implies ``-w 1``: a documented command says ``-w N`` with N the topic's readers in
+    the graph the docs start (one domain, sim time), counted on a live graph."""
+    from fsreg_ros.testing import LiveGraph
+
+    documented = _documented_topic_pubs()
+    assert len(documented) >= 7
+    with LiveGraph(table1_path) as graph:
+        node = graph.nodes["reg"]
+        for words in documented:
+            topic = next(w for w in words[3:] if not w.startswith("-") and not w.isdigit())
+            assert "--once" in words, words
+            waits = int(words[words.index("-w") + 1]) if "-w" in words else 1
+            readers = node.count_subscribers(graph.namespace + topic)
+            assert readers >= 1 and waits == readers, (" ".join(words[:6]), waits, readers)
 
 
 def test_every_script_the_docs_run_is_executable():
