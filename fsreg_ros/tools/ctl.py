@@ -47,9 +47,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import json
-import math
 import os
-import re
 import secrets
 import sys
 from dataclasses import dataclass
@@ -57,10 +55,12 @@ from typing import Any, Callable, Optional, Sequence
 
 from ..contract.codec import printable
 from ..contract import normalise_namespace
+from ..contract.naming import check_topic
 from ..core import settings
 from ..core.decay import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
+from .arguments import OneLineParser, number, undecodable
 from .up import restored_text
 from .view import check_port, serve_view
 
@@ -72,8 +72,6 @@ NO_ANSWER = ("not-ready", "timeout", "clash", "foreign", "cancelled", "unavailab
 MEMORY_KEYS = settings.names()
 #: Longest ``--timeout``, seconds (a day).
 MAX_TIMEOUT = 86_400.0
-#: What argparse takes for a negative number rather than an option.
-NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
 #: Seconds without an answer after which a request is sent again (the node answers a repeated id from its cache).
 RETRY_AFTER = 4.0
 #: Most WM updates ``watch --count`` waits for.
@@ -82,41 +80,6 @@ MAX_COUNT = 10**9
 
 class UsageError(ValueError):
     """A command line that cannot be turned into a request."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line (``fsreg-ctl: error: ...``), exit 2.
-
-    ``-inf``, ``-nan`` and ``-1e300`` are read as (negative) numbers, not options, so a
-    number argument refuses them with its own range instead of "required".
-    """
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = NEGATIVE_NUMBER
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
-        self.exit(EXIT_USAGE, f"{PROG}: error: {where}{' '.join(message.split())} (see {self.prog} --help)\n")
-
-
-def number(low: float, high: float, *, integer: bool = False, above: bool = False,
-           unit: str = "") -> Callable[[str], Any]:
-    """Return an argparse ``type`` taking a finite number in [low, high] (``above``: (low, high]); one-line errors."""
-    bounds = f"{'(' if above else '['}{settings.number(low)}, {settings.number(high)}]"
-    kind = "a whole number" if integer else "a finite number"
-    rule = f"{kind}{' of ' + unit if unit else ''} in {bounds}"
-
-    def parse(text: str) -> Any:
-        try:
-            value = int(text) if integer else float(text)
-        except (ValueError, OverflowError):
-            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(repr(text), 60)}") from None
-        if not math.isfinite(value) or value < low or value > high or (above and value <= low):
-            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(text, 60)}")
-        return value
-
-    return parse
 
 
 @dataclass(frozen=True)
@@ -340,9 +303,18 @@ class Screen:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``fsreg-ctl``; return its exit code."""
     require_loopback(PROG)
+    bad = undecodable(sys.argv[1:] if argv is None else argv)
+    if bad is not None:
+        print(f"{PROG}: error: {bad}", file=sys.stderr)
+        return EXIT_USAGE
     args = build_parser().parse_args(argv)
     try:
         namespace = normalise_namespace(option(args, "namespace", ""))
+        if option(args, "clock", None) is not None:
+            try:
+                check_topic(args.clock)
+            except ValueError as err:
+                raise UsageError(f"--clock: {err}") from None
         timeout = float(option(args, "timeout", 10.0))
         spec = COMMANDS[args.command]
         if spec.check is not None:
