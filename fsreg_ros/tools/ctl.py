@@ -419,6 +419,13 @@ def _say_arguments(parser: argparse.ArgumentParser) -> None:
 def _say_check(args: argparse.Namespace) -> None:
     if bool(args.text) == bool(args.description):
         raise UsageError("say: give the words to say, or --description P1,P2 (not both)")
+    if args.description is not None and not _properties(args.description):
+        raise UsageError(f"say: --description {printable(repr(args.description), 80)} names no property; "
+                         "give P1,P2")
+
+
+def _properties(text: str) -> list[str]:
+    return [p.strip() for p in text.split(",") if p.strip()]
 
 
 @command("say", "the human says TEXT; print whom RR resolved", arguments=_say_arguments, check=_say_check)
@@ -427,7 +434,11 @@ def say(ctl: Ctl, client) -> int:
     if args.domain is not None and args.domain not in client.domains():
         raise UsageError(f"say: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
                          f"{', '.join(client.domains())})")
-    description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
+    description = _properties(args.description) if args.description else None
+    words = len(" ".join(args.text).split())
+    if words > client.limits.max_list_items:  # each word is one of the parser's tokens, answered as a list
+        raise UsageError(f"say: {words} words; the graph takes at most {client.limits.max_list_items} "
+                         "(max_list_items)")
     answer = client.say(" ".join(args.text) if args.text else None, description=description, domain=args.domain,
                         time=ctl.now(client))
     if answer.get("status") == "error" or "error" in answer:
@@ -621,11 +632,18 @@ def _wm_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("wm", "one entity's WM, least recently used first", arguments=_wm_arguments)
 def wm(ctl: Ctl, client) -> int:
+    from ..ros.client import ClientError
+
     args = ctl.args
     if args.domain is not None and args.domain not in client.domains():
         raise UsageError(f"wm: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
                          f"{', '.join(client.domains())})")
-    domain = args.domain or client.domain_of(args.entity)
+    try:
+        domain = args.domain or client.domain_of(args.entity)
+    except ClientError as err:  # an entity the graph does not know: the graph's answer (exit 1), as describe's
+        if err.kind != "usage":
+            raise
+        raise ClientError(f"wm {printable(args.entity, 80)}: {err}", "error") from None
     state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
     queue = list((state.get("queues") or {}).get(args.entity, []))
     ctl.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},

@@ -39,6 +39,8 @@ def one_line(code: int, out: str, err: str, tool: str, said: str) -> None:
     (["say", os.fsdecode(b"\xff\xfe")], r"argument 2 is not UTF-8 text (its bytes: b'\xff\xfe'); give text in UTF-8"),
     (["describe", os.fsdecode(b"\xff")], r"argument 2 is not UTF-8 text (its bytes: b'\xff')"),
     (["assert", os.fsdecode(b"\xff"), "female"], r"argument 2 is not UTF-8 text"),
+    (["say", "--description", ",,,"], "say: --description ',,,' names no property; give P1,P2"),
+    (["say", "--description", " , "], "names no property"),
 ])
 def test_fsreg_ctl_refuses_every_typed_argument_in_one_line(capsys, argv, said):
     one_line(*run(ctl.main, capsys, *argv), "fsreg-ctl", said)
