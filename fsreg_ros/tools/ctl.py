@@ -28,9 +28,11 @@ answer (no graph, not ready, timed out, the graph left, two graphs, another grap
 every domain's setting; ``DOMAIN.KEY=VALUE`` to one domain's (``inherit`` as the value
 makes it follow the node-wide one); ``NODE:KEY=VALUE`` sets a parameter of another node
 (``reg:algorithm=greedy``, ``consultant_faces:threshold=0.6``).  Keys, values and
-ranges are checked against the node's declared parameters and the settings table; the
-keys given to one node are set all at once or not at all, and what is printed is read
-back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
+ranges are checked against the node's declared parameters and the settings table (a
+node-wide setting a domain overrides, an empty node-wide ``policy`` and ``use_sim_time``
+are refused); every node's values are checked before any is set, so a refused command
+changes nothing (:meth:`~fsreg_ros.ros.parameter_access.ParameterAccess.set_many`), and
+what is printed is read back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
 
 Commands are a table (:data:`COMMANDS`): adding one is one function registered with
 :func:`command` (its arguments, and what it needs: a ready graph, any graph, or none).
