@@ -19,5 +19,5 @@ DESCRIPTION = ("follow /clock (sim time) instead of the system clock; set for ev
 
 def fix_use_sim_time(node) -> None:
     """Make ``node``'s ``use_sim_time`` read-only at its start value (call before any parameter callback)."""
-    node.set_descriptor("use_sim_time", ParameterDescriptor(description=DESCRIPTION, read_only=True,
-                                                           type=ParameterType.PARAMETER_BOOL))
+    fixed = ParameterDescriptor(description=DESCRIPTION, read_only=True, type=ParameterType.PARAMETER_BOOL)
+    node.set_descriptor("use_sim_time", fixed)

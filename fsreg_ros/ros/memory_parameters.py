@@ -91,7 +91,8 @@ def effective_policies(values: dict[str, Any], domains: Sequence[str]) -> dict[s
     return policies
 
 
-def check_change(current: dict[str, Any], changes: dict[str, Any], domains: Sequence[str]) -> dict[str, ForgettingPolicy]:
+def check_change(current: dict[str, Any], changes: dict[str, Any],
+                 domains: Sequence[str]) -> dict[str, ForgettingPolicy]:
     """Return every domain's effective policy after ``changes``; ValueError naming what is refused.
 
     Refused: an invalid policy (:func:`effective_policies`), and a node-wide setting

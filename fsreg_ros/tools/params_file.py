@@ -106,7 +106,7 @@ def read_params_file_checked(path: Path):
 
 
 def check_memory(path: Path, runner: Mapping[str, Any], given: Mapping[str, Any], domains: Sequence[str]) -> dict:
-    """Return each domain's effective policy (as JSON) with the file's WM Manager parameters; UsageError naming the file.
+    """Return each domain's effective policy (as JSON) with the file's WM Manager parameters; UsageError if invalid.
 
     ``runner``: the WM Manager's parameters as fsreg-up sets them; ``given``: the file's.
     Checked as a change at run time is (:func:`~fsreg_ros.ros.memory_parameters.check_change`):

@@ -64,7 +64,7 @@ def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, tabl
     ("consultant_faces", "kb", "/elsewhere.yaml", "consultant_faces: kb: set by fsreg-up from the scenario to "),
 ])
 def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_path, table1_path, node, key,
-                                                                            value, said):
+                                                                           value, said):
     data = _dump(table1_path)
     data[f"{NS}/{node}"]["ros__parameters"][key] = value
     with pytest.raises(UsageError) as caught:
