@@ -30,8 +30,10 @@ armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
 a clock that does not move is reported (``common.watch_clock``).
 
-Parameters (all but ``domains`` changeable at run time; a change is validated as the
-effective policy of every domain and rejected with a reason if any is invalid;
+Parameters (all but ``domains`` and ``use_sim_time`` changeable at run time; a change is
+validated as the effective policy of every domain and rejected with a reason if any is
+invalid, or if it changes a node-wide setting that a domain overrides (it would not apply
+there: :func:`~fsreg_ros.ros.memory_parameters.check_change`);
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
 ``domains`` (string array, required, read-only): the consultant domains managed; the
 memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
