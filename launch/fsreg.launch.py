@@ -14,7 +14,9 @@ each domain with the policy given here.  Play a scripted dialogue with
 ``ros2 run fsreg_ros dialogue_player --ros-args -p scenario:=...`` or talk to the
 graph on dialogue/human and reg/request (under the namespace, if one is given).  Set
 use_sim_time:=true when a player (or a bag) drives /clock; under a namespace the
-nodes follow <namespace>/clock.
+nodes follow <namespace>/clock.  As ``fsreg-up`` does: ``lexicon:=FILE`` (its
+``--lexicon``), ``state_dir:=DIR`` (``--state-dir``) and ``fresh:=true`` (``--fresh``:
+start from the KB alone, the consultants' state databases moved aside, never deleted).
 """
 
 from launch import LaunchDescription
@@ -25,7 +27,7 @@ from launch_ros.actions import Node
 from fsreg_ros.contract import CLOCK, normalise_namespace
 from fsreg_ros.core import settings
 from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.ros.graph_spec import PACKAGE, node_specs, policy_settings
+from fsreg_ros.ros.graph_spec import PACKAGE, node_specs, policy_settings, resolved
 
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM"),
@@ -36,6 +38,10 @@ ARGUMENTS = {
     "wm_order": ("lru-first", "lru-first, mru-first or preference"),
     "use_sim_time": ("false", "follow /clock"),
     "namespace": ("", "ROS namespace for every node ('' = none)"),
+    "lexicon": ("", "lexicon YAML that extends the built-in config/lexicon.yaml ('' = the built-in one)"),
+    "state_dir": ("", "the consultants' state directory ('' = theirs, under $XDG_STATE_HOME/fsreg_ros)"),
+    "fresh": ("false", "true: start from the KB alone (each consultant moves its state database aside, never "
+                       "deleting it) instead of restoring runtime facts and WM from an earlier session"),
 }
 
 
@@ -47,6 +53,13 @@ def _setting(row, text):
         raise ValueError(f"launch argument {row.name}:={text!r}: expected {row.kind_text}") from None
 
 
+def _flag(name, text):
+    """Return a true/false launch argument as a bool; ValueError naming the argument."""
+    if text.strip().lower() not in ("true", "false"):
+        raise ValueError(f"launch argument {name}:={text!r}: expected true or false")
+    return text.strip().lower() == "true"
+
+
 def _nodes(context):
     arg = lambda name: LaunchConfiguration(name).perform(context)  # noqa: E731
     domains = [d.strip() for d in arg("domains").split(",") if d.strip()]
@@ -55,10 +68,16 @@ def _nodes(context):
         arg("kb"),
         domains,
         {domain: policy_settings(policy) for domain in domains},
-        use_sim_time=arg("use_sim_time").lower() == "true",
+        use_sim_time=_flag("use_sim_time", arg("use_sim_time")),
         algorithm=arg("algorithm"),
         wm_order=arg("wm_order"),
+        lexicon=resolved(arg("lexicon")),
+        state_dir=resolved(arg("state_dir")),
     )
+    fresh = _flag("fresh", arg("fresh"))
+    for spec in specs:
+        if fresh and spec.executable == "consultant":
+            spec.parameters["reset_state"] = True
     namespace = normalise_namespace(arg("namespace"))
     remappings = [(CLOCK, namespace + CLOCK)] if namespace else []
     return [

@@ -26,13 +26,47 @@ def clock_remap(namespace: str) -> list[str]:
     return ["-r", f"{CLOCK}:={ns}{CLOCK}"] if ns else []
 
 
+#: Longest namespace, characters: a ROS name is at most 247 (rmw), and the graph's own names go under it.
+MAX_NAMESPACE = 200
+_FIRST = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ_")
+_REST = _FIRST | frozenset("0123456789")
+
+
+def _is_token(part: str) -> bool:
+    """Return whether ``part`` is one ROS name token: ASCII letters, digits and '_', not starting with a digit."""
+    return bool(part) and part[0] in _FIRST and all(c in _REST for c in part)
+
+
+def _shown(text: str) -> str:
+    return repr(text) if len(text) <= 60 else repr(text[:57]) + "..."
+
+
 def normalise_namespace(namespace: Optional[str]) -> str:
-    """Return ``namespace`` as ``/a/b`` ('' for none); ValueError if it is not a ROS namespace."""
+    """Return ``namespace`` as ``/a/b`` ('' for none); ValueError if it is not a ROS namespace.
+
+    Each part ASCII letters, digits and '_', not starting with a digit (rcl's rule, so a
+    refusal comes here, not as rcl's parse error); at most :data:`MAX_NAMESPACE` characters.
+    """
     text = (namespace or "").strip().strip("/")
     if not text:
         return ""
-    for part in text.split("/"):
-        if not part or not (part[0].isalpha() or part[0] == "_") or not all(c.isalnum() or c == "_" for c in part):
-            raise ValueError(f"namespace {namespace!r}: each part must be letters, digits and '_', "
-                             "not starting with a digit")
+    if len(text) + 1 > MAX_NAMESPACE:
+        raise ValueError(f"namespace {_shown(namespace or '')} is {len(text) + 1} characters long: at most "
+                         f"{MAX_NAMESPACE} (a ROS name is at most 247, and the graph's own names go under it)")
+    if not all(_is_token(part) for part in text.split("/")):
+        raise ValueError(f"namespace {_shown(namespace or '')}: each part must be ASCII letters, digits and '_', "
+                         "not starting with a digit")
     return "/" + text
+
+
+def check_topic(name: str) -> str:
+    """Return ``name`` (a topic to follow, e.g. ``--clock``) if it is a plain ROS topic name; ValueError otherwise.
+
+    Relative or absolute, parts as a namespace's (:func:`normalise_namespace`), at most
+    247 characters: a name rcl would refuse is refused here in one line.
+    """
+    parts = name[1:].split("/") if name.startswith("/") else name.split("/")
+    if not name or len(name) > 247 or not all(_is_token(part) for part in parts):
+        raise ValueError(f"{_shown(name)} is not a ROS topic name (parts of ASCII letters, digits and '_', not "
+                         "starting with a digit, separated by '/'; at most 247 characters)")
+    return name

@@ -28,6 +28,7 @@ from typing import Any, Optional
 
 from .lexicon import Lexicon
 from .recording import Message, Recording
+from .replay_world import world_mismatch
 from .scenario import Scenario, Turn, load_scenario
 from .simulation import Options, Simulation, trace_order
 
@@ -75,6 +76,7 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
                lexicon_path: Optional[Path] = None) -> Session:
     """Return the replayable session a recording holds (see the module docstring); ReplayError if there is none."""
     where = str(recording.path)
+    given = scenario_path
     scenario_path = scenario_path or recording.attached("scenario")
     if scenario_path is None:
         raise ReplayError(f"{where}: the recording carries no knowledge base (fsreg-ctl record found no graph to ask); "
@@ -128,8 +130,10 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
     algorithm = recording.custom.get("fsreg.algorithm")
     options = Options(algorithm=None if algorithm in (None, "", "auto") else algorithm,
                       wm_order=recording.custom.get("fsreg.wm_order") or "lru-first")
+    other = world_mismatch(scenario, scenario_path, recording.attached("scenario") if given else None, steps,
+                           events, ready)
     return Session(recording.path, scenario, lexicon, memory, options, steps, events, graph,
-                   [recording.lost] if recording.lost else [])
+                   [n for n in (recording.lost, other) if n])
 
 
 def _memory(where: str, ready: list[dict], scenario: Scenario) -> dict[str, dict]:

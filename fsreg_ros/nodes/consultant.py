@@ -42,6 +42,7 @@ from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameExcept
 from rclpy.node import Node
 from rclpy.validate_topic_name import validate_topic_name
 
+from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..contract import consultant_codec
 from ..contract.codec import MessageError, printable
@@ -84,6 +85,7 @@ class ConsultantNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
         super().__init__(node_name, namespace=namespace, **kwargs)
+        fix_use_sim_time(self)  # one clock for the whole graph
         domain = self._text("domain", "the domain this consultant owns (required)")
         kb = self._text("kb", "scenario/KB YAML file with the domain's LTM (required)")
         if not domain or not kb:

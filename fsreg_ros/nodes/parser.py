@@ -18,6 +18,7 @@ from typing import Optional
 
 from rclpy.node import Node
 
+from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..ros.carrier import publish, publisher, subscribe
 from ..contract import fingerprint
@@ -33,6 +34,7 @@ class ParserNode(Node):
 
     def __init__(self, node_name: str = "parser", *, namespace: Optional[str] = None, **kwargs) -> None:
         super().__init__(node_name, namespace=namespace, **kwargs)
+        fix_use_sim_time(self)  # one clock for the whole graph
         self.declare_parameter(
             "kb", "",
             descriptor("scenario/KB YAML whose properties may be parsed ('' = all in lexicon)", read_only=True),

@@ -30,8 +30,10 @@ armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
 a clock that does not move is reported (``common.watch_clock``).
 
-Parameters (all but ``domains`` changeable at run time; a change is validated as the
-effective policy of every domain and rejected with a reason if any is invalid;
+Parameters (all but ``domains`` and ``use_sim_time`` changeable at run time; a change is
+validated as the effective policy of every domain and rejected with a reason if any is
+invalid, or if it changes a node-wide setting that a domain overrides (it would not apply
+there: :func:`~fsreg_ros.ros.memory_parameters.check_change`);
 unsetting a parameter or changing its type is refused, by rclpy's static typing):
 ``domains`` (string array, required, read-only): the consultant domains managed; the
 memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
@@ -77,6 +79,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.validate_topic_name import validate_topic_name
 
+from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
                            subscribe_batches, wait_until)
@@ -88,7 +91,8 @@ from ..core.wm_manager import WMManager
 from ..ros.diagnostics import OK, WARN
 from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
-from ..ros.memory_parameters import SETTINGS, declare_memory_parameters, effective_policies, parameter_names
+from ..ros.memory_parameters import (SETTINGS, check_change, declare_memory_parameters, effective_policies,
+                                     parameter_names)
 
 #: Range of ``service_timeout``, seconds.
 TIMEOUT_RANGE = (0.01, 3600.0)
@@ -108,6 +112,7 @@ class WMManagerNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
         super().__init__(node_name, namespace=namespace, **kwargs)
+        fix_use_sim_time(self)  # one clock for the whole graph
         self.declare_parameter(
             "domains",
             Parameter.Type.STRING_ARRAY,
@@ -222,16 +227,11 @@ class WMManagerNode(Node):
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = self._values()
-        touched = False
-        for param in params:
-            if param.name not in values:
-                continue
-            values[param.name] = param.value
-            touched = True
-        if not touched:
+        changes = {param.name: param.value for param in params if param.name in values}
+        if not changes:
             return accepted()
         try:
-            self._effective(values)
+            check_change(values, changes, self._names)
         except ValueError as err:
             log_warning(self.get_logger(), f"rejected parameter change: {err}")
             return rejected(str(err))

@@ -32,6 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
+from .clock_parameter import fix_use_sim_time
 from .. import contract
 from .carrier import DEFAULT_TIMEOUT, stamped, subscribe
 from ..contract.codec import printable, safe_dumps
@@ -91,6 +92,7 @@ class AskingNode(Node):
 
     def __init__(self, name: str, **kwargs) -> None:
         super().__init__(name, **kwargs)
+        fix_use_sim_time(self)  # one clock for the whole graph
         self.declare_parameter(
             "domains",
             Parameter.Type.STRING_ARRAY,

@@ -6,7 +6,8 @@ a test checks that the launch file's nodes equal it.  No ROS import here, so the
 file and tools can use it without rclpy.
 
 The graph: one ``consultant`` per domain (named ``consultant_<domain>``), the
-``wm_manager`` (each domain's policy as ``<domain>.policy`` and its settings), the
+``wm_manager`` (the memory settings the domains share node-wide, ``policy``, and the
+ones they do not per domain, ``<domain>.policy``: :func:`memory_parameters`), the
 ``parser`` stub, ``reference_resolution`` and ``reg``; a scripted replay adds the
 ``dialogue_player`` last.
 """
@@ -53,13 +54,7 @@ def node_specs(
     domains = list(domains)
     sim = {"use_sim_time": use_sim_time}
     language = {"lexicon": lexicon} if lexicon else {}
-    manager: dict = {**sim, "domains": domains}
-    for domain in domains:
-        given = policies[domain]
-        manager[f"{domain}.policy"] = given["policy"]
-        for row in settings.parameters():
-            if given.get(row.name) is not None:
-                manager[f"{domain}.{row.name}"] = given[row.name]
+    manager: dict = {**sim, "domains": domains, **memory_parameters(domains, policies)}
     reg: dict = {**sim, "domains": domains, "wm_order": wm_order, **language}
     if algorithm:
         reg["algorithm"] = algorithm
@@ -72,6 +67,25 @@ def node_specs(
         NodeSpec("reg", "reg", reg),
     ]
     return nodes
+
+
+def memory_parameters(domains: Sequence[str], policies: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """Return the WM Manager's memory parameters for each domain's settings (``policies``, as :func:`node_specs`).
+
+    A setting every domain gives with one value is the node-wide parameter (``policy``),
+    so ``ros2 param get/set /wm_manager policy`` reads and changes what runs; one the
+    domains give differently is each domain's own (``faces.policy``), and a setting not
+    given stays the WM Manager's default.
+    """
+    out: dict[str, Any] = {}
+    for row in settings.TABLE:
+        given = {d: policies[d].get(row.name) for d in domains}
+        values = set(map(repr, given.values()))
+        if len(values) == 1 and None not in given.values():
+            out[row.name] = given[domains[0]]
+            continue
+        out.update({f"{d}.{row.name}": v for d, v in given.items() if v is not None})
+    return out
 
 
 def player_spec(scenario: str, output: Optional[str] = None, trace: Optional[str] = None,

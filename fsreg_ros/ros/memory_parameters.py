@@ -8,7 +8,11 @@ range (a range would have to include the marker, and rclpy's refusal would then 
 "Min: 0" where the table says at least 1); its ``additional_constraints`` state the rule,
 and the node refuses a value outside the table's bounds with the table's own words.
 :func:`effective_policies` turns a set of values into each domain's policy, checked by
-the core's rules, so a parameter change is validated as whole effective policies.
+the core's rules, so a parameter change is validated as whole effective policies;
+:func:`check_change` is the one check of a change at run time (the node's callback,
+``fsreg-ctl set``): besides the policies, a node-wide setting that a domain overrides
+would change nothing there, so changing it is refused with the reason (never
+"successful" and ignored).
 """
 
 from __future__ import annotations
@@ -84,4 +88,26 @@ def effective_policies(values: dict[str, Any], domains: Sequence[str]) -> dict[s
             policies[domain] = ForgettingPolicy.from_settings(merged)
         except PolicyError as err:
             raise ValueError(f"domain '{domain}': {err}") from None
+    return policies
+
+
+def check_change(current: dict[str, Any], changes: dict[str, Any],
+                 domains: Sequence[str]) -> dict[str, ForgettingPolicy]:
+    """Return every domain's effective policy after ``changes``; ValueError naming what is refused.
+
+    Refused: an invalid policy (:func:`effective_policies`), and a node-wide setting
+    changed while a domain sets its own (after the change): it would not apply there.
+    """
+    values = {**current, **changes}
+    policies = effective_policies(values, domains)
+    for key in SETTINGS:
+        if key not in changes or changes[key] == current.get(key):
+            continue
+        inherit = settings.setting(key).inherit
+        own = [d for d in domains if values[f"{d}.{key}"] != inherit]
+        if own:
+            given = ", ".join(f"{d}.{key}={values[f'{d}.{key}']!r}" for d in own)
+            raise ValueError(f"{key}: not changed: {given} overrides the node-wide value (which applies only to "
+                             f"domains that inherit it); set {own[0]}.{key} instead, or {own[0]}.{key}={inherit!r} "
+                             "to inherit")
     return policies

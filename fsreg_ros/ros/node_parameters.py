@@ -37,6 +37,12 @@ KINDS = {"bool": "a boolean (true or false)", "int": "a whole number", "float": 
 AUTO = "auto"
 
 
+#: What sets each runner-owned parameter (``ParamSpec.runner``): where to change it instead.
+RUNNER_SOURCES = {"domains": "the scenario's domains", "domain": "the scenario's domains", "kb": "the scenario",
+                  "use_sim_time": "sim time, or --wall-time (one clock for the whole graph)",
+                  "state_dir": "--state-dir", "lexicon": "--lexicon", "graph": "the run (a new identity each start)"}
+
+
 class ParameterError(ValueError):
     """A parameter name or value that a node would refuse; the message says which and why."""
 
@@ -49,6 +55,7 @@ class ParamSpec:
     ``--namespace``, ``--state-dir``, ``--lexicon``, ``--wall-time``), so a parameters
     file may not set it.  ``inherit``: a per-domain memory setting's marker for "use the
     node-wide value" (outside the bounds).  ``setting``: that memory setting's table row name.
+    ``default``: a runner parameter's value when the runner sets none (``''``: the node's own default).
     """
 
     name: str
@@ -60,6 +67,7 @@ class ParamSpec:
     runner: bool = False
     inherit: Any = None
     setting: Optional[str] = None
+    default: Any = None
 
     def rule(self) -> str:
         """Return the values allowed, in words: ``a whole number in [1, 10000]``."""
@@ -81,10 +89,11 @@ def _limits() -> list[ParamSpec]:
 
 
 def _common(*names: str) -> list[ParamSpec]:
-    specs = [ParamSpec("use_sim_time", "bool", runner=True), ParamSpec("graph", "str", True, runner=True),
+    specs = [ParamSpec("use_sim_time", "bool", True, runner=True), ParamSpec("graph", "str", True, runner=True),
              ParamSpec("start_type_description_service", "bool", True)]
     owned = {"domains": ParamSpec("domains", "str[]", True, runner=True),
-             "kb": ParamSpec("kb", "str", True, runner=True), "lexicon": ParamSpec("lexicon", "str", True, runner=True)}
+             "kb": ParamSpec("kb", "str", True, runner=True),
+             "lexicon": ParamSpec("lexicon", "str", True, runner=True, default="")}
     return specs + [owned[n] for n in names]
 
 
@@ -99,7 +108,7 @@ def _memory(domains: Sequence[str]) -> list[ParamSpec]:
         kind = "str" if not row.is_parameter else ("float" if row.kind is float else "int")
         out.append(ParamSpec(row.name, kind, low=row.low, high=row.high, setting=row.name))
         out += [ParamSpec(f"{d}.{row.name}", kind, low=row.low, high=row.high, setting=row.name,
-                          inherit=row.inherit if row.is_parameter else None) for d in domains]
+                          inherit=row.inherit) for d in domains]
     return out
 
 
@@ -110,7 +119,7 @@ def node_parameters(executable: str, domains: Sequence[str]) -> dict[str, ParamS
         specs = [*_common("domains"), *_memory(domains), ParamSpec("service_timeout", "float", False, 0.01, 3600.0)]
     elif executable == "consultant":
         specs = [*_common("kb"), *_limits(), ParamSpec("domain", "str", True, runner=True),
-                 ParamSpec("state_dir", "str", True, runner=True),
+                 ParamSpec("state_dir", "str", True, runner=True, default=""),
                  ParamSpec("threshold", "float", False, 0.0, 1.0),
                  ParamSpec("max_sessions", "int", True, 1, 100_000),
                  ParamSpec("max_sessions_per_client", "int", True, 1, 100_000),
@@ -172,7 +181,7 @@ def check_parameter(spec: ParamSpec, value: Any) -> Any:
             raise ParameterError(f"expected {spec.rule()}, got {got}")
         if spec.choices and value not in spec.choices:
             raise ParameterError(f"expected {spec.rule()}, got {got}")
-        if spec.setting == "policy" and value != "":
+        if spec.setting == "policy":  # '' only as a domain's inherit marker (returned above)
             from ..core.forgetting import PolicyError, parse_rules
 
             try:

@@ -99,10 +99,56 @@ class ParameterAccess(Spinning):
         node refuses raises ``rejected`` with its reason.  The values returned are read
         back from the node after the change.
         """
-        from . import node_parameters
-        from .memory_parameters import effective_policies, parameter_names
+        return self.set_many({node_name: values}, timeout)[node_name]
 
+    def set_many(self, changes: Mapping[str, Mapping[str, Any]], timeout: Optional[float] = None) -> dict:
+        """Set parameters of several nodes (node -> values): every value of every node checked first, then all or none.
+
+        As :meth:`set_parameters` for each node; nothing is sent until every node's
+        values passed the checks.  Should a node still refuse its change, the nodes set
+        before it are set back to the values they had, and the error says so.
+        Returns node -> the values now in force (read back).
+        """
         timeout = self.timeout if timeout is None else timeout
+        checked = {node: self._checked(node, values, timeout) for node, values in changes.items()}
+        before = {node: self.get_parameters(node, list(values), timeout) for node, values in changes.items()}
+        done: list[str] = []
+        for node, messages in checked.items():
+            try:
+                self._apply(node, messages, timeout)
+            except ClientError as err:
+                undone = self._undo(done, before, timeout)
+                raise ClientError(f"{err}{undone}", err.kind) from None
+            done.append(node)
+        return {node: self.get_parameters(node, list(values), timeout) for node, values in changes.items()}
+
+    def _undo(self, done: Sequence[str], before: Mapping[str, Mapping[str, Any]], timeout: float) -> str:
+        """Set the nodes in ``done`` back to ``before``; what the error adds (nothing when none was set)."""
+        if not done:
+            return ""
+        try:
+            for node in done:
+                self._apply(node, self._checked(node, before[node], timeout, check=False), timeout)
+        except ClientError as err:
+            return f" ({', '.join(done)} changed and could not be set back: {err})"
+        return f" (nothing changed: {', '.join(done)} set back)"
+
+    def _apply(self, node_name: str, messages: list, timeout: float) -> None:
+        setter = self._param_client(node_name, SetParametersAtomically, "set_parameters_atomically")
+        result = self._service_call(setter, SetParametersAtomically.Request(parameters=messages), timeout,
+                                    f"{node_name}: set parameters").result
+        if not result.successful:
+            raise ClientError(f"{node_name} refused {', '.join(m.name for m in messages)}: "
+                              f"{result.reason or 'no reason given'}", "rejected")
+
+    def _checked(self, node_name: str, values: Mapping[str, Any], timeout: float, check: bool = True) -> list:
+        """Return ``values`` as the Parameter messages to send, after every check (:meth:`set_parameters`).
+
+        ``check`` false: only the type conversion and the node's read-only and range checks.
+        """
+        from . import node_parameters
+        from .memory_parameters import check_change, parameter_names
+
         self.require_node(node_name, timeout)
         known = self.list_parameters(node_name, timeout)
         names = list(values)
@@ -112,20 +158,24 @@ class ParameterAccess(Spinning):
                 hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
                 raise ClientError(f"{node_name}: no parameter {printable(repr(name), 80)} ({hint})", "usage")
         described = self.describe_parameters(node_name, names, timeout)
+        executable = "consultant" if node_name.startswith("consultant_") else node_name
+        catalogue = node_parameters.node_parameters(executable, self.domains())
         messages, typed = [], {}
         for name in names:
             desc = described[name]
             if desc.read_only:
-                raise ClientError(f"{node_name}: {name} is read-only (set when the node starts: "
-                                  "fsreg-up --params-file)", "usage")
+                runner = name in catalogue and catalogue[name].runner
+                source = f"by fsreg-up from {node_parameters.RUNNER_SOURCES.get(name, 'its options')}" if runner \
+                    else "fsreg-up --params-file"
+                raise ClientError(f"{node_name}: {name} is read-only (set when the node starts: {source})", "usage")
             value = parameter_value(f"{node_name}: {name}", values[name], desc.type)
             typed[name] = python_value(value)
             problem = range_problem(desc, typed[name])
             if problem:
                 raise ClientError(f"{node_name}: {name}: {problem}", "usage")
             messages.append(ParameterMsg(name=name, value=value))
-        executable = "consultant" if node_name.startswith("consultant_") else node_name
-        catalogue = node_parameters.node_parameters(executable, self.domains())
+        if not check:  # values read back from the node, set back after a refusal elsewhere
+            return messages
         for name in names:  # the node's own checks (choices, the settings table), as data
             if name in catalogue:
                 try:
@@ -135,16 +185,10 @@ class ParameterAccess(Spinning):
         if node_name == "wm_manager" and any(n in parameter_names(self.domains()) for n in names):
             current = self.get_parameters(node_name, parameter_names(self.domains()), timeout)
             try:
-                effective_policies({**current, **typed}, self.domains())
+                check_change(current, typed, self.domains())
             except ValueError as err:
                 raise ClientError(f"{node_name}: {printable(str(err), 300)}", "usage") from None
-        setter = self._param_client(node_name, SetParametersAtomically, "set_parameters_atomically")
-        result = self._service_call(setter, SetParametersAtomically.Request(parameters=messages), timeout,
-                                    f"{node_name}: set parameters").result
-        if not result.successful:
-            raise ClientError(f"{node_name} refused {', '.join(names)}: {result.reason or 'no reason given'}",
-                              "rejected")
-        return self.get_parameters(node_name, names, timeout)
+        return messages
 
 
 def parameter_value(name: str, value: Any, kind: int) -> ParameterValue:

@@ -28,9 +28,11 @@ answer (no graph, not ready, timed out, the graph left, two graphs, another grap
 every domain's setting; ``DOMAIN.KEY=VALUE`` to one domain's (``inherit`` as the value
 makes it follow the node-wide one); ``NODE:KEY=VALUE`` sets a parameter of another node
 (``reg:algorithm=greedy``, ``consultant_faces:threshold=0.6``).  Keys, values and
-ranges are checked against the node's declared parameters and the settings table; the
-keys given to one node are set all at once or not at all, and what is printed is read
-back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
+ranges are checked against the node's declared parameters and the settings table (a
+node-wide setting a domain overrides, an empty node-wide ``policy`` and ``use_sim_time``
+are refused); every node's values are checked before any is set, so a refused command
+changes nothing (:meth:`~fsreg_ros.ros.parameter_access.ParameterAccess.set_many`), and
+what is printed is read back from the node.  ``assert``: ``PROP`` is certain (1.0), ``PROP:C`` has certainty C.
 
 Commands are a table (:data:`COMMANDS`): adding one is one function registered with
 :func:`command` (its arguments, and what it needs: a ready graph, any graph, or none).
@@ -47,9 +49,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import json
-import math
 import os
-import re
 import secrets
 import sys
 from dataclasses import dataclass
@@ -57,10 +57,12 @@ from typing import Any, Callable, Optional, Sequence
 
 from ..contract.codec import printable
 from ..contract import normalise_namespace
+from ..contract.naming import check_topic
 from ..core import settings
 from ..core.decay import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
+from .arguments import OneLineParser, number, undecodable
 from .up import restored_text
 from .view import check_port, serve_view
 
@@ -72,8 +74,6 @@ NO_ANSWER = ("not-ready", "timeout", "clash", "foreign", "cancelled", "unavailab
 MEMORY_KEYS = settings.names()
 #: Longest ``--timeout``, seconds (a day).
 MAX_TIMEOUT = 86_400.0
-#: What argparse takes for a negative number rather than an option.
-NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
 #: Seconds without an answer after which a request is sent again (the node answers a repeated id from its cache).
 RETRY_AFTER = 4.0
 #: Most WM updates ``watch --count`` waits for.
@@ -82,41 +82,6 @@ MAX_COUNT = 10**9
 
 class UsageError(ValueError):
     """A command line that cannot be turned into a request."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line (``fsreg-ctl: error: ...``), exit 2.
-
-    ``-inf``, ``-nan`` and ``-1e300`` are read as (negative) numbers, not options, so a
-    number argument refuses them with its own range instead of "required".
-    """
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = NEGATIVE_NUMBER
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
-        self.exit(EXIT_USAGE, f"{PROG}: error: {where}{' '.join(message.split())} (see {self.prog} --help)\n")
-
-
-def number(low: float, high: float, *, integer: bool = False, above: bool = False,
-           unit: str = "") -> Callable[[str], Any]:
-    """Return an argparse ``type`` taking a finite number in [low, high] (``above``: (low, high]); one-line errors."""
-    bounds = f"{'(' if above else '['}{settings.number(low)}, {settings.number(high)}]"
-    kind = "a whole number" if integer else "a finite number"
-    rule = f"{kind}{' of ' + unit if unit else ''} in {bounds}"
-
-    def parse(text: str) -> Any:
-        try:
-            value = int(text) if integer else float(text)
-        except (ValueError, OverflowError):
-            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(repr(text), 60)}") from None
-        if not math.isfinite(value) or value < low or value > high or (above and value <= low):
-            raise argparse.ArgumentTypeError(f"expected {rule}, got {printable(text, 60)}")
-        return value
-
-    return parse
 
 
 @dataclass(frozen=True)
@@ -211,6 +176,8 @@ def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str,
                 value = memory_value(item, name, value, domains)
             out.setdefault(node, {})[name] = value
         elif key in MEMORY_KEYS:
+            if key == "policy" and value.strip() != "inherit":  # the node-wide value, checked as the node does
+                _check_node_wide(item, key, value, domains)
             for domain in domains:
                 name = f"{domain}.{key}"
                 out.setdefault("wm_manager", {})[name] = memory_value(item, name, value, domains)
@@ -218,6 +185,17 @@ def parse_assignments(items: Sequence[str], domains: Sequence[str]) -> dict[str,
             out.setdefault("wm_manager", {})[key] = memory_value(item, key, value, domains) \
                 if _memory_key(key, domains) else value
     return out
+
+
+def _check_node_wide(item: str, key: str, value: str, domains: Sequence[str]) -> None:
+    """Refuse a value the WM Manager refuses for its node-wide ``key`` (an empty policy: WM would silently be off)."""
+    from ..ros.node_parameters import ParameterError, check_parameter, node_parameters
+
+    try:
+        check_parameter(node_parameters("wm_manager", domains)[key], value)
+    except ParameterError as err:
+        said = str(err) if str(err).startswith(key) else f"{key}: {err}"
+        raise UsageError(f"set {printable(item, 120)}: wm_manager: {said}") from None
 
 
 def _memory_key(name: str, domains: Sequence[str]) -> bool:
@@ -327,9 +305,18 @@ class Screen:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``fsreg-ctl``; return its exit code."""
     require_loopback(PROG)
+    bad = undecodable(sys.argv[1:] if argv is None else argv)
+    if bad is not None:
+        print(f"{PROG}: error: {bad}", file=sys.stderr)
+        return EXIT_USAGE
     args = build_parser().parse_args(argv)
     try:
         namespace = normalise_namespace(option(args, "namespace", ""))
+        if option(args, "clock", None) is not None:
+            try:
+                check_topic(args.clock)
+            except ValueError as err:
+                raise UsageError(f"--clock: {err}") from None
         timeout = float(option(args, "timeout", 10.0))
         spec = COMMANDS[args.command]
         if spec.check is not None:
@@ -434,6 +421,13 @@ def _say_arguments(parser: argparse.ArgumentParser) -> None:
 def _say_check(args: argparse.Namespace) -> None:
     if bool(args.text) == bool(args.description):
         raise UsageError("say: give the words to say, or --description P1,P2 (not both)")
+    if args.description is not None and not _properties(args.description):
+        raise UsageError(f"say: --description {printable(repr(args.description), 80)} names no property; "
+                         "give P1,P2")
+
+
+def _properties(text: str) -> list[str]:
+    return [p.strip() for p in text.split(",") if p.strip()]
 
 
 @command("say", "the human says TEXT; print whom RR resolved", arguments=_say_arguments, check=_say_check)
@@ -442,7 +436,11 @@ def say(ctl: Ctl, client) -> int:
     if args.domain is not None and args.domain not in client.domains():
         raise UsageError(f"say: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
                          f"{', '.join(client.domains())})")
-    description = [p.strip() for p in args.description.split(",") if p.strip()] if args.description else None
+    description = _properties(args.description) if args.description else None
+    words = len(" ".join(args.text).split())
+    if words > client.limits.max_list_items:  # each word is one of the parser's tokens, answered as a list
+        raise UsageError(f"say: {words} words; the graph takes at most {client.limits.max_list_items} "
+                         "(max_list_items)")
     answer = client.say(" ".join(args.text) if args.text else None, description=description, domain=args.domain,
                         time=ctl.now(client))
     if answer.get("status") == "error" or "error" in answer:
@@ -519,13 +517,10 @@ def set_(ctl: Ctl, client) -> int:
                 close = difflib.get_close_matches(name, known, n=1)
                 hint = f"did you mean {close[0]}?" if close else f"its parameters: {', '.join(known)}"
                 raise UsageError(f"set: node {node_name} has no parameter {printable(repr(name), 80)} ({hint})")
-    now: dict[str, dict[str, Any]] = {}
-    for node_name, values in changes.items():
-        try:
-            now[node_name] = client.set_parameters(node_name, values)
-        except ClientError as err:
-            done = f" (already set: {_assignments(now)})" if now else ""
-            raise ClientError(f"set: {err}{done}", err.kind) from None
+    try:
+        now = client.set_many(changes)  # every node's values checked first, then all set or none
+    except ClientError as err:
+        raise ClientError(f"set: {err}", err.kind) from None
     shown = {node: {k: "inherit" if node == "wm_manager" and _inherits(k, v, client.domains()) else v
                     for k, v in vals.items()} for node, vals in now.items()}
     ctl.emit({"set": now}, f"set {_assignments(shown)}")
@@ -639,11 +634,18 @@ def _wm_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("wm", "one entity's WM, least recently used first", arguments=_wm_arguments)
 def wm(ctl: Ctl, client) -> int:
+    from ..ros.client import ClientError
+
     args = ctl.args
     if args.domain is not None and args.domain not in client.domains():
         raise UsageError(f"wm: the graph has no domain {printable(repr(args.domain), 80)} (its domains: "
                          f"{', '.join(client.domains())})")
-    domain = args.domain or client.domain_of(args.entity)
+    try:
+        domain = args.domain or client.domain_of(args.entity)
+    except ClientError as err:  # an entity the graph does not know: the graph's answer (exit 1), as describe's
+        if err.kind != "usage":
+            raise
+        raise ClientError(f"wm {printable(args.entity, 80)}: {err}", "error") from None
     state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
     queue = list((state.get("queues") or {}).get(args.entity, []))
     ctl.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},

@@ -93,7 +93,7 @@ def _param(value: object) -> str:
         return repr(value)
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(str(v) for v in value) + "]"
-    return str(value)
+    return str(value) if value != "" else "''"  # rcl reads '-p name:=' as no value, '' as the empty text
 
 
 def unique_namespace(prefix: str = "fsreg") -> str:

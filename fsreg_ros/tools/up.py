@@ -54,12 +54,14 @@ from typing import Optional, Sequence
 from .. import contract
 from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options_from_args
 from ..contract import normalise_namespace
+from ..contract.naming import check_topic
 from ..contract.codec import printable
 from ..core.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon
 from ..core.persistence import time_text
 from ..core.scenario import coverage_warning, load_scenario
 from ..core.simulation import effective_policies
+from .arguments import OneLineParser, number, undecodable
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from .view import DEFAULT_HOST, DEFAULT_PORT, LiveView
@@ -70,6 +72,8 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_RESPAWNS = 5
 #: Seconds between two checks of the node processes while up.
 POLL = 0.1
+#: Longest ``--ready-timeout``, seconds (a day, as fsreg-ctl's ``--timeout``).
+MAX_READY_TIMEOUT = 86_400.0
 
 
 class UpError(RuntimeError):
@@ -77,7 +81,7 @@ class UpError(RuntimeError):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog=PROG,
         description="Start the live fsreg node graph of a scenario's domains and keep it up until Ctrl-C or "
                     "SIGTERM (talk to it with fsreg-ctl).")
@@ -96,8 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--clock", metavar="TOPIC",
                         help="the clock topic to follow under sim time (default: /clock, or <namespace>/clock)")
     parser.add_argument("--log-dir", type=Path, metavar="DIR", help="node logs (default: a new temporary directory)")
-    parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
-                        help="seconds to wait for the graph to be ready (default 60)")
+    parser.add_argument("--ready-timeout", type=number(0.0, MAX_READY_TIMEOUT, above=True, unit="seconds"),
+                        default=60.0, metavar="S",
+                        help=f"seconds to wait for the graph to be ready, in (0, {MAX_READY_TIMEOUT:g}] (default 60)")
     parser.add_argument("--params-file", type=Path, metavar="FILE",
                         help="node parameters in the YAML 'ros2 param dump' writes ('/**' wildcards, node names); "
                              "checked before anything starts; memory options on the command line win over it")
@@ -180,6 +185,10 @@ def _on_signal(signum, frame) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``fsreg-up``; return its exit code."""
     require_loopback(PROG)  # exits 2 if the environment would take DDS off this machine
+    bad = undecodable(sys.argv[1:] if argv is None else argv)
+    if bad is not None:
+        print(f"{PROG}: error: {bad}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     args = build_parser().parse_args(argv)
     try:
         namespace = normalise_namespace(args.namespace)
@@ -193,21 +202,30 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"{PROG}: error: --record: {args.record} exists already; a recording goes to a new folder",
               file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.ready_timeout <= 0:
-        print(f"{PROG}: error: --ready-timeout must be positive, got {args.ready_timeout:g}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    if args.log_dir is not None:
+        try:  # before anything starts: a folder that cannot be made is bad input, not a failure later
+            args.log_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            print(printable(f"{PROG}: error: --log-dir: cannot make {args.log_dir} a folder: "
+                            f"{err.strerror or err}"), file=sys.stderr)
+            return EXIT_BAD_INPUT
     try:
         lexicon = Lexicon.load(args.lexicon)
         scenario = load_scenario(args.scenario, lexicon)
         options = options_from_args(args)
         policies = effective_policies(scenario, options)
-        clock = None if args.wall_time else (args.clock or (f"{namespace}{contract.CLOCK}" if namespace
-                                                            else contract.CLOCK))
+        clock = None if args.wall_time else (args.clock if args.clock is not None else
+                                             f"{namespace}{contract.CLOCK}" if namespace else contract.CLOCK)
         if clock is not None:
-            _check_topic(clock)
+            try:
+                check_topic(clock)
+            except ValueError as err:
+                raise UsageError(f"--clock: {err}") from None
         file_params, memory = {}, None
         if args.params_file is not None:
-            file_params, memory = params_from_file(args.params_file, policies, namespace, options)
+            specs = live_nodes(scenario, args.scenario, options, lexicon=args.lexicon, state_dir=_state_dir(args),
+                               use_sim_time=not args.wall_time)
+            file_params, memory = params_from_file(args.params_file, specs, namespace, options)
     except INPUT_ERRORS as err:
         print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -230,24 +248,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             signal.signal(sig, handler)
 
 
-def params_from_file(path: Path, policies: dict, namespace: str, options) -> tuple[dict, dict]:
-    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid."""
-    from ..ros.graph_spec import policy_settings
+def params_from_file(path: Path, specs: Sequence, namespace: str, options) -> tuple[dict, dict]:
+    """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid.
+
+    ``specs``: the graph's nodes as fsreg-up would start them (the file's runner-owned keys must agree).
+    """
     from .params_file import check_memory, overrides
 
-    domains = list(policies)
-    given = overrides(path, domains, namespace, options.memory)
-    manager = {f"{d}.{k}": v for d, p in policies.items() for k, v in policy_settings(p).items() if v is not None}
-    manager.update(given.get("wm_manager", {}))
-    return given, check_memory(path, manager, domains)
+    runner = {spec.name: spec.parameters for spec in specs}
+    domains = list(runner["wm_manager"]["domains"])
+    given = overrides(path, domains, namespace, options.memory, runner)
+    return given, check_memory(path, runner["wm_manager"], given.get("wm_manager", {}), domains)
 
 
-def _check_topic(name: str) -> None:
-    """Raise UsageError naming ``--clock`` if ``name`` is not a valid ROS topic name."""
-    text = name if name.startswith("/") else "/" + name
-    if not all(part and (part[0].isalpha() or part[0] == "_") and all(c.isalnum() or c == "_" for c in part)
-               for part in text.strip("/").split("/")):
-        raise UsageError(f"--clock: {name!r} is not a ROS topic name")
+def _state_dir(args: argparse.Namespace) -> Optional[str]:
+    return str(args.state_dir.resolve()) if args.state_dir else None
 
 
 class Up:
@@ -264,7 +279,7 @@ class Up:
         self.memory = {d: p.to_json() for d, p in policies.items()}
         self.log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="fsreg-up-"))
         self.specs = live_nodes(scenario, args.scenario, options, graph=self.graph_id, lexicon=args.lexicon,
-                                state_dir=str(args.state_dir.resolve()) if args.state_dir else None,
+                                state_dir=_state_dir(args),
                                 use_sim_time=not args.wall_time)
         for spec in self.specs:  # --params-file (checked): over the scenario's, under the command line's
             spec.parameters.update((file_params or {}).get(spec.name, {}))

@@ -115,7 +115,14 @@ def test_the_graph_and_the_launch_file_pass_every_setting(monkeypatch):
     every = ForgettingPolicy.from_settings({row.name: row.default for row in settings.TABLE})
     manager = next(s for s in node_specs("kb.yaml", ["faces"], {"faces": policy_settings(every)})
                    if s.executable == "wm_manager")
-    assert {k for k in manager.parameters if k.startswith("faces.")} == {f"faces.{n}" for n in settings.names()}
+    assert {k for k in manager.parameters if k in settings.names()} == set(settings.names())  # shared: node-wide
+    assert not [k for k in manager.parameters if k.startswith("faces.")]
+    other = ForgettingPolicy.from_settings({row.name: row.default for row in settings.TABLE} | {"capacity": 5})
+    manager = next(s for s in node_specs("kb.yaml", ["faces", "objects"], {"faces": policy_settings(every),
+                                                                           "objects": policy_settings(other)})
+                   if s.executable == "wm_manager")
+    assert (manager.parameters["faces.capacity"], manager.parameters["objects.capacity"]) == (2, 5)
+    assert "capacity" not in manager.parameters and "faces.policy" not in manager.parameters
     arguments = _launch_arguments(monkeypatch)
     for row in settings.TABLE:
         assert arguments[row.name] == (str(row.default), row.description)
@@ -182,7 +189,7 @@ out["scenario"] = scenario.policy_for("faces").to_json()
 out["scenario+cli"] = scenario.policy_for("faces", options_from_args(args).memory).to_json()
 out["contract"] = PolicySettings.model_validate({"policy": "similarity", "patience": 2}).to_policy().to_json()
 spec = [s for s in node_specs("kb", ["faces"], {"faces": policy_settings(policy)}) if s.executable == "wm_manager"]
-out["graph"] = spec[0].parameters["faces.patience"]
+out["graph"] = spec[0].parameters["patience"]  # one domain: node-wide
 (r,) = setting_descriptor("patience").integer_range
 out["descriptor"] = [r.from_value, r.to_value]
 print(json.dumps(out, sort_keys=True))

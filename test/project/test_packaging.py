@@ -83,7 +83,30 @@ def test_launch_file_builds_the_graph_spec(monkeypatch):
     assert {n.kwargs["executable"] for n in nodes} <= set(setup_entry_points())
     assert {n.kwargs["namespace"] for n in nodes} == {"/robot1"}
     assert all(n.kwargs["remappings"] == [("/clock", "/robot1/clock")] for n in nodes)
-    assert got[2][2][0]["faces.policy"] == "displacement" and got[2][2][0]["faces.capacity"] == 3
+    assert got[2][2][0]["policy"] == "displacement" and got[2][2][0]["capacity"] == 3  # every domain's: node-wide
+    assert not [k for k in got[2][2][0] if k.startswith(("faces.", "objects."))]
+
+
+def test_launch_file_takes_a_state_dir_a_fresh_start_and_a_lexicon_as_fsreg_up_does(monkeypatch, tmp_path):
+    from fsreg_ros.core import settings
+    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.ros.graph_spec import node_specs, policy_settings
+
+    monkeypatch.chdir(tmp_path)
+    given = {"kb": "/tmp/kb.yaml", "policy": "decay", "state_dir": "state", "lexicon": "words.yaml", "fresh": "true"}
+    nodes = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, given)}
+    policy = ForgettingPolicy.from_settings({**{row.name: row.default for row in settings.TABLE}, "policy": "decay"})
+    expected = {s.name: s.parameters for s in node_specs(
+        "/tmp/kb.yaml", ["faces"], {"faces": policy_settings(policy)}, use_sim_time=False,
+        algorithm="auto", lexicon=str(tmp_path / "words.yaml"), state_dir=str(tmp_path / "state"))}
+    expected["consultant_faces"]["reset_state"] = True  # fresh: the database moved aside, as fsreg-up --fresh
+    assert nodes == expected
+    assert nodes["consultant_faces"]["state_dir"] == str(tmp_path / "state")
+    assert nodes["parser"]["lexicon"] == nodes["reg"]["lexicon"] == str(tmp_path / "words.yaml")
+    again = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml"})}
+    assert "reset_state" not in again["consultant_faces"] and "state_dir" not in again["consultant_faces"]
+    with pytest.raises(ValueError, match=r"^launch argument fresh:='yes': expected true or false$"):
+        _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml", "fresh": "yes"})
 
 
 def test_params_files_name_real_nodes():
@@ -177,7 +200,7 @@ def test_documented_topic_pub_examples_fit_the_contract():
     topics = {"/" + t.name: t for t in contract.TOPICS}
     ids = []
     lines = [line for line in (REPO / "docs" / "deployment.md").read_text().splitlines()
-             if line.startswith("ros2 topic pub")]
+             if line.startswith("ros2 topic pub") and "std_msgs/String" in line]
     assert lines
     for line in lines:
         words = shlex.split(line)
@@ -192,6 +215,34 @@ def test_documented_topic_pub_examples_fit_the_contract():
         contract.check(models[0], message)
         ids.append(message["id"])
     assert len(ids) == len(set(ids))
+
+
+def _documented_topic_pubs() -> list[list[str]]:
+    """Every ``ros2 topic pub`` command of docs/deployment.md, in code blocks and tables, as its words."""
+    import shlex
+
+    text = (REPO / "docs" / "deployment.md").read_text()
+    commands = [line for line in text.splitlines() if line.startswith("ros2 topic pub")]
+    commands += re.findall(r"`(ros2 topic pub [^`]*)`", text)
+    return [shlex.split(command) for command in commands if " /" in command]  # not the prose's bare command
+
+
+@pytest.mark.graph
+def test_documented_topic_pubs_wait_for_every_reader_of_the_topic(table1_path):
+    """``ros2 topic pub --once`` implies ``-w 1``: a documented command says ``-w N`` with N the topic's readers in
+    the graph the docs start (one domain, sim time), counted on a live graph."""
+    from fsreg_ros.testing import LiveGraph
+
+    documented = _documented_topic_pubs()
+    assert len(documented) >= 7
+    with LiveGraph(table1_path) as graph:
+        node = graph.nodes["reg"]
+        for words in documented:
+            topic = next(w for w in words[3:] if not w.startswith("-") and not w.isdigit())
+            assert "--once" in words, words
+            waits = int(words[words.index("-w") + 1]) if "-w" in words else 1
+            readers = node.count_subscribers(graph.namespace + topic)
+            assert readers >= 1 and waits == readers, (" ".join(words[:6]), waits, readers)
 
 
 def test_every_script_the_docs_run_is_executable():

@@ -91,3 +91,37 @@ def test_a_bad_params_file_is_one_line_naming_the_file(tmp_path, text, said):
     with pytest.raises(ParameterError) as err:
         read_params_file(path)
     assert str(err.value).startswith(f"{path}: ") and said in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.graph
+def test_a_run_time_change_is_applied_where_it_says_or_refused_with_the_reason(table1_path):
+    """``ros2 param set`` (the nodes' own callbacks): use_sim_time is the graph's, fixed at start on every node;
+    a node-wide memory setting is what runs in every domain that inherits it, and changing it while a domain
+    overrides it is refused, not "successful" and ignored."""
+    from rclpy.parameter import Parameter
+
+    from fsreg_ros.testing import LiveGraph
+
+    with LiveGraph(table1_path, policy="decay", decay_period=10.0) as graph:
+        for name, node in graph.nodes.items():
+            result = node.set_parameters([Parameter("use_sim_time", value=False)])[0]
+            assert not result.successful and "read-only" in result.reason, (name, result.reason)
+            assert node.get_parameter("use_sim_time").value is True, name
+        manager = graph.nodes["wm_manager"]
+        # the graph's shared settings are the node-wide parameters: get reports what runs, set changes it
+        assert manager.get_parameter("policy").value == "decay" and manager.get_parameter("faces.policy").value == ""
+        assert manager.set_parameters([Parameter("policy", value="displacement")])[0].successful
+        assert graph.status()["memory"] == {"faces": {"policy": "displacement", "capacity": 2}}
+        assert manager.set_parameters([Parameter("faces.policy", value="decay")])[0].successful
+        result = manager.set_parameters([Parameter("policy", value="none")])[0]
+        assert result.reason == ("policy: not changed: faces.policy='decay' overrides the node-wide value (which "
+                                 "applies only to domains that inherit it); set faces.policy instead, or "
+                                 "faces.policy='' to inherit")
+        assert manager.get_parameter("policy").value == "displacement"
+        assert graph.status()["memory"] == {"faces": {"policy": "decay", "decay_period": 10.0}}
+        # inherit again ('' is the domain's marker): the node-wide value runs, and follows a change
+        assert manager.set_parameters([Parameter("faces.policy", value="")])[0].successful
+        assert manager.set_parameters([Parameter("policy", value="none")])[0].successful
+        assert graph.status()["memory"] == {"faces": {"policy": "none"}}
+        result = manager.set_parameters([Parameter("policy", value="")])[0]  # node-wide: no policy is not 'none'
+        assert not result.successful and result.reason == "policy must be a non-empty string, got ''"

@@ -240,12 +240,18 @@ def test_each_domain_keeps_its_own_pool(graph: RosSession):
     assert queues(graph, "faces") == {"face1": ["lab-coat"], "face2": ["dark-hair"]}
     encode(graph, "obj1", ["red"], 3.0, "objects")
     assert queues(graph, "objects") == {"obj1": ["ball", "red"], "obj2": ["ball"]}
-    # the default changes every domain that inherits it
+    # a node-wide setting that a domain overrides would not apply there: refused with the reason, nothing changes
+    result = node.set_parameters([Parameter("policy", value="none")])[0]
+    assert not result.successful and result.reason == (
+        "policy: not changed: faces.policy='displacement+global-capacity' overrides the node-wide value (which "
+        "applies only to domains that inherit it); set faces.policy instead, or faces.policy='' to inherit")
+    assert graph.call(SYNC, {"time": 3.0})["memory"]["objects"] == {"policy": "displacement", "capacity": 2}
+    # once every domain inherits it, the default changes every domain
+    assert node.set_parameters([Parameter("faces.policy", value="")])[0].successful
     assert node.set_parameters([Parameter("policy", value="none")])[0].successful
     reply = graph.call(SYNC, {"time": 3.0})
-    assert reply["memory"]["objects"] == {"policy": "none"}
-    assert reply["memory"]["faces"]["policy"] == "displacement+global-capacity"
-    assert queues(graph, "objects") == {} and queues(graph, "faces") != {}
+    assert reply["memory"] == {"faces": {"policy": "none"}, "objects": {"policy": "none"}}
+    assert queues(graph, "objects") == {} and queues(graph, "faces") == {}
 
 
 def test_a_restarted_consultant_is_configured_again(graph: RosSession):
