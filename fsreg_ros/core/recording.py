@@ -49,6 +49,10 @@ CUSTOM_PREFIX = "fsreg."
 TOPICS_KEY = "fsreg.topics"
 ROLES = ("human", "semantics", "rr", "request", "expression", "state", "events", "announce", "ready", "assert",
          "assert_result", "clock")
+#: The largest ``.mcap`` read back (a recording is read into memory whole; an hour of a busy graph is ~100 MB).
+MAX_BAG_BYTES = 2 * 1024 ** 3
+#: The largest ``metadata.yaml`` read back (``ros2 bag`` writes a few KB).
+METADATA_MAX_BYTES = 16 * 1024 * 1024
 #: RMW's "infinite" duration as ``ros2 bag`` writes it into QoS profiles.
 _INFINITE = (9223372036, 854775807)
 
@@ -319,10 +323,35 @@ def _open_segments(path: Path) -> Recording:
     return _recording(path, messages, topics, custom, bad, lost)
 
 
+def check_bag_files(path: Path) -> None:
+    """Refuse a bag whose files are not regular files within their limits (RecordingError, one line).
+
+    ``rosbags`` opens them by name: a ``metadata.yaml`` or ``.mcap`` that is a named pipe
+    would block it forever, a link to ``/dev/zero`` would be read until memory runs out.
+    So each is checked first (:mod:`fsreg_ros.core.input_file`), and ``metadata.yaml`` read
+    as every YAML file is (size, depth, aliases: :mod:`fsreg_ros.core.yaml_source`).
+    """
+    from .input_file import InputFileError, check_file
+    from .yaml_source import SourceError, load_yaml, read_text
+
+    try:
+        if path.is_dir():
+            metadata = path / "metadata.yaml"
+            load_yaml(read_text(metadata, limit=METADATA_MAX_BYTES), str(metadata))
+            for storage in sorted(path.glob("*.mcap")):
+                check_file(storage, MAX_BAG_BYTES)
+        else:
+            check_file(path, MAX_BAG_BYTES)
+    except (InputFileError, SourceError) as err:
+        where = err.source if getattr(err, "line", None) is None else f"{err.source}:{err.line}"
+        raise RecordingError(f"{where}: not a readable recording ({err.message})") from None
+
+
 def _read_bag(path: Path, name: Path) -> tuple[list[Message], dict[str, str], dict[str, str], int]:
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.errors import ReaderError
 
+    check_bag_files(path)
     store = _typestore()
     messages: list[Message] = []
     bad = 0

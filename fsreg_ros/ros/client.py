@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import secrets
+import time
 from typing import Any, Callable, Optional
 
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -56,6 +57,9 @@ __all__ = [
     "CLASH_WAIT", "DISCOVERY_WAIT", "GONE_AFTER", "LAPSE_CONFIRM", "CLOCK_DISCOVERY", "CLOCK_RESEND",
     "MATCH_SETTLE", "GRAPH_NODES", "KIND_TOPICS",
 ]
+
+#: Seconds at most :meth:`GraphClient.delivered` waits for the readers to acknowledge what the client sent.
+DELIVERY_WAIT = 2.0
 
 
 class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, ParameterAccess):
@@ -106,6 +110,46 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         self._state_watcher: Optional[Callable[[dict], None]] = None  # :meth:`watch`'s, once it runs
         self._ids = itertools.count(1)
         self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
+        self._sent: dict[str, tuple[Any, Callable[[], None], int]] = {}  # topic -> last message (see delivered)
+
+    def _note_sent(self, writer, resend: Callable[[], None]) -> None:
+        """Remember the last message sent on ``writer`` (how to send it again) and how many readers had matched."""
+        self._sent[writer.topic_name] = (writer, resend, writer.get_subscription_count())
+
+    def delivered(self, timeout: float = DELIVERY_WAIT) -> bool:
+        """Make every reader matched with this client's writers hold the last message each sent; whether all do.
+
+        A short-lived client (``fsreg-ctl``) calls it before its node goes.  An answer from
+        the graph says that the node asked heard the request, not that every other reader
+        did: a recorder discovered only after the request went out never got it (a writer
+        sends to the readers matched when it writes).  So the last message of a writer that
+        has matched more readers since is sent again (same id: the graph answers a repeated
+        id once, a replay counts it once), until no writer matches a new reader, and then
+        every matched reader must acknowledge it (received, not merely sent); a reader this
+        node discovered is waited for until its writer matches it too.  Waits at most
+        ``timeout`` seconds in all.
+        """
+        from rclpy.duration import Duration
+
+        deadline = time.monotonic() + timeout
+        while True:
+            for topic, (writer, resend, matched) in list(self._sent.items()):
+                now = writer.get_subscription_count()
+                if now > matched:
+                    resend()
+                    self._sent[topic] = (writer, resend, now)
+            done = True
+            for writer, _, _ in self._sent.values():
+                left = max(0.0, deadline - time.monotonic())
+                done = writer.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))) and done
+            writers = [w for w, _, _ in self._sent.values()]
+            grown = any(w.get_subscription_count() > m for w, _, m in self._sent.values())
+            # a reader this node has discovered but its writer not yet matched: wait for the match
+            pending = any(self.node.count_subscribers(w.topic_name) > w.get_subscription_count() for w in writers)
+            if not (grown or pending) or time.monotonic() >= deadline:
+                return done and not (grown or pending)
+            if not grown:
+                time.sleep(0.01)
 
 
 def find_graph(namespace: str, wait: float = DISCOVERY_WAIT) -> Optional[str]:

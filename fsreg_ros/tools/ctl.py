@@ -373,6 +373,7 @@ class Ctl:
         node = rclpy.create_node(f"fsreg_ctl_{secrets.token_hex(4)}", context=context,
                                  cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
+        client = None
         try:
             client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout,
                                  retry_after=RETRY_AFTER)
@@ -394,6 +395,8 @@ class Ctl:
         except KeyboardInterrupt:
             return EXIT_OK
         finally:
+            if client is not None:  # what was sent reaches every reader (a recorder too) before the node goes
+                client.delivered()
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)
