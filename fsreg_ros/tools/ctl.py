@@ -62,7 +62,7 @@ from ..core.decay import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .up import restored_text
-from .view import check_port, serve_view
+from .view import check_host, check_port, serve_view
 
 PROG = "fsreg-ctl"
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NO_ANSWER = 0, 1, 2, 3
@@ -677,6 +677,10 @@ def _view_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _view_check(args: argparse.Namespace) -> None:
     args.port = check_port(args.port)
+    try:
+        check_host(args.host)
+    except ValueError as err:
+        raise UsageError(f"view: {err}") from None
 
 
 @command("view", "serve a live web page of the graph's WM on 127.0.0.1 (Ctrl-C ends)", needs="graph",
