@@ -18,12 +18,15 @@ a third-party library opens by name itself.  YAML's own limits (depth, aliases) 
 
 from __future__ import annotations
 
+import io
 import os
 import stat
-from typing import BinaryIO, Union
+from typing import BinaryIO, TextIO, Union
 
 #: The default limit: files larger than this are refused before reading (a world of 10,000 entities is ~2 MB).
 MAX_FILE_BYTES = 64 * 1024 * 1024
+#: The limit of a corpus or an event trace read line by line (the tangram corpus is ~2 MB, TUNA's trials KB each).
+MAX_CORPUS_BYTES = 1024 ** 3
 
 PathLike = Union[str, os.PathLike]
 
@@ -124,9 +127,15 @@ def open_binary(path: PathLike, limit: int = MAX_FILE_BYTES) -> BinaryIO:
         raise
 
 
+def open_text(path: PathLike, limit: int = MAX_FILE_BYTES) -> TextIO:
+    """Return the regular file ``path`` opened as UTF-8 text (``newline=""``, as ``csv`` wants), checked as :func:`open_binary`."""
+    return io.TextIOWrapper(open_binary(path, limit), encoding="utf-8", newline="")
+
+
 def check_file(path: PathLike, limit: int = MAX_FILE_BYTES) -> None:
     """Refuse ``path`` unless it is a regular file within ``limit`` bytes (for a library that opens it by name)."""
     os.close(_open_checked(path, limit))
 
 
-__all__ = ["MAX_FILE_BYTES", "InputFileError", "check_file", "open_binary", "read_bytes", "read_text"]
+__all__ = ["MAX_CORPUS_BYTES", "MAX_FILE_BYTES", "InputFileError", "check_file", "open_binary", "open_text",
+           "read_bytes", "read_text"]

@@ -328,16 +328,17 @@ def check_bag_files(path: Path) -> None:
 
     ``rosbags`` opens them by name: a ``metadata.yaml`` or ``.mcap`` that is a named pipe
     would block it forever, a link to ``/dev/zero`` would be read until memory runs out.
-    So each is checked first (:mod:`fsreg_ros.core.input_file`), and ``metadata.yaml`` read
-    as every YAML file is (size, depth, aliases: :mod:`fsreg_ros.core.yaml_source`).
+    So each is checked first (:mod:`fsreg_ros.core.input_file`), and ``metadata.yaml``'s
+    size, depth and aliases as every YAML file's (:mod:`fsreg_ros.core.yaml_source`; its
+    syntax is the library's to report).
     """
     from .input_file import InputFileError, check_file
-    from .yaml_source import SourceError, load_yaml, read_text
+    from .yaml_source import SourceError, check_structure, read_text
 
     try:
         if path.is_dir():
             metadata = path / "metadata.yaml"
-            load_yaml(read_text(metadata, limit=METADATA_MAX_BYTES), str(metadata))
+            check_structure(read_text(metadata, limit=METADATA_MAX_BYTES), str(metadata))
             for storage in sorted(path.glob("*.mcap")):
                 check_file(storage, MAX_BAG_BYTES)
         else:

@@ -9,7 +9,8 @@ gave and the time it used (the answer's ``time``).  Resent requests (one id) cou
 A request the recording lacks (its sender left before the recorder heard it) is rebuilt
 from what the graph's long-lived nodes forwarded: an utterance from the parser's
 ``dialogue/semantics`` (its text or properties, its domain) or RR's answer, a REG request
-from REG's ``reg/expression`` (id, target, time); the replay says how many it rebuilt.
+from REG's ``reg/expression`` (id, target, time), an LTM assertion of one entity from its
+``ltm/assert/result`` (what it changed); the replay says how many it rebuilt.
 
 :func:`replay` plays them through the core (:class:`~fsreg_ros.core.simulation.Simulation`)
 and compares, per turn, the answer (RR: status, resolved entity, candidates, description;
@@ -41,7 +42,7 @@ ROBOT_FIELDS = ("description", "text", "sources", "wm_before", "distinguishing",
 #: Each kind of step: the role of the topic its requests are recorded on, and of its answers'.
 REQUESTS = {"human": ("human", "rr"), "robot": ("request", "expression"), "assert": ("assert", "assert_result")}
 #: The kinds of request a replay can rebuild from the graph's answer when the request itself is not recorded.
-REBUILT = {k: REQUESTS[k] for k in ("human", "robot")}
+REBUILT = REQUESTS
 
 
 class ReplayError(ValueError):
@@ -122,9 +123,12 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
         data = message.data
         if kind is None and isinstance(data, dict) and "id" in data and ours(data):
             kind = next((k for k, (_, answered_on) in REBUILT.items() if answered_on == role), None)
-            if kind is None or (kind, str(data["id"])) in asked | seen:
+            key = (kind, str(data["id"]))
+            if kind is None or key in asked or key in seen:
                 continue
-            data = _rebuilt(kind, data, forwarded.get(str(data["id"])))
+            data = _rebuilt(kind, data, forwarded.get(key[1]))
+            if not data:
+                continue
             rebuilt += 1
         if kind is None or not isinstance(data, dict):
             continue
@@ -155,6 +159,9 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
 def _rebuilt(kind: str, answer: dict, semantics: Optional[dict]) -> dict:
     """Return the request an answer (with the parser's forward of an utterance, if any) says was made."""
     request = {k: answer[k] for k in ("id", "time", "turn", "client") if answer.get(k) is not None}
+    if kind == "assert":  # what the fact changed (asserting the rest again would change nothing)
+        return {**request, "domain": answer.get("domain"), "entity": answer.get("entity"),
+                "properties": dict(answer.get("updated") or {})} if answer.get("entity") else {}
     if kind == "robot":
         request["target"] = answer.get("target")
         if answer.get("context") is not None:

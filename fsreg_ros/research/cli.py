@@ -592,8 +592,14 @@ def read_trace(path: Path) -> list[dict]:
     Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
     are not events and are skipped; anything else must be an encode/forget event.
     """
+    from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+
     events = []
-    with path.open(encoding="utf-8") as lines:
+    try:
+        lines = open_text(path, MAX_CORPUS_BYTES)
+    except InputFileError as err:
+        raise UsageError(str(err)) from None
+    with lines:
         for number, line in enumerate(lines, 1):
             if not line.strip():
                 continue
@@ -601,6 +607,8 @@ def read_trace(path: Path) -> list[dict]:
                 event = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
+            except RecursionError:
+                raise UsageError(f"{path}:{number}: not a WM event (JSON nested too deeply)") from None
             if isinstance(event, dict) and "op" not in event:
                 continue  # a WM state (or another record of a watch): not an event
             if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
