@@ -28,6 +28,7 @@ recorder may copy to ``DIR/fsreg/``) are listed in the metadata's ``custom_data`
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -59,6 +60,29 @@ _INFINITE = (9223372036, 854775807)
 
 class RecordingError(ValueError):
     """A recording that cannot be written or read (one line: the file and the problem)."""
+
+
+class WriteFailed(RecordingError):
+    """Writing a recording failed (a full disk, a name the file system refuses): ``str(err)`` is the cause alone.
+
+    Whatever was closed before stays readable (:func:`open_recording` reads a folder
+    whose segments were never merged as a recording cut short).
+    """
+
+    def __init__(self, err: OSError) -> None:
+        super().__init__(err.strerror or str(err))
+        self.errno = err.errno
+
+
+def check_target(path: Path) -> None:
+    """Refuse a recording folder that exists or cannot be made (RecordingError, one line naming it and why)."""
+    try:
+        os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as err:  # a name longer than the file system allows, a component that is a file, ...
+        raise RecordingError(f"{path}: cannot create it ({err.strerror or err})") from None
+    raise RecordingError(f"{path} exists already; a recording goes to a new folder")
 
 
 @dataclass(frozen=True)
@@ -105,8 +129,7 @@ class BagWriter:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
         self.path = Path(path)
-        if self.path.exists():
-            raise RecordingError(f"{self.path}: exists already; a recording goes to a new folder")
+        check_target(self.path)
         if not segment_seconds > 0:
             raise RecordingError(f"segment length must be positive, got {segment_seconds!r}")
         self._writer_class, self._plugin = Writer, StoragePlugin.MCAP
@@ -131,10 +154,13 @@ class BagWriter:
     def attach(self, key: str, source: Path) -> None:
         """Copy file ``source`` into the recording (``fsreg/<name>``), named in ``custom_data`` as ``fsreg.<key>``."""
         target = self.path / ATTACHED / Path(source).name
-        target.parent.mkdir(exist_ok=True)
-        if target.exists():
-            target = target.with_name(f"{key}-{target.name}")
-        shutil.copyfile(source, target)
+        try:
+            target.parent.mkdir(exist_ok=True)
+            if target.exists():
+                target = target.with_name(f"{key}-{target.name}")
+            shutil.copyfile(source, target)
+        except OSError as err:
+            raise WriteFailed(err) from None
         self.custom[CUSTOM_PREFIX + key] = str(target.relative_to(self.path))
 
     def _open_segment(self) -> None:
@@ -164,28 +190,43 @@ class BagWriter:
         """Write one message (its CDR bytes) received at ``timestamp`` ns; a topic not declared is an error."""
         if topic not in self.channels:
             raise RecordingError(f"{self.path}: topic {topic} was not declared for this recording")
-        self.poll()
-        if self._writer is None:
-            self._open_segment()
-        self._writer.write(self._connections[topic], timestamp, data)
+        try:
+            self.poll()
+            if self._writer is None:
+                self._open_segment()
+            self._writer.write(self._connections[topic], timestamp, data)
+        except OSError as err:
+            raise WriteFailed(err) from None
         self.counts[topic] += 1
 
     def poll(self) -> None:
         """Close the open segment once it is ``segment_seconds`` old (call it now and then: a timer)."""
         if self._writer is not None and self.now() - self._opened >= self.segment_seconds * 1e9:
-            self._close_segment()
+            try:
+                self._close_segment()
+            except OSError as err:
+                raise WriteFailed(err) from None
 
     def close(self, merge: bool = True) -> Path:
-        """Close the recording; with ``merge``, into one ``.mcap`` and ``metadata.yaml`` (else the segments stay)."""
+        """Close the recording; with ``merge``, into one ``.mcap`` and ``metadata.yaml`` (else the segments stay).
+
+        :class:`WriteFailed` if the disk refuses (full): what was closed before stays, and
+        :func:`open_recording` reads it as a recording cut short.
+        """
         if self.closed:
             return self.path
         self.closed = True
-        self._close_segment()
-        if not self.segments:  # nothing arrived: an empty bag with every topic, as ros2 bag leaves one
-            self._open_segment()
+        try:
             self._close_segment()
-        if merge:
-            self._merge()
+            if not self.segments:  # nothing arrived: an empty bag with every topic, as ros2 bag leaves one
+                self._open_segment()
+                self._close_segment()
+            if merge:
+                self._merge()
+        except OSError as err:  # the closed segments stay: read as a recording cut short
+            self._writer = None
+            shutil.rmtree(self.path / ".merge", ignore_errors=True)
+            raise WriteFailed(err) from None
         return self.path
 
     def _merge(self) -> None:

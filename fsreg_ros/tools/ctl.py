@@ -708,10 +708,12 @@ def _record_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_record(args: argparse.Namespace) -> None:
     """Refuse a ``record`` command line that cannot be recorded (one line, exit 2)."""
-    from pathlib import Path
+    from ..core.recording import RecordingError, check_target
 
-    if Path(args.directory).exists():
-        raise UsageError(f"record: {args.directory} exists already; a recording goes to a new folder")
+    try:
+        check_target(args.directory)
+    except RecordingError as err:
+        raise UsageError(f"record: {err}") from None
 
 
 @command("record", "record every fsreg topic to a new rosbag2 folder DIR (MCAP) until Ctrl-C", needs="none",
@@ -753,7 +755,7 @@ def record(ctl: Ctl, client) -> int:
             custom, attach = graph_knowledge(client, ctl.timeout)
             recorder.bag.custom.update(custom)
             for key, source in attach.items():
-                recorder.bag.attach(key, source)
+                recorder.attach(key, source)
         except ClientError as err:
             if err.kind == "clash":
                 raise
