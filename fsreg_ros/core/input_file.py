@@ -128,7 +128,7 @@ def open_binary(path: PathLike, limit: int = MAX_FILE_BYTES) -> BinaryIO:
 
 
 def open_text(path: PathLike, limit: int = MAX_FILE_BYTES) -> TextIO:
-    """Return the regular file ``path`` opened as UTF-8 text (``newline=""``, as ``csv`` wants), checked as :func:`open_binary`."""
+    """Return the regular file ``path`` opened as UTF-8 text (``newline=""``, for ``csv``); see :func:`open_binary`."""
     return io.TextIOWrapper(open_binary(path, limit), encoding="utf-8", newline="")
 
 

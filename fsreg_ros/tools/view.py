@@ -130,7 +130,7 @@ class ViewServer(ThreadingHTTPServer):
             self._active -= 1
 
     def handle_error(self, request, client_address) -> None:
-        """A browser that left or stalled is not an error; anything else is one line on stderr."""
+        """Say nothing of a browser that left or stalled; print anything else as one line on stderr."""
         err = sys.exc_info()[1]
         if isinstance(err, GONE):
             return
