@@ -4,8 +4,9 @@
 Starts a graph of node processes (the public harness, as ``fsreg-up`` runs it) and
 ``fsreg-ctl view --port 0`` against it, then times ``--rounds`` ``say`` + ``describe``
 round trips twice: with no page open, and while ``--clients`` event-stream clients (in a
-process of their own) connect to ``/events``, read for 0.05-0.5 s and leave -- half with
-a TCP reset, as a killed tab does, half with a clean close -- over and over.  Prints each
+process of their own) connect to ``/events`` and leave, over and over: a third at once
+(a TCP reset before the answer), the others after reading for 0.05-0.5 s, half of them
+with a reset (a killed tab), half with a clean close.  Prints each
 phase's p50/p99 per kind, how many connections the clients made (and how many were
 answered 503 at the cap), and how many lines the view printed on stderr (tracebacks
 included: it should print none).
@@ -44,7 +45,7 @@ SCENARIO = REPO / "scenarios" / "guess_who_table1.yaml"
 def churn(url: str, clients: int) -> dict:
     """Run ``clients`` threads that open ``/events``, read a while and leave, until stdin ends; return counts."""
     host, port = url.split("//", 1)[1].rstrip("/").rsplit(":", 1)
-    counts = {"connections": 0, "refused_503": 0, "errors": 0}
+    counts = {"connections": 0, "refused_503": 0, "errors": 0}  # errors: a connection refused or timed out
     lock = threading.Lock()
     stop = threading.Event()
 
@@ -54,10 +55,21 @@ def churn(url: str, clients: int) -> dict:
             try:
                 sock = socket.create_connection((host, int(port)), timeout=5)
                 sock.sendall(b"GET /events HTTP/1.1\r\nHost: x\r\n\r\n")
+                if rng.random() < 1 / 3:  # a tab closed at once: gone before the answer
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+                    sock.close()
+                    with lock:
+                        counts["connections"] += 1
+                    continue
                 head = sock.recv(4096)
                 until = time.monotonic() + rng.uniform(0.05, 0.5)
-                while time.monotonic() < until and sock.recv(65536):
-                    pass
+                try:
+                    while time.monotonic() < until:
+                        sock.settimeout(max(0.01, until - time.monotonic()))
+                        if not sock.recv(65536):
+                            break
+                except TimeoutError:
+                    pass  # read as long as it meant to: it leaves now
                 if rng.random() < 0.5:
                     sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
                 sock.close()
@@ -135,7 +147,7 @@ def main() -> int:
     print(f"no page open:              {summary(quiet)}")
     print(f"{args.clients} clients coming and going: {summary(busy)}")
     print(f"  over {churned:.0f} s: {counts['connections']} event-stream connections, {counts['refused_503']} "
-          f"answered 503 (the cap), {counts['errors']} failed to connect")
+          f"answered 503 (the cap), {counts['errors']} failed (refused or timed out)")
     print(f"the view's stderr: {len(lines)} lines, {sum('Traceback' in x for x in lines)} tracebacks")
     for line in lines[:5]:
         print(f"  {line}")

@@ -85,6 +85,7 @@ class ViewServer(ThreadingHTTPServer):
     """The page, its snapshot and its event stream, over one :class:`ViewModel`."""
 
     daemon_threads = True
+    request_queue_size = MAX_CONNECTIONS  # the listen backlog (socketserver's default, 5, drops a burst of pages)
 
     def __init__(self, model: ViewModel, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
         self.model = model
