@@ -151,8 +151,8 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
     notes = [recording.lost] if recording.lost else []
     if rebuilt:
         notes.append(f"{where}: {rebuilt} request(s) not in the recording were rebuilt from what the graph's nodes "
-                     "forwarded (dialogue/semantics, rr/result, reg/expression): their sender left before the "
-                     "recorder heard them")
+                     "forwarded (dialogue/semantics, rr/result, reg/expression, ltm/assert/result): their sender left "
+                     "before the recorder heard them")
     return Session(recording.path, scenario, lexicon, memory, options, steps, events, graph, notes)
 
 

@@ -45,7 +45,7 @@ from .. import contract
 from ..contract import Limits
 from .carrier import ServiceCaller, publisher, subscribe, subscribe_batches
 from .client_base import DEFAULT_TIMEOUT, RETRY_AFTER, Answer, ClientError, describe_graph
-from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_SETTLE, DialogueExchange
+from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_EVERY, MATCH_SETTLE, DialogueExchange
 from .graph_clock import CLOCK_DISCOVERY, CLOCK_RESEND, ClockControl, check_clock, clock_message
 from .graph_queries import GraphQueries, state_version
 from .parameter_access import ParameterAccess, parameter_value, python_value, range_problem
@@ -126,12 +126,14 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         has matched more readers since is sent again (same id: the graph answers a repeated
         id once, a replay counts it once), until no writer matches a new reader, and then
         every matched reader must acknowledge it (received, not merely sent); a reader this
-        node discovered is waited for until its writer matches it too.  Waits at most
+        node discovered is waited for until its writer matches it too (for at most
+        ``MATCH_EVERY`` seconds: one whose QoS never matches is not waited for).  Waits at most
         ``timeout`` seconds in all.
         """
         from rclpy.duration import Duration
 
         deadline = time.monotonic() + timeout
+        settle = time.monotonic() + min(timeout, MATCH_EVERY)
         while True:
             for topic, (writer, resend, matched) in list(self._sent.items()):
                 now = writer.get_subscription_count()
@@ -146,8 +148,9 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
             grown = any(w.get_subscription_count() > m for w, _, m in self._sent.values())
             # a reader this node has discovered but its writer not yet matched: wait for the match
             pending = any(self.node.count_subscribers(w.topic_name) > w.get_subscription_count() for w in writers)
+            pending = pending and time.monotonic() < settle  # a reader that never matches (QoS) is not waited for
             if not (grown or pending) or time.monotonic() >= deadline:
-                return done and not (grown or pending)
+                return done and not grown
             if not grown:
                 time.sleep(0.01)
 

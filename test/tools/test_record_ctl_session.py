@@ -45,3 +45,21 @@ def test_a_session_driven_only_by_fsreg_ctl_replays_equal(table1_path, tmp_path,
     out = capsys.readouterr().out.splitlines()
     assert out[-1] == "replay: all 6 turns equal the live graph (answers and WM)"
     assert [line.split()[2] for line in out if line[:4].strip().isdigit()] == ["human", "robot"] * 3
+
+
+def test_a_reader_matched_after_the_send_gets_the_message_before_the_client_leaves():
+    """A recorder discovered only after ``fsreg-ctl`` sent its request still holds it (``GraphClient.delivered``)."""
+    from fsreg_ros import contract
+    from fsreg_ros.ros.client import GraphClient
+    from fsreg_ros.testing.ros_session import RosSession
+
+    with RosSession("/late") as sender:
+        client = GraphClient(sender.probe, sender.executor)
+        client.send("say", {"id": "late-1", "text": "male, glasses"})  # no reader yet: it reaches no one
+        with RosSession("/late") as recorder:  # a participant of its own, as a recorder in another process
+            heard = recorder.listen("/late/dialogue/human", contract.HUMAN.qos)
+            sender.spin_until(lambda: sender.probe.count_subscribers("/late/dialogue/human") >= 1, 10.0,
+                              what="the sender discovered the late reader")
+            assert client.delivered(10.0)
+            recorder.spin_until(lambda: heard.latest(id="late-1") is not None, 10.0, what="the late reader heard it")
+            assert heard.latest(id="late-1") == {"id": "late-1", "text": "male, glasses"}
