@@ -656,10 +656,16 @@ def plot_command(args: argparse.Namespace) -> int:
     else:
         events = read_trace(args.trace)
     if args.result:
+        from ..core.input_file import InputFileError, read_text
+
         try:
-            result = json.loads(args.result.read_text(encoding="utf-8"))
+            result = json.loads(read_text(args.result))
+        except InputFileError as err:
+            raise UsageError(str(err)) from None
         except json.JSONDecodeError as err:
             raise UsageError(f"{args.result}: not JSON ({err.msg})") from None
+        except RecursionError:
+            raise UsageError(f"{args.result}: not an fsreg-sim --json result (JSON nested too deeply)") from None
         if not isinstance(result, dict) or not isinstance(result.get("turns"), list):
             raise UsageError(f"{args.result}: not an fsreg-sim --json result (no 'turns' list)")
     entities = [e.strip() for e in args.entities.split(",") if e.strip()] if args.entities is not None else None

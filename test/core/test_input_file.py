@@ -148,3 +148,18 @@ def test_ordinary_yaml_is_parsed_once_and_a_deep_one_is_refused_before_any_tree(
         load_yaml("[" * 200_000 + "]" * 200_000, "f.yaml")  # libyaml's C composer overflows the stack here
     assert str(err.value) == f"f.yaml:1: {DEPTH}"
     assert load_yaml("a: &x [1, 2]\nb: *x\n", "f.yaml")[1] == {"a": [1, 2], "b": [1, 2]}  # aliases still work
+
+
+def test_a_plot_result_or_a_sweep_ledger_that_is_a_fifo_is_one_line(tmp_path, capsys):
+    from fsreg_ros.research.cli import plot_main
+    from fsreg_ros.research.ledger import GAMES, Ledger, LedgerError
+
+    trace = tmp_path / "trace.jsonl"
+    trace.write_text('{"op": "encode", "domain": "faces", "entity": "face1", "property": "male", "time": 1.0}\n')
+    result = make(tmp_path / "result.json", "fifo")
+    assert plot_main([str(trace), "--result", str(result), "-o", str(tmp_path / "wm.png")]) == 2
+    assert capsys.readouterr().err == f"fsreg-plot: error: {result}: {FIFO}\n"
+    make(tmp_path / GAMES, "zero")
+    with pytest.raises(LedgerError) as err:
+        Ledger.read(tmp_path)
+    assert str(err.value) == f"{tmp_path / GAMES}: {DEVICE}"
