@@ -122,37 +122,39 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         A short-lived client (``fsreg-ctl``) calls it before its node goes.  An answer from
         the graph says that the node asked heard the request, not that every other reader
         did: a recorder discovered only after the request went out never got it (a writer
-        sends to the readers matched when it writes).  So the last message of a writer that
-        has matched more readers since is sent again (same id: the graph answers a repeated
-        id once, a replay counts it once), until no writer matches a new reader, and then
-        every matched reader must acknowledge it (received, not merely sent); a reader this
-        node discovered is waited for until its writer matches it too (for at most
-        ``MATCH_EVERY`` seconds: one whose QoS never matches is not waited for).  Waits at most
-        ``timeout`` seconds in all.
+        sends to the readers matched when it writes).  So a reader this node discovered is
+        waited for until its writer matches it (for at most ``MATCH_EVERY`` seconds: one
+        whose QoS never matches is not waited for), and the last message of a writer that
+        has matched more readers since it was sent is sent again (same id: the graph answers
+        a repeated id once, a replay counts it once) and waited for until every matched
+        reader acknowledged it (received, not merely sent).  Only those are waited for: a
+        reader acknowledges on the writer's periodic heartbeat (every 3 s in Fast DDS), so
+        waiting for every acknowledgment would hold every command that long.  Waits at most
+        ``timeout`` seconds in all; returns at once when no reader came since the sending.
         """
         from rclpy.duration import Duration
 
         deadline = time.monotonic() + timeout
         settle = time.monotonic() + min(timeout, MATCH_EVERY)
+        again: dict[str, Any] = {}
         while True:
             for topic, (writer, resend, matched) in list(self._sent.items()):
                 now = writer.get_subscription_count()
                 if now > matched:
                     resend()
                     self._sent[topic] = (writer, resend, now)
-            done = True
-            for writer, _, _ in self._sent.values():
-                left = max(0.0, deadline - time.monotonic())
-                done = writer.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))) and done
-            writers = [w for w, _, _ in self._sent.values()]
-            grown = any(w.get_subscription_count() > m for w, _, m in self._sent.values())
+                    again[topic] = writer
             # a reader this node has discovered but its writer not yet matched: wait for the match
-            pending = any(self.node.count_subscribers(w.topic_name) > w.get_subscription_count() for w in writers)
-            pending = pending and time.monotonic() < settle  # a reader that never matches (QoS) is not waited for
-            if not (grown or pending) or time.monotonic() >= deadline:
-                return done and not grown
-            if not grown:
-                time.sleep(0.01)
+            pending = any(self.node.count_subscribers(w.topic_name) > w.get_subscription_count()
+                          for w, _, _ in self._sent.values())
+            if not pending or time.monotonic() >= settle:
+                break
+            time.sleep(0.01)
+        done = True
+        for writer in again.values():
+            left = max(0.0, deadline - time.monotonic())
+            done = writer.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))) and done
+        return done
 
 
 def find_graph(namespace: str, wait: float = DISCOVERY_WAIT) -> Optional[str]:
