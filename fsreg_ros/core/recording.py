@@ -28,6 +28,7 @@ recorder may copy to ``DIR/fsreg/``) are listed in the metadata's ``custom_data`
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -49,12 +50,39 @@ CUSTOM_PREFIX = "fsreg."
 TOPICS_KEY = "fsreg.topics"
 ROLES = ("human", "semantics", "rr", "request", "expression", "state", "events", "announce", "ready", "assert",
          "assert_result", "clock")
+#: The largest ``.mcap`` read back (a recording is read into memory whole; an hour of a busy graph is ~100 MB).
+MAX_BAG_BYTES = 2 * 1024 ** 3
+#: The largest ``metadata.yaml`` read back (``ros2 bag`` writes a few KB).
+METADATA_MAX_BYTES = 16 * 1024 * 1024
 #: RMW's "infinite" duration as ``ros2 bag`` writes it into QoS profiles.
 _INFINITE = (9223372036, 854775807)
 
 
 class RecordingError(ValueError):
     """A recording that cannot be written or read (one line: the file and the problem)."""
+
+
+class WriteFailed(RecordingError):
+    """Writing a recording failed (a full disk, a name the file system refuses): ``str(err)`` is the cause alone.
+
+    Whatever was closed before stays readable (:func:`open_recording` reads a folder
+    whose segments were never merged as a recording cut short).
+    """
+
+    def __init__(self, err: OSError) -> None:
+        super().__init__(err.strerror or str(err))
+        self.errno = err.errno
+
+
+def check_target(path: Path) -> None:
+    """Refuse a recording folder that exists or cannot be made (RecordingError, one line naming it and why)."""
+    try:
+        os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as err:  # a name longer than the file system allows, a component that is a file, ...
+        raise RecordingError(f"{path}: cannot create it ({err.strerror or err})") from None
+    raise RecordingError(f"{path} exists already; a recording goes to a new folder")
 
 
 @dataclass(frozen=True)
@@ -101,8 +129,7 @@ class BagWriter:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
         self.path = Path(path)
-        if self.path.exists():
-            raise RecordingError(f"{self.path}: exists already; a recording goes to a new folder")
+        check_target(self.path)
         if not segment_seconds > 0:
             raise RecordingError(f"segment length must be positive, got {segment_seconds!r}")
         self._writer_class, self._plugin = Writer, StoragePlugin.MCAP
@@ -127,10 +154,13 @@ class BagWriter:
     def attach(self, key: str, source: Path) -> None:
         """Copy file ``source`` into the recording (``fsreg/<name>``), named in ``custom_data`` as ``fsreg.<key>``."""
         target = self.path / ATTACHED / Path(source).name
-        target.parent.mkdir(exist_ok=True)
-        if target.exists():
-            target = target.with_name(f"{key}-{target.name}")
-        shutil.copyfile(source, target)
+        try:
+            target.parent.mkdir(exist_ok=True)
+            if target.exists():
+                target = target.with_name(f"{key}-{target.name}")
+            shutil.copyfile(source, target)
+        except OSError as err:
+            raise WriteFailed(err) from None
         self.custom[CUSTOM_PREFIX + key] = str(target.relative_to(self.path))
 
     def _open_segment(self) -> None:
@@ -160,28 +190,43 @@ class BagWriter:
         """Write one message (its CDR bytes) received at ``timestamp`` ns; a topic not declared is an error."""
         if topic not in self.channels:
             raise RecordingError(f"{self.path}: topic {topic} was not declared for this recording")
-        self.poll()
-        if self._writer is None:
-            self._open_segment()
-        self._writer.write(self._connections[topic], timestamp, data)
+        try:
+            self.poll()
+            if self._writer is None:
+                self._open_segment()
+            self._writer.write(self._connections[topic], timestamp, data)
+        except OSError as err:
+            raise WriteFailed(err) from None
         self.counts[topic] += 1
 
     def poll(self) -> None:
         """Close the open segment once it is ``segment_seconds`` old (call it now and then: a timer)."""
         if self._writer is not None and self.now() - self._opened >= self.segment_seconds * 1e9:
-            self._close_segment()
+            try:
+                self._close_segment()
+            except OSError as err:
+                raise WriteFailed(err) from None
 
     def close(self, merge: bool = True) -> Path:
-        """Close the recording; with ``merge``, into one ``.mcap`` and ``metadata.yaml`` (else the segments stay)."""
+        """Close the recording; with ``merge``, into one ``.mcap`` and ``metadata.yaml`` (else the segments stay).
+
+        :class:`WriteFailed` if the disk refuses (full): what was closed before stays, and
+        :func:`open_recording` reads it as a recording cut short.
+        """
         if self.closed:
             return self.path
         self.closed = True
-        self._close_segment()
-        if not self.segments:  # nothing arrived: an empty bag with every topic, as ros2 bag leaves one
-            self._open_segment()
+        try:
             self._close_segment()
-        if merge:
-            self._merge()
+            if not self.segments:  # nothing arrived: an empty bag with every topic, as ros2 bag leaves one
+                self._open_segment()
+                self._close_segment()
+            if merge:
+                self._merge()
+        except OSError as err:  # the closed segments stay: read as a recording cut short
+            self._writer = None
+            shutil.rmtree(self.path / ".merge", ignore_errors=True)
+            raise WriteFailed(err) from None
         return self.path
 
     def _merge(self) -> None:
@@ -319,10 +364,36 @@ def _open_segments(path: Path) -> Recording:
     return _recording(path, messages, topics, custom, bad, lost)
 
 
+def check_bag_files(path: Path) -> None:
+    """Refuse a bag whose files are not regular files within their limits (RecordingError, one line).
+
+    ``rosbags`` opens them by name: a ``metadata.yaml`` or ``.mcap`` that is a named pipe
+    would block it forever, a link to ``/dev/zero`` would be read until memory runs out.
+    So each is checked first (:mod:`fsreg_ros.core.input_file`), and ``metadata.yaml``'s
+    size, depth and aliases as every YAML file's (:mod:`fsreg_ros.core.yaml_source`; its
+    syntax is the library's to report).
+    """
+    from .input_file import InputFileError, check_file
+    from .yaml_source import SourceError, check_structure, read_text
+
+    try:
+        if path.is_dir():
+            metadata = path / "metadata.yaml"
+            check_structure(read_text(metadata, limit=METADATA_MAX_BYTES), str(metadata))
+            for storage in sorted(path.glob("*.mcap")):
+                check_file(storage, MAX_BAG_BYTES)
+        else:
+            check_file(path, MAX_BAG_BYTES)
+    except (InputFileError, SourceError) as err:
+        where = err.source if getattr(err, "line", None) is None else f"{err.source}:{err.line}"
+        raise RecordingError(f"{where}: not a readable recording ({err.message})") from None
+
+
 def _read_bag(path: Path, name: Path) -> tuple[list[Message], dict[str, str], dict[str, str], int]:
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.errors import ReaderError
 
+    check_bag_files(path)
     store = _typestore()
     messages: list[Message] = []
     bad = 0

@@ -6,6 +6,11 @@ domain's memory setting (from ``wm_manager/ready``), REG's options, and in recor
 human utterances (``dialogue/human``), REG requests (``reg/request``) and accepted LTM
 assertions (``ltm/assert`` whose ``ltm/assert/result`` is ok), each with the answer the graph
 gave and the time it used (the answer's ``time``).  Resent requests (one id) count once.
+A request the recording lacks (its sender left before the recorder heard it) is rebuilt
+from what the graph's long-lived nodes forwarded: an utterance from the parser's
+``dialogue/semantics`` (its text or properties, its domain) or RR's answer, a REG request
+from REG's ``reg/expression`` (id, target, time), an LTM assertion of one entity from its
+``ltm/assert/result`` (what it changed); the replay says how many it rebuilt.
 
 :func:`replay` plays them through the core (:class:`~fsreg_ros.core.simulation.Simulation`)
 and compares, per turn, the answer (RR: status, resolved entity, candidates, description;
@@ -37,6 +42,8 @@ HUMAN_FIELDS = ("status", "resolved", "candidates", "description")
 ROBOT_FIELDS = ("description", "text", "sources", "wm_before", "distinguishing", "distractors_left")
 #: Each kind of step: the role of the topic its requests are recorded on, and of its answers'.
 REQUESTS = {"human": ("human", "rr"), "robot": ("request", "expression"), "assert": ("assert", "assert_result")}
+#: The kinds of request a replay can rebuild from the graph's answer when the request itself is not recorded.
+REBUILT = REQUESTS
 
 
 class ReplayError(ValueError):
@@ -104,6 +111,10 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
                 answers.setdefault((kind, str(data["id"])), data)
     steps: list[Step] = []
     seen: set[tuple[str, str]] = set()
+    asked = {(kind, str(d.get("id"))) for kind, (asked_on, _) in REQUESTS.items()
+             for d in _data(recording.on(asked_on))}
+    forwarded = {str(d.get("id")): d for d in _data(recording.on("semantics")) if ours(d)}
+    rebuilt = 0
     clock = 0.0
     for message in recording.messages:
         role = recording.role(message)
@@ -112,6 +123,15 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
             continue
         kind = next((k for k, (asked_on, _) in REQUESTS.items() if asked_on == role), None)
         data = message.data
+        if kind is None and isinstance(data, dict) and "id" in data and ours(data):
+            kind = next((k for k, (_, answered_on) in REBUILT.items() if answered_on == role), None)
+            key = (kind, str(data["id"]))
+            if kind is None or key in asked or key in seen:
+                continue
+            data = _rebuilt(kind, data, forwarded.get(key[1]))
+            if not data:
+                continue
+            rebuilt += 1
         if kind is None or not isinstance(data, dict):
             continue
         key = (kind, str(data.get("id")))
@@ -130,10 +150,37 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
     algorithm = recording.custom.get("fsreg.algorithm")
     options = Options(algorithm=None if algorithm in (None, "", "auto") else algorithm,
                       wm_order=recording.custom.get("fsreg.wm_order") or "lru-first")
+    notes = [recording.lost] if recording.lost else []
     other = world_mismatch(scenario, scenario_path, recording.attached("scenario") if given else None, steps,
                            events, ready)
-    return Session(recording.path, scenario, lexicon, memory, options, steps, events, graph,
-                   [n for n in (recording.lost, other) if n])
+    if rebuilt:
+        notes.append(f"{where}: {rebuilt} request(s) not in the recording were rebuilt from what the graph's nodes "
+                     "forwarded (dialogue/semantics, rr/result, reg/expression, ltm/assert/result): their sender left "
+                     "before the recorder heard them")
+    if other:
+        notes.append(other)
+    return Session(recording.path, scenario, lexicon, memory, options, steps, events, graph, notes)
+
+
+def _rebuilt(kind: str, answer: dict, semantics: Optional[dict]) -> dict:
+    """Return the request an answer (with the parser's forward of an utterance, if any) says was made."""
+    request = {k: answer[k] for k in ("id", "time", "turn", "client") if answer.get(k) is not None}
+    if kind == "assert":  # what the fact changed (asserting the rest again would change nothing)
+        return {**request, "domain": answer.get("domain"), "entity": answer.get("entity"),
+                "properties": dict(answer.get("updated") or {})} if answer.get("entity") else {}
+    if kind == "robot":
+        request["target"] = answer.get("target")
+        if answer.get("context") is not None:
+            request["context"] = answer["context"]
+        return request
+    said = semantics or answer
+    if said.get("text") is not None:
+        request["text"] = said["text"]
+    else:
+        request["description"] = list(said.get("description") or [])
+    if said.get("domain") is not None and semantics is not None:
+        request["domain"] = said["domain"]
+    return request
 
 
 def _memory(where: str, ready: list[dict], scenario: Scenario) -> dict[str, dict]:

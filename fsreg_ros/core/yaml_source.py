@@ -2,10 +2,12 @@
 
 Every file is read the same way:
 
-1. :func:`read_text` reads it as UTF-8 text; a missing file, a directory or anything
-   else that is not a regular file (a named pipe, which would block the reader until a
-   writer came, a device), an unreadable or oversized file, a NUL byte or invalid UTF-8
-   is one :class:`SourceError` naming the file.
+1. :func:`read_text` reads it as UTF-8 text through :mod:`fsreg_ros.core.input_file`; a
+   missing file, a directory or anything else that is not a regular file (a named pipe,
+   which would block the reader until a writer came, a device), an unreadable or
+   oversized file, a NUL byte or invalid UTF-8 is one :class:`SourceError` naming the file.
+   Its structure is checked before a tree is built (:func:`check_structure`: nesting
+   depth, aliases expanded).
 2. :func:`load_yaml` parses it with libyaml's C parser (:class:`FastLoader`) and
    keeps the node tree, whose nodes carry their line, so a path inside the
    document (``dialogue[3].text``) can be mapped to a line (:func:`find_line`).
@@ -30,7 +32,6 @@ from __future__ import annotations
 import gc
 import operator
 import os
-import stat
 import types
 from contextlib import contextmanager
 from operator import attrgetter
@@ -38,8 +39,13 @@ from typing import Any, Iterator, Optional, Sequence, Union
 
 import yaml
 
-#: Files larger than this are refused before parsing (a scenario of 10,000 entities is ~2 MB).
-MAX_FILE_BYTES = 64 * 1024 * 1024
+from . import input_file
+from .input_file import MAX_FILE_BYTES
+
+#: Deepest nesting of collections a YAML file may have (fsreg's own nest under 10 deep).
+MAX_DEPTH = 1000
+#: Nodes a document's aliases may add, counted expanded (an alias of a list of 10 lists of 10 adds 111).
+MAX_ALIAS_NODES = 1_000_000
 
 PathLoc = tuple[Union[str, int], ...]
 
@@ -145,56 +151,77 @@ class FastLoader(StrictConstruction, getattr(yaml, "CSafeLoader", yaml.SafeLoade
         return super().resolve(kind, value, implicit)
 
 
-#: What a path that is not a regular file is, by ``stat`` test.
-_NOT_REGULAR = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
-                (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
-
-
-def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceError) -> str:
+def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceError,
+              limit: int = MAX_FILE_BYTES) -> str:
     """Return the text of ``path``; raise ``error`` naming the file if it cannot be text.
 
-    The file is opened without blocking and must be a regular file: reading a named
-    pipe would wait for a writer forever.
+    The file is opened without blocking and must be a regular file of at most ``limit``
+    bytes (:mod:`fsreg_ros.core.input_file`): reading a named pipe would wait for a
+    writer forever, a device would never end.
     """
-    source = os.fspath(path)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-    except FileNotFoundError:
-        raise error(source, "", "file not found") from None
-    except OSError as err:
-        raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
+        return input_file.read_text(path, limit)
+    except input_file.InputFileError as err:
+        raise error(err.source, "", err.message) from None
+
+
+def check_structure(text: str, source: str, error: type[SourceError] = SourceError) -> None:
+    """Refuse YAML nested deeper than :data:`MAX_DEPTH` or whose aliases expand to over :data:`MAX_ALIAS_NODES` nodes.
+
+    Checked on the parser's events before any node tree is built (libyaml's composer
+    recurses once per level in C, and a few ten thousand levels crash the process; an
+    alias bomb is small as a tree but explodes in whatever walks it).  A text that can
+    be neither -- no ``*`` and fewer brackets and columns than :data:`MAX_DEPTH` allows,
+    as any ordinary file -- is not parsed twice.  A syntax error is left to the loader,
+    whose message is the precise one.
+    """
+    longest = max(map(len, text.splitlines()), default=0)
+    if "*" not in text and text.count("[") + text.count("{") + 2 * longest + 2 <= MAX_DEPTH:
+        return  # a block node's column grows with its depth (2 levels a column at most), a flow one needs a bracket
+    parser = FastLoader(text)
+    starts: list[tuple[Optional[str], int]] = []  # each open collection: its anchor, the node count at its start
+    sizes: dict[str, int] = {}  # anchor -> nodes of its node, aliases expanded
+    nodes = aliased = 0
     try:
-        mode = os.fstat(fd).st_mode
-        if stat.S_ISDIR(mode):
-            raise error(source, "", "is a directory, not a file")
-        for test, kind in _NOT_REGULAR:
-            if test(mode):
-                raise error(source, "", f"is {kind}, not a regular file")
-        with os.fdopen(fd, "rb") as handle:
-            fd = -1  # the handle owns it now
-            data = handle.read(MAX_FILE_BYTES + 1)
-    except OSError as err:
-        raise error(source, "", f"cannot read the file: {err.strerror or err}") from None
+        while True:
+            event = parser.get_event()
+            if event is None or isinstance(event, yaml.StreamEndEvent):
+                return
+            if isinstance(event, yaml.AliasEvent):
+                size = sizes.get(event.anchor, 1)
+                nodes += size
+                aliased += size
+                if aliased > MAX_ALIAS_NODES:
+                    raise error(source, "", f"not valid here: its aliases expand to over {MAX_ALIAS_NODES:,} "
+                                f"nodes (an alias bomb?)", event.start_mark.line + 1)
+            elif isinstance(event, yaml.ScalarEvent):
+                nodes += 1
+                if event.anchor is not None:
+                    sizes[event.anchor] = 1
+            elif isinstance(event, yaml.CollectionStartEvent):
+                nodes += 1
+                starts.append((event.anchor, nodes))
+                if len(starts) > MAX_DEPTH:
+                    raise error(source, "", f"not valid here: YAML nested deeper than {MAX_DEPTH} levels",
+                                event.start_mark.line + 1)
+            elif isinstance(event, yaml.CollectionEndEvent):
+                anchor, start = starts.pop()
+                if anchor is not None:
+                    sizes[anchor] = nodes - start + 1
+    except yaml.YAMLError:
+        return  # the loader reports it, with its place
     finally:
-        if fd >= 0:
-            os.close(fd)
-    if len(data) > MAX_FILE_BYTES:
-        raise error(source, "", f"too large: over {MAX_FILE_BYTES:,} bytes")
-    nul = data.find(b"\0")
-    if nul >= 0:
-        raise error(source, "", f"not a text file: NUL byte at offset {nul}")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        raise error(source, "", f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+        parser.dispose()
 
 
 def load_yaml(text: str, source: str, error: type[SourceError] = SourceError) -> tuple[Optional[yaml.Node], Any]:
     """Return the single document's root node (None if empty) and its value.
 
-    Parsed with :class:`FastLoader`; on any error the text is parsed again with
+    Its depth and aliases are checked first (:func:`check_structure`); then it is parsed
+    with :class:`FastLoader`; on any error the text is parsed again with
     :class:`ExactLoader` and its error becomes one ``error`` with path and line.
     """
+    check_structure(text, source, error)
     try:
         return _load(FastLoader, text)
     except _LOAD_ERRORS:
@@ -396,9 +423,10 @@ def render_path(loc: Sequence[Union[str, int]]) -> str:
     return out
 
 
-def read_yaml(path: Union[str, os.PathLike], error: type[SourceError] = SourceError) -> tuple[Optional[yaml.Node], Any]:
-    """Return the root node and value of the YAML file ``path`` (see :func:`load_yaml`)."""
-    return load_yaml(read_text(path, error), os.fspath(path), error)
+def read_yaml(path: Union[str, os.PathLike], error: type[SourceError] = SourceError,
+              limit: int = MAX_FILE_BYTES) -> tuple[Optional[yaml.Node], Any]:
+    """Return the root node and value of the YAML file ``path`` of at most ``limit`` bytes (see :func:`load_yaml`)."""
+    return load_yaml(read_text(path, error, limit), os.fspath(path), error)
 
 
 def describe_value(value: Any) -> str:
@@ -422,7 +450,10 @@ def describe_value(value: Any) -> str:
 
 
 __all__ = [
+    "MAX_ALIAS_NODES",
+    "MAX_DEPTH",
     "MAX_FILE_BYTES",
+    "check_structure",
     "DuplicateKeyError",
     "ExactLoader",
     "FastLoader",

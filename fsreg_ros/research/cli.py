@@ -592,8 +592,14 @@ def read_trace(path: Path) -> list[dict]:
     Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
     are not events and are skipped; anything else must be an encode/forget event.
     """
+    from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+
     events = []
-    with path.open(encoding="utf-8") as lines:
+    try:
+        lines = open_text(path, MAX_CORPUS_BYTES)
+    except InputFileError as err:
+        raise UsageError(str(err)) from None
+    with lines:
         for number, line in enumerate(lines, 1):
             if not line.strip():
                 continue
@@ -601,6 +607,8 @@ def read_trace(path: Path) -> list[dict]:
                 event = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
+            except RecursionError:
+                raise UsageError(f"{path}:{number}: not a WM event (JSON nested too deeply)") from None
             if isinstance(event, dict) and "op" not in event:
                 continue  # a WM state (or another record of a watch): not an event
             if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
@@ -648,10 +656,16 @@ def plot_command(args: argparse.Namespace) -> int:
     else:
         events = read_trace(args.trace)
     if args.result:
+        from ..core.input_file import InputFileError, read_text
+
         try:
-            result = json.loads(args.result.read_text(encoding="utf-8"))
+            result = json.loads(read_text(args.result))
+        except InputFileError as err:
+            raise UsageError(str(err)) from None
         except json.JSONDecodeError as err:
             raise UsageError(f"{args.result}: not JSON ({err.msg})") from None
+        except RecursionError:
+            raise UsageError(f"{args.result}: not an fsreg-sim --json result (JSON nested too deeply)") from None
         if not isinstance(result, dict) or not isinstance(result.get("turns"), list):
             raise UsageError(f"{args.result}: not an fsreg-sim --json result (no 'turns' list)")
     entities = [e.strip() for e in args.entities.split(",") if e.strip()] if args.entities is not None else None

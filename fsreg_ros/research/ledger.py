@@ -113,11 +113,15 @@ class Ledger:
     @classmethod
     def read(cls, directory: Path) -> "Ledger":
         """Read ``directory``'s games file (a torn last line is left out); LedgerError if there is none or it is bad."""
+        from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, read_bytes
+
         path = directory / GAMES
+        if not os.path.lexists(path):
+            raise LedgerError(f"{path}: no games file (not a sweep directory of this version)")
         try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise LedgerError(f"{path}: no games file (not a sweep directory of this version)") from None
+            data = read_bytes(path, MAX_CORPUS_BYTES)
+        except InputFileError as err:
+            raise LedgerError(str(err)) from None
         lines = data.split(b"\n")
         complete = lines[:-1]  # the part after the last newline is torn (or empty)
         if not complete:

@@ -53,6 +53,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import os
 import platform
 import shlex
 import subprocess
@@ -65,6 +66,7 @@ from typing import Any, Mapping, Optional, Sequence
 
 from ..core.alignment import ORIGINS, entrainment_gain, length_matched
 from ..core.forgetting import RULE_PARAMETERS, parse_rules
+from ..core.input_file import InputFileError, read_text
 from ..core.lexicon import Lexicon
 from ..core.settings import setting as memory_setting
 from .execution import Engine, TaskRun, run_tasks
@@ -704,12 +706,15 @@ def merge(out: Path, shards: Sequence[Path], plots: bool = True,
         raise LedgerError("merge: a directory is given twice")
     books, manifests = [], []
     for directory in shards:
-        try:
-            done = json.loads((Path(directory) / "manifest.json").read_text(encoding="utf-8"))
-        except FileNotFoundError:
+        written = Path(directory) / "manifest.json"
+        if not os.path.lexists(written):
             raise LedgerError(f"merge: {directory} is not a finished sweep (no manifest.json); finish it with its "
-                              "command and --resume") from None
-        except json.JSONDecodeError:
+                              "command and --resume")
+        try:
+            done = json.loads(read_text(written))
+        except InputFileError as err:
+            raise LedgerError(f"merge: {err}") from None
+        except (json.JSONDecodeError, RecursionError):
             raise LedgerError(f"merge: {directory}/manifest.json is not JSON") from None
         book = Ledger.read(Path(directory))
         if book.missing():

@@ -68,6 +68,7 @@ import numpy as np
 
 from ..core import settings as table
 from ..core.forgetting import RULE_PARAMETERS, RULES, ForgettingPolicy
+from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
 from ..core.memory import WMBuffer
 from ..core.wm_manager import WMManager
 from .stats import METHOD, RESAMPLES, SEED, Estimate, bootstrap_ci, ratio_bootstrap_ci
@@ -176,7 +177,7 @@ def corpus_file(path: Union[str, Path]) -> Path:
     path = Path(path)
     if path.is_dir():
         path = path / FILE
-    if not path.is_file():
+    if not path.exists():  # anything else that is not a regular file is refused when read (input_file)
         raise TangramsError(f"{path}: no such file (give the directory holding {FILE}, or the file)")
     return path
 
@@ -187,7 +188,7 @@ def load_games(path: Union[str, Path], tokeniser: Union[str, Tokeniser] = "conte
     source = corpus_file(path)
     games: dict[str, list[tuple[int, int, dict]]] = {}
     try:
-        with source.open(encoding="utf-8", newline="") as handle:
+        with open_text(source, MAX_CORPUS_BYTES) as handle:
             reader = csv.DictReader(handle)
             missing = [c for c in COLUMNS if c not in (reader.fieldnames or ())]
             if missing:
@@ -196,6 +197,8 @@ def load_games(path: Union[str, Path], tokeniser: Union[str, Tokeniser] = "conte
                 line = reader.line_num
                 time = _integer(row, "msgTime", source, line)
                 games.setdefault(row["gameid"], []).append((time, line, row))
+    except InputFileError as err:
+        raise TangramsError(str(err)) from None
     except UnicodeDecodeError as err:
         raise TangramsError(f"{source}: not UTF-8 text ({err.reason})") from None
     except csv.Error as err:

@@ -29,6 +29,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 from ..core.consultant import Consultant
 from ..core.describe import describe, knowledge_base
 from ..core.generation import attribute_of
+from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, read_text
 from .scores import dice, masi, mean
 
 DOMAINS = ("furniture", "people")
@@ -123,9 +124,9 @@ def load_trials(path: Path) -> list[Trial]:
     trials = []
     for file in files:
         try:
-            text = file.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as err:
-            raise TunaError(f"{file}: cannot read ({err})") from None
+            text = read_text(file, MAX_CORPUS_BYTES)
+        except InputFileError as err:
+            raise TunaError(f"{file}: cannot read ({err.message})") from None
         trials.append(parse_trial(text, str(file)))
     return sorted(trials, key=lambda t: t.id)
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import secrets
+import time
 from typing import Any, Callable, Optional
 
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -44,7 +45,7 @@ from .. import contract
 from ..contract import Limits
 from .carrier import ServiceCaller, publisher, subscribe, subscribe_batches
 from .client_base import DEFAULT_TIMEOUT, RETRY_AFTER, Answer, ClientError, describe_graph
-from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_SETTLE, DialogueExchange
+from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_EVERY, MATCH_SETTLE, DialogueExchange
 from .graph_clock import CLOCK_DISCOVERY, CLOCK_RESEND, ClockControl, check_clock, clock_message
 from .graph_queries import GraphQueries, state_version
 from .parameter_access import ParameterAccess, parameter_value, python_value, range_problem
@@ -56,6 +57,9 @@ __all__ = [
     "CLASH_WAIT", "DISCOVERY_WAIT", "GONE_AFTER", "LAPSE_CONFIRM", "CLOCK_DISCOVERY", "CLOCK_RESEND",
     "MATCH_SETTLE", "GRAPH_NODES", "KIND_TOPICS",
 ]
+
+#: Seconds at most :meth:`GraphClient.delivered` waits for the readers to acknowledge what the client sent.
+DELIVERY_WAIT = 2.0
 
 
 class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, ParameterAccess):
@@ -106,6 +110,51 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         self._state_watcher: Optional[Callable[[dict], None]] = None  # :meth:`watch`'s, once it runs
         self._ids = itertools.count(1)
         self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
+        self._sent: dict[str, tuple[Any, Callable[[], None], int]] = {}  # topic -> last message (see delivered)
+
+    def _note_sent(self, writer, resend: Callable[[], None]) -> None:
+        """Remember the last message sent on ``writer`` (how to send it again) and how many readers had matched."""
+        self._sent[writer.topic_name] = (writer, resend, writer.get_subscription_count())
+
+    def delivered(self, timeout: float = DELIVERY_WAIT) -> bool:
+        """Make every reader matched with this client's writers hold the last message each sent; whether all do.
+
+        A short-lived client (``fsreg-ctl``) calls it before its node goes.  An answer from
+        the graph says that the node asked heard the request, not that every other reader
+        did: a recorder discovered only after the request went out never got it (a writer
+        sends to the readers matched when it writes).  So a reader this node discovered is
+        waited for until its writer matches it (for at most ``MATCH_EVERY`` seconds: one
+        whose QoS never matches is not waited for), and the last message of a writer that
+        has matched more readers since it was sent is sent again (same id: the graph answers
+        a repeated id once, a replay counts it once) and waited for until every matched
+        reader acknowledged it (received, not merely sent).  Only those are waited for: a
+        reader acknowledges on the writer's periodic heartbeat (every 3 s in Fast DDS), so
+        waiting for every acknowledgment would hold every command that long.  Waits at most
+        ``timeout`` seconds in all; returns at once when no reader came since the sending.
+        """
+        from rclpy.duration import Duration
+
+        deadline = time.monotonic() + timeout
+        settle = time.monotonic() + min(timeout, MATCH_EVERY)
+        again: dict[str, Any] = {}
+        while True:
+            for topic, (writer, resend, matched) in list(self._sent.items()):
+                now = writer.get_subscription_count()
+                if now > matched:
+                    resend()
+                    self._sent[topic] = (writer, resend, now)
+                    again[topic] = writer
+            # a reader this node has discovered but its writer not yet matched: wait for the match
+            pending = any(self.node.count_subscribers(w.topic_name) > w.get_subscription_count()
+                          for w, _, _ in self._sent.values())
+            if not pending or time.monotonic() >= settle:
+                break
+            time.sleep(0.01)
+        done = True
+        for writer in again.values():
+            left = max(0.0, deadline - time.monotonic())
+            done = writer.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))) and done
+        return done
 
 
 def find_graph(namespace: str, wait: float = DISCOVERY_WAIT) -> Optional[str]:

@@ -94,12 +94,17 @@ class DialogueExchange(Spinning):
         key = str(message["id"])
         self.answers.setdefault(key, [])
         try:
-            publish(self._publishers[kind], message)
+            self._publish(kind, message)
         except _rclpy.RCLError as err:
             self.answers.pop(key, None)
             raise ClientError(f"{KIND_TOPICS[kind][0].name} {key!r} not sent (the receivers are too far behind): "
                               f"{printable(str(err).split(',')[0], 200)}", "busy") from None
         return key
+
+    def _publish(self, kind: str, message: Mapping[str, Any]) -> None:
+        writer = self._publishers[kind]
+        publish(writer, message)
+        self._note_sent(writer, lambda: publish(writer, message))
 
     def check_message(self, kind: str, message: Mapping[str, Any]) -> None:
         """Raise ClientError ``usage`` if the graph would refuse ``message`` for its form or size (:attr:`limits`).
@@ -149,7 +154,7 @@ class DialogueExchange(Spinning):
                             raise ClientError(f"no answer to {request} {key!r} within {timeout:g} s in "
                                               f"{self.where()}", "timeout") from None
                         raise
-                publish(self._publishers[kind], message)
+                self._publish(kind, message)
         finally:
             self.answers.pop(key, None)
 

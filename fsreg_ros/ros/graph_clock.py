@@ -38,6 +38,7 @@ class ClockControl(Spinning):
     def publish_clock(self, t: float) -> None:
         """Publish the graph's clock = ``t`` (nothing waits: see :meth:`set_clock`)."""
         self._clock.publish(clock_message(t))
+        self._note_sent(self._clock, lambda: self._clock.publish(clock_message(t)))
 
     def set_clock(self, t: float, timeout: Optional[float] = None, *, confirm: bool = False) -> dict:
         """Publish the graph's clock = ``t`` and wait until the forgetting due by then is applied; the sync reply.

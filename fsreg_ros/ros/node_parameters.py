@@ -201,6 +201,10 @@ def _show(value: Any) -> str:
 
 
 # ------------------------------------------------------------ parameter files
+#: The largest parameters file read (a ``ros2 param dump`` of a whole graph is a few KB).
+PARAMS_MAX_BYTES = 1024 * 1024
+
+
 @dataclass(frozen=True)
 class FileEntry:
     """One node key of a parameters file: its name pattern (absolute) and its parameters, flattened."""
@@ -210,20 +214,19 @@ class FileEntry:
 
 
 def read_params_file(path: Path) -> list[FileEntry]:
-    """Read a parameters file (the YAML ``ros2 param dump`` writes); ParameterError naming the file and place."""
-    import yaml
+    """Read a parameters file (the YAML ``ros2 param dump`` writes); ParameterError naming the file and place.
+
+    Read as every user's file is (:func:`fsreg_ros.core.yaml_source.read_yaml`): a regular
+    file of at most :data:`PARAMS_MAX_BYTES`, YAML of bounded depth and aliases.
+    """
+    from ..core.yaml_source import SourceError, read_yaml
 
     where = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise ParameterError(f"{where}: cannot read it: {getattr(err, 'strerror', None) or err}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        line = f" (line {mark.line + 1})" if mark is not None else ""
-        raise ParameterError(f"{where}: not YAML{line}: {getattr(err, 'problem', None) or 'unreadable'}") from None
+        _, data = read_yaml(path, limit=PARAMS_MAX_BYTES)
+    except SourceError as err:
+        line = f" (line {err.line})" if err.line is not None else ""
+        raise ParameterError(f"{where}: {err.path + ': ' if err.path else ''}{err.message}{line}") from None
     if not isinstance(data, dict) or not data:
         raise ParameterError(f"{where}: expected node names as keys, each with 'ros__parameters' "
                              "(the YAML 'ros2 param dump' writes)")

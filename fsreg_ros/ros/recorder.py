@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from .. import contract
 from ..contract import QosSpec
-from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel
+from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
 from .carrier import qos_profile
 
 #: Reader depth of every recorded topic at least (the contract's writers keep 1 to 10,000): the readers hold
@@ -113,7 +113,7 @@ class Recorder:
                              custom={**{k: str(v) for k, v in (custom or {}).items()},
                                      TOPICS_KEY: json.dumps(roles, sort_keys=True)})
         for key, source in (attach or {}).items():
-            self.bag.attach(key, Path(source))
+            self.bag.attach(key, Path(source))  # a failure here is the caller's (nothing recorded yet)
         self.topics = [t for t, _ in pairs]
         # Names are absolute (the graph's namespace and clock resolved above): the readers' node needs no remap.
         self._readers = rclpy.create_node(f"{node.get_name()}_recorder", context=node.context,
@@ -178,19 +178,40 @@ class Recorder:
         with self._lock:
             return dict(self.bag.counts)
 
+    def attach(self, key: str, source: Path) -> None:
+        """Copy ``source`` into the recording (:meth:`BagWriter.attach`); a write that fails stops the recording."""
+        with self._lock:
+            try:
+                self.bag.attach(key, source)
+            except RecordingError as err:
+                self.error = self.error or err
+                self._stop.set()
+
     def close(self) -> Path:
-        """Stop recording and close the bag (its segments merged into one ``.mcap``); return its folder."""
+        """Stop recording and close the bag (its segments merged into one ``.mcap``); return its folder.
+
+        Never raises for a disk that refuses: :attr:`error` says why, and what was closed
+        before stays readable (a recording cut short).
+        """
         if self.closed:
             return self.bag.path
         self._stop.set()
         self._thread.join(timeout=10.0)
         with self._lock:
-            self.drain()
+            if self.error is None:
+                try:
+                    self.drain()
+                except RecordingError as err:
+                    self.error = err
             self.closed = True
             for sub in self.subscriptions:
                 self._readers.destroy_subscription(sub)
             self._readers.destroy_node()
-            return self.bag.close()
+            try:
+                return self.bag.close()
+            except RecordingError as err:
+                self.error = self.error or err
+                return self.bag.path
 
     def summary(self) -> str:
         """Return one line: how many messages on how many topics went where."""

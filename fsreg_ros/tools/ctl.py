@@ -64,7 +64,7 @@ from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .arguments import OneLineParser, number, undecodable
 from .up import restored_text
-from .view import check_port, serve_view
+from .view import check_host, check_port, serve_view
 
 PROG = "fsreg-ctl"
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NO_ANSWER = 0, 1, 2, 3
@@ -360,6 +360,7 @@ class Ctl:
         node = rclpy.create_node(f"fsreg_ctl_{secrets.token_hex(4)}", context=context,
                                  cli_args=["--ros-args", *remaps] if remaps else None)
         executor.add_node(node)
+        client = None
         try:
             client = GraphClient(node, executor, graph=option(self.args, "graph", None), timeout=self.timeout,
                                  retry_after=RETRY_AFTER)
@@ -381,6 +382,8 @@ class Ctl:
         except KeyboardInterrupt:
             return EXIT_OK
         finally:
+            if client is not None:  # what was sent reaches every reader (a recorder too) before the node goes
+                client.delivered()
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)
@@ -676,6 +679,10 @@ def _view_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _view_check(args: argparse.Namespace) -> None:
     args.port = check_port(args.port)
+    try:
+        check_host(args.host)
+    except ValueError as err:
+        raise UsageError(f"view: {err}") from None
 
 
 @command("view", "serve a live web page of the graph's WM on 127.0.0.1 (Ctrl-C ends)", needs="graph",
@@ -703,10 +710,12 @@ def _record_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_record(args: argparse.Namespace) -> None:
     """Refuse a ``record`` command line that cannot be recorded (one line, exit 2)."""
-    from pathlib import Path
+    from ..core.recording import RecordingError, check_target
 
-    if Path(args.directory).exists():
-        raise UsageError(f"record: {args.directory} exists already; a recording goes to a new folder")
+    try:
+        check_target(args.directory)
+    except RecordingError as err:
+        raise UsageError(f"record: {err}") from None
 
 
 @command("record", "record every fsreg topic to a new rosbag2 folder DIR (MCAP) until Ctrl-C", needs="none",
@@ -748,7 +757,7 @@ def record(ctl: Ctl, client) -> int:
             custom, attach = graph_knowledge(client, ctl.timeout)
             recorder.bag.custom.update(custom)
             for key, source in attach.items():
-                recorder.bag.attach(key, source)
+                recorder.attach(key, source)
         except ClientError as err:
             if err.kind == "clash":
                 raise

@@ -198,10 +198,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.view is not None and not 0 <= args.view <= 65535:
         print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.record is not None and args.record.exists():
-        print(f"{PROG}: error: --record: {args.record} exists already; a recording goes to a new folder",
-              file=sys.stderr)
-        return EXIT_BAD_INPUT
+    if args.record is not None:
+        from ..core.recording import RecordingError, check_target
+
+        try:
+            check_target(args.record)
+        except RecordingError as err:
+            print(printable(f"{PROG}: error: --record: {err}"), file=sys.stderr)
+            return EXIT_BAD_INPUT
     if args.log_dir is not None:
         try:  # before anything starts: a folder that cannot be made is bad input, not a failure later
             args.log_dir.mkdir(parents=True, exist_ok=True)

@@ -8,19 +8,28 @@ Server-Sent Events (``/events``), so a change shows within one push (tens of
 milliseconds).  ``/snapshot`` is the same data as one JSON object, for scripts.
 
 The server binds 127.0.0.1 unless ``--host`` names another address: the page shows what
-people said to the robot.  It needs nothing beyond the wheels (no ROS install, no web
-framework).  A consultant restart shows as a new incarnation's ``wm/state``; the view
-keeps serving throughout.
+people said to the robot.  An empty or wildcard host (``''``, ``0``, ``0.0.0.0``, ``::``),
+which would bind every interface, is refused unless the network is allowed deliberately
+(``FSREG_ALLOW_NETWORK=1``, as for DDS: :func:`check_host`).  It serves at most
+:data:`MAX_CONNECTIONS` connections at once (one thread each; one more is answered 503
+and closed) and closes a connection silent for :data:`IDLE_TIMEOUT` seconds (a request
+never finished, a page that stopped reading its stream).  A browser that leaves is not
+an error: nothing is printed for a connection reset, a broken pipe or a timeout.  It
+needs nothing beyond the wheels (no ROS install, no web framework).  A consultant
+restart shows as a new incarnation's ``wm/state``; the view keeps serving throughout.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import json
+import os
+import socket
 import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Optional
+from typing import Mapping, Optional
 
 from .view_model import ViewModel
 from .view_page import PAGE, SNAPSHOT_SLOT
@@ -35,17 +44,101 @@ STATUS_EVERY = 0.5
 MATCH_WAIT = 5.0
 #: An idle event stream sends a comment this often, so proxies and browsers keep it open.
 HEARTBEAT = 5.0
+#: Seconds a connection may stay silent (a request not finished, a stream not read) before it is closed.
+IDLE_TIMEOUT = 15.0
+#: Connections served at once (a thread each); one more is answered 503 and closed.
+MAX_CONNECTIONS = 128
+#: What a browser that leaves or stalls raises in its connection's thread: not an error of the view.
+GONE = (ConnectionError, TimeoutError)
+
+
+def check_host(host: str, env: Optional[Mapping[str, str]] = None) -> str:
+    """Return ``host`` if the view may bind it; ValueError (one line) for an empty or wildcard address.
+
+    A wildcard binds every interface of the machine; it is taken only when the network
+    is allowed deliberately (``FSREG_ALLOW_NETWORK=1``, :func:`fsreg_ros.ros.network.network_allowed`).
+    A name is resolved: ``0`` or ``0x0`` is the wildcard too.
+    """
+    from ..ros.network import ALLOW_NETWORK, network_allowed
+
+    if network_allowed(dict(os.environ if env is None else env)):
+        return host
+    wildcard = not host.strip()
+    if not wildcard:
+        try:
+            found = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
+        except (OSError, UnicodeError, ValueError):
+            found = []  # not an address: binding it fails with its own reason
+        for *_, address in found:
+            try:
+                wildcard = wildcard or ipaddress.ip_address(str(address[0]).split("%")[0]).is_unspecified
+            except ValueError:
+                continue
+    if wildcard:
+        raise ValueError(f"--host {host!r} would bind every network interface: name one address (default "
+                         f"{DEFAULT_HOST}: this machine only), or set {ALLOW_NETWORK}=1 to serve the network "
+                         "deliberately")
+    return host
 
 
 class ViewServer(ThreadingHTTPServer):
     """The page, its snapshot and its event stream, over one :class:`ViewModel`."""
 
     daemon_threads = True
+    request_queue_size = MAX_CONNECTIONS  # the listen backlog (socketserver's default, 5, drops a burst of pages)
 
     def __init__(self, model: ViewModel, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
         self.model = model
         self.stopping = threading.Event()
-        super().__init__((host, port), _Handler)
+        self._active = 0  # connections being served
+        self._count = threading.Lock()
+        super().__init__((check_host(host), port), _Handler)
+
+    @property
+    def connections(self) -> int:
+        """Connections being served now."""
+        with self._count:
+            return self._active
+
+    def process_request(self, request, client_address) -> None:
+        """Serve a connection in a thread of its own, unless :data:`MAX_CONNECTIONS` are served (503, closed)."""
+        with self._count:
+            full = self._active >= MAX_CONNECTIONS
+            if not full:
+                self._active += 1
+        if full:
+            try:
+                request.settimeout(1.0)
+                request.sendall(b"HTTP/1.0 503 Service Unavailable\r\nContent-Length: 0\r\nRetry-After: 5\r\n\r\n")
+            except OSError:
+                pass
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._release()
+            raise
+
+    def process_request_thread(self, request, client_address) -> None:  # the connection's thread
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._release()
+
+    def _release(self) -> None:
+        with self._count:
+            self._active -= 1
+
+    def handle_error(self, request, client_address) -> None:
+        """Say nothing of a browser that left or stalled; print anything else as one line on stderr."""
+        err = sys.exc_info()[1]
+        if isinstance(err, GONE):
+            return
+        from ..contract.codec import printable
+
+        print(printable(f"fsreg view: a request from {client_address[0]} failed: {type(err).__name__}: {err}", 300),
+              file=sys.stderr, flush=True)
 
     @property
     def url(self) -> str:
@@ -69,6 +162,7 @@ class ViewServer(ThreadingHTTPServer):
 
 class _Handler(BaseHTTPRequestHandler):
     server: ViewServer
+    timeout = IDLE_TIMEOUT  # the socket's: a silent connection is closed
 
     def log_message(self, format: str, *args) -> None:  # noqa: A002 - the base class's name
         pass  # a page's requests are not the operator's business
@@ -112,8 +206,8 @@ class _Handler(BaseHTTPRequestHandler):
                     self.wfile.write(b": alive\n\n")
                     self.wfile.flush()
                     last = time.monotonic()
-        except (BrokenPipeError, ConnectionResetError):
-            pass  # the page was closed
+        except GONE:
+            pass  # the page was closed, or stopped reading
 
 
 def feed(client, model: ViewModel) -> list:

@@ -25,8 +25,12 @@ from typing import Any, Mapping, Optional
 
 from ..core.forgetting import RULE_PARAMETERS, ForgettingPolicy, PolicyError
 
-#: How many dialogue lines the view keeps (the oldest scroll off).
+#: How many dialogue lines the view keeps (the oldest scroll off, and with them what the view knows of their ids).
 DIALOGUE_LINES = 200
+#: How many queue entries' origins the view keeps (the oldest encoded first go when a stream never forgets).
+MAX_ORIGINS = 100_000
+#: How many domains' ``wm/state`` the view keeps (the one heard of longest ago goes first).
+MAX_DOMAINS = 256
 
 
 def decay_period(memory: Mapping[str, Any]) -> Optional[float]:
@@ -42,7 +46,12 @@ def decay_period(memory: Mapping[str, Any]) -> Optional[float]:
 
 
 class ViewModel:
-    """The live view's state of one graph; every method is thread-safe."""
+    """The live view's state of one graph; every method is thread-safe.
+
+    Its memory is bounded whatever the graph says: :data:`DIALOGUE_LINES` lines (an
+    utterance id is forgotten with its line), :data:`MAX_ORIGINS` origins,
+    :data:`MAX_DOMAINS` domains.
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Condition()
@@ -64,7 +73,10 @@ class ViewModel:
     def on_state(self, state: Mapping[str, Any]) -> None:
         """Take a domain's ``wm/state`` (newer than the last one shown)."""
         with self._lock:
-            self._states[state["domain"]] = dict(state)
+            domain = state["domain"]
+            self._states.pop(domain, None)
+            _bounded(self._states, MAX_DOMAINS)
+            self._states[domain] = dict(state)
             self._clock(state.get("time"))
             self._changed()
 
@@ -73,6 +85,8 @@ class ViewModel:
         with self._lock:
             key = (event["domain"], event["entity"], event["property"])
             if event.get("op") == "encode":
+                self._origins.pop(key, None)
+                _bounded(self._origins, MAX_ORIGINS)
                 self._origins[key] = {"cause": event.get("cause"), "turn": event.get("turn")}
             elif event.get("op") == "forget":
                 self._origins.pop(key, None)
@@ -154,18 +168,25 @@ class ViewModel:
         if key is not None and str(key) in self._said:
             self._find(str(key)).update(line)
         else:
-            self._dialogue.append(line)
             if key is not None:
                 line["id"] = str(key)
-                self._said[str(key)] = 1
+            self._append(line)
         self._changed()
+
+    def _append(self, line: dict) -> None:
+        """Add a dialogue line; the line that scrolls off takes its id with it."""
+        if len(self._dialogue) == self._dialogue.maxlen:
+            self._said.pop(self._dialogue[0].get("id"), None)
+        self._dialogue.append(line)
+        if line.get("id") is not None:
+            self._said[line["id"]] = 1
 
     def _find(self, key: str) -> dict:
         for line in reversed(self._dialogue):
             if line.get("id") == key:
                 return line
         line = {"id": key}
-        self._dialogue.append(line)
+        self._append(line)
         return line
 
     def _line_of(self, key: Any, default: dict) -> dict:
@@ -204,6 +225,12 @@ class ViewModel:
             return {"version": self.version, "time": self._time, "ready": ready.get("ready"),
                     "graph": ready.get("graph"), "domains": domains, "dialogue": list(self._dialogue)}
 
+    def sizes(self) -> dict[str, int]:
+        """Return how many lines, utterance ids, origins and domains the model holds (all bounded)."""
+        with self._lock:
+            return {"dialogue": len(self._dialogue), "ids": len(self._said), "origins": len(self._origins),
+                    "domains": len(self._states)}
+
     def _memory(self, domain: str) -> dict:
         if self._status and domain in (self._status.get("memory") or {}):
             return dict(self._status["memory"][domain])
@@ -215,3 +242,9 @@ class ViewModel:
             return None
         tick = (self._status.get("next_tick") or {}).get(domain)
         return float(tick) if isinstance(tick, (int, float)) else None
+
+
+def _bounded(table: dict, limit: int) -> None:
+    """Drop the oldest entries of ``table`` (insertion order) until one more fits within ``limit``."""
+    while len(table) >= limit:
+        del table[next(iter(table))]

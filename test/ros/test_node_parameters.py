@@ -83,7 +83,7 @@ def test_params_files_as_ros2_param_dump_writes_them(tmp_path):
     ("reg: 3\n", "node /reg: expected 'ros__parameters:' under it, got 3"),
     ("reg:\n  ros__parameters: 3\n", "node /reg: 'ros__parameters' must map names to values"),
     ("reg:\n  ros__parameters: {}\n  extra: 1\n", "node /reg: unexpected key 'extra' beside 'ros__parameters'"),
-    ("reg: {ros__parameters: {", "not YAML (line 1)"),
+    ("reg: {ros__parameters: {", "not valid YAML: "),
 ])
 def test_a_bad_params_file_is_one_line_naming_the_file(tmp_path, text, said):
     path = tmp_path / "bad.yaml"
