@@ -152,15 +152,15 @@ class FastLoader(StrictConstruction, getattr(yaml, "CSafeLoader", yaml.SafeLoade
 
 
 def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceError,
-              limit: int = MAX_FILE_BYTES) -> str:
+              limit: Optional[int] = None) -> str:
     """Return the text of ``path``; raise ``error`` naming the file if it cannot be text.
 
     The file is opened without blocking and must be a regular file of at most ``limit``
-    bytes (:mod:`fsreg_ros.core.input_file`): reading a named pipe would wait for a
-    writer forever, a device would never end.
+    bytes (default :data:`MAX_FILE_BYTES`, read when called; :mod:`fsreg_ros.core.input_file`):
+    reading a named pipe would wait for a writer forever, a device would never end.
     """
     try:
-        return input_file.read_text(path, limit)
+        return input_file.read_text(path, MAX_FILE_BYTES if limit is None else limit)
     except input_file.InputFileError as err:
         raise error(err.source, "", err.message) from None
 
@@ -424,7 +424,7 @@ def render_path(loc: Sequence[Union[str, int]]) -> str:
 
 
 def read_yaml(path: Union[str, os.PathLike], error: type[SourceError] = SourceError,
-              limit: int = MAX_FILE_BYTES) -> tuple[Optional[yaml.Node], Any]:
+              limit: Optional[int] = None) -> tuple[Optional[yaml.Node], Any]:
     """Return the root node and value of the YAML file ``path`` of at most ``limit`` bytes (see :func:`load_yaml`)."""
     return load_yaml(read_text(path, error, limit), os.fspath(path), error)
 
