@@ -500,11 +500,17 @@ class GatheringGroup(MutuallyExclusiveCallbackGroup):
     def __init__(self) -> None:
         super().__init__()
         self.holding = False
+        self.holds = 0  # how many times the reader was held (a count, not a snapshot that races the timer)
         self.timer = None  # the entity never held
         self.drain: Optional[Callable[[], Any]] = None  # takes what waits in the reader now (subscribe_batches')
 
     def can_execute(self, entity) -> bool:
         return (not self.holding or entity is self.timer) and super().can_execute(entity)
+
+    def hold(self) -> None:
+        """Hold the reader from the executor until the timer finds a period empty; counted in :attr:`holds`."""
+        self.holding = True
+        self.holds += 1
 
     def release(self) -> None:
         """Take what waits in the held reader now and hand it back to the executor (a caller blocked on one message).
@@ -638,7 +644,7 @@ def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None],
 
     def arrived(msg: String) -> None:  # the first message into a quiet reader: take it now, then gather
         drain(msg)
-        group.holding = True
+        group.hold()
         timer.reset()
 
     def gathered() -> None:  # a period is over: take what came in it

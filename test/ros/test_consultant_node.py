@@ -416,8 +416,21 @@ def test_remote_port_matches_the_local_consultant(graph: RosSession):
         assert graph.call(D, {"op": "snapshot"})["queues"] == local.wm.snapshot()
 
 
+def test_a_session_unused_for_session_timeout_expires(graph: RosSession):
+    """The node's session_timeout (steady clock) reaches its session table.  Alone in its test: a short
+    timeout beside other session steps makes them race the wall clock (a pause under load expires them)."""
+    start(graph, max_sessions=2, max_sessions_per_client=2, session_timeout=0.05)
+    configure(graph, "displacement", capacity=3)
+    session = graph.call(Q, {"op": "open"})["session"]
+    graph.spin_for(0.1)  # at least this long unused (more time, as under load, cannot keep it open)
+    err = graph.call_error(Q, {"op": "close", "session": session})
+    assert err.kind == "SessionError"
+    assert err.error == (f"no open session '{session}' (closed, expired after 0.05 s unused, or dropped: at most 2 "
+                         "per client and 2 in all are open)")
+
+
 def test_sessions_one_call_per_property_and_state_once_per_request(graph: RosSession):
-    start(graph, max_sessions=2, session_timeout=0.3)
+    start(graph, max_sessions=2)  # sessions kept 30 s: a loaded machine's pause between two calls keeps them
     configure(graph, "displacement", capacity=3)
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)
     events = graph.listen(contract.WM_EVENTS.name, EVENTS_QOS)
@@ -447,9 +460,6 @@ def test_sessions_one_call_per_property_and_state_once_per_request(graph: RosSes
     first, second, third = (graph.call(Q, {"op": "open"})["session"] for _ in range(3))
     assert graph.call_error(Q, {"op": "rule_out", "session": first}).kind == "SessionError"
     assert graph.call_error(Q, {"op": "rule_out", "session": second}).error == "rule-out sets need a target"
-    # unused for longer than session_timeout: expired
-    graph.spin_for(0.4)
-    assert graph.call_error(Q, {"op": "close", "session": third}).kind == "SessionError"
     # RR's open checks the first property at once (rule 2: encoded for face1 and face3)
     n_events = len(events)
     opened = graph.call(Q, {"op": "open", "first": {"property": "male", "cause": "rr", "time": 3.0, "turn": 2}})
@@ -782,7 +792,9 @@ def test_a_stream_of_single_asserts_is_gathered_while_queries_are_answered_betwe
 
     graph.publish(contract.LTM_ASSERT.name, fact(0), contract.LTM_ASSERT.qos)
     graph.spin_until(lambda: len(results) == 1, what="the first fact's answer")
-    assert group.holding  # a stream may be starting: the reader is gathered, not waited on
+    # A stream may be starting: the reader is gathered, not waited on.  Counted, not read from group.holding:
+    # FACTS_GATHER (10 ms) of wall time may pass before this line under load, and the empty period ends the hold.
+    assert group.holds == 1
     counts = []
     for round_ in range(5):
         for i in range(1 + 10 * round_, 11 + 10 * round_):

@@ -292,10 +292,13 @@ def test_a_failed_answer_is_not_cached_and_a_retry_runs_again(table1_path):
     """REG with no consultant: the request fails (not ready); once the consultant is up,
     the same id is executed for real instead of getting the cached failure."""
     with RosSession() as g:
-        g.add(RegNode, domains=["faces"], ready_timeout=0.3, service_timeout=0.3)
+        reg = g.add(RegNode, domains=["faces"], ready_timeout=0.3, service_timeout=0.3)
         inbox = g.listen(contract.REG_EXPRESSION.name)
         failed = ask(g, contract.REG_REQUEST.name, inbox, {"id": "r", "target": "face5"}, "r")
         assert "not ready" in failed["error"]
+        reg.ready_timeout = 30.0  # the retry must not race discovery and a call in 0.3 s (a loaded machine)
+        for port in reg.ports.values():
+            port.timeout = 10.0
         g.add(ConsultantNode, name="consultant_faces", domain="faces", kb=str(table1_path))
         g.add(WMManagerNode, domains=["faces"], policy="displacement", capacity=2)
         g.call(contract.SYNC.name, {"time": 0.0}, timeout=15.0)

@@ -70,6 +70,9 @@ def test_configures_consultants_when_they_come_up(graph: RosSession):
     err = graph.call_error(SYNC, {"time": 0.0})
     assert err.kind == "not-ready" and "objects" in err.error and "faces," not in err.error
     consultant(graph, "objects")  # a late consultant is configured when it appears
+    # (waited for here, not by sync within its 0.5 s: discovery and the configure may take longer under load)
+    graph.spin_until(lambda: graph.call(STATUS, {})["configured"] == {"faces": True, "objects": True},
+                     what="the late consultant configured")
     reply = graph.call(SYNC, {"time": 0.0})
     assert reply == {
         "time": 0.0,
