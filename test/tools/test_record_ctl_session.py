@@ -102,7 +102,7 @@ def test_the_recorders_of_a_graph_are_those_running_now(tmp_path):
         assert recorders_of(graph.probe) == []
         recorder = Recorder(other.probe, tmp_path / "bag")
         try:
-            graph.spin_until(lambda: recorders_of(graph.probe) == ["/rec/probe_recorder"], 10.0,
+            graph.spin_until(lambda: recorders_of(graph.probe) == ["/probe_recorder"], 10.0,
                              what="the recorder discovered")
         finally:
             recorder.close()
