@@ -91,19 +91,3 @@ def test_a_recorder_the_graph_names_but_the_sender_cannot_reach_costs_one_line_o
             "recorder /ghost/dead_recorder (named by the graph's WM Manager) did not match this command's writer "
             "of /ghost/dialogue/human within 0.2 s: the recording may lack what it sent there")
 
-
-def test_the_recorders_of_a_graph_are_those_running_now(tmp_path):
-    """What the WM Manager announces (``recorders_of``): a recorder is named while it runs and not after it stopped."""
-    from fsreg_ros.ros.recorder import Recorder
-    from fsreg_ros.ros.recorders import recorders_of
-    from fsreg_ros.testing.ros_session import RosSession
-
-    with RosSession("/rec") as graph, RosSession("/rec") as other:
-        assert recorders_of(graph.probe) == []
-        recorder = Recorder(other.probe, tmp_path / "bag")
-        try:
-            graph.spin_until(lambda: recorders_of(graph.probe) == ["/probe_recorder"], 10.0,
-                             what="the recorder discovered")
-        finally:
-            recorder.close()
-        graph.spin_until(lambda: recorders_of(graph.probe) == [], 10.0, what="the stopped recorder forgotten")
