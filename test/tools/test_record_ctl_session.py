@@ -90,4 +90,3 @@ def test_a_recorder_the_graph_names_but_the_sender_cannot_reach_costs_one_line_o
         assert client.unheard() == (
             "recorder /ghost/dead_recorder (named by the graph's WM Manager) did not match this command's writer "
             "of /ghost/dialogue/human within 0.2 s: the recording may lack what it sent there")
-
