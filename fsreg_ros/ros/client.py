@@ -116,6 +116,7 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         self._sent: dict[str, tuple[Any, Callable[[], None], int]] = {}  # topic -> last message (see delivered)
         self.recorder_wait = RECORDER_WAIT  # seconds a send waits for each recorder the graph names
         self._unheard: dict[str, list[str]] = {}  # recorder -> topics it was not reached on (see unheard)
+        self._reached: set[tuple[str, str]] = set()  # (recorder, topic) matched already (see reach_recorders)
 
     def _note_sent(self, writer, resend: Callable[[], None]) -> None:
         """Remember the last message sent on ``writer`` (how to send it again) and how many readers had matched."""

@@ -60,20 +60,26 @@ class RecorderReach:
     """Reach the graph's recorders before publishing (a part of ``GraphClient``; see the module docstring).
 
     Uses the client's ``node``, ``readiness()`` (the recorders its WM Manager names),
-    ``recorder_wait`` and ``_unheard`` (recorder -> topics it was not reached on).
+    ``recorder_wait``, ``_unheard`` (recorder -> topics it was not reached on) and ``_reached``
+    ((recorder, topic) pairs matched already).
     """
 
     def reach_recorders(self, writer) -> None:
         """Wait until ``writer`` matched every recorder the graph names (bounded; a recorder missed is noted)."""
         ready = self.readiness() or {}
-        waiting = [r for r in ready.get("recorders") or () if r not in self._unheard]
+        topic = writer.topic_name
+        waiting = [r for r in ready.get("recorders") or ()
+                   if r not in self._unheard and (r, topic) not in self._reached]
         deadline = time.monotonic() + self.recorder_wait
         left = missing(self.node, writer, waiting) if waiting else []
         while left and time.monotonic() < deadline:
             time.sleep(0.01)
             left = missing(self.node, writer, left)
-        for r in left:
-            self._unheard.setdefault(r, []).append(writer.topic_name)
+        for r in waiting:
+            if r in left:
+                self._unheard.setdefault(r, []).append(topic)
+            else:
+                self._reached.add((r, topic))  # a match stays: a stream's later messages ask nothing
 
     def unheard(self) -> Optional[str]:
         """Return one line naming the recorders not reached before a message was sent (None: all were)."""
