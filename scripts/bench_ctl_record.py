@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Time ``fsreg-ctl describe`` without and with a recorder, and count what the recording holds (issue 38.4).
 
 Starts ``fsreg-up`` (table 1) in a namespace of its own, runs ``--runs`` describes, then
