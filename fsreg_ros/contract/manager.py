@@ -75,7 +75,9 @@ class ManagerReady(Message):
     has been configured by the WM Manager, so a query is answered instead of refused
     with kind ``not-ready``; it turns false while a restarted consultant waits for its
     configuration.  Published at start and at every change.  ``graph``, ``pid`` and
-    ``host`` say whose WM Manager it is (two on one name are a clash).
+    ``host`` say whose WM Manager it is (two on one name are a clash).  ``recorders``:
+    the recorders (fully-qualified node names) the WM Manager has discovered reading the
+    graph's ``dialogue/human``, so that a sender reaches them before it publishes.
     """
 
     ready: bool
@@ -84,3 +86,4 @@ class ManagerReady(Message):
     graph: Optional[str] = None
     pid: Optional[int] = None
     host: Optional[str] = None
+    recorders: Optional[list[str]] = None

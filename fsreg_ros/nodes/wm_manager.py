@@ -51,7 +51,7 @@ if a domain has ``shared-capacity``, and replies; a time that is not finite, bey
 its current incarnation is configured, the next tick, ``ready`` (every domain configured)
 and this node's ``graph`` identity.  Topic in: ``consultant/announce`` (latched), from every
 consultant.  Topic out: ``wm_manager/ready`` (latched, :class:`~fsreg_ros.contract.ManagerReady`):
-``ready`` and each domain's ``configured``/``incarnation``/``running``, at start and at every
+``ready``, each domain's ``configured``/``incarnation``/``running`` and the ``recorders`` it sees, at start and at every
 change, so a client waits for readiness instead of retrying (``fsreg-up``, ``fsreg-ctl``,
 ``fsreg_ros.testing``).
 """
@@ -91,6 +91,7 @@ from ..core.wm_manager import WMManager
 from ..ros.diagnostics import OK, WARN
 from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
+from ..ros.recorders import recorders_of
 from ..ros.memory_parameters import (SETTINGS, check_change, declare_memory_parameters, effective_policies,
                                      parameter_names)
 
@@ -389,7 +390,8 @@ class WMManagerNode(Node):
         """Publish ``wm_manager/ready`` when readiness or a domain's configuration changed."""
         state = {"ready": self._all_configured(),
                  "domains": {d: {"configured": dom.configured, "incarnation": dom.incarnation, "running": dom.running,
-                                 "reachable": dom.alive} for d, dom in self._domains.items()}}
+                                 "reachable": dom.alive} for d, dom in self._domains.items()},
+                 "recorders": recorders_of(self)}
         if state == self._ready_sent:
             return
         self._ready_sent = state

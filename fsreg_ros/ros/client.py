@@ -23,6 +23,8 @@ node's publishers, subscriptions and service clients, and what they heard) and
 ``graph_clock``        the graph's clock (``set_clock``, ``publish_clock``,
                        ``graph_time``)
 ``parameter_access``   node parameters (``list_parameters`` ... ``set_parameters``)
+``recorders``          reaching the graph's recorders before publishing
+                       (``reach_recorders``, ``unheard``)
 =====================  ==============================================================
 
 The names those modules define that the client's users import (``ClientError``,
@@ -50,6 +52,7 @@ from .graph_clock import CLOCK_DISCOVERY, CLOCK_RESEND, ClockControl, check_cloc
 from .graph_queries import GraphQueries, state_version
 from .parameter_access import ParameterAccess, parameter_value, python_value, range_problem
 from .readiness import CLASH_WAIT, DISCOVERY_WAIT, GONE_AFTER, GRAPH_NODES, LAPSE_CONFIRM, Readiness
+from .recorders import RECORDER_WAIT, RecorderReach
 
 __all__ = [
     "GraphClient", "ClientError", "Answer", "find_graph", "describe_graph", "clock_message", "check_clock",
@@ -62,7 +65,7 @@ __all__ = [
 DELIVERY_WAIT = 2.0
 
 
-class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, ParameterAccess):
+class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, ParameterAccess, RecorderReach):
     """A client of one live graph, on ``node`` (spun by this client through ``executor``).
 
     ``graph`` is the identity expected; None takes the identity of the graph whose WM
@@ -111,6 +114,9 @@ class GraphClient(Readiness, DialogueExchange, GraphQueries, ClockControl, Param
         self._ids = itertools.count(1)
         self._prefix = f"{node.get_name()}-{secrets.token_hex(3)}"
         self._sent: dict[str, tuple[Any, Callable[[], None], int]] = {}  # topic -> last message (see delivered)
+        self.recorder_wait = RECORDER_WAIT  # seconds a send waits for each recorder the graph names
+        self._unheard: dict[str, list[str]] = {}  # recorder -> topics it was not reached on (see unheard)
+        self._reached: set[tuple[str, str]] = set()  # (recorder, topic) matched already (see reach_recorders)
 
     def _note_sent(self, writer, resend: Callable[[], None]) -> None:
         """Remember the last message sent on ``writer`` (how to send it again) and how many readers had matched."""

@@ -103,6 +103,7 @@ class DialogueExchange(Spinning):
 
     def _publish(self, kind: str, message: Mapping[str, Any]) -> None:
         writer = self._publishers[kind]
+        self.reach_recorders(writer)
         publish(writer, message)
         self._note_sent(writer, lambda: publish(writer, message))
 

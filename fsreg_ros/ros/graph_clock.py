@@ -37,6 +37,7 @@ class ClockControl(Spinning):
 
     def publish_clock(self, t: float) -> None:
         """Publish the graph's clock = ``t`` (nothing waits: see :meth:`set_clock`)."""
+        self.reach_recorders(self._clock)
         self._clock.publish(clock_message(t))
         self._note_sent(self._clock, lambda: self._clock.publish(clock_message(t)))
 

@@ -36,6 +36,7 @@ from .. import contract
 from ..contract import QosSpec
 from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
 from .carrier import qos_profile
+from .recorders import SUFFIX
 
 #: Reader depth of every recorded topic at least (the contract's writers keep 1 to 10,000): the readers hold
 #: what arrived until the drain thread takes it, so a recorder starved of CPU this long does not lose a
@@ -116,7 +117,7 @@ class Recorder:
             self.bag.attach(key, Path(source))  # a failure here is the caller's (nothing recorded yet)
         self.topics = [t for t, _ in pairs]
         # Names are absolute (the graph's namespace and clock resolved above): the readers' node needs no remap.
-        self._readers = rclpy.create_node(f"{node.get_name()}_recorder", context=node.context,
+        self._readers = rclpy.create_node(f"{node.get_name()}{SUFFIX}", context=node.context,
                                           start_parameter_services=False, enable_rosout=False)
         self.subscriptions = []
         for topic in self.topics:

@@ -384,6 +384,8 @@ class Ctl:
         finally:
             if client is not None:  # what was sent reaches every reader (a recorder too) before the node goes
                 client.delivered()
+                if client.unheard():  # never silently: a recording that lacks a request says why
+                    print(printable(f"{PROG}: warning: {client.unheard()}", 2000), file=sys.stderr)
             executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
             rclpy.try_shutdown(context=context)

@@ -404,3 +404,21 @@ def test_readiness_is_false_while_a_consultant_is_unreachable_under_every_policy
     assert memory(graph) == policy
     status = graph.call(STATUS, {})
     assert status["configured"] == {"faces": True} and status["reachable"] == {"faces": True}
+
+
+def test_ready_names_the_recorders_running_now(graph: RosSession, tmp_path):
+    """Issue 38.4: ``wm_manager/ready`` names each recorder while it runs and not after it stopped."""
+    from fsreg_ros.ros.recorder import Recorder
+
+    manager(graph)
+    ready = graph.listen(contract.READY.name, contract.STATE_QOS)
+    graph.spin_until(lambda: ready.latest() is not None, what="readiness")
+    assert ready.latest()["recorders"] == []
+    with RosSession() as other:  # a participant of its own, as fsreg-ctl record's process
+        recorder = Recorder(other.probe, tmp_path / "bag")
+        try:
+            graph.spin_until(lambda: ready.latest()["recorders"] == ["/probe_recorder"], 10.0,
+                             what="the recorder named")
+        finally:
+            recorder.close()
+        graph.spin_until(lambda: ready.latest()["recorders"] == [], 10.0, what="the stopped recorder no longer named")
