@@ -30,7 +30,15 @@ fi
 . "$root/scripts/rosenv.sh"
 cd "$root"
 args=()
+# The whole suite (no test named) runs on pytest-xdist workers, each on a ROS domain of its own
+# (test/support/workers.py), whole files to a worker; named tests run in this process (no start-up).
+workers=(-n "${FSREG_TEST_WORKERS:-2}" --dist loadfile)
 for arg in "$@"; do  # --quick anywhere stands for -m "not slow"
     if [[ "$arg" == "--quick" ]]; then args+=(-m "not slow"); else args+=("$arg"); fi
+    case "$arg" in
+        -n|-n[0-9]*|--numprocesses|--numprocesses=*|no:xdist|-pno:xdist|--pdb|--trace) workers=() ;;  # caller's
+        -*) ;;
+        *) if [[ -z "${FSREG_TEST_WORKERS:-}" && -e "${arg%%::*}" ]]; then workers=(); fi ;;  # a test named
+    esac
 done
-exec "$root/.venv/bin/python" -m pytest "${args[@]}"
+exec "$root/.venv/bin/python" -m pytest "${workers[@]}" "${args[@]}"
