@@ -32,7 +32,7 @@ cd "$root"
 args=()
 # The whole suite (no test named) runs on pytest-xdist workers, each on a ROS domain of its own
 # (test/support/workers.py), whole files to a worker; named tests run in this process (no start-up).
-workers=(-n "${FSREG_TEST_WORKERS:-2}" --dist loadfile)
+workers=(-n "${FSREG_TEST_WORKERS:-2}" --dist loadfile --no-loadscope-reorder)  # slow modules first: test/conftest.py
 for arg in "$@"; do  # --quick anywhere stands for -m "not slow"
     if [[ "$arg" == "--quick" ]]; then args+=(-m "not slow"); else args+=("$arg"); fi
     case "$arg" in

@@ -32,6 +32,22 @@ except NetworkRefused as err:
 assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 
+def pytest_collection_modifyitems(items: list) -> None:
+    """Run the modules holding slow tests first, test/tools' first (the longest), each module whole and in order.
+
+    With ``--dist loadfile`` (scripts/test.sh) the two workers start on the long modules and end
+    on the many short ones, so neither is left alone at the end with a long one.
+    """
+    def module(item) -> str:
+        return item.nodeid.split("::")[0]
+
+    first: dict[str, int] = {}
+    for index, item in enumerate(items):
+        first.setdefault(module(item), index)
+    slow = {module(item) for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: (0, -first[module(item)]) if module(item) in slow else (1, first[module(item)]))
+
+
 @pytest.fixture(autouse=True)
 def _private_state_dir(tmp_path_factory, monkeypatch) -> None:
     """Give every test its own consultant state directory (XDG_STATE_HOME), so no test restores another's."""
