@@ -51,6 +51,15 @@ def ask(g: RosSession, topic: str, inbox, message, key=None, timeout: float = 10
     return inbox.latest(id=key)
 
 
+def error_naming(g: RosSession, inbox, fragment: str) -> dict:
+    """Wait for an error reply on ``inbox`` whose error names ``fragment``; return the first."""
+    def naming(reply: dict) -> bool:
+        return fragment in (reply.get("error") or "")
+
+    g.spin_until(lambda: any(naming(r) for r in inbox), 10.0, what=f"error {fragment!r}")
+    return next(r for r in inbox if naming(r))
+
+
 def test_text_is_parsed_resolved_and_encoded(pipeline):
     reply = ask(pipeline, contract.HUMAN.name, pipeline.results, {"id": "u1", "time": 1.0,
                                                                   "text": "the woman with glasses, says he"}, "u1")
@@ -112,9 +121,7 @@ def test_bad_human_turns_get_an_error_and_change_nothing(pipeline, message, frag
     before = snapshot(pipeline)
     pipeline.publish(contract.HUMAN.name, message if isinstance(message, (dict, str)) else message)
     key = message.get("id") if isinstance(message, dict) else None
-    pipeline.spin_until(lambda: any(fragment in (r.get("error") or "") for r in pipeline.results), 10.0,
-                        what=f"error {fragment!r}")
-    error = next(r for r in pipeline.results if fragment in (r.get("error") or ""))
+    error = error_naming(pipeline, pipeline.results, fragment)
     assert error.get("id") == key  # an oversized message too: its id is read off its head
     assert error["status"] == "error"
     assert error["kind"] == HUMAN_KINDS.get(key, "bad-request"), error  # every error reply carries a kind
@@ -140,9 +147,7 @@ def test_bad_human_turns_get_an_error_and_change_nothing(pipeline, message, frag
 def test_bad_reg_requests_get_an_error_and_change_nothing(pipeline, message, fragment):
     before = snapshot(pipeline)
     pipeline.publish(contract.REG_REQUEST.name, message)
-    pipeline.spin_until(lambda: any(fragment in (r.get("error") or "") for r in pipeline.expressions), 10.0,
-                        what=f"error {fragment!r}")
-    error = next(r for r in pipeline.expressions if fragment in (r.get("error") or ""))
+    error = error_naming(pipeline, pipeline.expressions, fragment)
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
     # Every error reply carries a kind (REG's unknown-entity error had none).
     assert error["kind"] == {"x3": "unknown-entity", "x4": "unknown-entity"}.get(error.get("id"), "bad-request"), error
@@ -163,9 +168,7 @@ def test_bad_reg_requests_get_an_error_and_change_nothing(pipeline, message, fra
 def test_bad_semantics_get_an_error_and_change_nothing(pipeline, message, fragment):
     before = snapshot(pipeline)
     pipeline.publish(contract.SEMANTICS.name, message)
-    pipeline.spin_until(lambda: any(fragment in (r.get("error") or "") for r in pipeline.results), 10.0,
-                        what=f"error {fragment!r}")
-    error = next(r for r in pipeline.results if fragment in (r.get("error") or ""))
+    error = error_naming(pipeline, pipeline.results, fragment)
     assert error["status"] == "error"
     assert error.get("id") == (message.get("id") if isinstance(message, dict) else None)
     assert snapshot(pipeline) == before
@@ -339,8 +342,7 @@ def test_a_dead_consultant_fails_fast_for_the_requests_queued_behind(pipeline):
 def test_hostile_reg_requests_are_answered_and_change_nothing(pipeline, text, fragment):
     before = snapshot(pipeline)
     pipeline.publish(contract.REG_REQUEST.name, text)
-    pipeline.spin_until(lambda: any(fragment in (r.get("error") or "") for r in pipeline.expressions), 10.0,
-                        what=f"error {fragment!r}")
+    error_naming(pipeline, pipeline.expressions, fragment)
     assert snapshot(pipeline) == before
     ok = ask(pipeline, contract.REG_REQUEST.name, pipeline.expressions, {"id": "fine", "target": "face2"}, "fine")
     assert ok["description"] == ["glasses", "female"]
