@@ -1,5 +1,8 @@
 """Test-wide setup: keep ROS 2 on this machine, in a private domain, with a temp log dir.
 
+Each pytest-xdist worker (scripts/test.sh runs two) gets a ROS domain and a log dir of its
+own (test/support/workers.py), so the graphs of two workers never meet.
+
 This runs before any test module imports rclpy.  Discovery must stay on localhost
 (nothing may send traffic off this machine) and Fast DDS is bound to loopback by
 fsreg_ros.ros.network; an environment that would widen it stops the run at once (exit 2).
@@ -15,14 +18,34 @@ import pytest
 
 from fsreg_ros.ros.network import NetworkRefused, ros_environment  # imports no rclpy
 
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test" / "support"))  # test helpers (rosutil, naive_wm, naive_sim, fuzzgraph)
+
+from workers import worker_environment  # noqa: E402  (test/support)
+
 try:  # the tests never widen the network, whatever FSREG_ALLOW_NETWORK says
-    os.environ.update(ros_environment(allow_network=False))
+    os.environ.update(ros_environment(allow_network=False))  # in an xdist worker: as the controller set it
+    os.environ.update(worker_environment(os.environ))  # an xdist worker: a ROS domain and log dir of its own
+    Path(os.environ["ROS_LOG_DIR"]).mkdir(parents=True, exist_ok=True)
 except NetworkRefused as err:
     pytest.exit(f"fsreg tests: {err}", returncode=2)
 assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "test" / "support"))  # test helpers (rosutil, naive_wm, naive_sim, fuzzgraph)
+
+def pytest_collection_modifyitems(items: list) -> None:
+    """Run the modules holding slow tests first, test/tools' first (the longest), each module whole and in order.
+
+    With ``--dist loadfile`` (scripts/test.sh) the two workers start on the long modules and end
+    on the many short ones, so neither is left alone at the end with a long one.
+    """
+    def module(item) -> str:
+        return item.nodeid.split("::")[0]
+
+    first: dict[str, int] = {}
+    for index, item in enumerate(items):
+        first.setdefault(module(item), index)
+    slow = {module(item) for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: (0, -first[module(item)]) if module(item) in slow else (1, first[module(item)]))
 
 
 @pytest.fixture(autouse=True)

@@ -36,6 +36,11 @@ from ..contract import CLOCK, DEFAULT_QOS, clock_remap, normalise_namespace
 from ..ros.network import enforce_loopback
 from ..ros.sim_clock import now_ns
 
+#: Seconds a wait on the ROS graph (discovery, a match, a condition) may take before it fails.  Discovery
+#: takes 0.5-2.5 s on a quiet machine and several times that on a loaded one (the suite runs two workers
+#: beside other work); a wait ends as soon as its condition holds, so only a failing wait takes this long.
+WAIT = 15.0
+
 
 class Timeout(AssertionError):
     """A bounded wait ran out (an AssertionError, so a test fails with its message)."""
@@ -116,7 +121,7 @@ class RosSession:
         node.destroy_node()
 
     # -------------------------------------------------------------- spinning
-    def spin_until(self, predicate: Callable[[], bool], timeout: float = 5.0, what: str = "condition") -> None:
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = WAIT, what: str = "condition") -> None:
         """Spin until ``predicate()``; fail with :class:`Timeout` after ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
         while not predicate():
@@ -143,7 +148,7 @@ class RosSession:
             self._clients[service] = ServiceCaller(self.probe, service, self.group)
         return self._clients[service]
 
-    def wait_service(self, service: str, timeout: float = 5.0) -> None:
+    def wait_service(self, service: str, timeout: float = WAIT) -> None:
         client = self.client(service)
         self.spin_until(client.ready, timeout, what=f"service {service}")
 
@@ -180,7 +185,7 @@ class RosSession:
         if topic not in self._publishers:
             self._publishers[topic] = self.probe.create_publisher(String, topic, qos_profile(qos))
         pub = self._publishers[topic]
-        self.spin_until(lambda: pub.get_subscription_count() > 0, 5.0, what=f"a subscriber of {topic}")
+        self.spin_until(lambda: pub.get_subscription_count() > 0, WAIT, what=f"a subscriber of {topic}")
         pub.publish(String(data=obj) if isinstance(obj, str) else to_msg(obj))
 
     def listen(self, topic: str, qos=DEFAULT_QOS) -> Inbox:
@@ -197,9 +202,9 @@ class RosSession:
         msg = clock_message(t)
         ns = int(round(t * 1e9))
         watch = [n for n in (nodes or self.nodes) if n.get_parameter("use_sim_time").value]
-        self.spin_until(lambda: self._clock_pub.get_subscription_count() >= len(watch), 5.0, what="/clock subscribers")
+        self.spin_until(lambda: self._clock_pub.get_subscription_count() >= len(watch), WAIT, what="/clock subscribers")
         self._clock_pub.publish(msg)
-        self.spin_until(lambda: all(now_ns(n) >= ns for n in watch), 5.0, what=f"/clock = {t}")
+        self.spin_until(lambda: all(now_ns(n) >= ns for n in watch), WAIT, what=f"/clock = {t}")
         self.time = t
 
     set_time = set_clock  # the name the project's older tests use

@@ -21,14 +21,9 @@ from fsreg_ros.ros.carrier import (CarrierError, ServiceCaller, from_msg, qos_pr
 from fsreg_ros.contract.codec import MessageError  # noqa: E402
 from fsreg_ros.contract import SERVICE_QOS, STATE_QOS, Message, check  # noqa: E402
 from fsreg_ros.ros.node_base import error_reply  # noqa: E402
-from rosutil import RosSession, call, ros_graph  # noqa: E402
+from rosutil import RosSession, call  # noqa: E402
 
 pytestmark = pytest.mark.graph
-
-
-@pytest.fixture
-def graph():
-    yield from ros_graph()
 
 
 # ------------------------------------------------------------------ pure JSON

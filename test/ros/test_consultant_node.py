@@ -25,7 +25,7 @@ from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.ros.remote import RemotePort
-from rosutil import DATA, KB, RosSession, ros_graph
+from rosutil import DATA, KB, RosSession
 
 pytestmark = pytest.mark.graph
 
@@ -35,11 +35,6 @@ D = contract.debug_service("faces")
 #: What a consultant that found no stored state reports it restored.
 FRESH = {"fresh": True, "runtime_entities": 0, "runtime_facts": 0, "queues": 0, "run": None, "clock": None,
          "latest": None}
-
-
-@pytest.fixture
-def graph():
-    yield from ros_graph()
 
 
 def start(graph: RosSession, domain: str = "faces", debug: bool = True, **params):

@@ -30,7 +30,7 @@ from fsreg_ros.core.store import StoreError
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.ros.remote import RemotePort
-from rosutil import DATA, KB, RosSession, ros_graph
+from rosutil import DATA, KB, RosSession
 
 pytestmark = pytest.mark.graph
 
@@ -38,11 +38,6 @@ Q = contract.consultant_service("faces")
 M = contract.manage_service("faces")
 D = contract.debug_service("faces")
 POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 3}
-
-
-@pytest.fixture
-def graph():
-    yield from ros_graph()
 
 
 def start(graph: RosSession, state_dir, kb: str = KB, use_sim_time: bool = False, **params) -> ConsultantNode:

@@ -11,17 +11,12 @@ from fsreg_ros.contract import EVENTS_QOS
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.wm_manager import WMManagerNode
-from rosutil import KB, RosSession, ros_graph
+from rosutil import KB, RosSession
 
 pytestmark = pytest.mark.graph
 
 SYNC = contract.SYNC.name
 STATUS = contract.STATUS.name
-
-
-@pytest.fixture
-def graph():
-    yield from ros_graph()
 
 
 def consultant(graph: RosSession, domain: str = "faces"):

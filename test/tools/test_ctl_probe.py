@@ -20,8 +20,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fsreg_ros.testing import LiveGraph
-
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
 BIN = Path(sys.executable).parent
@@ -38,13 +36,6 @@ def refused(proc: subprocess.CompletedProcess, code: int, *said: str) -> None:
     assert proc.stderr.startswith("fsreg-ctl: error: ") and proc.stderr.count("\n") == 1, proc.stderr
     assert all(s in proc.stderr for s in said), (said, proc.stderr)
     assert proc.stdout == "" and "Traceback" not in proc.stderr
-
-
-@pytest.fixture
-def live(table1_path):
-    ns = f"probe_{secrets.token_hex(4)}"
-    with LiveGraph(table1_path, namespace=ns, processes=True, policy="decay", decay_period=10.0) as graph:
-        yield ns, graph
 
 
 def test_every_command_refuses_hostile_input_in_one_line(live):

@@ -198,7 +198,7 @@ def test_a_write_that_fails_stops_the_recorder_and_is_kept_for_its_owner(tmp_pat
 
 
 @pytest.fixture(scope="module")
-def live(tmp_path_factory):
+def recorded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("live")
     path = folder / "session"
     sent = record_live_session(path, folder / "second")
@@ -207,8 +207,8 @@ def live(tmp_path_factory):
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_a_live_session_is_recorded_with_nothing_dropped(live):
-    path, sent = live
+def test_a_live_session_is_recorded_with_nothing_dropped(recorded):
+    path, sent = recorded
     ns = sent["namespace"]
     counts, schemas, metadata = mcap_summary(path / f"{path.name}.mcap")
     # exactly what was sent: 2 utterances, 4 REG requests (each sent once), 1 assertion, every WM event
@@ -230,8 +230,8 @@ def test_a_live_session_is_recorded_with_nothing_dropped(live):
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_two_recorders_at_once_both_hold_the_whole_session(live):
-    path, sent = live
+def test_two_recorders_at_once_both_hold_the_whole_session(recorded):
+    path, sent = recorded
     second = path.parent / "second"
     ns = sent["namespace"]
     first_counts, _, _ = mcap_summary(path / f"{path.name}.mcap")
@@ -248,8 +248,8 @@ def test_two_recorders_at_once_both_hold_the_whole_session(live):
 
 @pytest.mark.graph
 @pytest.mark.slow
-def test_the_recorded_session_replays_equal_and_a_doctored_one_names_the_turn(live, tmp_path, capsys):
-    path, _ = live
+def test_the_recorded_session_replays_equal_and_a_doctored_one_names_the_turn(recorded, tmp_path, capsys):
+    path, _ = recorded
     assert sim_main(["--replay", str(path)]) == 0
     out = capsys.readouterr().out
     assert out.splitlines()[-1] == "replay: all 6 turns equal the live graph (answers and WM)"
