@@ -10,7 +10,9 @@ node goes, one killed when DDS expires its participant), which every client alre
 waits for.  Before a client publishes on a recorded topic, :class:`RecorderReach` waits
 (at most :data:`RECORDER_WAIT` s per recorder, once per command) until its writer has
 matched every reader of that topic it discovered and the named recorders are among
-them; a recorder not reached in time is not waited for again, and the client reports it
+them (:data:`RECORDER_WAIT` s for a recorder not discovered at all, longer,
+:data:`RECORDER_MATCH_WAIT`, once its reader is seen: it is alive and only the match is
+under way); a recorder not reached in time is not waited for again, and the client reports it
 (:meth:`RecorderReach.unheard`: one line), never silently.
 
 A recorder is recognised by its readers' node name (:data:`SUFFIX`, given by
@@ -26,9 +28,14 @@ from .. import contract
 
 #: The end of a recorder's readers node name (``<node>_recorder``).
 SUFFIX = "_recorder"
-#: Seconds at most a client waits for a named recorder to match one of its writers (discovery on this
-#: machine takes 0.1-2.5 s under load; the wait ends as soon as it matched).
-RECORDER_WAIT = 2.5
+#: Seconds at most a client waits for a named recorder it has not discovered at all (discovery on this
+#: machine takes 0.1-2.5 s, more under load; the wait ends as soon as it matched).  A recorder that was
+#: killed is never discovered by a new client (it announces nothing), so this is what such a one costs
+#: each command until DDS expires it in the WM Manager (~20 s).
+RECORDER_WAIT = 5.0
+#: Seconds at most a client waits for a recorder whose reader of the topic it has discovered (alive:
+#: only the match is still under way, which a loaded machine can take seconds to complete).
+RECORDER_MATCH_WAIT = 15.0
 
 
 def full_name(namespace: str, name: str) -> str:
@@ -43,17 +50,19 @@ def recorders_of(node) -> list[str]:
                    if i.node_name.endswith(SUFFIX)})
 
 
-def missing(node, writer, recorders: list[str]) -> list[str]:
-    """Return those of ``recorders`` that ``writer`` (of ``node``) may not have matched yet.
+def missing(node, writer, recorders: list[str]) -> tuple[list[str], bool]:
+    """Return those of ``recorders`` that ``writer`` (of ``node``) may not have matched yet, and whether all are seen.
 
     Matched: the recorder's reader of the writer's topic is discovered, and the writer has
     matched as many readers as were discovered (a writer reports a count, not which).
+    Seen: every one of ``recorders`` has a reader of the topic that ``node`` discovered.
     """
     readers = node.get_subscriptions_info_by_topic(writer.topic_name)
-    if writer.get_subscription_count() < len(readers):
-        return list(recorders)
     seen = {full_name(i.node_namespace, i.node_name) for i in readers}
-    return [r for r in recorders if r not in seen]
+    unseen = [r for r in recorders if r not in seen]
+    if writer.get_subscription_count() < len(readers):
+        return list(recorders), not unseen
+    return unseen, not unseen
 
 
 class RecorderReach:
@@ -70,11 +79,12 @@ class RecorderReach:
         topic = writer.topic_name
         waiting = [r for r in ready.get("recorders") or ()
                    if r not in self._unheard and (r, topic) not in self._reached]
-        deadline = time.monotonic() + self.recorder_wait
-        left = missing(self.node, writer, waiting) if waiting else []
-        while left and time.monotonic() < deadline:
+        start = time.monotonic()
+        left, seen = missing(self.node, writer, waiting) if waiting else ([], True)
+        while left and time.monotonic() - start < (max(self.recorder_wait, RECORDER_MATCH_WAIT) if seen
+                                                   else self.recorder_wait):
             time.sleep(0.01)
-            left = missing(self.node, writer, left)
+            left, seen = missing(self.node, writer, left)
         for r in waiting:
             if r in left:
                 self._unheard.setdefault(r, []).append(topic)

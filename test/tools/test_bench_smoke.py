@@ -134,7 +134,8 @@ def test_soak_sends_open_loop_and_accounts_for_every_message():
                           capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
-    assert lines[0].startswith("== uninterrupted: open loop, 10 human turns/s + 10 REG requests/s, 20 messages")
+    assert lines[0].startswith("== uninterrupted: open loop, 10 human turns/s + 10 REG requests/s, "
+                               "/clock with every message, 20 messages")
     assert any(line.startswith("human  sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
     assert any(line.startswith("reg    sent 10, lost 0, duplicated 0, errors 0;") for line in lines), proc.stdout
     assert any(line.strip().startswith("consultant_faces") for line in lines)
