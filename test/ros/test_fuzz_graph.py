@@ -86,6 +86,43 @@ def test_hostile_inputs_after_a_malformed_one_are_answered(fuzzer, endpoint):
     assert check_outcome(fuzzer, endpoint).tried >= 10
 
 
+# Before the wire tests: their in-process graph answers on this fixture's graph's topics (same domain), and a
+# message no JSON decoder can read (nested too deep) reaching the fixture's probe breaks its next spin.
+def lapse(fuzzer, domain: str, readiness) -> None:
+    """Stop spinning ``domain``'s consultant until the WM Manager finds its liveliness lapsed (in one process the
+    alive topic's liveliness shows only through writes), then spin it again; ``readiness``: wm_manager/ready."""
+    consultant = next(n for n in fuzzer.g.nodes if n.get_name() == f"consultant_{domain}")
+    published = len(readiness)
+    fuzzer.g.executor.remove_node(consultant)
+    try:  # the status shows it only for a moment: the lapse heals at the next write of any node here
+        fuzzer.g.spin_until(lambda: any(ready["domains"][domain]["reachable"] is False
+                                        for ready in readiness[published:]), 10.0,
+                            what=f"the WM Manager to find consultant '{domain}' unreachable")
+    finally:
+        fuzzer.g.executor.add_node(consultant)
+
+
+def test_a_liveliness_lapse_that_heals_is_not_a_change_but_a_real_change_still_is(fuzzer):
+    """Under load an in-process consultant's liveliness can lapse (its alive writes wait on the executor) and
+    heal: the WM Manager's status flips to unreachable and back, and it configures the consultant again.  A
+    rejected input sent meanwhile changed nothing; one beside a real change (WM written meanwhile) still did."""
+    endpoint, domain = CONSULTANT.format(domain="faces"), fuzzer.domains[0]
+    readiness = fuzzer.g.listen("/" + contract.READY.name, replace(contract.READY_QOS, depth=100))
+    fuzzer.g.spin_until(lambda: readiness, what="the latched wm_manager/ready")
+    rejected = Input('{"op": "info", "zz": ', True, "malformed")
+    fuzzer.outcomes.pop(endpoint, None)
+    fuzzer.state_before()
+    lapse(fuzzer, domain, readiness)
+    fuzzer.check(endpoint, rejected)
+    assert fuzzer.outcomes[endpoint].rejected == 1 and not fuzzer.outcomes[endpoint].failures(), fuzzer.report()
+    fuzzer.state_before()
+    lapse(fuzzer, domain, readiness)
+    spec = fuzzer.scenario.domains[domain]
+    fuzzer.g.call(DEBUG.format(domain=domain), {**fuzzer.seed_wm, "entity": list(spec.entities)[1]})
+    fuzzer.check(endpoint, rejected)
+    assert fuzzer.outcomes[endpoint].changed_by_rejected == ['malformed: {"op": "info", "zz":  (changed: faces.wm)']
+
+
 def real_request_targets(scenario) -> tuple[str, str]:
     """An entity and a property of the scenario's first domain, for the real requests after the fuzz."""
     spec = next(iter(scenario.domains.values()))
@@ -126,38 +163,3 @@ def test_no_node_process_exits_on_what_no_schema_can_save(table1_path, tmp_path)
         dead = [f"{spec.name} exited {code}: {live.graph.tail(spec.name, 3)}" for spec, code in live.graph.dead()]
         assert dead == [] and failed == [], "\n".join(dead + failed)
         check_wire(wire, list(scenario.domains))
-
-
-def lapse(fuzzer, domain: str, readiness) -> None:
-    """Stop spinning ``domain``'s consultant until the WM Manager finds its liveliness lapsed (in one process the
-    alive topic's liveliness shows only through writes), then spin it again; ``readiness``: wm_manager/ready."""
-    consultant = next(n for n in fuzzer.g.nodes if n.get_name() == f"consultant_{domain}")
-    published = len(readiness)
-    fuzzer.g.executor.remove_node(consultant)
-    try:  # the status shows it only for a moment: the lapse heals at the next write of any node here
-        fuzzer.g.spin_until(lambda: any(ready["domains"][domain]["reachable"] is False
-                                        for ready in readiness[published:]), 10.0,
-                            what=f"the WM Manager to find consultant '{domain}' unreachable")
-    finally:
-        fuzzer.g.executor.add_node(consultant)
-
-
-def test_a_liveliness_lapse_that_heals_is_not_a_change_but_a_real_change_still_is(fuzzer):
-    """Under load an in-process consultant's liveliness can lapse (its alive writes wait on the executor) and
-    heal: the WM Manager's status flips to unreachable and back, and it configures the consultant again.  A
-    rejected input sent meanwhile changed nothing; one beside a real change (WM written meanwhile) still did."""
-    endpoint, domain = CONSULTANT.format(domain="faces"), fuzzer.domains[0]
-    readiness = fuzzer.g.listen("/" + contract.READY.name, replace(contract.READY_QOS, depth=100))
-    fuzzer.g.spin_until(lambda: readiness, what="the latched wm_manager/ready")
-    rejected = Input('{"op": "info", "zz": ', True, "malformed")
-    fuzzer.outcomes.pop(endpoint, None)
-    fuzzer.state_before()
-    lapse(fuzzer, domain, readiness)
-    fuzzer.check(endpoint, rejected)
-    assert fuzzer.outcomes[endpoint].rejected == 1 and not fuzzer.outcomes[endpoint].failures(), fuzzer.report()
-    fuzzer.state_before()
-    lapse(fuzzer, domain, readiness)
-    spec = fuzzer.scenario.domains[domain]
-    fuzzer.g.call(DEBUG.format(domain=domain), {**fuzzer.seed_wm, "entity": list(spec.entities)[1]})
-    fuzzer.check(endpoint, rejected)
-    assert fuzzer.outcomes[endpoint].changed_by_rejected == ['malformed: {"op": "info", "zz":  (changed: faces.wm)']

@@ -22,7 +22,9 @@ the reply topic; ``/ltm/assert`` naming no consultant's domain has no reply by
 contract), an invalid input is rejected with a reason (an ``error`` field), a
 rejected input leaves every domain's WM and LTM and the WM Manager's status exactly
 as they were (a consultant's liveliness lapse under load, which the WM Manager's status
-shows and heals with a configure, is not counted: :meth:`Fuzzer.lapsed`), and no callback
+shows and heals with a configure, is not counted: after a lapse, or a difference only in
+the liveliness and configuration flags, the fuzzer waits until the graph is ready with every
+consultant reachable and configured and compares what matters, :meth:`Fuzzer.healed`), and no callback
 raised (an exception out of a callback is a node that dies in a real process).  A message
 that has no reply by contract (``consultant/announce``, an ``ltm/assert`` for no consultant's
 domain) is followed by one that must be answered or seen after it on the same topic, so the
@@ -75,6 +77,7 @@ TIME = 1.0  # the sim time the graph stands at while fuzzed
 SESSION = "<session>"  # stands for the id of a consultant session the fuzzer keeps open
 INCARNATION = 424242  # stands for the consultant's current incarnation (replaced when sent)
 REPLY_TIMEOUT = 5.0
+HEAL_TIMEOUT = 15.0  # at most this long for the graph to be ready again after a consultant's liveliness lapse
 LONG = 100_000  # characters in a "very long" string
 DEEP = 5_000  # nesting depth of a "deep" value
 HUGE = "1" + "0" * 400  # an integer no float can hold
@@ -436,24 +439,31 @@ class Fuzzer:
         return lapses > seen
 
     def healed(self) -> dict:
-        """Wait until every consultant is reachable and configured again (a lapse healed); the snapshot then."""
-        def ready() -> bool:
-            status = self.g.call(STATUS, {}, timeout=REPLY_TIMEOUT)
-            return status["ready"] is True and all(status["reachable"].values())
-        self.g.spin_until(ready, 2 * REPLY_TIMEOUT, what="the graph ready again after a liveliness lapse")
+        """Return a snapshot taken while the graph is ready, every consultant reachable and configured.
+
+        Waits (at most ``HEAL_TIMEOUT`` s) until the snapshot's own status shows it: a lapse
+        that heals is followed by a configure, and under load another lapse may begin while
+        a snapshot is taken, so the status is judged inside the snapshot compared.
+        """
+        taken: list[dict] = []
+
+        def steady() -> bool:
+            taken[:] = [self.snapshot()]
+            return _healthy(taken[0])
+        self.g.spin_until(steady, HEAL_TIMEOUT, what="the graph ready, every consultant reachable and configured")
         self.lapsed()
-        return self.snapshot()
+        return taken[0]
 
     def state_before(self) -> dict:
         """Return the snapshot before an input, with something in WM so that a change to it can be seen."""
-        if self.state is None:
-            self.state = self.snapshot()
+        if self.state is None or not _healthy(self.state):  # never compare with a snapshot taken in a lapse
+            self.state = self.healed()
         domain = self.domains[0]
         if not self.state[domain]["wm"]["queues"]:
             self.g.call(MANAGE.format(domain=domain),
                         {"op": "configure", "policy": {"policy": "decay", "decay_period": 10.0}, "time": TIME})
             self.g.call(DEBUG.format(domain=domain), self.seed_wm)
-            self.state = self.snapshot()
+            self.state = self.healed()
         return self.state
 
     # ------------------------------------------------------------------ sending
@@ -600,8 +610,15 @@ class Fuzzer:
             self.restart()
             return
         was, now = before, after
-        if after != before and self.lapsed():  # a lapse under load is no change of state: compare once healed
-            after = self.healed()
+        lapsed = self.lapsed()  # (always asked: a lapse is counted once, at the first check after it)
+        if after != before and (lapsed or not _healthy(after) or _reconfigured(after) == _reconfigured(before)):
+            # a lapse under load is no change of state: compare what matters once healed and configured
+            try:
+                after = self.healed()
+            except Timeout as err:  # never healed: the input left the graph unready
+                outcome.changed_by_rejected.append(f"{label} ({_diff(before, after)}; {err})")
+                self.state = None
+                return
             was, now = _reconfigured(before), _reconfigured(after)
         self.state = after
         if now != was:
@@ -620,14 +637,28 @@ class Fuzzer:
         return "\n".join(lines)
 
 
-def _reconfigured(state: dict) -> dict:
-    """``state`` without what the WM Manager's configure of a consultant back from a lapse changes by itself.
+#: The status fields a consultant's liveliness lapse and the configure after it change by themselves.
+LIVELINESS_FIELDS = ("ready", "configured", "reachable", "running")
 
-    Each domain's ``wm_version`` (a configure is a call that touches WM; its queues stay as
-    they were under the same policy, and are compared) and the status's ``running`` (the
-    consultant announces what it runs after a configure, over the fuzzer's own announcements).
+
+def _healthy(state: dict) -> bool:
+    """Whether a snapshot's status shows the graph ready, every consultant reachable and configured."""
+    status = state["status"]
+    return (status["ready"] is True and all(v is True for v in status["reachable"].values())
+            and all(v is True for v in status["configured"].values()))
+
+
+def _reconfigured(state: dict) -> dict:
+    """``state`` without what a consultant's liveliness lapse and the WM Manager's configure after it change.
+
+    The status's liveliness and configuration flags (``ready``, ``configured``,
+    ``reachable``), its ``running`` (the consultant announces what it runs after a
+    configure, over the fuzzer's own announcements), and each domain's ``wm_version`` (a
+    configure is a call that touches WM).  What matters is still compared: each domain's
+    WM queues (the same policy keeps them), LTM (``info``), and the status's configuration
+    values (``memory``, ``incarnation``, ...).
     """
-    return {key: {**value, "running": None} if key == "status"
+    return {key: {**value, **dict.fromkeys(LIVELINESS_FIELDS)} if key == "status"
             else {**value, "info": {**value["info"], "wm_version": None}} for key, value in state.items()}
 
 
