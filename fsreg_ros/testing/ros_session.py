@@ -47,7 +47,22 @@ class Timeout(AssertionError):
 
 
 class Inbox(list):
-    """Messages received on one topic (decoded JSON), in arrival order."""
+    """Messages received on one topic (decoded JSON), in arrival order.
+
+    A message that is not JSON (a fuzzer's, say, on a shared domain) is not raised out of
+    the spin: its text, clipped, goes to ``undecodable``.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.undecodable: list[str] = []
+
+    def take(self, text: str) -> None:
+        """Append the decoded ``text``, or note it in ``undecodable`` if it cannot be decoded."""
+        try:
+            self.append(json.loads(text))
+        except (ValueError, RecursionError):
+            self.undecodable.append(text[:200])
 
     def latest(self, **match: Any) -> Optional[dict]:
         """Return the last message whose fields equal ``match`` (None if none)."""
@@ -191,7 +206,7 @@ class RosSession:
     def listen(self, topic: str, qos=DEFAULT_QOS) -> Inbox:
         """Collect the JSON objects published on ``topic`` from now on."""
         inbox = Inbox()
-        self.probe.create_subscription(String, topic, lambda m: inbox.append(json.loads(m.data)), qos_profile(qos))
+        self.probe.create_subscription(String, topic, lambda m: inbox.take(m.data), qos_profile(qos))
         return inbox
 
     # ------------------------------------------------------------- sim time
