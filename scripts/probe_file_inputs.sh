@@ -65,7 +65,7 @@ for c in fifo zero deep bomb; do
   run "sim scenario $c" "$B/fsreg-sim" "$W/s.yaml"
   run "sim --lexicon $c" "$B/fsreg-sim" "$S" --lexicon "$W/s.yaml"
 done
-for h in '' 0 0.0.0.0 '::'; do
+for h in '' 0 0.0.0.0 '::'; do  # each must be refused (wildcard hosts)
   run "ctl view --host '$h'" "$B/fsreg-ctl" --namespace /fsreg_probe view --host "$h" --port 0 --timeout 1
 done
 long="$W/$(printf 'r%.0s' $(seq 300))"

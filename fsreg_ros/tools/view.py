@@ -8,9 +8,9 @@ Server-Sent Events (``/events``), so a change shows within one push (tens of
 milliseconds).  ``/snapshot`` is the same data as one JSON object, for scripts.
 
 The server binds 127.0.0.1 unless ``--host`` names another address: the page shows what
-people said to the robot.  An empty or wildcard host (``''``, ``0``, ``0.0.0.0``, ``::``),
-which would bind every interface, is refused unless the network is allowed deliberately
-(``FSREG_ALLOW_NETWORK=1``, as for DDS: :func:`check_host`).  It serves at most
+people said to the robot.  A host that would bind every interface is refused unless the
+network is allowed deliberately (``FSREG_ALLOW_NETWORK=1``, as for DDS: :func:`check_host`):
+refused are the empty and wildcard hosts ``''``, ``0``, ``0.0.0.0`` and ``::``.  It serves at most
 :data:`MAX_CONNECTIONS` connections at once (one thread each; one more is answered 503
 and closed) and closes a connection silent for :data:`IDLE_TIMEOUT` seconds (a request
 never finished, a page that stopped reading its stream).  A browser that leaves is not
