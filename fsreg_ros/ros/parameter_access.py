@@ -111,7 +111,8 @@ class ParameterAccess(Spinning):
         """
         timeout = self.timeout if timeout is None else timeout
         checked = {node: self._checked(node, values, timeout) for node, values in changes.items()}
-        before = {node: self.get_parameters(node, list(values), timeout) for node, values in changes.items()}
+        # what a later node's refusal would set back: every node but the last (one node: nothing to read)
+        before = {node: self.get_parameters(node, list(values), timeout) for node, values in list(changes.items())[:-1]}
         done: list[str] = []
         for node, messages in checked.items():
             try:
