@@ -4,7 +4,7 @@
         domains:=faces policy:=decay decay_period:=10.0 capacity:=2 namespace:=robot1
 
 Every memory setting is an argument (policy, decay_period, capacity, global_capacity,
-seed, shared_capacity: the settings table, ``fsreg_ros/core/settings.py``), defaulting
+seed, shared_capacity: the settings table, ``fsreg_ros/core/forgetting/settings.py``), defaulting
 to the WM Manager's own default (policy ``none``).
 
 The nodes and their parameters come from :func:`fsreg_ros.ros.graph_spec.node_specs`, the
@@ -25,14 +25,14 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fsreg_ros.contract import CLOCK, normalise_namespace
-from fsreg_ros.core import settings
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.forgetting import settings
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.ros.graph_spec import PACKAGE, node_specs, policy_settings, resolved
 
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM"),
     "domains": ("faces", "comma-separated consultant domains"),
-    # one argument per memory setting, with the WM Manager's default (core/settings.py)
+    # one argument per memory setting, with the WM Manager's default (core/forgetting/settings.py)
     **{row.name: (str(row.default), row.description) for row in settings.TABLE},
     "algorithm": ("auto", "auto, sd-pia, dist-pia, full-brevity or greedy"),
     "wm_order": ("lru-first", "lru-first, mru-first or preference"),

@@ -87,12 +87,12 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 sys.path.insert(0, str(REPO / "test" / "support"))
 
-from fsreg_ros.core.consultant import Consultant  # noqa: E402
-from fsreg_ros.core.local_port import LocalPort  # noqa: E402
-from fsreg_ros.core.port import run_sync  # noqa: E402
-from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
-from fsreg_ros.core.wm_manager import WMManager  # noqa: E402
-from fsreg_ros.core.generation import generate  # noqa: E402
+from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402
+from fsreg_ros.core.consultant.local_port import LocalPort  # noqa: E402
+from fsreg_ros.core.algorithms.port import run_sync  # noqa: E402
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy  # noqa: E402
+from fsreg_ros.core.forgetting.wm_manager import WMManager  # noqa: E402
+from fsreg_ros.core.algorithms.generation import generate  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 from fsreg_ros.research.stats import median_ratio_ci  # noqa: E402
 from naive_wm import NaiveWM  # noqa: E402
@@ -420,8 +420,8 @@ def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dic
     before column queues, and still works for a domain under ``memory.COLUMN_MIN``).
     The naive eager reference plays it too: every final state must be its.
     """
-    from fsreg_ros.core.bitset import from_indices
-    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory.bitset import from_indices
+    from fsreg_ros.core.memory.ticks import TickRun
 
     rng = random.Random(seed + n_entities)
     names = [f"e{i}" for i in range(n_entities)]

@@ -77,7 +77,7 @@ def main() -> int:
             recorder.wait(60)
         up.send_signal(signal.SIGINT)
         up.wait(60)
-    from fsreg_ros.core.recording import open_recording
+    from fsreg_ros.core.io.recording import open_recording
 
     held = len({m.data["id"] for m in open_recording(work / "bag").on("request")})
     print(f"describe, no recorder: median {statistics.median(plain):.2f} s ({args.runs} runs)")

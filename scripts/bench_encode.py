@@ -23,7 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fsreg_ros.core.forgetting import ForgettingPolicy  # noqa: E402
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 
 

@@ -58,12 +58,12 @@ from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
 use_loopback_environment("bench_graph.py")  # before rclpy loads
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.core.local_port import LocalPort  # noqa: E402
-from fsreg_ros.core.port import run_sync  # noqa: E402
-from fsreg_ros.core.generation import generate  # noqa: E402
-from fsreg_ros.core.resolution import resolve  # noqa: E402
+from fsreg_ros.core.consultant.local_port import LocalPort  # noqa: E402
+from fsreg_ros.core.algorithms.port import run_sync  # noqa: E402
+from fsreg_ros.core.algorithms.generation import generate  # noqa: E402
+from fsreg_ros.core.algorithms.resolution import resolve  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
-from fsreg_ros.core.simulation import Options, Simulation  # noqa: E402
+from fsreg_ros.core.simulation.simulator import Options, Simulation  # noqa: E402
 from fsreg_ros.ros.client_base import ClientError  # noqa: E402
 from fsreg_ros.tools.worlds import WorldShape, dump_world, random_world  # noqa: E402
 

@@ -33,7 +33,7 @@ use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.tools.sim import sim_main  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
-from fsreg_ros.core.yaml_source import ExactLoader, FastLoader  # noqa: E402
+from fsreg_ros.core.io.yaml_source import ExactLoader, FastLoader  # noqa: E402
 
 #: Attribute -> values of the random faces (one value per attribute per face).
 ATTRIBUTES = {

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark of the bag writer a recorder runs (:class:`fsreg_ros.core.recording.BagWriter`), no ROS.
+"""Benchmark of the bag writer a recorder runs (:class:`fsreg_ros.core.io.recording.BagWriter`), no ROS.
 
 A recording of every topic of a graph (``fsreg_ros.ros.recorder.channels``) written
 ``--segments`` one-second segments of ``--per-segment`` ``wm/events`` messages each (the
@@ -27,7 +27,7 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros import contract  # noqa: E402
-from fsreg_ros.core.recording import BagWriter, Channel, encode_string  # noqa: E402
+from fsreg_ros.core.io.recording import BagWriter, Channel, encode_string  # noqa: E402
 
 EVENT = {"op": "encode", "domain": "faces", "entity": "face1", "property": "male", "cause": "rr", "time": 1.0,
          "turn": 3, "seq": 5, "incarnation": 1, "graph": "fsreg-up-c4a0334b"}

@@ -48,7 +48,7 @@ from std_msgs.msg import String  # noqa: E402
 from fsreg_ros import contract  # noqa: E402
 from fsreg_ros.ros.carrier import publisher, qos_profile, to_msg  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
-from fsreg_ros.core.simulation import Options  # noqa: E402
+from fsreg_ros.core.simulation.simulator import Options  # noqa: E402
 
 
 NAMESPACE = "/bench_rss"

@@ -115,7 +115,7 @@ def split_fsreg(world: str) -> tuple[dict, str]:
     """Time ``fsreg-sim WORLD --json``'s steps in-process with the CLI's own functions; return (phases, text)."""
     start = time.perf_counter()
     from fsreg_ros.tools import sim as cli
-    from fsreg_ros.core.simulation import dumps
+    from fsreg_ros.core.simulation.simulator import dumps
 
     marks = [time.perf_counter()]
     args = cli.build_parser("fsreg-sim", "").parse_args([world, "--json"])
@@ -137,7 +137,7 @@ def node_tree_floor(world: str) -> float:
     pauses it: no loader reading the file through PyYAML can be faster than this,
     whatever it does after (the naive reference uses the same parser).
     """
-    from fsreg_ros.core.yaml_source import FastLoader, collector_paused, read_text
+    from fsreg_ros.core.io.yaml_source import FastLoader, collector_paused, read_text
 
     text = read_text(world)
     start = time.perf_counter()

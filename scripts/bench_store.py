@@ -2,7 +2,7 @@
 """Benchmark what persistence costs a consultant per dialogue turn, at 16 and 10,000 entities.
 
 One turn is what the graph's consultant does for a dialogue turn, through the core
-:class:`~fsreg_ros.core.service.ConsultantService` exactly as the node calls it (one
+:class:`~fsreg_ros.core.consultant.service.ConsultantService` exactly as the node calls it (one
 ``apply`` per service call, so one commit per call): a decay tick when one falls due
 (delta 10 s), then a human turn (RR: ``open`` with the first property, ``narrow`` per
 further property, ``close`` with the description, rules 1 and 2) or a robot turn (REG:
@@ -45,12 +45,12 @@ from venv_python import use_venv  # noqa: E402
 use_venv()  # run with .venv/bin/python, however started
 
 from fsreg_ros.contract.consultant_codec import apply  # noqa: E402
-from fsreg_ros.core.consultant import Consultant  # noqa: E402
-from fsreg_ros.core.generation import generate  # noqa: E402
-from fsreg_ros.core.port import Narrowed, View, Walked, run_sync  # noqa: E402
-from fsreg_ros.core.resolution import resolve  # noqa: E402
-from fsreg_ros.core.service import ConsultantService  # noqa: E402
-from fsreg_ros.core.store import DomainStore  # noqa: E402
+from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402
+from fsreg_ros.core.algorithms.generation import generate  # noqa: E402
+from fsreg_ros.core.algorithms.port import Narrowed, View, Walked, run_sync  # noqa: E402
+from fsreg_ros.core.algorithms.resolution import resolve  # noqa: E402
+from fsreg_ros.core.consultant.service import ConsultantService  # noqa: E402
+from fsreg_ros.core.state.store import DomainStore  # noqa: E402
 from fsreg_ros.tools.worlds import DOMAIN, WorldShape, random_world  # noqa: E402
 
 POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 3}

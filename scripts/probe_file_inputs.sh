@@ -13,7 +13,7 @@ W="$(mktemp -d "${TMPDIR:-/tmp}/fsreg-probe.XXXXXX")"
 trap 'rm -rf "$W"' EXIT
 "$B/python" - "$W/bag" "$S" <<'PY'
 import json, sys
-from fsreg_ros.core.recording import STRING, TOPICS_KEY, BagWriter, Channel
+from fsreg_ros.core.io.recording import STRING, TOPICS_KEY, BagWriter, Channel
 writer = BagWriter(sys.argv[1], [Channel("/r/rr/result", STRING, 10)], custom={TOPICS_KEY: json.dumps({"/r/rr/result": "rr"})})
 writer.attach("scenario", sys.argv[2])
 writer.close()

@@ -254,7 +254,7 @@ class Recording:
         Only then is the recorder matched with every writer the soak's answers come from
         (discovery is per pair of processes: the recorder can hear the sender before RR).
         """
-        from fsreg_ros.core.recording import RecordingError, open_recording
+        from fsreg_ros.core.io.recording import RecordingError, open_recording
 
         try:
             recording = open_recording(self.path)
@@ -518,8 +518,8 @@ def compare(base: RunResult, killed: RunResult) -> str:
 
 def recording_report(result: RunResult, path: Path) -> str:
     """Count every message of the recording against what was sent and answered (nothing may be dropped)."""
-    from fsreg_ros.core.recording import open_recording
-    from fsreg_ros.core.replay import ReplayError, check_events
+    from fsreg_ros.core.io.recording import open_recording
+    from fsreg_ros.core.simulation.replay import ReplayError, check_events
 
     recording = open_recording(path)
     lines = [f"== recording {path}: {len(recording.messages)} messages"

@@ -12,7 +12,7 @@ Three services per domain (``<domain>`` filled in):
 
 Every request is one of the models below, chosen by its ``op``; a reply is the op's
 reply model.  Semantics: docs/semantics.md sections 2-4 (encoding rules 1-3, RR, REG),
-:mod:`fsreg_ros.core.service` (sessions, readiness, persistence).  Encoding and decoding
+:mod:`fsreg_ros.core.consultant.service` (sessions, readiness, persistence).  Encoding and decoding
 them, for the consultant and its callers alike: :mod:`fsreg_ros.contract.consultant_codec`.
 """
 
@@ -149,7 +149,7 @@ class WalkRequest(Stamp):
 
     A step is taken when it holds for the target (always, without one) and leaves fewer
     members; a step whose ``group`` was taken already is skipped; nothing is asked once
-    no member is left (:class:`fsreg_ros.core.port.Walk`).  Each narrowing encodes as
+    no member is left (:class:`fsreg_ros.core.algorithms.port.Walk`).  Each narrowing encodes as
     ``narrow`` does (``cause``; null: no encoding).  One call for what would be one
     ``narrow`` per step.  A step naming an unknown property refuses the call, changing nothing.
     """

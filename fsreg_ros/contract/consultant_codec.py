@@ -12,11 +12,11 @@ those that list exactly the queues they changed (:data:`COUNTED_OPS`, replies wi
 This module turns the JSON objects of the wire into the core's typed calls and back:
 
 * the **consultant's side** (the node): :func:`apply` decodes one validated request,
-  runs it on a :class:`~fsreg_ros.core.service.ConsultantService` and encodes the reply
+  runs it on a :class:`~fsreg_ros.core.consultant.service.ConsultantService` and encodes the reply
   (an op's ``_serve_<op>`` below);
 * the **caller's side** (:class:`~fsreg_ros.ros.remote.RemotePort`): ``<op>_request``
   encodes a port call, and ``view_of``, ``narrowed_of``, ``walked_of``, ``rule_out_of``
-  and ``members_of`` decode the reply into the port's types (:mod:`fsreg_ros.core.port`),
+  and ``members_of`` decode the reply into the port's types (:mod:`fsreg_ros.core.algorithms.port`),
   raising :class:`ReplyError` for a reply the schema admits but that is unusable.
 
 Each op's encoders and decoders sit together, so a field is named in one place.  The
@@ -27,11 +27,11 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from ..core.decay import TickError, TickRun
-from ..core.forgetting import ForgettingPolicy
+from ..core.memory.ticks import TickError, TickRun
+from ..core.forgetting.policies import ForgettingPolicy
 from ..core.memory import ENCODE_CAUSES
-from ..core.port import Narrowed, Step, View, Walked, WalkStep
-from ..core.service import ConsultantService, Outcome, RequestError
+from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
+from ..core.consultant.service import ConsultantService, Outcome, RequestError
 from .codec import MessageError
 from .consultant import CONSULTANT_OPS, DEBUG_OPS, MANAGE_OPS, Versioned
 
@@ -52,7 +52,7 @@ class ReplyError(MessageError):
 # ======================================================================= the consultant's side
 def apply(service: ConsultantService, op: str, request: Mapping[str, Any], client: str = "",
           listening: bool = False) -> Outcome:
-    """Run one op of the consultant protocol on ``service``; return its :class:`~fsreg_ros.core.service.Outcome`.
+    """Run one op of the consultant protocol on ``service``; return its :class:`~.service.Outcome`.
 
     ``request`` holds the op's fields (types checked by the contract's models);
     ``client`` names the caller (sessions are counted per client); ``listening``
@@ -100,7 +100,7 @@ def _serve_info(s: ConsultantService, req: Mapping[str, Any], client: str) -> di
 # ----------------------------------------------------------------------- open
 def open_request(target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step],
                  client: str) -> dict:
-    """Encode :meth:`~fsreg_ros.core.port.ConsultantPort.open` for ``client``."""
+    """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.open` for ``client``."""
     payload: dict[str, Any] = {"op": "open", "client": client}
     if target is not None:
         payload["target"] = target
@@ -129,7 +129,7 @@ def _serve_open(s: ConsultantService, req: Mapping[str, Any], client: str) -> di
 
 
 def view_of(reply: Mapping[str, Any], first: bool) -> View:
-    """Decode an ``open`` reply (``first``: the request gave a first step) into a :class:`~fsreg_ros.core.port.View`."""
+    """Decode an ``open`` reply (``first``: the request gave a first step) into a :class:`~.port.View`."""
     holding = reply.get("holding")
     view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
                 frozenset(holding) if holding is not None else None,
@@ -143,7 +143,7 @@ def view_of(reply: Mapping[str, Any], first: bool) -> View:
 
 # ----------------------------------------------------------------------- narrow
 def narrow_request(session: str, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> dict:
-    """Encode :meth:`~fsreg_ros.core.port.ConsultantPort.narrow` of the view named ``session``."""
+    """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.narrow` of the view named ``session``."""
     return {"op": "narrow", "session": session, "property": prop, "cause": cause, "time": time, "turn": turn}
 
 
@@ -164,7 +164,7 @@ def narrowed_of(reply: Mapping[str, Any]) -> Narrowed:
 # ----------------------------------------------------------------------- walk
 def walk_request(session: str, steps: Sequence[WalkStep], cause: Optional[str], time: float,
                  turn: Optional[int]) -> dict:
-    """Encode :meth:`~fsreg_ros.core.port.ConsultantPort.walk` of the view named ``session``."""
+    """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.walk` of the view named ``session``."""
     return {"op": "walk", "session": session, "cause": cause, "time": time, "turn": turn,
             "steps": [{"property": s.prop} if s.group is None else {"property": s.prop, "group": s.group}
                       for s in steps]}
@@ -190,7 +190,7 @@ def walked_of(reply: Mapping[str, Any], steps: int) -> Walked:
 
 # ----------------------------------------------------------------------- rule_out
 def rule_out_request(session: str) -> dict:
-    """Encode :meth:`~fsreg_ros.core.port.ConsultantPort.rule_out` of the view named ``session``."""
+    """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.rule_out` of the view named ``session``."""
     return {"op": "rule_out", "session": session}
 
 
@@ -210,7 +210,7 @@ def rule_out_of(reply: Mapping[str, Any]) -> tuple[list[str], list[int]]:
 
 # ----------------------------------------------------------------------- close
 def close_request(session: str, encode: Sequence[str], time: float, turn: Optional[int]) -> dict:
-    """Encode :meth:`~fsreg_ros.core.port.ConsultantPort.close` of the view named ``session``."""
+    """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.close` of the view named ``session``."""
     payload: dict[str, Any] = {"op": "close", "session": session, "time": time, "turn": turn}
     if encode:
         payload["encode"] = list(encode)

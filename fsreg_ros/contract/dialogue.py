@@ -80,7 +80,7 @@ class RegExpression(Message):
     """``reg/expression``: the referring expression for one request.
 
     ``origins`` is parallel to ``description``: for a property taken from WM, what had made
-    it enter Q[target]; null for the others (alignment names it, core/alignment.py).
+    it enter Q[target]; null for the others (alignment names it, core/algorithms/alignment.py).
     """
 
     id: Id

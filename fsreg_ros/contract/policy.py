@@ -3,7 +3,7 @@
 ``PolicySettings`` is what the WM Manager sends in a consultant's ``configure`` request
 (``{"op": "configure", "policy": {...}}``) and what replies and the WM Manager's
 services report per domain: ``{"policy": "decay+displacement", "decay_period": 10.0,
-"capacity": 2}``.  One field per row of :data:`fsreg_ros.core.settings.TABLE` (so a new
+"capacity": 2}``.  One field per row of :data:`fsreg_ros.core.forgetting.settings.TABLE` (so a new
 memory setting appears here without an edit); unknown keys are refused; every value,
 and the whole policy (each rule has its parameters), is checked by the core's rules,
 so a model that validates is a policy the core accepts (:meth:`PolicySettings.to_policy`).
@@ -15,8 +15,8 @@ from typing import Any, Optional
 
 from pydantic import Field, create_model, model_validator
 
-from ..core import settings
-from ..core.forgetting import POLICY_PATTERN, ForgettingPolicy
+from ..core.forgetting import settings
+from ..core.forgetting.policies import POLICY_PATTERN, ForgettingPolicy
 from .base import Message
 
 

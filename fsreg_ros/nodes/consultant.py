@@ -4,7 +4,7 @@ One process per domain (``--ros-args -r __node:=consultant_faces -p domain:=face
 The node is wiring: it validates each request with the contract's models
 (:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it through the
 protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
-:class:`~fsreg_ros.core.service.ConsultantService` (which keeps sessions, policy,
+:class:`~fsreg_ros.core.consultant.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it:
 ``wm/events`` (numbered ``seq`` per incarnation, only while someone subscribes; a call's
 events go out right after its reply, so listening costs the caller nothing),
@@ -15,7 +15,7 @@ a session's steps wait for its ``close``), ``ltm/assert/result``, and its announ
 1 s liveliness lease, so RR and REG learn within a second that the process died).
 
 Facts on ``ltm/assert`` are drained and checked on the executor thread, stored by a
-:class:`~fsreg_ros.core.fact_writer.FactWriter` thread (one fsynced transaction for every
+:class:`~fsreg_ros.core.state.fact_writer.FactWriter` thread (one fsynced transaction for every
 batch waiting), then applied and answered back on the executor thread (a guard
 condition), so RR and REG are answered while the disk works; the services answer the
 requests waiting behind one ahead of the next round (``serve(drain=...)``).
@@ -46,12 +46,12 @@ from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..contract import consultant_codec
 from ..contract.codec import MessageError, printable
-from ..core.consultant import Consultant
+from ..core.consultant.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
-from ..core.fact_writer import FactWriter
-from ..core.service import ConsultantService, NotReady, Outcome, PreparedFacts, RequestError
-from ..core.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
-from ..core.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
+from ..core.state.fact_writer import FactWriter
+from ..core.consultant.service import ConsultantService, NotReady, Outcome, PreparedFacts, RequestError
+from ..core.state.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
+from ..core.consultant.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
 from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe_batches
 from ..ros.diagnostics import ERROR, OK, WARN
@@ -309,9 +309,9 @@ class ConsultantNode(Node):
         They were routed by ``accept``, validated and drained together by
         :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
         or a batch (``facts``); every fact of every message is one fact of one
-        :meth:`~fsreg_ros.core.service.ConsultantService.prepare_facts` (all-or-nothing per
+        :meth:`~fsreg_ros.core.consultant.service.ConsultantService.prepare_facts` (all-or-nothing per
         fact, checked against LTM as the batches already in flight leave it).  The
-        :class:`~fsreg_ros.core.fact_writer.FactWriter` stores it (with whatever else
+        :class:`~fsreg_ros.core.state.fact_writer.FactWriter` stores it (with whatever else
         waits, in one fsynced transaction) while this thread serves RR and REG;
         :meth:`_on_committed` then applies it and answers each message.
         """

@@ -15,7 +15,7 @@ For each turn at time T, in file order:
    repeated id from their cache, so nothing is encoded twice).
 
 The collected records are exactly those of ``fsreg-sim`` (see
-:mod:`fsreg_ros.core.simulation`), written as JSON to ``output`` or printed as a
+:mod:`fsreg_ros.core.simulation.simulator`), written as JSON to ``output`` or printed as a
 table.  Encode/forget events heard on ``wm/events`` go to ``trace`` (JSON lines).
 
 Completeness (issue 20): a consultant publishes ``wm/events`` only while its
@@ -51,7 +51,7 @@ from ..ros.client_base import describe_graph
 from ..ros.graph_clock import clock_message
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, Turn, load_scenario
-from ..core.simulation import dumps, human_record, robot_record, trace_order
+from ..core.simulation.simulator import dumps, human_record, robot_record, trace_order
 from ..ros.node_base import declare_number, run_node
 from ..ros.event_audit import EventAudit
 
@@ -304,7 +304,7 @@ def write_outputs(player: DialoguePlayer, result: dict) -> None:
         with open(output, "w", encoding="utf-8") as out:
             out.write(dumps(result))
     else:
-        from ..core.report import render_table
+        from ..core.simulation.report import render_table
 
         print(render_table(result), end="", flush=True)
     trace = player.get_parameter("trace").value

@@ -4,7 +4,7 @@ Subscribes ``dialogue/semantics`` (from the parser) and publishes ``rr/result``
 (schemas :class:`~fsreg_ros.contract.Semantics`, :class:`~fsreg_ros.contract.RRResult`;
 ``text`` and ``unknown_words`` are passed on when the utterance was text; the answer's
 ``request`` is the fingerprint of the utterance the parser read).  It runs the
-core's :func:`~fsreg_ros.core.resolution.resolve` against the consultants over
+core's :func:`~fsreg_ros.core.algorithms.resolution.resolve` against the consultants over
 the graph, so RR's affirmations are encoded in the consultants' WM (rule 2) and a
 resolved description is encoded for its referent (rule 1).  Errors (unknown
 property, domain not determined, a consultant not answering) are published as
@@ -18,7 +18,7 @@ from typing import Optional
 from .. import contract
 from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
 from ..contract.codec import printable
-from ..core.resolution import NO_MATCH, resolve
+from ..core.algorithms.resolution import NO_MATCH, resolve
 from ..ros.asking import AskingNode
 from ..ros.node_base import run_node
 

@@ -22,7 +22,7 @@ from rcl_interfaces.msg import SetParametersResult
 from .. import contract
 from ..ros.carrier import CarrierError, publish, publisher, reply_kind, subscribe
 from ..contract.codec import printable
-from ..core.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
+from ..core.algorithms.generation import ALGORITHMS, AUTO, WM_ORDERS, GenerationError, generate
 from ..core.lexicon import Lexicon
 from ..ros.asking import AskingNode
 from ..ros.node_base import descriptor, run_node

@@ -1,7 +1,7 @@
 """``wm_manager``: the ROS wrapper of the core WM Manager (docs/semantics.md sections 2 and 7).
 
 The buffers live in the consultant processes; what each domain forgets, and when,
-is decided by the core :class:`~fsreg_ros.core.wm_manager.WMManager` (policies,
+is decided by the core :class:`~fsreg_ros.core.forgetting.wm_manager.WMManager` (policies,
 decay schedules, the ticks owed to a consultant that was away).  This node only
 supplies its clock, timers, parameters and service transport: the manager's port
 sends each decision to ``/consultant/<domain>/manage``:
@@ -85,9 +85,9 @@ from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning,
                            subscribe_batches, wait_until)
 from ..contract import manage_service
 from ..contract.codec import printable
-from ..core.decay import TIME_EPSILON, TickError
-from ..core.forgetting import ForgettingPolicy
-from ..core.wm_manager import WMManager
+from ..core.memory.ticks import TIME_EPSILON, TickError
+from ..core.forgetting.policies import ForgettingPolicy
+from ..core.forgetting.wm_manager import WMManager
 from ..ros.diagnostics import OK, WARN
 from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort

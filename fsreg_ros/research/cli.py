@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
-from ..core.forgetting import PolicyError
-from ..core.generation import GenerationError
+from ..core.forgetting.policies import PolicyError
+from ..core.algorithms.generation import GenerationError
 from .execution import add_engine_arguments, engine_from_args
 from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
 from .listener import MAX_REPAIRS, ORDERS, PARTNERS, ListenerOptions
@@ -135,7 +135,7 @@ def write_per_trial(path: Path, results: list) -> None:
 
 def tangram_grids(entries: Sequence[str]) -> dict:
     """``["capacity=1,2,3"]`` -> ``{"capacity": (1, 2, 3)}``, each value checked against the settings table."""
-    from ..core import settings as table
+    from ..core.forgetting import settings as table
     from .tangrams import fitted_parameters, wm_models
 
     fitted = {p for model in wm_models() for p in fitted_parameters(model.name.split("+"))}
@@ -592,7 +592,7 @@ def read_trace(path: Path) -> list[dict]:
     Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
     are not events and are skipped; anything else must be an encode/forget event.
     """
-    from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+    from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
 
     events = []
     try:
@@ -628,7 +628,7 @@ def read_recording(path: Path) -> tuple[list[dict], dict]:
 
     A recording cut short is read as far as it goes, and what is lost is said on stderr.
     """
-    from ..core.recording import open_recording
+    from ..core.io.recording import open_recording
 
     recording = open_recording(path)
     if recording.lost:
@@ -656,7 +656,7 @@ def plot_command(args: argparse.Namespace) -> int:
     else:
         events = read_trace(args.trace)
     if args.result:
-        from ..core.input_file import InputFileError, read_text
+        from ..core.io.input_file import InputFileError, read_text
 
         try:
             result = json.loads(read_text(args.result))

@@ -10,12 +10,12 @@ then the robot describes a random entity.  Seconds between turns are drawn per g
 
 A game may be *dynamic*: facts change mid-game as perception would report them (a
 person takes off their glasses or changes clothes, an object is moved).  Each change
-is an LTM update through :meth:`~fsreg_ros.core.consultant.Consultant.assert_facts`,
+is an LTM update through :meth:`~fsreg_ros.core.consultant.consultant.Consultant.assert_facts`,
 the path the consultant node's ``ltm/assert`` topic takes; the human describes the
 world as it is at each turn.
 
 :func:`play` runs the game as a :class:`~fsreg_ros.core.scenario.Scenario` through
-:class:`~fsreg_ros.core.simulation.Simulation`, so the robot runs the real RR and
+:class:`~fsreg_ros.core.simulation.simulator.Simulation`, so the robot runs the real RR and
 REG (SD-PIA, or DIST-PIA under policy ``none``) under any forgetting policy, with
 the robot's WM told of LTM changes or not (``retract``) and REG verifying WM against
 LTM (the package's SD-PIA) or taking the target's WM as what it believes
@@ -32,17 +32,17 @@ from dataclasses import dataclass, field, replace
 from itertools import product
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core.alignment import AlignmentSummary, summarise
-from ..core.consultant import Consultant
-from ..core.describe import describe
-from ..core.generation import algorithm_for
+from ..core.algorithms.alignment import AlignmentSummary, summarise
+from ..core.consultant.consultant import Consultant
+from ..core.simulation.describe import describe
+from ..core.algorithms.generation import algorithm_for
 from ..core.lexicon import Lexicon
-from ..core.local_port import LocalPort
-from ..core.port import Narrowed, Step, View, run_sync
-from ..core.resolution import NO_MATCH, resolve
+from ..core.consultant.local_port import LocalPort
+from ..core.algorithms.port import Narrowed, Step, View, run_sync
+from ..core.algorithms.resolution import NO_MATCH, resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
-from ..core.simulation import Options, Simulation, human_record
-from ..core.wm_manager import WMManager
+from ..core.simulation.simulator import Options, Simulation, human_record
+from ..core.forgetting.wm_manager import WMManager
 from .listener import Listener, ListenerOptions, speak
 from .world import (  # noqa: F401 (ATTRIBUTES, OBJECTS, ROBOT_ORDER: the world's names stay importable from here)
     ATTRIBUTES, DOMAIN, DOMAIN_ATTRIBUTES, EXCLUSIVE, MUTABLE, OBJECTS, PROPERTY_ATTRIBUTE, ROBOT_ORDER, ROBOT_ORDERS,

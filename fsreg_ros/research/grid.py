@@ -5,7 +5,7 @@ outdated-rate bounds of the recommendation table.  A module of its own so that t
 plots need not import the sweep, nor the sweep the plots, at import time.
 """
 
-from ..core import settings
+from ..core.forgetting import settings
 
 #: The grid parameters, in column order (a policy reads some of them): the memory settings a
 #: rule needs, in the settings table's order (``seed``, which has a fallback, is drawn per game).

@@ -113,7 +113,7 @@ class Ledger:
     @classmethod
     def read(cls, directory: Path) -> "Ledger":
         """Read ``directory``'s games file (a torn last line is left out); LedgerError if there is none or it is bad."""
-        from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, read_bytes
+        from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, read_bytes
 
         path = directory / GAMES
         if not os.path.lexists(path):

@@ -2,7 +2,7 @@
 
 This module owns the listener agent of a generated game (:mod:`.games`): its own
 knowledge of the boards, how it resolves each robot description (with the core's
-reference resolution, :func:`fsreg_ros.core.resolution.resolve`, over a consultant
+reference resolution, :func:`fsreg_ros.core.algorithms.resolution.resolve`, over a consultant
 of its own), what it answers when a reference fails, and how the robot repairs it.
 It also owns the robot-robot mode, where a second fsreg agent (:class:`Listener`
 with a WM and a forgetting policy of its own) plays the human's role: it describes
@@ -49,14 +49,14 @@ import random
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core.consultant import Consultant
-from ..core.local_port import LocalPort
-from ..core.port import run_sync
-from ..core.describe import describe
-from ..core.generation import algorithm_for
-from ..core.resolution import AMBIGUOUS, NO_MATCH, RESOLVED, resolve
+from ..core.consultant.consultant import Consultant
+from ..core.consultant.local_port import LocalPort
+from ..core.algorithms.port import run_sync
+from ..core.simulation.describe import describe
+from ..core.algorithms.generation import algorithm_for
+from ..core.algorithms.resolution import AMBIGUOUS, NO_MATCH, RESOLVED, resolve
 from ..core.scenario import Scenario
-from ..core.wm_manager import WMManager
+from ..core.forgetting.wm_manager import WMManager
 from .world import DOMAIN_ATTRIBUTES, PROPERTY_ATTRIBUTE, ROBOT_ORDERS
 
 #: The listener's preference orders (what it says in robot-robot mode).

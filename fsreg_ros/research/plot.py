@@ -20,12 +20,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core import settings
+from ..core.forgetting import settings
 from .grid import BOUNDS, GRID
 from .stats import METHOD, bootstrap_ci
 
 #: One colour per cause; the turn lines use grey and black line styles no cause uses.  Encodings are
-#: named as the alignment table names origins (:data:`fsreg_ros.core.alignment.ORIGINS`).
+#: named as the alignment table names origins (:data:`fsreg_ros.core.algorithms.alignment.ORIGINS`).
 CAUSE_COLOURS = {
     "human-speech": "tab:blue",
     "robot-speech": "darkgoldenrod",
@@ -418,12 +418,12 @@ def named_segments(events: Sequence[Mapping[str, Any]], result: Optional[Mapping
     ``speaker`` becomes ``human-speech`` or ``robot-speech`` (the turn's speaker, from
     ``result``, else: a turn in which RR encoded anything is a human turn); an ``rr``
     entry of a property the human said of the turn's referent is ``human-speech``
-    (:func:`fsreg_ros.core.alignment.origin_name`): RR affirms the human's words for
+    (:func:`fsreg_ros.core.algorithms.alignment.origin_name`): RR affirms the human's words for
     every candidate before rule 1 encodes them for the referent, so the stay of the
     referent's property began with RR, but it is the human's own words.  ``rr`` is
     left for what RR affirmed of the other candidates.
     """
-    from ..core.alignment import origin_name
+    from ..core.algorithms.alignment import origin_name
 
     turns: dict[Any, dict] = {}
     if result is not None:

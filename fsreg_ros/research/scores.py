@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Collection
 
-from ..core.alignment import dice
+from ..core.algorithms.alignment import dice
 
 __all__ = ["dice", "masi", "mean"]  # dice is defined once, in the core (alignment)
 

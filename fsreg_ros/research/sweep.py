@@ -16,7 +16,7 @@ Metrics per game and setting (:data:`METRICS`; over the robot's turns):
 
 * ``entrainment`` (the headline): mean Dice of the robot's description with the
   human's most recent description of the same referent, over the turns whose
-  referent the human had described (:mod:`fsreg_ros.core.alignment`);
+  referent the human had described (:mod:`fsreg_ros.core.algorithms.alignment`);
   ``entrainment_gain``: minus the same game's under ``none``, paired by turn;
 * ``recall`` of the human's last description; ``share``: share of the robot's
   properties the human had used for the referent (pooled), ``share_gain``;
@@ -64,11 +64,11 @@ from itertools import product
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core.alignment import ORIGINS, entrainment_gain, length_matched
-from ..core.forgetting import RULE_PARAMETERS, parse_rules
-from ..core.input_file import InputFileError, read_text
+from ..core.algorithms.alignment import ORIGINS, entrainment_gain, length_matched
+from ..core.forgetting.policies import RULE_PARAMETERS, parse_rules
+from ..core.io.input_file import InputFileError, read_text
 from ..core.lexicon import Lexicon
-from ..core.settings import setting as memory_setting
+from ..core.forgetting.settings import setting as memory_setting
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
 from .grid import BOUNDS, GRID

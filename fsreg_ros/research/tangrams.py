@@ -10,8 +10,8 @@ never copies it (``fsreg-eval tangrams PATH``; :func:`evaluate` as a library cal
 
 **Replay.**  Every game is played through the core's own working memory: one
 :class:`~fsreg_ros.core.memory.WMBuffer` per game, managed by a
-:class:`~fsreg_ros.core.wm_manager.WMManager` under a
-:class:`~fsreg_ros.core.forgetting.ForgettingPolicy` (the same code the simulator and the
+:class:`~fsreg_ros.core.forgetting.wm_manager.WMManager` under a
+:class:`~fsreg_ros.core.forgetting.policies.ForgettingPolicy` (the same code the simulator and the
 node graph run; nothing here re-implements a rule).  Each content word type (after
 tokenisation, :class:`Tokeniser`) is a property of the message's tangram, an entity; the
 messages of both players are encoded in word order (a repeated word is a refresh); the
@@ -46,7 +46,7 @@ of the ratio (summed log-likelihood difference / candidates) (:func:`.stats.rati
 A rule's reported setting is the one chosen on all games; a chosen value at the edge of its
 grid (in any fold or overall) is flagged.
 
-**Models** come from the core's rule list (:data:`fsreg_ros.core.forgetting.RULES`) and its
+**Models** come from the core's rule list (:data:`fsreg_ros.core.forgetting.policies.RULES`) and its
 settings table, so a rule added there is fitted here without a change: each rule alone over a
 grid of the parameters it reads (:data:`GRIDS`; a parameter without one gets a grid from the
 table's bounds), ``decay+displacement`` (the paper's both) over their product, and the
@@ -66,11 +66,11 @@ from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from ..core import settings as table
-from ..core.forgetting import RULE_PARAMETERS, RULES, ForgettingPolicy
-from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+from ..core.forgetting import settings as table
+from ..core.forgetting.policies import RULE_PARAMETERS, RULES, ForgettingPolicy
+from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
 from ..core.memory import WMBuffer
-from ..core.wm_manager import WMManager
+from ..core.forgetting.wm_manager import WMManager
 from .stats import METHOD, RESAMPLES, SEED, Estimate, bootstrap_ci, ratio_bootstrap_ci
 
 #: The per-message file of the corpus (a PATH may be its directory or the file itself).

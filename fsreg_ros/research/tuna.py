@@ -2,7 +2,7 @@
 
 Each trial file holds a DOMAIN of seven ENTITYs (one target) with ATTRIBUTEs and
 the ATTRIBUTE-SET the participant used (the gold set).  A trial becomes a
-knowledge base (:func:`fsreg_ros.core.describe.knowledge_base`) whose properties
+knowledge base (:func:`fsreg_ros.core.simulation.describe.knowledge_base`) whose properties
 are ``attribute=value``; the algorithm describes the target with ``type`` forced
 (the head noun, as TUNA evaluations do) and the description is scored with Dice,
 MASI and accuracy (:mod:`fsreg_ros.research.scores`).
@@ -26,10 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence
 
-from ..core.consultant import Consultant
-from ..core.describe import describe, knowledge_base
-from ..core.generation import attribute_of
-from ..core.input_file import MAX_CORPUS_BYTES, InputFileError, read_text
+from ..core.consultant.consultant import Consultant
+from ..core.simulation.describe import describe, knowledge_base
+from ..core.algorithms.generation import attribute_of
+from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, read_text
 from .scores import dice, masi, mean
 
 DOMAINS = ("furniture", "people")

@@ -15,7 +15,7 @@ from rosgraph_msgs.msg import Clock
 
 from .. import contract
 from ..contract.codec import printable
-from ..core.decay import MAX_TIME
+from ..core.memory.ticks import MAX_TIME
 from .client_base import ClientError, Spinning
 from .readiness import GRAPH_NODES
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
-from ..core import settings
+from ..core.forgetting import settings
 
 #: The package whose executables the nodes are.
 PACKAGE = "fsreg_ros"
@@ -102,7 +102,7 @@ def player_spec(scenario: str, output: Optional[str] = None, trace: Optional[str
 
 
 def policy_settings(policy) -> dict:
-    """Return a :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` as :func:`node_specs` settings."""
+    """Return a :class:`~fsreg_ros.core.forgetting.policies.ForgettingPolicy` as :func:`node_specs` settings."""
     return {"policy": policy.name, **{row.name: policy.given(row.name) for row in settings.parameters()}}
 
 

@@ -1,6 +1,6 @@
 """The WM Manager's links to the consultants' manage services (``consultant/<domain>/manage``).
 
-:class:`ManagePort` is the core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort`
+:class:`ManagePort` is the core manager's :class:`~fsreg_ros.core.forgetting.wm_manager.MemoryPort`
 in the graph: each decision (``configure``, ``decay``, ``advance``, ``evict``) becomes a request,
 sent at once and tracked with a deadline by :class:`ManageLinks`, which also handles
 the replies: a configure acknowledged by the consultant's current incarnation marks the
@@ -21,9 +21,9 @@ from rclpy.task import Future
 
 from .carrier import CarrierError, ServiceCaller, log_error
 from ..contract import manage_service
-from ..core.decay import TickRun
-from ..core.forgetting import ForgettingPolicy
-from ..core.wm_manager import WMManager
+from ..core.memory.ticks import TickRun
+from ..core.forgetting.policies import ForgettingPolicy
+from ..core.forgetting.wm_manager import WMManager
 
 
 @dataclass
@@ -119,7 +119,7 @@ class ManageLinks:
 
 
 class ManagePort:
-    """The core manager's :class:`~fsreg_ros.core.wm_manager.MemoryPort` in the graph."""
+    """The core manager's :class:`~fsreg_ros.core.forgetting.wm_manager.MemoryPort` in the graph."""
 
     def __init__(self, links: ManageLinks) -> None:
         self.links = links

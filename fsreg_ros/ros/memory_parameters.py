@@ -1,6 +1,6 @@
 """The WM Manager's memory parameters: one per row of the settings table, node-wide and per domain.
 
-Generated from :mod:`fsreg_ros.core.settings`: ``<setting>`` (the table's default, its
+Generated from :mod:`fsreg_ros.core.forgetting.settings`: ``<setting>`` (the table's default, its
 bounds as the declared range, its help as the description) for every domain, and
 ``<domain>.<setting>`` for one domain, defaulting to the row's inherit marker (``""``, 0,
 or -1 for ``seed``: use the node-wide value).  A per-domain parameter declares no ROS
@@ -21,8 +21,8 @@ from typing import Any, Optional, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-from ..core import settings
-from ..core.forgetting import ForgettingPolicy, PolicyError, check_setting
+from ..core.forgetting import settings
+from ..core.forgetting.policies import ForgettingPolicy, PolicyError, check_setting
 
 #: The memory settings, each a node-wide parameter and one per domain.
 SETTINGS = settings.names()

@@ -35,7 +35,7 @@ import tempfile
 from pathlib import Path
 from typing import Optional
 
-from ..core.paths import config_path
+from ..core.io.paths import config_path
 
 #: Set to 1 to let DDS use the network (multi-machine deployment, docs/deployment.md).
 ALLOW_NETWORK = "FSREG_ALLOW_NETWORK"

@@ -4,7 +4,7 @@ The nodes declare their parameters when they start (``declare_number``, the sett
 table, the limits); what a runner must check *before* starting anything -- a
 ``fsreg-up --params-file`` -- cannot ask them.  :func:`node_parameters` lists each
 executable's parameters (name, type, bounds, choices, read-only, set by the runner), the
-memory settings generated from :mod:`fsreg_ros.core.settings` as the WM Manager declares
+memory settings generated from :mod:`fsreg_ros.core.forgetting.settings` as the WM Manager declares
 them; ``test/ros/test_node_parameters.py`` checks the list against what every node
 declares.  :func:`check_parameter` is the one check of a value for a node parameter
 (``fsreg-up --params-file``, ``fsreg-ctl set``).
@@ -26,8 +26,8 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Optional, Sequence, Union
 
 from ..contract.limits import LIMIT_RANGES
-from ..core import settings
-from ..core.generation import ALGORITHMS, WM_ORDERS
+from ..core.forgetting import settings
+from ..core.algorithms.generation import ALGORITHMS, WM_ORDERS
 
 Number = Union[int, float]
 #: Value types, as ``ros2 param describe`` names them.
@@ -182,7 +182,7 @@ def check_parameter(spec: ParamSpec, value: Any) -> Any:
         if spec.choices and value not in spec.choices:
             raise ParameterError(f"expected {spec.rule()}, got {got}")
         if spec.setting == "policy":  # '' only as a domain's inherit marker (returned above)
-            from ..core.forgetting import PolicyError, parse_rules
+            from ..core.forgetting.policies import PolicyError, parse_rules
 
             try:
                 parse_rules(value)
@@ -216,10 +216,10 @@ class FileEntry:
 def read_params_file(path: Path) -> list[FileEntry]:
     """Read a parameters file (the YAML ``ros2 param dump`` writes); ParameterError naming the file and place.
 
-    Read as every user's file is (:func:`fsreg_ros.core.yaml_source.read_yaml`): a regular
+    Read as every user's file is (:func:`fsreg_ros.core.io.yaml_source.read_yaml`): a regular
     file of at most :data:`PARAMS_MAX_BYTES`, YAML of bounded depth and aliases.
     """
-    from ..core.yaml_source import SourceError, read_yaml
+    from ..core.io.yaml_source import SourceError, read_yaml
 
     where = str(path)
     try:

@@ -7,7 +7,7 @@ RR results, REG requests and expressions, ``ltm/assert`` and its results, ``wm/s
 each with the contract's reader QoS made deeper (:data:`RECORD_DEPTH`: a recorder behind by
 a burst must not lose it), and writes each message's CDR bytes as they came off the wire (a
 *raw* subscription: nothing is decoded or re-encoded) with their DDS receive time (wall
-clock, ns), through :class:`fsreg_ros.core.recording.BagWriter`, which owns the format.
+clock, ns), through :class:`fsreg_ros.core.io.recording.BagWriter`, which owns the format.
 Nothing is called back per message: a thread of the recorder, at a lower priority than the
 graph (:data:`NICE`), drains the readers every :data:`POLL` seconds.  The namespace is the
 node's; the clock topic is ``/clock`` as the node resolves it (remapped into a namespaced
@@ -34,7 +34,7 @@ from std_msgs.msg import String
 
 from .. import contract
 from ..contract import QosSpec
-from ..core.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
+from ..core.io.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
 from .carrier import qos_profile
 from .recorders import SUFFIX
 
@@ -47,7 +47,7 @@ POLL = 0.05
 #: How much lower the recorder runs than the graph (added to the nice value of its thread, or of its whole
 #: process for ``fsreg-ctl record``): a recorder must not take the robot's CPU when both want it.
 NICE = 10
-#: The role each contract topic has in a recording (:data:`fsreg_ros.core.recording.ROLES`); ``/clock``: ``clock``.
+#: The role each contract topic has in a recording (:data:`fsreg_ros.core.io.recording.ROLES`); ``/clock``: ``clock``.
 ROLE_OF = {contract.HUMAN.name: "human", contract.SEMANTICS.name: "semantics", contract.RR_RESULT.name: "rr",
            contract.REG_REQUEST.name: "request", contract.REG_EXPRESSION.name: "expression",
            contract.WM_STATE.name: "state", contract.WM_EVENTS.name: "events", contract.ANNOUNCE.name: "announce",
@@ -91,7 +91,7 @@ class Recorder:
     ``custom``: ``custom_data`` entries (strings, ``fsreg.`` keys); ``attach``: files to copy
     into the recording (key -> path), e.g. the knowledge base a replay needs.  Call
     :meth:`close` once at the end (a recording that is never closed keeps its closed
-    segments: :mod:`fsreg_ros.core.recording`).
+    segments: :mod:`fsreg_ros.core.io.recording`).
 
     The readers live on a node of their own that no executor spins: DDS fills their
     histories (:data:`RECORD_DEPTH` deep) in its own threads, and one thread of this

@@ -1,4 +1,4 @@
-"""A :class:`~fsreg_ros.core.port.ConsultantPort` over a consultant node's service.
+"""A :class:`~fsreg_ros.core.algorithms.port.ConsultantPort` over a consultant node's service.
 
 RR and REG run the core algorithms unchanged; with a :class:`RemotePort` each port
 call (a :meth:`~RemotePort.walk` included: the consultant runs it) is one awaited JSON
@@ -9,8 +9,8 @@ only from a callback outside ``callback_group`` (give the port a reentrant group
 
 Errors: a request the consultant rejects because it names an unknown entity or
 property (or a session it no longer holds) raises
-:class:`~fsreg_ros.core.consultant.KnowledgeError`, as the in-process
-:class:`~fsreg_ros.core.local_port.LocalPort` would; everything else (timeouts, a
+:class:`~fsreg_ros.core.consultant.consultant.KnowledgeError`, as the in-process
+:class:`~fsreg_ros.core.consultant.local_port.LocalPort` would; everything else (timeouts, a
 malformed reply, other rejections, an outage) raises :class:`~fsreg_ros.ros.carrier.CarrierError`.
 
 Outages are detected, not waited out.  The port listens to the consultant's latched
@@ -58,8 +58,8 @@ from .. import contract
 from ..contract import consultant_codec as codec
 from .carrier import DEFAULT_TIMEOUT, CarrierError, ServiceCaller, drop_timer, subscribe, wait_until
 from ..contract.codec import MessageError
-from ..core.consultant import KnowledgeError
-from ..core.port import Narrowed, Step, View, Walked, WalkStep
+from ..core.consultant.consultant import KnowledgeError
+from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5

@@ -30,10 +30,10 @@ from typing import Any, Mapping, Optional, Sequence, Union
 
 from ..ros.client import ClientError, GraphClient
 from ..contract import normalise_namespace
-from ..core.forgetting import PARAMETERS
+from ..core.forgetting.policies import PARAMETERS
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
-from ..core.simulation import Options
+from ..core.simulation.simulator import Options
 from ..tools.graph import Graph, live_nodes, new_graph_id, unique_namespace
 from ..ros.diagnostics import Diagnostics
 from ..ros.network import ros_environment

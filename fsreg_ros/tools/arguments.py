@@ -15,7 +15,7 @@ import re
 from typing import Any, Callable, Optional, Sequence
 
 from ..contract.codec import printable
-from ..core import settings
+from ..core.forgetting import settings
 
 #: The tools' exit code for bad usage.
 EXIT_USAGE = 2

@@ -58,8 +58,8 @@ from typing import Any, Callable, Optional, Sequence
 from ..contract.codec import printable
 from ..contract import normalise_namespace
 from ..contract.naming import check_topic
-from ..core import settings
-from ..core.decay import MAX_TIME
+from ..core.forgetting import settings
+from ..core.memory.ticks import MAX_TIME
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
 from ..ros.diagnostics import PERIOD as DIAGNOSTICS_PERIOD, read_statuses, summary
 from .arguments import OneLineParser, number, undecodable
@@ -712,7 +712,7 @@ def _record_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_record(args: argparse.Namespace) -> None:
     """Refuse a ``record`` command line that cannot be recorded (one line, exit 2)."""
-    from ..core.recording import RecordingError, check_target
+    from ..core.io.recording import RecordingError, check_target
 
     try:
         check_target(args.directory)
@@ -731,7 +731,7 @@ def record(ctl: Ctl, client) -> int:
     import time
     from pathlib import Path
 
-    from ..core.recording import RecordingError
+    from ..core.io.recording import RecordingError
     from ..ros.client import ClientError
     from ..ros.recorder import Recorder, graph_knowledge, lower_priority
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
-from ..core.settings import setting as memory_setting
+from ..core.forgetting.settings import setting as memory_setting
 from ..research.grid import GRID
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -129,7 +129,7 @@ def divergence_blocks(figure: "Figure", output: Output) -> str:
 def origin_table(figure: "Figure", output: Output) -> str:
     """Of the properties the robot took from WM, the share each origin had put there, per setting (mean over games)."""
     assert output.directory is not None
-    from ..core.alignment import ORIGINS
+    from ..core.algorithms.alignment import ORIGINS
 
     sums: dict[str, list[list[float]]] = {}
     with (output.directory / "runs.csv").open(encoding="utf-8") as handle:

@@ -46,7 +46,7 @@ from ..contract import CLOCK, GRAPH_PARAMETER, clock_remap, normalise_namespace
 from ..ros.graph_spec import PACKAGE, NodeSpec, node_specs, player_spec, policy_settings, resolved
 from ..core.lexicon import Lexicon
 from ..core.scenario import Scenario, load_scenario
-from ..core.simulation import Options, effective_policies
+from ..core.simulation.simulator import Options, effective_policies
 from ..ros.network import require_loopback, ros_environment
 
 #: Seconds to wait for the player: start-up allowance plus an allowance per turn
@@ -357,7 +357,7 @@ def start_recorder(path: Path, namespace: str, identity: str, scenario_path: Pat
                    lexicon: Optional[Path]):
     """Start recording the run's graph to ``path`` (a node of its own, spun in a thread)."""
     os.environ.update(ros_environment())  # before rclpy loads
-    from ..core.recording import RecordingError
+    from ..core.io.recording import RecordingError
     from ..ros.recorder import RecorderThread
 
     custom = {"fsreg.graph": identity, "fsreg.namespace": namespace or "/",
@@ -371,8 +371,8 @@ def start_recorder(path: Path, namespace: str, identity: str, scenario_path: Pat
 
 def check_recording(path: Path, scenario: Scenario) -> None:
     """Raise GraphError unless the recording holds an answer to every turn and every WM event without a gap."""
-    from ..core.recording import open_recording
-    from ..core.replay import ReplayError, check_events
+    from ..core.io.recording import open_recording
+    from ..core.simulation.replay import ReplayError, check_events
 
     recording = open_recording(path)
     for speaker, role in (("human", "rr"), ("robot", "expression")):

@@ -22,7 +22,7 @@ import difflib
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from ..core import settings
+from ..core.forgetting import settings
 from ..ros.node_parameters import (RUNNER_SOURCES, ParameterError, check_parameter, matches, node_parameters,
                                    read_params_file)
 from .sim import UsageError

@@ -2,14 +2,14 @@
 
 Both take a scenario file (format: ``docs/scenario-format.md``) and the same
 options; ``--json`` prints the result object, otherwise a readable table
-(:mod:`fsreg_ros.core.report`).  ``--compare-policies`` runs the scenario once per
+(:mod:`fsreg_ros.core.simulation.report`).  ``--compare-policies`` runs the scenario once per
 policy and prints every turn side by side, and ``--expect FILE`` checks the robot's
 descriptions against expected ones (e.g. the paper's Table 1 in
 ``config/paper_table1.yaml``).  Command-line memory options are merged over the
 file's before the effective setting of each domain is checked.  Errors in the
 input are one line on stderr and exit code 2, never a traceback.
 
-Every run is measured for alignment (:func:`fsreg_ros.core.alignment.annotate`,
+Every run is measured for alignment (:func:`fsreg_ros.core.algorithms.alignment.annotate`,
 from the run's result records alone) against the same game under policy ``none``:
 the compared ``none`` run if there is one, the run itself under ``none``, else the
 core simulator under ``none``, played without a trace (for ``fsreg-graph`` too, so
@@ -25,17 +25,17 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
-from ..core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR, annotate, summarise
-from ..core.consultant import KnowledgeError
-from ..core import settings
-from ..core.forgetting import PolicyError, check_setting, parse_rules
-from ..core.generation import ALGORITHMS, WM_ORDERS, GenerationError
+from ..core.algorithms.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR, annotate, summarise
+from ..core.consultant.consultant import KnowledgeError
+from ..core.forgetting import settings
+from ..core.forgetting.policies import PolicyError, check_setting, parse_rules
+from ..core.algorithms.generation import ALGORITHMS, WM_ORDERS, GenerationError
 from ..core.lexicon import Lexicon
-from ..core.resolution import ResolutionError
+from ..core.algorithms.resolution import ResolutionError
 from ..core.scenario import coverage_warning, lexicon_template, load_scenario, unsayable
-from ..core.simulation import Options, Simulation, dumps
-from ..core.yaml_source import SourceError, find_line, read_yaml
-from ..core.report import render_comparison, render_table, run_label
+from ..core.simulation.simulator import Options, Simulation, dumps
+from ..core.io.yaml_source import SourceError, find_line, read_yaml
+from ..core.simulation.report import render_comparison, render_table, run_label
 
 EXIT_OK, EXIT_MISMATCH, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_FAILED = 1
@@ -320,8 +320,8 @@ def replay_main(argv: Sequence[str]) -> int:
     Exit 0 when every turn's answer and WM equal the live graph's, 1 on a difference, 2 when
     the recording cannot be read or replayed (one line naming the file and the problem).
     """
-    from ..core.recording import RecordingError, open_recording
-    from ..core.replay import ReplayError, render, replay, session_of
+    from ..core.io.recording import RecordingError, open_recording
+    from ..core.simulation.replay import ReplayError, render, replay, session_of
 
     parser = argparse.ArgumentParser(
         prog="fsreg-sim", description="Replay a recorded live session (fsreg-ctl record, fsreg-up --record) through "

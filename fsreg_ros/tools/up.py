@@ -56,11 +56,11 @@ from .sim import INPUT_ERRORS, UsageError, add_memory_options, one_line, options
 from ..contract import normalise_namespace
 from ..contract.naming import check_topic
 from ..contract.codec import printable
-from ..core.generation import ALGORITHMS, WM_ORDERS
+from ..core.algorithms.generation import ALGORITHMS, WM_ORDERS
 from ..core.lexicon import Lexicon
-from ..core.persistence import time_text
+from ..core.consultant.persistence import time_text
 from ..core.scenario import coverage_warning, load_scenario
-from ..core.simulation import effective_policies
+from ..core.simulation.simulator import effective_policies
 from .arguments import OneLineParser, number, undecodable
 from .graph import Graph, clock_arguments, live_nodes, new_graph_id
 from ..ros.network import NetworkRefused, enforce_loopback, require_loopback
@@ -199,7 +199,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"{PROG}: error: --view: the port must be between 0 and 65535, got {args.view}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.record is not None:
-        from ..core.recording import RecordingError, check_target
+        from ..core.io.recording import RecordingError, check_target
 
         try:
             check_target(args.record)
@@ -377,7 +377,7 @@ class Up:
 
     def _recorder(self, node):
         """Start recording every fsreg topic on ``node`` (:mod:`fsreg_ros.ros.recorder`), with what a replay needs."""
-        from ..core.recording import RecordingError
+        from ..core.io.recording import RecordingError
         from ..ros.recorder import Recorder
 
         custom = {"fsreg.graph": self.graph_id, "fsreg.namespace": self.namespace or "/",

@@ -23,7 +23,7 @@ import threading
 from collections import deque
 from typing import Any, Mapping, Optional
 
-from ..core.forgetting import RULE_PARAMETERS, ForgettingPolicy, PolicyError
+from ..core.forgetting.policies import RULE_PARAMETERS, ForgettingPolicy, PolicyError
 
 #: How many dialogue lines the view keeps (the oldest scroll off, and with them what the view knows of their ids).
 DIALOGUE_LINES = 200

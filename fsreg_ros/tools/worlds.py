@@ -23,7 +23,7 @@ from typing import Optional
 
 import yaml
 
-from ..core.forgetting import ForgettingPolicy, PolicyError
+from ..core.forgetting.policies import ForgettingPolicy, PolicyError
 
 DOMAIN = "things"
 

@@ -18,11 +18,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyactr.utilities import baselevel_learning
 
-from fsreg_ros.core.forgetting import ForgettingPolicy, PolicyError
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import WMBuffer, WMEvent
 from fsreg_ros.core.memory.activation import _LONGEST, HISTORY, NEVER, Trace, activation, crossing, lifetime
-from fsreg_ros.core.settings import MAX_ACTIVATION_DECAY, MAX_ACTIVATION_THRESHOLD, MIN_ACTIVATION_DECAY
-from fsreg_ros.core.wm_manager import WMManager
+from fsreg_ros.core.forgetting.settings import MAX_ACTIVATION_DECAY, MAX_ACTIVATION_THRESHOLD, MIN_ACTIVATION_DECAY
+from fsreg_ros.core.forgetting.wm_manager import WMManager
 
 
 def trace_of(times):
@@ -329,7 +329,7 @@ def test_a_late_encoding_counts_at_the_clock(columns):
     the late one: a negative age, a complex power).  ``columns``: the rule-3 path over
     column queues (no event sink), as a REG call over many distractors takes it.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     tau = 0.0
     buffer, manager, events = managed(policy(tau, rules="activation+displacement", capacity=3))
@@ -356,7 +356,7 @@ def test_rows_checked_at_a_clock_are_not_taken_for_rows_not_checked():
     checked at 2, so "b" goes before "d" comes in, and "a" stays (had "b" still been
     there, the full row would have lost "a" to "d").  As from dict queues.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f"]
     queues = []
@@ -385,7 +385,7 @@ def test_one_times_encodings_that_write_a_slot_again_note_what_the_dict_queues_d
     displaced) and g again; f gets g.  Items are (property, ..., trace) as a store keeps
     them: count, first time, kept times.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f"]
     got = []
@@ -412,7 +412,7 @@ def test_a_description_joins_the_batch_of_its_time_and_is_noted_as_a_dict_queue_
     a, b, c (a refreshed: two encodings; c displaces a) and f's a, a (three).  Items are
     (property, trace) as a store keeps them.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f"]
     got = []
@@ -436,7 +436,7 @@ def test_a_description_encoded_into_a_column_queue_first_forgets_what_crossed():
     its place (no displacement of b), and "a" into f comes in anew (one encoding, not a
     refresh).  Items are (property, trace) as a store keeps them.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f"]
     L = math.exp(2.0)
@@ -468,7 +468,7 @@ def test_column_queues_written_by_a_description_restart_from_their_export_as_dic
     restores them, f and e get c at 1 (the restored queues move into rows with their
     traces) and the clock passes L: b and f's a (one encoding each) go, e's a (two) stays.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f"]
     L = math.exp(2.0)
@@ -503,7 +503,7 @@ def test_rows_that_widen_restart_from_their_export_and_find_their_slots_again():
     refreshed where it is); at L + 0.75 b, c, d and h (one encoding each, at 0) are gone.  The
     slot map says where each row holds each property throughout; dict queues agree.
     """
-    from fsreg_ros.core import bitset
+    from fsreg_ros.core.memory import bitset
 
     names = ["e", "f", "g"]
     L = math.exp(2.0)
@@ -546,9 +546,9 @@ def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
     the histories: the restarted consultant forgets at the same crossing times."""
     from fsreg_ros.contract.consultant_codec import apply
-    from fsreg_ros.core.consultant import Consultant
-    from fsreg_ros.core.service import ConsultantService
-    from fsreg_ros.core.store import DomainStore, fingerprint
+    from fsreg_ros.core.consultant.consultant import Consultant
+    from fsreg_ros.core.consultant.service import ConsultantService
+    from fsreg_ros.core.state.store import DomainStore, fingerprint
 
     pref = ["male", "glasses", "hat"]
     facts = {"f1": {"male": 1.0, "glasses": 1.0, "hat": 1.0}, "f2": {"glasses": 1.0}}

@@ -1,19 +1,12 @@
-"""Alignment measured on played games (core/alignment.py), from the result records alone."""
+"""Alignment measured on played games (core/algorithms/alignment.py), from the result records alone."""
 
 import pytest
 
-from fsreg_ros.core.alignment import (
-    dice,
-    entrainment_gain,
-    explain,
-    gain,
-    length_matched,
-    origin_name,
-    summarise,
-    turn_alignment,
+from fsreg_ros.core.algorithms.alignment import (
+    dice, entrainment_gain, explain, gain, length_matched, origin_name, summarise, turn_alignment,
 )
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, Simulation
+from fsreg_ros.core.simulation.simulator import Options, Simulation
 from fsreg_ros.research.games import make_game, play, scenario_of
 
 

@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from fsreg_ros.core.consultant import AssertResult, Consultant, KnowledgeError
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.port import Narrowed, run_sync
-from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core.wm_manager import WMManager
+from fsreg_ros.core.consultant.consultant import AssertResult, Consultant, KnowledgeError
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.algorithms.port import Narrowed, run_sync
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+from fsreg_ros.core.forgetting.wm_manager import WMManager
 
 PREF = ["light-hair", "male", "glasses", "female", "hoodie"]
 
@@ -259,7 +259,7 @@ def test_run_sync_refuses_a_coroutine_that_really_waits():
 
 
 def test_raising_the_threshold_retracts_from_wm():
-    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.consultant.consultant import Consultant
 
     events = []
     c = Consultant("d", {"e1": {"a": 0.6, "b": 0.9}, "e2": {"a": 0.9}}, ["a", "b"], threshold=0.5, sink=events.append)

@@ -13,17 +13,17 @@ from dataclasses import dataclass
 import pytest
 
 from fsreg_ros.contract.consultant_codec import apply
-from fsreg_ros.core import journal
-from fsreg_ros.core.consultant import Consultant, KnowledgeError
-from fsreg_ros.core.forgetting import PolicyError
-from fsreg_ros.core.generation import generate
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.persistence import CHECKPOINT_RECORDS
-from fsreg_ros.core.port import Walked, WalkStep, run_sync, walk_by_narrowing
-from fsreg_ros.core.fact_writer import FactWriter
-from fsreg_ros.core.service import ConsultantService, NotReady, PreparedFacts, RequestError
-from fsreg_ros.core.store import DomainStore, StateDamaged, StoreError, fingerprint
-from fsreg_ros.core.views import SessionError, ViewTable
+from fsreg_ros.core.state import journal
+from fsreg_ros.core.consultant.consultant import Consultant, KnowledgeError
+from fsreg_ros.core.forgetting.policies import PolicyError
+from fsreg_ros.core.algorithms.generation import generate
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.consultant.persistence import CHECKPOINT_RECORDS
+from fsreg_ros.core.algorithms.port import Walked, WalkStep, run_sync, walk_by_narrowing
+from fsreg_ros.core.state.fact_writer import FactWriter
+from fsreg_ros.core.consultant.service import ConsultantService, NotReady, PreparedFacts, RequestError
+from fsreg_ros.core.state.store import DomainStore, StateDamaged, StoreError, fingerprint
+from fsreg_ros.core.consultant.views import SessionError, ViewTable
 
 PREF = ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"]
 ENTITIES = {
@@ -350,7 +350,7 @@ def test_rows_naming_what_the_kb_does_not_hold_are_refused_at_restore(tmp_path):
 
 
 def journal_batch(record):
-    from fsreg_ros.core.store import Batch
+    from fsreg_ros.core.state.store import Batch
 
     return Batch(records=[record])
 

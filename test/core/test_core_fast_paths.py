@@ -17,9 +17,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fsreg_ros.core import bitset
-from fsreg_ros.core.consultant import Consultant, KnowledgeError, check_certainty
-from fsreg_ros.core.simulation import dumps
+from fsreg_ros.core.memory import bitset
+from fsreg_ros.core.consultant.consultant import Consultant, KnowledgeError, check_certainty
+from fsreg_ros.core.simulation.simulator import dumps
 
 # ------------------------------------------------------------------ dumps
 LEAVES = st.none() | st.booleans() | st.integers() | st.floats() | st.text()
@@ -215,7 +215,7 @@ def test_column_queues_decay_evict_and_clear_as_dict_queues(capacity, ops):
     its column rows' own entity list (the fast path), ``other`` in an equal copy.  Events
     (in order), queues, origins, sizes and the change record (in order) must be equal.
     """
-    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory.ticks import TickRun
     from fsreg_ros.core.memory import WMBuffer
 
     heard_events: list = []
@@ -344,7 +344,7 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
 
 def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
     """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing."""
-    from fsreg_ros.core.decay import TickRun
+    from fsreg_ros.core.memory.ticks import TickRun
     from fsreg_ros.core.memory import Limits, activation
 
     buffers = (plain, heard, quiet)

@@ -1,4 +1,4 @@
-"""Decay time (core/decay.py): the schedule, tick runs and the lazy-decay ledger."""
+"""Decay time (core/memory/ticks.py): the schedule, tick runs and the lazy-decay ledger."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from fsreg_ros.core.decay import MAX_TIME, TIME_EPSILON, DecaySchedule, TickError, TickLedger, TickRun
+from fsreg_ros.core.memory.ticks import MAX_TIME, TIME_EPSILON, DecaySchedule, TickError, TickLedger, TickRun
 
 
 def times(run):
@@ -110,6 +110,6 @@ def test_ledger_memory_grows_with_schedule_changes_not_ticks():
 
 
 def test_bounds_keep_tick_indices_exact():
-    from fsreg_ros.core.forgetting import MIN_DECAY_PERIOD
+    from fsreg_ros.core.forgetting.policies import MIN_DECAY_PERIOD
 
     assert MAX_TIME / MIN_DECAY_PERIOD < 2**53  # k * delta computed from an exact k

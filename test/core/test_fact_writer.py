@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import pytest
 
-from fsreg_ros.core.fact_writer import FactWriter
-from fsreg_ros.core.store import StoreError
+from fsreg_ros.core.state.fact_writer import FactWriter
+from fsreg_ros.core.state.store import StoreError
 
 
 @dataclass

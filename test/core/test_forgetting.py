@@ -6,18 +6,12 @@ import math
 
 import pytest
 
-from fsreg_ros.core.consultant import Consultant
-from fsreg_ros.core.forgetting import (
-    BOUNDS,
-    NONE,
-    ForgettingPolicy,
-    PolicyError,
-    check_parameter,
-    merge_settings,
-    parse_rules,
+from fsreg_ros.core.consultant.consultant import Consultant
+from fsreg_ros.core.forgetting.policies import (
+    BOUNDS, NONE, ForgettingPolicy, PolicyError, check_parameter, merge_settings, parse_rules,
 )
 from fsreg_ros.core.memory import WMBuffer
-from fsreg_ros.core.wm_manager import WMManager
+from fsreg_ros.core.forgetting.wm_manager import WMManager
 
 
 def keys(events):

@@ -9,22 +9,15 @@ from typing import Optional
 import pytest
 import yaml
 
-from fsreg_ros.core.consultant import Consultant
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.port import run_sync
-from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core.wm_manager import WMManager
-from fsreg_ros.core.generation import (
-    ALGORITHMS,
-    Expression,
-    GenerationError,
-    dist_pia,
-    full_brevity,
-    generate,
-    greedy,
-    sd_pia,
+from fsreg_ros.core.consultant.consultant import Consultant
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.algorithms.port import run_sync
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+from fsreg_ros.core.forgetting.wm_manager import WMManager
+from fsreg_ros.core.algorithms.generation import (
+    ALGORITHMS, Expression, GenerationError, dist_pia, full_brevity, generate, greedy, sd_pia,
 )
-from fsreg_ros.core.resolution import RESOLVED, resolve
+from fsreg_ros.core.algorithms.resolution import RESOLVED, resolve
 
 
 def keys(events):

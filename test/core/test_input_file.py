@@ -17,12 +17,13 @@ from typing import Callable
 
 import pytest
 
-from fsreg_ros.core import input_file
+from fsreg_ros.core.io import input_file
 from fsreg_ros.core.lexicon import Lexicon
-from fsreg_ros.core.recording import (MAX_BAG_BYTES, METADATA_MAX_BYTES, STRING, TOPICS_KEY, BagWriter, Channel,
-                                      open_recording)
+from fsreg_ros.core.io.recording import (
+    MAX_BAG_BYTES, METADATA_MAX_BYTES, STRING, TOPICS_KEY, BagWriter, Channel, open_recording,
+)
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.yaml_source import MAX_FILE_BYTES
+from fsreg_ros.core.io.yaml_source import MAX_FILE_BYTES
 from fsreg_ros.research.cli import read_trace
 from fsreg_ros.research.tangrams import load_games
 from fsreg_ros.research.tuna import load_trials
@@ -141,7 +142,7 @@ def test_a_trace_line_nested_too_deeply_is_one_line(tmp_path):
 
 def test_ordinary_yaml_is_parsed_once_and_a_deep_one_is_refused_before_any_tree():
     """A text that cannot be too deep or hold aliases skips the event pass; a 200,000-deep one does not crash."""
-    from fsreg_ros.core.yaml_source import SourceError, load_yaml
+    from fsreg_ros.core.io.yaml_source import SourceError, load_yaml
 
     assert load_yaml("a: [1, {b: c}]\n", "f.yaml")[1] == {"a": [1, {"b": "c"}]}
     with pytest.raises(SourceError) as err:

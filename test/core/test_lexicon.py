@@ -13,7 +13,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fsreg_ros.core.paths import config_path
+from fsreg_ros.core.io.paths import config_path
 from fsreg_ros.core.lexicon import Lexicon, LexiconError, ParseResult, tokenize
 
 REPO = Path(__file__).resolve().parents[2]

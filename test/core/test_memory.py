@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.memory import changes
-from fsreg_ros.core.decay import TickRun
+from fsreg_ros.core.memory.ticks import TickRun
 from fsreg_ros.core.memory import (
     ENCODE_CAUSES, FORGET_CAUSES, UNKNOWN_ORIGIN, UNLIMITED, QueueItem, WMBuffer, WMEvent,
 )
@@ -448,8 +448,8 @@ def test_origin_log_stays_bounded_over_many_turns():
 
 
 def test_view_origins_parallel_to_the_queue():
-    from fsreg_ros.core.consultant import Consultant
-    from fsreg_ros.core.views import open_view
+    from fsreg_ros.core.consultant.consultant import Consultant
+    from fsreg_ros.core.consultant.views import open_view
 
     consultant = Consultant("d", {"x": {"a": 1.0, "b": 1.0}, "y": {"a": 1.0}}, ["a", "b"])
     consultant.encode("x", ["b"], "speaker", 0.0, 0)

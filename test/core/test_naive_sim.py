@@ -22,9 +22,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from naive_sim import dumps_naive, load_naive, run_command, simulate_naive
 
-from fsreg_ros.core.generation import WM_ORDERS
+from fsreg_ros.core.algorithms.generation import WM_ORDERS
 from fsreg_ros.core.scenario import load_scenario, parse_scenario
-from fsreg_ros.core.simulation import Options, simulate
+from fsreg_ros.core.simulation.simulator import Options, simulate
 from fsreg_ros.tools.worlds import DOMAIN, WorldShape, dump_world, random_world
 
 COMPARED = (

@@ -10,14 +10,14 @@ from collections import Counter
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fsreg_ros.core import bitset
-from fsreg_ros.core.decay import TickRun
-from fsreg_ros.core.consultant import Consultant
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.port import WalkStep, run_sync, walk_by_narrowing
-from fsreg_ros.core.forgetting import DISPLACEMENT, RULES, ForgettingPolicy
-from fsreg_ros.core.wm_manager import WMManager
-from fsreg_ros.core.generation import ALGORITHMS, WM_ORDERS, generate
+from fsreg_ros.core.memory import bitset
+from fsreg_ros.core.memory.ticks import TickRun
+from fsreg_ros.core.consultant.consultant import Consultant
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.algorithms.port import WalkStep, run_sync, walk_by_narrowing
+from fsreg_ros.core.forgetting.policies import DISPLACEMENT, RULES, ForgettingPolicy
+from fsreg_ros.core.forgetting.wm_manager import WMManager
+from fsreg_ros.core.algorithms.generation import ALGORITHMS, WM_ORDERS, generate
 from fsreg_ros.core.memory import WMBuffer, activation
 
 from naive_wm import NaiveClock, NaiveWM, event_key  # test/support is on sys.path (conftest)

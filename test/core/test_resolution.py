@@ -4,19 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from fsreg_ros.core.consultant import Consultant
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.port import run_sync
-from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core.wm_manager import WMManager
-from fsreg_ros.core.resolution import (
-    AMBIGUOUS,
-    NO_MATCH,
-    RESOLVED,
-    Resolution,
-    ResolutionError,
-    resolve,
-)
+from fsreg_ros.core.consultant.consultant import Consultant
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.algorithms.port import run_sync
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+from fsreg_ros.core.forgetting.wm_manager import WMManager
+from fsreg_ros.core.algorithms.resolution import AMBIGUOUS, NO_MATCH, RESOLVED, Resolution, ResolutionError, resolve
 
 FACES = {
     "f1": {"light-hair": 1.0, "male": 1.0, "glasses": 1.0},

@@ -13,7 +13,7 @@ from typing import Collection
 
 import pytest
 
-from fsreg_ros.core.forgetting import NONE, ForgettingPolicy
+from fsreg_ros.core.forgetting.policies import NONE, ForgettingPolicy
 from fsreg_ros.core.scenario import (
     COMMAND_LINE,
     Scenario,

@@ -1,4 +1,4 @@
-"""The memory settings table (``core/settings.py``) against every consumer.
+"""The memory settings table (``core/forgetting/settings.py``) against every consumer.
 
 Each memory setting is declared once, in the table; the scenario schema, the command
 line, the ``wm_manager`` node's parameters, the graph definition, the launch file, the
@@ -19,8 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.core import settings
-from fsreg_ros.core.forgetting import BOUNDS, DEFAULTS, PARAMETERS, RULE_PARAMETERS, RULES, SETTINGS, PolicyError
+from fsreg_ros.core.forgetting import settings
+from fsreg_ros.core.forgetting.policies import (
+    BOUNDS, DEFAULTS, PARAMETERS, RULE_PARAMETERS, RULES, SETTINGS, PolicyError,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -109,7 +111,7 @@ def test_the_node_parameter_descriptors_are_the_table():
 
 
 def test_the_graph_and_the_launch_file_pass_every_setting(monkeypatch):
-    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.core.forgetting.policies import ForgettingPolicy
     from fsreg_ros.ros.graph_spec import node_specs, policy_settings
 
     every = ForgettingPolicy.from_settings({row.name: row.default for row in settings.TABLE})
@@ -164,14 +166,14 @@ def test_the_docs_table_is_the_table():
 # every consumer is built from the extended table, as it would be from an edited one.
 NEW_SETTING = r'''
 import json, sys, types
-from fsreg_ros.core import settings
+from fsreg_ros.core.forgetting import settings
 settings.TABLE = settings.TABLE + (settings.Setting(
     "patience", int, 5, 0, "similarity: how many encodings an attribute's rival survives", 1, 9,
     rules=("similarity",), fallback=3),)
 
 from fsreg_ros.tools.sim import build_parser, options_from_args
 from fsreg_ros.contract import PolicySettings
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.scenario.schema import scenario_json_schema
 from fsreg_ros.ros.graph_spec import node_specs, policy_settings

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from fsreg_ros.tools.sim import sim_main
-from fsreg_ros.core.alignment import BASELINE_SIMULATOR, annotate, summarise
+from fsreg_ros.core.algorithms.alignment import BASELINE_SIMULATOR, annotate, summarise
 from fsreg_ros.core.scenario import load_scenario, parse_scenario
-from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
+from fsreg_ros.core.simulation.simulator import Options, Simulation, dumps, simulate
 
 POLICIES = ("decay", "displacement", "none")
 REPO = Path(__file__).resolve().parents[2]
@@ -366,7 +366,7 @@ def test_cli_lexicon_extends_the_built_in_one(tmp_path, capsys):
 @pytest.mark.parametrize("kind", ["nul", "utf8", "directory", "huge"])
 @pytest.mark.parametrize("role", ["scenario", "--expect", "--lexicon"])
 def test_cli_bad_files_are_one_line_exit_2(table1_path, tmp_path, capsys, monkeypatch, kind, role):
-    from fsreg_ros.core import yaml_source
+    from fsreg_ros.core.io import yaml_source
 
     path = tmp_path / "bad.yaml"
     if kind == "nul":

@@ -1,4 +1,4 @@
-"""The consultant's state database (core.store): durability, locking, integrity, upgrade; export/restore; ticks once."""
+"""The consultant's state database: durability, locking, integrity, upgrade; export/restore; ticks once."""
 
 from __future__ import annotations
 
@@ -12,23 +12,14 @@ import sys
 
 import pytest
 
-from fsreg_ros.core.decay import TickRun
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.memory.ticks import TickRun
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.memory import WMBuffer
-from fsreg_ros.core.store import (
-    SCHEMA_VERSION,
-    Batch,
-    Checkpoint,
-    DomainStore,
-    StateDamaged,
-    StateInUse,
-    StoreError,
-    default_state_dir,
-    fingerprint,
-    legacy_state_path,
-    state_path,
+from fsreg_ros.core.state.store import (
+    SCHEMA_VERSION, Batch, Checkpoint, DomainStore, StateDamaged, StateInUse, StoreError, default_state_dir,
+    fingerprint, legacy_state_path, state_path,
 )
-from fsreg_ros.core.wm_manager import WMManager, unapplied
+from fsreg_ros.core.forgetting.wm_manager import WMManager, unapplied
 
 KB = fingerprint(["a", "b", "c"], {"e1": {"a": 1.0}, "e2": {"b": 1.0}}, 0.5, {})
 TICK = {"origin": 0.0, "period": 10.0, "first": 3, "count": 1}
@@ -133,7 +124,7 @@ def test_a_second_live_opener_is_refused_naming_the_file_and_the_holders_pid(tmp
 def test_a_holder_in_another_process_is_named_by_the_kernel_not_by_the_pid_in_the_lock_file(tmp_path):
     path = store(tmp_path).path
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\nfrom fsreg_ros.core.store import DomainStore\n"
+        [sys.executable, "-c", "import sys, time\nfrom fsreg_ros.core.state.store import DomainStore\n"
          f"s = DomainStore({str(path)!r}, {KB!r}); s.open(); print('open', flush=True); time.sleep(60)"],
         stdout=subprocess.PIPE, text=True)
     try:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from fsreg_ros.core import bitset
-from fsreg_ros.core.views import SessionError, ViewTable
+from fsreg_ros.core.memory import bitset
+from fsreg_ros.core.consultant.views import SessionError, ViewTable
 
 
 def test_sessions_open_use_close_and_refuse_unknown_ids():

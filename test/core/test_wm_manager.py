@@ -1,13 +1,13 @@
-"""The core WM Manager (core/wm_manager.py): what it sends through its port, attach/detach."""
+"""The core WM Manager (core/forgetting/wm_manager.py): what it sends through its port, attach/detach."""
 
 from __future__ import annotations
 
 import pytest
 
-from fsreg_ros.core.decay import TickError, TickRun
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.memory.ticks import TickError, TickRun
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.memory import WMBuffer
-from fsreg_ros.core.wm_manager import SYNC_AHEAD, WMManager, configure_buffer
+from fsreg_ros.core.forgetting.wm_manager import SYNC_AHEAD, WMManager, configure_buffer
 
 
 class RecordingPort:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fsreg_ros.core.yaml_source import SourceError, collector_paused, load_yaml
+from fsreg_ros.core.io.yaml_source import SourceError, collector_paused, load_yaml
 
 DOCUMENTS = [
     "a: 1\nb: [x, 'y', 2.5, true, null, ~, 0x1F, 1_000, .inf, -.nan]\n",
@@ -81,7 +81,7 @@ def test_the_collector_is_restored():
 @pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
 def test_a_path_that_is_not_a_regular_file_is_one_error_and_never_blocks(tmp_path, kind):
     """A named pipe nobody writes to would block a plain open() forever (issue 19, item 3)."""
-    from fsreg_ros.core.yaml_source import read_yaml
+    from fsreg_ros.core.io.yaml_source import read_yaml
 
     path = {"fifo": tmp_path / "pipe.yaml", "device": "/dev/zero", "directory": tmp_path}[kind]
     if kind == "fifo":

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fsreg_ros.core import settings
+from fsreg_ros.core.forgetting import settings
 from fsreg_ros.ros.memory_parameters import check_change
 from fsreg_ros.ros.node_parameters import check_parameter, node_parameters
 

@@ -3,13 +3,13 @@
 Every backticked name in the table's "where" column is checked:
 
 * a path (it holds a ``/``) exists under ``fsreg_ros/`` or the repository root
-  (``core/port.py``, ``core/lexicon/``, ``launch/fsreg.launch.py``); a ROS message type
+  (``core/algorithms/port.py``, ``core/lexicon/``, ``launch/fsreg.launch.py``); a ROS message type
   (``std_msgs/String``) is left alone;
 * ``Name.member`` names a class with that member (a method, property or field), or a
   module (``memory.COLUMN_MIN``) or package (``contract.PolicySettings``) defining it;
 * a bare name is a class, function or constant defined in some module of the package,
   a method of some class, or a module's name; a forgetting rule's name
-  (``shared-capacity``) is one of :data:`fsreg_ros.core.forgetting.RULES`.
+  (``shared-capacity``) is one of :data:`fsreg_ros.core.forgetting.policies.RULES`.
 
 The definitions are read from the source (ast), so nothing is imported.
 """
@@ -21,7 +21,7 @@ import re
 from collections import defaultdict
 from pathlib import Path
 
-from fsreg_ros.core.forgetting import RULES
+from fsreg_ros.core.forgetting.policies import RULES
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = REPO / "fsreg_ros"
@@ -106,7 +106,7 @@ def test_every_name_in_the_design_table_exists():
 def test_the_table_check_finds_what_does_not_exist():
     """Guard against a check that passes anything: each kind of stale name is reported."""
     index = Index()
-    assert index.problem("core/port.py") is None and index.problem("WMBuffer.decay_now") is None
+    assert index.problem("core/algorithms/port.py") is None and index.problem("WMBuffer.decay_now") is None
     assert index.problem("memory.COLUMN_MIN") is None and index.problem("contract.PolicySettings") is None
     assert index.problem("nodes/manage_link.py") is not None  # moved to ros/
     assert index.problem("WMBuffer.decay_later") is not None

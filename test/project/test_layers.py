@@ -168,9 +168,9 @@ def test_every_package_is_a_known_layer():
 def test_the_import_graph_is_read():
     """Guard against a reader that reads nothing: known arrows of each kind are found."""
     graph = import_graph()
-    assert "fsreg_ros.core.port" in graph["fsreg_ros.core.generation"]  # from .port import ...
-    assert "fsreg_ros.core.journal" in graph["fsreg_ros.core.service"]  # from . import journal
-    assert "fsreg_ros.core.service" in graph["fsreg_ros.core.local_port"]
+    assert "fsreg_ros.core.algorithms.port" in graph["fsreg_ros.core.algorithms.generation"]  # from .port import ...
+    assert "fsreg_ros.core.state.journal" in graph["fsreg_ros.core.consultant.service"]  # from . import journal
+    assert "fsreg_ros.core.consultant.service" in graph["fsreg_ros.core.consultant.local_port"]
     assert "fsreg_ros.testing.live" in graph["fsreg_ros.testing"]  # importlib.import_module(".live", __name__)
     assert "fsreg_ros.nodes.consultant" in graph["fsreg_ros.testing.live"]  # inside a function
 
@@ -192,4 +192,54 @@ def test_the_checks_find_a_circle_and_an_upward_arrow():
         "fsreg_ros.core.c imports fsreg_ros.ros.x (core may not import ros)",
         "fsreg_ros.nodes.n imports fsreg_ros.research.r (nodes may not import research)",
         "fsreg_ros.research.r imports fsreg_ros.contract.y (research may not import contract)",
+    ]
+
+
+#: The core's sub-packages by rank, as ``fsreg_ros/core/__init__.py`` lists them: a module
+#: of one may import its own package's modules and those of a lower rank only.
+CORE_RANK = {"io": 0, "memory": 0, "lexicon": 1, "forgetting": 1, "algorithms": 2, "state": 2,
+             "consultant": 3, "scenario": 4, "simulation": 5}
+
+
+def core_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Return every import between two core sub-packages that points up (or sideways) a rank."""
+    def part(name: str) -> Optional[str]:
+        parts = name.split(".")
+        return parts[2] if len(parts) > 2 and parts[:2] == ["fsreg_ros", "core"] else None
+
+    found = []
+    for importer, targets in sorted(graph.items()):
+        mine = part(importer)
+        for target in sorted(targets):
+            theirs = part(target)
+            if mine is None or theirs is None or mine == theirs:
+                continue
+            if CORE_RANK[theirs] >= CORE_RANK[mine]:
+                found.append(f"{importer} imports {target} (core.{mine} may not import core.{theirs})")
+    return found
+
+
+def test_every_core_package_has_a_rank_and_says_what_it_owns():
+    core = PACKAGE / "core"
+    packages = {p.name for p in core.iterdir() if (p / "__init__.py").exists()}
+    assert packages == set(CORE_RANK)
+    assert sorted(p.name for p in core.glob("*.py")) == ["__init__.py"]  # no module left on the floor
+    listing = (core / "__init__.py").read_text()
+    for name in CORE_RANK:
+        assert f"``{name}``" in listing
+        assert ast.get_docstring(ast.parse((core / name / "__init__.py").read_text()))
+
+
+def test_no_core_import_points_up_a_rank():
+    assert core_violations(import_graph()) == []
+
+
+def test_the_core_check_finds_an_upward_arrow():
+    graph = {"fsreg_ros.core.memory.buffer": {"fsreg_ros.core.forgetting.policies", "fsreg_ros.core.memory.queue"},
+             "fsreg_ros.core.simulation.simulator": {"fsreg_ros.core.io.paths"},
+             "fsreg_ros.core.state.store": {"fsreg_ros.core.algorithms.port"}}
+    assert core_violations(graph) == [
+        "fsreg_ros.core.memory.buffer imports fsreg_ros.core.forgetting.policies"
+        " (core.memory may not import core.forgetting)",
+        "fsreg_ros.core.state.store imports fsreg_ros.core.algorithms.port (core.state may not import core.algorithms)",
     ]

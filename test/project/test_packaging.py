@@ -66,8 +66,8 @@ def _launch_nodes(monkeypatch, given: dict) -> list:
 
 
 def test_launch_file_builds_the_graph_spec(monkeypatch):
-    from fsreg_ros.core import settings
-    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.core.forgetting import settings
+    from fsreg_ros.core.forgetting.policies import ForgettingPolicy
     from fsreg_ros.ros.graph_spec import node_specs, policy_settings
 
     given = {"kb": "/tmp/kb.yaml", "domains": "faces, objects", "policy": "displacement", "capacity": "3",
@@ -88,8 +88,8 @@ def test_launch_file_builds_the_graph_spec(monkeypatch):
 
 
 def test_launch_file_takes_a_state_dir_a_fresh_start_and_a_lexicon_as_fsreg_up_does(monkeypatch, tmp_path):
-    from fsreg_ros.core import settings
-    from fsreg_ros.core.forgetting import ForgettingPolicy
+    from fsreg_ros.core.forgetting import settings
+    from fsreg_ros.core.forgetting.policies import ForgettingPolicy
     from fsreg_ros.ros.graph_spec import node_specs, policy_settings
 
     monkeypatch.chdir(tmp_path)

@@ -10,7 +10,7 @@ What counts (issue 26.5):
   spelling of the setting as data;
 * the documentation (``README.md`` and ``docs/*.md``, wherever they name the setting in
   backticks) counts as one place;
-* ``core/settings.py`` (the table) is one place.
+* ``core/forgetting/settings.py`` (the table) is one place.
 
 A setting may be spelled in at most three places: the table, the core rule that reads
 it, the docs.  ``policy`` is not checked: it is also the name of the concept and of
@@ -31,11 +31,11 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from fsreg_ros.core import settings
+from fsreg_ros.core.forgetting import settings
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = REPO / "fsreg_ros"
-TABLE = "fsreg_ros/core/settings.py"
+TABLE = "fsreg_ros/core/forgetting/settings.py"
 DOCS = "docs"
 #: At most this many places per setting: the table, the core rule that reads it, the docs.
 MOST = 3

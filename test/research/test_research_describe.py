@@ -1,10 +1,10 @@
-"""The one-call generation API (core/describe.py) and the one-value-per-attribute rule."""
+"""The one-call generation API (core/simulation/describe.py) and the one-value-per-attribute rule."""
 
 import pytest
 
-from fsreg_ros.core.consultant import Consultant
-from fsreg_ros.core.describe import describe, expand_order, knowledge_base
-from fsreg_ros.core.generation import GenerationError, attribute_of
+from fsreg_ros.core.consultant.consultant import Consultant
+from fsreg_ros.core.simulation.describe import describe, expand_order, knowledge_base
+from fsreg_ros.core.algorithms.generation import GenerationError, attribute_of
 
 BOARD = {
     "t": {"type": "chair", "colour": "red", "orientation": "front", "size": "large"},

@@ -262,9 +262,9 @@ def test_wm_told_or_not_and_what_the_robot_says_when_it_believes_its_wm():
 
 
 def test_belief_port_narrows_by_a_stale_property():
-    from fsreg_ros.core.consultant import Consultant
-    from fsreg_ros.core.port import run_sync
-    from fsreg_ros.core.generation import generate
+    from fsreg_ros.core.consultant.consultant import Consultant
+    from fsreg_ros.core.algorithms.port import run_sync
+    from fsreg_ros.core.algorithms.generation import generate
 
     kb = Consultant("d", {"t": {"glasses": 1.0}, "u": {"no-glasses": 1.0}}, ["glasses", "no-glasses"],
                     retract_on_update=False)
@@ -273,7 +273,7 @@ def test_belief_port_narrows_by_a_stale_property():
     assert kb.queue("t") == ["glasses"]  # not told: the stale property stays
     believed = run_sync(generate("t", BeliefPort(kb), "sd-pia", time=2.0, turn=1))
     assert believed.description == ["glasses"] and believed.sources == ["wm"] and believed.distinguishing
-    from fsreg_ros.core.local_port import LocalPort
+    from fsreg_ros.core.consultant.local_port import LocalPort
 
     checked = run_sync(generate("u", LocalPort(kb), "sd-pia", time=3.0, turn=2))
     assert checked.description == []  # u and t are both no-glasses now: nothing distinguishes u
@@ -321,7 +321,7 @@ def test_recommend_by_hand():
 
 @pytest.mark.parametrize("retract", [True, False])
 def test_retract_on_update_decides_whether_ltm_changes_reach_wm(retract):
-    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.consultant.consultant import Consultant
 
     kb = Consultant("d", {"t": {"glasses": 1.0, "hat": 0.6}}, ["glasses", "hat"], retract_on_update=retract)
     kb.encode("t", ["glasses", "hat"], "speaker", 0.0, 0)
@@ -336,7 +336,7 @@ def test_retract_on_update_decides_whether_ltm_changes_reach_wm(retract):
 def test_fact_changes_are_consistent_with_the_exclusive_groups_and_play_as_without_them(monkeypatch):
     """Every change names the old value at 0 itself: the exclusion retracts nothing more, so results are unchanged."""
     import fsreg_ros.research.games as games
-    from fsreg_ros.core.consultant import Consultant
+    from fsreg_ros.core.consultant.consultant import Consultant
 
     game = make_game(1, 200, world="faces+objects", changes=30)
     robots = {d: Consultant(d, {e: dict.fromkeys(p, 1.0) for e, p in board.items()}, games.ROBOT_ORDERS[d],

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fsreg_ros.core.forgetting import RULES, ForgettingPolicy
+from fsreg_ros.core.forgetting.policies import RULES, ForgettingPolicy
 from fsreg_ros.research import cli
 from fsreg_ros.research import tangrams as T
 from fsreg_ros.research.stats import ratio_bootstrap_ci

@@ -18,7 +18,7 @@ from rosutil import RosSession
 
 from fsreg_ros import contract
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options
+from fsreg_ros.core.simulation.simulator import Options
 from fsreg_ros.tools.graph import live_nodes
 from fsreg_ros.ros.node_base import clock_guard
 from fsreg_ros.testing.live import node_classes

@@ -15,12 +15,12 @@ from rclpy.parameter import Parameter
 
 from fsreg_ros import contract
 from fsreg_ros.contract import EVENTS_QOS, STATE_QOS
-from fsreg_ros.core.consultant import KnowledgeError
-from fsreg_ros.core.local_port import LocalPort
-from fsreg_ros.core.forgetting import ForgettingPolicy
-from fsreg_ros.core.generation import generate
-from fsreg_ros.core.wm_manager import configure_buffer
-from fsreg_ros.core.resolution import resolve
+from fsreg_ros.core.consultant.consultant import KnowledgeError
+from fsreg_ros.core.consultant.local_port import LocalPort
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+from fsreg_ros.core.algorithms.generation import generate
+from fsreg_ros.core.forgetting.wm_manager import configure_buffer
+from fsreg_ros.core.algorithms.resolution import resolve
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode

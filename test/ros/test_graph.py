@@ -17,9 +17,9 @@ import yaml
 from rosutil import RosSession
 
 from fsreg_ros import contract
-from fsreg_ros.core.forgetting import ForgettingPolicy
+from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
+from fsreg_ros.core.simulation.simulator import Options, Simulation, dumps, simulate
 from fsreg_ros.tools.graph import graph_nodes
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.dialogue_player import DialoguePlayer

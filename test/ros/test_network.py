@@ -23,7 +23,7 @@ import pytest
 from rosutil import RosSession
 
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options
+from fsreg_ros.core.simulation.simulator import Options
 from fsreg_ros.tools.graph import Graph, graph_nodes
 from fsreg_ros.ros.network import (
     ALLOW_NETWORK,

@@ -16,7 +16,7 @@ from rosutil import RosSession
 from fsreg_ros import contract
 from fsreg_ros.ros.carrier import publisher, serve
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options
+from fsreg_ros.core.simulation.simulator import Options
 from fsreg_ros.tools.graph import graph_nodes
 from fsreg_ros.nodes.dialogue_player import DialoguePlayer, PlayerError
 from fsreg_ros.ros.event_audit import EventAudit

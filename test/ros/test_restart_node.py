@@ -25,8 +25,8 @@ from std_msgs.msg import String
 from fsreg_ros import contract
 from fsreg_ros.ros.carrier import CarrierError, qos_profile
 from fsreg_ros.contract import STATE_QOS
-from fsreg_ros.core.generation import generate
-from fsreg_ros.core.store import StoreError
+from fsreg_ros.core.algorithms.generation import generate
+from fsreg_ros.core.state.store import StoreError
 from fsreg_ros.ros.node_base import StartupError
 from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.ros.remote import RemotePort
@@ -370,9 +370,9 @@ def test_the_migration_log_lists_the_dropped_facts(tmp_path):
     kb = tmp_path / "kb.yaml"
     scenario = yaml.safe_load(Path(KB).read_text())
     kb.write_text(yaml.safe_dump(scenario))
-    from fsreg_ros.core.consultant import Consultant
-    from fsreg_ros.core.service import ConsultantService
-    from fsreg_ros.core.store import DomainStore, fingerprint
+    from fsreg_ros.core.consultant.consultant import Consultant
+    from fsreg_ros.core.consultant.service import ConsultantService
+    from fsreg_ros.core.state.store import DomainStore, fingerprint
 
     def service(text):
         spec = yaml.safe_load(text)["domains"]["faces"]

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, Simulation, dumps, simulate
+from fsreg_ros.core.simulation.simulator import Options, Simulation, dumps, simulate
 from test_graph import DATA, play
 
 pytestmark = pytest.mark.graph

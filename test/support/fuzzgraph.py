@@ -684,7 +684,7 @@ def start_graph(scenario_path: Path, tmp_path: Path, service_timeout: float = 2.
     The WM Manager's deadline per consultant call is short, so a stuck call costs the
     fuzz little.
     """
-    from fsreg_ros.core.simulation import Options
+    from fsreg_ros.core.simulation.simulator import Options
     from fsreg_ros.tools.graph import graph_nodes
     from test_graph import NODE_CLASSES
 

@@ -1,7 +1,7 @@
 """A deliberately naive, eager reference working memory (tests and benchmark only).
 
 It follows docs/semantics.md section 2 as literally as possible and shares no code with
-:mod:`fsreg_ros.core.memory` / :mod:`fsreg_ros.core.forgetting`:
+:mod:`fsreg_ros.core.memory` / :mod:`fsreg_ros.core.forgetting.policies`:
 
 * ``queues`` is a plain ``dict`` of Python lists, LRU first;
 * a decay tick pops the front of *every* non-empty queue right away (O(queues));

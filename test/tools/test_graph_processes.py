@@ -122,7 +122,7 @@ def test_two_fsreg_graphs_started_together_without_a_namespace_each_run_a_graph_
 
 def test_every_node_of_a_run_gets_the_runs_identity_and_namespace(table1_path, tmp_path):
     from fsreg_ros.core.scenario import load_scenario
-    from fsreg_ros.core.simulation import Options
+    from fsreg_ros.core.simulation.simulator import Options
     from fsreg_ros.tools.graph import command, graph_nodes, new_graph_id, unique_namespace
 
     graph, namespace = new_graph_id("fsreg-graph"), unique_namespace()

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from fsreg_ros.tools.sim import sim_main
-from fsreg_ros.core.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR
+from fsreg_ros.core.algorithms.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, Simulation
+from fsreg_ros.core.simulation.simulator import Options, Simulation
 
 REPO = Path(__file__).resolve().parents[2]
 PAPER = REPO / "config/paper_table1.yaml"

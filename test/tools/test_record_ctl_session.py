@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from test_live import Up, ctl, namespace
 
-from fsreg_ros.core.recording import open_recording
+from fsreg_ros.core.io.recording import open_recording
 from fsreg_ros.tools.sim import sim_main
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

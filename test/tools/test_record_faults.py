@@ -17,8 +17,10 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from fsreg_ros.core.recording import (CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, RecordingError, WriteFailed,
-                                      check_target, encode_clock, encode_string, open_recording)
+from fsreg_ros.core.io.recording import (
+    CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, RecordingError, WriteFailed, check_target, encode_clock,
+    encode_string, open_recording,
+)
 from fsreg_ros.research.cli import plot_main
 from fsreg_ros.tools import ctl, up
 

@@ -1,6 +1,6 @@
 """Recording as rosbag2 (MCAP) and replay through the simulator (issue 24.1, 24.2 and its standards).
 
-The bag is written by ``rosbags`` (:mod:`fsreg_ros.core.recording`) and read back here,
+The bag is written by ``rosbags`` (:mod:`fsreg_ros.core.io.recording`) and read back here,
 independently, by the ``mcap`` package.  A live session (the public harness, in-process
 graph, sim time) is recorded with exact message counts, replayed (equal), doctored (one
 expression changed: exit 1 naming the turn), damaged (one line naming the file, exit 2),
@@ -21,8 +21,9 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from fsreg_ros.core.recording import (CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, RecordingError, encode_clock,
-                                      encode_string, open_recording)
+from fsreg_ros.core.io.recording import (
+    CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, RecordingError, encode_clock, encode_string, open_recording,
+)
 from fsreg_ros.research.cli import plot_main
 from fsreg_ros.tools.sim import sim_main
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from fsreg_ros.core.recording import STRING, TOPICS_KEY, BagWriter, Channel, encode_string, open_recording
-from fsreg_ros.core.replay import session_of
+from fsreg_ros.core.io.recording import STRING, TOPICS_KEY, BagWriter, Channel, encode_string, open_recording
+from fsreg_ros.core.simulation.replay import session_of
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "scenarios" / "guess_who_table1.yaml"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.core.recording import CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, encode_clock, encode_string
+from fsreg_ros.core.io.recording import CLOCK, STRING, TOPICS_KEY, BagWriter, Channel, encode_clock, encode_string
 from fsreg_ros.tools.sim import sim_main
 
 REPO = Path(__file__).resolve().parents[2]

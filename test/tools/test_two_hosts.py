@@ -31,7 +31,7 @@ from pathlib import Path
 import pytest
 
 from fsreg_ros.core.scenario import load_scenario
-from fsreg_ros.core.simulation import Options, Simulation, dumps
+from fsreg_ros.core.simulation.simulator import Options, Simulation, dumps
 from fsreg_ros.tools.graph import Graph, graph_nodes, new_graph_id, unique_namespace
 
 pytestmark = [pytest.mark.graph, pytest.mark.slow]

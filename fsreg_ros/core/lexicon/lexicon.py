@@ -43,7 +43,7 @@ import os
 from dataclasses import dataclass
 from typing import Any, Collection, Iterable, Mapping, Optional, Sequence
 
-from ..yaml_source import PathLoc
+from ..io.yaml_source import PathLoc
 from .source import REALISER_WORDS, EntryBlock, LexiconSource, builtin_path, parse_mapping, read_lexicon
 from .words import ParseResult, Phrase, PhraseTable, tokenize, variants
 

@@ -15,9 +15,9 @@ from typing import Annotated, Any, Mapping, Optional, Union
 import yaml
 from pydantic import AfterValidator, Field
 
-from ..paths import config_path
-from ..validation import Strict, validate
-from ..yaml_source import PathLoc, SourceError, describe_value, find_line, node_line, read_yaml, render_path
+from ..io.paths import config_path
+from ..io.validation import Strict, validate
+from ..io.yaml_source import PathLoc, SourceError, describe_value, find_line, node_line, read_yaml, render_path
 from .words import tokenize
 
 #: Words :meth:`Lexicon.realise` itself puts around the lexicon's words.

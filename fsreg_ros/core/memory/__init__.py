@@ -10,7 +10,9 @@ What lives where (one module per job; each docstring says what it owns):
 ``limits``         :class:`Limits`: what the WM Manager lets a buffer hold
 ``install``        installing new limits: applied to every queue at once
 ``decay``          decay's pops (Algorithm 2): lazy catch-up, flush, eager ticks, and
-                   the column queues' pops; tick *times* are :mod:`fsreg_ros.core.decay`
+                   the column queues' pops
+``ticks``          decay's clock: the tick schedule and tick arithmetic (when tick n was)
+``bitset``         sets of a domain's entities as int bitsets over entity indices
 ``displacement``   interference: displacement (Algorithm 3) and its victims,
                    similarity, the global limit, the shared pool's eviction
 ``origins``        the origin log: which encoding made each entry enter its queue
@@ -23,11 +25,10 @@ What lives where (one module per job; each docstring says what it owns):
 =================  ================================================================
 
 *What* is forgotten, and when, is decided by the WM Manager
-(:mod:`fsreg_ros.core.wm_manager`, with the policies of
-:mod:`fsreg_ros.core.forgetting`): it sets the buffer's :class:`Limits` (data) and
+(:mod:`fsreg_ros.core.forgetting.wm_manager`, with the policies of
+:mod:`fsreg_ros.core.forgetting.policies`): it sets the buffer's :class:`Limits` (data) and
 gives it decay ticks; the buffer enforces them.  This package imports neither of
-those (dependencies run one way); it imports :mod:`fsreg_ros.core.decay` (tick
-arithmetic) and :mod:`fsreg_ros.core.bitset`.
+those (dependencies run one way), nor anything else of the core.
 """
 
 from .buffer import WMBuffer

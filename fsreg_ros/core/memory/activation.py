@@ -54,7 +54,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ..decay import TIME_EPSILON
+from .ticks import TIME_EPSILON
 from .host import HostBuffer
 from .limits import Limits
 from .queue import Queue
@@ -485,7 +485,7 @@ class LazyActivation:
         clock, each into a subset of the rows before, and what they encoded is not due
         before the clock plus a lifetime (encodings count at the clock at the earliest).
         Only for a lifetime that takes them past the clock's
-        :data:`~fsreg_ros.core.decay.TIME_EPSILON`.
+        :data:`~fsreg_ros.core.memory.ticks.TIME_EPSILON`.
         """
         traces = self.wm.columns.store.traces
         now = self.clock

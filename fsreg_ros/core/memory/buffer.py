@@ -25,8 +25,8 @@ from __future__ import annotations
 import sys
 from typing import Iterable, Mapping, Optional, Sequence
 
-from .. import bitset
-from ..decay import TickLedger, TickRun
+from . import bitset
+from .ticks import TickLedger, TickRun
 from .activation import LazyActivation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
@@ -79,7 +79,7 @@ class WMBuffer:
 
     @property
     def ticks(self) -> TickLedger:
-        """Every decay tick given so far (:mod:`fsreg_ros.core.decay`)."""
+        """Every decay tick given so far (:mod:`fsreg_ros.core.memory.ticks`)."""
         return self.lazy_decay.ticks
 
     def queue(self, entity: str) -> tuple[str, ...]:
@@ -323,7 +323,7 @@ class WMBuffer:
                        turn: Optional[int] = None) -> None:
         """Encode(e, [prop]) (Algorithm 1) for each member e, in entity order: rules 2 and 3.
 
-        ``members`` is a bitset over ``entities`` (:mod:`fsreg_ros.core.bitset`; the
+        ``members`` is a bitset over ``entities`` (:mod:`fsreg_ros.core.memory.bitset`; the
         domain's entity list, which may only grow by appending).  Exactly
         ``self.encode_each(bitset.names(members, entities), prop, ...)``: same queues,
         stamps, origins, sizes and change record.  With no event sink, limits of at

@@ -41,7 +41,7 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from ..decay import TIME_EPSILON
+from .ticks import TIME_EPSILON
 from .activation import HISTORY, NEVER, Trace, TraceColumns
 from .decay import pop_owed
 from .host import HostBuffer

@@ -2,7 +2,7 @@
 
 Decay pops the front of every non-empty queue once per tick.  Done eagerly that
 costs O(number of queues) per tick.  A buffer applies ticks lazily instead: a tick
-only enters a :class:`~fsreg_ros.core.decay.TickLedger` (:meth:`LazyDecay.add`),
+only enters a :class:`~fsreg_ros.core.memory.ticks.TickLedger` (:meth:`LazyDecay.add`),
 and each queue catches up (pops one front per missed tick, at most its length) the
 next time it is touched (:meth:`LazyDecay.sync`; a column queue with the others,
 :func:`pop_owed`).  Because nothing else touches a queue in between, the result is
@@ -12,7 +12,7 @@ the canonical event order (tick by tick, entity order within a tick), for a
 consultant that publishes every event as it happens.
 
 Tick *times* (the schedule, runs of ticks, the ledger) are arithmetic of
-:mod:`fsreg_ros.core.decay`; this module does the pops.
+:mod:`fsreg_ros.core.memory.ticks`; this module does the pops.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from ..decay import TickLedger, TickRun
+from .ticks import TickLedger, TickRun
 from .host import HostBuffer
 from .queue import Queue, WMEvent
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Optional, Protocol
 
-from ..decay import TickLedger
+from .ticks import TickLedger
 from .limits import Limits
 from .queue import EventSink, Queue
 

@@ -1,7 +1,7 @@
 """What a buffer may hold: the :class:`Limits` the WM Manager installs, as data.
 
-The WM Manager (:mod:`fsreg_ros.core.wm_manager`, with the policies of
-:mod:`fsreg_ros.core.forgetting`) decides *what* is forgotten and sets these; the
+The WM Manager (:mod:`fsreg_ros.core.forgetting.wm_manager`, with the policies of
+:mod:`fsreg_ros.core.forgetting.policies`) decides *what* is forgotten and sets these; the
 buffer enforces them after every single encoding event
 (:mod:`fsreg_ros.core.memory.displacement`).  This module imports neither.
 """

@@ -3,7 +3,7 @@
 A consultant persists the queues :meth:`WMBuffer.take_changes` names, each as
 :meth:`WMBuffer.export_queue` returns it (:class:`QueueItem`: property, stamp, LFU
 hits and origin), beside :meth:`WMBuffer.counters`; :meth:`WMBuffer.restore` takes
-them back (:mod:`fsreg_ros.core.store`, :mod:`fsreg_ros.core.journal`).
+them back (:mod:`fsreg_ros.core.state.store`, :mod:`fsreg_ros.core.state.journal`).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ Choices where the format could be read several ways:
   resolution determines it at run time, and validation checks that it can.
 """
 
-from ..yaml_source import render_path
+from ..io.yaml_source import render_path
 from .coverage import coverage_warning, lexicon_template, unsayable
 from .load import load_scenario, parse_scenario
 from .model import COMMAND_LINE, MEMORY_KEYS, DomainSpec, Scenario, ScenarioError, Turn

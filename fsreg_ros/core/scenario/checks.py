@@ -2,8 +2,8 @@
 
 Unknown properties and entities, preference orders, attributes, times, forgetting
 settings, turn shapes and domains.  The rules of forgetting settings and
-certainties are the core's own (:mod:`fsreg_ros.core.forgetting`,
-:func:`fsreg_ros.core.consultant.check_certainty`).
+certainties are the core's own (:mod:`fsreg_ros.core.forgetting.policies`,
+:func:`fsreg_ros.core.consultant.consultant.check_certainty`).
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import Optional, Sequence, Union
 
 import yaml
 
-from ..consultant import KnowledgeError, check_certainty, exclusive_groups, implied_attribute
+from ..consultant.consultant import KnowledgeError, check_certainty, exclusive_groups, implied_attribute
 from ..lexicon import Lexicon
-from ..resolution import domains_knowing
-from ..yaml_source import PathLoc, find_line, render_path
+from ..algorithms.resolution import domains_knowing
+from ..io.yaml_source import PathLoc, find_line, render_path
 from .model import DomainSpec, Scenario, ScenarioError, Turn, memory_setting_problem, names
 from .schema import DomainBlock, MemoryBlock, ScenarioFile, TurnEntry
 
@@ -108,7 +108,7 @@ class Checker:
         A group names properties of the domain's preference order, at least two, none
         in another group (nor an ``attr=value`` property: the values of an attribute
         named so are a group already).  The groups in force are these plus the
-        ``attr=value`` ones (:func:`~fsreg_ros.core.consultant.exclusive_groups`).
+        ``attr=value`` ones (:func:`~fsreg_ros.core.consultant.consultant.exclusive_groups`).
         """
         at = here + ("exclusive",)
         known = set(block.preference)

@@ -4,7 +4,7 @@ Every problem in any stage becomes exactly one :class:`ScenarioError` naming the
 file, the path inside it (``dialogue[3].text``), the line where known, and what
 is wrong:
 
-1. **YAML**: :mod:`fsreg_ros.core.yaml_source` (libyaml's C parser, strict keys).
+1. **YAML**: :mod:`fsreg_ros.core.io.yaml_source` (libyaml's C parser, strict keys).
 2. **Structure**: the pydantic models of :mod:`.schema`.
 3. **Meaning**: :class:`.checks.Checker`.
 """
@@ -14,8 +14,8 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING, Optional, Union
 
-from ..validation import validate
-from ..yaml_source import collector_paused, describe_value, load_yaml, node_line, read_text
+from ..io.validation import validate
+from ..io.yaml_source import collector_paused, describe_value, load_yaml, node_line, read_text
 from .checks import Checker
 from .model import Scenario, ScenarioError
 from .schema import KNOWN_KEYS, ScenarioFile, mapping_kind

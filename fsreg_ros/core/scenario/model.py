@@ -8,18 +8,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
-from .. import settings
-from ..consultant import DEFAULT_THRESHOLD, Consultant
-from ..forgetting import (
-    DEFAULTS,
-    RULE_PARAMETERS,
-    ForgettingPolicy,
-    PolicyError,
-    check_setting,
-    merge_settings,
-    parse_rules,
+from ..forgetting import settings
+from ..consultant.consultant import DEFAULT_THRESHOLD, Consultant
+from ..forgetting.policies import (
+    DEFAULTS, RULE_PARAMETERS, ForgettingPolicy, PolicyError, check_setting, merge_settings, parse_rules,
 )
-from ..yaml_source import SourceError
+from ..io.yaml_source import SourceError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..memory import EventSink
@@ -48,7 +42,7 @@ class DomainSpec:
     #: property -> attribute, from the ``attributes:`` block and ``attr=value`` names.
     attributes: dict[str, str] = field(default_factory=dict)
     #: The declared exclusive groups (the ``exclusive:`` block); the ``attr=value`` groups are implied
-    #: (:func:`~fsreg_ros.core.consultant.exclusive_groups`).
+    #: (:func:`~fsreg_ros.core.consultant.consultant.exclusive_groups`).
     exclusive: tuple[tuple[str, ...], ...] = ()
 
 

@@ -2,7 +2,7 @@
 
 ``extra="forbid"`` and strict types (``capacity: true`` is not a number while
 ``decay_period: 10`` is).  ``MemoryBlock`` is generated from the memory settings
-table (:mod:`fsreg_ros.core.settings`).  The models check shapes only; meaning (unknown
+table (:mod:`fsreg_ros.core.forgetting.settings`).  The models check shapes only; meaning (unknown
 properties, times, ...) is :mod:`.checks`'s job.
 """
 
@@ -12,10 +12,10 @@ from typing import Annotated, Any, Literal, Optional, Sequence, Union
 
 from pydantic import ConfigDict, Discriminator, Field, Tag, create_model
 
-from .. import settings
-from ..consultant import DEFAULT_THRESHOLD
-from ..forgetting import POLICY_PATTERN
-from ..validation import Strict
+from ..forgetting import settings
+from ..consultant.consultant import DEFAULT_THRESHOLD
+from ..forgetting.policies import POLICY_PATTERN
+from ..io.validation import Strict
 
 Name = Annotated[str, Field(min_length=1)]
 Certainty = Annotated[float, Field(json_schema_extra={"minimum": 0, "maximum": 1})]
@@ -50,7 +50,7 @@ MemoryBlock = create_model(
     "MemoryBlock",
     __base__=Strict,
     __doc__="A ``memory:`` block: forgetting settings, one field per row of the settings table "
-    "(:mod:`fsreg_ros.core.settings`); each value is checked by the table's rules.",
+    "(:mod:`fsreg_ros.core.forgetting.settings`); each value is checked by the table's rules.",
     **{
         row.name: (Optional[row.kind], Field(None, description=row.description,
                                              json_schema_extra=row.json_schema_extra(POLICY_PATTERN)))

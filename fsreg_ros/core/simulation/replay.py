@@ -1,6 +1,6 @@
 """A recorded live session replayed through the simulator, turn by turn: the graph against the model.
 
-:func:`session_of` turns a recording (:mod:`fsreg_ros.core.recording`) into the simulator's
+:func:`session_of` turns a recording (:mod:`fsreg_ros.core.io.recording`) into the simulator's
 input: the knowledge base the graph ran with (copied into the recording, or given), each
 domain's memory setting (from ``wm_manager/ready``), REG's options, and in recorded order the
 human utterances (``dialogue/human``), REG requests (``reg/request``) and accepted LTM
@@ -12,7 +12,7 @@ from what the graph's long-lived nodes forwarded: an utterance from the parser's
 from REG's ``reg/expression`` (id, target, time), an LTM assertion of one entity from its
 ``ltm/assert/result`` (what it changed); the replay says how many it rebuilt.
 
-:func:`replay` plays them through the core (:class:`~fsreg_ros.core.simulation.Simulation`)
+:func:`replay` plays them through the core (:class:`~fsreg_ros.core.simulation.simulator.Simulation`)
 and compares, per turn, the answer (RR: status, resolved entity, candidates, description;
 REG: description, text, sources, WM before, distinguishing, distractors left) and every
 domain's working memory after the turn.  The WM on both sides is rebuilt the same way,
@@ -31,11 +31,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Optional
 
-from .lexicon import Lexicon
-from .recording import Message, Recording
+from ..lexicon import Lexicon
+from ..io.recording import Message, Recording
 from .replay_world import world_mismatch
-from .scenario import Scenario, Turn, load_scenario
-from .simulation import Options, Simulation, trace_order
+from ..scenario import Scenario, Turn, load_scenario
+from .simulator import Options, Simulation, trace_order
 
 #: The answer fields compared per kind of turn.
 HUMAN_FIELDS = ("status", "resolved", "candidates", "description")

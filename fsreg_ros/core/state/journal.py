@@ -1,7 +1,7 @@
 """WM operations as journal records, and their replay: the redo log of a consultant's working memory.
 
 A consultant persists WM as a checkpoint (every queue as of some moment) plus a journal
-of what its buffer did since, one record per buffer operation (:mod:`fsreg_ros.core.store`).
+of what its buffer did since, one record per buffer operation (:mod:`fsreg_ros.core.state.store`).
 Writing what was *done* rather than every queue it touched is what keeps persistence
 cheap: a rule-3 narrowing encodes one property for thousands of distractors (docs/semantics.md
 section 2) and is one record here.  Replaying the records in order on the checkpoint
@@ -38,11 +38,11 @@ from __future__ import annotations
 
 from typing import Any, Callable, Optional, Sequence
 
-from . import bitset
-from .decay import TickError, TickRun, check_time
-from .forgetting import ForgettingPolicy, PolicyError
-from .memory import ENCODE_CAUSES, WMBuffer
-from .wm_manager import configure_buffer
+from ..memory import bitset
+from ..memory.ticks import TickError, TickRun, check_time
+from ..forgetting.policies import ForgettingPolicy, PolicyError
+from ..memory import ENCODE_CAUSES, WMBuffer
+from ..forgetting.wm_manager import configure_buffer
 
 Record = list
 

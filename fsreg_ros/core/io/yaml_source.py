@@ -2,7 +2,7 @@
 
 Every file is read the same way:
 
-1. :func:`read_text` reads it as UTF-8 text through :mod:`fsreg_ros.core.input_file`; a
+1. :func:`read_text` reads it as UTF-8 text through :mod:`fsreg_ros.core.io.input_file`; a
    missing file, a directory or anything else that is not a regular file (a named pipe,
    which would block the reader until a writer came, a device), an unreadable or
    oversized file, a NUL byte or invalid UTF-8 is one :class:`SourceError` naming the file.
@@ -156,7 +156,7 @@ def read_text(path: Union[str, os.PathLike], error: type[SourceError] = SourceEr
     """Return the text of ``path``; raise ``error`` naming the file if it cannot be text.
 
     The file is opened without blocking and must be a regular file of at most ``limit``
-    bytes (default :data:`MAX_FILE_BYTES`, read when called; :mod:`fsreg_ros.core.input_file`):
+    bytes (default :data:`MAX_FILE_BYTES`, read when called; :mod:`fsreg_ros.core.io.input_file`):
     reading a named pipe would wait for a writer forever, a device would never end.
     """
     try:

@@ -1,10 +1,10 @@
 """A serving consultant's persistence: restore at start, clock epochs, writing and checkpoints.
 
-:class:`Persistence` is the half of a :class:`~fsreg_ros.core.service.ConsultantService`
-that keeps its state database (:mod:`fsreg_ros.core.store`) in step with memory.  It owns:
+:class:`Persistence` is the half of a :class:`~fsreg_ros.core.consultant.service.ConsultantService`
+that keeps its state database (:mod:`fsreg_ros.core.state.store`) in step with memory.  It owns:
 
 * **restore**: taking up what the store held at start (runtime facts, policy, decay
-  mark, WM as a checkpoint plus a replayed :mod:`~fsreg_ros.core.journal`), refusing a
+  mark, WM as a checkpoint plus a replayed :mod:`~fsreg_ros.core.state.journal`), refusing a
   damaged database by name and migrating one written for another KB (:class:`Restored`);
 * **clock epochs**: at the first ``configure`` of an incarnation, stored WM on a clock
   of another kind, or ahead of the clock (a restarted simulation), is dropped;
@@ -14,7 +14,7 @@ that keeps its state database (:mod:`fsreg_ros.core.store`) in step with memory.
   a failed WM write kept pending and retried (at most once a second) as a checkpoint;
 * **checkpoints**: every queue changed since the last one (read off the buffer's change
   record), written when the journal grows long, after a failure, and at shutdown;
-* what :meth:`~fsreg_ros.core.service.ConsultantService.status` reports of the stored
+* what :meth:`~fsreg_ros.core.consultant.service.ConsultantService.status` reports of the stored
   state (``wm``, ``persisted``, ``note``, ``error``).
 
 It reads and sets the serving state it persists through the :class:`Served` protocol
@@ -30,12 +30,12 @@ from datetime import datetime, timezone
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Protocol, Sequence
 
-from . import journal
+from ..state import journal
 from .consultant import Consultant, KnowledgeError
-from .forgetting import NONE, ForgettingPolicy, PolicyError
-from .memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMBuffer
-from .store import Batch, Checkpoint, DomainStore, StoreError, StoreContents, damaged
-from .wm_manager import configure_buffer
+from ..forgetting.policies import NONE, ForgettingPolicy, PolicyError
+from ..memory import ENCODE_CAUSES, UNKNOWN_ORIGIN, WMBuffer
+from ..state.store import Batch, Checkpoint, DomainStore, StoreError, StoreContents, damaged
+from ..forgetting.wm_manager import configure_buffer
 
 #: Journal length (records, names) at which :meth:`Persistence.maintain` writes a checkpoint ...
 CHECKPOINT_RECORDS, CHECKPOINT_NAMES = 256, 200_000
@@ -380,7 +380,7 @@ class Persistence:
 
         Raises StoreError, having stored nothing.  ``facts``: (entity, {property:
         certainty}, new entity?) per update, in order (a batch of ``ltm/assert``, or the
-        batches a :class:`~fsreg_ros.core.fact_writer.FactWriter` groups, is one call).
+        batches a :class:`~fsreg_ros.core.state.fact_writer.FactWriter` groups, is one call).
         The WM retractions they cause are journalled when they are applied, as that
         call's records (a restart between the two removes them from the restored WM:
         :meth:`restore` drops every property whose stored certainty is below the
@@ -392,7 +392,7 @@ class Persistence:
         self.store.commit(Batch(facts=list(facts)))  # fsynced before it returns
 
     def finish(self, changes: Any) -> None:
-        """Account for a call's :class:`~fsreg_ros.core.service.Changes`; write them (once) unless nothing needs it."""
+        """Account for a call's :class:`~.service.Changes`; write them (once) unless nothing needs it."""
         changes.policy = self._unsaved_meta.get("policy")
         changes.decay_until = self._unsaved_meta.get("decay_until")
         if self.store is None:

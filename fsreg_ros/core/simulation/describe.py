@@ -12,7 +12,7 @@ one consultant per knowledge base.
 Preference orders may name attributes (``colour``) as well as properties
 (``colour=red``): :func:`expand_order` lists each attribute's values in the
 knowledge base's own order.  Properties written ``attribute=value`` belong to
-``attribute`` (:func:`fsreg_ros.core.generation.attribute_of`).
+``attribute`` (:func:`fsreg_ros.core.algorithms.generation.attribute_of`).
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Mapping, Optional, Sequence, Union
 
-from .consultant import Consultant, KnowledgeError
-from .local_port import LocalPort
-from .port import ConsultantPort, Narrowed, Step, View, Walked, WalkStep, run_sync
-from .generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
+from ..consultant.consultant import Consultant, KnowledgeError
+from ..consultant.local_port import LocalPort
+from ..algorithms.port import ConsultantPort, Narrowed, Step, View, Walked, WalkStep, run_sync
+from ..algorithms.generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
 Facts = Union[Sequence[str], Mapping[str, object]]

@@ -5,22 +5,22 @@ transaction fsynced with ``synchronous=FULL``) costs a write to disk.  A
 :class:`FactWriter` takes that cost on a thread of its own: the serving thread
 *prepares* a batch (validates every fact against LTM as the facts already in flight
 will leave it: :meth:`ConsultantService.prepare_facts
-<fsreg_ros.core.service.ConsultantService.prepare_facts>`) and submits (:meth:`FactWriter.submit`)
+<fsreg_ros.core.consultant.service.ConsultantService.prepare_facts>`) and submits (:meth:`FactWriter.submit`)
 it; the writer commits everything submitted meanwhile in ONE fsynced transaction (group
 commit: at high rates one fsync serves many batches) and hands each batch back, in the
 order submitted, through :meth:`FactWriter.take_done`; the serving thread then applies
 it to memory and answers it (:meth:`ConsultantService.apply_facts
-<fsreg_ros.core.service.ConsultantService.apply_facts>`).  So an acknowledgement goes
+<fsreg_ros.core.consultant.service.ConsultantService.apply_facts>`).  So an acknowledgement goes
 out only after its facts are on disk (what was acknowledged survives a restart) and
 after they are in memory (a query answered after the acknowledgement sees them), and
 queries are served while the disk works.
 
 A commit that fails fails every batch in it, and every batch submitted before the
 serving thread learnt of it (prepared against facts that will never be applied): each
-comes back with the :class:`~fsreg_ros.core.store.StoreError` (nothing of it stored or
+comes back with the :class:`~fsreg_ros.core.state.store.StoreError` (nothing of it stored or
 applied), so every sender hears a refusal.  Batches carry the ``generation`` of the
 previews they were made against (:meth:`ConsultantService.abandon_facts
-<fsreg_ros.core.service.ConsultantService.abandon_facts>` starts a new one); a failure
+<fsreg_ros.core.consultant.service.ConsultantService.abandon_facts>` starts a new one); a failure
 refuses every later-submitted batch of the failed generation or older.
 
 Pure Python (threading); the node wakes its executor with ``notify`` (a guard

@@ -1,9 +1,9 @@
 """The consultant port: what reference resolution and REG may ask of a domain's consultant.
 
-The algorithms (:mod:`~fsreg_ros.core.resolution`, :mod:`~fsreg_ros.core.generation`)
+The algorithms (:mod:`~fsreg_ros.core.algorithms.resolution`, :mod:`~fsreg_ros.core.algorithms.generation`)
 talk to consultants only through the small asynchronous :class:`ConsultantPort`
 interface, so one implementation of each algorithm serves both worlds: in-process,
-:class:`~fsreg_ros.core.local_port.LocalPort` answers at once and :func:`run_sync`
+:class:`~fsreg_ros.core.consultant.local_port.LocalPort` answers at once and :func:`run_sync`
 drives the algorithm without an event loop; in the ROS graph,
 :class:`~fsreg_ros.ros.remote.RemotePort` awaits service calls to consultant nodes.
 
@@ -14,7 +14,8 @@ and closes it.  :class:`Walk` is the incremental walk's rules (the loop SD-PIA's
 phases and RR's description run, docs/semantics.md section 4): the consultant runs it
 in one call, :func:`walk_by_narrowing` over any port as one narrowing per step.
 
-It imports nothing but the WM types it reports (:mod:`~fsreg_ros.core.memory`).
+It also owns :class:`KnowledgeError`, what a consultant raises for a query or update it
+cannot answer.  It imports nothing but the WM types it reports (:mod:`~fsreg_ros.core.memory`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,20 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Coroutine, Optional, Protocol, Sequence, TypeVar
 
-from .memory import Origin
+from ..memory import Origin
+
+
+class KnowledgeError(ValueError):
+    """A query or update names something the domain does not know, or is malformed.
+
+    The message says what and where; the consultant's state is unchanged.  Raised by a
+    consultant and by the algorithms over the port alike, so it lives with the port.
+    """
+
+    def __init__(self, message: str = "", kind: Optional[str] = None) -> None:
+        super().__init__(message)
+        #: The ``kind`` an error reply on a topic carries (``unknown-entity``, ...); None: the class name.
+        self.kind = kind
 
 
 @dataclass
@@ -93,7 +107,7 @@ class Walk:
     target holds (always, without one) and it left fewer members; a step whose ``group``
     was taken already is skipped, asking nothing (a description never holds two values of
     one attribute); nothing is asked once no member is left.  The walk only decides; its
-    driver narrows (:meth:`~fsreg_ros.core.service.ConsultantService.walk` in the
+    driver narrows (:meth:`~fsreg_ros.core.consultant.service.ConsultantService.walk` in the
     consultant, :func:`walk_by_narrowing` over any port), so both run the same rules.
     """
 
@@ -163,7 +177,7 @@ class ConsultantPort(Protocol):
     ) -> View:
         """Open a view: every entity (RR), or the target's distractors (REG).
 
-        See :meth:`~fsreg_ros.core.consultant.Consultant.open_set`.
+        See :meth:`~fsreg_ros.core.consultant.consultant.Consultant.open_set`.
 
         With ``first``, narrow it by that step at once (RR's first property: one call
         opens the view and checks it); the view's ``first`` says what that did.
@@ -173,7 +187,7 @@ class ConsultantPort(Protocol):
         """Keep the members ``prop`` holds for, encoding it for each (``cause`` None: no encoding).
 
         With a target, only if ``prop`` holds for the target (see
-        :meth:`~fsreg_ros.core.consultant.Consultant.narrow`).
+        :meth:`~fsreg_ros.core.consultant.consultant.Consultant.narrow`).
         """
 
     async def walk(self, view: View, steps: Sequence[WalkStep], cause: Optional[str], time: float,
@@ -197,7 +211,7 @@ T = TypeVar("T")
 
 
 def run_sync(coroutine: Coroutine[Any, Any, T]) -> T:
-    """Run an algorithm coroutine whose ports answer at once (e.g. :class:`~fsreg_ros.core.local_port.LocalPort`).
+    """Run an algorithm coroutine whose ports answer at once (e.g. :class:`~.local_port.LocalPort`).
 
     No event loop is needed: a coroutine that never suspends finishes on its first
     step.  One that does suspend was given a port that does real I/O; that is a

@@ -2,7 +2,7 @@
 
 Scenario and lexicon files are both validated with pydantic models; this module
 turns the first problem pydantic finds (by line) into one
-:class:`~fsreg_ros.core.yaml_source.SourceError` naming the file, the path inside it
+:class:`~fsreg_ros.core.io.yaml_source.SourceError` naming the file, the path inside it
 and the line: ``table1.yaml:12: domains.faces.threshold: must be a number, got 'x'``.
 """
 

@@ -7,7 +7,7 @@ and not for the distractor.
   the target's WM queue (LRU to MRU by default), Phase 2 the domain's preference
   order; LTM is only consulted as far as needed.  Both phases are read here; the
   walk's rules (take, skip a taken attribute, stop when no distractor is left) are
-  :class:`~fsreg_ros.core.port.Walk`, which the consultant runs in one call.  When a property that holds for
+  :class:`~fsreg_ros.core.algorithms.port.Walk`, which the consultant runs in one call.  When a property that holds for
   the target is considered, it is encoded for every remaining distractor it also
   holds for (rule 3), selected or not.  The description is encoded for the target
   at the end (rule 1).
@@ -23,8 +23,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
-from .consultant import KnowledgeError
-from .port import ConsultantPort, View, WalkStep
+from .port import ConsultantPort, KnowledgeError, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
@@ -81,7 +80,7 @@ class Expression:
     text: str = ""
     #: Parallel to ``description``: for a property taken from WM, the raw origin of its entry in
     #: Q[target] (``{"cause", "turn"}`` of the encoding that made it enter, as the buffer kept it);
-    #: None for the others.  :mod:`fsreg_ros.core.alignment` names it from the turns' records.
+    #: None for the others.  :mod:`fsreg_ros.core.algorithms.alignment` names it from the turns' records.
     origins: list[Optional[dict]] = field(default_factory=list)
 
     def to_json(self) -> dict:
@@ -128,13 +127,13 @@ async def sd_pia(
     The consultant keeps the distractor set (``view``, opened here unless given).
     Phase 1 (Q[target] in ``wm_order``: the properties recently encoded for the target)
     and Phase 2 (the preference order, minus what Phase 1 considered: LTM, asked only
-    as far as needed) are one :class:`~fsreg_ros.core.port.Walk` over the
+    as far as needed) are one :class:`~fsreg_ros.core.algorithms.port.Walk` over the
     properties that hold for the target (the others are skipped, nothing asked): each
     considered property narrows the distractors, encoding it for every remaining
     distractor it holds for (rule 3), and is selected when it rules one out; once a
     value of an attribute is selected, other values of it are skipped (a description
     never holds two values of one attribute); the walk ends when no distractor is
-    left.  The port runs the walk in one call (:meth:`~fsreg_ros.core.port.ConsultantPort.walk`);
+    left.  The port runs the walk in one call (:meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.walk`);
     the description is encoded for the target when the view closes (rule 1, :func:`_finish`).
     """
     algorithm = "sd-pia" if use_wm else "dist-pia"
@@ -176,7 +175,7 @@ async def _baseline_view(
     names*, in that order, the bitmask of distractors it rules out (bit i = the i-th
     distractor in entity order).  A property the order does not name is never
     considered, and ties are broken by the order (the port may serve a per-call order,
-    :class:`~fsreg_ros.core.describe.ViewPort`).  Queries only, no encoding.
+    :class:`~fsreg_ros.core.simulation.describe.ViewPort`).  Queries only, no encoding.
     """
     if view is None:
         view = await port.open(target, context)

@@ -2,8 +2,8 @@
 
 Used by ``fsreg-sim`` and ``fsreg-graph`` (:mod:`fsreg_ros.tools.sim`) and by the
 ``dialogue_player`` node; it reads the result objects of
-:mod:`fsreg_ros.core.simulation`, with the alignment keys that
-:func:`fsreg_ros.core.alignment.annotate` adds when present, and computes nothing
+:mod:`fsreg_ros.core.simulation.simulator`, with the alignment keys that
+:func:`fsreg_ros.core.algorithms.alignment.annotate` adds when present, and computes nothing
 itself.  Every figure printed is explained by a sentence printed with it.
 """
 
@@ -13,7 +13,7 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
-from .alignment import ORIGIN_WORDS, ORIGINS
+from ..algorithms.alignment import ORIGIN_WORDS, ORIGINS
 
 #: What the marks of a checked comparison mean.
 MARKS = (

@@ -5,7 +5,7 @@ type, bounds, the WM Manager node's default, the per-domain "inherit" marker, he
 text and the forgetting rules that read it.  Everything that names a memory setting
 is generated from :data:`TABLE`:
 
-* the policy itself, :class:`fsreg_ros.core.forgetting.ForgettingPolicy` (which
+* the policy itself, :class:`fsreg_ros.core.forgetting.policies.ForgettingPolicy` (which
   parameters each rule needs, their checks, what is reported);
 * the scenario file schema (:mod:`fsreg_ros.core.scenario.schema`, ``MemoryBlock``);
 * the command-line options of ``fsreg-sim`` / ``fsreg-graph`` (:mod:`fsreg_ros.tools.sim`);
@@ -19,7 +19,7 @@ is generated from :data:`TABLE`:
 Adding a setting is one row here plus the rule that reads it (docs/design.md, "Add a
 memory setting"); ``test/core/test_settings.py`` checks every consumer against the table.
 The one check of a value is :func:`check_value`; the ``policy`` row's value is a rule
-string, checked by :func:`fsreg_ros.core.forgetting.parse_rules`.
+string, checked by :func:`fsreg_ros.core.forgetting.policies.parse_rules`.
 """
 
 from __future__ import annotations

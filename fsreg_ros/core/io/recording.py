@@ -369,8 +369,8 @@ def check_bag_files(path: Path) -> None:
 
     ``rosbags`` opens them by name: a ``metadata.yaml`` or ``.mcap`` that is a named pipe
     would block it forever, a link to ``/dev/zero`` would be read until memory runs out.
-    So each is checked first (:mod:`fsreg_ros.core.input_file`), and ``metadata.yaml``'s
-    size, depth and aliases as every YAML file's (:mod:`fsreg_ros.core.yaml_source`; its
+    So each is checked first (:mod:`fsreg_ros.core.io.input_file`), and ``metadata.yaml``'s
+    size, depth and aliases as every YAML file's (:mod:`fsreg_ros.core.io.yaml_source`; its
     syntax is the library's to report).
     """
     from .input_file import InputFileError, check_file

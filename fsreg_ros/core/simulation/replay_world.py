@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable, Optional
 
-from .scenario import Scenario
+from ..scenario import Scenario
 
 #: Most names listed in the line.
 SHOWN = 5

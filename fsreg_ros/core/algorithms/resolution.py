@@ -2,8 +2,8 @@
 
 docs/semantics.md section 3.  The description's properties are checked in utterance order
 against every candidate still in play (the consultant keeps the candidate set: opening it
-checks the first property, one :class:`~fsreg_ros.core.port.Walk` the others, see
-:class:`~fsreg_ros.core.port.ConsultantPort`).  Each time a property is affirmed for a
+checks the first property, one :class:`~fsreg_ros.core.algorithms.port.Walk` the others, see
+:class:`~fsreg_ros.core.algorithms.port.ConsultantPort`).  Each time a property is affirmed for a
 candidate it is encoded into that candidate's WM (rule 2), even if the candidate
 is ruled out by a later property.  A description that resolves to exactly one
 entity is then encoded, whole and in utterance order, for its referent (rule 1).
@@ -14,8 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Collection, Mapping, Optional, Sequence
 
-from .consultant import KnowledgeError
-from .port import ConsultantPort, Step, WalkStep
+from .port import ConsultantPort, KnowledgeError, Step, WalkStep
 
 RESOLVED, AMBIGUOUS, NO_MATCH = "resolved", "ambiguous", "no-match"
 

@@ -13,7 +13,7 @@ A refusal is one :class:`InputFileError` whose text is ``"{path}: {what is wrong
 :func:`read_bytes` reads a whole file; :func:`open_binary` hands a checked, blocking
 file object to a reader that streams (CSV, a bag); :func:`check_file` checks a file that
 a third-party library opens by name itself.  YAML's own limits (depth, aliases) are
-:mod:`fsreg_ros.core.yaml_source`'s, which reads its text here.
+:mod:`fsreg_ros.core.io.yaml_source`'s, which reads its text here.
 """
 
 from __future__ import annotations

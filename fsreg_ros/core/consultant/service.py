@@ -1,12 +1,12 @@
 """The consultant service: one domain's consultant as it serves RR, REG and the WM Manager.
 
-:class:`ConsultantService` holds a :class:`~fsreg_ros.core.consultant.Consultant` (LTM
+:class:`ConsultantService` holds a :class:`~fsreg_ros.core.consultant.consultant.Consultant` (LTM
 and its WM buffer) and everything that lives beside it while it serves: the open
-views of RR and REG (:mod:`fsreg_ros.core.views`), the forgetting policy the WM
+views of RR and REG (:mod:`fsreg_ros.core.consultant.views`), the forgetting policy the WM
 Manager installed, readiness (configured in this incarnation), the decay high-water
 mark (the last tick applied: a tick is never applied twice), the numbering of the
 events it publishes, and its persistence (below).  The ROS node is wiring around it; the in-process
-:class:`~fsreg_ros.core.local_port.LocalPort` uses its typed methods, so the simulator
+:class:`~fsreg_ros.core.consultant.local_port.LocalPort` uses its typed methods, so the simulator
 and the graph run the same code.
 
 One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contract.consultant`):
@@ -15,16 +15,16 @@ One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contrac
    :meth:`configure`, ...); while someone listens to the events, the buffer's sink
    collects them, otherwise encodings take the buffer's quiet path;
 2. the call's :class:`Changes` say whether WM changed, with the journal records of
-   its buffer operations (:mod:`fsreg_ros.core.journal`) and the policy, decay mark
+   its buffer operations (:mod:`fsreg_ros.core.state.journal`) and the policy, decay mark
    and facts it set; a manage op also lists exactly the queues it changed
    (``WMBuffer.take_changes``: the WM Manager is told how many);
 3. they are committed to the store, once, by :meth:`Persistence.finish
-   <fsreg_ros.core.persistence.Persistence.finish>` (the records; a checkpoint of the
+   <fsreg_ros.core.consultant.persistence.Persistence.finish>` (the records; a checkpoint of the
    queues changed since the last one, read off ``take_changes``, when the journal is long);
 4. the :class:`Outcome` carries the reply, the changes and the numbered events.
 
 Persistence (restore at start, clock epochs, writing each call's changes once,
-checkpoints, retries after a failed write) is :class:`~fsreg_ros.core.persistence.Persistence`,
+checkpoints, retries after a failed write) is :class:`~fsreg_ros.core.consultant.persistence.Persistence`,
 held as :attr:`ConsultantService.persistence`: an LTM fact is stored before memory
 changes (a refused write changes nothing); a failed WM write does not fail the call
 (the service serves on and reports ``persisted: false`` in :meth:`status`); stored WM
@@ -38,17 +38,17 @@ import time as _time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from . import journal
+from ..state import journal
 from .consultant import CandidateSet, Consultant, KnowledgeError
-from .port import Narrowed, Step, View, Walk, Walked, WalkStep
+from ..algorithms.port import Narrowed, Step, View, Walk, Walked, WalkStep
 from .views import close_view, open_view
-from .decay import TickError, TickRun, check_time
-from .forgetting import NONE, ForgettingPolicy
-from .memory import WMEvent
+from ..memory.ticks import TickError, TickRun, check_time
+from ..forgetting.policies import NONE, ForgettingPolicy
+from ..memory import WMEvent
 from .persistence import Persistence, Restored
-from .store import DomainStore, StoreContents
+from ..state.store import DomainStore, StoreContents
 from .views import ViewTable
-from .wm_manager import configure_buffer, unapplied
+from ..forgetting.wm_manager import configure_buffer, unapplied
 
 
 class NotReady(RuntimeError):
@@ -215,7 +215,7 @@ class ConsultantService:
         """Add or update LTM facts about one entity (``ltm/assert``): stored durably first, then applied.
 
         Raises KnowledgeError (invalid: nothing changes) or StoreError (not stored:
-        nothing changes).  The reply is the :class:`~fsreg_ros.core.consultant.AssertResult` as JSON.
+        nothing changes).  The reply is the :class:`~fsreg_ros.core.consultant.consultant.AssertResult` as JSON.
         """
         outcome, refusals = self._assert_batch([(entity, facts)], time, listening)
         if refusals[0] is not None:
@@ -232,13 +232,13 @@ class ConsultantService:
         ``(entity, properties)`` is validated in order, as if the accepted ones before it
         were applied (a refused fact does not stop the others); the accepted ones are
         stored in one fsynced transaction, then applied in order.  The reply's
-        ``results`` hold, per fact and in order, its :class:`~fsreg_ros.core.consultant.AssertResult`
+        ``results`` hold, per fact and in order, its :class:`~fsreg_ros.core.consultant.consultant.AssertResult`
         as JSON with ``ok: true``, or ``ok: false`` with ``error`` and ``kind``;
         ``applied`` and ``refused`` count them.  Raises StoreError (nothing stored,
         nothing changed) or RequestError (a bad ``time``: nothing changed).  The same
         in three steps, the commit on another thread: :meth:`prepare_facts`,
-        :meth:`Persistence.store_facts <fsreg_ros.core.persistence.Persistence.store_facts>`
-        of :attr:`PreparedFacts.stored`, :meth:`apply_facts` (:mod:`fsreg_ros.core.fact_writer`).
+        :meth:`Persistence.store_facts <fsreg_ros.core.consultant.persistence.Persistence.store_facts>`
+        of :attr:`PreparedFacts.stored`, :meth:`apply_facts` (:mod:`fsreg_ros.core.state.fact_writer`).
         """
         return self._assert_batch(facts, time, listening)[0]
 
@@ -382,7 +382,7 @@ class ConsultantService:
     # ============================================================ typed ops
     def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None,
              first: Optional[Step] = None) -> View:
-        """Open a view (its handle is the candidate set); see :meth:`~fsreg_ros.core.port.ConsultantPort.open`."""
+        """Open a view (its handle is the candidate set); see :meth:`~.port.ConsultantPort.open`."""
         view = open_view(self.consultant, target, context, first)
         if first is not None and view.first.target_holds:
             self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
@@ -398,7 +398,7 @@ class ConsultantService:
 
     def walk(self, candidates: CandidateSet, steps: Sequence[WalkStep], cause: Optional[str], time: float,
              turn: Optional[int]) -> Walked:
-        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.port.Walk` decides, in this one call.
+        """Narrow by ``steps`` as a :class:`~fsreg_ros.core.algorithms.port.Walk` decides, in this one call.
 
         Every step's property is checked first: an unknown one changes nothing (KnowledgeError).
         """
@@ -512,7 +512,7 @@ class ConsultantService:
         return out
 
     def restore(self, state: StoreContents) -> Restored:
-        """Take up what the store held (:meth:`~fsreg_ros.core.persistence.Persistence.restore`)."""
+        """Take up what the store held (:meth:`~fsreg_ros.core.consultant.persistence.Persistence.restore`)."""
         return self.persistence.restore(state)
 
     def health(self) -> dict:

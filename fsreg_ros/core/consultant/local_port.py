@@ -1,10 +1,10 @@
 """The in-process consultant port: :class:`LocalPort`, over a consultant service in this process.
 
-:class:`LocalPort` is a :class:`~fsreg_ros.core.port.ConsultantPort` over a
-:class:`~fsreg_ros.core.service.ConsultantService` (ready at once, no store).
+:class:`LocalPort` is a :class:`~fsreg_ros.core.algorithms.port.ConsultantPort` over a
+:class:`~fsreg_ros.core.consultant.service.ConsultantService` (ready at once, no store).
 
 The simulator, the research tools and the tests run the algorithms through it (with
-:func:`~fsreg_ros.core.port.run_sync`); the consultant node serves the same service over
+:func:`~fsreg_ros.core.algorithms.port.run_sync`); the consultant node serves the same service over
 the graph, so both run the same code.
 """
 
@@ -13,14 +13,14 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from .consultant import Consultant
-from .port import Narrowed, Step, View, Walked, WalkStep, walk_by_narrowing
+from ..algorithms.port import Narrowed, Step, View, Walked, WalkStep, walk_by_narrowing
 from .service import ConsultantService
 
 
 class LocalPort:
-    """A :class:`~fsreg_ros.core.port.ConsultantPort` over an in-process consultant.
+    """A :class:`~fsreg_ros.core.algorithms.port.ConsultantPort` over an in-process consultant.
 
-    It is backed by a :class:`~fsreg_ros.core.service.ConsultantService` (ready at once,
+    It is backed by a :class:`~fsreg_ros.core.consultant.service.ConsultantService` (ready at once,
     no store), the same code the consultant node serves with: the simulator and the
     graph share it.
     """

@@ -1,8 +1,8 @@
 """Open views at a consultant: opening and closing one, and the bounded table that holds them.
 
 A view is one RR or REG request's candidate (or distractor) set kept at the consultant
-(:class:`~fsreg_ros.core.port.View` is what the port reports of it).  :func:`open_view`
-opens one over a :class:`~fsreg_ros.core.consultant.Consultant` and :func:`close_view`
+(:class:`~fsreg_ros.core.algorithms.port.View` is what the port reports of it).  :func:`open_view`
+opens one over a :class:`~fsreg_ros.core.consultant.consultant.Consultant` and :func:`close_view`
 closes it (rule 1's encoding); the service calls both.
 
 Over the graph a view is named by a *session* id (the wire field ``session``, the error
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Generic, Optional, Sequence, TypeVar
 
 from .consultant import CandidateSet, Consultant, KnowledgeError
-from .port import Narrowed, Step, View
+from ..algorithms.port import Narrowed, Step, View
 
 S = TypeVar("S")
 

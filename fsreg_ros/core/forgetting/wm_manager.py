@@ -1,20 +1,20 @@
 """The WM Manager: the one place that decides what each domain forgets, I/O-free.
 
-It owns each domain's :class:`~fsreg_ros.core.forgetting.ForgettingPolicy` and
-:class:`~fsreg_ros.core.decay.DecaySchedule` and decides what to send, through a
-small :class:`MemoryPort` (as :class:`~fsreg_ros.core.port.ConsultantPort`
+It owns each domain's :class:`~fsreg_ros.core.forgetting.policies.ForgettingPolicy` and
+:class:`~fsreg_ros.core.memory.ticks.DecaySchedule` and decides what to send, through a
+small :class:`MemoryPort` (as :class:`~fsreg_ros.core.algorithms.port.ConsultantPort`
 does for the algorithms):
 
 * ``configure(domain, policy, time)``: install a policy in the domain's buffer (its
   limits apply at once: trims, ``none`` empties WM);
-* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.decay.TickRun`;
+* ``decay(domain, ticks)``: apply a :class:`~fsreg_ros.core.memory.ticks.TickRun`;
 * ``advance(domain, time)``: the clock reached ``time`` (rule ``activation``: its
   entries below the threshold are forgotten at their crossing times).
 
 :class:`BufferPort` applies them in-process to :class:`~fsreg_ros.core.memory.WMBuffer`
 objects (the simulator; decay lazily, ``WMBuffer.decay``); the ``wm_manager`` node's
 port sends them to the consultants' manage services, where :func:`configure_buffer`
-and :meth:`~fsreg_ros.core.service.ConsultantService.decay_now` (eagerly,
+and :meth:`~fsreg_ros.core.consultant.service.ConsultantService.decay_now` (eagerly,
 ``WMBuffer.decay_now``, which gives the same queues) apply them.
 
 Time: the decay grid's origin is the manager's clock when it starts managing
@@ -32,9 +32,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Mapping, Optional, Protocol, Sequence
 
-from .decay import TIME_EPSILON, DecaySchedule, TickError, TickRun, check_time
-from .forgetting import ForgettingPolicy
-from .memory import WMBuffer
+from ..memory.ticks import TIME_EPSILON, DecaySchedule, TickError, TickRun, check_time
+from .policies import ForgettingPolicy
+from ..memory import WMBuffer
 
 #: How far ahead of the manager's own clock a sync time may be, seconds (one day):
 #: a scripted replay jumps from turn to turn, but a time further out is a fault.

@@ -15,8 +15,8 @@ WM buffer.  Durability is chosen per kind of data (docs/deployment.md, "State"):
 WM is kept as a *checkpoint* (every queue as of some moment) plus a *journal* of the
 buffer operations since (one row per consultant call: a rule-3 burst over thousands
 of distractors is one row, not thousands): a restarted consultant loads the
-checkpoint and replays the journal (:mod:`fsreg_ros.core.journal` defines the records
-and their replay; :mod:`fsreg_ros.core.persistence` writes and restores them).  A
+checkpoint and replays the journal (:mod:`fsreg_ros.core.state.journal` defines the records
+and their replay; :mod:`fsreg_ros.core.consultant.persistence` writes and restores them).  A
 checkpoint rewrites the queues changed since the previous one and empties the
 journal, in one transaction.
 
@@ -74,8 +74,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
-from .memory import UNKNOWN_ORIGIN
-from .memory.activation import Trace
+from ..memory import UNKNOWN_ORIGIN
+from ..memory.activation import Trace
 
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.

@@ -5,7 +5,7 @@ the one place policy names are parsed and validated):
 
 * ``decay`` (delta = ``decay_period``): every delta seconds of the robot's clock,
   counted from the WM Manager's start, pop the front of every non-empty queue
-  (Algorithm 2; the schedule is :mod:`fsreg_ros.core.decay`).
+  (Algorithm 2; the schedule is :mod:`fsreg_ros.core.memory.ticks`).
 * ``activation`` (d = ``activation_decay``, default 0.5; tau =
   ``activation_threshold``): ACT-R base-level activation.  An entry's activation is
   ln sum_j (t - t_j)^(-d) over the times its property was encoded for that entity
@@ -41,7 +41,7 @@ limits and the activation parameters become data on the buffer
 (:meth:`ForgettingPolicy.limits`), enforced by :mod:`fsreg_ros.core.memory`.
 
 The settings (their types, bounds, defaults and which rule reads which) are the
-table of :mod:`fsreg_ros.core.settings`; this module holds the rules.
+table of :mod:`fsreg_ros.core.forgetting.settings`; this module holds the rules.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 from typing import Mapping, Optional
 
 from . import settings as table
-from .memory import Limits
+from ..memory import Limits
 from .settings import MAX_DECAY_PERIOD, MIN_DECAY_PERIOD, Number, PolicyError
 
 #: Victim choice of each displacement rule.
@@ -242,7 +242,7 @@ def parse_rules(policy: str) -> tuple[str, ...]:
 def check_parameter(name: str, value: object) -> None:
     """Raise PolicyError unless ``value`` is acceptable for parameter ``name`` (None = unset).
 
-    The check and bounds are the settings table's (:func:`fsreg_ros.core.settings.check_value`),
+    The check and bounds are the settings table's (:func:`fsreg_ros.core.forgetting.settings.check_value`),
     shared by scenario files, the command line, node parameters and configure requests.
     """
     if name not in PARAMETERS:

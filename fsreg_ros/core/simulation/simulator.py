@@ -19,15 +19,15 @@ from json.encoder import encode_basestring as _string
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Optional
 
-from .local_port import LocalPort
-from .port import run_sync
-from .forgetting import ForgettingPolicy
-from .generation import algorithm_for, generate
-from .memory import WMEvent
-from .lexicon import Lexicon
-from .resolution import resolve
-from .scenario import Scenario, Turn
-from .wm_manager import WMManager
+from ..consultant.local_port import LocalPort
+from ..algorithms.port import run_sync
+from ..forgetting.policies import ForgettingPolicy
+from ..algorithms.generation import algorithm_for, generate
+from ..memory import WMEvent
+from ..lexicon import Lexicon
+from ..algorithms.resolution import resolve
+from ..scenario import Scenario, Turn
+from ..forgetting.wm_manager import WMManager
 
 
 @dataclass

@@ -9,7 +9,7 @@ This module owns long-term memory (:class:`Consultant`: facts, the threshold, th
 preference order, runtime updates, the queries over LTM and the encodings they make
 into its WM buffer) and candidate sets (:class:`CandidateSet`, a bitset of the
 entities still in play).  The algorithms reach a consultant through the port
-(:mod:`fsreg_ros.core.port`); the service that serves one is :mod:`fsreg_ros.core.service`.
+(:mod:`fsreg_ros.core.algorithms.port`); the service that serves one is :mod:`fsreg_ros.core.consultant.service`.
 """
 
 from __future__ import annotations
@@ -21,24 +21,13 @@ from typing import Any, Iterable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from . import bitset
-from .memory import EventSink, WMBuffer
+from ..memory import bitset
+from ..algorithms.port import KnowledgeError
+from ..memory import EventSink, WMBuffer
 
 DEFAULT_THRESHOLD = 0.5
 #: The certainty types :meth:`Consultant._checked_facts` checks by distinct value.
 _FLOAT_ONLY = frozenset((float,))
-
-
-class KnowledgeError(ValueError):
-    """A query or update names something the domain does not know, or is malformed.
-
-    The message says what and where; the consultant's state is unchanged.
-    """
-
-    def __init__(self, message: str = "", kind: Optional[str] = None) -> None:
-        super().__init__(message)
-        #: The ``kind`` an error reply on a topic carries (``unknown-entity``, ...); None: the class name.
-        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -64,7 +53,7 @@ class Consultant:
 
     LTM is kept twice: per entity, the certainty of each listed property (what
     :meth:`certainty` and :meth:`assert_facts` work on), and per property, the bitset
-    of the entities it holds for (:mod:`fsreg_ros.core.bitset`; bit i = the i-th
+    of the entities it holds for (:mod:`fsreg_ros.core.memory.bitset`; bit i = the i-th
     entity in entity order), which is what every query reads.  Entities are only
     ever appended (a new entity joins last), so an index never changes meaning.
     ``version`` counts LTM changes (facts, entities, threshold).
@@ -469,7 +458,7 @@ class Consultant:
 class CandidateSet:
     """The entities still in play in one RR or REG request, held by the consultant.
 
-    ``members`` is a bitset over entity indices (:mod:`fsreg_ros.core.bitset`);
+    ``members`` is a bitset over entity indices (:mod:`fsreg_ros.core.memory.bitset`);
     ``target`` is REG's target's index (None for RR).
     """
 

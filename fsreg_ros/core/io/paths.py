@@ -19,7 +19,7 @@ def config_dirs() -> list[Path]:
     dirs = []
     if os.environ.get("FSREG_CONFIG_DIR"):
         dirs.append(Path(os.environ["FSREG_CONFIG_DIR"]))
-    dirs.append(Path(__file__).resolve().parents[2] / "config")  # source tree / editable
+    dirs.append(Path(__file__).resolve().parents[3] / "config")  # source tree / editable
     for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
         if prefix:
             dirs.append(Path(prefix) / "share" / PACKAGE / "config")

@@ -1,0 +1,7 @@
+"""Consultants (DIARC's pattern): one per knowledge domain, owning its LTM and its WM.
+
+``consultant`` (:class:`~.consultant.Consultant`: LTM, candidate sets, the encodings
+queries make), ``service`` (:class:`~.service.ConsultantService`: one call = one op,
+its changes, one commit), ``persistence`` (restore at start, clock epochs, checkpoints),
+``views`` (open RR/REG candidate sets, bounded), ``local_port`` (the port in-process).
+"""

@@ -1,0 +1,8 @@
+"""What each domain forgets, and when: the rules' policy, their settings, the WM Manager.
+
+``policies`` (:class:`~.policies.ForgettingPolicy`: ``none`` or rules joined by ``+``,
+parsed and turned into buffer limits), ``settings`` (the memory settings table, every
+setting declared once), ``wm_manager`` (the I/O-free WM Manager: decay schedules, the
+shared pool, clocks sent to the buffers).  The buffers that enforce a policy are
+:mod:`fsreg_ros.core.memory`, below this package.
+"""
