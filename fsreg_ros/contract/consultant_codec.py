@@ -248,6 +248,11 @@ def members_of(reply: Mapping[str, Any]) -> list[str]:
 
 
 # ----------------------------------------------------------------------- debug ops
+def holds_request(prop: str, entities: Sequence[str]) -> dict:
+    """Encode ``holds``: for which of ``entities`` does ``prop`` hold."""
+    return {"op": "holds", "property": prop, "entities": list(entities)}
+
+
 def holds_args(req: Mapping[str, Any]) -> tuple:
     """Decode ``holds``: property, entities."""
     return req["property"], req["entities"]
@@ -256,6 +261,17 @@ def holds_args(req: Mapping[str, Any]) -> tuple:
 def holds_reply(held: list[str]) -> dict:
     """Encode the entities a property holds for (``holds``, ``affirm``)."""
     return {"holds": held}
+
+
+def held_of(reply: Mapping[str, Any]) -> list[str]:
+    """Decode a ``holds`` or ``affirm`` reply: the entities the property holds for."""
+    return list(reply["holds"])
+
+
+def affirm_request(prop: str, entities: Sequence[str], cause: str, time: Optional[float],
+                   turn: Optional[int]) -> dict:
+    """Encode ``affirm``: as ``holds``, encoding ``prop`` (``cause``) for each entity it holds for."""
+    return {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause, "time": time, "turn": turn}
 
 
 def affirm_args(req: Mapping[str, Any]) -> tuple:
@@ -281,6 +297,13 @@ def queue_reply(queue: list[str]) -> dict:
 def queue_of(reply: Mapping[str, Any]) -> list[str]:
     """Decode a ``wm`` reply."""
     return list(reply["queue"])
+
+
+def encode_request(entity: str, properties: Sequence[str], cause: str, time: Optional[float],
+                   turn: Optional[int]) -> dict:
+    """Encode ``encode``: ``properties`` into ``entity``'s queue (Algorithm 1)."""
+    return {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause, "time": time,
+            "turn": turn}
 
 
 def encode_args(req: Mapping[str, Any]) -> tuple:
@@ -354,6 +377,11 @@ def decay_args(req: Mapping[str, Any]) -> tuple[TickRun]:
 def policy_reply(policy: str) -> dict:
     """Encode the installed policy's name (``decay``, ``advance``)."""
     return {"policy": policy}
+
+
+def policy_of(reply: Mapping[str, Any]) -> str:
+    """Decode a ``decay`` or ``advance`` reply: the installed policy's name."""
+    return reply["policy"]
 
 
 def advance_request(time: float) -> dict:

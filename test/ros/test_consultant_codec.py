@@ -41,7 +41,11 @@ REQUESTS = [
     ("rule_out", codec.rule_out_request("s1"), ("s1",)),
     ("close", codec.close_request("s1", ["male"], 3.0, 2), ("s1", ["male"], 3.0, 2)),
     ("close", codec.close_request("s1", (), 3.0, None), ("s1", (), 3.0, None)),
+    ("holds", codec.holds_request("male", ["face1", "face2"]), ("male", ["face1", "face2"])),
+    ("affirm", codec.affirm_request("male", ["face1"], "rr", 1.0, 3), ("male", ["face1"], "rr", 1.0, 3)),
     ("wm", codec.wm_request("face1"), ("face1",)),
+    ("encode", codec.encode_request("face1", ["male"], "speaker", None, None),
+     ("face1", ["male"], "speaker", None, None)),
     ("snapshot", codec.snapshot_request(), ()),
     ("configure", codec.configure_request(POLICY, 4.0), (POLICY, 4.0)),
     ("decay", codec.decay_request(TickRun(0.0, 10.0, 3, 2)), (TickRun(0.0, 10.0, 3, 2),)),
@@ -54,6 +58,7 @@ REQUESTS = [
 
 @pytest.mark.parametrize("op, request_, args", REQUESTS, ids=[r[0] for r in REQUESTS])
 def test_every_request_a_caller_sends_is_the_codecs_and_decodes_to_what_it_encoded(op, request_, args):
+    assert {op for op, _, _ in REQUESTS} == set(codec.ALL_OPS)  # every op: query, debug and manage
     assert request_["op"] == op
     check(codec.ALL_OPS[op][0], request_)  # the schema admits it
     decode = codec.reset_args if op == "reset" else codec.SERVED[op][0]
@@ -71,12 +76,17 @@ REPLIES = [
     ("walk", Walked((0, 2), 0, 3), lambda r: codec.walked_of(r, 3), Walked((0, 2), 0, 3)),
     ("rule_out", (["male", "glasses"], [0x5, 0x10]), codec.rule_out_of, (["male", "glasses"], [0x5, 0x10])),
     ("close", ["face2"], codec.members_of, ["face2"]),
+    ("holds", ["face1"], codec.held_of, ["face1"]),
+    ("affirm", [], codec.held_of, []),
     ("wm", ["male"], codec.queue_of, ["male"]),
+    ("encode", None, lambda r: r, {}),
     ("snapshot", ({"face1": ["male"]}, 7), codec.snapshot_of, {"face1": ["male"]}),
     ("configure", Configured(POLICY.to_json(), 2, {**STATE, "restored": {"fresh": True, "runtime_entities": 0,
                                                                          "runtime_facts": 0, "queues": 0}}),
      codec.configured_of, (POLICY.to_json(), 2, {"fresh": True, "runtime_entities": 0, "runtime_facts": 0,
                                                  "queues": 0})),
+    ("decay", "decay", codec.policy_of, "decay"),
+    ("advance", "activation", codec.policy_of, "activation"),
     ("size", 4, codec.size_of, 4),
     ("evict", 1, codec.size_of, 1),
     ("info", Info("faces", ["face2"], 2, ["male"], 0.5, "none", {"policy": "none"}, 3, 1, STATE),
@@ -86,6 +96,7 @@ REPLIES = [
 
 @pytest.mark.parametrize("op, result, decode, decoded", REPLIES, ids=[r[0] for r in REPLIES])
 def test_every_reply_the_consultant_encodes_fits_its_schema_and_decodes_to_what_it_encoded(op, result, decode, decoded):
+    assert {op for op, _, _, _ in REPLIES} == set(codec.SERVED)  # every op the service runs
     reply = codec.completed(op, codec.SERVED[op][1](result), 0, lambda: "1:2")
     if op == "info":
         codec.with_listeners(reply, 0)
