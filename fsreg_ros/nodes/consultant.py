@@ -53,7 +53,9 @@ from ..core.consultant.service import ConsultantService, NotReady, Outcome, Prep
 from ..core.state.store import DomainStore, StoreError, default_state_dir, fingerprint, legacy_state_path, state_path
 from ..core.consultant.views import DEFAULT_CAPACITY, DEFAULT_PER_CLIENT, DEFAULT_TIMEOUT, ViewTable
 from ..ros.asking import declare_limits
-from ..ros.carrier import CarrierError, publish, publisher, serve, subscribe_batches
+from ..ros.batches import subscribe_batches
+from ..ros.carrier import CarrierError, publish, publisher
+from ..ros.serving import serve
 from ..ros.diagnostics import ERROR, OK, WARN
 from ..ros.node_base import StartupError, declare_number, descriptor, now_seconds, run_node, watch_clock
 
@@ -66,7 +68,7 @@ ALIVE_PERIOD = 0.25
 #: Least seconds between two log lines about facts applied (steady clock): a stream is summarised.
 FACTS_LOG_PERIOD = 5.0
 #: Most requests waiting on a service answered in one go, ahead of the executor's next round (queries are not
-#: served one per round behind the facts: :func:`~fsreg_ros.ros.carrier.serve`'s ``drain``).
+#: served one per round behind the facts: :func:`~fsreg_ros.ros.serving.serve`'s ``drain``).
 MAX_DRAIN_REQUESTS = 64
 #: Most facts one ``ltm/assert`` batch takes from the messages waiting, and the most CPU seconds spent taking them
 #: (RR's and REG's calls wait meanwhile; the writer thread groups batches into one commit whatever their size;
@@ -74,7 +76,7 @@ MAX_DRAIN_REQUESTS = 64
 MAX_DRAIN_FACTS, MAX_DRAIN_SECONDS = 250, 0.005
 #: Seconds between two takes of a stream of ``ltm/assert`` messages (the first of a stream is taken at once):
 #: one fact a message at 1,000/s is then ~10 messages a round, one commit and one apply, instead of a round,
-#: a commit and an apply each (:func:`~fsreg_ros.ros.carrier.subscribe_batches`' ``gather``).
+#: a commit and an apply each (:func:`~fsreg_ros.ros.batches.subscribe_batches`' ``gather``).
 FACTS_GATHER = 0.01
 
 
@@ -307,7 +309,7 @@ class ConsultantNode(Node):
         """Prepare ``ltm/assert`` messages of this domain as ONE batch and hand it to the writer thread.
 
         They were routed by ``accept``, validated and drained together by
-        :func:`~fsreg_ros.ros.carrier.subscribe_batches`.  A message holds one entity's facts
+        :func:`~fsreg_ros.ros.batches.subscribe_batches`.  A message holds one entity's facts
         or a batch (``facts``); every fact of every message is one fact of one
         :meth:`~fsreg_ros.core.consultant.service.ConsultantService.prepare_facts` (all-or-nothing per
         fact, checked against LTM as the batches already in flight leave it).  The

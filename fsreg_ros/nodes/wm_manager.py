@@ -81,8 +81,10 @@ from rclpy.validate_topic_name import validate_topic_name
 
 from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
-from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
-                           subscribe_batches, wait_until)
+from ..ros.batches import subscribe_batches
+from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, subscribe,
+                           wait_until)
+from ..ros.serving import serve
 from ..contract import manage_service
 from ..contract.codec import printable
 from ..core.memory.ticks import TIME_EPSILON, TickError
@@ -102,7 +104,7 @@ SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
 #: Seconds between two takes of a stream of ``ltm/assert`` messages, read only to answer those naming a domain no
-#: consultant serves (the first of a stream is taken at once; :func:`~fsreg_ros.ros.carrier.subscribe_batches`).
+#: consultant serves (the first of a stream is taken at once; :func:`~fsreg_ros.ros.batches.subscribe_batches`).
 FOREIGN_GATHER = 0.05
 
 
@@ -179,7 +181,7 @@ class WMManagerNode(Node):
         # A message no consultant can read (not JSON, too large) is answered by every consultant, not here.
         self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
         self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
-        # Drained like the consultants' (carrier.subscribe_batches), and a stream gathered every FOREIGN_GATHER
+        # Drained like the consultants' (batches.subscribe_batches), and a stream gathered every FOREIGN_GATHER
         # seconds: at a perception stream's rate one executor round per message cost this node a quarter to a
         # third of a core for messages it only looks at.  At most 3 ms a round of CPU: sync (one request a
         # round), which every human turn and REG request waits for, goes between.

@@ -10,7 +10,11 @@ others only ``tools`` imports it.
 What lives here, one module per job (the wire codec, ROS-free, is
 :mod:`fsreg_ros.contract.codec`):
 
-* :mod:`.carrier`: serving, subscribing and calling JSON over rclpy with validation;
+* :mod:`.carrier`: the JSON carrier convention, subscribing and calling with validation; its
+  neighbours :mod:`.serving` (serving a contract service), :mod:`.batches` (a topic taken a batch
+  at a time), :mod:`.gathering` (a stream's reader held and taken once a period);
+* :mod:`.rclpy_internals`: every use of rclpy's internals, in one place (its test fails if rclpy
+  changes them);
 * :mod:`.network`: the DDS environment of every process (loopback unless widened);
 * :mod:`.graph_spec`: the one definition of the node graph (nodes, names, parameters);
 * :mod:`.remote`: :class:`~.remote.RemotePort`, a consultant port over a consultant node's service;

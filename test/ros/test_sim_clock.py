@@ -21,7 +21,8 @@ from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.wm_manager import WMManagerNode
 from fsreg_ros.ros.graph_clock import clock_message
 from fsreg_ros.ros.node_base import now_seconds
-from fsreg_ros.ros.sim_clock import OnDemand, clock_subscription, follow_clock, refresh
+from fsreg_ros.ros.rclpy_internals import clock_subscription
+from fsreg_ros.ros.sim_clock import OnDemand, follow_clock, refresh
 from rosutil import KB, RosSession, ros_graph
 
 pytestmark = pytest.mark.graph
