@@ -47,7 +47,8 @@ if a domain has ``shared-capacity``, and replies; a time that is not finite, bey
 its current incarnation is configured, the next tick, ``ready`` (every domain configured)
 and this node's ``graph`` identity.  Topic in: ``consultant/announce`` (latched), from every
 consultant; ``ltm/assert``, only to answer one naming a domain no consultant serves
-(:class:`~fsreg_ros.ros.foreign_asserts.ForeignAsserts`).  Topic out: ``wm_manager/ready`` (latched, :class:`~fsreg_ros.contract.ManagerReady`):
+(:class:`~fsreg_ros.ros.foreign_asserts.ForeignAsserts`).  Topic out: ``wm_manager/ready``
+(latched, :class:`~fsreg_ros.contract.ManagerReady`):
 ``ready``, each domain's ``configured``/``incarnation``/``running`` and the ``recorders`` it sees, at start and at every
 change, so a client waits for readiness instead of retrying (``fsreg-up``, ``fsreg-ctl``,
 ``fsreg_ros.testing``).
