@@ -25,7 +25,11 @@ What lives here, one module per job (the wire codec, ROS-free, is
 * node support shared by several nodes: :mod:`.node_base` (the main runner, parameter
   helpers, the clock watchdog), :mod:`.asking` (the base of RR and REG),
   :mod:`.manage_link` and :mod:`.memory_parameters` (the WM Manager's links and
-  parameters), :mod:`.event_audit` (the dialogue player's record of ``wm/events``).
+  parameters), :mod:`.event_audit` (the dialogue player's record of ``wm/events``);
+* what a node does beyond wiring, so every node module stays thin: the consultant's
+  :mod:`.fact_intake` (``ltm/assert``) and :mod:`.consultant_outbox` (its topics); the WM
+  Manager's :mod:`.consultant_watch` (announcements, liveliness), :mod:`.foreign_asserts`
+  and :mod:`.manager_parameters`; the dialogue player's :mod:`.event_sources`.
 
 May import: :mod:`fsreg_ros.core`, :mod:`fsreg_ros.contract`, rclpy and the message packages.
 """
