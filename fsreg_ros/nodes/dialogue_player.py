@@ -25,11 +25,11 @@ subscription is matched with every consultant.  Every event carries ``seq`` (1, 
 ... per consultant incarnation) and ``incarnation``; the player notes each
 consultant's last ``seq`` before turn 1 and, after the last turn, checks that it heard
 exactly the events that followed, without a gap, from the incarnation it started with
-(:class:`~fsreg_ros.ros.event_audit.EventAudit`).  A gap, a restarted consultant, or anything stamped by another
-graph (``graph``, the ``graph`` parameter of every node; see
-:func:`fsreg_ros.ros.carrier.graph_identity`) on an answer or an event fails the run
-(exit 1) with one line saying what was missing or foreign: a result is never written
-from an incomplete event stream.
+(:class:`~fsreg_ros.ros.event_sources.EventSources`, :class:`~fsreg_ros.ros.event_audit.EventAudit`).
+A gap, a restarted consultant, or anything stamped by another graph (``graph``, the
+``graph`` parameter of every node; see :func:`fsreg_ros.ros.carrier.graph_identity`) on
+an answer or an event fails the run (exit 1) with one line saying what was missing or
+foreign: a result is never written from an incomplete event stream.
 """
 
 from __future__ import annotations
@@ -54,6 +54,7 @@ from ..core.scenario import Scenario, Turn, load_scenario
 from ..core.simulation.simulator import dumps, human_record, robot_record, trace_order
 from ..ros.node_base import declare_number, run_node
 from ..ros.event_audit import EventAudit
+from ..ros.event_sources import EventSources, PlayerError
 
 PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
     contract.HUMAN.name: (True, False),
@@ -61,10 +62,6 @@ PIPELINE_TOPICS = {  # topic -> (needs a subscriber, needs a publisher)
     contract.RR_RESULT.name: (False, True),
     contract.REG_EXPRESSION.name: (False, True),
 }
-
-
-class PlayerError(RuntimeError):
-    """The graph did not answer in time, answered with an error, or its event stream was incomplete or foreign."""
 
 
 class DialoguePlayer(Node):
@@ -99,14 +96,13 @@ class DialoguePlayer(Node):
         self.graph = graph_identity(self)
         self._sync = ServiceCaller(self, contract.SYNC.name, group)
         self._status = ServiceCaller(self, contract.STATUS.name, group)
-        self._consultants = {d: ServiceCaller(self, contract.consultant_service(d), group)
-                             for d in self.scenario.domains}
         self._pending: dict[str, Future] = {}
         self.audit = EventAudit(self.graph, tuple(self.scenario.domains))
         self.memory: dict[str, Any] = {}
         subscribe(self, contract.RR_RESULT, self._on_answer, callback_group=group)
         subscribe(self, contract.REG_EXPRESSION, self._on_answer, callback_group=group)
-        self._events_sub = subscribe(self, contract.WM_EVENTS, self._on_event, callback_group=group)
+        self.sources = EventSources(self, list(self.scenario.domains), self.audit, self._on_event, group,
+                                    self.listeners)
 
     # ------------------------------------------------------------ callbacks
     def _on_answer(self, data: dict) -> None:
@@ -130,8 +126,7 @@ class DialoguePlayer(Node):
         return self.audit.trace_events()
 
     def _check_fault(self) -> None:
-        if self.audit.fault is not None:
-            raise PlayerError(self.audit.fault)
+        self.sources.check_fault()
 
     # -------------------------------------------------------------- waiting
     def _missing_peers(self) -> list[str]:
@@ -164,41 +159,7 @@ class DialoguePlayer(Node):
         if graph != self.graph:
             raise PlayerError(f"{contract.STATUS.name} is answered by another graph ({describe_graph(graph)}, this "
                               f"run is {describe_graph(self.graph)}): another graph runs in this namespace")
-        await self.wait_for_event_sources(status, max(1.0, timeout - (wallclock.monotonic() - started)))
-
-    async def wait_for_event_sources(self, status: dict, timeout: float) -> None:
-        """Wait until every consultant's ``wm/events`` publisher is matched with this player; note where each stands.
-
-        A consultant sends events only while its publisher sees a subscriber, so turn 1
-        must not start before each one sees this player's (``event_listeners`` in its
-        ``info``) and this player's subscription sees each consultant.
-        """
-        domains = list(self.scenario.domains)
-        clients = self._consultants
-        deadline = wallclock.monotonic() + timeout
-        waiting = list(domains)
-        while waiting:
-            matched = self._events_sub.get_publisher_count() >= len(domains)
-            for domain in list(waiting):
-                try:
-                    info = await clients[domain].wait_ready({"op": "info"}, max(0.1, deadline - wallclock.monotonic()))
-                except CarrierError as err:
-                    raise PlayerError(f"graph not ready: {err}") from None
-                if matched and info.get("event_listeners", 0) >= 1 + self.listeners:
-                    incarnation = (status.get("incarnation") or {}).get(domain)
-                    self.audit.start(domain, incarnation if isinstance(incarnation, int) else None,
-                                     int(info.get("events", 0)))
-                    waiting.remove(domain)
-            if waiting:
-                if wallclock.monotonic() > deadline:
-                    raise PlayerError(
-                        f"graph not ready: the {contract.WM_EVENTS.name} publisher of {', '.join(waiting)} is not "
-                        f"matched with this player (its events would be lost)")
-                await wait_until(self, lambda: False, 0.05)
-        publishers = self._events_sub.get_publisher_count()
-        if publishers > len(domains):  # one per consultant: a writer more is not this graph's
-            raise PlayerError(f"{contract.WM_EVENTS.name} has {publishers} publishers for this run's {len(domains)} "
-                              "consultant(s): another graph publishes in this namespace")
+        await self.sources.wait(status, max(1.0, timeout - (wallclock.monotonic() - started)))
 
     async def exchange(self, publisher, message: dict) -> dict:
         """Publish ``message`` and return the answer with its id.
@@ -238,30 +199,8 @@ class DialoguePlayer(Node):
         for turn in self.scenario.dialogue:
             records.append(await self.play_turn(turn))
             self._check_fault()
-        await self.drain_events()
+        await self.sources.drain(self.get_parameter("turn_timeout").value)
         return {"scenario": self.scenario.name, "memory": self.memory, "turns": records}
-
-    async def drain_events(self) -> None:
-        """Wait until every event each consultant published during the run has been heard; check it.
-
-        An answer can overtake the last events, which come from another process.  Then
-        each consultant's events must be exactly those numbered after where it stood
-        before turn 1, up to its last ``seq`` now, from the same incarnation.
-        """
-        timeout = self.get_parameter("turn_timeout").value
-        for domain in self.scenario.domains:
-            try:
-                last = int((await self._consultants[domain].wait_ready({"op": "info"}, timeout))["events"])
-            except CarrierError as err:
-                raise PlayerError(f"cannot check the events of '{domain}': {err}") from None
-            wanted = last - self.audit.base[domain]
-            done = lambda: self.audit.fault is not None or self.audit.heard(domain) >= wanted  # noqa: E731
-            await wait_until(self, done, timeout)
-            self._check_fault()
-            problem = self.audit.check(domain, last)
-            if problem is not None:
-                raise PlayerError(f"incomplete {contract.WM_EVENTS.name}: {problem}; the run's trace, origins and "
-                                  "alignment would be wrong")
 
     async def play_turn(self, turn: Turn) -> dict:
         self._check_fault()

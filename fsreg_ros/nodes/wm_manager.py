@@ -13,12 +13,10 @@ sends each decision to ``/consultant/<domain>/manage``:
   of any ``decay`` it never acknowledged (the consultant skips ticks it had applied,
   so none is applied twice).  A restarted consultant refuses query ops (kind
   ``not-ready``) until that configure arrives.
-* Reachability, under every policy: the node follows each consultant's liveliness on
-  ``consultant/<domain>/alive`` (a 1 s DDS lease, kept by the consultant's DDS threads).
-  When it lapses, the domain stops counting as configured (``ready`` turns false, the
-  domain is detached so decay ticks are owed, not lost) until the consultant is back
-  and has acknowledged a configure again: without it, a policy that sends nothing on
-  its own (displacement, none) never noticed an outage.
+* Reachability, under every policy: each consultant's announcements and liveliness on
+  ``consultant/<domain>/alive`` (a 1 s DDS lease) are followed by
+  :class:`~fsreg_ros.ros.consultant_watch.ConsultantWatch`; while it lapses, the domain
+  is not configured (``ready`` false, decay ticks owed, not lost).
 * ``decay`` sends a run of ticks ``{"origin", "period", "first", "count"}``: a few
   numbers however many ticks, so a clock far ahead costs what one tick costs.
 
@@ -30,13 +28,11 @@ armed for each domain's next tick.  A clock that goes backwards applies nothing
 (ticks are never undone or applied twice) and is logged once; under ``use_sim_time``
 a clock that does not move is reported (``common.watch_clock``).
 
-Parameters (all but ``domains`` and ``use_sim_time`` changeable at run time; a change is
-validated as the effective policy of every domain and rejected with a reason if any is
-invalid, or if it changes a node-wide setting that a domain overrides (it would not apply
-there: :func:`~fsreg_ros.ros.memory_parameters.check_change`);
-unsetting a parameter or changing its type is refused, by rclpy's static typing):
-``domains`` (string array, required, read-only): the consultant domains managed; the
-memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
+Parameters (:class:`~fsreg_ros.ros.manager_parameters.ManagerParameters`; all but ``domains``
+and ``use_sim_time`` changeable at run time, a change validated as the effective policy of
+every domain first; unsetting a parameter or changing its type is refused, by rclpy's
+static typing): ``domains`` (string array, required, read-only): the consultant domains
+managed; the memory settings, node-wide and per domain (:mod:`fsreg_ros.ros.memory_parameters`,
 from the settings table); ``service_timeout`` (10.0 s, in [0.01, 3600]): deadline of
 each consultant call, and of sync's wait for the consultants to be configured.
 
@@ -50,7 +46,9 @@ if a domain has ``shared-capacity``, and replies; a time that is not finite, bey
 ``wm_manager/status`` reports each domain's setting, what its consultant runs, whether
 its current incarnation is configured, the next tick, ``ready`` (every domain configured)
 and this node's ``graph`` identity.  Topic in: ``consultant/announce`` (latched), from every
-consultant.  Topic out: ``wm_manager/ready`` (latched, :class:`~fsreg_ros.contract.ManagerReady`):
+consultant; ``ltm/assert``, only to answer one naming a domain no consultant serves
+(:class:`~fsreg_ros.ros.foreign_asserts.ForeignAsserts`).  Topic out: ``wm_manager/ready``
+(latched, :class:`~fsreg_ros.contract.ManagerReady`):
 ``ready``, each domain's ``configured``/``incarnation``/``running`` and the ``recorders`` it sees, at start and at every
 change, so a client waits for readiness instead of retrying (``fsreg-up``, ``fsreg-ctl``,
 ``fsreg_ros.testing``).
@@ -64,46 +62,30 @@ import time as wallclock
 from functools import partial
 from typing import Any, Optional
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.exceptions import (
-    InvalidParameterTypeException,
-    InvalidParameterValueException,
-    InvalidServiceNameException,
-    InvalidTopicNameException,
-    ParameterUninitializedException,
-)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.validate_topic_name import validate_topic_name
 
 from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
-from ..ros.carrier import (CarrierError, graph_identity, log_error, log_warning, publish, publisher, serve, subscribe,
-                           subscribe_batches, wait_until)
+from ..ros.carrier import CarrierError, graph_identity, log_error, publish, publisher, wait_until
+from ..ros.serving import serve
 from ..contract import manage_service
-from ..contract.codec import printable
 from ..core.memory.ticks import TIME_EPSILON, TickError
-from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..ros.diagnostics import OK, WARN
-from ..ros.node_base import StartupError, accepted, descriptor, now_seconds, rejected, run_node, watch_clock
+from ..ros.consultant_watch import ConsultantWatch
+from ..ros.foreign_asserts import ForeignAsserts
+from ..ros.node_base import now_seconds, run_node, watch_clock
 from ..ros.manage_link import ConsultantLink, ManageLinks, ManagePort
+from ..ros.manager_parameters import ManagerParameters, declare_domains
 from ..ros.recorders import recorders_of
-from ..ros.memory_parameters import (SETTINGS, check_change, declare_memory_parameters, effective_policies,
-                                     parameter_names)
 
-#: Range of ``service_timeout``, seconds.
-TIMEOUT_RANGE = (0.01, 3600.0)
 #: How often unconfigured consultants are looked for and stale calls expired (s).
 SUPERVISE_PERIOD = 0.25
 #: Longest one-shot timer delay, ns (rcl timers take an int64 period).
 MAX_DELAY_NS = 10**18
-#: Seconds between two takes of a stream of ``ltm/assert`` messages, read only to answer those naming a domain no
-#: consultant serves (the first of a stream is taken at once; :func:`~fsreg_ros.ros.carrier.subscribe_batches`).
-FOREIGN_GATHER = 0.05
 
 
 class WMManagerNode(Node):
@@ -114,41 +96,10 @@ class WMManagerNode(Node):
     def __init__(self, node_name: str = NODE_NAME, *, namespace: Optional[str] = None, **kwargs: Any) -> None:
         super().__init__(node_name, namespace=namespace, **kwargs)
         fix_use_sim_time(self)  # one clock for the whole graph
-        self.declare_parameter(
-            "domains",
-            Parameter.Type.STRING_ARRAY,
-            descriptor("consultant domains to manage (one consultant node each)", read_only=True),
-        )
-        try:
-            names = [d for d in (self.get_parameter("domains").value or []) if d]
-        except ParameterUninitializedException:
-            names = []
-        if not names:
-            raise StartupError("parameter 'domains' must name at least one consultant domain")
-        if len(set(names)) != len(names):
-            raise StartupError(f"parameter 'domains' names a domain twice: {names}")
-        for name in names:
-            try:
-                validate_topic_name(manage_service(name), is_service=True)
-            except (InvalidServiceNameException, InvalidTopicNameException):
-                raise StartupError(f"domain {name!r} cannot be part of a ROS service name") from None
-            if name in SETTINGS or name == "service_timeout":
-                raise StartupError(f"domain {name!r} clashes with a parameter name")
-
+        names = declare_domains(self)
         self._names = names
-        self._param_names = parameter_names(names) + ["service_timeout"]
-        timeout = ParameterDescriptor(
-            description="deadline of each consultant call, and of sync's wait for configuration, s",
-            floating_point_range=[FloatingPointRange(from_value=TIMEOUT_RANGE[0], to_value=TIMEOUT_RANGE[1], step=0.0)],
-        )
-        try:
-            declare_memory_parameters(self, names)
-            self.declare_parameter("service_timeout", 10.0, timeout)
-            policies = self._effective(self._values())
-        except (InvalidParameterTypeException, InvalidParameterValueException) as err:
-            raise StartupError(" ".join(str(err).split())) from None
-        except ValueError as err:
-            raise StartupError(str(err)) from None
+        self._config = ManagerParameters(self, names)
+        policies = self._config.policies()
 
         # Callback groups: consultant clients (and their deadline timers) reentrant, so
         # their replies arrive while the barrier awaits them; the barrier services in
@@ -167,37 +118,22 @@ class WMManagerNode(Node):
             self._domains[name].timer = self.create_timer(1.0, partial(self._on_decay_timer, name), autostart=False)
             self._arm(name)
 
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(self._config.on_set)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._ready = publisher(self, contract.READY)
         self._ready_sent: Optional[dict] = None
         serve(self, contract.SYNC, self._sync, self._barrier_group)
         serve(self, contract.STATUS, self._status)
-        subscribe(self, contract.ANNOUNCE, self._on_announce)
-        # An ltm/assert for a domain no consultant serves would go unanswered: the WM Manager, which knows
-        # the configured domains, answers it (kind unknown-domain; malformed ones as bad-request).
-        # A message no consultant can read (not JSON, too large) is answered by every consultant, not here.
-        self._assert_results = publisher(self, contract.LTM_ASSERT_RESULT)
-        self._foreign: Optional[str] = None  # the domain of the foreign ltm/assert being handled
-        # Drained like the consultants' (carrier.subscribe_batches), and a stream gathered every FOREIGN_GATHER
-        # seconds: at a perception stream's rate one executor round per message cost this node a quarter to a
-        # third of a core for messages it only looks at.  At most 3 ms a round of CPU: sync (one request a
-        # round), which every human turn and REG request waits for, goes between.
-        subscribe_batches(self, contract.LTM_ASSERT, self._on_foreign_asserts, reject=self._reject_assert,
-                          accept=self._foreign_domain, limits=contract.Limits(), max_seconds=0.003,
-                          clock=wallclock.thread_time, gather=FOREIGN_GATHER)
-        for name, dom in self._domains.items():
-            dom.alive_sub = subscribe(
-                self, contract.alive_topic(name), partial(self._on_alive, dom),
-                event_callbacks=SubscriptionEventCallbacks(liveliness=partial(self._on_liveliness, dom)))
+        self._watch = ConsultantWatch(self, self.manager, self._links, self._arm, self._publish_ready)
+        self._foreign = ForeignAsserts(self, names)  # an ltm/assert no consultant would answer
         self._clock_watch = watch_clock(self)
-        self.create_timer(SUPERVISE_PERIOD, self._supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(SUPERVISE_PERIOD, self._watch.supervise, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"managing (decay grid from t = {now:g}) "
             + ", ".join(f"{d}: {p.to_json()}" for d, p in policies.items())
             + "; waiting for consultants"
         )
-        self._supervise()
+        self._watch.supervise()
 
     # ------------------------------------------------------------------ time
     def now(self) -> float:
@@ -205,7 +141,7 @@ class WMManagerNode(Node):
 
     @property
     def timeout(self) -> float:
-        return float(self.get_parameter("service_timeout").value)
+        return self._config.timeout
 
     def _advance(self, name: str, t: float) -> int:
         """Send the domain's ticks due at or before ``t`` (the core decides); how many."""
@@ -219,30 +155,11 @@ class WMManagerNode(Node):
         return self.manager.advance_domain(name, t)
 
     # ------------------------------------------------------------ parameters
-    def _values(self) -> dict[str, Any]:
-        return {name: self.get_parameter(name).value for name in self._param_names}
-
-    def _effective(self, values: dict[str, Any]) -> dict[str, ForgettingPolicy]:
-        """Every domain's effective policy from parameter values; ValueError if invalid."""
-        return effective_policies(values, self._names)
-
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        values = self._values()
-        changes = {param.name: param.value for param in params if param.name in values}
-        if not changes:
-            return accepted()
-        try:
-            check_change(values, changes, self._names)
-        except ValueError as err:
-            log_warning(self.get_logger(), f"rejected parameter change: {err}")
-            return rejected(str(err))
-        return accepted()
-
     def _after_set_parameters(self, params: list[Parameter]) -> None:
-        if not any(p.name in self._param_names and p.name != "service_timeout" for p in params):
+        if not self._config.memory_changed(params):
             return
         try:
-            policies = self._effective(self._values())
+            policies = self._config.policies()
             now = self.now()
             for name, policy in policies.items():
                 if policy.to_json() != self.manager.domains[name].policy.to_json():
@@ -274,106 +191,6 @@ class WMManagerNode(Node):
         self._arm(name)
 
     # ------------------------------------------------------------ consultants
-    def _on_announce(self, announce: dict) -> None:
-        """Attach a consultant's new incarnation at once (it (re)started); note what a configured one runs."""
-        dom = self._domains.get(announce["domain"])
-        if dom is None:
-            return  # not managed here
-        incarnation = announce["incarnation"]
-        if incarnation == dom.incarnation or dom.incarnation is None or incarnation > dom.incarnation:
-            dom.restored = (announce.get("state") or {}).get("restored", dom.restored)
-        if announce["ready"] and incarnation == dom.incarnation:
-            dom.running = announce.get("memory")
-            return
-        if incarnation == dom.incarnation and (dom.configuring is not None or dom.configured):
-            return  # already being configured
-        self.get_logger().info(
-            f"consultant '{dom.name}' announced incarnation {incarnation} (was {dom.incarnation}), "
-            f"running {announce.get('memory')}: configuring it")
-        dom.incarnation = incarnation
-        dom.running = announce.get("memory")
-        dom.configured = False
-        dom.alive = True  # it just spoke
-        self.manager.detach(dom.name)
-        self._attach(dom)
-        self._publish_ready()
-
-    def _foreign_domain(self, data: dict) -> bool:
-        domain = data.get("domain")
-        self._foreign = domain if isinstance(domain, str) and domain not in self._domains else None
-        return self._foreign is not None
-
-    def _on_foreign_asserts(self, messages: list[dict]) -> None:
-        """Answer each ``ltm/assert`` naming a domain this graph does not have (no consultant would)."""
-        for data in messages:
-            self._foreign = data["domain"]
-            self._on_foreign_assert(data)
-
-    def _on_foreign_assert(self, data: dict) -> None:
-        """Answer an ``ltm/assert`` naming a domain this graph does not have (no consultant would)."""
-        self._reject_assert(data.get("id"), printable(
-            f"no consultant serves domain {data['domain']!r} (this graph's domains: {', '.join(self._names)}); "
-            "nothing was stored"), "unknown-domain", data["domain"])
-
-    def _reject_assert(self, request_id: Any, error: str, kind: str = "bad-request",
-                       domain: Optional[str] = None) -> None:
-        foreign, self._foreign = self._foreign, None
-        if foreign is None:
-            return  # unreadable before its domain was known: the consultants answer it
-        reply: dict[str, Any] = {"domain": domain or foreign, "entity": None, "ok": False, "error": error,
-                                 "kind": kind}
-        if request_id is not None:
-            reply["id"] = request_id
-        log_warning(self.get_logger(), f"{contract.LTM_ASSERT.name}: {error}")
-        publish(self._assert_results, reply)
-
-    def _on_alive(self, dom: ConsultantLink, announce: dict) -> None:
-        """Take an alive message as proof of life (in one process DDS liveliness shows only through writes)."""
-        if dom.alive is False:
-            self._reachable(dom, True)
-        dom.alive = True
-
-    def _on_liveliness(self, dom: ConsultantLink, info) -> None:
-        """Follow a consultant's liveliness: a lapse makes its domain unconfigured until it is back."""
-        alive = info.alive_count > 0
-        if alive != dom.alive and (dom.alive is not None or not alive):
-            self._reachable(dom, alive)
-        dom.alive = alive
-
-    def _reachable(self, dom: ConsultantLink, alive: bool) -> None:
-        log = self.get_logger()
-        if alive:
-            log.info(f"consultant '{dom.name}' is reachable again (liveliness back): configuring it")
-            dom.alive = True
-            attached = self.manager.domains[dom.name].attached
-            if attached and not dom.configured and dom.configuring is None:
-                self.manager.detach(dom.name)  # acknowledged while it seemed gone: configure it again
-                attached = False
-            if not attached and dom.caller.ready():
-                self._attach(dom)
-            return
-        log.warning(f"consultant '{dom.name}' is unreachable (its liveliness lapsed): the graph is not ready "
-                    "until it is back and configured")
-        dom.alive = False
-        self.manager.detach(dom.name)
-        dom.lost()
-        self._publish_ready()
-
-    def _attach(self, dom: ConsultantLink) -> None:
-        try:
-            self.manager.attach(dom.name, None, self.now())
-        except TickError as err:
-            self.get_logger().error(f"consultant '{dom.name}' not attached: {err}", throttle_duration_sec=10.0)
-        self._arm(dom.name)
-
-    def _supervise(self) -> None:
-        """Attach consultants that became reachable; expire unanswered calls."""
-        self._links.expire()
-        for dom in self._domains.values():
-            if not self.manager.domains[dom.name].attached and dom.alive is not False and dom.caller.ready():
-                self._attach(dom)
-        self._publish_ready()  # a configure acknowledged since (ManageLinks marks it) shows within a period
-
     def diagnostic_values(self) -> tuple[int, str, dict]:
         """``/diagnostics``: readiness, and each domain's consultant (configured, incarnation)."""
         missing = sorted(d for d, dom in self._domains.items() if not dom.configured)

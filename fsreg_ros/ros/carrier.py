@@ -1,25 +1,24 @@
-"""JSON over ROS 2 services and topics: serving, subscribing, calling (docs/semantics.md §7).
+"""JSON over ROS 2 topics and services: the carrier convention, topics, calling (docs/semantics.md §7).
 
-The one small module for fsreg's carrier convention, and the only place where the
-ROS-free contract meets ROS types: names, QoS specs and schemas are in
-:mod:`fsreg_ros.contract` (:func:`qos_profile` makes an rclpy profile of a
+The only place where the ROS-free contract meets ROS types: names, QoS specs and schemas
+are in :mod:`fsreg_ros.contract` (:func:`qos_profile` makes an rclpy profile of a
 :class:`~fsreg_ros.contract.QosSpec`); the JSON codec is :mod:`fsreg_ros.contract.codec`
-(:func:`to_msg`/:func:`from_msg` wrap it in ``std_msgs/String``).
+(:func:`to_msg`/:func:`from_msg` wrap it in ``std_msgs/String``).  This module owns the
+convention and what every receiving side shares (:class:`CarrierError`, the error kinds,
+:class:`Refusal`, :func:`run_handler`); its neighbours own the rest of the carrier:
+
+* :mod:`fsreg_ros.ros.serving`: serving a contract service (:func:`~fsreg_ros.ros.serving.serve`,
+  validation, one handler per ``op``, every call answered, the waiting requests drained);
+* :mod:`fsreg_ros.ros.batches`: a topic handed over a batch at a time
+  (:func:`~fsreg_ros.ros.batches.subscribe_batches`);
+* :mod:`fsreg_ros.ros.gathering`: a stream's reader held from the executor and taken once a
+  period (:class:`~fsreg_ros.ros.gathering.GatheringGroup`);
+* :mod:`fsreg_ros.ros.rclpy_internals`: every use of rclpy's internals.
 
 Services use ``diagnostic_msgs/srv/AddDiagnostics`` as a string-to-string carrier
 (common_interfaces has no such service): the request JSON goes in ``load_namespace``,
 the reply JSON in ``message``; ``success=false`` means the reply is
 ``{"error": "...", "kind": "..."}``.
-
-Serving: :func:`serve` serves a contract service: each request is decoded (bounded in
-size), validated once against the service's request schema (names and lists within the
-node's limits; :func:`fsreg_ros.contract.check`, one-line errors naming the field), and
-only then passed to the handler (one, or one per ``op``).  A :class:`MessageError`, any
-other ``ValueError`` (e.g. the core's ``KnowledgeError``) or a :class:`CarrierError`
-becomes ``success=false`` plus a logged warning; anything else becomes
-``kind: "internal"`` plus a logged error naming the service and the request id.  Every
-call is answered (the reply is built by :func:`~fsreg_ros.contract.codec.error_json`, which cannot
-fail) and the server keeps serving.
 
 Graph identity: a node's read-only ``graph`` parameter (declared here, by :func:`publisher`,
 when the node has not declared it) names the graph it belongs to; every JSON object it
@@ -27,12 +26,12 @@ publishes through :func:`publish` then carries it as ``graph``
 (:data:`fsreg_ros.contract.GRAPH_FIELD`), so a listener can tell another graph's messages
 from its own.  An empty ``graph`` (a node started by hand) stamps nothing.
 
-Subscribing: :func:`subscribe` does the same for a topic: a message that is not a JSON
-object of the topic's schema within the limits, or whose handler raises, is rejected
+Subscribing: :func:`subscribe` decodes each message (bounded in size), validates it once
+against the topic's schema within the limits (:func:`fsreg_ros.contract.check`, one-line
+errors naming the field) and only then calls the handler; a message that is not a JSON
+object of the topic's schema, or whose handler raises, is rejected
 (``reject(id, error, kind)`` publishes the reply the contract has for it, if any) and logged
-with the topic and id.  :func:`subscribe_batches` hands over every message waiting at once,
-and with ``gather`` takes a stream once a period instead of a round per message
-(:class:`GatheringGroup` holds the reader from the executor meanwhile).
+with the topic and id.
 
 Logging: :func:`log_warning` and :func:`log_error` never raise (rclpy raises when one call
 site logs with two severities, which a failing message after a malformed one did).
@@ -57,30 +56,30 @@ from typing import Any, Awaitable, Callable, Mapping, Optional, Union
 
 from diagnostic_msgs.srv import AddDiagnostics
 from pydantic import BaseModel
-from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
-from rclpy.exceptions import InvalidHandle
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import String
 
 from rcl_interfaces.msg import ParameterDescriptor
 
-from ..contract.codec import (MessageError, TooLarge, dumps, error_json, leading_id, parse, printable, request_id,
-                              safe_dumps)
+from ..contract.codec import MessageError, TooLarge, dumps, leading_id, parse, printable, request_id, safe_dumps
 from .diagnostics import request_stats
-from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, Limits, QosSpec, Service, Topic, check
+from .rclpy_internals import forget_entity
+from ..contract import GRAPH_FIELD, GRAPH_PARAMETER, SERVICE_QOS, QosSpec, Topic, check
 
 #: The service type used as a JSON carrier.
 SERVICE_TYPE = AddDiagnostics
 #: Default deadline of a service call, seconds (measured: a new process's first call to a running server
 #: took 1.0-4.4 s, later ones ~1 ms).
 DEFAULT_TIMEOUT = 10.0
-#: Most CPU seconds :func:`serve`'s ``drain`` spends answering the requests waiting, per round.
-DRAIN_SECONDS = 0.01
 
 Limit = Union[None, int, Callable[[], Optional[int]]]
+Handler = Callable[[dict], Union[Mapping[str, Any], BaseModel, Awaitable[Union[Mapping[str, Any], BaseModel]]]]
+LimitsSource = Union[None, Any, Callable[[], Any]]
+Reject = Callable[[Any, str], None]
 
 
 class CarrierError(RuntimeError):
@@ -132,12 +131,14 @@ def reply_kind(err: BaseException) -> str:
     return type(err).__name__
 
 
-def _limit(limit: Limit) -> Optional[int]:
+def limit_value(limit: Limit) -> Optional[int]:
+    """Return a limit's value now (a callable limit is asked each time: parameters change at run time)."""
     return limit() if callable(limit) else limit
 
 
-def _context(where: str, rid: Any) -> str:
-    return f"{where} (id {printable(repr(rid), 80)})" if rid is not None else where
+def where(name: str, rid: Any) -> str:
+    """Return ``name`` with the request id of the message a log line is about, if it has one."""
+    return f"{name} (id {printable(repr(rid), 80)})" if rid is not None else name
 
 
 def log_warning(logger, text: Any) -> None:
@@ -169,21 +170,26 @@ def _log_fallback(severity: str, text: Any, err: BaseException) -> None:
         pass
 
 
-def _checker(schema: Any, limits: LimitsSource) -> Callable[[dict], None]:
+def checker(schema: Any, limits: LimitsSource) -> Callable[[dict], None]:
     """Return the validation of a decoded message against ``schema`` (nothing without one)."""
     if schema is None:
         return lambda data: None
-    return lambda data: check(schema, data, _limit(limits))
+    return lambda data: check(schema, data, limit_value(limits))
 
 
-async def _run(handler, text: str, max_bytes: Limit, seen: dict, validate: Callable[[dict], None],
-               accept: Optional[Callable[[dict], bool]] = None) -> Any:
+def max_bytes_of(limits: LimitsSource) -> Limit:
+    """Return the message size bound ``limits`` sets (asked each time), None without limits."""
+    return None if limits is None else (lambda: limit_value(limits).max_message_bytes)
+
+
+async def run_handler(handler, text: str, max_bytes: Limit, seen: dict, validate: Callable[[dict], None],
+                      accept: Optional[Callable[[dict], bool]] = None) -> Any:
     """Decode ``text`` (bounded), note its request id in ``seen``, validate it, run ``handler``; its result.
 
     A message ``accept`` refuses is not for this node: ``seen["ignored"]`` is set and nothing runs.
     """
     try:
-        payload = parse(text, max_bytes=_limit(max_bytes))
+        payload = parse(text, max_bytes=limit_value(max_bytes))
     except TooLarge:
         seen["id"] = leading_id(text)  # so the sender hears which of its messages was refused
         raise
@@ -198,160 +204,34 @@ async def _run(handler, text: str, max_bytes: Limit, seen: dict, validate: Calla
     return result
 
 
-def _reply_object(result: Any) -> Mapping[str, Any]:
-    """Return a handler's reply as a JSON object: a mapping as it is, a contract model dumped (fields set only)."""
-    if isinstance(result, BaseModel):
-        return result.model_dump(mode="json", exclude_unset=True)
-    if not isinstance(result, Mapping):
-        raise TypeError(f"handler returned {type(result).__name__}, not a JSON object")
-    return result
+class Refusal:
+    """How a subscription refuses a message: a log line naming the topic and id, then ``reject(id, error, kind)``.
 
-
-def _check_op(handlers: Mapping[str, Any], request: dict) -> None:
-    """Refuse a request whose ``op`` has no handler (before its schema, which depends on the op)."""
-    if "op" not in request:
-        raise MessageError(f"missing field 'op' (one of {', '.join(handlers)})")
-    op = request["op"]
-    if not isinstance(op, str) or op not in handlers:
-        raise MessageError(f"field 'op': expected one of {', '.join(handlers)}, got {printable(repr(op), 60)}")
-
-
-def _dispatch(handlers: Mapping[str, Handler]) -> Handler:
-    """One handler per ``op``: the request's ``op`` chooses (checked by :func:`_check_op` first)."""
-    return lambda request: handlers[request["op"]](request)
-
-
-# ----------------------------------------------------------------- serving
-Handler = Callable[[dict], Union[Mapping[str, Any], BaseModel, Awaitable[Union[Mapping[str, Any], BaseModel]]]]
-LimitsSource = Union[None, Any, Callable[[], Any]]
-
-
-def serve(node, service: Union[Service, str], handlers: Union[Handler, Mapping[str, Handler]],
-          callback_group: Optional[CallbackGroup] = None, *, max_bytes: Limit = None, limits: LimitsSource = None,
-          domain: Optional[str] = None, drain: int = 0):
-    """Serve a contract service on ``node``: every request validated once, then handled; return the service.
-
-    ``service`` is a :class:`~fsreg_ros.contract.Service` (its ``<domain>`` filled in
-    with ``domain``): each request must fit its request schema, names and lists within
-    ``limits`` (a :class:`~fsreg_ros.contract.Limits`, also the default ``max_bytes``;
-    without either, the default ``Limits().max_message_bytes``), else it gets an error
-    reply naming the field and the handler never sees it.  (A
-    plain name serves without a schema.)  ``handlers`` is one ``handler(request: dict)``
-    or a mapping op -> handler; a handler may be sync or ``async`` and returns a dict or
-    a contract model.  Errors never escape: see the module docstring.  An async handler
-    that awaits other services must use clients outside ``callback_group`` (by default
-    the node's mutually exclusive group).
-
-    ``drain`` > 0 (synchronous handlers only): after a request is answered, the requests
-    waiting behind it (at most ``drain``, or :data:`DRAIN_SECONDS` of work) are answered
-    at the start of the executor's next round, ahead of its other callbacks, instead of
-    one per round (an executor takes one request per service per round, so a node whose
-    rounds also carry other work, the consultant's facts, otherwise serves only a few
-    requests a round however many wait).  Same order, same answers; the answers leave
-    in a burst, which a client reads whole with the contract's depth (:data:`SERVICE_QOS
-    <fsreg_ros.contract.SERVICE_QOS>`, 1000; a reader of depth 10 taking one answer a
-    round would lose some).
+    A ``ValueError`` or :class:`CarrierError` is a warning with its :func:`reply_kind`; anything
+    else an error of kind ``internal``.  The rejection itself never raises out of here.
     """
-    logger = node.get_logger()
-    if isinstance(service, Service):
-        name, schema = service.name.replace("<domain>", domain or "<domain>"), service.request
-    else:
-        name, schema = service, None
-    validate = _checker(schema, limits)
-    handler = handlers
-    if isinstance(handlers, Mapping):
-        check_schema, handler = validate, _dispatch(handlers)
 
-        def validate(data: dict) -> None:
-            _check_op(handlers, data)
-            check_schema(data)
-    if max_bytes is None and limits is not None:
-        max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
-    if max_bytes is None:  # a service is never unbounded (the WM Manager's status read 1 MB requests whole)
-        max_bytes = Limits().max_message_bytes
+    def __init__(self, logger, name: str, reject: Optional[Reject]) -> None:
+        self.logger, self.name, self.reject = logger, name, reject
 
-    stats = request_stats(node)
+    def error(self, rid: Any, err: BaseException) -> None:
+        """Refuse the message ``rid`` for ``err`` (expected errors as warnings, the rest as internal errors)."""
+        if isinstance(err, (ValueError, CarrierError)):
+            self.refuse(rid, printable(err), internal=False, kind=reply_kind(err))
+        else:
+            self.refuse(rid, f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
+                        kind="internal")
 
-    async def callback(request, response):
-        started = time.monotonic()
-        response = await answer(request, response)
-        stats.record(time.monotonic() - started, refused=not response.success)
-        if drain and not draining[0] and node.executor is not None:
-            waiting = take_request()  # a cheap look: nothing waits, nothing is scheduled
-            if waiting is not None:
-                draining[0] = True
-                try:
-                    node.executor.create_task(answer_waiting, waiting)  # run first in the next round
-                except Exception:  # noqa: BLE001 - an executor shutting down: answer it now
-                    draining[0] = False
-                    await answer_taken(*waiting)
-        return response
-
-    draining = [False]
-
-    def take_request() -> Optional[tuple]:
-        """Take the next request waiting (request, header), or None, as the executor takes one."""
+    def refuse(self, rid: Any, error: str, internal: bool, kind: str) -> None:
+        """Log ``error`` about message ``rid`` and pass it to ``reject``, if any."""
+        text = f"{where(self.name, rid)}: {error}"
+        (log_error if internal else log_warning)(self.logger, text)
+        if self.reject is None:
+            return
         try:
-            with server.handle:
-                request, header = server.handle.service_take_request(server.srv_type.Request)
-        except InvalidHandle:
-            return None
-        return None if header is None else (request, header)
-
-    async def answer_taken(request, header) -> bool:
-        """Answer one taken request as the executor would; False once the service is gone."""
-        begun = time.monotonic()
-        reply = await answer(request, server.srv_type.Response())
-        stats.record(time.monotonic() - begun, refused=not reply.success)
-        try:
-            server.send_response(reply, header)
-        except InvalidHandle:
-            return False
-        return True
-
-    async def answer_waiting(first: tuple) -> None:
-        """Answer ``first`` and the requests waiting behind it now (bounded), in order."""
-        try:
-            budget = time.thread_time()  # CPU time: a process kept waiting by the OS still answers as many
-            waiting: Optional[tuple] = first
-            for _ in range(drain):
-                if waiting is None or not await answer_taken(*waiting):
-                    return
-                if time.thread_time() - budget >= DRAIN_SECONDS:
-                    return
-                waiting = take_request()
-            if waiting is not None:  # over the count: answered now, the rest as the executor takes them
-                await answer_taken(*waiting)
-        finally:
-            draining[0] = False
-
-    async def answer(request, response):
-        seen: dict = {}
-        try:
-            result = await _run(handler, request.load_namespace, max_bytes, seen, validate)
-            text = dumps(_reply_object(result))
-        except (ValueError, CarrierError) as err:
-            rid = seen.get("id")
-            log_warning(logger, f"{_context(name, rid)}: {printable(err)}")
-            response.success = False
-            detail = reply_kind(err)  # a specific kind (unknown-entity, ...) beside the class name
-            response.message = error_json(err, error_kind(err), rid,
-                                          **({"detail": detail} if detail != error_kind(err) else {}))
-            return response
-        except Exception as err:  # noqa: BLE001 - a server must answer, whatever happened
-            rid = seen.get("id")
-            text = f"internal error: {type(err).__name__}: {printable(err)}"
-            log_error(logger, f"{_context(name, rid)}: {text}")
-            response.success = False
-            response.message = error_json(text, "internal", rid)
-            return response
-        response.success = True
-        response.message = text
-        return response
-
-    server = node.create_service(SERVICE_TYPE, name, callback, qos_profile=qos_profile(SERVICE_QOS),
-                                 callback_group=callback_group)
-    return server
+            self.reject(rid, printable(error), kind)
+        except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
+            log_error(self.logger, f"{self.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
 
 
 # ----------------------------------------------------------------- messages
@@ -429,9 +309,6 @@ def publish(pub, obj: Mapping[str, Any]) -> None:
     pub.publish(String(data=safe_dumps(stamped(pub, obj))))
 
 
-Reject = Callable[[Any, str], None]
-
-
 def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] = None,
               callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None, limits: LimitsSource = None,
               accept: Optional[Callable[[dict], bool]] = None, event_callbacks=None):
@@ -444,237 +321,29 @@ def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] 
     that is not a JSON object of the schema, or whose handler raises a
     ``ValueError``/:class:`CarrierError`, is logged as a warning naming the topic and id
     and passed to ``reject(id, error, kind)`` (:func:`reply_kind`); any other exception is logged as an error and
-    rejected as an internal error.  The node keeps serving either way.
+    rejected as an internal error (:class:`Refusal`).  The node keeps serving either way.
     ``event_callbacks``: rclpy's ``SubscriptionEventCallbacks`` (e.g. the liveliness of
     the topic's writers).
     """
-    logger = node.get_logger()
-    validate = _checker(topic.schema, limits)
-    if max_bytes is None and limits is not None:
-        max_bytes = lambda: _limit(limits).max_message_bytes  # noqa: E731
-
-    def refuse(rid: Any, error: str, internal: bool, kind: str) -> None:
-        text = f"{_context(topic.name, rid)}: {error}"
-        if internal:
-            log_error(logger, text)
-        else:
-            log_warning(logger, text)
-        if reject is not None:
-            try:
-                reject(rid, printable(error), kind)
-            except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
-                log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
-
+    validate = checker(topic.schema, limits)
+    if max_bytes is None:
+        max_bytes = max_bytes_of(limits)
+    refusal = Refusal(node.get_logger(), topic.name, reject)
     stats = request_stats(node) if reject is not None else None  # an answered topic carries requests
 
     async def callback(msg: String) -> None:
         seen: dict = {}
         started, refused = time.monotonic(), True
         try:
-            await _run(handler, msg.data, max_bytes, seen, validate, accept)
+            await run_handler(handler, msg.data, max_bytes, seen, validate, accept)
             refused = False
-        except (ValueError, CarrierError) as err:
-            refuse(seen.get("id"), printable(err), internal=False, kind=reply_kind(err))
         except Exception as err:  # noqa: BLE001 - log with context, keep serving
-            refuse(seen.get("id"), f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
-                   kind="internal")
+            refusal.error(seen.get("id"), err)
         if stats is not None and not seen.get("ignored"):  # a message for another node (accept) is not counted
             stats.record(time.monotonic() - started, refused=refused)
 
     return node.create_subscription(String, topic.name, callback, qos_profile(topic.subscriber_qos),
                                     callback_group=callback_group, event_callbacks=event_callbacks)
-
-
-class GatheringGroup(MutuallyExclusiveCallbackGroup):
-    """The callback group of a gathered subscription, its QoS events and its timer (:func:`subscribe_batches`).
-
-    Mutually exclusive, and able to *hold* the subscription: while :attr:`holding`, ``can_execute``
-    says no for every entity of the group but :attr:`timer`, so rclpy's executor (which asks
-    every entity when it builds its wait set, once a wait) leaves them out and is not woken
-    by the subscription's messages; they wait in the reader until the timer takes them.  The
-    subscription's QoS event handlers are held too: Fast DDS wakes a wait on a reader's
-    events when data arrives for it (measured: with only the subscription held, ~4,000 empty
-    wake-ups a second at 1,000 messages a second, a core spent spinning).
-    """
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.holding = False
-        self.holds = 0  # how many times the reader was held (a count, not a snapshot that races the timer)
-        self.timer = None  # the entity never held
-        self.drain: Optional[Callable[[], Any]] = None  # takes what waits in the reader now (subscribe_batches')
-
-    def can_execute(self, entity) -> bool:
-        return (not self.holding or entity is self.timer) and super().can_execute(entity)
-
-    def hold(self) -> None:
-        """Hold the reader from the executor until the timer finds a period empty; counted in :attr:`holds`."""
-        self.holding = True
-        self.holds += 1
-
-    def release(self) -> None:
-        """Take what waits in the held reader now and hand it back to the executor (a caller blocked on one message).
-
-        Call it from the thread that spins the node, outside its callbacks (``GraphClient``
-        waiting for the answer to its own request): the answer is then taken as it arrives,
-        not at the period's end.  Nothing happens while the reader is not held.
-        """
-        if self.holding and self.drain is not None:
-            self.drain()
-            self.holding = False
-
-
-def subscribe_batches(node, topic: Topic, handler: Callable[[list[dict]], None], *, reject: Optional[Reject],
-                      limits: LimitsSource = None, accept: Optional[Callable[[dict], bool]] = None,
-                      size: Callable[[dict], int] = lambda data: 1, max_size: int = 1000,
-                      max_seconds: float = 0.02, clock: Callable[[], float] = time.monotonic,
-                      gather: Optional[float] = None):
-    """Subscribe like :func:`subscribe`, but hand ``handler`` every message already waiting, at once.
-
-    When a message arrives, the messages waiting behind it in the reader are taken too
-    (until their ``size`` sum reaches ``max_size``, or taking them has taken ``max_seconds``,
-    so the node's other callbacks wait at most that long), each decoded and validated alone (a
-    bad one is rejected alone, as :func:`subscribe` does); ``handler(messages)`` then
-    gets the valid ones in arrival order, in one call, so a node can apply them in one
-    commit (the consultant's ``ltm/assert``).  If it raises, every one of them is
-    rejected with its id (``reject`` None: only logged, as :func:`subscribe` does for a topic nobody
-    answers).  ``clock`` measures ``max_seconds`` (``time.thread_time``: this
-    thread's CPU time, so a process the OS keeps waiting still takes as much work per
-    callback, instead of a few messages and a whole round's overhead for them).
-
-    ``gather`` (seconds): take a *stream* at most once a period.  A message into a quiet
-    reader is taken at once, as above; after that the executor stops waiting on the reader
-    (:class:`GatheringGroup`) and a steady-clock timer takes whatever arrived every
-    ``gather`` seconds, until a period brings nothing (then the reader is waited on again,
-    and the timer stops: an idle node pays nothing).  One message a millisecond is then
-    ~``gather`` x 1,000 messages a round instead of a round each (an executor round,
-    its wait set and the node's per-batch work cost far more than a message).  A drain
-    stopped by ``max_size`` or ``max_seconds`` with messages still waiting hands the
-    reader back to the executor at once, so a stream faster than the budget is not held
-    back.  Returns the subscription.
-    """
-    logger = node.get_logger()
-    validate = _checker(topic.schema, limits)
-    max_bytes = (lambda: _limit(limits).max_message_bytes) if limits is not None else None  # noqa: E731
-    stats = request_stats(node) if reject is not None else None  # an answered topic carries requests
-    subscription = None
-
-    def refuse(rid: Any, error: str, internal: bool, kind: str) -> None:
-        text = f"{_context(topic.name, rid)}: {error}"
-        (log_error if internal else log_warning)(logger, text)
-        if reject is None:
-            return
-        try:
-            reject(rid, printable(error), kind)
-        except Exception as err:  # noqa: BLE001 - the rejection itself must not kill the node
-            log_error(logger, f"{topic.name}: cannot publish the rejection: {type(err).__name__}: {printable(err)}")
-
-    ignored = [0]
-
-    def decoded(text: str) -> Optional[dict]:
-        """Return the message if it is valid and for this node; None (rejected or ignored) otherwise."""
-        seen: dict = {}
-        try:
-            payload = parse(text, max_bytes=_limit(max_bytes))
-        except TooLarge as err:
-            refuse(leading_id(text), printable(err), internal=False, kind=reply_kind(err))
-            return None
-        except ValueError as err:
-            refuse(None, printable(err), internal=False, kind=reply_kind(err))
-            return None
-        seen["id"] = request_id(payload)
-        if accept is not None and not accept(payload):
-            ignored[0] += 1
-            return None
-        try:
-            validate(payload)
-        except ValueError as err:
-            refuse(seen["id"], printable(err), internal=False, kind=reply_kind(err))
-            return None
-        except Exception as err:  # noqa: BLE001 - out of a drain it would stop the node: log, refuse, go on
-            refuse(seen["id"], f"internal error: {type(err).__name__}: {printable(err)}", internal=True,
-                   kind="internal")
-            return None
-        return payload
-
-    def drain(first: Optional[String]) -> Optional[bool]:
-        """Take ``first`` (None: the next waiting) and what waits behind it, within the budget; hand them over.
-
-        Returns None if nothing was waiting, else whether the budget stopped the drain.
-        """
-        started, budget = time.monotonic(), clock()
-        ignored[0] = 0
-        if first is None and (first := take_waiting(subscription)) is None:
-            return None
-        data = decoded(first.data)
-        batch = [data] if data is not None else []
-        total = sum(size(data) for data in batch)
-        taken, stopped = 1, False
-        while not (stopped := total >= max_size or clock() - budget >= max_seconds):
-            waiting = take_waiting(subscription)
-            if waiting is None:
-                break
-            taken += 1
-            data = decoded(waiting.data)
-            if data is not None:
-                batch.append(data)
-                total += size(data)
-        refused = len(batch) + ignored[0] < taken
-        if batch:
-            try:
-                handler(batch)
-            except (ValueError, CarrierError) as err:
-                refused = True
-                for data in batch:
-                    refuse(request_id(data), printable(err), internal=False, kind=reply_kind(err))
-            except Exception as err:  # noqa: BLE001 - log with context, keep serving
-                refused = True
-                for data in batch:
-                    refuse(request_id(data), f"internal error: {type(err).__name__}: {printable(err)}",
-                           internal=True, kind="internal")
-        if stats is not None and taken > ignored[0]:  # messages for another node are not counted
-            stats.record(time.monotonic() - started, refused=refused)
-        return stopped
-
-    if gather is None:
-        subscription = node.create_subscription(String, topic.name, drain, qos_profile(topic.subscriber_qos))
-        return subscription
-
-    group = GatheringGroup()
-
-    def arrived(msg: String) -> None:  # the first message into a quiet reader: take it now, then gather
-        drain(msg)
-        group.hold()
-        timer.reset()
-
-    def gathered() -> None:  # a period is over: take what came in it
-        stopped = drain(None)
-        if stopped is None:  # the stream has ended: wait on the reader again
-            timer.cancel()
-            group.holding = False
-        elif stopped:  # more waits than a drain takes: let the executor take it at once
-            group.holding = False
-
-    timer = node.create_timer(gather, gathered, callback_group=group, clock=Clock(clock_type=ClockType.STEADY_TIME),
-                              autostart=False)
-    group.timer, group.drain = timer, lambda: drain(None)
-    subscription = node.create_subscription(String, topic.name, arrived, qos_profile(topic.subscriber_qos),
-                                            callback_group=group)
-    return subscription
-
-
-def take_waiting(subscription) -> Optional[String]:
-    """Take the next message waiting in ``subscription``'s reader now (None: none waits).
-
-    What the executor would deliver to the callback next, taken the way it takes it
-    (``rclpy.executors.Executor._take_subscription``), so a callback can drain a burst.
-    """
-    try:
-        with subscription.handle:
-            taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
-    except InvalidHandle:
-        return None
-    return None if taken is None else taken[0]
 
 
 # ----------------------------------------------------------------- timers
@@ -688,7 +357,7 @@ def drop_timer(node, timer, group: Optional[CallbackGroup]) -> None:
     """
     timer.cancel()
     if group is not None:
-        group.entities.discard(weakref.ref(timer))
+        forget_entity(group, timer)
     node.destroy_timer(timer)
 
 

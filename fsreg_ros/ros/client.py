@@ -45,7 +45,8 @@ from rosgraph_msgs.msg import Clock
 
 from .. import contract
 from ..contract import Limits
-from .carrier import ServiceCaller, publisher, subscribe, subscribe_batches
+from .batches import subscribe_batches
+from .carrier import ServiceCaller, publisher, subscribe
 from .client_base import DEFAULT_TIMEOUT, RETRY_AFTER, Answer, ClientError, describe_graph
 from .exchange import ANSWERS_GATHER, KIND_TOPICS, MATCH_EVERY, MATCH_SETTLE, DialogueExchange
 from .graph_clock import CLOCK_DISCOVERY, CLOCK_RESEND, ClockControl, check_clock, clock_message

@@ -14,11 +14,11 @@ from __future__ import annotations
 import time
 from typing import Any, Iterable, Mapping, Optional, Sequence
 
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-
 from .. import contract
 from ..contract.codec import MessageError, printable, safe_dumps
-from .carrier import GatheringGroup, publish
+from .carrier import publish
+from .gathering import GatheringGroup
+from .rclpy_internals import RCLError
 from .client_base import Answer, ClientError, Spinning, describe_graph
 
 #: Seconds a client waits after its request and reply topics first match before sending (see wait_matched).
@@ -26,7 +26,7 @@ MATCH_SETTLE = 0.25
 #: Seconds at most a new client waits for every discovered reader of a request topic to match (see wait_matched).
 MATCH_EVERY = 1.0
 #: Seconds between two takes of a stream of ``ltm/assert/result`` answers (the first is taken at once): a client
-#: sending facts at 1,000/s is not woken a thousand times a second (:func:`~.carrier.subscribe_batches`' gather).
+#: sending facts at 1,000/s is not woken a thousand times a second (:func:`~.batches.subscribe_batches`' gather).
 ANSWERS_GATHER = 0.01
 #: Publishers the pipeline must have matched before a request is sent: topic -> publisher/subscriber side.
 KIND_TOPICS = {"say": (contract.HUMAN, contract.RR_RESULT), "describe": (contract.REG_REQUEST, contract.REG_EXPRESSION),
@@ -95,7 +95,7 @@ class DialogueExchange(Spinning):
         self.answers.setdefault(key, [])
         try:
             self._publish(kind, message)
-        except _rclpy.RCLError as err:
+        except RCLError as err:
             self.answers.pop(key, None)
             raise ClientError(f"{KIND_TOPICS[kind][0].name} {key!r} not sent (the receivers are too far behind): "
                               f"{printable(str(err).split(',')[0], 200)}", "busy") from None

@@ -12,7 +12,7 @@
   parameter, an unreadable file, ...) is logged as one error line and the process
   exits 2, without a traceback;
 * a ``SingleThreadedExecutor`` spins it.  Callbacks do not fail the process because the
-  wrappers that install them (:func:`fsreg_ros.ros.carrier.serve`, :func:`~fsreg_ros.ros.carrier.subscribe`)
+  wrappers that install them (:func:`fsreg_ros.ros.serving.serve`, :func:`~fsreg_ros.ros.carrier.subscribe`)
   log each failure with its topic or service and request id and answer it; spinning
   itself swallows nothing;
 * Ctrl-C / SIGTERM (rclpy's signal handler shuts ROS down: ``ExternalShutdownException``)
@@ -51,6 +51,7 @@ from ..contract import CLOCK
 from .diagnostics import Diagnostics
 from .network import NetworkRefused, enforce_loopback
 from .process_stop import StopSignals
+from . import rclpy_internals
 from .sim_clock import follow_clock, now_ns
 
 #: Exit codes.
@@ -94,10 +95,9 @@ def guard_clock(node) -> None:
     source's callback, so a clock subscription created later (``use_sim_time`` set at
     run time) is guarded too.
     """
-    source = getattr(node, "_time_source", None)  # rclpy keeps the node's TimeSource here
-    if source is None:  # pragma: no cover - every rclpy Node has one
+    convert = rclpy_internals.clock_callback(node)
+    if convert is None:  # pragma: no cover - every rclpy Node has a time source
         return
-    convert = source.clock_callback
     topic = node.resolve_topic_name(CLOCK)
     logger = node.get_logger()
     guard = _GUARDS.setdefault(node, ClockGuard())
@@ -112,10 +112,7 @@ def guard_clock(node) -> None:
             logger.warning(printable(f"ignored a {topic} message (sec={sec}, nanosec={nanosec}): {err}; "
                                      f"the clock stays at {now_seconds(node):g} s"), throttle_duration_sec=10.0)
 
-    source.clock_callback = clock_callback
-    subscription = getattr(source, "_clock_sub", None)
-    if subscription is not None:
-        subscription.callback = clock_callback
+    rclpy_internals.set_clock_callback(node, clock_callback)
 
 
 def watch_clock(node, silence: float = CLOCK_SILENCE):

@@ -36,6 +36,7 @@ from .. import contract
 from ..contract import QosSpec
 from ..core.io.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
 from .carrier import qos_profile
+from .rclpy_internals import take_message
 from .recorders import SUFFIX
 
 #: Reader depth of every recorded topic at least (the contract's writers keep 1 to 10,000): the readers hold
@@ -148,17 +149,11 @@ class Recorder:
 
     def drain(self) -> int:
         """Write every message waiting in any recorded topic's reader, in receive-time order; return how many."""
-        from rclpy.exceptions import InvalidHandle
-
         taken: list[tuple[int, int, str, bytes]] = []
         for order, (topic, sub) in enumerate(zip(self.topics, self.subscriptions)):
-            take, name = sub.handle.take_message, topic.name
+            name = topic.name
             while True:
-                try:
-                    with sub.handle:
-                        message = take(sub.msg_type, True)
-                except InvalidHandle:
-                    break
+                message = take_message(sub, raw=True)
                 if message is None:
                     break
                 raw, info = message

@@ -18,9 +18,10 @@ need not wake for every clock message to know the time.  :func:`follow_clock`:
   are the same at any clock rate.
 
 The cost is one cheap timer callback per :data:`FOLLOW_PERIOD` whatever the clock's rate.
-This is the one module that uses rclpy internals for it (the time source's ``_clock_sub``,
-``Subscription.handle.take_message``, the subscription's ``event_handlers``);
-``test/ros/test_sim_clock.py`` fails if rclpy changes them.  A ``use_sim_time`` switched at
+The rclpy internals this needs (the time source's ``/clock`` subscription, taking its
+latest message, moving it and its event handlers to another group) are used through
+:mod:`fsreg_ros.ros.rclpy_internals`; ``test/ros/test_rclpy_internals.py`` fails if rclpy
+changes them.  A ``use_sim_time`` switched at
 run time makes rclpy create a new subscription: the next :func:`refresh` moves it out of the
 wait set too.
 """
@@ -28,10 +29,12 @@ wait set too.
 from __future__ import annotations
 
 import weakref
-from typing import Any, Optional
+from typing import Any
 
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
+
+from .rclpy_internals import clock_subscription, move_to_group, take_message
 
 #: Seconds between two reads of the latest ``/clock`` on the steady clock (a sim-time timer fires at most this late).
 #: Each read wakes the executor (~0.3% of a core at 10 Hz on this machine; 50 Hz cost 3% under load).
@@ -56,16 +59,6 @@ class OnDemand(CallbackGroup):
 _GROUPS: "weakref.WeakKeyDictionary[Any, OnDemand]" = weakref.WeakKeyDictionary()
 
 
-def _time_source(node) -> Any:
-    return getattr(node, "_time_source", None)  # rclpy keeps the node's TimeSource here
-
-
-def clock_subscription(node) -> Optional[Any]:
-    """Return the node's ``/clock`` subscription (its time source's; None without sim time)."""
-    source = _time_source(node)
-    return getattr(source, "_clock_sub", None) if source is not None else None
-
-
 def _on_demand(node, subscription) -> None:
     """Move ``subscription`` and its QoS event handlers into the node's :class:`OnDemand` group.
 
@@ -76,9 +69,7 @@ def _on_demand(node, subscription) -> None:
     group = _GROUPS.get(node)
     if group is None or subscription.callback_group is group:
         return
-    for entity in [subscription, *subscription.event_handlers]:
-        entity.callback_group = group
-        group.add_entity(entity)
+    move_to_group(subscription, group)
 
 
 def refresh(node) -> int:
@@ -95,8 +86,7 @@ def refresh(node) -> int:
     latest = None
     taken = 0
     while taken < MAX_TAKES:
-        with subscription.handle:
-            message = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+        message = take_message(subscription)
         if message is None:
             break
         latest = message[0]

@@ -16,8 +16,9 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from fsreg_ros.ros.carrier import (CarrierError, ServiceCaller, from_msg, qos_profile, serve, to_msg,  # noqa: E402
+from fsreg_ros.ros.carrier import (CarrierError, ServiceCaller, from_msg, qos_profile, to_msg,  # noqa: E402
                                    wait_until)
+from fsreg_ros.ros.serving import serve  # noqa: E402
 from fsreg_ros.contract.codec import MessageError  # noqa: E402
 from fsreg_ros.contract import SERVICE_QOS, STATE_QOS, Message, check  # noqa: E402
 from fsreg_ros.ros.node_base import error_reply  # noqa: E402
@@ -332,7 +333,7 @@ def test_serve_validates_once_against_the_contract_and_dispatches_by_op(graph: R
     from typing import Literal, Union
 
     from fsreg_ros import contract
-    from fsreg_ros.ros.carrier import serve
+    from fsreg_ros.ros.serving import serve
 
     class Look(contract.Message):
         op: Literal["look"]
@@ -420,7 +421,7 @@ def test_a_draining_service_answers_every_waiting_request_in_order_and_once(grap
 def _gathering_node(graph: RosSession, name: str, **options):
     """A node with a gathered ltm/assert subscription; the batches handled and the ids rejected."""
     from fsreg_ros import contract
-    from fsreg_ros.ros.carrier import subscribe_batches
+    from fsreg_ros.ros.batches import subscribe_batches
 
     node = Node(name, context=graph.context)
     graph.executor.add_node(node)

@@ -849,11 +849,11 @@ def test_a_late_wm_state_subscriber_gets_the_state_as_of_now(graph: RosSession, 
     """Issue 24.5: the latched wm/state is the current state even when nobody listened while WM changed."""
     node = start(graph, state_period=period)
     configure(graph, "displacement", capacity=2)
-    assert node._state.get_subscription_count() == 0  # nobody reads wm/state while WM changes
+    assert node.outbox.state.get_subscription_count() == 0  # nobody reads wm/state while WM changes
     for t, (entity, props) in enumerate((("face1", ["male", "glasses"]), ("face2", ["female"]),
                                          ("face1", ["lab-coat"]), ("face3", ["dark-hair", "male"])), 1):
         graph.call(D, {"op": "encode", "entity": entity, "properties": props, "cause": "speaker", "time": float(t)})
-    graph.spin_until(lambda: not node._state_due, what="the coalesced state published (nobody listening)")
+    graph.spin_until(lambda: not node.outbox.state_due, what="the coalesced state published (nobody listening)")
     version = graph.call(Q, {"op": "info"})["wm_version"]
     states = graph.listen(contract.WM_STATE.name, STATE_QOS)  # joins after every change, like `ros2 topic echo --once`
     graph.spin_until(lambda: states, what="the latched wm/state")

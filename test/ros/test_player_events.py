@@ -14,7 +14,8 @@ from std_msgs.msg import String
 from rosutil import RosSession
 
 from fsreg_ros import contract
-from fsreg_ros.ros.carrier import publisher, serve
+from fsreg_ros.ros.carrier import publisher
+from fsreg_ros.ros.serving import serve
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.simulation.simulator import Options
 from fsreg_ros.tools.graph import graph_nodes

@@ -1,7 +1,7 @@
 """A sim-time node reads ``/clock`` on demand, not on every message (issue 37 item 2).
 
-``fsreg_ros.ros.sim_clock`` is the one place that uses rclpy internals for it; the first
-tests fail if rclpy changes them.  Then: decay and readiness give exactly the same results
+``fsreg_ros.ros.sim_clock`` reads it through ``fsreg_ros.ros.rclpy_internals`` (whose own test,
+test_rclpy_internals.py, fails if rclpy changes them).  Here: decay and readiness give exactly the same results
 when the clock comes in 1 ms steps (a simulator's 1 kHz ``/clock``) as in coarse steps.
 """
 
@@ -10,9 +10,6 @@ from __future__ import annotations
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, ReliabilityPolicy
-from rclpy.subscription import Subscription
-from rclpy.time_source import TimeSource
 from rosgraph_msgs.msg import Clock
 
 from fsreg_ros import contract
@@ -21,7 +18,8 @@ from fsreg_ros.nodes.consultant import ConsultantNode
 from fsreg_ros.nodes.wm_manager import WMManagerNode
 from fsreg_ros.ros.graph_clock import clock_message
 from fsreg_ros.ros.node_base import now_seconds
-from fsreg_ros.ros.sim_clock import OnDemand, clock_subscription, follow_clock, refresh
+from fsreg_ros.ros.rclpy_internals import clock_subscription
+from fsreg_ros.ros.sim_clock import follow_clock, refresh
 from rosutil import KB, RosSession, ros_graph
 
 pytestmark = pytest.mark.graph
@@ -40,47 +38,6 @@ STATUS, SYNC = contract.STATUS.name, contract.SYNC.name
 @pytest.fixture
 def graph():
     yield from ros_graph()
-
-
-# ------------------------------------------------------------------ the rclpy internals the adapter uses
-def test_rclpy_keeps_the_clock_subscription_the_adapter_reads(graph: RosSession):
-    """rclpy's ``Node._time_source`` is a ``TimeSource`` whose ``_clock_sub`` is a depth-1 ``/clock`` subscription
-    (created when ``use_sim_time`` is set, destroyed when it is unset) with ``callback_group``, ``handle``,
-    ``msg_type``, ``raw`` and a ``callback`` that sets the clock; the executor leaves an entity whose group's
-    ``can_execute`` is false out of its wait set; ``handle.take_message`` returns ``(message, info)`` or None."""
-    node = graph.add(Plain, use_sim_time=True)
-    source = node._time_source
-    assert isinstance(source, TimeSource)
-    sub = source._clock_sub
-    assert isinstance(sub, Subscription) and sub.topic_name == "/clock" and sub.msg_type is Clock
-    assert sub.qos_profile.history == HistoryPolicy.KEEP_LAST and sub.qos_profile.depth == 1
-    assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
-    assert sub.raw is False and sub.callback == source.clock_callback
-    assert all(h.callback_group is sub.callback_group for h in sub.event_handlers)
-    assert graph.executor.can_execute(sub)  # rclpy's own: dispatched per message
-    group = OnDemand()
-    sub.callback_group = group
-    group.add_entity(sub)
-    assert not graph.executor.can_execute(sub)
-    publisher = graph.probe.create_publisher(Clock, contract.CLOCK, 10)
-    graph.spin_until(lambda: publisher.get_subscription_count() >= 1, 5.0, "the /clock subscription")
-    publisher.publish(clock_message(4.5))
-    taken = []
-
-    def take() -> bool:
-        with sub.handle:
-            got = sub.handle.take_message(sub.msg_type, sub.raw)
-        if got is not None:
-            taken.append(got[0])
-        return bool(taken)
-
-    graph.spin_until(take, 5.0, "the /clock message, taken on demand")
-    assert (taken[0].clock.sec, taken[0].clock.nanosec) == (4, 500_000_000)
-    assert node.get_clock().now().nanoseconds == 0  # the executor never ran its callback
-    sub.callback(taken[0])
-    assert node.get_clock().now().nanoseconds == 4_500_000_000
-    node.set_parameters([Parameter("use_sim_time", value=False)])
-    assert source._clock_sub is None
 
 
 def test_a_followed_node_reads_the_latest_clock_on_demand_and_never_per_message(graph: RosSession):
