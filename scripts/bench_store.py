@@ -44,7 +44,7 @@ from venv_python import use_venv  # noqa: E402
 
 use_venv()  # run with .venv/bin/python, however started
 
-from fsreg_ros.contract.consultant_codec import apply  # noqa: E402
+from fsreg_ros.ros.consultant_ops import apply  # noqa: E402
 from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402
 from fsreg_ros.core.algorithms.generation import generate  # noqa: E402
 from fsreg_ros.core.algorithms.port import Narrowed, View, Walked, run_sync  # noqa: E402

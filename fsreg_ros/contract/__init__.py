@@ -9,15 +9,15 @@ It imports no ROS package, so a tool that only needs names or schemas stays ROS-
 One module per job:
 
 * schemas (pydantic models): :mod:`.base` (``Message``, ``ErrorReply``, ``Stamp``, the
-  shared field types ``Number``, ``Name``, ``Names``), :mod:`.dialogue` (the dialogue
+  shared field types ``Number``, ``Count``, ``Name``, ``Names``), :mod:`.dialogue` (the dialogue
   pipeline), :mod:`.wm` (``wm/state``, ``wm/events``), :mod:`.ltm` (``ltm/assert``),
   :mod:`.consultant` (a consultant's announcement, query ops and manage ops),
   :mod:`.manager` (the WM Manager's services), :mod:`.policy` (a forgetting policy,
   generated from the memory settings table);
 * :mod:`.codec`: the wire codec, one JSON object per ``std_msgs/String`` (bounded
   decoding, encoding that refuses what is not JSON, error replies that never raise);
-* :mod:`.consultant_codec`: the consultant protocol written once (ROS-free): each op's
-  request and reply encoded and decoded, for the consultant node and :class:`RemotePort`;
+* :mod:`.consultant_codec`: the consultant protocol's codec (pure functions): each op's
+  request and reply encoded and decoded, for the consultant's side and its callers';
 * :mod:`.attribution`: request fingerprints, so every answer names its request;
 * :mod:`.qos`: QoS profiles as plain data (``fsreg_ros.ros.carrier.qos_profile`` makes the
   rclpy profile);
@@ -83,7 +83,6 @@ from .consultant import (
     SnapshotRequest,
     StepRequest,
     StoredState,
-    TickRun,
     Versioned,
     WalkReply,
     WalkRequest,
@@ -151,7 +150,7 @@ __all__ = [
     "Request", "RequestRef", "ResetReply", "ResetRequest", "RestoredState", "RuleOutReply", "RuleOutRequest",
     "Semantics", "Service", "SizeReply", "SizeRequest",
     "SnapshotReply", "SnapshotRequest", "Stamp", "StatusReply", "StatusRequest", "StepRequest", "StoredState",
-    "SyncReply", "SyncRequest", "TickRun", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
+    "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
     "alive_topic", "attribution", "cache_key", "check", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
     "normalise_namespace", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",

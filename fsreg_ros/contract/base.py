@@ -7,7 +7,8 @@ is an :class:`ErrorReply`).  The models allow extra fields (a newer peer may add
 but fix the type of every named one.
 
 Field types shared by the schemas: :data:`Number` (a JSON number a float can hold:
-``1e400`` and a 400-digit integer are refused), :data:`Name` and :data:`Names` (an
+``1e400`` and a 400-digit integer are refused), :data:`Whole` and :data:`Count` (a whole
+number so bounded; a count is >= 0), :data:`Name` and :data:`Names` (an
 entity, property, domain or target name, and a list of them: bounded by the receiving
 node's :class:`~fsreg_ros.contract.limits.Limits`, given as the validation context
 ``{"limits": limits}``; without it only their types are checked), and
@@ -35,8 +36,18 @@ def _representable(value: Union[int, float]) -> Union[int, float]:
 
 
 Number = Annotated[Union[int, float], AfterValidator(_representable)]
-#: A whole number a float can hold (a count).
+#: A whole number a float can hold.
 Whole = Annotated[int, AfterValidator(_representable)]
+
+
+def _not_negative(value: int) -> int:
+    if value < 0:
+        raise ValueError(f"expected a whole number >= 0, got {value!r}")
+    return value
+
+
+#: A whole number >= 0 a float can hold (a count, an index).
+Count = Annotated[Whole, AfterValidator(_not_negative)]
 
 
 def _limits(info: ValidationInfo) -> Any:

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import Field
+from pydantic import Field, PlainValidator
 
-from .base import Message, Name, Names, Number, Stamp, Whole, bounded_list
+from ..core.memory.ticks import TickRun
+from .base import Count, Message, Name, Names, Number, Stamp, bounded_list
 from .policy import PolicySettings  # generated from the memory settings table
 from .wm import Origin
 
@@ -99,7 +100,7 @@ class InfoRequest(Message):
     """
 
     op: Literal["info"]
-    entities_from: Optional[int] = None
+    entities_from: Optional[Count] = None
 
 
 class StepRequest(Stamp):
@@ -337,13 +338,11 @@ class SnapshotReply(Message):
 
 
 # ------------------------------------------------------------------ manage ops
-class TickRun(Message):
-    """Decay ticks at ``origin + k * period`` for k = ``first`` .. ``first + count - 1`` (Algorithm 2)."""
-
-    origin: Number
-    period: Number
-    first: int
-    count: int
+#: A run of decay ticks on the wire: the core's :class:`~fsreg_ros.core.memory.ticks.TickRun` in its JSON
+#: form ``{"origin", "period", "first", "count"}`` (ticks at ``origin + k * period`` for k = ``first`` ..
+#: ``first + count - 1``, Algorithm 2), checked by :meth:`TickRun.from_json
+#: <fsreg_ros.core.memory.ticks.TickRun.from_json>` (its TickError, a ValueError, names what is wrong).
+Ticks = Annotated[TickRun, PlainValidator(TickRun.from_json, json_schema_input_type=TickRun)]
 
 
 class ConfigureRequest(Stamp):
@@ -357,7 +356,7 @@ class DecayRequest(Message):
     """Manage op ``decay``: apply ``ticks`` now; ticks at or before the last one applied are skipped."""
 
     op: Literal["decay"]
-    ticks: TickRun
+    ticks: Ticks
 
 
 class AdvanceRequest(Stamp):
@@ -370,7 +369,7 @@ class EvictRequest(Stamp):
     """Manage op ``evict``: forget the domain's ``count`` least recently encoded fronts (cause ``shared-capacity``)."""
 
     op: Literal["evict"]
-    count: Whole
+    count: Count
 
 
 class SizeRequest(Message):

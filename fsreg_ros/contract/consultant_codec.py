@@ -1,4 +1,4 @@
-"""The consultant protocol written once: each op's request and reply, both ways (ROS-free).
+"""The consultant protocol's codec: every op's request and reply, both ways, as pure functions (ROS-free).
 
 The ops, their names and their request and reply schemas are
 :mod:`fsreg_ros.contract.consultant`'s (:data:`~.consultant.CONSULTANT_OPS`,
@@ -9,31 +9,32 @@ those that list exactly the queues they changed (:data:`COUNTED_OPS`, replies wi
 ``queues_changed``), and those a consultant answers before the WM Manager configured it
 (:data:`UNGUARDED_OPS`: the manage ops and ``info``).
 
-This module turns the JSON objects of the wire into the core's typed calls and back:
+Each op's four functions sit together, so each of its fields is spelled in one place:
 
-* the **consultant's side** (the node): :func:`apply` decodes one validated request,
-  runs it on a :class:`~fsreg_ros.core.consultant.service.ConsultantService` and encodes the reply
-  (an op's ``_serve_<op>`` below);
-* the **caller's side** (:class:`~fsreg_ros.ros.remote.RemotePort`): ``<op>_request``
-  encodes a port call, and ``view_of``, ``narrowed_of``, ``walked_of``, ``rule_out_of``
-  and ``members_of`` decode the reply into the port's types (:mod:`fsreg_ros.core.algorithms.port`),
+* ``<op>_request(...)`` encodes a call (the caller's side: :class:`~fsreg_ros.ros.remote.RemotePort`,
+  the WM Manager's :mod:`~fsreg_ros.ros.manage_link`, :mod:`~fsreg_ros.ros.graph_queries`);
+* ``<op>_args(request)`` decodes a request the schema validated into the arguments of the
+  op's typed call (:mod:`fsreg_ros.core.consultant.ops`; a time left out is None: the
+  service's now);
+* ``<op>_reply(result)`` encodes that call's result (:data:`SERVED` pairs them by op);
+* ``<result>_of(reply)`` decodes a reply into the core's types (:mod:`fsreg_ros.core.algorithms.port`),
   raising :class:`ReplyError` for a reply the schema admits but that is unusable.
 
-Each op's encoders and decoders sit together, so a field is named in one place.  The
-wire format is what it was (the graph equals the simulator byte for byte).
+Nothing here holds a session, reads a clock or a consultant: running an op (decode, call,
+encode) is :func:`fsreg_ros.ros.consultant_ops.apply`.  The wire format is what it was (the
+graph equals the simulator byte for byte).
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from ..core.memory.ticks import TickError, TickRun
-from ..core.forgetting.policies import ForgettingPolicy
-from ..core.memory import ENCODE_CAUSES
 from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
-from ..core.consultant.service import ConsultantService, Outcome, RequestError
+from ..core.consultant.ops import Configured, Info, Opened
+from ..core.forgetting.policies import ForgettingPolicy
+from ..core.memory.ticks import TickRun
 from .codec import MessageError
-from .consultant import CONSULTANT_OPS, DEBUG_OPS, MANAGE_OPS, Versioned
+from .consultant import CONSULTANT_OPS, DEBUG_OPS, MANAGE_OPS, Versioned, version_incarnation
 
 #: Every op: op -> (request schema, reply schema).
 ALL_OPS = {**CONSULTANT_OPS, **DEBUG_OPS, **MANAGE_OPS}
@@ -49,36 +50,13 @@ class ReplyError(MessageError):
     """A reply its schema admits but that cannot be what the op answers (a caller reports it as ``protocol``)."""
 
 
-# ======================================================================= the consultant's side
-def apply(service: ConsultantService, op: str, request: Mapping[str, Any], client: str = "",
-          listening: bool = False) -> Outcome:
-    """Run one op of the consultant protocol on ``service``; return its :class:`~.service.Outcome`.
-
-    ``request`` holds the op's fields (types checked by the contract's models);
-    ``client`` names the caller (sessions are counted per client); ``listening``
-    whether anyone hears the events.  Raises KnowledgeError, PolicyError, RequestError,
-    NotReady or SessionError, having changed nothing, for a request it refuses.
-    """
-    serve = _SERVE.get(op)
-    if serve is None:
-        raise RequestError(f"unknown op {op!r}")
-    if op not in UNGUARDED_OPS:
-        service.require_ready()
-    counted = op in COUNTED_OPS
-    outcome = service.run(lambda: serve(service, request, client), listening, counted)
-    if counted:
-        outcome.reply["queues_changed"] = len(outcome.changes.queues)
+def completed(op: str, reply: dict, queues_changed: int, version: Callable[[], str]) -> dict:
+    """Add what a reply of ``op`` carries besides its result: ``queues_changed``, ``version()``, as it has them."""
+    if op in COUNTED_OPS:
+        reply["queues_changed"] = queues_changed
     if op in VERSIONED_OPS:
-        outcome.reply["version"] = service.version()
-    return outcome
-
-
-def _cause(cause: Any, optional: bool = False) -> Optional[str]:
-    if cause is None and optional:
-        return None
-    if cause not in ENCODE_CAUSES:
-        raise RequestError(f"field 'cause': expected one of {', '.join(ENCODE_CAUSES)}, got {cause!r}")
-    return cause
+        reply["version"] = version()
+    return reply
 
 
 # ----------------------------------------------------------------------- info
@@ -87,14 +65,42 @@ def info_request(entities_from: Optional[int] = None) -> dict:
     return {"op": "info"} if entities_from is None else {"op": "info", "entities_from": entities_from}
 
 
-def _serve_info(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    start = req.get("entities_from") or 0
-    if start < 0:
-        raise RequestError(f"field 'entities_from': expected a whole number >= 0, got {start}")
-    c = s.consultant
-    return {"domain": s.domain, "entities": c.entities[start:], "entity_count": len(c.entities),
-            "preference": list(c.preference), "threshold": c.threshold, "policy": s.policy.name,
-            "memory": s.policy.to_json(), "events": s.seq, "wm_version": s.wm_version, "state": s.status()}
+def info_args(req: Mapping[str, Any]) -> tuple[int]:
+    """Decode ``info``: the first entity asked for (0: all)."""
+    return (req.get("entities_from") or 0,)
+
+
+def info_reply(info: Info) -> dict:
+    """Encode what ``info`` reports (``event_listeners`` is the node's: :func:`with_listeners`)."""
+    return {"domain": info.domain, "entities": info.entities, "entity_count": info.entity_count,
+            "preference": info.preference, "threshold": info.threshold, "policy": info.policy,
+            "memory": info.memory, "events": info.events, "wm_version": info.wm_version, "state": info.state}
+
+
+def with_listeners(reply: dict, listeners: int) -> dict:
+    """Add to an ``info`` reply how many subscriptions hear the consultant's events."""
+    reply["event_listeners"] = listeners
+    return reply
+
+
+def entities_of(reply: Mapping[str, Any]) -> list[str]:
+    """Decode the entities an ``info`` reply lists."""
+    return list(reply.get("entities") or ())
+
+
+def catalogue_of(reply: Mapping[str, Any]) -> tuple[str, list[str], list[str]]:
+    """Decode an ``info`` reply's catalogue: its version, the preference order, the entities it lists."""
+    return reply["version"], list(reply["preference"]), list(reply["entities"])
+
+
+def wm_as_of(reply: Mapping[str, Any]) -> tuple[int, int]:
+    """Decode which WM an ``info`` reply speaks for: ``(incarnation, wm_version)`` (``wm/state`` compares so)."""
+    return version_incarnation(reply["version"]), reply["wm_version"]
+
+
+def version_of(reply: Mapping[str, Any]) -> Optional[str]:
+    """Decode the LTM ``version`` a reply carries (None: the op's replies carry none)."""
+    return reply.get("version")
 
 
 # ----------------------------------------------------------------------- open
@@ -111,20 +117,21 @@ def open_request(target: Optional[str], context: Optional[Sequence[str]], first:
     return payload
 
 
-def _serve_open(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
+def open_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``open``: target, context, the first step (its time None: now) and the client."""
     step, first = req.get("first"), None
     if step is not None:
-        first = Step(step["property"], _cause(step.get("cause"), optional=True), s.request_time(step.get("time")),
-                     step.get("turn"))
-    view = s.open(req.get("target"), req.get("context"), first)
-    session = s.sessions.open(view.handle, s.steady(), client)
-    if first is not None:
-        s.touch(first.time, wm=False)
-    holding = None if view.holding is None else [p for p in s.consultant.preference if p in view.holding]
-    reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-             "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
+        first = Step(step["property"], step.get("cause"), step.get("time"), step.get("turn"))
+    return req.get("target"), req.get("context"), first, req.get("client") or ""
+
+
+def open_reply(opened: Opened) -> dict:
+    """Encode an opened session."""
+    view = opened.view
+    reply = {"session": opened.session, "size": view.size, "queue": view.queue, "retains": view.retains,
+             "holding": opened.holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
     if view.first is not None:
-        reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
+        reply["first"] = narrow_reply(view.first)
     return reply
 
 
@@ -137,7 +144,7 @@ def view_of(reply: Mapping[str, Any], first: bool) -> View:
     if first:
         if reply.get("first") is None:
             raise ReplyError("no 'first'")
-        view.first = Narrowed(reply["first"]["target_holds"], reply["first"]["size"])
+        view.first = narrowed_of(reply["first"])
     return view
 
 
@@ -147,12 +154,13 @@ def narrow_request(session: str, prop: str, cause: Optional[str], time: float, t
     return {"op": "narrow", "session": session, "property": prop, "cause": cause, "time": time, "turn": turn}
 
 
-def _serve_narrow(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    cause = _cause(req.get("cause"), optional=True)
-    when = s.request_time(req.get("time"))
-    candidates = s.sessions.get(req["session"], s.steady())
-    step = s.narrow(candidates, req["property"], cause, when, req.get("turn"))
-    s.touch(when, wm=False)
+def narrow_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``narrow``: session, property, cause, time, turn."""
+    return req["session"], req["property"], req.get("cause"), req.get("time"), req.get("turn")
+
+
+def narrow_reply(step: Narrowed) -> dict:
+    """Encode what a ``narrow`` did."""
     return {"target_holds": step.target_holds, "size": step.size}
 
 
@@ -170,13 +178,14 @@ def walk_request(session: str, steps: Sequence[WalkStep], cause: Optional[str], 
                       for s in steps]}
 
 
-def _serve_walk(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    cause = _cause(req.get("cause"), optional=True)
-    when = s.request_time(req.get("time"))
-    candidates = s.sessions.get(req["session"], s.steady())
+def walk_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``walk``: session, steps, cause, time, turn."""
     steps = [WalkStep(step["property"], step.get("group")) for step in req["steps"]]
-    walked = s.walk(candidates, steps, cause, when, req.get("turn"))
-    s.touch(when, wm=False)
+    return req["session"], steps, req.get("cause"), req.get("time"), req.get("turn")
+
+
+def walk_reply(walked: Walked) -> dict:
+    """Encode what a ``walk`` did."""
     return {"taken": list(walked.taken), "size": walked.size, "narrowed": walked.narrowed}
 
 
@@ -194,8 +203,14 @@ def rule_out_request(session: str) -> dict:
     return {"op": "rule_out", "session": session}
 
 
-def _serve_rule_out(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    props, masks = s.rule_out(s.sessions.get(req["session"], s.steady()))
+def rule_out_args(req: Mapping[str, Any]) -> tuple[str]:
+    """Decode ``rule_out``: the session."""
+    return (req["session"],)
+
+
+def rule_out_reply(ruled: tuple[list[str], list[int]]) -> dict:
+    """Encode the properties and the members each rules out (hexadecimal masks)."""
+    props, masks = ruled
     return {"properties": props, "masks": [format(mask, "x") for mask in masks]}
 
 
@@ -217,13 +232,13 @@ def close_request(session: str, encode: Sequence[str], time: float, turn: Option
     return payload
 
 
-def _serve_close(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    when = s.request_time(req.get("time"))
-    candidates = s.sessions.get(req["session"], s.steady())
-    encode = req.get("encode") or ()
-    members = s.close(candidates, encode, when, req.get("turn"))
-    s.sessions.close(req["session"], s.steady())
-    s.touch(when, wm=bool(encode) and s.buffer.retains)
+def close_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``close``: session, what to encode, time, turn."""
+    return req["session"], req.get("encode") or (), req.get("time"), req.get("turn")
+
+
+def close_reply(members: list[str]) -> dict:
+    """Encode a closed session's members."""
     return {"members": members}
 
 
@@ -233,68 +248,209 @@ def members_of(reply: Mapping[str, Any]) -> list[str]:
 
 
 # ----------------------------------------------------------------------- debug ops
-def _serve_holds(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    return {"holds": s.consultant.holds(req["property"], req["entities"])}
+def holds_request(prop: str, entities: Sequence[str]) -> dict:
+    """Encode ``holds``: for which of ``entities`` does ``prop`` hold."""
+    return {"op": "holds", "property": prop, "entities": list(entities)}
 
 
-def _serve_affirm(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    cause, when = _cause(req.get("cause")), s.request_time(req.get("time"))
-    held = s.affirm(req["property"], req["entities"], cause, when, req.get("turn"))
-    s.touch(when, wm=bool(held))
+def holds_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``holds``: property, entities."""
+    return req["property"], req["entities"]
+
+
+def holds_reply(held: list[str]) -> dict:
+    """Encode the entities a property holds for (``holds``, ``affirm``)."""
     return {"holds": held}
 
 
-def _serve_wm(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    return {"queue": s.consultant.queue(req["entity"])}
+def held_of(reply: Mapping[str, Any]) -> list[str]:
+    """Decode a ``holds`` or ``affirm`` reply: the entities the property holds for."""
+    return list(reply["holds"])
 
 
-def _serve_encode(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    cause, when = _cause(req.get("cause")), s.request_time(req.get("time"))
-    s.encode(req["entity"], req["properties"], cause, when, req.get("turn"))
-    s.touch(when)
+def affirm_request(prop: str, entities: Sequence[str], cause: str, time: Optional[float],
+                   turn: Optional[int]) -> dict:
+    """Encode ``affirm``: as ``holds``, encoding ``prop`` (``cause``) for each entity it holds for."""
+    return {"op": "affirm", "property": prop, "entities": list(entities), "cause": cause, "time": time, "turn": turn}
+
+
+def affirm_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``affirm``: property, entities, cause, time, turn."""
+    return req["property"], req["entities"], req["cause"], req.get("time"), req.get("turn")
+
+
+def wm_request(entity: str) -> dict:
+    """Encode ``wm``: one entity's queue."""
+    return {"op": "wm", "entity": entity}
+
+
+def wm_args(req: Mapping[str, Any]) -> tuple[str]:
+    """Decode ``wm``: the entity."""
+    return (req["entity"],)
+
+
+def queue_reply(queue: list[str]) -> dict:
+    """Encode one entity's queue, LRU first."""
+    return {"queue": queue}
+
+
+def queue_of(reply: Mapping[str, Any]) -> list[str]:
+    """Decode a ``wm`` reply."""
+    return list(reply["queue"])
+
+
+def encode_request(entity: str, properties: Sequence[str], cause: str, time: Optional[float],
+                   turn: Optional[int]) -> dict:
+    """Encode ``encode``: ``properties`` into ``entity``'s queue (Algorithm 1)."""
+    return {"op": "encode", "entity": entity, "properties": list(properties), "cause": cause, "time": time,
+            "turn": turn}
+
+
+def encode_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``encode``: entity, properties, cause, time, turn."""
+    return req["entity"], req["properties"], req["cause"], req.get("time"), req.get("turn")
+
+
+def encode_reply(_: None) -> dict:
+    """Encode the (empty) reply to ``encode``."""
     return {}
 
 
-def _serve_snapshot(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    return {"queues": s.buffer.snapshot(), "events": s.seq}
+def snapshot_request() -> dict:
+    """Encode ``snapshot``."""
+    return {"op": "snapshot"}
+
+
+def no_args(req: Mapping[str, Any]) -> tuple:
+    """Decode an op without fields (``snapshot``, ``size``)."""
+    return ()
+
+
+def snapshot_reply(snapshot: tuple[dict[str, list[str]], int]) -> dict:
+    """Encode every non-empty queue and the ``seq`` of the last event published."""
+    queues, events = snapshot
+    return {"queues": queues, "events": events}
+
+
+def snapshot_of(reply: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Decode a ``snapshot`` reply's queues."""
+    return dict(reply["queues"])
 
 
 # ----------------------------------------------------------------------- manage ops
-def _serve_configure(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    policy = ForgettingPolicy.from_settings(req["policy"])  # PolicyError: nothing installed
-    s.configure(policy, s.request_time(req.get("time")))
-    return {"memory": policy.to_json(), "incarnation": s.incarnation, "state": s.status()}
+def configure_request(policy: ForgettingPolicy, time: float) -> dict:
+    """Encode ``configure``: install ``policy`` as of ``time``."""
+    return {"op": "configure", "policy": policy.settings(), "time": time}
 
 
-def _serve_decay(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    try:
-        ticks = TickRun.from_json(req["ticks"])
-    except TickError as err:
-        raise RequestError(f"field 'ticks': {err}") from None
-    s.decay_now(ticks)
-    return {"policy": s.policy.name}
+def configure_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``configure``: the policy (its schema checked it is one) and the time."""
+    return ForgettingPolicy.from_settings(req["policy"]), req.get("time")
 
 
-def _serve_advance(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    s.advance(s.request_time(req.get("time")))
-    return {"policy": s.policy.name}
+def configure_reply(configured: Configured) -> dict:
+    """Encode a configure's result."""
+    return {"memory": configured.memory, "incarnation": configured.incarnation, "state": configured.state}
 
 
-def _serve_evict(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    count = req["count"]
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise RequestError(f"field 'count': expected a whole number >= 0, got {count!r}")
-    s.evict(count, s.request_time(req.get("time")))
-    return {"size": len(s.buffer)}
+def configured_of(reply: Mapping[str, Any]) -> tuple[Any, Optional[int], Any]:
+    """Decode a ``configure`` reply: the policy running (JSON form), the incarnation, what it restored at start.
+
+    What the reply lacks is None (the incarnation if it is not a whole number, ``restored``
+    without a stored state).
+    """
+    incarnation = reply.get("incarnation")
+    restored = (reply.get("state") or {}).get("restored")
+    return reply.get("memory"), incarnation if isinstance(incarnation, int) else None, restored
 
 
-def _serve_size(s: ConsultantService, req: Mapping[str, Any], client: str) -> dict:
-    return {"size": len(s.buffer)}
+def decay_request(ticks: TickRun) -> dict:
+    """Encode ``decay``: apply ``ticks`` (the core's JSON form of a :class:`TickRun`)."""
+    return {"op": "decay", "ticks": ticks.to_json()}
 
 
-#: Ops the consultant node serves itself, not the service: ``reset`` replaces the service (a new incarnation).
-NODE_OPS = frozenset({"reset"})
-#: The consultant's side of each op (its request decoded, the service's typed call, its reply encoded).
-_SERVE: dict[str, Callable[[ConsultantService, Mapping[str, Any], str], dict]] = {
-    op: globals()[f"_serve_{op}"] for op in ALL_OPS if op not in NODE_OPS
+def decay_args(req: Mapping[str, Any]) -> tuple[TickRun]:
+    """Decode ``decay`` (request or sent payload): its ticks."""
+    return (TickRun.from_json(req["ticks"]),)
+
+
+def policy_reply(policy: str) -> dict:
+    """Encode the installed policy's name (``decay``, ``advance``)."""
+    return {"policy": policy}
+
+
+def policy_of(reply: Mapping[str, Any]) -> str:
+    """Decode a ``decay`` or ``advance`` reply: the installed policy's name."""
+    return reply["policy"]
+
+
+def advance_request(time: float) -> dict:
+    """Encode ``advance``: the clock reached ``time``."""
+    return {"op": "advance", "time": time}
+
+
+def advance_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``advance``: the time."""
+    return (req.get("time"),)
+
+
+def evict_request(count: int, time: float) -> dict:
+    """Encode ``evict``: forget ``count`` fronts as of ``time``."""
+    return {"op": "evict", "count": count, "time": time}
+
+
+def evict_args(req: Mapping[str, Any]) -> tuple:
+    """Decode ``evict``: count, time."""
+    return req["count"], req.get("time")
+
+
+def size_request() -> dict:
+    """Encode ``size``."""
+    return {"op": "size"}
+
+
+def size_reply(size: int) -> dict:
+    """Encode how many properties WM holds (``size``, ``evict``)."""
+    return {"size": size}
+
+
+def size_of(reply: Mapping[str, Any]) -> int:
+    """Decode a ``size`` reply."""
+    return reply["size"]
+
+
+def reset_request(client: str) -> dict:
+    """Encode ``reset`` (``client`` names who asked, for the consultant's log)."""
+    return {"op": "reset", "client": client}
+
+
+def reset_args(req: Mapping[str, Any]) -> tuple[str]:
+    """Decode ``reset``: who asked ("" if unnamed)."""
+    return (req.get("client") or "",)
+
+
+def reset_reply(incarnation: int, moved_aside: Optional[str], cleared: dict[str, int], state: dict) -> dict:
+    """Encode a reset: the new incarnation, where the old database went, what it held, the new stored state."""
+    return {"incarnation": incarnation, "moved_aside": moved_aside, "cleared": cleared, "state": state}
+
+
+#: The consultant's side of each op the service runs: op -> (decode its request, encode its result).
+#: (``reset`` is not one: the node serves it itself, replacing the service, with :func:`reset_reply`.)
+SERVED: dict[str, tuple[Callable[[Mapping[str, Any]], tuple], Callable[[Any], dict]]] = {
+    "info": (info_args, info_reply),
+    "open": (open_args, open_reply),
+    "narrow": (narrow_args, narrow_reply),
+    "walk": (walk_args, walk_reply),
+    "rule_out": (rule_out_args, rule_out_reply),
+    "close": (close_args, close_reply),
+    "holds": (holds_args, holds_reply),
+    "affirm": (affirm_args, holds_reply),
+    "wm": (wm_args, queue_reply),
+    "encode": (encode_args, encode_reply),
+    "snapshot": (no_args, snapshot_reply),
+    "configure": (configure_args, configure_reply),
+    "decay": (decay_args, policy_reply),
+    "advance": (advance_args, policy_reply),
+    "evict": (evict_args, size_reply),
+    "size": (no_args, size_reply),
 }

@@ -3,7 +3,7 @@
 One process per domain (``--ros-args -r __node:=consultant_faces -p domain:=faces -p kb:=kb.yaml``).
 The node is wiring: it validates each request with the contract's models
 (:mod:`fsreg_ros.contract.consultant`: ops, fields, replies), runs it through the
-protocol's codec (:func:`fsreg_ros.contract.consultant_codec.apply`) on the core
+protocol's codec (:func:`fsreg_ros.ros.consultant_ops.apply`) on the core
 :class:`~fsreg_ros.core.consultant.service.ConsultantService` (which keeps sessions, policy,
 readiness, the decay mark and the state database) and publishes what came of it
 (:class:`~fsreg_ros.ros.consultant_outbox.ConsultantOutbox`: ``wm/events``, ``wm/state``,
@@ -36,6 +36,7 @@ from rclpy.validate_topic_name import validate_topic_name
 from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
 from ..contract import consultant_codec
+from ..ros.consultant_ops import apply
 from ..contract.codec import MessageError, printable
 from ..core.consultant.consultant import Consultant
 from ..core.scenario import ScenarioError, load_scenario
@@ -210,16 +211,15 @@ class ConsultantNode(Node):
             f"{self.service.incarnation} serves {self._kb} afresh"))
         self.outbox.publish_state()
         self.outbox.announce()
-        return {"incarnation": self.service.incarnation, "moved_aside": restored.moved_aside, "cleared": cleared,
-                "state": self.service.status()}
+        return consultant_codec.reset_reply(self.service.incarnation, restored.moved_aside, cleared,
+                                            self.service.status())
 
     # ----------------------------------------------------------------- calls
     def _call(self, op: str, request: dict) -> dict:
         """Run one validated request (its ``op``), publish what came of it; return the reply."""
-        client = request.get("client") or ""
-        outcome = self.guarded(lambda listening: consultant_codec.apply(self.service, op, request, client, listening))
+        outcome = self.guarded(lambda listening: apply(self.service, op, request, listening))
         if op == "info":
-            outcome.reply["event_listeners"] = self.outbox.listeners()
+            consultant_codec.with_listeners(outcome.reply, self.outbox.listeners())
         self.outbox.published(outcome, wait=op in SESSION_STEPS)
         return outcome.reply
 

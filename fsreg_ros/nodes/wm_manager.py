@@ -235,8 +235,7 @@ class WMManagerNode(Node):
             sizes = {}
             for name in sharing:
                 dom = self._domains[name]
-                reply = await self._links.result(dom, self._links.send(dom, {"op": "size"}), deadline)
-                sizes[name] = reply["size"]
+                sizes[name] = await self._links.size(dom, deadline)
             self.manager.share(sizes, t)
             await self._links.settle(deadline)
         return contract.SyncReply(time=t, memory=self.memory(), applied=applied)

@@ -28,7 +28,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from ..core.consultant.consultant import Consultant
 from ..core.simulation.describe import describe, knowledge_base
-from ..core.algorithms.generation import attribute_of
+from ..core.memory import attribute_of
 from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, read_text
 from .scores import dice, masi, mean
 
@@ -178,8 +178,8 @@ def learn_order(trials: Sequence[Trial]) -> list[str]:
     used: Counter = Counter()
     for trial in trials:
         for props in trial_entities(trial).values():
-            usable.update(attribute_of(p) for p in props)
-        used.update({attribute_of(p) for p in trial.gold})
+            usable.update(attribute_of(p, own=True) for p in props)
+        used.update({attribute_of(p, own=True) for p in trial.gold})
     rest = sorted(usable - {HEAD}, key=lambda a: (-used[a], a))
     return [HEAD] + rest
 

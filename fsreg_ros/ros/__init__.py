@@ -18,6 +18,7 @@ What lives here, one module per job (the wire codec, ROS-free, is
 * :mod:`.network`: the DDS environment of every process (loopback unless widened);
 * :mod:`.graph_spec`: the one definition of the node graph (nodes, names, parameters);
 * :mod:`.remote`: :class:`~.remote.RemotePort`, a consultant port over a consultant node's service;
+  :mod:`.consultant_ops`, the other side: one request decoded, run on the core service, its reply encoded;
 * :mod:`.client`: :class:`~.client.GraphClient`, the client side of a live graph (tools, harness), its
   jobs one module each: :mod:`.client_base` (errors, bounded waits), :mod:`.readiness`,
   :mod:`.exchange` (the dialogue topics), :mod:`.graph_queries` (services, WM reads),

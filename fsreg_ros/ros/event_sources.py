@@ -15,6 +15,7 @@ import time as wallclock
 from typing import Callable
 
 from .. import contract
+from ..contract import consultant_codec as codec
 from .carrier import CarrierError, ServiceCaller, subscribe, wait_until
 from .event_audit import EventAudit
 
@@ -82,7 +83,7 @@ class EventSources:
     async def info(self, domain: str, timeout: float, failure: str) -> dict:
         """Return the ``info`` of ``domain``'s consultant (one real round trip); PlayerError ``failure: why`` if not."""
         try:
-            return await self.consultants[domain].wait_ready({"op": "info"}, timeout)
+            return await self.consultants[domain].wait_ready(codec.info_request(), timeout)
         except CarrierError as err:
             raise PlayerError(f"{failure}: {err}") from None
 

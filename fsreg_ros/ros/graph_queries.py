@@ -3,7 +3,8 @@
 The JSON services (``wm_manager/status``, ``wm_manager/sync``, a consultant's ``info``
 and debug queries, its manage op ``reset``), working memory as the consultants
 publish it (``wm/state``: :meth:`GraphQueries.state`, :meth:`GraphQueries.watch`) and
-which domain knows an entity.
+which domain knows an entity.  The consultants' ops are encoded and decoded by the
+protocol's codec (:mod:`fsreg_ros.contract.consultant_codec`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from typing import Any, Callable, Mapping, Optional
 
 from .. import contract
+from ..contract import consultant_codec as codec
 from ..contract.codec import printable
 from .carrier import CarrierError, ServiceCaller, subscribe
 from .client_base import ClientError, Spinning, describe_graph
@@ -67,7 +69,7 @@ class GraphQueries(Spinning):
         client = self.service(name)
         self.spin_until(client.ready, timeout, f"service {self.node.resolve_service_name(name)} is not available",
                         "not-ready")
-        future = client.send({"op": "reset", "client": self.node.get_fully_qualified_name()})
+        future = client.send(codec.reset_request(self.node.get_fully_qualified_name()))
         try:
             return self.run(client.result(future, timeout), timeout + 1.0, f"service {name}")
         except CarrierError as err:
@@ -82,8 +84,8 @@ class GraphQueries(Spinning):
         domains = self.domains()
         for domain in domains:
             if domain not in self._entities:
-                info = self.call(contract.consultant_service(domain), {"op": "info"})
-                self._entities[domain] = set(info.get("entities") or ())
+                info = self.call(contract.consultant_service(domain), codec.info_request())
+                self._entities[domain] = set(codec.entities_of(info))
             if entity in self._entities[domain]:
                 return domain
         if new_ok and len(domains) == 1:
@@ -98,11 +100,11 @@ class GraphQueries(Spinning):
         as :mod:`fsreg_ros.testing` starts it); :meth:`state` needs no debug service.
         """
         domain = domain or self.domain_of(entity)
-        return list(self.call(contract.debug_service(domain), {"op": "wm", "entity": entity})["queue"])
+        return codec.queue_of(self.call(contract.debug_service(domain), codec.wm_request(entity)))
 
     def snapshot(self, domain: str) -> dict[str, list[str]]:
         """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""
-        return dict(self.call(contract.debug_service(domain), {"op": "snapshot"})["queues"])
+        return codec.snapshot_of(self.call(contract.debug_service(domain), codec.snapshot_request()))
 
     def state(self, domain: str, timeout: Optional[float] = None, current: bool = False) -> dict:
         """Return ``domain``'s latest ``wm/state`` (latched: its non-empty queues as last published).
@@ -120,8 +122,8 @@ class GraphQueries(Spinning):
             self.spin_until(lambda: domain in self._states, wait,
                             f"no {contract.WM_STATE.name} of domain {domain!r} in {self.where()}", "not-ready")
             return self._states[domain]
-        info = self.call(contract.consultant_service(domain), {"op": "info"}, timeout)
-        wanted = (contract.version_incarnation(info["version"]), info["wm_version"])
+        info = self.call(contract.consultant_service(domain), codec.info_request(), timeout)
+        wanted = codec.wm_as_of(info)
 
         def caught_up() -> bool:
             state = self._states.get(domain)

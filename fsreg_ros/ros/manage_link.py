@@ -7,7 +7,8 @@ the replies: a configure acknowledged by the consultant's current incarnation ma
 domain configured; a failed ``decay`` is owed again (the consultant skips ticks it had
 applied) and a failed ``decay`` or ``configure`` detaches the domain, so it is attached
 (and configured) again when the consultant answers or announces itself.  The requests
-and replies are the contract's manage ops (:mod:`fsreg_ros.contract.consultant`).
+and replies are the contract's manage ops (:mod:`fsreg_ros.contract.consultant`), encoded and
+decoded by its codec (:mod:`fsreg_ros.contract.consultant_codec`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import Any, Callable, Optional
 from rclpy.task import Future
 
 from .carrier import CarrierError, ServiceCaller, log_error
-from ..contract import manage_service
+from ..contract import consultant_codec as codec, manage_service
 from ..core.memory.ticks import TickRun
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
@@ -76,16 +77,17 @@ class ManageLinks:
         except CarrierError as err:
             log_error(self.node.get_logger(), f"consultant '{link.name}' failed '{op}': {err}")
             if op == "decay":  # maybe never applied: owed again (the consultant skips what it applied)
-                self.manager.owe(link.name, TickRun.from_json(payload["ticks"]))
+                self.manager.owe(link.name, *codec.decay_args(payload))
             if op in ("decay", "configure"):  # start over: attach again when it answers or announces itself
                 self.manager.detach(link.name)
                 link.lost()
             return
         if op == "configure" and future is link.configuring:
-            link.running = reply.get("memory")
-            if isinstance(reply.get("incarnation"), int):
-                link.incarnation = reply["incarnation"]
-            link.restored = (reply.get("state") or {}).get("restored", link.restored)  # a first configure may drop WM
+            link.running, incarnation, restored = codec.configured_of(reply)
+            if incarnation is not None:
+                link.incarnation = incarnation
+            if restored is not None:  # a first configure may drop WM
+                link.restored = restored
             if not link.configured:
                 self.node.get_logger().info(
                     f"consultant '{link.name}' (incarnation {link.incarnation}) configured: {link.running}")
@@ -109,6 +111,10 @@ class ManageLinks:
         for link, future in pending:
             await self.result(link, future, deadline)
 
+    async def size(self, link: ConsultantLink, deadline: float) -> int:
+        """Ask ``link``'s consultant how many properties its WM holds (manage op ``size``), until ``deadline``."""
+        return codec.size_of(await self.result(link, self.send(link, codec.size_request()), deadline))
+
     async def result(self, link: ConsultantLink, future: Future, deadline: float) -> dict:
         """Await one reply until ``deadline`` (monotonic); CarrierError naming the consultant."""
         remaining = max(deadline - wallclock.monotonic(), 0.05)
@@ -126,16 +132,16 @@ class ManagePort:
 
     def configure(self, domain: str, policy: ForgettingPolicy, time: float) -> None:
         link = self.links.links[domain]
-        link.configuring = self.links.send(link, {"op": "configure", "policy": policy.settings(), "time": time})
+        link.configuring = self.links.send(link, codec.configure_request(policy, time))
 
     def decay(self, domain: str, ticks: TickRun) -> None:
-        self.links.send(self.links.links[domain], {"op": "decay", "ticks": ticks.to_json()})
+        self.links.send(self.links.links[domain], codec.decay_request(ticks))
 
     def advance(self, domain: str, time: float) -> None:
-        self.links.send(self.links.links[domain], {"op": "advance", "time": time})
+        self.links.send(self.links.links[domain], codec.advance_request(time))
 
     def evict(self, domain: str, count: int, time: float) -> None:
-        self.links.send(self.links.links[domain], {"op": "evict", "count": count, "time": time})
+        self.links.send(self.links.links[domain], codec.evict_request(count, time))
 
     def sizes(self, domains: list[str]) -> None:
         return None  # needs service calls: the sync barrier asks, then calls manager.share

@@ -232,9 +232,10 @@ class RemotePort:
         except MessageError as err:
             raise CarrierError(f"malformed reply to '{payload.get('op')}': {err}", kind="protocol",
                                service=self.caller.name) from None
-        if "version" in reply:
-            self._latest = reply["version"]
-            self._answered(reply["version"])
+        version = codec.version_of(reply)
+        if version is not None:
+            self._latest = version
+            self._answered(version)
         return reply
 
     async def wait_ready(self, timeout: float) -> dict:
@@ -272,15 +273,15 @@ class RemotePort:
             except MessageError as err:
                 raise CarrierError(f"malformed reply to 'info': {err}", kind="protocol",
                                    service=self.caller.name) from None
+            version, preference, entities = codec.catalogue_of(reply)
             wanted = self.manager_report[0] if self.manager_report is not None else 0
-            if contract.version_incarnation(reply["version"]) >= wanted:
+            if contract.version_incarnation(version) >= wanted:
                 break
             await wait_until(node, lambda: False, min(0.1, max(deadline - time.monotonic(), 0.0)),
                              callback_group=group)  # an older incarnation answered: ask again shortly
-        self._latest = reply["version"]
-        self._answered(reply["version"])
-        self._catalogue = Catalogue(reply["version"], list(reply["preference"]), list(reply["entities"]),
-                                    set(reply["entities"]))
+        self._latest = version
+        self._answered(version)
+        self._catalogue = Catalogue(version, preference, entities, set(entities))
         return reply
 
     async def catalogue(self, refresh: bool = False) -> Catalogue:
@@ -289,14 +290,14 @@ class RemotePort:
         if cat is not None and not refresh and cat.version == self._latest:
             return cat
         start = len(cat.entities) if cat is not None else 0
-        reply = await self._call(codec.info_request(start))
-        if cat is None or contract.version_incarnation(reply["version"]) != cat.incarnation:
+        version, preference, entities = codec.catalogue_of(await self._call(codec.info_request(start)))
+        if cat is None or contract.version_incarnation(version) != cat.incarnation:
             if start:  # restarted: its entities may differ from the first one on
-                reply = await self._call(codec.info_request())
-            cat = Catalogue(reply["version"], list(reply["preference"]), [], set())
-        cat.entities += reply["entities"]
-        cat.known.update(reply["entities"])
-        cat.version = reply["version"]
+                version, preference, entities = codec.catalogue_of(await self._call(codec.info_request()))
+            cat = Catalogue(version, preference, [], set())
+        cat.entities += entities
+        cat.known.update(entities)
+        cat.version = version
         self._catalogue = cat
         return cat
 

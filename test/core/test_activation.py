@@ -545,7 +545,7 @@ def test_rows_that_widen_restart_from_their_export_and_find_their_slots_again():
 def test_a_restart_restores_the_encoding_histories(tmp_path):
     """The journal (encodings, the clock's ``advance``) and the checkpoint (items with their traces) both restore
     the histories: the restarted consultant forgets at the same crossing times."""
-    from fsreg_ros.contract.consultant_codec import apply
+    from fsreg_ros.ros.consultant_ops import apply
     from fsreg_ros.core.consultant.consultant import Consultant
     from fsreg_ros.core.consultant.service import ConsultantService
     from fsreg_ros.core.state.store import DomainStore, fingerprint

@@ -243,3 +243,16 @@ def test_the_core_check_finds_an_upward_arrow():
         " (core.memory may not import core.forgetting)",
         "fsreg_ros.core.state.store imports fsreg_ros.core.algorithms.port (core.state may not import core.algorithms)",
     ]
+
+
+#: What the contract may not use of the core: the consultant service, its sessions (views) and
+#: its persistence -- running an op is core/consultant/ops.py's, dispatched from ros/ (issue 35.4).
+NOT_FOR_THE_CONTRACT = {"fsreg_ros.core.consultant.service", "fsreg_ros.core.consultant.views",
+                        "fsreg_ros.core.consultant.persistence", "fsreg_ros.core.consultant.local_port"}
+
+
+def test_the_contract_is_names_schemas_and_codecs_only():
+    graph = import_graph()
+    used = sorted(f"{m} imports {t}" for m, targets in graph.items() if layer(m) == "contract"
+                  for t in targets if t in NOT_FOR_THE_CONTRACT)
+    assert used == []

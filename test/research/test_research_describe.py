@@ -4,7 +4,8 @@ import pytest
 
 from fsreg_ros.core.consultant.consultant import Consultant
 from fsreg_ros.core.simulation.describe import describe, expand_order, knowledge_base
-from fsreg_ros.core.algorithms.generation import GenerationError, attribute_of
+from fsreg_ros.core.algorithms.generation import GenerationError
+from fsreg_ros.core.memory import attribute_of
 
 BOARD = {
     "t": {"type": "chair", "colour": "red", "orientation": "front", "size": "large"},
@@ -15,8 +16,13 @@ BOARD = {
 
 
 def test_attribute_of():
-    assert attribute_of("colour=red") == "colour"
-    assert attribute_of("glasses") == "glasses"
+    # REG's one-value-per-attribute rule (own=True): a plain name is its own attribute.
+    assert attribute_of("colour=red", own=True) == "colour"
+    assert attribute_of("glasses", own=True) == "glasses"
+    assert attribute_of("light-hair", {"light-hair": "hair-colour"}, own=True) == "hair-colour"
+    # Similarity interference (the default): a plain name has none, so it interferes with nothing.
+    assert attribute_of("colour=red") == "colour" and attribute_of("colour=red", {}) == "colour"
+    assert attribute_of("glasses") is None and attribute_of("glasses", {"other": "x"}) is None
     assert attribute_of("light-hair", {"light-hair": "hair-colour"}) == "hair-colour"
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
+from ..memory import attribute_of
 from .port import ConsultantPort, KnowledgeError, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
@@ -32,17 +33,6 @@ WM_ORDERS = ("lru-first", "mru-first", "preference")
 #: Full Brevity is exponential in the number of useful properties; beyond this many
 #: subsets it gives up with a clear error instead of running for hours.
 FULL_BREVITY_MAX_SUBSETS = 5_000_000
-
-
-def attribute_of(prop: str, attributes: Optional[Mapping[str, str]] = None) -> str:
-    """Return the attribute a property belongs to.
-
-    The domain's declared mapping wins; otherwise ``colour=red`` belongs to
-    ``colour`` and a plain name such as ``glasses`` is its own attribute.
-    """
-    if attributes and prop in attributes:
-        return attributes[prop]
-    return prop.split("=", 1)[0]
 
 
 def algorithm_for(retains: bool, algorithm: Optional[str] = None) -> str:
@@ -148,7 +138,7 @@ async def sd_pia(
     candidates = [(p, "wm") for p in phase1] + [(p, "ltm") for p in phase2]
     if view.holding is not None:  # p does not hold for t (as read when the view opened): skipped, nothing asked
         candidates = [(p, source) for p, source in candidates if p in view.holding]
-    steps = [WalkStep(p, attribute_of(p, attributes)) for p, _ in candidates]
+    steps = [WalkStep(p, attribute_of(p, attributes, own=True)) for p, _ in candidates]
     if steps and view.size:
         walked = await port.walk(view, steps, "reg-distractor", time, turn)
         for i in walked.taken:
@@ -219,7 +209,7 @@ async def full_brevity(
                     raise GenerationError(
                         f"full-brevity gave up after {FULL_BREVITY_MAX_SUBSETS} subsets for '{target}'"
                     )
-                if len({attribute_of(p, attributes) for p, _ in combo}) < size:
+                if len({attribute_of(p, attributes, own=True) for p, _ in combo}) < size:
                     continue
                 covered = 0
                 for _, mask in combo:
@@ -263,7 +253,7 @@ async def greedy(
     while remaining:
         best, best_count = -1, 0
         for i, mask in enumerate(masks):
-            if attribute_of(props[i], attributes) in used:
+            if attribute_of(props[i], attributes, own=True) in used:
                 continue
             count = (mask & remaining).bit_count()
             if count > best_count:
@@ -273,7 +263,7 @@ async def greedy(
         expression.description.append(props[best])
         expression.sources.append("ltm")
         expression.origins.append(None)
-        used.add(attribute_of(props[best], attributes))
+        used.add(attribute_of(props[best], attributes, own=True))
         remaining &= ~masks[best]
     return await _finish(expression, view, port, time, turn, ruled_out=everyone & ~remaining)
 

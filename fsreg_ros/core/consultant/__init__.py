@@ -2,6 +2,8 @@
 
 ``consultant`` (:class:`~.consultant.Consultant`: LTM, candidate sets, the encodings
 queries make), ``service`` (:class:`~.service.ConsultantService`: one call = one op,
-its changes, one commit), ``persistence`` (restore at start, clock epochs, checkpoints),
-``views`` (open RR/REG candidate sets, bounded), ``local_port`` (the port in-process).
+its changes, one commit), ``ops`` (each op of the consultant protocol as one typed
+call on the service: its session, request time, clock notes), ``persistence``
+(restore at start, clock epochs, checkpoints), ``views`` (open RR/REG candidate sets,
+bounded), ``local_port`` (the port in-process).
 """

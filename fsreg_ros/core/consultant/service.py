@@ -173,8 +173,9 @@ class ConsultantService:
 
         ``listening``: whether anyone hears the events (else no events are built);
         ``counted``: list exactly the queues the call changed (the manage ops' replies
-        say how many).  The ops of the consultant protocol come here decoded
-        (:func:`fsreg_ros.contract.consultant_codec.apply`); a refusal (KnowledgeError,
+        say how many).  The ops of the consultant protocol come here decoded, as the
+        typed calls of :mod:`fsreg_ros.core.consultant.ops`
+        (:func:`fsreg_ros.ros.consultant_ops.apply`); a refusal (KnowledgeError,
         PolicyError, RequestError, SessionError) changes nothing.
         """
         self._records, self._events, self._touched = [], [], False

@@ -57,13 +57,18 @@ class Limits:
 UNLIMITED = Limits()
 
 
-def attribute_of(prop: str, attributes: Mapping[str, str]) -> Optional[str]:
-    """Return the attribute ``prop`` belongs to, or None if it has none.
+def attribute_of(prop: str, attributes: Optional[Mapping[str, str]] = None, *, own: bool = False) -> Optional[str]:
+    """Return the attribute ``prop`` belongs to (the one definition: similarity interference and REG use it).
 
-    It is declared in ``attributes``, or the part before ``=`` in an
-    ``attribute=value`` name.
+    It is declared in ``attributes``, or the part before ``=`` in an ``attribute=value``
+    name.  A plain name (``glasses``) has none: None, or, with ``own``, it is its own
+    attribute (REG's one-value-per-attribute rule counts it as one; similarity interference
+    leaves it alone).
     """
-    found = attributes.get(prop)
-    if found is None and "=" in prop:
-        found = prop.split("=", 1)[0]
+    found = attributes.get(prop) if attributes else None
+    if found is None:
+        if "=" in prop:
+            return prop.split("=", 1)[0]
+        if own:
+            return prop
     return found

@@ -12,7 +12,7 @@ one consultant per knowledge base.
 Preference orders may name attributes (``colour``) as well as properties
 (``colour=red``): :func:`expand_order` lists each attribute's values in the
 knowledge base's own order.  Properties written ``attribute=value`` belong to
-``attribute`` (:func:`fsreg_ros.core.algorithms.generation.attribute_of`).
+``attribute`` (:func:`fsreg_ros.core.memory.limits.attribute_of`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from typing import Mapping, Optional, Sequence, Union
 from ..consultant.consultant import Consultant, KnowledgeError
 from ..consultant.local_port import LocalPort
 from ..algorithms.port import ConsultantPort, Narrowed, Step, View, Walked, WalkStep, run_sync
-from ..algorithms.generation import ALGORITHMS, Expression, GenerationError, attribute_of, generate
+from ..algorithms.generation import ALGORITHMS, Expression, GenerationError, generate
+from ..memory import attribute_of
 
 #: What :func:`knowledge_base` accepts per entity: properties, or attribute -> value.
 Facts = Union[Sequence[str], Mapping[str, object]]
@@ -68,7 +69,7 @@ def expand_order(
     known = set(properties)
     by_attribute: dict[str, list[str]] = {}
     for prop in properties:
-        by_attribute.setdefault(attribute_of(prop, attributes), []).append(prop)
+        by_attribute.setdefault(attribute_of(prop, attributes, own=True), []).append(prop)
     out: dict[str, None] = {}
     for entry in order:
         if entry in known:
@@ -108,7 +109,7 @@ class ViewPort:
         self._preference = [p for p in preference if not self._is_hidden(p)]
 
     def _is_hidden(self, prop: str) -> bool:
-        return attribute_of(prop, self._attributes) in self._hidden
+        return attribute_of(prop, self._attributes, own=True) in self._hidden
 
     async def preference(self) -> list[str]:
         return list(self._preference)
@@ -178,7 +179,7 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
         head = []  # the target's values of the forced attributes, selected first
         for attribute in request.forced:
             for prop in full:  # the first value holding for the target narrows the distractors
-                if attribute_of(prop, request.attributes) == attribute:
+                if attribute_of(prop, request.attributes, own=True) == attribute:
                     step = await port.narrow(opened, prop, cause, request.time, request.turn)
                     if step.target_holds:
                         head.append(prop)
