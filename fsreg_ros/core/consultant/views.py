@@ -160,7 +160,12 @@ def open_view(
 def close_view(
     consultant: Consultant, candidates: CandidateSet, encode: Sequence[str], time: float, turn: Optional[int]
 ) -> list[str]:
-    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says."""
+    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says.
+
+    Encoding ``encode`` (rule 1) is an act of referring to the target (REG) or to the
+    resolved referent (RR): the entity's next reference episode begins just before it
+    (docs/semantics.md section 8).
+    """
     members = consultant.members(candidates)
     if encode:
         if candidates.target is not None:
@@ -169,5 +174,5 @@ def close_view(
             speaker = members[0]
         else:
             raise KnowledgeError(f"cannot encode for the only member: {len(members)} members remain")
-        consultant.encode(speaker, encode, "speaker", time, turn)
+        consultant.encode(speaker, encode, "speaker", time, turn, episode=True)  # a reference episode begins first
     return members

@@ -23,7 +23,7 @@ The collaborators share the buffer's queue state (``_queues``, ``_nonempty``,
 from __future__ import annotations
 
 import sys
-from typing import Iterable, Mapping, Optional, Sequence
+from typing import Callable, Iterable, Mapping, Optional, Sequence
 
 from . import bitset
 from .ticks import TickLedger, TickRun
@@ -36,7 +36,9 @@ from .install import install_limits
 from .limits import UNLIMITED, Limits
 from . import persistence
 from .origins import OriginLog
-from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_stamp
+from .episodes import EntryStamps, EpisodeLog, Strength
+from .activation import activation as activation_at, Trace
+from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_entered, entry_stamp
 
 
 class WMBuffer:
@@ -68,6 +70,7 @@ class WMBuffer:
         self.activation: Optional[LazyActivation] = None
         self.interference = Interference(self)
         self.origin_log = OriginLog(self)
+        self.episodes = EpisodeLog(self)
         self.changes = ChangeRecord(self)
         self.columns = ColumnQueues(self)
 
@@ -102,6 +105,29 @@ class WMBuffer:
         if not q:
             return (), []
         return tuple(q), [self.origin_log.of(value) for value in q.values()]
+
+    def episode(self, entity: str) -> int:
+        """Return the entity's current episode: how many have begun (:meth:`begin_episode`; 0 before the first)."""
+        return self.episodes.current(entity)
+
+    def entry_stamps(self, entity: str) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first."""
+        q = self._readable(entity)
+        return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()] if q else []
+
+    def strength(self, entity: str) -> list[Strength]:
+        """Return how strongly each entry of Q[entity] is held, parallel to :meth:`queue` (:class:`Strength`).
+
+        Its episode age and the number of episodes it was used in
+        (:mod:`fsreg_ros.core.memory.episodes`), and its activation at the clock under rule
+        ``activation``.  Does not refresh recency.
+        """
+        counted = self.episodes.strength(entity, self.entry_stamps(entity))
+        if self.activation is None or not counted:
+            return [Strength(age, n) for age, n in counted]
+        d, clock = self.limits.activation[0], self.activation.clock  # type: ignore[index]
+        traces = [Trace.from_json(item.trace) for item in self.export_queue(entity)]  # type: ignore[attr-defined]
+        return [Strength(age, n, activation_at(t, clock, d)) for (age, n), t in zip(counted, traces)]
 
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""
@@ -171,6 +197,17 @@ class WMBuffer:
             self.activation.advance(time)
 
     # ---------------------------------------------------------------- writes
+    def begin_episode(self, entity: str, time: float = 0.0, turn: Optional[int] = None) -> int:
+        """Begin the entity's next reference episode and return its number (1, 2, ...).
+
+        Call it before the act of referring encodes anything (docs/semantics.md section 8).
+        Under rule ``episodes`` the entries of Q[entity] not used in the entity's last
+        ``episode_window`` episodes are forgotten now (cause ``episodes``,
+        :mod:`fsreg_ros.core.memory.episodes`).
+        """
+        window = self.limits.episode_window if self.limits.retains else None
+        return self.episodes.begin(entity, window, time, turn)
+
     def encode(self, entity: str, properties: Iterable[str], cause: str, time: float,
                turn: Optional[int] = None) -> None:
         """Encode properties into Q[R]: Encode(R, P), the paper's Algorithm 1.
@@ -350,7 +387,9 @@ class WMBuffer:
         return self._pop(entity, cause, time, turn)
 
     def remove(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int] = None) -> bool:
-        """Forget one property wherever it is in Q[entity] (used for retraction)."""
+        """Forget one property wherever it is in Q[entity] (retraction, rule ``episodes``)."""
+        if entity in self.columns.entities:
+            self.columns.to_dict(entity)
         self._catch_up(entity, time)
         q = self._queues.get(entity)
         if not q or prop not in q:
@@ -454,5 +493,20 @@ class WMBuffer:
         return self._stamp, self.lazy_decay.ticks.count
 
     def restore(self, queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
-        """Replace the buffer's state with a stored one (no events, no changes; :mod:`.persistence`)."""
+        """Replace the buffer's state with a stored one (no events, no changes; :mod:`.persistence`).
+
+        The episode log is emptied (:meth:`restore_episodes` takes a stored one back).
+        """
         persistence.restore(self, queues, stamp, ticks, limits)
+        self.episodes.clear()
+
+    def export_episodes(self) -> dict:
+        """Return the episode log as a store keeps it (:meth:`EpisodeLog.export <.episodes.EpisodeLog.export>`)."""
+        return self.episodes.export()
+
+    def restore_episodes(self, data: Mapping, keep: Optional[Callable[[str], bool]] = None) -> list[str]:
+        """Take back :meth:`export_episodes`'s dict (after :meth:`restore`); ValueError if malformed.
+
+        ``keep``: a predicate on entity names; the others' episodes are dropped and returned.
+        """
+        return self.episodes.restore(data, keep)
