@@ -150,7 +150,8 @@ def open_view(
     else:
         holding = frozenset(consultant.properties_of(target))
         queue, origins = consultant.wm.queue_with_origins(target)  # (open_set checked the target)
-        view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins)
+        view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins,
+                    strength=consultant.wm.strength(target) if queue else [])
     if first is not None:
         holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
         view.first = Narrowed(holds, candidates.size)

@@ -16,6 +16,8 @@ What lives where (one module per job; each docstring says what it owns):
 ``displacement``   interference: displacement (Algorithm 3) and its victims,
                    similarity, the global limit, the shared pool's eviction
 ``origins``        the origin log: which encoding made each entry enter its queue
+``episodes``       reference episodes: each entity's episode counter, the episodes its
+                   entries were used in (:class:`Strength`), rule ``episodes``
 ``changes``        the change record: which queues changed since they were persisted
 ``columns``        column queues (numpy) for rule 2 and 3 encodings in a large domain
                    (with ``activation``'s traces, :class:`~.activation.TraceColumns`)
@@ -32,6 +34,7 @@ those (dependencies run one way), nor anything else of the core.
 """
 
 from .buffer import WMBuffer
+from .episodes import Strength
 from .columns import COLUMN_MAX_SLOTS, COLUMN_MAX_WIDTH, COLUMN_MIN, QueueColumns
 from .limits import UNLIMITED, VICTIMS, Limits, attribute_of
 from .queue import (
@@ -41,5 +44,5 @@ from .queue import (
 __all__ = [
     "WMBuffer", "Limits", "UNLIMITED", "VICTIMS", "attribute_of", "WMEvent", "EventSink", "Origin", "UNKNOWN_ORIGIN",
     "QueueItem", "Queue", "ENCODE_CAUSES", "FORGET_CAUSES", "COLUMN_MIN", "COLUMN_MAX_WIDTH", "COLUMN_MAX_SLOTS",
-    "QueueColumns",
+    "QueueColumns", "Strength",
 ]
