@@ -106,8 +106,10 @@ def episodes_scenario() -> dict:
     }
 
 
-@pytest.mark.parametrize("wm_order, said", [("lru-first", [["lab-coat"], ["light-hair"]]),
-                                             ("strength", [["light-hair"], ["light-hair"]])])
+@pytest.mark.parametrize("wm_order, said", [
+    ("lru-first", [["lab-coat"], ["light-hair"]]),
+    ("strength", [["light-hair"], ["light-hair"]]),
+])
 def test_reference_episodes_graph_equals_simulator(tmp_path, wm_order, said):
     path = tmp_path / "episodes.yaml"
     path.write_text(yaml.safe_dump(episodes_scenario(), sort_keys=False))

@@ -118,9 +118,9 @@ MAX_ACTIVATION_THRESHOLD = 20.0
 #: Every memory setting.  ``policy`` first, then the parameters in report order.
 TABLE: tuple[Setting, ...] = (
     Setting("policy", str, "none", "",
-            "none, or rules joined by + (decay, activation, episodes, displacement, displacement-lfu, displacement-random, "
-            "similarity, global-capacity, shared-capacity); at most one displacement rule, and decay or activation, "
-            "not both", metavar="P"),
+            "none, or rules joined by + (decay, activation, episodes, displacement, displacement-lfu, "
+            "displacement-random, similarity, global-capacity, shared-capacity); at most one displacement rule, "
+            "and decay or activation, not both", metavar="P"),
     Setting("decay_period", float, 10.0, 0.0,
             "decay: seconds between ticks (delta); a tick at time T is applied before any turn stamped T",
             MIN_DECAY_PERIOD, MAX_DECAY_PERIOD, rules=("decay",), unit="seconds", metavar="S",
