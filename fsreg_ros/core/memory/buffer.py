@@ -49,7 +49,7 @@ class EntryWatcher(Protocol):
     enters, is refreshed or leaves is told here, in event order.
     """
 
-    def encoded(self, entity: str, prop: str, time: float, turn: Optional[int], present: bool) -> None:
+    def encoded(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int], present: bool) -> None:
         """Note an encoding of ``prop`` into Q[entity] (``present``: a refresh; the store gave it the last stamp)."""
 
     def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
@@ -268,7 +268,7 @@ class WMBuffer:
             if act is not None:
                 act.record(entity, prop, time, present)
             for watcher in watchers:
-                watcher.encoded(entity, prop, time, turn, present)
+                watcher.encoded(entity, prop, cause, time, turn, present)
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
