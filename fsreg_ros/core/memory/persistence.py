@@ -9,7 +9,7 @@ them back (:mod:`fsreg_ros.core.state.store`, :mod:`fsreg_ros.core.state.journal
 from __future__ import annotations
 
 from bisect import bisect_right
-from typing import Mapping, Sequence
+from typing import Mapping, Optional, Sequence
 
 from .activation import LazyActivation
 from .host import HostBuffer
@@ -91,15 +91,15 @@ def restore(wm: HostBuffer, queues: Mapping[str, Sequence[Sequence]], stamp: int
     wm.origin_log.clear()
     shared: dict[Origin, Origin] = {}  # one origin object per distinct (cause, turn)
     for entity, items in queues.items():
-        q = store.new(entity, ticks)
+        entries: dict[str, tuple] = {}
+        counts: Optional[dict[str, int]] = {} if limits.victim == "lfu" and len(items) else None
         for item in items:
             prop, prop_stamp, hits = item[0], item[1], item[2]
             origin = (item[3], item[4]) if len(item) >= 5 else UNKNOWN_ORIGIN
-            q[prop] = (prop_stamp, shared.setdefault(origin, origin))
-            if limits.victim == "lfu":
-                q.hits = q.hits or {}
-                q.hits[prop] = hits
-        store.restored(entity, q)
+            entries[prop] = (prop_stamp, shared.setdefault(origin, origin))
+            if counts is not None:
+                counts[prop] = hits
+        store.load(entity, entries, counts, ticks)
     wm.activation = store.keeper = None
     if limits.activation is not None:
         latest = max((t.recent[-1] for t in traces.values()), default=0.0)

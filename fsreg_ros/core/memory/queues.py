@@ -268,11 +268,15 @@ class QueueStore:
         self._dicts, self._nonempty, self._size, self._stamp = {}, {}, 0, stamp
         self.columns.clear()
 
-    def restored(self, entity: str, q: Queue) -> None:
-        """Count Q[entity], filled by a restore (a queue :meth:`new` made), in the store."""
+    def load(self, entity: str, entries: dict, hits: Optional[dict[str, int]], synced: int) -> Queue:
+        """Hold a restored dict queue: ``entries`` (property -> entry, LRU first), LFU ``hits``, ``synced`` ticks."""
+        q = self.new(entity, synced)
+        q.update(entries)
+        q.hits = hits
         if q:
             self._nonempty[entity] = None
             self._size += len(q)
+        return q
 
     # --------------------------------------------------------- column form
     def usable(self, entities: Sequence[str], limits: Limits, column_min: int, quiet: bool, traced: bool) -> bool:
