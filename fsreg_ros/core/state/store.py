@@ -76,7 +76,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 from ..memory import UNKNOWN_ORIGIN
-from ..memory.activation import Trace
+from ..memory.trace import Trace
 
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.
