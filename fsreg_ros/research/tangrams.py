@@ -51,7 +51,8 @@ settings table, so a rule added there is fitted here without a change: each rule
 grid of the parameters it reads (:data:`GRIDS`; a parameter without one gets a grid from the
 table's bounds), ``decay+displacement`` (the paper's both) over their product, and the
 baselines.  ``similarity`` is left out (:data:`EXCLUDED`): words have no attributes, so it
-forgets nothing; so is ``episodes`` until the replay begins reference episodes.  The random victim's ``seed`` is not fitted (:data:`NOT_FITTED`).
+forgets nothing; so is ``episodes`` until the replay begins reference episodes.  The random
+victim's ``seed`` is not fitted (:data:`NOT_FITTED`).
 """
 
 from __future__ import annotations
