@@ -21,15 +21,8 @@ from fsreg_ros.core.consultant.views import ViewTable
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import Strength, WMBuffer
 from fsreg_ros.core.state import journal
-from fsreg_ros.core.state.store import DomainStore, StateDamaged, fingerprint
-
-PREF = ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"]
-ENTITIES = {
-    "face1": {"light-hair": 1.0, "male": 1.0, "glasses": 1.0, "lab-coat": 1.0},
-    "face2": {"dark-hair": 1.0, "female": 1.0, "glasses": 0.7},
-    "face3": {"dark-hair": 0.9, "male": 1.0, "lab-coat": 0.4},
-}
-KB = fingerprint(PREF, ENTITIES, 0.5, {})
+from fsreg_ros.core.state.store import DomainStore, StateDamaged
+from test_consultant_service import ENTITIES, KB, PREF  # three faces, one of them with glasses at 0.7
 
 
 def buffer(policy: str = "none", events=None, **settings) -> WMBuffer:
