@@ -11,16 +11,16 @@ everything), with its collaborators:
 * ``interference`` (:mod:`fsreg_ros.core.memory.displacement`): Algorithm 3,
   similarity and the global and shared limits, enforced after every encoding event
   (new limits are installed by :mod:`fsreg_ros.core.memory.install`);
-* ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`), ``changes``
-  (:mod:`fsreg_ros.core.memory.changes`) and ``columns``
-  (:mod:`fsreg_ros.core.memory.columns`): the records kept beside the queues and the
-  numpy form of the queues of a large domain.
+* ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`) and ``changes``
+  (:mod:`fsreg_ros.core.memory.changes`): the records kept beside the queues.
 
-The queues themselves, their size, non-empty set and stamp counter are the buffer's
-:class:`~fsreg_ros.core.memory.queues.QueueStore` (``store``); the buffer and every
-collaborator change them only through its methods.  A side log kept per entry (rule
-``activation``'s traces; the coming episode log) hears encodings and forgettings
-through ``watchers`` (:class:`EntryWatcher`; see :mod:`fsreg_ros.core.memory`).
+The queues themselves (a dict queue each, or, for the rule 2 and 3 encodings of a
+large domain, a row of the numpy column form: :mod:`fsreg_ros.core.memory.columns`,
+encoded by :mod:`fsreg_ros.core.memory.column_encoding`), their size, non-empty set
+and stamp counter are the buffer's :class:`~fsreg_ros.core.memory.queues.QueueStore`
+(``store``); the buffer and every collaborator change them only through its methods.
+A side log kept per entry (the coming episode log) hears every encoding and
+forgetting through ``watchers`` (:class:`EntryWatcher`; see :mod:`fsreg_ros.core.memory`).
 """
 
 from __future__ import annotations
@@ -28,11 +28,11 @@ from __future__ import annotations
 from typing import Iterable, Mapping, Optional, Protocol, Sequence
 
 from . import bitset, column_encoding, persistence
-from .activation import LazyActivation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import LazyDecay
 from .displacement import Interference
+from .host import ActivationRule, ChangeLog, DecayRule, InterferenceRule, OriginRecord
 from .install import install_limits
 from .limits import UNLIMITED, Limits
 from .origins import OriginLog
@@ -79,11 +79,12 @@ class WMBuffer:
         self.column_min = COLUMN_MIN
         self.store = QueueStore()
         self.watchers: tuple[EntryWatcher, ...] = ()
-        self.lazy_decay = LazyDecay(self)
-        self.activation: Optional[LazyActivation] = None
-        self.interference = Interference(self)
-        self.origin_log = OriginLog(self)
-        self.changes = ChangeRecord(self)
+        # The collaborators, typed by what the others may call on them (:mod:`.host`).
+        self.lazy_decay: DecayRule = LazyDecay(self)
+        self.activation: Optional[ActivationRule] = None  # a LazyActivation (:mod:`.activation`) while in force
+        self.interference: InterferenceRule = Interference(self)
+        self.origin_log: OriginRecord = OriginLog(self)
+        self.changes: ChangeLog = ChangeRecord(self)
         self.store.on_drop = self.changes.compact
 
     @property
