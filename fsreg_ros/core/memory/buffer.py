@@ -247,20 +247,21 @@ class WMBuffer:
                                self.changes.entries, act)
             return
         lfu = limits.victim == "lfu"
-        ticks, catch_up, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.catch_up, \
+        ticks, decay_sync, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.sync, \
             self.changes.record, self.interference.enforce
-        watchers = self.watchers
+        get, put, watchers = store.lookup, store.put, self.watchers
         for entity in entities:
-            q = store.get(entity)
+            q = get(entity)
             if q is None and store.in_columns(entity):
                 q = store.to_dict(entity)
             if q is None:
                 q = store.new(entity, ticks)  # ticks before a queue existed are not owed
             else:
-                catch_up(entity)
+                if q.synced != ticks:  # lazy decay catch-up (Algorithm 2)
+                    decay_sync(entity, q)
                 if act is not None:
                     act.sync(entity, q)
-            present = store.put(entity, q, prop)
+            present = put(entity, q, prop)
             record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
                 if q.hits is None:
@@ -268,8 +269,9 @@ class WMBuffer:
                 q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
             if act is not None:
                 act.record(entity, prop, time, present)
-            for watcher in watchers:
-                watcher.encoded(entity, prop, cause, time, turn, present)
+            if watchers:
+                for watcher in watchers:
+                    watcher.encoded(entity, prop, cause, time, turn, present)
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
@@ -371,8 +373,9 @@ class WMBuffer:
         self.store.remove(entity, q, prop)
         if self.activation is not None:
             self.activation.forget(entity, prop)
-        for watcher in self.watchers:
-            watcher.forgot(entity, prop, cause, time)
+        if self.watchers:
+            for watcher in self.watchers:
+                watcher.forgot(entity, prop, cause, time)
         self.changes.record(entity, q)
         if self.sink is not None:
             self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))

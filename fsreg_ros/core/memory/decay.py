@@ -66,7 +66,7 @@ class LazyDecay:
         wm = self.wm
         synced = q.synced
         if not q:  # an empty queue owes nothing (and never needs a tick's time)
-            q.synced = self.ticks.count
+            wm.store.sync(q, self.ticks.count)
             return
         wm.changes.record(entity, q)
         if wm.quiet:  # no events to report: just drop the fronts

@@ -120,6 +120,11 @@ class QueueStore:
         """Return Q[entity] if it is a dict queue, else None (a column queue or none)."""
         return self._dicts.get(entity)
 
+    @property
+    def lookup(self) -> Callable[[str], Optional[Queue]]:
+        """Return the dict queues' lookup, entity -> queue or None (no Python frame: for loops over many entities)."""
+        return self._dicts.get
+
     def dict_queues(self) -> ItemsView[str, Queue]:
         """Return the dict queues, (entity, queue) in creation order (a live view)."""
         return self._dicts.items()
