@@ -142,13 +142,6 @@ class QueueStore:
         q.marked = False
         return q
 
-    def open(self, entity: str, synced: int) -> Queue:
-        """Return Q[entity] as a dict queue: moved from its row, or created (``synced``: :meth:`new`)."""
-        q = self._dicts.get(entity)
-        if q is None:
-            q = self.to_dict(entity) if entity in self.columns.entities else self.new(entity, synced)
-        return q
-
     def put(self, entity: str, q: Queue, prop: str) -> bool:
         """Push ``prop`` to the back of Q[entity] with the next stamp (Algorithm 1); True if it was a refresh.
 
