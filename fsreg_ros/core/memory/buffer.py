@@ -46,7 +46,8 @@ class EntryWatcher(Protocol):
 
     While a watcher is attached the buffer takes its general paths (the quiet fast
     paths and the column form are off, as for an event sink), so every entry that
-    enters, is refreshed or leaves is told here, in event order.
+    enters, is refreshed or leaves is told here, in event order; and a watcher may be
+    a forgetting rule of its own, evaluated lazily (:meth:`sync`, :meth:`flush`).
     """
 
     def encoded(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int], present: bool) -> None:
@@ -54,6 +55,17 @@ class EntryWatcher(Protocol):
 
     def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
         """Note that ``prop`` left Q[entity] (any cause)."""
+
+    def sync(self, entity: str, q: Queue) -> None:
+        """Bring the dict queue Q[entity] up to date before it is read or encoded into.
+
+        Called after decay and activation caught it up; a rule evaluated lazily (as
+        activation is) forgets what it no longer keeps here, with
+        :meth:`WMBuffer.forget_entry`.  A log that forgets nothing does nothing.
+        """
+
+    def flush(self) -> None:
+        """Bring every queue up to date (before the whole of WM is read: :meth:`WMBuffer.flush`)."""
 
 
 class WMBuffer:
@@ -168,6 +180,8 @@ class WMBuffer:
                 self.lazy_decay.sync(entity, q)
             if self.activation is not None:
                 self.activation.sync(entity, q)
+            if self.watchers:
+                self._sync_watchers(entity, q)
             return q
         return column_encoding.readable_row(self, entity) if self.store.in_columns(entity) else None
 
@@ -261,6 +275,8 @@ class WMBuffer:
                     decay_sync(entity, q)
                 if act is not None:
                     act.sync(entity, q)
+                if watchers:
+                    self._sync_watchers(entity, q)
             present = put(entity, q, prop)
             record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
@@ -328,6 +344,8 @@ class WMBuffer:
             self.lazy_decay.flush()
         if self.activation is not None:
             self.activation.flush()
+        for watcher in self.watchers:
+            watcher.flush()
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
@@ -388,6 +406,16 @@ class WMBuffer:
             q = self.store.get(entity)
             if q:
                 self.activation.sync(entity, q)
+        if self.watchers:
+            q = self.store.get(entity)
+            if q:
+                self._sync_watchers(entity, q)
+
+    def _sync_watchers(self, entity: str, q: Queue) -> None:
+        """Let each watcher bring Q[entity] up to date (a lazy rule forgets here), the queue caught up with decay."""
+        for watcher in self.watchers:
+            if q:
+                watcher.sync(entity, q)
 
     # ------------------------------------------------------------ persistence
     def export_queue(self, entity: str) -> list[QueueItem]:
