@@ -105,8 +105,9 @@ class LazyDecay:
             else:  # the pops must be reported: those queues become dict queues, caught up below
                 for row in owing.tolist():
                     wm.store.to_dict(columns.bound[row])
+        get = wm.store.lookup
         for entity in wm.store.nonempty():
-            q = wm.store.get(entity)  # None: a column queue, caught up above
+            q = get(entity)  # None: a column queue, caught up above
             if q is not None and q.synced != count:
                 self.sync(entity, q)
         # Every non-empty queue is now up to date, and an empty one never needs a
