@@ -25,7 +25,7 @@ from pydantic import Field, PlainValidator
 from ..core.memory.ticks import TickRun
 from .base import Count, Message, Name, Names, Number, Stamp, bounded_list
 from .policy import PolicySettings  # generated from the memory settings table
-from .wm import Origin
+from .wm import EntryStrength, Origin
 
 #: Causes a request may give an encoding (docs/semantics.md section 2).
 Cause = Literal["speaker", "rr", "reg-distractor"]
@@ -234,13 +234,14 @@ class OpenReply(Versioned):
     ``cause`` and ``turn`` of the encoding that made each property enter Q[target];
     ``retains`` whether the domain's WM retains anything (policy not ``none``);
     ``holding`` the properties holding for the target (preference order; null without
-    a target).
+    a target); ``strength`` parallel to ``queue``, how strongly each entry is held.
     """
 
     session: str
     size: int
     queue: list[str]
     origins: list[Origin] = []
+    strength: list[EntryStrength] = []
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None

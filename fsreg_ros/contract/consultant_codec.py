@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping, Optional, Sequence
 
+from ..core.memory import Strength
 from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
 from ..core.consultant.ops import Configured, Info, Opened
 from ..core.forgetting.policies import ForgettingPolicy
@@ -129,7 +130,8 @@ def open_reply(opened: Opened) -> dict:
     """Encode an opened session."""
     view = opened.view
     reply = {"session": opened.session, "size": view.size, "queue": view.queue, "retains": view.retains,
-             "holding": opened.holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
+             "holding": opened.holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins],
+             "strength": [entry.to_json() for entry in view.strength]}
     if view.first is not None:
         reply["first"] = narrow_reply(view.first)
     return reply
@@ -140,7 +142,8 @@ def view_of(reply: Mapping[str, Any], first: bool) -> View:
     holding = reply.get("holding")
     view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
                 frozenset(holding) if holding is not None else None,
-                origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
+                origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())],
+                strength=[Strength.from_json(s) for s in reply.get("strength", ())])
     if first:
         if reply.get("first") is None:
             raise ReplyError("no 'first'")

@@ -51,7 +51,8 @@ settings table, so a rule added there is fitted here without a change: each rule
 grid of the parameters it reads (:data:`GRIDS`; a parameter without one gets a grid from the
 table's bounds), ``decay+displacement`` (the paper's both) over their product, and the
 baselines.  ``similarity`` is left out (:data:`EXCLUDED`): words have no attributes, so it
-forgets nothing.  The random victim's ``seed`` is not fitted (:data:`NOT_FITTED`).
+forgets nothing; so is ``episodes`` until the replay begins reference episodes.  The random
+victim's ``seed`` is not fitted (:data:`NOT_FITTED`).
 """
 
 from __future__ import annotations
@@ -400,7 +401,8 @@ GRIDS: dict[str, tuple] = {
 #: Parameters held at their table value, not fitted: they are no property of forgetting.
 NOT_FITTED = {"seed": "the random victim's seed (its fallback, 0)"}
 #: Rules not fitted, and why.
-EXCLUDED = {"similarity": "words have no attributes, so it forgets nothing (it is no-forgetting)"}
+EXCLUDED = {"similarity": "words have no attributes, so it forgets nothing (it is no-forgetting)",
+            "episodes": "the replay begins no reference episodes yet, so it forgets nothing (it is no-forgetting)"}
 #: Rule combinations fitted beside the single rules (the paper's both).
 COMBINATIONS = (("decay", "displacement"),)
 #: A combination's grid takes at most this many values of each parameter (ends kept).
