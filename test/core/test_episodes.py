@@ -10,7 +10,8 @@ import math
 
 import pytest
 
-from fsreg_ros.contract.consultant_codec import apply, view_of
+from fsreg_ros.contract.consultant_codec import view_of
+from fsreg_ros.ros.consultant_ops import apply
 from fsreg_ros.core.algorithms.generation import GenerationError, generate, phase1_order
 from fsreg_ros.core.algorithms.port import run_sync
 from fsreg_ros.core.algorithms.resolution import resolve
