@@ -191,7 +191,9 @@ def test_evaluate_on_the_example_corpus_reports_every_model(tmp_path):
     result = T.evaluate(tmp_path, folds=2, grids={"decay_period": (5.0, 10.0, 20.0)}, resamples=200)
     out = result.to_json()
     assert (out["games"], out["events"], out["candidates"]) == (4, 24, 88)
-    assert set(out["models"]) == ({m.name for m in T.wm_models()} | set(T.BASELINES) | set(T.RECENCY))
+    rules = {m.name for m in T.wm_models()}
+    graded = {name + "/graded" for name in rules | {"no-forgetting"}}
+    assert set(out["models"]) == rules | graded | set(T.BASELINES) | set(T.RECENCY)
     assert out["models"]["decay"]["grid"] == {"decay_period": [5.0, 10.0, 20.0]}
     for diff in out["differences"]:
         assert diff["ci"][0] <= diff["mean"] <= diff["ci"][1]

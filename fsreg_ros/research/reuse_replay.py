@@ -1,0 +1,143 @@
+"""Replaying reference games through the core's working memory: each candidate's WM cell under a setting.
+
+Every game is played through the core's own working memory: a
+:class:`~fsreg_ros.core.memory.WMBuffer` managed by a
+:class:`~fsreg_ros.core.forgetting.wm_manager.WMManager` under a
+:class:`~fsreg_ros.core.forgetting.policies.ForgettingPolicy` (the same code the simulator and the
+node graph run; nothing here re-implements a rule).  Each content word type is a property of
+the message's referent, an entity; messages are encoded in word order (a repeated word is a
+refresh); the message time, in seconds from the game's first message, is the clock (the
+manager catches up to it before every message, as the simulator does before every turn).
+
+*Group WM* (the robot's design): one buffer per game holds what anyone said.  *Player WM*:
+one buffer per player holds only what that player said (cause ``speaker``) or heard (``rr``)
+while present; an event reads its describer's buffer.
+
+The replay writes each candidate's *cell*: 0 if the word is not in the referent's WM queue,
+else 1 + its strength bin (:func:`strength_cells`), which the graded link fits a rate to; the
+in/out link reads only cell > 0.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ..core.forgetting.policies import ForgettingPolicy
+from ..core.forgetting.wm_manager import WMManager
+from ..core.memory import WMBuffer
+from .reuse_events import Events
+from .reuse_models import ENCODING_RULES, policy_of
+
+DOMAIN = "games"
+#: Strength bins of an entry in WM, by its rank from the back of the referent's LRU queue
+#: (0 = the most recently encoded word): the upper edges; the last bin holds every larger rank.
+RANK_EDGES = (0, 1, 2, 4, 8)
+#: Cells: 0 = not in WM, then one per strength bin.
+CELLS = len(RANK_EDGES) + 1
+CELL_NAMES = ("out",) + tuple(f"rank {a}-{b}" if a != b else f"rank {a}"
+                              for a, b in zip((0,) + tuple(e + 1 for e in RANK_EDGES[:-1]), RANK_EDGES)) + \
+    (f"rank > {RANK_EDGES[-1]}",)
+_BIN = np.searchsorted(np.asarray(RANK_EDGES), np.arange(256), side="left").clip(max=len(RANK_EDGES)) + 1
+
+
+def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
+    """Each word's cell in Q[referent] (None when the queue is empty)."""
+    held = buffer.queue(referent)
+    if not held:
+        return None
+    back = len(held) - 1
+    rank = {word: back - i for i, word in enumerate(held)}
+    return [int(_BIN[min(rank[w], 255)]) if w in rank else 0 for w in words]
+
+
+class _Memory:
+    """A buffer with its manager (None: an unmanaged buffer, which keeps everything)."""
+
+    def __init__(self, policy: Optional[ForgettingPolicy], name: str = DOMAIN) -> None:
+        self.buffer = WMBuffer(name)
+        self.manager = None
+        if policy is not None:
+            self.manager = WMManager()
+            self.manager.manage(self.buffer, policy, 0.0)
+        # Rules the buffer enforces at each encoding need no clock: the manager is asked to catch
+        # up only for the others (decay, the shared pool, and any rule this module does not know).
+        self.clocked = policy is not None and bool(set(policy.rules) - ENCODING_RULES)
+
+    def advance(self, time: float) -> None:
+        if self.clocked:
+            self.manager.advance(time)  # type: ignore[union-attr]
+
+
+def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.ndarray) -> None:
+    """Play one game's stream through one (group) WM buffer; write each candidate's cell into ``out``."""
+    memory = _Memory(policy)
+    buffer = memory.buffer
+    for turn, (kind, time, referent, words, extra, _, _) in enumerate(stream):
+        memory.advance(time)
+        if kind == "ask":
+            cells = strength_cells(buffer, referent, words)
+            if cells is not None:
+                out[extra:extra + len(words)] = cells
+        elif kind == "say":
+            buffer.encode(referent, words, extra, time, turn)
+
+
+def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.ndarray) -> None:
+    """Play one game's stream through one WM per player (what they said or heard while present)."""
+    memories: dict[str, _Memory] = {}
+    for turn, (kind, time, referent, words, extra, player, present) in enumerate(stream):
+        for who in present:
+            if who not in memories:
+                memories[who] = _Memory(policy, f"{DOMAIN}{len(memories)}")
+            memories[who].advance(time)
+        if kind == "ask":
+            cells = strength_cells(memories[player].buffer, referent, words)
+            if cells is not None:
+                out[extra:extra + len(words)] = cells
+        elif kind == "say":
+            for who in present:
+                memories[who].buffer.encode(referent, words, "speaker" if who == player else "rr", time, turn)
+
+
+_SHARED: dict = {}
+
+
+def _replay_setting(index: int) -> np.ndarray:
+    events, settings, play = _SHARED["events"], _SHARED["settings"], _SHARED["play"]
+    setting = settings[index]
+    policy = None if setting is None else policy_of(setting)
+    out = np.zeros(events.candidates, dtype=np.uint8)
+    for stream in events.streams:
+        play(stream, policy, out)
+    return out
+
+
+def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False) -> np.ndarray:
+    """Every candidate's cell under each setting (rows; None = no forgetting), replaying every game.
+
+    ``players``: per-player WM instead of the group's; ``jobs`` processes (results do not depend on it).
+    """
+    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay)
+    try:
+        if jobs <= 1 or len(settings) < 2:
+            rows = [_replay_setting(i) for i in range(len(settings))]
+        else:
+            with multiprocessing.get_context("fork").Pool(jobs) as pool:
+                rows = pool.map(_replay_setting, range(len(settings)), chunksize=max(1, len(settings) // (8 * jobs)))
+    finally:
+        _SHARED.clear()
+    if not rows:
+        return np.zeros((0, events.candidates), dtype=np.uint8)
+    return np.stack(rows)
+
+
+def memberships(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1) -> np.ndarray:
+    """WM membership (group WM) of every candidate under each setting (rows)."""
+    return cells_of(events, settings, jobs) > 0
+
+
+__all__ = ["DOMAIN", "RANK_EDGES", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players", "cells_of",
+           "memberships"]
