@@ -195,8 +195,11 @@ def fit_recency(name: str, events: Events, fold: np.ndarray) -> Fit:
     for f in range(int(fold.max()) + 1):
         held = (fold == f)[events.game] & usable
         train = ~(fold == f)[events.game] & usable
-        mean, std = x[train].mean(axis=0), x[train].std(axis=0) + 1e-12
-        w = logistic_fit((x[train] - mean) / std, y[train])
+        if not train.any():  # no game with times to train on: the link's 0.5, as for an unseen cell
+            mean, std, w = np.zeros(len(names)), np.ones(len(names)), np.zeros(len(names) + 1)
+        else:
+            mean, std = x[train].mean(axis=0), x[train].std(axis=0) + 1e-12
+            w = logistic_fit((x[train] - mean) / std, y[train])
         predicted[held] = _logistic_predict((x[held] - mean) / std, w)
         fold_settings.append(_coefficients(names, w, mean, std))
     ll = np.where(events.used, np.log(predicted), np.log1p(-predicted))
