@@ -36,7 +36,7 @@ DOMAIN = "games"
 #: (0 = the most recently encoded word): the upper edges; the last bin holds every larger rank.
 RANK_EDGES = (0, 1, 2, 4, 8)
 #: Cells: 0 = not in WM, then one per strength bin.
-CELLS = len(RANK_EDGES) + 1
+CELLS = len(RANK_EDGES) + 2
 CELL_NAMES = ("out",) + tuple(f"rank {a}-{b}" if a != b else f"rank {a}"
                               for a, b in zip((0,) + tuple(e + 1 for e in RANK_EDGES[:-1]), RANK_EDGES)) + \
     (f"rank > {RANK_EDGES[-1]}",)

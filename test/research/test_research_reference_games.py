@@ -19,7 +19,8 @@ from fsreg_ros.research import reference_games as RG
 from fsreg_ros.research import tangrams as T
 from fsreg_ros.research.reuse_events import build_events
 from fsreg_ros.research.reuse_fit import fit_cells
-from fsreg_ros.research.reuse_replay import cells_of
+from fsreg_ros.core.memory import WMBuffer
+from fsreg_ros.research.reuse_replay import CELL_NAMES, CELLS, cells_of, strength_cells
 
 HEADER = ("game", "trial", "referent", "player", "role", "time", "text")
 # r1: the describer rotates (ann, bob, cat, ann) and cat joins at trial 3; r2 has no times and eve joins late.
@@ -103,6 +104,14 @@ def test_cells_in_the_group_wm_and_in_each_players_wm(events, setting, group, pl
     # Cell 0: not in WM; 1: last in the queue (rank 0 from the back); 2: rank 1.
     assert cells_of(events, [setting]).tolist() == [group]
     assert cells_of(events, [setting], players=True).tolist() == [player]
+
+
+def test_strength_cells_bin_each_entrys_rank_from_the_back_of_its_queue():
+    buffer = WMBuffer("games")
+    buffer.encode("A", [f"w{i}" for i in range(12)], "speaker", 0.0)
+    assert strength_cells(buffer, "A", ["w11", "w10", "w9", "w8", "w7", "w3", "w2", "x"]) == [1, 2, 3, 4, 4, 5, 6, 0]
+    assert strength_cells(buffer, "B", ["w1"]) is None
+    assert CELLS == len(CELL_NAMES) == 7
 
 
 def test_the_graded_link_is_fitted_on_the_training_games_only(events):
