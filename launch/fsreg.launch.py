@@ -35,7 +35,7 @@ ARGUMENTS = {
     # one argument per memory setting, with the WM Manager's default (core/forgetting/settings.py)
     **{row.name: (str(row.default), row.description) for row in settings.TABLE},
     "algorithm": ("auto", "auto, sd-pia, dist-pia, full-brevity or greedy"),
-    "wm_order": ("lru-first", "lru-first, mru-first or preference"),
+    "wm_order": ("lru-first", "lru-first, mru-first, preference or strength"),
     "use_sim_time": ("false", "follow /clock"),
     "namespace": ("", "ROS namespace for every node ('' = none)"),
     "lexicon": ("", "lexicon YAML that extends the built-in config/lexicon.yaml ('' = the built-in one)"),

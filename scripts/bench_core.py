@@ -178,14 +178,14 @@ def bench_reg_config(
         target = rng.choice(names)
         clock += 1.0
         manager.advance(clock)
-        stamp = consultant.wm._stamp  # benchmark bookkeeping only: encodings per call
+        stamp = consultant.wm.counters()[0]  # benchmark bookkeeping only: encodings per call
         start = time.perf_counter()
         expression = run_sync(generate(target, port, algorithm, time=clock, turn=trial))
         elapsed = time.perf_counter() - start
         events.clear()
         if trial >= warmup:
             times.append(elapsed * 1e3)
-            encodings.append(consultant.wm._stamp - stamp)
+            encodings.append(consultant.wm.counters()[0] - stamp)
             wm_sizes.append(len(expression.wm_before))
             from_wm.append(expression.sources.count("wm"))
             distinguishing += expression.distinguishing
@@ -298,13 +298,13 @@ def _paired_sessions(facts: dict, props: list, pair: tuple, trials: int, warmup:
                 for trial in range(start, min(start + PAIRED_BLOCK, warmup + trials)):
                     clock = float(trial + 1)
                     manager.advance(clock)
-                    stamp = consultant.wm._stamp
+                    stamp = consultant.wm.counters()[0]
                     begin = time.process_time()
                     run_sync(generate(targets[trial], port, "sd-pia", time=clock, turn=trial))
                     elapsed = time.process_time() - begin
                     if trial >= warmup:
                         mine[label].append(elapsed * 1e3)
-                        encodings[label].append(consultant.wm._stamp - stamp)
+                        encodings[label].append(consultant.wm.counters()[0] - stamp)
         for label in labels:
             times[label] += mine[label]
             medians[label].append(statistics.median(mine[label]))

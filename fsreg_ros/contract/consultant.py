@@ -24,7 +24,7 @@ from pydantic import Field
 
 from .base import Message, Name, Names, Number, Stamp, Whole, bounded_list
 from .policy import PolicySettings  # generated from the memory settings table
-from .wm import Origin
+from .wm import EntryStrength, Origin
 
 #: Causes a request may give an encoding (docs/semantics.md section 2).
 Cause = Literal["speaker", "rr", "reg-distractor"]
@@ -233,13 +233,14 @@ class OpenReply(Versioned):
     ``cause`` and ``turn`` of the encoding that made each property enter Q[target];
     ``retains`` whether the domain's WM retains anything (policy not ``none``);
     ``holding`` the properties holding for the target (preference order; null without
-    a target).
+    a target); ``strength`` parallel to ``queue``, how strongly each entry is held.
     """
 
     session: str
     size: int
     queue: list[str]
     origins: list[Origin] = []
+    strength: list[EntryStrength] = []
     retains: bool
     holding: Optional[list[str]] = None
     first: Optional[Narrowing] = None

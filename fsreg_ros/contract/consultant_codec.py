@@ -29,7 +29,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 from ..core.memory.ticks import TickError, TickRun
 from ..core.forgetting.policies import ForgettingPolicy
-from ..core.memory import ENCODE_CAUSES
+from ..core.memory import ENCODE_CAUSES, Strength
 from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
 from ..core.consultant.service import ConsultantService, Outcome, RequestError
 from .codec import MessageError
@@ -122,7 +122,8 @@ def _serve_open(s: ConsultantService, req: Mapping[str, Any], client: str) -> di
         s.touch(first.time, wm=False)
     holding = None if view.holding is None else [p for p in s.consultant.preference if p in view.holding]
     reply = {"session": session, "size": view.size, "queue": view.queue, "retains": view.retains,
-             "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins]}
+             "holding": holding, "origins": [{"cause": c, "turn": t} for c, t in view.origins],
+             "strength": [s.to_json() for s in view.strength]}
     if view.first is not None:
         reply["first"] = {"target_holds": view.first.target_holds, "size": view.first.size}
     return reply
@@ -133,7 +134,8 @@ def view_of(reply: Mapping[str, Any], first: bool) -> View:
     holding = reply.get("holding")
     view = View(reply["session"], reply["size"], list(reply["queue"]), reply["retains"],
                 frozenset(holding) if holding is not None else None,
-                origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())])
+                origins=[(o["cause"], o["turn"]) for o in reply.get("origins", ())],
+                strength=[Strength.from_json(s) for s in reply.get("strength", ())])
     if first:
         if reply.get("first") is None:
             raise ReplyError("no 'first'")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Literal, Optional, Union
 
 from .base import Message, Number
 
@@ -12,6 +12,17 @@ class Origin(Message):
 
     cause: str
     turn: Optional[int] = None
+
+
+class EntryStrength(Message):
+    """How strongly a WM entry is held (``WMBuffer.strength``): episode age, episodes used in, activation.
+
+    ``activation`` is null without rule ``activation``, ``"inf"`` at an encoding's very time.
+    """
+
+    age: int
+    episodes: int
+    activation: Union[Number, Literal["inf"], None] = None
 
 
 class WMState(Message):

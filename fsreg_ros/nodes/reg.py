@@ -8,7 +8,7 @@ the final description (rule 1) are encoded in that consultant's WM.
 
 Parameters: ``algorithm`` (``auto`` = SD-PIA, or DIST-PIA for a domain whose
 policy is ``none``; or one of sd-pia, dist-pia, full-brevity, greedy),
-``wm_order`` (lru-first, mru-first, preference), ``lexicon`` (path, '' = default), and
+``wm_order`` (lru-first, mru-first, preference, strength), ``lexicon`` (path, '' = default), and
 the limits and timeouts of :class:`~fsreg_ros.ros.asking.AskingNode`.  Bad requests
 get ``{"id", "error"}`` on ``reg/expression`` and a logged warning.
 """

@@ -211,8 +211,8 @@ def report(result: Evaluation) -> list[str]:
     lines += ["",
               f"held-out LL: mean natural-log likelihood per candidate, {result.folds}-fold cross-validation by game "
               "(settings and link chosen on the training folds); WM models: p_in if the word is in the referent's WM "
-              "queue, else p_out; /graded: one rate per cell (" + ", ".join(CELL_NAMES) + " from the back of the "
-              "queue); /player: each player's own WM.",
+              "queue, else p_out; /graded: one rate per cell (out of WM, or in it by episode age, <=1, 2, 3, 4-5, >5, "
+              "x episodes used in, 1 or 2+); /player: each player's own WM.",
               f"intervals: paired by game, {METHOD} of the ratio (summed difference / candidates).",
               "chosen value at a grid edge: " + (", ".join(f"{n} ({', '.join(result.fits[n].edge)})" for n in edges)
                                                  if edges else "none (every fitted value lies inside its grid)")]

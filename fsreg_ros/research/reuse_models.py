@@ -34,6 +34,8 @@ GRIDS: dict[str, tuple] = {
     # stays exp(-tau / d) seconds (1 s to 6 h at d = 0.8).
     "activation_decay": (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.99),
     "activation_threshold": (-10.0, -9.0, -8.0, -7.0, -6.0, -5.0, -4.0, -3.0, -2.0, -1.0, 0.0),
+    # Reference episodes: an entry stays while used in one of its referent's last k episodes.
+    "episode_window": (1, 2, 3, 4, 5, 6, 8),
 }
 #: Parameters held at their table value, not fitted: they are no property of forgetting.
 NOT_FITTED = {"seed": "the random victim's seed (its fallback, 0)"}

@@ -13,9 +13,11 @@ manager catches up to it before every message, as the simulator does before ever
 one buffer per player holds only what that player said (cause ``speaker``) or heard (``rr``)
 while present; an event reads its describer's buffer.
 
-The replay writes each candidate's *cell*: 0 if the word is not in the referent's WM queue,
-else 1 + its strength bin (:func:`strength_cells`), which the graded link fits a rate to; the
-in/out link reads only cell > 0.
+Each trial begins a reference episode of its referent (``WMBuffer.begin_episode``, at the
+trial's first message, before it is encoded), in every WM present.  The replay writes each
+candidate's *cell*: 0 if the word is not in the referent's WM queue, else 1 + its strength bin
+(:func:`strength_cells`: the entry's episode age and how many episodes it was used in, from
+``WMBuffer.strength``), which the graded link fits a rate to; the in/out link reads only cell > 0.
 """
 
 from __future__ import annotations
@@ -32,25 +34,27 @@ from .reuse_events import Events
 from .reuse_models import ENCODING_RULES, policy_of
 
 DOMAIN = "games"
-#: Strength bins of an entry in WM, by its rank from the back of the referent's LRU queue
-#: (0 = the most recently encoded word): the upper edges; the last bin holds every larger rank.
-RANK_EDGES = (0, 1, 2, 4, 8)
-#: Cells: 0 = not in WM, then one per strength bin.
-CELLS = len(RANK_EDGES) + 2
-CELL_NAMES = ("out",) + tuple(f"rank {a}-{b}" if a != b else f"rank {a}"
-                              for a, b in zip((0,) + tuple(e + 1 for e in RANK_EDGES[:-1]), RANK_EDGES)) + \
-    (f"rank > {RANK_EDGES[-1]}",)
-_BIN = np.searchsorted(np.asarray(RANK_EDGES), np.arange(256), side="left").clip(max=len(RANK_EDGES)) + 1
+#: Strength bins of an entry in WM by its episode age (the referent's current episode minus the
+#: last one the word was used in; at an event the trial's own episode has begun, so a word said in
+#: the referent's previous trial is 1): the upper edges; the last bin holds every larger age.
+AGE_EDGES = (1, 2, 3, 5)
+#: ... and by the episodes it was used in since it entered WM: 1, or more.
+EPISODE_BINS = 2
+#: Cells: 0 = not in WM, then one per (age bin, episodes bin).
+CELL_NAMES = ("out",) + tuple(f"age {age}, {used}" for age in ("<=1", "2", "3", "4-5", ">5")
+                              for used in ("1 episode", "2+ episodes"))
+CELLS = len(CELL_NAMES)
+_AGE_BIN = np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left")
 
 
 def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
-    """Each word's cell in Q[referent] (None when the queue is empty)."""
+    """Each word's cell in Q[referent] from the buffer's strength of its entries (None when the queue is empty)."""
     held = buffer.queue(referent)
     if not held:
         return None
-    back = len(held) - 1
-    rank = {word: back - i for i, word in enumerate(held)}
-    return [int(_BIN[min(rank[w], 255)]) if w in rank else 0 for w in words]
+    cell = {word: 1 + EPISODE_BINS * int(_AGE_BIN[min(s.age, 63)]) + (s.episodes > 1)
+            for word, s in zip(held, buffer.strength(referent))}
+    return [cell.get(w, 0) for w in words]
 
 
 class _Memory:
@@ -83,6 +87,8 @@ def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.
                 out[extra:extra + len(words)] = cells
         elif kind == "say":
             buffer.encode(referent, words, extra, time, turn)
+        else:
+            buffer.begin_episode(referent, time, turn)
 
 
 def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.ndarray) -> None:
@@ -100,6 +106,9 @@ def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], 
         elif kind == "say":
             for who in present:
                 memories[who].buffer.encode(referent, words, "speaker" if who == player else "rr", time, turn)
+        else:
+            for who in present:
+                memories[who].buffer.begin_episode(referent, time, turn)
 
 
 _SHARED: dict = {}
@@ -139,5 +148,5 @@ def memberships(events: Events, settings: Sequence[Optional[dict]], jobs: int = 
     return cells_of(events, settings, jobs) > 0
 
 
-__all__ = ["DOMAIN", "RANK_EDGES", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players", "cells_of",
-           "memberships"]
+__all__ = ["DOMAIN", "AGE_EDGES", "EPISODE_BINS", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players",
+           "cells_of", "memberships"]

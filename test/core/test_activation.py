@@ -20,7 +20,7 @@ from pyactr.utilities import baselevel_learning
 
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import WMBuffer, WMEvent
-from fsreg_ros.core.memory.activation import _LONGEST, HISTORY, NEVER, Trace, activation, crossing, lifetime
+from fsreg_ros.core.memory.trace import HISTORY, LONGEST, NEVER, Trace, activation, crossing, lifetime
 from fsreg_ros.core.forgetting.settings import MAX_ACTIVATION_DECAY, MAX_ACTIVATION_THRESHOLD, MIN_ACTIVATION_DECAY
 from fsreg_ros.core.forgetting.wm_manager import WMManager
 
@@ -159,10 +159,10 @@ def test_crossing_is_the_root_to_the_last_bits(start_gaps, d, tau):
     last = trace.recent[-1]
     age = _reference_crossing_age(trace, d, tau)
     c = crossing(trace, d, tau)
-    if age > Decimal(_LONGEST) * Decimal("1.000001"):
+    if age > Decimal(LONGEST) * Decimal("1.000001"):
         assert c == NEVER
         return
-    if age > Decimal(_LONGEST) * Decimal("0.999999"):
+    if age > Decimal(LONGEST) * Decimal("0.999999"):
         return  # on the edge of the clock's range: either answer
     want = Decimal(last) + age
     assert c != NEVER and c >= last
@@ -208,7 +208,7 @@ def test_trace_round_trip_and_refusals():
 
 def test_trace_columns_keep_each_ring_on_one_cache_line_as_they_grow():
     """Each slot's ring of :data:`HISTORY` times starts a 64-byte line, after growing and widening too; traces kept."""
-    from fsreg_ros.core.memory.activation import TraceColumns
+    from fsreg_ros.core.memory.trace_columns import TraceColumns
 
     columns = TraceColumns(2, 3)
     span = lifetime(0.5, -1.0)

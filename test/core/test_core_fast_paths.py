@@ -304,7 +304,7 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
 
     With a capacity (the rows' width) and without one (rows that widen as queues grow,
     from ``widths[0]`` slots up to ``widths[1]``, then queue by queue).  ``in_numpy``:
-    every slot whose bound passed is decided by :func:`activation.passages`, however few
+    every slot whose bound passed is decided by :func:`crossings.passages`, however few
     (otherwise up to ``_FEW`` go one by one, as here they mostly would).  ``map_max``: the
     bytes rows that widen may give their slot map (None: the default; 0: no map; 40: a map
     dropped once a fifth property comes).
@@ -316,7 +316,7 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
     for many slots at once.  Events (in order), queues, origins, exported items with
     their traces, sizes and the change record (in order) must be equal.
     """
-    from fsreg_ros.core.memory import Limits, WMBuffer, activation
+    from fsreg_ros.core.memory import Limits, WMBuffer, crossings
     from fsreg_ros.core.memory import columns as column_queues
 
     heard_events: list = []
@@ -329,23 +329,23 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
         b.column_min = 1
     for b in buffers:
         b.set_limits(Limits(capacity=capacity, activation=params), 0.0)
-    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW, column_queues.SLOT_MAP_MAX
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, crossings.FEW, column_queues.SLOT_MAP_MAX
     column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
     if in_numpy:
-        activation._FEW = 0
+        crossings.FEW = 0
     if map_max is not None:
         column_queues.SLOT_MAP_MAX = map_max
     try:
         _activation_ops(ops, plain, heard, quiet, plain_events, heard_events)
     finally:
-        (column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, activation._FEW,
+        (column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, crossings.FEW,
          column_queues.SLOT_MAP_MAX) = kept
 
 
 def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
     """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing."""
     from fsreg_ros.core.memory.ticks import TickRun
-    from fsreg_ros.core.memory import Limits, activation
+    from fsreg_ros.core.memory import Limits, trace as trace_math
 
     buffers = (plain, heard, quiet)
     ticks = seen = 0
@@ -393,8 +393,8 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
             act = plain.activation
             upcoming = [] if act is None else sorted(
                 c for entity, traces in act.traces.items() for prop, trace in traces.items()
-                if prop in plain._queues.get(entity, ())
-                for c in [activation.crossing(trace, act.decay, act.threshold)] if now < c < 1e6)
+                if prop in (plain.store.get(entity) or ())
+                for c in [trace_math.crossing(trace, act.decay, act.threshold)] if now < c < 1e6)
             if len(upcoming) > op[1]:
                 now = max(now, upcoming[op[1]] + op[2])
                 for b in buffers:
@@ -423,7 +423,7 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
             if store is not None:
                 assert (store.prop[store.used:] < 0).all() and store.used <= store.width, op
                 if store.traces is not None:
-                    assert (store.traces.due[store.used:] == activation.NEVER).all(), op
+                    assert (store.traces.due[store.used:] == trace_math.NEVER).all(), op
                     # each row's bound is at most its slots' earliest due: a read checks it alone
                     assert (store.traces.row_due <= store.traces.due.min(axis=0)).all(), op
                 if store.slot_of is not None:  # the slot map says where each row holds each property
@@ -444,22 +444,23 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                          min_size=1, max_size=25), min_size=1, max_size=12),
        st.sampled_from([-1e-3, -1e-8, -2e-9, -1e-12, 0.0, 1e-12, 2e-9, 1e-8, 1e-3, 1.0]))
 def test_passages_in_numpy_decide_as_crossing(params, gaps, offset):
-    """:func:`activation.passages` (numpy, many traces at once) decides as :func:`activation.crossing`.
+    """:func:`crossings.passages` (numpy, many traces at once) decides as :func:`trace.crossing`.
 
-    Each trace is kept in a slot of :class:`activation.TraceColumns` by encodings (the
+    Each trace is kept in a slot of :class:`trace_columns.TraceColumns` by encodings (the
     Petrov approximation past ``HISTORY`` encodings included) and read back equal to the
-    :class:`activation.Trace` the same encodings make; the slot's ``due`` is at most its
+    :class:`trace.Trace` the same encodings make; the slot's ``due`` is at most its
     crossing.  At a clock ``offset`` (relative) from each crossing, a trace said gone
-    crossed by then, one said staying crosses later and its bound, less ``_MARGIN``, is at
+    crossed by then, one said staying crosses later and its bound, less ``MARGIN``, is at
     most the crossing, and one left undecided is within 1e-8 (relative) of the clock or one
-    :class:`activation._Newton` leaves to :func:`activation.crossing`; the one-by-one
-    decision (:meth:`activation.LazyActivation._gone`) likewise.
+    :class:`crossings._Newton` leaves to :func:`trace.crossing`; the one-by-one
+    decision (:func:`crossings.gone_by`) likewise.
     """
-    from fsreg_ros.core.memory import activation
+    from fsreg_ros.core.memory import crossings, trace_columns
+    from fsreg_ros.core.memory import trace as activation
 
     d, tau = params
     span = activation.lifetime(d, tau)
-    columns = activation.TraceColumns(2, len(gaps))
+    columns = trace_columns.TraceColumns(2, len(gaps))
     traces, flat = [], []
     for row, steps in enumerate(gaps):
         slot = row % 2
@@ -479,24 +480,23 @@ def test_passages_in_numpy_decide_as_crossing(params, gaps, offset):
             flat.append(at)
     if not flat:
         return
-    rule = activation.LazyActivation(None, d, tau, 0.0)
     n, first, times = columns.ordered(np.array(flat, dtype=np.intp))
-    others = activation._Newton(n, first, times, d, tau).other.tolist()
+    others = crossings._Newton(n, first, times, d, tau).other.tolist()
     for k, trace in enumerate(traces):
         want = activation.crossing(trace, d, tau)
         if want == activation.NEVER:
             continue
         now = want + offset * max(1.0, abs(want))
-        gone, bound = activation.passages(n[k:k + 1], first[k:k + 1], times[:, k:k + 1], d, tau, now)
+        gone, bound = crossings.passages(n[k:k + 1], first[k:k + 1], times[:, k:k + 1], d, tau, now)
         close = abs(now - want) <= 1e-8 * max(1.0, abs(want))
         if gone[0]:
             assert want <= now, (want, now)
         elif bound[0] > -np.inf:
             later = float(bound[0])
-            assert want > now and later - activation._MARGIN * max(1.0, abs(later)) <= want, (want, now, later)
+            assert want > now and later - crossings.MARGIN * max(1.0, abs(later)) <= want, (want, now, later)
         else:
             assert close or others[k], (want, now)
-        gone, later = rule._gone(trace, now)
+        gone, later = crossings.gone_by(trace, now, d, tau)
         if gone:
             assert want <= now and later is None, (want, now)
         else:

@@ -257,7 +257,8 @@ def test_event_json_and_causes():
     }
     assert set(ENCODE_CAUSES) == {"speaker", "rr", "reg-distractor"}
     assert set(FORGET_CAUSES) == {
-        "decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract"
+        "decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset", "retract",
+        "episodes",
     }
 
 

@@ -96,22 +96,34 @@ def test_events_candidates_and_outcomes_are_exact(events):
 
 @pytest.mark.parametrize("setting, group, player", [
     # No forgetting: the group's WM holds every earlier word; cat and eve heard nothing before they joined.
-    (None, [2, 1, 2, 1, 2, 1], [0, 0, 2, 1, 0, 0]),
+    (None, [1, 1, 1, 1, 1, 1], [0, 0, 1, 1, 0, 0]),
     # Capacity 1: the last word said about the referent stays (ghost, man, bird); ann heard "tall man" then said "man".
     ({"policy": "displacement", "capacity": 1}, [0, 1, 0, 1, 0, 1], [0, 0, 0, 1, 0, 0]),
+    # Episode window 1: every candidate was said in its referent's previous trial, so it stays.
+    ({"policy": "episodes", "episode_window": 1}, [1, 1, 1, 1, 1, 1], [0, 0, 1, 1, 0, 0]),
 ])
 def test_cells_in_the_group_wm_and_in_each_players_wm(events, setting, group, player):
-    # Cell 0: not in WM; 1: last in the queue (rank 0 from the back); 2: rank 1.
+    # Cell 0: not in WM; 1: in WM, used in the referent's previous episode (age 1) and in that one only.
     assert cells_of(events, [setting]).tolist() == [group]
     assert cells_of(events, [setting], players=True).tolist() == [player]
 
 
-def test_strength_cells_bin_each_entrys_rank_from_the_back_of_its_queue():
+def test_strength_cells_bin_each_entrys_episode_age_and_episodes():
     buffer = WMBuffer("games")
-    buffer.encode("A", [f"w{i}" for i in range(12)], "speaker", 0.0)
-    assert strength_cells(buffer, "A", ["w11", "w10", "w9", "w8", "w7", "w3", "w2", "x"]) == [1, 2, 3, 4, 4, 5, 6, 0]
-    assert strength_cells(buffer, "B", ["w1"]) is None
-    assert CELLS == len(CELL_NAMES) == 7
+    buffer.begin_episode("A")
+    buffer.encode("A", ["x", "y"], "speaker", 0.0)
+    buffer.begin_episode("A")
+    buffer.encode("A", ["y"], "speaker", 1.0)
+    for _ in range(2):
+        buffer.begin_episode("A")  # episodes 3 and 4: nothing said
+    assert [tuple(s[:2]) for s in buffer.strength("A")] == [(3, 1), (2, 2)]
+    # Cell 1 + 2 x (age bin: <=1, 2, 3, 4-5, >5) + (used in 2+ episodes).
+    assert strength_cells(buffer, "A", ["x", "y", "z"]) == [1 + 2 * 2, 1 + 2 * 1 + 1, 0]
+    for _ in range(3):
+        buffer.begin_episode("A")
+    assert strength_cells(buffer, "A", ["x", "y"]) == [1 + 2 * 4, 1 + 2 * 3 + 1]  # ages 6 (>5) and 5 (4-5)
+    assert strength_cells(buffer, "B", ["x"]) is None
+    assert CELLS == len(CELL_NAMES) == 11
 
 
 def test_the_graded_link_is_fitted_on_the_training_games_only(events):

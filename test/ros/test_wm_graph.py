@@ -85,3 +85,41 @@ def test_similarity_uses_the_declared_attributes_in_graph_and_simulator(tmp_path
     # dark-hair displaced light-hair (same attribute): WM holds one hair colour.
     assert expected["turns"][2]["wm_before"] == ["dark-hair", "glasses"]  # no light-hair
     assert dumps(play(path, Options(), tmp_path)) == dumps(expected)
+
+
+def episodes_scenario() -> dict:
+    """Three human references to f1, then the robot's: rule ``episodes`` (k = 1) forgets at each episode."""
+    return {
+        "name": "episodes",
+        "domains": {"faces": {
+            "preference": ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"],
+            "entities": {"f1": ["light-hair", "male", "glasses", "lab-coat"], "f2": ["dark-hair", "female", "glasses"],
+                         "f3": ["dark-hair", "male"]}}},
+        "memory": {"policy": "episodes", "episode_window": 1},
+        "dialogue": [
+            {"time": 1.0, "speaker": "human", "description": ["male", "glasses"]},
+            {"time": 2.0, "speaker": "human", "description": ["lab-coat"]},
+            {"time": 3.0, "speaker": "human", "description": ["light-hair"]},
+            {"time": 4.0, "speaker": "robot", "target": "f1"},
+            {"time": 5.0, "speaker": "robot", "target": "f1"},
+        ],
+    }
+
+
+@pytest.mark.parametrize("wm_order, said", [
+    ("lru-first", [["lab-coat"], ["light-hair"]]),
+    ("strength", [["light-hair"], ["light-hair"]]),
+])
+def test_reference_episodes_graph_equals_simulator(tmp_path, wm_order, said):
+    path = tmp_path / "episodes.yaml"
+    path.write_text(yaml.safe_dump(episodes_scenario(), sort_keys=False))
+    options = Options(wm_order=wm_order)
+    sim = Simulation(load_scenario(path), options, trace=True)
+    expected = sim.run()
+    robot = [t for t in expected["turns"] if t["speaker"] == "robot"]
+    # f1's episode 3 (the third reference) forgot male and glasses, used in its episode 1 only.
+    assert robot[0]["wm_before"] == ["lab-coat", "light-hair"]
+    assert [t["description"] for t in robot] == said
+    assert [(e["property"], e["time"]) for e in sim.trace() if e["cause"] == "episodes"][:2] == [
+        ("male", 3.0), ("glasses", 3.0)]
+    assert dumps(play(path, options, tmp_path)) == dumps(expected)

@@ -23,12 +23,14 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
+from ..memory import Strength
+
 from .port import ConsultantPort, KnowledgeError, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
 AUTO = "auto"
-WM_ORDERS = ("lru-first", "mru-first", "preference")
+WM_ORDERS = ("lru-first", "mru-first", "preference", "strength")
 #: Full Brevity is exponential in the number of useful properties; beyond this many
 #: subsets it gives up with a clear error instead of running for hours.
 FULL_BREVITY_MAX_SUBSETS = 5_000_000
@@ -98,8 +100,20 @@ class Expression:
         }
 
 
-def phase1_order(wm_before: Sequence[str], wm_order: str, preference: Sequence[str]) -> list[str]:
-    """Return the order Phase 1 walks WM in (the paper's footnote lists the alternatives)."""
+def phase1_order(wm_before: Sequence[str], wm_order: str, preference: Sequence[str],
+                 strength: Sequence[Strength] = ()) -> list[str]:
+    """Return the order Phase 1 walks WM in (the paper's footnote lists the alternatives).
+
+    ``strength`` (parallel to ``wm_before``) serves ``strength``: strongest first, that is
+    the fewest episodes old first (:class:`~fsreg_ros.core.memory.Strength` ``age``), then
+    the most episodes used in, then LRU order.
+    """
+    if wm_order == "strength":
+        if len(strength) != len(wm_before):
+            raise GenerationError("wm_order 'strength' needs the strength of each WM entry, which the consultant "
+                                  f"did not report ({len(strength)} for {len(wm_before)} entries)")
+        ranked = sorted(range(len(wm_before)), key=lambda i: (strength[i].age, -strength[i].episodes, i))
+        return [wm_before[i] for i in ranked]
     if wm_order == "lru-first":
         return list(wm_before)
     if wm_order == "mru-first":
@@ -142,7 +156,7 @@ async def sd_pia(
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
     entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
-    phase1 = phase1_order(view.queue, wm_order, preference) if use_wm else []  # Phase 1: WM
+    phase1 = phase1_order(view.queue, wm_order, preference, view.strength) if use_wm else []  # Phase 1: WM
     walked_wm = set(phase1)
     phase2 = [p for p in preference if p not in walked_wm]  # Phase 2: LTM, in preference order
     candidates = [(p, "wm") for p in phase1] + [(p, "ltm") for p in phase2]

@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Coroutine, Optional, Protocol, Sequence, TypeVar
 
-from ..memory import Origin
+from ..memory import Origin, Strength
 
 
 class KnowledgeError(ValueError):
@@ -51,7 +51,9 @@ class View:
     ``holding`` the properties that hold for the target (None without one), so REG
     asks nothing about a property it would skip; ``origins`` the ``(cause, turn)``
     of the encoding that made each property of ``queue`` enter Q[target], parallel
-    to ``queue`` (:meth:`~fsreg_ros.core.memory.WMBuffer.origins`; empty without a target).
+    to ``queue`` (:meth:`~fsreg_ros.core.memory.WMBuffer.origins`; empty without a target);
+    ``strength`` how strongly each entry of ``queue`` is held, parallel to it
+    (:meth:`~fsreg_ros.core.memory.WMBuffer.strength`; empty without a target).
     """
 
     handle: Any
@@ -61,6 +63,7 @@ class View:
     holding: Optional[frozenset[str]] = None
     first: Optional["Narrowed"] = None  # what the first step given to open did
     origins: list[Origin] = field(default_factory=list)
+    strength: list[Strength] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -140,11 +140,18 @@ class Consultant:
         self._require_entity(entity)
         return list(self.wm.queue(entity))
 
-    def encode(self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int]) -> None:
-        """Encode properties for a known entity in WM; KnowledgeError (nothing encoded) for unknown names."""
+    def encode(self, entity: str, properties: Sequence[str], cause: str, time: float, turn: Optional[int],
+               episode: bool = False) -> None:
+        """Encode properties for a known entity in WM; KnowledgeError (nothing encoded) for unknown names.
+
+        ``episode``: the encoding is an act of referring to ``entity`` (rule 1 at a view's
+        close): the entity's next reference episode begins first (:meth:`WMBuffer.begin_episode`).
+        """
         self._require_entity(entity)
         for prop in properties:
             self._require_property(prop)
+        if episode:
+            self.wm.begin_episode(entity, time, turn)
         self.wm.encode(entity, properties, cause, time, turn)
 
     def holders(self, prop: str) -> set[str]:

@@ -305,6 +305,13 @@ class Persistence:
         except PolicyError as err:
             raise damaged(path, f"stored checkpoint policy: {err}") from None
         buffer.restore(queues, state.stamp, state.ticks, limits.limits())
+        try:
+            strays = buffer.restore_episodes(state.episodes, c.knows_entity)
+        except ValueError as err:
+            raise damaged(path, f"stored checkpoint {err}") from None
+        if strays and not migrate:
+            raise damaged(path, f"reference episodes of entity {strays[0]!r}, which the domain does not hold")
+        report.dropped += [f"episodes of {entity}: no longer in the KB" for entity in strays]
         records = []
         order = None if state.kb_entities is None else state.kb_entities + state.entities
         for record in state.journal:
@@ -343,7 +350,8 @@ class Persistence:
             served.incarnation, policy=state.policy, decay_until=served.decay_until, clock=state.clock,
             latest=served.latest, entities=list(self.runtime), facts=runtime_facts,
             queues={e: export(e) for e in served.buffer.nonempty_entities()} if self.persist_wm else {},
-            stamp=stamp, ticks=ticks, limits=served.policy.settings(), kb_entities=kb_entities)
+            stamp=stamp, ticks=ticks, limits=served.policy.settings(), kb_entities=kb_entities,
+            episodes=served.buffer.export_episodes() if self.persist_wm else {})
 
     # ============================================================ clock epochs
     def settle_epoch(self, time: float) -> None:
@@ -484,4 +492,4 @@ class Persistence:
         emptied = sorted(unsaved.difference(held))
         stamp, ticks = buffer.counters()
         return Checkpoint({e: export(e) for e in held + emptied}, stamp, ticks, self.served.policy.settings(),
-                          clear=self._clear_stored)
+                          clear=self._clear_stored, episodes=buffer.export_episodes())

@@ -412,11 +412,11 @@ class ConsultantService:
 
     def close(self, candidates: CandidateSet, encode: Sequence[str] = (), time: float = 0.0,
               turn: Optional[int] = None) -> list[str]:
-        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member)."""
+        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member), its episode first."""
         members = close_view(self.consultant, candidates, encode, time, turn)
-        if encode and self._recording and self.buffer.retains:
+        if encode and self._recording:
             speaker = self.consultant.entities[candidates.target] if candidates.target is not None else members[0]
-            self._record(journal.encode(speaker, encode, "speaker", time, turn))
+            self._record(journal.refer(speaker, encode, time, turn))
         return members
 
     def rule_out(self, candidates: CandidateSet) -> tuple[list[str], list[int]]:

@@ -150,7 +150,8 @@ def open_view(
     else:
         holding = frozenset(consultant.properties_of(target))
         queue, origins = consultant.wm.queue_with_origins(target)  # (open_set checked the target)
-        view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins)
+        view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins,
+                    strength=consultant.wm.strength(target) if queue else [])
     if first is not None:
         holds = consultant.narrow(candidates, first.prop, first.cause, first.time, first.turn)
         view.first = Narrowed(holds, candidates.size)
@@ -160,7 +161,12 @@ def open_view(
 def close_view(
     consultant: Consultant, candidates: CandidateSet, encode: Sequence[str], time: float, turn: Optional[int]
 ) -> list[str]:
-    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says."""
+    """Return a candidate set's members after encoding ``encode`` as :meth:`ConsultantPort.close` says.
+
+    Encoding ``encode`` (rule 1) is an act of referring to the target (REG) or to the
+    resolved referent (RR): the entity's next reference episode begins just before it
+    (docs/semantics.md section 8).
+    """
     members = consultant.members(candidates)
     if encode:
         if candidates.target is not None:
@@ -169,5 +175,5 @@ def close_view(
             speaker = members[0]
         else:
             raise KnowledgeError(f"cannot encode for the only member: {len(members)} members remain")
-        consultant.encode(speaker, encode, "speaker", time, turn)
+        consultant.encode(speaker, encode, "speaker", time, turn, episode=True)  # a reference episode begins first
     return members

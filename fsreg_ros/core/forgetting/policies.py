@@ -14,6 +14,12 @@ the one place policy names are parsed and validated):
   (:mod:`fsreg_ros.core.memory.activation`).  The clock reaches the buffer from the
   WM Manager (:meth:`WMManager.advance`) and from every encoding's own time.
   Not combined with ``decay`` (both are forgetting by time; choose one).
+* ``episodes`` (k = ``episode_window``): when an entity's reference episode begins
+  (an act of referring to it: :meth:`WMBuffer.begin_episode`, which the consultant
+  calls when a view closes with rule 1's encoding), before that episode's own
+  encodings, every entry of its queue not used in its last k episodes is forgotten
+  (cause ``episodes``): during episode n the queue holds what was used in episodes
+  n - k ... n (:mod:`fsreg_ros.core.memory.episodes`).
 * ``displacement`` (alpha = ``capacity``): after each encoding event, while
   ``len(Q[R]) > alpha`` forget the front of ``Q[R]`` (Algorithm 3, LRU).
 * ``displacement-lfu`` (``capacity``): as ``displacement``, but forget the property
@@ -59,6 +65,7 @@ DISPLACEMENT = {"displacement": "lru", "displacement-lfu": "lfu", "displacement-
 RULES = (
     "decay",
     "activation",
+    "episodes",
     "displacement",
     "displacement-lfu",
     "displacement-random",
@@ -196,6 +203,7 @@ class ForgettingPolicy:
             global_capacity=self.given("global_capacity") if "global-capacity" in self.rules else None,  # type: ignore
             seed=int(self.value("seed")),  # type: ignore[arg-type]
             activation=_activation_of(self),
+            episode_window=int(self.value("episode_window")) if "episodes" in self.rules else None,  # type: ignore
         )
 
 

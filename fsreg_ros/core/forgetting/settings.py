@@ -118,9 +118,9 @@ MAX_ACTIVATION_THRESHOLD = 20.0
 #: Every memory setting.  ``policy`` first, then the parameters in report order.
 TABLE: tuple[Setting, ...] = (
     Setting("policy", str, "none", "",
-            "none, or rules joined by + (decay, activation, displacement, displacement-lfu, displacement-random, "
-            "similarity, global-capacity, shared-capacity); at most one displacement rule, and decay or activation, "
-            "not both", metavar="P"),
+            "none, or rules joined by + (decay, activation, episodes, displacement, displacement-lfu, "
+            "displacement-random, similarity, global-capacity, shared-capacity); at most one displacement rule, "
+            "and decay or activation, not both", metavar="P"),
     Setting("decay_period", float, 10.0, 0.0,
             "decay: seconds between ticks (delta); a tick at time T is applied before any turn stamped T",
             MIN_DECAY_PERIOD, MAX_DECAY_PERIOD, rules=("decay",), unit="seconds", metavar="S",
@@ -146,6 +146,11 @@ TABLE: tuple[Setting, ...] = (
             "stays exp(-tau/d) seconds)", -MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD,
             rules=("activation",), metavar="TAU", symbol="τ", word="tau",
             axis="activation threshold τ (ACT-R; d = activation_decay)"),
+    Setting("episode_window", int, 1, 0,
+            "episodes: when an entity's reference episode begins, its properties not used in its last k episodes "
+            "are forgotten (k = 1 keeps what was said in the previous episode and the current one)",
+            1, 1_000_000, rules=("episodes",), metavar="K", symbol="k", word="k",
+            axis="episode window k (episodes)"),
 )
 
 

@@ -16,27 +16,48 @@ everything), with its collaborators:
   (:mod:`fsreg_ros.core.memory.columns`): the records kept beside the queues and the
   numpy form of the queues of a large domain.
 
-The collaborators share the buffer's queue state (``_queues``, ``_nonempty``,
-``_size``, ``_stamp``: package-private, read and written only inside this package).
+The queues themselves, their size, non-empty set and stamp counter are the buffer's
+:class:`~fsreg_ros.core.memory.queues.QueueStore` (``store``); the buffer and every
+collaborator change them only through its methods.  A side log kept per entry (rule
+``activation``'s traces) hears encodings and forgettings through ``watchers``
+(:class:`EntryWatcher`; see :mod:`fsreg_ros.core.memory`).  The episode log
+(:mod:`fsreg_ros.core.memory.episodes`) needs no watcher: it reads the entries' stamps
+when an episode begins or a strength is read.
 """
 
 from __future__ import annotations
 
-import sys
-from typing import Iterable, Mapping, Optional, Sequence
+from typing import Callable, Iterable, Mapping, Optional, Protocol, Sequence
 
-from . import bitset
-from .ticks import TickLedger, TickRun
+from . import bitset, column_encoding, persistence
 from .activation import LazyActivation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
-from .decay import NO_ROWS, LazyDecay, pop_quietly
+from .decay import LazyDecay
 from .displacement import Interference
 from .install import install_limits
 from .limits import UNLIMITED, Limits
-from . import persistence
 from .origins import OriginLog
-from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_stamp
+from .episodes import EntryStamps, EpisodeLog, Strength
+from .trace import Trace, activation as activation_at
+from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_entered, entry_stamp
+from .queues import NO_ROWS, QueueStore
+from .ticks import TickLedger, TickRun
+
+
+class EntryWatcher(Protocol):
+    """A side log kept per entry (see :mod:`fsreg_ros.core.memory`): what the buffer tells it.
+
+    While a watcher is attached the buffer takes its general paths (the quiet fast
+    paths and the column form are off, as for an event sink), so every entry that
+    enters, is refreshed or leaves is told here, in event order.
+    """
+
+    def encoded(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int], present: bool) -> None:
+        """Note an encoding of ``prop`` into Q[entity] (``present``: a refresh; the store gave it the last stamp)."""
+
+    def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
+        """Note that ``prop`` left Q[entity] (any cause)."""
 
 
 class WMBuffer:
@@ -60,16 +81,30 @@ class WMBuffer:
         self.attributes: dict[str, str] = dict(attributes or {})
         self.limits = UNLIMITED
         self.column_min = COLUMN_MIN
-        self._queues: dict[str, Queue] = {}  # the dict queues (a column queue is not here)
-        self._nonempty: dict[str, None] = {}  # queues that may hold something (insertion-ordered set)
-        self._stamp = 0
-        self._size = 0  # properties stored, including ones still owed to lazy decay
+        self.store = QueueStore()
+        self.watchers: tuple[EntryWatcher, ...] = ()
         self.lazy_decay = LazyDecay(self)
         self.activation: Optional[LazyActivation] = None
         self.interference = Interference(self)
         self.origin_log = OriginLog(self)
+        self.episodes = EpisodeLog(self)
         self.changes = ChangeRecord(self)
-        self.columns = ColumnQueues(self)
+        self.store.on_drop = self.changes.compact
+
+    @property
+    def columns(self) -> ColumnQueues:
+        """The column form of the queues (which entities' queues live in rows; :mod:`.columns`)."""
+        return self.store.columns
+
+    def watch(self, watcher: EntryWatcher) -> None:
+        """Attach a side log kept per entry (:class:`EntryWatcher`); column queues move back to dicts."""
+        self.store.drop()
+        self.watchers = (*self.watchers, watcher)
+
+    @property
+    def quiet(self) -> bool:
+        """True when nobody must hear single encodings and forgettings (no event sink, no watcher)."""
+        return self.sink is None and not self.watchers
 
     # ------------------------------------------------------------------ reads
     @property
@@ -84,7 +119,7 @@ class WMBuffer:
 
     def queue(self, entity: str) -> tuple[str, ...]:
         """Q[entity], LRU first.  Does not refresh recency."""
-        q = self._readable(entity)
+        q = self.readable(entity)
         return tuple(q) if q else ()
 
     def origins(self, entity: str) -> list[Origin]:
@@ -93,25 +128,48 @@ class WMBuffer:
         An entry's origin is the encoding that made its property enter the queue
         (Algorithm 1's push of a property not in Q); a refresh while present keeps it.
         """
-        q = self._readable(entity)
+        q = self.readable(entity)
         return [self.origin_log.of(value) for value in q.values()] if q else []
 
     def queue_with_origins(self, entity: str) -> tuple[tuple[str, ...], list[Origin]]:
         """Return :meth:`queue` and :meth:`origins` of Q[entity] from one read (what a view opens with)."""
-        q = self._readable(entity)
+        q = self.readable(entity)
         if not q:
             return (), []
         return tuple(q), [self.origin_log.of(value) for value in q.values()]
 
+    def episode(self, entity: str) -> int:
+        """Return the entity's current episode: how many have begun (:meth:`begin_episode`; 0 before the first)."""
+        return self.episodes.current(entity)
+
+    def entry_stamps(self, entity: str) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first."""
+        q = self.readable(entity)
+        return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()] if q else []
+
+    def strength(self, entity: str) -> list[Strength]:
+        """Return how strongly each entry of Q[entity] is held, parallel to :meth:`queue` (:class:`Strength`).
+
+        Its episode age and the number of episodes it was used in
+        (:mod:`fsreg_ros.core.memory.episodes`), and its activation at the clock under rule
+        ``activation``.  Does not refresh recency.
+        """
+        counted = self.episodes.strength(entity, self.entry_stamps(entity))
+        if self.activation is None or not counted:
+            return [Strength(age, n) for age, n in counted]
+        d, clock = self.limits.activation[0], self.activation.clock  # type: ignore[index]
+        traces = [Trace.from_json(item.trace) for item in self.export_queue(entity)]  # type: ignore[attr-defined]
+        return [Strength(age, n, activation_at(t, clock, d)) for (age, n), t in zip(counted, traces)]
+
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""
-        q = self._readable(entity)
+        q = self.readable(entity)
         return len(q) if q else 0
 
     def __len__(self) -> int:
         """Total number of properties held by the domain's queues."""
         self.flush()
-        return self._size
+        return self.store.size
 
     def snapshot(self) -> dict[str, list[str]]:
         """Every non-empty queue, LRU first, keyed by entity (insertion order; :mod:`.persistence`)."""
@@ -119,25 +177,26 @@ class WMBuffer:
 
     def front_stamp(self, entity: str) -> int:
         """Stamp of Q[entity]'s front (call only on a caught-up, non-empty queue)."""
-        if entity in self.columns.entities:
-            self.columns.to_dict(entity)
-        return entry_stamp(next(iter(self._queues[entity].values())))
+        q = self.store.get(entity)
+        if q is None:
+            q = self.store.to_dict(entity)
+        return entry_stamp(next(iter(q.values())))
 
     def nonempty_entities(self) -> list[str]:
         """Entities whose queues are non-empty, after applying owed decay."""
         self.flush()
-        return list(self._nonempty)
+        return self.store.nonempty()
 
-    def _readable(self, entity: str) -> Optional[Mapping]:
-        """Return Q[entity] up to date with decay, for reading: its dict queue, or a copy of its column row."""
-        q = self._queues.get(entity)
+    def readable(self, entity: str) -> Optional[Mapping]:
+        """Return Q[entity] up to date with decay and the clock, for reading: its dict queue, or a copy of its row."""
+        q = self.store.get(entity)
         if q is not None:
             if q.synced != self.lazy_decay.ticks.count:
                 self.lazy_decay.sync(entity, q)
             if self.activation is not None:
                 self.activation.sync(entity, q)
             return q
-        return self.columns.readable(entity) if entity in self.columns.entities else None
+        return column_encoding.readable_row(self, entity) if self.store.in_columns(entity) else None
 
     # --------------------------------------------------------------- changes
     def take_changes(self) -> list[str]:
@@ -171,6 +230,17 @@ class WMBuffer:
             self.activation.advance(time)
 
     # ---------------------------------------------------------------- writes
+    def begin_episode(self, entity: str, time: float = 0.0, turn: Optional[int] = None) -> int:
+        """Begin the entity's next reference episode and return its number (1, 2, ...).
+
+        Call it before the act of referring encodes anything (docs/semantics.md section 2).
+        Under rule ``episodes`` the entries of Q[entity] not used in the entity's last
+        ``episode_window`` episodes are forgotten now (cause ``episodes``,
+        :mod:`fsreg_ros.core.memory.episodes`).
+        """
+        window = self.limits.episode_window if self.limits.retains else None
+        return self.episodes.begin(entity, window, time, turn)
+
     def encode(self, entity: str, properties: Iterable[str], cause: str, time: float,
                turn: Optional[int] = None) -> None:
         """Encode properties into Q[R]: Encode(R, P), the paper's Algorithm 1.
@@ -181,10 +251,10 @@ class WMBuffer:
         """
         if not self.retains:
             return
-        if self.sink is None and self.limits.lru_only and entity in self.columns.entities:
+        if self.quiet and self.limits.lru_only and self.store.in_columns(entity):
             if not isinstance(properties, (list, tuple)):
                 properties = list(properties)
-            if self.columns.encode_entity(entity, properties, cause, time, turn):
+            if column_encoding.encode_in_row(self, entity, properties, cause, time, turn):
                 return  # (a column queue with room: encoded in its row, as the loop below would)
         for prop in properties:
             self.encode_each((entity,), prop, cause, time, turn)
@@ -198,42 +268,37 @@ class WMBuffer:
         3, where one affirmed property is encoded for thousands of candidates or
         distractors.  With no event sink and no limit beyond an LRU capacity, each
         entity costs one dict assignment (plus the displaced front, if any:
-        :meth:`_encode_quiet`); events are only built when a sink listens, and every
+        :meth:`QueueStore.encode_quiet`); events are only built when a sink listens, and every
         other case goes through :meth:`Interference.enforce`, Algorithm 3's one
         implementation.
         """
         limits = self.limits
         if not limits.retains:
             return
-        self.origin_log.log(self._stamp + 1, cause, turn)
-        if self.sink is None and limits.lru_only:
-            self._encode_quiet(entities, prop, limits.capacity, time)
-            return
-        lfu = limits.victim == "lfu"
+        store = self.store
+        self.origin_log.log(store.stamp + 1, cause, turn)
         act = self.activation
         if act is not None:
             act.advance(time)
-        columns, catch_up, record, enforce = self.columns, self.lazy_decay.catch_up, self.changes.record, \
-            self.interference.enforce
+        if self.quiet and limits.lru_only:
+            store.encode_quiet(entities, prop, limits.capacity, time, self.lazy_decay.ticks.count,
+                               self.changes.entries, act)
+            return
+        lfu = limits.victim == "lfu"
+        ticks, catch_up, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.catch_up, \
+            self.changes.record, self.interference.enforce
+        watchers = self.watchers
         for entity in entities:
-            q = self._queues.get(entity)
-            if q is None and entity in columns.entities:
-                q = columns.to_dict(entity)
+            q = store.get(entity)
+            if q is None and store.in_columns(entity):
+                q = store.to_dict(entity)
             if q is None:
-                q = self._new_queue(entity)
+                q = store.new(entity, ticks)  # ticks before a queue existed are not owed
             else:
                 catch_up(entity)
                 if act is not None:
                     act.sync(entity, q)
-            old = q.pop(prop, None)
-            present = old is not None
-            self._stamp += 1
-            if present:  # a refresh keeps the entry's origin
-                q[prop] = (self._stamp, old if old.__class__ is int else old[1])
-            else:
-                q[prop] = self._stamp
-                self._size += 1
-            self._nonempty[entity] = None
+            present = store.put(entity, q, prop)
             record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
                 if q.hits is None:
@@ -241,83 +306,11 @@ class WMBuffer:
                 q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
             if act is not None:
                 act.record(entity, prop, time, present)
+            for watcher in watchers:
+                watcher.encoded(entity, prop, cause, time, turn, present)
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
-
-    def _encode_quiet(self, entities: Iterable[str], prop: str, capacity: Optional[int], time: float) -> None:
-        """Run :meth:`encode_each` with no events and at most an LRU capacity and rule ``activation``.
-
-        Per entity: the decay ticks it owes (:func:`~fsreg_ros.core.memory.decay.pop_quietly`,
-        only when it owes some), one dict assignment and, when the queue is full, one
-        front deletion; the entity joins the change record.  No event objects, no
-        calls per entity otherwise, no object per entry (see :class:`Queue`).  Under
-        rule ``activation``, what crossed goes first (:meth:`LazyActivation.sync`) and
-        the rule notes the encoding and the displaced front.
-        """
-        queues = self._queues
-        nonempty = self._nonempty
-        changed = self.changes.entries
-        in_columns = self.columns.entities
-        ticks = self.lazy_decay.ticks.count  # nothing below gives new ticks
-        limit = capacity if capacity is not None else sys.maxsize
-        act = self.activation
-        if act is not None:
-            act.advance(time)
-        stamp = self._stamp
-        size = self._size
-        for entity in entities:
-            q = queues.get(entity)
-            if q is None:
-                if entity not in in_columns:
-                    q = queues[entity] = Queue()
-                    q.synced = ticks
-                    q.hits = None
-                    q.marked = True
-                    changed.append(entity)
-                    nonempty[entity] = None
-                    stamp += 1
-                    q[prop] = stamp
-                    size += 1
-                    if act is not None:
-                        act.record(entity, prop, time, False)
-                    continue
-                q = self.columns.to_dict(entity)
-            if not q.marked:
-                q.marked = True
-                changed.append(entity)
-            if q.synced != ticks:  # lazy decay catch-up (Algorithm 2)
-                if q:
-                    size -= pop_quietly(q, ticks)
-                    if not q:
-                        del nonempty[entity]
-                q.synced = ticks
-            if act is not None and q:  # what crossed goes (its size and non-empty queues kept by _forget)
-                self._size = size
-                act.sync(entity, q)
-                size = self._size
-            # Caught up, so: entity in _nonempty  <=>  Q[entity] is non-empty.
-            if prop in q:  # a refresh: same size, the entry keeps its origin
-                old = q.pop(prop)
-                stamp += 1
-                q[prop] = (stamp, old if old.__class__ is int else old[1])
-                if act is not None:
-                    act.record(entity, prop, time, True)
-                continue
-            if not q:
-                nonempty[entity] = None
-            stamp += 1
-            q[prop] = stamp
-            if len(q) > limit:  # Algorithm 3, LRU out (capacity >= 1: never prop itself)
-                front = next(iter(q))
-                del q[front]
-                if act is not None:
-                    act.forget(entity, front)
-            else:
-                size += 1
-            if act is not None:
-                act.record(entity, prop, time, False)
-        self._stamp, self._size = stamp, size
 
     def encode_members(self, members: int, entities: Sequence[str], prop: str, cause: str, time: float,
                        turn: Optional[int] = None) -> None:
@@ -329,33 +322,29 @@ class WMBuffer:
         stamps, origins, sizes and change record.  With no event sink, limits of at
         most an LRU capacity (Algorithm 3) and rule ``activation`` (with a capacity or
         without) and a domain of at least ``column_min`` entities, it is one column operation over the
-        members' queues (:mod:`fsreg_ros.core.memory.columns`), with their owed decay
+        members' queues (:mod:`fsreg_ros.core.memory.column_encoding`), with their owed decay
         (Algorithm 2) and activation crossings applied the same way, instead of Python
         work per entity.
         """
         if not self.limits.retains or not members:
             return
-        columns = self.columns
-        rows = bitset.index_array(members) if columns.usable(entities, self.limits) else None
-        if rows is None or not columns.adopt(rows) or not columns.room(rows):
+        if not column_encoding.encode_rows(self, members, entities, prop, cause, time, turn):
             # a small domain, events, other limits, a queue longer than the capacity (restored so), or
             # (activation without a capacity) longer than the columns' widest
             self.encode_each(bitset.names(members, entities), prop, cause, time, turn)
-            return
-        columns.encode_rows(rows, members, prop, cause, time, turn)
 
     def pop_front(self, entity: str, cause: str, time: float, turn: Optional[int] = None) -> Optional[str]:
         """Forget Q[entity]'s LRU property; returns it, or None if Q is empty."""
         self._catch_up(entity, time)
-        return self._pop(entity, cause, time, turn)
+        return self.pop_entry(entity, cause, time, turn)
 
     def remove(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int] = None) -> bool:
-        """Forget one property wherever it is in Q[entity] (used for retraction)."""
+        """Forget one property wherever it is in Q[entity] (retraction, rule ``episodes``)."""
         self._catch_up(entity, time)
-        q = self._queues.get(entity)
+        q = self.store.get(entity)
         if not q or prop not in q:
             return False
-        self._forget(entity, q, prop, cause, time, turn)
+        self.forget_entry(entity, q, prop, cause, time, turn)
         return True
 
     def decay(self, ticks: TickRun) -> None:
@@ -379,70 +368,61 @@ class WMBuffer:
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
         self.advance(time)
-        self._forget_all(cause, time, turn)
+        self.forget_everything(cause, time, turn)
 
-    def _forget_all(self, cause: str, time: float, turn: Optional[int]) -> None:
+    # ------------------------------------------------- forgetting primitives
+    def forget_everything(self, cause: str, time: float, turn: Optional[int]) -> None:
         """Forget every property: queue by queue as :meth:`nonempty_entities` lists them, LRU first.
 
         Column queues are emptied at once; their properties are listed one by one only
         when an event sink must hear them.
         """
         order = self.nonempty_entities()  # flushes
-        columns = self.columns
+        store = self.store
+        columns = store.columns
         rows = columns.store.non_empty() if columns.entities else NO_ROWS
         fronts: dict[int, list[int]] = {}
         if len(rows) and self.sink is not None:
             fronts = dict(zip(rows.tolist(), columns.store.in_order(rows, columns.store.width)))
         for entity in order:
-            q = self._queues.get(entity)
-            if q is not None:
-                while self._pop(entity, cause, time, turn) is not None:
+            if store.get(entity) is not None:
+                while self.pop_entry(entity, cause, time, turn) is not None:
                     pass
                 continue
             self.changes.note(entity)  # a column queue
             for pid in fronts.get(columns.row[entity], ()):
                 self.sink(WMEvent("forget", self.domain, entity, columns.prop_name[pid], cause, time, turn))
         if len(rows):
-            store = columns.store
-            self._size -= int(store.length[rows].sum())
-            store.pop_fronts(rows, store.length[rows].copy())
-            columns.emptied(rows)
+            store.pop_rows(rows, columns.store.length[rows].copy())
 
-    # -------------------------------------------------------------- internals
+    def pop_entry(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
+        """Forget the front of Q[entity] (a dict queue, caught up); return it, or None if it is empty."""
+        q = self.store.get(entity)
+        if not q:
+            return None
+        prop = next(iter(q))
+        self.forget_entry(entity, q, prop, cause, time, turn)
+        return prop
+
+    def forget_entry(self, entity: str, q: Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
+        """Forget ``prop`` of the dict queue Q[entity]: the store, the rules, the record and the sink hear it."""
+        self.store.remove(entity, q, prop)
+        if self.activation is not None:
+            self.activation.forget(entity, prop)
+        for watcher in self.watchers:
+            watcher.forgot(entity, prop, cause, time)
+        self.changes.record(entity, q)
+        if self.sink is not None:
+            self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))
+
     def _catch_up(self, entity: str, time: float) -> None:
         """Bring Q[entity] up to date with the ticks given and the clock (at least ``time``)."""
         self.lazy_decay.catch_up(entity)
         if self.activation is not None:
             self.activation.advance(time)
-            q = self._queues.get(entity)
+            q = self.store.get(entity)
             if q:
                 self.activation.sync(entity, q)
-
-    def _new_queue(self, entity: str) -> Queue:
-        q = self._queues[entity] = Queue()
-        q.synced = self.lazy_decay.ticks.count  # ticks before a queue existed are not owed
-        q.hits = None
-        q.marked = False
-        return q
-
-    def _pop(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
-        q = self._queues.get(entity)
-        if not q:
-            return None
-        prop = next(iter(q))
-        self._forget(entity, q, prop, cause, time, turn)
-        return prop
-
-    def _forget(self, entity: str, q: Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
-        del q[prop]
-        self._size -= 1
-        if self.activation is not None:
-            self.activation.forget(entity, prop)
-        self.changes.record(entity, q)
-        if not q:
-            self._nonempty.pop(entity, None)
-        if self.sink is not None:
-            self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))
 
     # ------------------------------------------------------------ persistence
     def export_queue(self, entity: str) -> list[QueueItem]:
@@ -451,8 +431,23 @@ class WMBuffer:
 
     def counters(self) -> tuple[int, int]:
         """Return ``(stamp counter, decay ticks applied so far)``: the buffer's state beside its queues."""
-        return self._stamp, self.lazy_decay.ticks.count
+        return self.store.stamp, self.lazy_decay.ticks.count
 
     def restore(self, queues: Mapping[str, Sequence[Sequence]], stamp: int, ticks: int, limits: Limits) -> None:
-        """Replace the buffer's state with a stored one (no events, no changes; :mod:`.persistence`)."""
+        """Replace the buffer's state with a stored one (no events, no changes; :mod:`.persistence`).
+
+        The episode log is emptied (:meth:`restore_episodes` takes a stored one back).
+        """
         persistence.restore(self, queues, stamp, ticks, limits)
+        self.episodes.clear()
+
+    def export_episodes(self) -> dict:
+        """Return the episode log as a store keeps it (:meth:`EpisodeLog.export <.episodes.EpisodeLog.export>`)."""
+        return self.episodes.export()
+
+    def restore_episodes(self, data: Mapping, keep: Optional[Callable[[str], bool]] = None) -> list[str]:
+        """Take back :meth:`export_episodes`'s dict (after :meth:`restore`); ValueError if malformed.
+
+        ``keep``: a predicate on entity names; the others' episodes are dropped and returned.
+        """
+        return self.episodes.restore(data, keep)

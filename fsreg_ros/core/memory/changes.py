@@ -57,14 +57,14 @@ class ChangeRecord:
             self.compact()
         self.marks += 1
         self.entries.append(self.marks)
-        self.wm.columns.store.mark_changed(rows, self.marks)
+        self.wm.store.columns.store.mark_changed(rows, self.marks)
 
     def take(self) -> list[str]:
         """Return the changed entities, distinct, in first-change order, and clear the record."""
         changed = self.expand()
-        queues = self.wm._queues
+        store = self.wm.store
         for entity in changed:  # out of the record: the next change records it again
-            q = queues.get(entity)
+            q = store.get(entity)
             if q is not None:
                 q.marked = False
         self.clear()
@@ -73,8 +73,9 @@ class ChangeRecord:
     def expand(self) -> list[str]:
         """Return the record as distinct entity names, in order, and clear its column part."""
         if self.marks:
-            rows, marks = self.wm.columns.store.take_changed()
-            bound = self.wm.columns.bound
+            columns = self.wm.store.columns
+            rows, marks = columns.store.take_changed()
+            bound = columns.bound
         out: dict[str, None] = {}
         for key in self.entries:
             if key.__class__ is int:

@@ -1,4 +1,4 @@
-"""Column queues: WM queues as numpy columns, and the bridge that moves queues in and out.
+"""Column queues: the numpy form of WM queues (the arrays, and which queues live in which rows).
 
 Reference resolution and REG encode one affirmed property for every candidate or
 distractor it holds for (docs/semantics.md section 2, rules 2 and 3): thousands of
@@ -8,10 +8,10 @@ encoding about three times dearer than at 1,000 (measured with a bare dict loop)
 :class:`QueueColumns` keeps such queues as arrays instead, so one call of
 :meth:`QueueColumns.encode` is Encode(e, [p]) (Algorithm 1) with displacement
 (Algorithm 3, LRU) for every row at once; owed decay ticks (Algorithm 2) are popped
-from many rows at once by :func:`fsreg_ros.core.memory.decay.pop_owed`, and, under
-rule ``activation``, entries whose activation fell below the threshold by
+from many rows at once (:meth:`~fsreg_ros.core.memory.queues.QueueStore.pop_owed`), and,
+under rule ``activation``, entries whose activation fell below the threshold by
 :meth:`~fsreg_ros.core.memory.activation.LazyActivation.forget_rows` (each slot keeps
-its entry's trace: :class:`~fsreg_ros.core.memory.activation.TraceColumns`).
+its entry's trace: :class:`~fsreg_ros.core.memory.trace_columns.TraceColumns`).
 
 Row r holds the queue of the r-th entity of the buffer's entity list in ``width``
 slots (the displacement capacity; rule ``activation`` without a capacity: as many as
@@ -23,16 +23,17 @@ queue's order, LRU first, is its stamps' order, and an encoding writes one slot 
 shifts nothing.  :class:`QueueColumns` knows nothing about names, events or limits
 beyond the width.
 
-:class:`ColumnQueues` is the buffer's side: which entities' queues live in the
-columns (each queue lives in exactly one place, a dict :class:`Queue` or a row), the
-entity list the rows are numbered by, property ids and restored origins, and the
-moves between the two forms.  :meth:`WMBuffer.encode_members` puts the members of
+:class:`ColumnQueues` names the rows: which entities' queues live in the columns
+(each queue lives in exactly one place, a dict :class:`Queue` or a row), the entity
+list the rows are numbered by, property ids and restored origins.  The buffer's
+:class:`~fsreg_ros.core.memory.queues.QueueStore` holds it, moves queues between the
+two forms and keeps the counts.  :meth:`WMBuffer.encode_members` puts the members of
 rule 2 and 3 encodings of a domain of at least :data:`COLUMN_MIN` entities here while
 no event sink listens and the limits are at most an LRU capacity and rule
 ``activation``, and :meth:`WMBuffer.encode` then encodes a column queue in its row
-(:meth:`ColumnQueues.encode_entity`: a description's rule-1 encodings); anything else that
-touches a column queue first moves it back to a dict (:meth:`ColumnQueues.to_dict`),
-so every other code path only ever sees dicts.
+(a description's rule-1 encodings, :mod:`fsreg_ros.core.memory.encoding`); anything
+else that touches a column queue first moves it back to a dict
+(:meth:`QueueStore.to_dict`), so every other code path only ever sees dicts.
 """
 
 from __future__ import annotations
@@ -41,12 +42,10 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from .ticks import TIME_EPSILON
-from .activation import HISTORY, NEVER, Trace, TraceColumns
-from .decay import pop_owed
-from .host import HostBuffer
 from .limits import Limits
-from .queue import Entry, Origin, Queue
+from .queue import Entry, Origin
+from .trace import HISTORY, NEVER, Trace
+from .trace_columns import TraceColumns
 
 #: :meth:`WMBuffer.encode_members` keeps the queues of a domain of at least this many
 #: entities as columns; smaller domains go queue by queue.  A column operation costs
@@ -262,7 +261,7 @@ class QueueColumns:
                ) -> tuple[np.ndarray, np.ndarray]:
         """Encode(e, [prop]) for each held row, in order, stamps from ``first_stamp`` on (Algorithms 1, 3).
 
-        The rows must be up to date with decay (:func:`~fsreg_ros.core.memory.decay.pop_owed`)
+        The rows must be up to date with decay (:meth:`QueueStore.pop_owed`)
         and distinct.  A property present is refreshed (new stamp, same origin); otherwise it takes an
         empty slot or, in a full row, the front's (LRU displacement).  Returns, per row,
         whether the queue grew and whether it was empty before.  The slot is found with
@@ -420,17 +419,18 @@ def _first_minimum(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ColumnQueues:
-    """The buffer's column queues: where each lives, and the moves to and from dict queues.
+    """The column form of a buffer's queues: which entities' queues live in rows, and how rows are named.
 
-    ``store`` is None until :meth:`bind` first sizes it; ``bound`` is the entity list its
-    rows are numbered by (the first list :meth:`WMBuffer.encode_members` got; it may only
-    grow by appending), ``row`` entity -> row, ``entities`` the entities whose queue
-    lives in the store.  Property ids and the origins restored from a store (referred
-    to as ``-(i + 1)``) are numbered here.
+    ``store`` (the arrays, :class:`QueueColumns`) is None until :meth:`bind` first sizes
+    it; ``bound`` is the entity list its rows are numbered by (the first list
+    :meth:`WMBuffer.encode_members` got; it may only grow by appending), ``row`` entity
+    -> row, ``entities`` the entities whose queue lives in the arrays.  Property ids and
+    the origins restored from a store (referred to as ``-(i + 1)``) are numbered here.
+    Held by the buffer's :class:`~fsreg_ros.core.memory.queues.QueueStore`, which moves
+    queues in and out and keeps the counts; this class knows rows, not counts.
     """
 
-    def __init__(self, wm: HostBuffer) -> None:
-        self.wm = wm
+    def __init__(self) -> None:
         self.clear()
         self.bound: Optional[list[str]] = None
         self.row: dict[str, int] = {}
@@ -444,51 +444,61 @@ class ColumnQueues:
         self.explicit: list[Origin] = []
         self.explicit_id: dict[Origin, int] = {}
 
-    def fits(self, limits: Limits) -> bool:
-        """Tell whether the column queues can stay under ``limits``: nothing kept, or an LRU capacity of their width.
+    def forget_rows(self) -> None:
+        """Give the arrays up (every queue moved out first: :meth:`QueueStore.drop`)."""
+        self.store = None
+        self.entities = set()
 
-        Under any other limits a queue may have to lose another property than its
-        front, or more than one, which only a dict queue does.
+    def fits(self, limits: Limits, current: Limits) -> bool:
+        """Tell whether the column queues can stay under ``limits`` (``current``: those in force).
+
+        Nothing kept, or an LRU capacity of their width (and the same activation d and
+        tau: the traces'); under any other limits a queue may have to lose another
+        property than its front, or more than one, which only a dict queue does.
         """
         if self.store is None or not limits.retains:
             return True
         store = self.store
         return (_columnar(limits) and limits.capacity == (store.width if store.bounded else None)
-                and limits.activation == self.wm.limits.activation)  # activation: the traces' d and tau
+                and limits.activation == current.activation)
 
-    def usable(self, entities: Sequence[str], limits: Limits) -> bool:
-        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``.
+    def eligible(self, entities: Sequence[str], limits: Limits, column_min: int, quiet: bool) -> bool:
+        """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``, by size.
 
-        An LRU capacity is the rows' width; rule ``activation`` without a capacity
-        keeps rows that widen as their queues grow (:meth:`room`).
+        ``quiet``: no event sink listens.  An LRU capacity is the rows' width; rule
+        ``activation`` without a capacity keeps rows that widen as their queues grow
+        (:meth:`room`).  The entity list must still be bound (:meth:`bind`).
         """
         capacity = limits.capacity
         if capacity is None and limits.activation is None:
             return False
         width = capacity if capacity is not None else _FIRST_WIDTH
         return (
-            len(entities) >= self.wm.column_min
-            and self.wm.sink is None
+            len(entities) >= column_min
+            and quiet
             and _columnar(limits)
             and width <= COLUMN_MAX_WIDTH
             and width * len(entities) <= self._max_slots(limits.activation is not None)
-            and self.bind(entities, capacity)
         )
 
-    def bind(self, entities: Sequence[str], capacity: Optional[int]) -> bool:
-        """Bind rows to ``entities`` (the first list given) and size the store; False for another list.
+    def reshape(self, entities: Sequence[str], capacity: Optional[int], traced: bool) -> bool:
+        """Tell whether binding ``entities`` needs arrays of another shape (the column queues must go first)."""
+        store = self.store
+        return (store is not None and (self.bound is None or entities is self.bound)
+                and (store.bounded != (capacity is not None) or (store.traces is not None) != traced
+                     or store.bounded and store.width != capacity))
 
-        ``capacity`` is the rows' width, or None for rows that widen (:meth:`room`).
+    def bind(self, entities: Sequence[str], capacity: Optional[int], traced: bool) -> bool:
+        """Bind rows to ``entities`` (the first list given) and size the arrays; False for another list.
+
+        ``capacity`` is the rows' width, or None for rows that widen (:meth:`room`);
+        ``traced``: each slot keeps a trace (rule ``activation``).  Arrays of another
+        shape must have been given up first (:meth:`reshape`).
         """
         if self.bound is None:
             self.bound = entities  # type: ignore[assignment]
         elif entities is not self.bound:
             return False
-        traced = self.wm.activation is not None
-        store = self.store
-        if store is not None and (store.bounded != (capacity is not None) or (store.traces is not None) != traced
-                                  or store.bounded and store.width != capacity):
-            self.drop()
         if len(self.row) < len(entities):  # new entities were appended
             for i in range(len(self.row), len(entities)):
                 self.row[entities[i]] = i
@@ -520,100 +530,6 @@ class ColumnQueues:
     def _max_slots(traced: bool) -> int:
         return COLUMN_MAX_TRACED_SLOTS if traced else COLUMN_MAX_SLOTS
 
-    def adopt(self, rows: np.ndarray) -> bool:
-        """Move the queues of ``rows`` into the store (those not there yet); False, moving none, if one is longer.
-
-        Rows whose entity has no dict queue start empty, all at once; the few that have
-        one take its entries.
-        """
-        store = self.store
-        fresh = rows[~store.held[rows]]
-        if not len(fresh):
-            return True
-        names = list(map(self.bound.__getitem__, fresh.tolist()))
-        queues = self.wm._queues
-        moving = sorted(queues.keys() & names, key=self.row.__getitem__)  # in entity order
-        longest = max((len(queues[name]) for name in moving), default=0)
-        if longest > store.width and (store.bounded or not self.room(rows[:0], longest)):
-            return False
-        store.start_empty(fresh, self.wm.ticks.count)  # ticks before a queue existed are not owed
-        act = self.wm.activation
-        for name in moving:
-            q = queues.pop(name)
-            row = self.row[name]
-            store.write(row, [self.item(prop, value) for prop, value in q.items()], q.synced)
-            if act is not None:  # each entry's trace goes with it (slot k: the k-th item written)
-                traces = act.release(name)
-                store.traces.put_row(row, [traces[prop] for prop in q])
-        self.entities.update(names)
-        return True
-
-    def encode_rows(self, rows: np.ndarray, members: int, prop: str, cause: str, time: float,
-                    turn: Optional[int]) -> None:
-        """Encode(e, [prop]) for the queues of ``rows`` (adopted, with room) as one column operation.
-
-        :meth:`WMBuffer.encode_members`'s column path (``members``: the rows as a bitset):
-        their owed decay (Algorithm 2) and activation crossings applied first, as queue
-        by queue; then the same stamps, origins, sizes and change record as Encode queue
-        by queue would leave.
-        """
-        wm, store = self.wm, self.store
-        wm.origin_log.log(wm._stamp + 1, cause, turn)
-        pid = self.prop(prop)
-        popped = pop_owed(store, rows, wm.lazy_decay.ticks.count)
-        act = wm.activation
-        if act is not None:  # entries whose activation fell below the threshold go first, as queue by queue
-            act.advance(time)
-            act.forget_members(rows, members)
-        traced = act.noting() if act is not None else None
-        grew, was_empty = store.encode(rows, pid, wm._stamp + 1, traced)
-        wm._stamp += len(rows)
-        wm._size += int(grew.sum()) - int(popped.sum())
-        nonempty = wm._nonempty
-        joining = list(map(self.bound.__getitem__, rows[was_empty].tolist()))
-        for name in joining:  # (re)joins the non-empty queues last, as queue by queue
-            nonempty.pop(name, None)
-        nonempty.update(dict.fromkeys(joining))
-        wm.changes.mark_rows(rows)
-
-    def encode_entity(self, entity: str, props: Sequence[str], cause: str, time: float,
-                      turn: Optional[int]) -> bool:
-        """Encode(entity, props) (Algorithm 1) into its column queue, property by property; False if it needs room.
-
-        :meth:`WMBuffer.encode`'s column path (no event sink, at most an LRU capacity and
-        rule ``activation``): a description's rule-1 encodings leave the queue in its
-        row instead of moving it to a dict queue and back.  Its owed decay (Algorithm 2)
-        and activation crossings are applied first, then each property as
-        :meth:`WMBuffer.encode_each` would (same stamps, origins, size, non-empty queues
-        and change record).  A row that widens without room for every property is left
-        to the dict path (False, nothing done).
-        """
-        wm, store = self.wm, self.store
-        row = self.row[entity]
-        if not props:
-            return True
-        if not store.bounded and store.length[row] + len(props) > store.width:
-            return False
-        ticks = wm.lazy_decay.ticks.count
-        if store.synced[row] != ticks:  # lazy decay catch-up (Algorithm 2)
-            wm._size -= int(pop_owed(store, np.array([row]), ticks)[0])
-        act = wm.activation
-        traced = None
-        if act is not None:  # what crossed goes first, as queue by queue
-            act.advance(time)
-            act.forget_row(row)
-            traced = act.noting()
-        was_empty = not store.length[row]
-        for prop in props:
-            wm.origin_log.log(wm._stamp + 1, cause, turn)
-            wm._stamp += 1
-            wm._size += store.encode_one(row, self.prop(prop), wm._stamp, traced)
-        if was_empty:  # (re)joins the non-empty queues last, as queue by queue
-            wm._nonempty.pop(entity, None)
-            wm._nonempty[entity] = None
-        wm.changes.note(entity)
-        return True
-
     def prop(self, name: str) -> int:
         """Return the id of property ``name`` (numbered on first use)."""
         pid = self.prop_id.get(name)
@@ -644,54 +560,11 @@ class ColumnQueues:
             for pid, stamp, ref in self.store.read(row)
         }
 
-    def readable(self, entity: str) -> Mapping:
-        """Return the column queue of ``entity`` up to date with decay, for reading.
-
-        A copy of its row; with an event sink listening, owed pops must be reported, so
-        it becomes a dict queue (caught up, returned).
-        """
-        row, store, wm = self.row[entity], self.store, self.wm
-        if store.synced[row] != wm.lazy_decay.ticks.count and store.length[row]:
-            if wm.sink is not None:
-                wm.lazy_decay.catch_up(entity)
-                return wm._readable(entity)
-            wm.lazy_decay.settle_columns(np.array([row]))
-        if wm.activation is not None and store.length[row] and store.traces.row_due[row] <= wm.activation.clock \
-                + TIME_EPSILON:  # something may have gone (the row's bound: one number)
-            if wm.sink is not None:  # what went must be reported: as a dict queue
-                self.to_dict(entity)
-                return wm._readable(entity)
-            wm.activation.settle_columns(np.array([row]))
-        return self.row_dict(row)
-
     def traces_of(self, entity: str) -> dict[str, Trace]:
         """Return the traces of the entries of the column queue of ``entity`` (rule ``activation``)."""
         row, store = self.row[entity], self.store
         names, props, slots = self.prop_name, store.prop[:, row].tolist(), store.slots(row)
         return dict(zip([names[props[k]] for k in slots], store.traces.row(row, slots)))
-
-    def to_dict(self, entity: str) -> Queue:
-        """Move Q[entity] from its row to a dict queue (same content, owed ticks still owed)."""
-        row, store = self.row[entity], self.store
-        q = self.wm._queues[entity] = Queue(self.row_dict(row))
-        q.synced = int(store.synced[row])
-        q.hits = None
-        q.marked = False  # if it changed since the last take, a column mark says so
-        if self.wm.activation is not None and store.traces is not None:
-            self.wm.activation.take(entity, self.traces_of(entity))
-        store.release(row)
-        self.entities.discard(entity)
-        return q
-
-    def drop(self) -> None:
-        """Move every column queue back to a dict queue (before any code path that only knows dicts)."""
-        if self.store is None:
-            return
-        self.wm.changes.compact()
-        for entity in [e for e in self.bound if e in self.entities]:
-            self.to_dict(entity)
-        self.store = None
-        self.entities = set()
 
     def ranks(self, entity_order: Sequence[str]) -> Mapping[str, int]:
         """Return entity -> rank in ``entity_order`` (the rows' own numbering when that is their list)."""
@@ -700,9 +573,3 @@ class ColumnQueues:
                 self.row[entity_order[i]] = i
             return self.row
         return {entity: i for i, entity in enumerate(entity_order)}
-
-    def emptied(self, rows: np.ndarray) -> None:
-        """Take the ``rows`` left empty out of the buffer's non-empty queues."""
-        nonempty, bound = self.wm._nonempty, self.bound
-        for row in rows[self.store.length[rows] == 0].tolist():
-            nonempty.pop(bound[row], None)

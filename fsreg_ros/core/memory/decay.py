@@ -5,7 +5,8 @@ costs O(number of queues) per tick.  A buffer applies ticks lazily instead: a ti
 only enters a :class:`~fsreg_ros.core.memory.ticks.TickLedger` (:meth:`LazyDecay.add`),
 and each queue catches up (pops one front per missed tick, at most its length) the
 next time it is touched (:meth:`LazyDecay.sync`; a column queue with the others,
-:func:`pop_owed`).  Because nothing else touches a queue in between, the result is
+:meth:`QueueStore.pop_owed <fsreg_ros.core.memory.queues.QueueStore.pop_owed>`).  Because nothing else
+touches a queue in between, the result is
 exactly the eager one; the tests compare it against a naive eager implementation on
 random event sequences.  :meth:`LazyDecay.now` applies ticks eagerly instead, in
 the canonical event order (tick by tick, entity order within a tick), for a
@@ -18,39 +19,14 @@ Tick *times* (the schedule, runs of ticks, the ledger) are arithmetic of
 from __future__ import annotations
 
 from itertools import islice
-from typing import Any, Optional, Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
-from .ticks import TickLedger, TickRun
 from .host import HostBuffer
 from .queue import Queue, WMEvent
-
-#: No column rows.
-NO_ROWS = np.zeros(0, dtype=np.intp)
-
-
-def pop_quietly(q: Queue, ticks: int) -> int:
-    """Bring ``q`` up to ``ticks`` ticks, dropping one front per owed tick, no events; return how many went."""
-    owed = min(ticks - q.synced, len(q))
-    q.synced = ticks
-    if owed == len(q):
-        q.clear()
-    else:
-        for _ in range(owed):
-            del q[next(iter(q))]
-    return owed
-
-
-def pop_owed(columns: Any, rows: np.ndarray, ticks: int) -> np.ndarray:  # a QueueColumns (columns imports this)
-    """Apply the decay ticks the held column ``rows`` owe, up to ``ticks``; return the pops per row.
-
-    Each owed tick pops the row's front (its oldest stamp).
-    """
-    owed = np.minimum(ticks - columns.synced[rows], columns.length[rows])
-    columns.synced[rows] = ticks
-    columns.pop_fronts(rows, owed)
-    return owed
+from .queues import NO_ROWS
+from .ticks import TickLedger, TickRun
 
 
 class LazyDecay:
@@ -78,10 +54,10 @@ class LazyDecay:
     # ------------------------------------------------------------ one queue
     def catch_up(self, entity: str) -> None:
         """Apply the ticks Q[entity] still owes (if any); a column queue becomes a dict first."""
-        wm = self.wm
-        q = wm._queues.get(entity)
-        if q is None and entity in wm.columns.entities:
-            q = wm.columns.to_dict(entity)
+        store = self.wm.store
+        q = store.get(entity)
+        if q is None and store.in_columns(entity):
+            q = store.to_dict(entity)
         if q is not None and q.synced != self.ticks.count:
             self.sync(entity, q)
 
@@ -93,30 +69,20 @@ class LazyDecay:
             q.synced = self.ticks.count
             return
         wm.changes.record(entity, q)
-        sink = wm.sink
-        if sink is None:  # no events to report: just drop the fronts
-            wm._size -= pop_quietly(q, self.ticks.count)
-            if not q:
-                wm._nonempty.pop(entity, None)
+        if wm.quiet:  # no events to report: just drop the fronts
+            wm.store.drop_fronts(entity, q, self.ticks.count)
             return
-        q.synced = self.ticks.count
-        victims = list(islice(q, min(q.synced - synced, len(q))))  # the fronts, LRU first
-        for prop in victims:
-            del q[prop]
-        wm._size -= len(victims)
-        if not q:
-            wm._nonempty.pop(entity, None)
+        victims = wm.store.take_fronts(entity, q, self.ticks.count)  # the fronts, LRU first
         for k, prop in enumerate(victims):
-            sink(WMEvent("forget", wm.domain, entity, prop, "decay", self.ticks.time(synced + k), None))
+            self._report(entity, prop, self.ticks.time(synced + k))
 
     def settle_columns(self, rows: np.ndarray) -> None:
         """Apply the ticks the column ``rows`` owe (no events: only called without a sink)."""
         if not len(rows):
             return
         wm = self.wm
-        popped = pop_owed(wm.columns.store, rows, self.ticks.count)
-        wm._size -= int(popped.sum())
-        wm.columns.emptied(rows)
+        popped = wm.store.pop_owed(rows, self.ticks.count)
+        wm.store.emptied(rows)
         wm.changes.mark_rows(rows[popped > 0])
 
     # -------------------------------------------------------------- every queue
@@ -130,16 +96,17 @@ class LazyDecay:
         if count == self.settled:
             return
         wm = self.wm
-        if wm.columns.entities:
-            store = wm.columns.store
-            owing = np.flatnonzero(store.held & (store.length > 0) & (store.synced != count))
-            if wm.sink is None:
+        columns = wm.store.columns
+        if columns.entities:
+            arrays = columns.store
+            owing = np.flatnonzero(arrays.held & (arrays.length > 0) & (arrays.synced != count))
+            if wm.quiet:
                 self.settle_columns(owing)
             else:  # the pops must be reported: those queues become dict queues, caught up below
                 for row in owing.tolist():
-                    wm.columns.to_dict(wm.columns.bound[row])
-        for entity in list(wm._nonempty):
-            q = wm._queues.get(entity)  # None: a column queue, caught up above
+                    wm.store.to_dict(columns.bound[row])
+        for entity in wm.store.nonempty():
+            q = wm.store.get(entity)  # None: a column queue, caught up above
             if q is not None and q.synced != count:
                 self.sync(entity, q)
         # Every non-empty queue is now up to date, and an empty one never needs a
@@ -165,9 +132,10 @@ class LazyDecay:
         wm = self.wm
         self.ticks.add(ticks)
         count = self.ticks.count
-        rows = wm.columns.store.non_empty() if wm.columns.entities else NO_ROWS
-        pending = [(entity, q) for entity, q in wm._queues.items() if q]
-        if wm.sink is None and (entity_order is wm.columns.bound or not len(rows)):
+        columns = wm.store.columns
+        rows = columns.store.non_empty() if columns.entities else NO_ROWS
+        pending = [(entity, q) for entity, q in wm.store.dict_queues() if q]
+        if wm.quiet and (entity_order is columns.bound or not len(rows)):
             self._quietly(ticks.count, entity_order, rows, pending)
         else:
             self._in_order(ticks, entity_order, rows, pending)
@@ -183,11 +151,12 @@ class LazyDecay:
         dict queues.
         """
         wm = self.wm
+        store = wm.store
         ticks = self.ticks.count
         if len(rows):
-            wm._size -= int(pop_owed(wm.columns.store, rows, ticks).sum())
-            wm.columns.emptied(rows)
-        rank = wm.columns.ranks(entity_order)
+            store.pop_owed(rows, ticks)
+            store.emptied(rows)
+        rank = store.columns.ranks(entity_order)
         last = len(rank)
         ordered = sorted(pending, key=lambda item: rank.get(item[0], last))
         # Where each dict queue falls among the column rows (in entity order).
@@ -197,11 +166,9 @@ class LazyDecay:
             if cuts and cuts[i] > start:
                 wm.changes.mark_rows(rows[start:cuts[i]])
                 start = cuts[i]
-            q.synced = ticks - count
-            wm._size -= pop_quietly(q, ticks)
+            store.sync(q, ticks - count)  # (flushed: up to date before these ticks)
+            store.drop_fronts(entity, q, ticks)
             wm.changes.record(entity, q)
-            if not q:
-                del wm._nonempty[entity]
         wm.changes.mark_rows(rows[start:])
 
     def _in_order(self, ticks: TickRun, entity_order: Sequence[str], rows: np.ndarray,
@@ -213,23 +180,24 @@ class LazyDecay:
         change record and the dict queues' pops follow tick by tick in entity order.
         """
         wm = self.wm
+        store = wm.store
+        columns = store.columns
         count = self.ticks.count
-        rank = wm.columns.ranks(entity_order)
+        rank = columns.ranks(entity_order)
         last = len(rank)
         # (rank, tie, entity, fronts it loses LRU first, its dict queue or None for a column queue)
         plan: list[tuple[int, int, str, list[str], Optional[Queue]]] = []
         for tie, (entity, q) in enumerate(pending):
             plan.append((rank.get(entity, last), tie, entity, list(islice(q, ticks.count)), q))
         if len(rows):
-            store, names, bound = wm.columns.store, wm.columns.prop_name, wm.columns.bound
-            fronts = store.in_order(rows, min(ticks.count, store.width))
+            arrays, names, bound = columns.store, columns.prop_name, columns.bound
+            fronts = arrays.in_order(rows, min(ticks.count, arrays.width))
             for row, ids in zip(rows.tolist(), fronts):
                 name = bound[row]
                 plan.append((rank.get(name, last), len(pending) + row, name, [names[i] for i in ids], None))
-            wm._size -= int(pop_owed(store, rows, count).sum())
-            wm.columns.emptied(rows)
+            store.pop_owed(rows, count)
+            store.emptied(rows)
         plan.sort(key=lambda step: step[:2])
-        sink = wm.sink
         for i in range(max((len(step[3]) for step in plan), default=0)):
             time = ticks.time(i)
             for _, _, entity, fronts, q in plan:
@@ -239,12 +207,16 @@ class LazyDecay:
                     if i == 0:
                         wm.changes.note(entity)
                 else:
-                    del q[fronts[i]]
-                    wm._size -= 1
+                    store.remove(entity, q, fronts[i])
                     wm.changes.record(entity, q)
-                if sink is not None:
-                    sink(WMEvent("forget", wm.domain, entity, fronts[i], "decay", time, None))
-        for entity, q in pending:
-            q.synced = count
-            if not q:
-                del wm._nonempty[entity]
+                self._report(entity, fronts[i], time)
+        for _, q in pending:
+            store.sync(q, count)
+
+    def _report(self, entity: str, prop: str, time: float) -> None:
+        """Tell the listeners (event sink, watchers) that decay popped ``prop`` of Q[entity] at ``time``."""
+        wm = self.wm
+        for watcher in wm.watchers:
+            watcher.forgot(entity, prop, "decay", time)
+        if wm.sink is not None:
+            wm.sink(WMEvent("forget", wm.domain, entity, prop, "decay", time, None))

@@ -69,7 +69,7 @@ class Interference:
             self.interfere(entity, q, prop, time, turn)
         if limits.capacity is not None and len(q) > limits.capacity:
             self.displace(entity, q, limits.capacity, prop, time, turn)
-        if limits.global_capacity is not None and self.wm._size > limits.global_capacity:
+        if limits.global_capacity is not None and self.wm.store.size > limits.global_capacity:
             self.evict_global(limits.global_capacity, time, turn)
 
     def interfere(self, entity: str, q: Queue, prop: str, time: float, turn: Optional[int]) -> None:
@@ -79,7 +79,7 @@ class Interference:
         if attribute is None:
             return
         for other in [p for p in q if p != prop and attribute_of(p, attributes) == attribute]:
-            self.wm._forget(entity, q, other, "similarity", time, turn)
+            self.wm.forget_entry(entity, q, other, "similarity", time, turn)
 
     def displace(self, entity: str, q: Queue, capacity: int, newest: str, time: float, turn: Optional[int]) -> None:
         """Algorithm 3 (interference by displacement): keep |Q[entity]| <= capacity.
@@ -88,7 +88,7 @@ class Interference:
         or random victim; the LRU victim is the front (capacity >= 1, so never it).
         """
         while len(q) > capacity:
-            self.wm._forget(entity, q, self.victim(q, newest), "displacement", time, turn)
+            self.wm.forget_entry(entity, q, self.victim(q, newest), "displacement", time, turn)
 
     def evict_global(self, limit: int, time: float, turn: Optional[int], cause: str = "global-capacity") -> None:
         """Keep the domain at ``limit`` properties or fewer, globally least recent out.
@@ -101,8 +101,8 @@ class Interference:
         """
         wm = self.wm
         while len(wm) > limit:
-            victim = min(wm._nonempty, key=wm.front_stamp)
-            wm._pop(victim, cause, time, turn)
+            victim = min(wm.store.holding(), key=wm.front_stamp)
+            wm.pop_entry(victim, cause, time, turn)
 
     def evict_oldest(self, count: int, cause: str, time: float) -> None:
         """Forget the ``count`` least recently encoded fronts of the domain (a shared pool's trim).
@@ -114,7 +114,7 @@ class Interference:
         total = len(self.wm)  # flushes
         if count <= 0 or not total:
             return
-        if not self.wm.columns.entities:
+        if not self.wm.store.columns.entities:
             self.evict_global(max(total - count, 0), time, None, cause)
             return
         self._evict_columns(min(count, total), cause, time)
@@ -126,23 +126,23 @@ class Interference:
         found by one partial sort of their stamps, the dict queues' by a heap.
         """
         wm = self.wm
-        columns = wm.columns
-        store = columns.store
-        rows = store.non_empty()
-        stamps, owners, props = store.entries(rows)
+        columns = wm.store.columns
+        arrays = columns.store
+        rows = arrays.non_empty()
+        stamps, owners, props = arrays.entries(rows)
         if len(stamps) > count:
             oldest = np.argpartition(stamps, count - 1)[:count]
             stamps, owners, props = stamps[oldest], owners[oldest], props[oldest]
         victims: list[tuple] = [(stamp, row, pid, None) for stamp, row, pid in
                                 zip(stamps.tolist(), owners.tolist(), props.tolist())]
         victims += heapq.nsmallest(count, ((value if value.__class__ is int else value[0], entity, prop, q)
-                                           for entity, q in wm._queues.items() for prop, value in q.items()),
+                                           for entity, q in wm.store.dict_queues() for prop, value in q.items()),
                                    key=lambda victim: victim[0])
         victims.sort(key=lambda victim: victim[0])  # stamps are unique
         popped: dict[int, int] = {}  # column row -> fronts it loses
         for _, where, prop, q in victims[:count]:
             if q is not None:  # a dict queue's front
-                wm._forget(where, q, prop, cause, time, None)
+                wm.forget_entry(where, q, prop, cause, time, None)
                 continue
             name = columns.bound[where]
             if where not in popped:
@@ -152,6 +152,4 @@ class Interference:
                 wm.sink(WMEvent("forget", wm.domain, name, columns.prop_name[prop], cause, time, None))
         if popped:
             touched = np.fromiter(popped, dtype=np.intp, count=len(popped))
-            store.pop_fronts(touched, np.fromiter(popped.values(), dtype=np.int64, count=len(popped)))
-            wm._size -= sum(popped.values())
-            columns.emptied(touched)
+            wm.store.pop_rows(touched, np.fromiter(popped.values(), dtype=np.int64, count=len(popped)))

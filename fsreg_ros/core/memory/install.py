@@ -24,23 +24,23 @@ def install_limits(wm: HostBuffer, limits: Limits, time: float) -> None:
     victims on stamps only).
     """
     limits.check()
-    if not wm.columns.fits(limits):
-        wm.columns.drop()
+    if not wm.store.columns.fits(limits, wm.limits):
+        wm.store.drop()
     wm.limits = limits
     wm.interference.install(limits)
     install_activation(wm, limits, time)
-    for entity, q in wm._queues.items():
+    for entity, q in wm.store.dict_queues():
         hits = q.hits
         if hits is not None:  # the LFU counts restart: an exported count may change
             if any(hits.get(prop, 1) != 1 for prop in q):
                 wm.changes.record(entity, q)
             q.hits = None
     if not limits.retains:
-        wm._forget_all("reset", time, None)
+        wm.forget_everything("reset", time, None)
         return
     if limits.capacity is not None:
         wm.flush()
-        for entity, q in wm._queues.items():
+        for entity, q in wm.store.dict_queues():
             wm.interference.displace(entity, q, limits.capacity, "", time, None)
     if limits.global_capacity is not None:
         wm.interference.evict_global(limits.global_capacity, time, None)

@@ -30,7 +30,10 @@ class Limits:
     * ``global_capacity``: at most this many properties in the domain; the victim is
       the front encoded least recently in the whole domain;
     * ``activation``: ``(d, tau)``: an entry is forgotten when its ACT-R base-level
-      activation falls below tau (:mod:`fsreg_ros.core.memory.activation`).
+      activation falls below tau (:mod:`fsreg_ros.core.memory.activation`);
+    * ``episode_window``: k: when an entity's episode begins, its entries not used in its
+      last k episodes are forgotten (:mod:`fsreg_ros.core.memory.episodes`; not after
+      encodings).
 
     Order after one encoding event: similarity, then capacity, then the global limit.
     """
@@ -42,6 +45,7 @@ class Limits:
     global_capacity: Optional[int] = None
     seed: int = 0
     activation: Optional[tuple[float, float]] = None
+    episode_window: Optional[int] = None
 
     def check(self) -> None:
         """Raise ValueError for an unknown victim choice."""

@@ -65,11 +65,11 @@ class OriginLog:
         O(entries stored); run when the log has doubled since the last pruning, so
         its cost per encoding call stays bounded and the log's size follows WM's.
         """
-        wm = self.wm
-        live = [v if v.__class__ is int else v[1] for q in wm._queues.values() for v in q.values()]
+        store = self.wm.store
+        live = [v if v.__class__ is int else v[1] for _, q in store.dict_queues() for v in q.values()]
         live = [ref for ref in live if ref.__class__ is int]
-        if wm.columns.entities:
-            live += wm.columns.store.origin_stamps().tolist()
+        if store.columns.entities:
+            live += store.columns.store.origin_stamps().tolist()
         live.sort()
         starts, runs = self.starts, self.runs
         kept_starts: list[int] = []

@@ -9,24 +9,23 @@ them back (:mod:`fsreg_ros.core.state.store`, :mod:`fsreg_ros.core.state.journal
 from __future__ import annotations
 
 from bisect import bisect_right
-from typing import Mapping, Sequence
+from typing import Mapping, Optional, Sequence
 
+from .activation import LazyActivation
 from .host import HostBuffer
 from .limits import Limits
-from .activation import LazyActivation, Trace
 from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, TracedItem, is_origin
+from .trace import Trace
 
 
 def snapshot(wm: HostBuffer) -> dict[str, list[str]]:
     """Return every non-empty queue, LRU first, keyed by entity (insertion order; :meth:`WMBuffer.snapshot`)."""
     wm.flush()
-    columns = wm.columns
-    if not columns.entities:
-        return {e: list(wm._queues[e]) for e in wm._nonempty}
-    return {
-        e: list(columns.row_dict(columns.row[e])) if e in columns.entities else list(wm._queues[e])
-        for e in wm._nonempty
-    }
+    store = wm.store
+    get = store.get
+    if not store.columns.entities:
+        return {e: list(get(e)) for e in store.holding()}
+    return {e: list(store.row_of(e)) if store.in_columns(e) else list(get(e)) for e in store.holding()}
 
 
 def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:
@@ -36,12 +35,13 @@ def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:
     the entry's origin (:meth:`WMBuffer.origins`).  Under rule ``activation`` each
     item is a :class:`TracedItem`, with the entry's encoding history.
     """
-    q = wm._readable(entity)
+    q = wm.readable(entity)
     if not q:
         return []
     if wm.activation is not None:
-        traces = (wm.columns.traces_of(entity) if entity in wm.columns.entities
-                  else wm.activation.traces.get(entity, {}))
+        store = wm.store
+        traces = (store.columns.traces_of(entity) if store.in_columns(entity)
+                  else wm.activation.traces_of(entity))
         return [TracedItem(*item, traces[item[0]].to_json()) for item in _items(wm, q)]
     return _items(wm, q)
 
@@ -84,28 +84,25 @@ def restore(wm: HostBuffer, queues: Mapping[str, Sequence[Sequence]], stamp: int
                 traces[(entity, item[0])] = Trace.from_json(item[5])  # ValueError if malformed
     wm.limits = limits
     wm.interference.install(limits)
-    wm._queues, wm._nonempty, wm._size, wm._stamp = {}, {}, 0, stamp
+    store = wm.store
+    store.reset(stamp)
     wm.changes.clear()
-    wm.columns.clear()
     wm.lazy_decay.reset(ticks)
     wm.origin_log.clear()
     shared: dict[Origin, Origin] = {}  # one origin object per distinct (cause, turn)
     for entity, items in queues.items():
-        q = wm._new_queue(entity)
+        entries: dict[str, tuple] = {}
+        counts: Optional[dict[str, int]] = {} if limits.victim == "lfu" and len(items) else None
         for item in items:
             prop, prop_stamp, hits = item[0], item[1], item[2]
             origin = (item[3], item[4]) if len(item) >= 5 else UNKNOWN_ORIGIN
-            q[prop] = (prop_stamp, shared.setdefault(origin, origin))
-            if limits.victim == "lfu":
-                q.hits = q.hits or {}
-                q.hits[prop] = hits
-        if q:
-            wm._nonempty[entity] = None
-            wm._size += len(q)
-    wm.activation = None
+            entries[prop] = (prop_stamp, shared.setdefault(origin, origin))
+            if counts is not None:
+                counts[prop] = hits
+        store.load(entity, entries, counts, ticks)
+    wm.activation = store.keeper = None
     if limits.activation is not None:
         latest = max((t.recent[-1] for t in traces.values()), default=0.0)
-        wm.activation = LazyActivation(wm, *limits.activation, clock=latest)
-        for entity in wm._nonempty:
-            wm.activation.adopt(entity, wm._queues[entity], latest,
-                                {p: t for (e, p), t in traces.items() if e == entity})
+        act = wm.activation = store.keeper = LazyActivation(wm, *limits.activation, clock=latest)
+        for entity in store.holding():
+            act.adopt(entity, store.get(entity), latest, {p: t for (e, p), t in traces.items() if e == entity})

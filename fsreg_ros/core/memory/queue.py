@@ -20,7 +20,7 @@ from typing import Callable, NamedTuple, Optional, Union
 #: Causes an event can have (docs/semantics.md section 2).
 ENCODE_CAUSES = ("speaker", "rr", "reg-distractor")
 FORGET_CAUSES = ("decay", "activation", "displacement", "similarity", "global-capacity", "shared-capacity", "reset",
-                 "retract")
+                 "retract", "episodes")
 
 
 class WMEvent(NamedTuple):
@@ -90,6 +90,14 @@ def is_origin(cause: object, turn: object) -> bool:
 def entry_stamp(value: Entry) -> int:
     """Return a dict queue entry's latest stamp."""
     return value if value.__class__ is int else value[0]
+
+
+def entry_entered(value: Entry) -> Optional[int]:
+    """Return the stamp a dict queue entry entered its queue with (None: restored from a store, unknown)."""
+    if value.__class__ is int:
+        return value
+    ref = value[1]
+    return ref if ref.__class__ is int else None
 
 
 class Queue(dict):

@@ -29,6 +29,10 @@ Records are JSON lists whose first item names the operation:
     the shared pool's trim of this domain (cause ``shared-capacity``).
 ``["remove", entity, [property, ...], time]``
     properties retracted from Q[entity] because they stopped holding in LTM.
+``["refer", entity, [property, ...], time, turn]``
+    an act of referring to ``entity`` (rule 1 at a view's close): ``WMBuffer.begin_episode``
+    (its next reference episode; rule ``episodes`` forgets then), then ``WMBuffer.encode``
+    of the properties with cause ``speaker``.
 
 Only a policy with random displacement victims is not journalled: the generator's
 state is not part of the record, so such a consultant writes a checkpoint per call.
@@ -111,6 +115,11 @@ def remove(entity: str, properties: Sequence[str], time: float) -> Record:
     return ["remove", entity, list(properties), time]
 
 
+def refer(entity: str, properties: Sequence[str], time: float, turn: Optional[int]) -> Record:
+    """Return the record of an act of referring: ``entity``'s next episode begins, ``properties`` are encoded."""
+    return ["refer", entity, list(properties), time, turn]
+
+
 def names_in(record: Record) -> int:
     """Return how many entity names a record carries (what its size grows with; a bitset counts 1 per 8)."""
     if record and record[0] == "each":
@@ -125,6 +134,8 @@ def time_of(record: Record) -> float:
     kind = record[0]
     if kind in ("each", "encode"):
         return float(record[4])
+    if kind == "refer":
+        return float(record[3])
     if kind == "decay":
         return TickRun.from_json(record[1]).last
     return float(record[-1])  # limits, evict, remove, advance
@@ -152,6 +163,9 @@ def replay(buffer: WMBuffer, entity_order: Sequence[str], record: Record) -> Non
     elif kind == "remove":
         for prop in record[2]:
             buffer.remove(record[1], prop, "retract", record[3])
+    elif kind == "refer":
+        buffer.begin_episode(record[1], record[3], record[4])
+        buffer.encode(record[1], record[2], "speaker", record[3], record[4])
     else:  # check() refuses anything else
         raise JournalError(f"unknown journal record {kind!r}")
 
@@ -188,6 +202,8 @@ def check(record: Any, knows_entity: Callable[[str], bool], knows_property: Call
             check_time("time", record[1])
         elif kind == "remove":
             check_time("time", record[3])
+        elif kind == "refer":
+            check_time("time", record[3])
     except (TickError, PolicyError) as err:
         raise JournalError(f"{kind!r} record: {err}") from None
     return _known(record, knows_entity, knows_property, keep_known)
@@ -203,6 +219,7 @@ _SHAPES: dict[str, tuple] = {
     "evict": (int, (int, float)),
     "advance": ((int, float),),
     "remove": (str, _NAMES, (int, float)),
+    "refer": (str, _NAMES, (int, float), (int, type(None))),
 }
 
 
@@ -219,7 +236,7 @@ def _known(record: Record, knows_entity: Callable[[str], bool], knows_property: 
     kind = record[0]
     if kind == "each":
         entities, props = record[2], [record[1]]
-    elif kind in ("encode", "remove"):
+    elif kind in ("encode", "remove", "refer"):
         entities, props = [record[1]], record[2]
     else:
         return record

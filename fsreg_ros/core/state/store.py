@@ -28,8 +28,9 @@ Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
     forgetting policy's settings), ``decay_until`` (time of the last decay tick
     applied: a tick at or before it is never applied again), ``clock`` (``sim`` or
     ``system``: the kind of clock WM's times are on) and ``latest`` (the latest time
-    WM reflects), ``checkpoint`` (``{"stamp", "ticks", "policy"}``: the buffer's
-    counters and limits as of the checkpoint).
+    WM reflects), ``checkpoint`` (``{"stamp", "ticks", "policy", "episodes"}``: the
+    buffer's counters, limits and reference episodes as of the checkpoint; ``episodes``
+    is :meth:`WMBuffer.export_episodes`'s dict, absent in files written before it).
 ``entities(seq, name)``
     Entities added at run time, in the order they joined the domain.
 ``facts(entity, property, certainty)``
@@ -75,7 +76,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 from ..memory import UNKNOWN_ORIGIN
-from ..memory.activation import Trace
+from ..memory.trace import Trace
 
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.
@@ -176,6 +177,7 @@ class Checkpoint:
     ticks: int
     policy: Optional[dict]
     clear: bool = False
+    episodes: Mapping[str, Any] = field(default_factory=dict)  # WMBuffer.export_episodes(), whole
 
 
 @dataclass
@@ -220,6 +222,7 @@ class StoreContents:
     stamp: int = 0  # the checkpoint's counters and limits
     ticks: int = 0
     limits: Optional[dict] = None
+    episodes: dict[str, Any] = field(default_factory=dict)  # the checkpoint's reference episodes
     journal: list[Any] = field(default_factory=list)
     #: The KB's entities in entity order when the database was written (None: not recorded).
     kb_entities: Optional[list[str]] = None
@@ -358,7 +361,8 @@ class DomainStore:
                 db.executemany("INSERT INTO entities (name) VALUES (?)", [(e,) for e in state.entities])
                 for entity, facts in state.facts.items():
                     self._facts(db, entity, facts, False)
-                self._checkpoint(db, Checkpoint(state.queues, state.stamp, state.ticks, state.limits))
+                self._checkpoint(db, Checkpoint(state.queues, state.stamp, state.ticks, state.limits,
+                                                episodes=state.episodes))
                 self._put(db, "kb", self.kb)
                 for key, value in (("policy", state.policy), ("clock", state.clock),
                                    ("kb_entities", state.kb_entities)):
@@ -563,7 +567,7 @@ class DomainStore:
             [(e, _dumps([list(item) for item in items])) for e, items in queues.items() if items])
         db.execute("DELETE FROM journal")
         self._put(db, "checkpoint", {"stamp": checkpoint.stamp, "ticks": checkpoint.ticks,
-                                     "policy": checkpoint.policy})
+                                     "policy": checkpoint.policy, "episodes": dict(checkpoint.episodes)})
 
     def _read(self, incarnation: int) -> StoreContents:
         db, path = self._db, self.path
@@ -580,10 +584,13 @@ class DomainStore:
             stamp=_whole(checkpoint.get("stamp", 0), path, "checkpoint stamp"),
             ticks=_whole(checkpoint.get("ticks", 0), path, "checkpoint ticks"),
             limits=checkpoint.get("policy"),
+            episodes=checkpoint.get("episodes") or {},
             entities=[name for (name,) in db.execute("SELECT name FROM entities ORDER BY seq")],
             other_kb=self._meta("kb") != self.kb,
             kb_entities=self._meta("kb_entities"),
         )
+        if not isinstance(state.episodes, dict):
+            raise damaged(path, "meta 'checkpoint' episodes is not an object")
         if state.kb_entities is not None and not (isinstance(state.kb_entities, list)
                                                   and all(isinstance(e, str) for e in state.kb_entities)):
             raise damaged(path, "meta 'kb_entities' is not a list of names")
