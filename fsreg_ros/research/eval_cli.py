@@ -132,7 +132,7 @@ def tangram_grids(entries: Sequence[str]) -> dict:
 
 
 def add_reuse_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of a reference-game evaluation (``reference-games`` and ``tangrams``)."""
+    """Add the options of a reference-game evaluation (``reference-games`` and ``tangrams``)."""
     parser.add_argument("--tokens", default="content", metavar="NAME",
                         help="tokenisation: content (stop list), stems (stop list + Snowball stems) or all "
                              "(default content)")

@@ -136,8 +136,10 @@ class Row:
 
 @dataclass(frozen=True)
 class Message:
-    """One message: its time (seconds from the game's first message; the message's index when the game
-    has no times), trial, repetition, role, player, referent and content words."""
+    """One message: its time, trial, repetition, role, player, referent and content words.
+
+    ``time``: seconds from the game's first message; the message's index when the game has no times.
+    """
 
     time: float
     trial: int

@@ -53,7 +53,7 @@ class Evaluation:
         return self.fits[name].heldout_ll(self.events.candidates)
 
     def best_of(self, kind: str) -> Optional[str]:
-        """The model of family ``kind`` with the best held-out log-likelihood (None if there is none)."""
+        """Return the model of family ``kind`` with the best held-out log-likelihood (None if there is none)."""
         names = [n for n in self.fits if family(n) == kind]
         return max(names, key=self.heldout) if names else None
 
@@ -137,7 +137,7 @@ def evaluate_games(games: Sequence[Game], tokeniser: str = "content", folds: int
 
 
 def difference(a: Fit, b: Fit, events: Events, resamples: int = RESAMPLES) -> dict:
-    """``a - b``: held-out log-likelihood per candidate, paired by game over the games both were scored on."""
+    """Return ``a - b``: held-out log-likelihood per candidate, paired by game over the games both were scored on."""
     both = np.ones(len(events.games), bool)
     for fit in (a, b):
         if fit.games is not None:
@@ -151,8 +151,11 @@ def difference(a: Fit, b: Fit, events: Events, resamples: int = RESAMPLES) -> di
 
 
 def differences(result: Evaluation, resamples: int = RESAMPLES) -> list:
-    """The paper's pairs, the best rule against the last description and the best regression, and every model
-    against the best model and against ``constant``."""
+    """Return every difference reported.
+
+    The paper's pairs, the best rule against the last description and against the best
+    regression, and every model against the best model and against ``constant``.
+    """
     fits, events = result.fits, result.events
     pairs = [(a, b) for a, b in PAIRS if a in fits and b in fits]
     rule, regression = result.best_of("rule"), result.best_of("regression")
@@ -230,7 +233,7 @@ def _ci(diff: dict) -> str:
 
 
 def setting_text(fit: Fit) -> str:
-    """A model's fitted setting in one line (parameters by symbol, then its link)."""
+    """Return a model's fitted setting in one line (parameters by symbol, then its link)."""
     s = fit.setting
     if fit.kind == "recency":
         return ", ".join(f"{k} {v:+.3f}" for k, v in s.items())

@@ -59,7 +59,7 @@ def _people(result: Evaluation, bins: np.ndarray, count: int):
 
 
 def _drawn(result: Evaluation) -> list[str]:
-    """The models drawn: every model with the in/out link in the group's WM, and the best graded rule."""
+    """Return the models drawn: every model with the in/out link in the group's WM, and the best graded rule."""
     graded = [n for n in result.fits if result.fits[n].graded and family(n) == "rule"]
     best = [max(graded, key=result.heldout)] if graded else []
     return [n for n in result.fits if "/" not in n] + best
