@@ -48,12 +48,18 @@ _AGE_BIN = np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left")
 
 
 def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
-    """Each word's cell in Q[referent] from the buffer's strength of its entries (None when the queue is empty)."""
-    held = buffer.queue(referent)
-    if not held:
+    """Each word's cell in Q[referent] from the strength of its entries (None when the queue is empty).
+
+    The strength's episode fields (``WMBuffer.strength``'s ``age`` and ``episodes``) are read
+    from the buffer's episode log over its entries, one read of the queue: ``WMBuffer.strength``
+    itself would also rebuild each entry's activation trace under rule ``activation``, which
+    the cells do not use (it doubled the replays' time).
+    """
+    entries = buffer.entry_stamps(referent)
+    if not entries:
         return None
-    cell = {word: 1 + EPISODE_BINS * int(_AGE_BIN[min(s.age, 63)]) + (s.episodes > 1)
-            for word, s in zip(held, buffer.strength(referent))}
+    cell = {e.property: 1 + EPISODE_BINS * int(_AGE_BIN[min(age, 63)]) + (used > 1)
+            for e, (age, used) in zip(entries, buffer.episodes.strength(referent, entries))}
     return [cell.get(w, 0) for w in words]
 
 
@@ -79,8 +85,10 @@ def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.
     """Play one game's stream through one (group) WM buffer; write each candidate's cell into ``out``."""
     memory = _Memory(policy)
     buffer = memory.buffer
+    advance = memory.manager.advance if memory.clocked else None  # type: ignore[union-attr]
     for turn, (kind, time, referent, words, extra, _, _) in enumerate(stream):
-        memory.advance(time)
+        if advance is not None:
+            advance(time)
         if kind == "ask":
             cells = strength_cells(buffer, referent, words)
             if cells is not None:
