@@ -28,9 +28,10 @@ import csv
 import json
 import math
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Optional, Sequence, Union
+from typing import Iterable, Iterator, Mapping, Optional, Sequence, TextIO, Union
 
 from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
 
@@ -168,20 +169,27 @@ def load_games(path: Union[str, Path], tokeniser: Union[str, Tokeniser] = "conte
 def read_rows(path: Union[str, Path]) -> list[Row]:
     """Read and check every row of a reference-game file, each cell by itself (see :func:`games_from_rows`)."""
     source = Path(path)
-    try:
-        with open_text(source, MAX_CORPUS_BYTES) as handle:
-            records = _json_records(handle, source) if source.suffix.lower() in JSON_SUFFIXES else \
-                _csv_records(handle, source)
-            rows = [_row(record, line, source) for line, record in records]
-    except InputFileError as err:
-        raise ReferenceGamesError(str(err)) from None
-    except UnicodeDecodeError as err:
-        raise ReferenceGamesError(f"{source}: not UTF-8 text ({err.reason})") from None
-    except csv.Error as err:
-        raise ReferenceGamesError(f"{source}: not CSV ({err})") from None
+    with corpus_text(source) as handle:
+        records = _json_records(handle, source) if source.suffix.lower() in JSON_SUFFIXES else \
+            _csv_records(handle, source)
+        rows = [_row(record, line, source) for line, record in records]
     if not rows:
         raise ReferenceGamesError(f"{source}: no messages")
     return rows
+
+
+@contextmanager
+def corpus_text(source: Path, error: type = ReferenceGamesError) -> Iterator[TextIO]:
+    """Open a corpus file as text (:mod:`fsreg_ros.core.io.input_file`); any reading fault is one ``error``."""
+    try:
+        with open_text(source, MAX_CORPUS_BYTES) as handle:
+            yield handle
+    except InputFileError as err:
+        raise error(str(err)) from None
+    except UnicodeDecodeError as err:
+        raise error(f"{source}: not UTF-8 text ({err.reason})") from None
+    except csv.Error as err:
+        raise error(f"{source}: not CSV ({err})") from None
 
 
 def _csv_records(handle, source: Path) -> Iterator[tuple[int, Mapping]]:

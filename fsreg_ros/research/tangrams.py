@@ -24,9 +24,8 @@ import csv
 from pathlib import Path
 from typing import Mapping, Optional, Sequence, Union
 
-from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
 from .reference_games import (STOP_WORDS, TOKENISATIONS, Game, Message, ReferenceGamesError, Row, Tokeniser,
-                              games_from_rows, tokenisation)
+                              corpus_text, games_from_rows, tokenisation)
 from .reuse_eval import Evaluation, evaluate_games, report, setting_text
 from .reuse_events import Events, build_events
 from .reuse_fit import Fit, fit_cells, fit_membership, fit_recency, folds_of, logistic_fit
@@ -65,22 +64,15 @@ def tangram_rows(path: Union[str, Path]) -> list[Row]:
     """Read the corpus file into rows of the reference-game format (games by id; messages by time, then file order)."""
     source = corpus_file(path)
     games: dict[str, list[tuple[int, int, dict]]] = {}
-    try:
-        with open_text(source, MAX_CORPUS_BYTES) as handle:
-            reader = csv.DictReader(handle)
-            missing = [c for c in COLUMNS if c not in (reader.fieldnames or ())]
-            if missing:
-                raise TangramsError(f"{source}: not the tangram corpus: no column {', '.join(missing)}")
-            for row in reader:
-                line = reader.line_num
-                time = _integer(row, "msgTime", source, line)
-                games.setdefault(row["gameid"], []).append((time, line, row))
-    except InputFileError as err:
-        raise TangramsError(str(err)) from None
-    except UnicodeDecodeError as err:
-        raise TangramsError(f"{source}: not UTF-8 text ({err.reason})") from None
-    except csv.Error as err:
-        raise TangramsError(f"{source}: not CSV ({err})") from None
+    with corpus_text(source, TangramsError) as handle:
+        reader = csv.DictReader(handle)
+        missing = [c for c in COLUMNS if c not in (reader.fieldnames or ())]
+        if missing:
+            raise TangramsError(f"{source}: not the tangram corpus: no column {', '.join(missing)}")
+        for row in reader:
+            line = reader.line_num
+            time = _integer(row, "msgTime", source, line)
+            games.setdefault(row["gameid"], []).append((time, line, row))
     if not games:
         raise TangramsError(f"{source}: no messages")
     out = []
