@@ -110,11 +110,17 @@ def evaluate_games(games: Sequence[Game], tokeniser: str = "content", folds: int
             fits[model.name + suffix] = fit_cells(model.name + suffix, "wm", span, CELLS, events, fold, model.settings,
                                                   model.parameters, graded, scored)
         row += len(model.settings)
-    if events.describers_from_start:
+    late = int(events.late.sum())
+    if not late:
         notes.append("every re-reference's describer was present from their game's first trial, so their own WM "
                      "holds what the group's does: the per-player rules are not fitted separately")
     else:
-        player_cells = cells_of(events, settings[2:], jobs, players=True)
+        notes.append(f"in {late} game{'s' if late != 1 else ''} a re-reference's describer wrote first after the "
+                     "game's first trial (present from then on): there the per-player WM differs from the group's")
+        # Elsewhere every describer's own WM holds what the group's does: only the late games are replayed.
+        player_cells = cells[2:].copy()
+        rows = events.late[events.game]
+        player_cells[:, rows] = cells_of(events, settings[2:], jobs, players=True, games=events.late)[:, rows]
         row = 0
         for model in models:
             span = player_cells[row:row + len(model.settings)]

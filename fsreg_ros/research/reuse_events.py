@@ -53,8 +53,13 @@ class Events:
     last: np.ndarray
     by_describer: np.ndarray
     timed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # per game
-    describers_from_start: bool = True  # every event's describer present since its game's first trial
+    late: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # per game: an event's describer joined late
     descriptives: dict = field(default_factory=dict)
+
+    @property
+    def describers_from_start(self) -> bool:
+        """Whether every event's describer was present from their game's first trial (player WM = group WM)."""
+        return not self.late.any()
 
     @property
     def candidates(self) -> int:
@@ -81,7 +86,7 @@ def build_events(games: Sequence[Game]) -> Events:
     cols: dict[str, list] = {k: [] for k in names}
     desc = _Descriptives()
     event = 0
-    everyone = True
+    late = np.zeros(len(games), bool)
     for g, game in enumerate(games):
         steps: list[tuple] = []
         # Per referent: word -> (time, trial, word count at the time, reference index) of its last mention.
@@ -128,7 +133,7 @@ def build_events(games: Sequence[Game]) -> Events:
                         cols["last"].append(trial == previous)
                         cols["by_describer"].append(word in own)
                     steps.append(("ask", m.time, m.referent, tuple(earlier), first, m.player, present))
-                    everyone = everyone and joined[m.player] == opening
+                    late[g] |= joined[m.player] != opening
                     event += 1
             steps.append(("say", m.time, m.referent, m.words, CAUSES[m.role], m.player, present))
             mine = said.setdefault(m.referent, {})
@@ -143,7 +148,7 @@ def build_events(games: Sequence[Game]) -> Events:
     dtypes = {"used": bool, "last": bool, "by_describer": bool, "seconds": float}
     arrays = {k: np.asarray(v, dtype=dtypes.get(k, np.int64)) for k, v in cols.items()}
     timed = np.asarray([game.timed for game in games], dtype=bool)
-    return Events([game.gameid for game in games], streams, words, timed=timed, describers_from_start=everyone,
+    return Events([game.gameid for game in games], streams, words, timed=timed, late=late,
                   descriptives=desc.summary(), **arrays)
 
 

@@ -123,21 +123,24 @@ _SHARED: dict = {}
 
 
 def _replay_setting(index: int) -> np.ndarray:
-    events, settings, play = _SHARED["events"], _SHARED["settings"], _SHARED["play"]
+    events, settings, play, games = _SHARED["events"], _SHARED["settings"], _SHARED["play"], _SHARED["games"]
     setting = settings[index]
     policy = None if setting is None else policy_of(setting)
     out = np.zeros(events.candidates, dtype=np.uint8)
-    for stream in events.streams:
-        play(stream, policy, out)
+    for g, stream in enumerate(events.streams):
+        if games is None or games[g]:
+            play(stream, policy, out)
     return out
 
 
-def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False) -> np.ndarray:
+def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False,
+             games: Optional[np.ndarray] = None) -> np.ndarray:
     """Every candidate's cell under each setting (rows; None = no forgetting), replaying every game.
 
-    ``players``: per-player WM instead of the group's; ``jobs`` processes (results do not depend on it).
+    ``players``: per-player WM instead of the group's; ``games``: replay only these (the other
+    games' candidates stay 0); ``jobs`` processes (results do not depend on it).
     """
-    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay)
+    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay, games=games)
     try:
         if jobs <= 1 or len(settings) < 2:
             rows = [_replay_setting(i) for i in range(len(settings))]

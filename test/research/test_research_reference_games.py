@@ -91,7 +91,7 @@ def test_events_candidates_and_outcomes_are_exact(events):
     assert events.by_describer.tolist() == [False, False, False, True, False, False]
     assert events.seconds[:4].tolist() == [10.0, 8.0, 15.0, 14.0] and np.isnan(events.seconds[4:]).all()
     assert events.timed.tolist() == [True, False]
-    assert events.describers_from_start is False  # cat and eve joined late
+    assert events.late.tolist() == [True, True] and events.describers_from_start is False  # cat, eve joined late
 
 
 @pytest.mark.parametrize("setting, group, player", [
@@ -106,6 +106,18 @@ def test_cells_in_the_group_wm_and_in_each_players_wm(events, setting, group, pl
     # Cell 0: not in WM; 1: in WM, used in the referent's previous episode (age 1) and in that one only.
     assert cells_of(events, [setting]).tolist() == [group]
     assert cells_of(events, [setting], players=True).tolist() == [player]
+
+
+def test_a_describer_present_from_the_start_holds_what_the_group_holds(tmp_path):
+    # r3: the matcher joins late, but the describer (ann) wrote from the first trial: her WM is the group's,
+    # which is why only games with a late describer are replayed per player.
+    rows = [("r3", 1, "A", "ann", "describer", 0, "red ghost"), ("r3", 2, "B", "ann", "describer", 1, "tall man"),
+            ("r3", 2, "B", "bob", "matcher", 2, "man?"), ("r3", 3, "A", "ann", "describer", 3, "ghost"),
+            ("r3", 4, "B", "ann", "describer", 4, "man")]
+    events = build_events(RG.load_games(write_csv(tmp_path / "r3.csv", rows)))
+    assert events.late.tolist() == [False] and events.candidates == 4
+    settings = [None, {"policy": "displacement", "capacity": 1}, {"policy": "episodes", "episode_window": 1}]
+    assert cells_of(events, settings, players=True).tolist() == cells_of(events, settings).tolist()
 
 
 def test_strength_cells_bin_each_entrys_episode_age_and_episodes():
