@@ -105,7 +105,7 @@ def evaluate_games(games: Sequence[Game], tokeniser: str = "content", folds: int
     row = 2
     for model in models:
         span = cells[row:row + len(model.settings)]
-        scored = events.timed if needs_clock(model.name) else None
+        scored = events.timed if needs_clock(model.name) and untimed else None
         for suffix, graded in (("", False), (GRADED, True)):
             fits[model.name + suffix] = fit_cells(model.name + suffix, "wm", span, CELLS, events, fold, model.settings,
                                                   model.parameters, graded, scored)
@@ -124,7 +124,7 @@ def evaluate_games(games: Sequence[Game], tokeniser: str = "content", folds: int
         row = 0
         for model in models:
             span = player_cells[row:row + len(model.settings)]
-            scored = events.timed if needs_clock(model.name) else None
+            scored = events.timed if needs_clock(model.name) and untimed else None
             fits[model.name + PLAYER] = fit_cells(model.name + PLAYER, "wm", span, CELLS, events, fold,
                                                   model.settings, model.parameters, False, scored)
             row += len(model.settings)

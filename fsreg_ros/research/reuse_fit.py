@@ -185,7 +185,7 @@ def fit_recency(name: str, events: Events, fold: np.ndarray) -> Fit:
     A regression on seconds is trained and scored on the games with times only.
     """
     names = RECENCY[name]
-    clocked = bool(CLOCK_PREDICTORS & set(names))
+    clocked = bool(CLOCK_PREDICTORS & set(names)) and not events.timed.all()
     scored = events.timed.copy() if clocked else np.ones(len(events.games), bool)
     x = recency_features(events, names)
     y = events.used.astype(float)
