@@ -21,15 +21,8 @@ from fsreg_ros.core.consultant.views import ViewTable
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy, PolicyError
 from fsreg_ros.core.memory import Strength, WMBuffer
 from fsreg_ros.core.state import journal
-from fsreg_ros.core.state.store import DomainStore, StateDamaged, fingerprint
-
-PREF = ["light-hair", "dark-hair", "male", "female", "glasses", "lab-coat"]
-ENTITIES = {
-    "face1": {"light-hair": 1.0, "male": 1.0, "glasses": 1.0, "lab-coat": 1.0},
-    "face2": {"dark-hair": 1.0, "female": 1.0, "glasses": 0.7},
-    "face3": {"dark-hair": 0.9, "male": 1.0, "lab-coat": 0.4},
-}
-KB = fingerprint(PREF, ENTITIES, 0.5, {})
+from fsreg_ros.core.state.store import DomainStore, StateDamaged
+from test_consultant_service import ENTITIES, KB, PREF  # three faces, one of them with glasses at 0.7
 
 
 def buffer(policy: str = "none", events=None, **settings) -> WMBuffer:
@@ -137,9 +130,7 @@ def test_the_window_setting_is_a_row_of_the_table():
     assert policy.limits().episode_window == 3 and policy.to_json() == {"policy": "episodes", "episode_window": 3}
     assert ForgettingPolicy.parse("decay+episodes+displacement", decay_period=5.0, capacity=2,
                                   episode_window=1).name == "decay+episodes+displacement"
-    with pytest.raises(PolicyError,
-                       match="^policy 'episodes' needs 'episode_window' \\(episodes\\) but it is not set$"):
-        ForgettingPolicy.parse("episodes")
+    assert ForgettingPolicy.parse("episodes").to_json() == {"policy": "episodes", "episode_window": 1}  # its fallback
     with pytest.raises(PolicyError, match="^episode_window must be >= 1, got 0$"):
         ForgettingPolicy.parse("episodes", episode_window=0)
     assert ForgettingPolicy.parse("displacement", capacity=2).limits().episode_window is None

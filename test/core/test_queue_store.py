@@ -24,6 +24,44 @@ class Log:
     def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
         self.heard.append(("forget", entity, prop, cause, time))
 
+    def sync(self, entity: str, q) -> None:
+        return None
+
+    def flush(self) -> None:
+        return None
+
+
+class Window(Log):
+    """A forgetting rule written over the buffer's interface alone (no change to the store or the buffer).
+
+    An entry stays while its last encoding is within ``span`` seconds of the latest encoding heard;
+    evaluated lazily, when a queue is read or encoded into (``sync``) or WM is read whole (``flush``).
+    """
+
+    def __init__(self, wm: WMBuffer, span: float) -> None:
+        super().__init__()
+        self.wm, self.span, self.clock = wm, span, float("-inf")
+        self.last: dict[tuple[str, str], float] = {}
+
+    def encoded(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int], present: bool) -> None:
+        super().encoded(entity, prop, cause, time, turn, present)
+        self.last[(entity, prop)] = time
+        self.clock = max(self.clock, time)
+
+    def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
+        super().forgot(entity, prop, cause, time)
+        del self.last[(entity, prop)]
+
+    def sync(self, entity: str, q) -> None:
+        for prop in [p for p in q if self.last[(entity, p)] < self.clock - self.span]:
+            self.wm.forget_entry(entity, q, prop, "window", self.clock, None)
+
+    def flush(self) -> None:
+        for entity in self.wm.store.nonempty():
+            q = self.wm.store.get(entity)
+            if q:
+                self.sync(entity, q)
+
 
 def keys(events: list[WMEvent]) -> list[tuple]:
     return [(e.op, e.entity, e.property, e.cause, e.time) for e in events]
@@ -110,3 +148,17 @@ def test_the_store_keeps_size_non_empty_set_and_stamps():
     assert store.drop_fronts("x", q, 5) == 1 and q.synced == 5  # five owed ticks, one entry: it goes
     assert (store.size, store.nonempty(), dict(q)) == (1, ["y"], {})
     assert store.take_fronts("y", y, 1) == ["c"] and (store.size, store.nonempty()) == (0, [])
+
+
+def test_a_rule_plugs_in_as_a_watcher_and_forgets_lazily():
+    b = WMBuffer("d")
+    window = Window(b, 5.0)
+    b.watch(window)
+    b.encode("e0", ["a"], "speaker", 0.0, 1)
+    b.encode("e1", ["b"], "speaker", 1.0, 2)
+    b.encode("e0", ["c"], "speaker", 7.0, 3)  # e0 was brought up to the clock before (then 1.0): a stays
+    assert window.heard[-1] == ("encode", "e0", "c", "speaker", 7.0)
+    assert b.queue("e0") == ("c",)  # read: a, encoded at 0.0, is more than 5 s before 7.0
+    assert window.heard[-1] == ("forget", "e0", "a", "window", 7.0)
+    assert b.snapshot() == {"e0": ["c"]} and len(b) == 1  # read whole: e1's b (1.0) went too
+    assert b.take_changes() == ["e0", "e1"]

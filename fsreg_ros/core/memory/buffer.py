@@ -11,18 +11,18 @@ everything), with its collaborators:
 * ``interference`` (:mod:`fsreg_ros.core.memory.displacement`): Algorithm 3,
   similarity and the global and shared limits, enforced after every encoding event
   (new limits are installed by :mod:`fsreg_ros.core.memory.install`);
-* ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`), ``changes``
-  (:mod:`fsreg_ros.core.memory.changes`) and ``columns``
-  (:mod:`fsreg_ros.core.memory.columns`): the records kept beside the queues and the
-  numpy form of the queues of a large domain.
+* ``origin_log`` (:mod:`fsreg_ros.core.memory.origins`) and ``changes``
+  (:mod:`fsreg_ros.core.memory.changes`): the records kept beside the queues.
 
-The queues themselves, their size, non-empty set and stamp counter are the buffer's
-:class:`~fsreg_ros.core.memory.queues.QueueStore` (``store``); the buffer and every
-collaborator change them only through its methods.  A side log kept per entry (rule
-``activation``'s traces) hears encodings and forgettings through ``watchers``
+The queues themselves (a dict queue each, or, for the rule 2 and 3 encodings of a
+large domain, a row of the numpy column form: :mod:`fsreg_ros.core.memory.columns`,
+encoded by :mod:`fsreg_ros.core.memory.column_encoding`), their size, non-empty set
+and stamp counter are the buffer's :class:`~fsreg_ros.core.memory.queues.QueueStore`
+(``store``); the buffer and every collaborator change them only through its methods.
+A side log kept per entry hears every encoding and forgetting through ``watchers``
 (:class:`EntryWatcher`; see :mod:`fsreg_ros.core.memory`).  The episode log
 (:mod:`fsreg_ros.core.memory.episodes`) needs no watcher: it reads the entries' stamps
-when an episode begins or a strength is read.
+(:meth:`WMBuffer.entry_stamps`) when an episode begins or a strength is read.
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from __future__ import annotations
 from typing import Callable, Iterable, Mapping, Optional, Protocol, Sequence
 
 from . import bitset, column_encoding, persistence
-from .activation import LazyActivation
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import LazyDecay
 from .displacement import Interference
+from .host import ActivationRule, ChangeLog, DecayRule, InterferenceRule, OriginRecord
 from .install import install_limits
 from .limits import UNLIMITED, Limits
 from .origins import OriginLog
@@ -50,7 +50,8 @@ class EntryWatcher(Protocol):
 
     While a watcher is attached the buffer takes its general paths (the quiet fast
     paths and the column form are off, as for an event sink), so every entry that
-    enters, is refreshed or leaves is told here, in event order.
+    enters, is refreshed or leaves is told here, in event order; and a watcher may be
+    a forgetting rule of its own, evaluated lazily (:meth:`sync`, :meth:`flush`).
     """
 
     def encoded(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int], present: bool) -> None:
@@ -58,6 +59,17 @@ class EntryWatcher(Protocol):
 
     def forgot(self, entity: str, prop: str, cause: str, time: float) -> None:
         """Note that ``prop`` left Q[entity] (any cause)."""
+
+    def sync(self, entity: str, q: Queue) -> None:
+        """Bring the dict queue Q[entity] up to date before it is read or encoded into.
+
+        Called after decay and activation caught it up; a rule evaluated lazily (as
+        activation is) forgets what it no longer keeps here, with
+        :meth:`WMBuffer.forget_entry`.  A log that forgets nothing does nothing.
+        """
+
+    def flush(self) -> None:
+        """Bring every queue up to date (before the whole of WM is read: :meth:`WMBuffer.flush`)."""
 
 
 class WMBuffer:
@@ -83,12 +95,13 @@ class WMBuffer:
         self.column_min = COLUMN_MIN
         self.store = QueueStore()
         self.watchers: tuple[EntryWatcher, ...] = ()
-        self.lazy_decay = LazyDecay(self)
-        self.activation: Optional[LazyActivation] = None
-        self.interference = Interference(self)
-        self.origin_log = OriginLog(self)
-        self.episodes = EpisodeLog(self)
-        self.changes = ChangeRecord(self)
+        # The collaborators, typed by what the others may call on them (:mod:`.host`).
+        self.lazy_decay: DecayRule = LazyDecay(self)
+        self.activation: Optional[ActivationRule] = None  # a LazyActivation (:mod:`.activation`) while in force
+        self.interference: InterferenceRule = Interference(self)
+        self.origin_log: OriginRecord = OriginLog(self)
+        self.episodes = EpisodeLog(self)  # reference episodes (:mod:`.episodes`)
+        self.changes: ChangeLog = ChangeRecord(self)
         self.store.on_drop = self.changes.compact
 
     @property
@@ -195,6 +208,8 @@ class WMBuffer:
                 self.lazy_decay.sync(entity, q)
             if self.activation is not None:
                 self.activation.sync(entity, q)
+            if self.watchers:
+                self._sync_watchers(entity, q)
             return q
         return column_encoding.readable_row(self, entity) if self.store.in_columns(entity) else None
 
@@ -285,20 +300,23 @@ class WMBuffer:
                                self.changes.entries, act)
             return
         lfu = limits.victim == "lfu"
-        ticks, catch_up, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.catch_up, \
+        ticks, decay_sync, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.sync, \
             self.changes.record, self.interference.enforce
-        watchers = self.watchers
+        get, put, watchers = store.lookup, store.put, self.watchers
         for entity in entities:
-            q = store.get(entity)
+            q = get(entity)
             if q is None and store.in_columns(entity):
                 q = store.to_dict(entity)
             if q is None:
                 q = store.new(entity, ticks)  # ticks before a queue existed are not owed
             else:
-                catch_up(entity)
+                if q.synced != ticks:  # lazy decay catch-up (Algorithm 2)
+                    decay_sync(entity, q)
                 if act is not None:
                     act.sync(entity, q)
-            present = store.put(entity, q, prop)
+                if watchers:
+                    self._sync_watchers(entity, q)
+            present = put(entity, q, prop)
             record(entity, q)
             if lfu:  # encodings since prop entered Q (or since the limits were set)
                 if q.hits is None:
@@ -306,8 +324,9 @@ class WMBuffer:
                 q.hits[prop] = q.hits.get(prop, 1) + 1 if present else 1
             if act is not None:
                 act.record(entity, prop, time, present)
-            for watcher in watchers:
-                watcher.encoded(entity, prop, cause, time, turn, present)
+            if watchers:
+                for watcher in watchers:
+                    watcher.encoded(entity, prop, cause, time, turn, present)
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
@@ -364,6 +383,8 @@ class WMBuffer:
             self.lazy_decay.flush()
         if self.activation is not None:
             self.activation.flush()
+        for watcher in self.watchers:
+            watcher.flush()
 
     def clear(self, cause: str, time: float, turn: Optional[int] = None) -> None:
         """Forget everything (e.g. a reset)."""
@@ -409,8 +430,9 @@ class WMBuffer:
         self.store.remove(entity, q, prop)
         if self.activation is not None:
             self.activation.forget(entity, prop)
-        for watcher in self.watchers:
-            watcher.forgot(entity, prop, cause, time)
+        if self.watchers:
+            for watcher in self.watchers:
+                watcher.forgot(entity, prop, cause, time)
         self.changes.record(entity, q)
         if self.sink is not None:
             self.sink(WMEvent("forget", self.domain, entity, prop, cause, time, turn))
@@ -423,6 +445,16 @@ class WMBuffer:
             q = self.store.get(entity)
             if q:
                 self.activation.sync(entity, q)
+        if self.watchers:
+            q = self.store.get(entity)
+            if q:
+                self._sync_watchers(entity, q)
+
+    def _sync_watchers(self, entity: str, q: Queue) -> None:
+        """Let each watcher bring Q[entity] up to date (a lazy rule forgets here), the queue caught up with decay."""
+        for watcher in self.watchers:
+            if q:
+                watcher.sync(entity, q)
 
     # ------------------------------------------------------------ persistence
     def export_queue(self, entity: str) -> list[QueueItem]:

@@ -66,7 +66,7 @@ class LazyDecay:
         wm = self.wm
         synced = q.synced
         if not q:  # an empty queue owes nothing (and never needs a tick's time)
-            q.synced = self.ticks.count
+            wm.store.sync(q, self.ticks.count)
             return
         wm.changes.record(entity, q)
         if wm.quiet:  # no events to report: just drop the fronts
@@ -105,8 +105,9 @@ class LazyDecay:
             else:  # the pops must be reported: those queues become dict queues, caught up below
                 for row in owing.tolist():
                     wm.store.to_dict(columns.bound[row])
+        get = wm.store.lookup
         for entity in wm.store.nonempty():
-            q = wm.store.get(entity)  # None: a column queue, caught up above
+            q = get(entity)  # None: a column queue, caught up above
             if q is not None and q.synced != count:
                 self.sync(entity, q)
         # Every non-empty queue is now up to date, and an empty one never needs a

@@ -15,7 +15,7 @@ primitives (:meth:`HostBuffer.forget_entry`, :meth:`HostBuffer.pop_entry`,
 
 from __future__ import annotations
 
-from typing import Mapping, Optional, Protocol
+from typing import Mapping, Optional, Protocol, Sequence
 
 import numpy as np
 
@@ -50,6 +50,9 @@ class DecayRule(Protocol):
 
     def add(self, ticks: TickRun) -> None:
         """Give ticks lazily."""
+
+    def now(self, ticks: TickRun, entity_order: Sequence[str]) -> None:
+        """Apply ticks at once, in the canonical event order."""
 
 
 class ActivationRule(Protocol):

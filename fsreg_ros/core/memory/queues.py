@@ -120,6 +120,11 @@ class QueueStore:
         """Return Q[entity] if it is a dict queue, else None (a column queue or none)."""
         return self._dicts.get(entity)
 
+    @property
+    def lookup(self) -> Callable[[str], Optional[Queue]]:
+        """Return the dict queues' lookup, entity -> queue or None (no Python frame: for loops over many entities)."""
+        return self._dicts.get
+
     def dict_queues(self) -> ItemsView[str, Queue]:
         """Return the dict queues, (entity, queue) in creation order (a live view)."""
         return self._dicts.items()
@@ -135,13 +140,6 @@ class QueueStore:
         q.synced = synced
         q.hits = None
         q.marked = False
-        return q
-
-    def open(self, entity: str, synced: int) -> Queue:
-        """Return Q[entity] as a dict queue: moved from its row, or created (``synced``: :meth:`new`)."""
-        q = self._dicts.get(entity)
-        if q is None:
-            q = self.to_dict(entity) if entity in self.columns.entities else self.new(entity, synced)
         return q
 
     def put(self, entity: str, q: Queue, prop: str) -> bool:
