@@ -307,6 +307,7 @@ def test_the_corpus_read_back_from_its_rows_is_the_same_games(tangrams_dir, tmp_
     assert RG.load_games(rows) == T.load_games(tangrams_dir)
 
 
+@pytest.mark.slow  # replays the 83 games under one setting per rule
 def test_on_the_corpus_episode_strength_beats_the_last_description(capsys, tangrams_dir):
     one = ["--grid", "decay_period=180", "--grid", "capacity=20", "--grid", "global_capacity=64",
            "--grid", "shared_capacity=64", "--grid", "episode_window=1", "--grid", "activation_decay=0.5",
