@@ -170,7 +170,10 @@ def eval_reuse(args: argparse.Namespace) -> int:
             from .reference_games import write_rows
 
             rows = tangrams.tangram_rows(args.path)
-            write_rows(args.export_rows, rows)
+            try:
+                write_rows(args.export_rows, rows)
+            except OSError as err:
+                raise UsageError(f"--export-rows {args.export_rows}: cannot write ({err.strerror or err})") from None
             print(f"{len(rows)} messages of {len({r.game for r in rows})} games written to {args.export_rows}")
             return 0
         result = tangrams.evaluate(args.path, args.tokens, args.folds, grids, args.jobs, args.resamples)

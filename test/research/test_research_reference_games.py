@@ -275,3 +275,7 @@ def test_the_tangram_adapter_gives_todays_result_and_its_rows_read_back_give_the
         code, out, err = run_cli(capsys, rows, *options)
         assert code == 0, err
         assert json.loads(out) == adapted
+    missing = tmp_path / "no" / "rows.csv"
+    assert cli.eval_main(["tangrams", str(tmp_path / "corpus"), "--export-rows", str(missing)]) == 2
+    assert capsys.readouterr()[1] == f"fsreg-eval: error: --export-rows {missing}: cannot write (No such file or " \
+                                     "directory)\n"
