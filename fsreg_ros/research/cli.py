@@ -1,213 +1,24 @@
-"""Command-line entry points of the research workbench: fsreg-eval, fsreg-sweep, fsreg-plot.
+"""Command-line entry points of the research workbench: fsreg-sweep and fsreg-plot here, fsreg-eval in :mod:`.eval_cli`.
 
-Bad input is reported as one line on stderr with exit code 2, never a traceback.
+Bad input is reported as one line on stderr with exit code 2, never a traceback (:mod:`.cli_common`).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Optional, Sequence
 
-from ..core.forgetting.policies import PolicyError
-from ..core.algorithms.generation import GenerationError
+from .cli_common import UsageError, _run, number_list
+from .eval_cli import eval_main, eval_parser
 from .execution import add_engine_arguments, engine_from_args
 from .games import BOARD_SIZE, MAX_BOARD_SIZE, WORLDS
 from .listener import MAX_REPAIRS, ORDERS, PARTNERS, ListenerOptions
-from .tuna import ALGORITHMS, DOMAINS, TunaError, evaluate, load_trials
-
-
-class UsageError(ValueError):
-    """A command-line value is unusable; the message names the option."""
-
-
-def _run(
-    main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Optional[Sequence[str]]
-) -> int:
-    args = parser.parse_args(argv)
-    try:
-        return main(args)
-    except (UsageError, TunaError, GenerationError, PolicyError, OSError, ValueError) as err:
-        print(f"{parser.prog}: error: {err}", file=sys.stderr)
-        return 2
-
-
-# ------------------------------------------------------------------ fsreg-eval
-def parse_orders(entries: Sequence[str]) -> dict[str, list[str]]:
-    """``["furniture=type,colour"]`` -> ``{"furniture": ["type", "colour"]}``."""
-    orders: dict[str, list[str]] = {}
-    for entry in entries:
-        domain, sep, rest = entry.partition("=")
-        attributes = [a.strip() for a in rest.split(",") if a.strip()]
-        if not sep or domain not in DOMAINS or not attributes:
-            raise UsageError(
-                f"--order '{entry}': expected DOMAIN=ATTR,ATTR,... with DOMAIN one of {', '.join(DOMAINS)}"
-            )
-        if len(set(attributes)) != len(attributes):
-            raise UsageError(f"--order '{entry}' names an attribute twice")
-        orders[domain] = attributes
-    return orders
-
-
-def eval_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="fsreg-eval",
-        description="Score REG algorithms (tuna) and forgetting rules (tangrams) against human referring expressions."
-    )
-    sub = parser.add_subparsers(dest="corpus", required=True)
-    tuna = sub.add_parser("tuna", help="the TUNA corpus (singular trials)")
-    tuna.add_argument("path", type=Path, help="directory holding the TUNA trial XML files")
-    tuna.add_argument(
-        "--order", action="append", default=[], metavar="DOMAIN=ATTR,...",
-        help="preference order for a domain (else learned by cross-validation)",
-    )
-    tuna.add_argument("--algorithms", default=",".join(ALGORITHMS), help="comma-separated (default: all three)")
-    tuna.add_argument("--folds", type=int, default=10, help="k for cross-validated order learning (default 10)")
-    tuna.add_argument("--per-trial", type=Path, metavar="FILE.csv", help="write one row per trial and algorithm")
-    tuna.add_argument("--json", action="store_true", help="print the results as JSON")
-    tangrams = sub.add_parser(
-        "tangrams",
-        help="the tangram games of Hawkins, Frank & Goodman (2020): forgetting rules against people's reuse")
-    tangrams.add_argument("path", type=Path, help="directory holding tangramsSequential.csv (or the file)")
-    tangrams.add_argument("--tokens", default="content", metavar="NAME",
-                          help="tokenisation: content (stop list), stems (stop list + Snowball stems) or all "
-                               "(default content)")
-    tangrams.add_argument("--folds", type=int, default=10, help="k of the cross-validation by game (default 10)")
-    tangrams.add_argument("--grid", action="append", default=[], metavar="PARAM=V1,V2,...",
-                          help="replace a parameter's grid (e.g. decay_period=5,10,20)")
-    tangrams.add_argument("--resamples", type=int, default=10_000,
-                          help="bootstrap resamples for the intervals (default 10000)")
-    tangrams.add_argument("--jobs", type=int, default=1, help="worker processes for the replays (results do not "
-                                                              "depend on it)")
-    tangrams.add_argument("--plots", type=Path, metavar="DIR", help="write the figures (PNG and PDF) into DIR")
-    tangrams.add_argument("--json", action="store_true", help="print the results as JSON")
-    return parser
-
-
-def eval_tuna(args: argparse.Namespace) -> int:
-    algorithms = [a.strip() for a in args.algorithms.split(",") if a.strip()]
-    unknown = [a for a in algorithms if a not in ALGORITHMS]
-    if unknown or not algorithms:
-        given = ", ".join(unknown) or "(none given)"
-        raise UsageError(f"--algorithms: unknown {given} (known: {', '.join(ALGORITHMS)})")
-    if args.folds < 2:
-        raise UsageError(f"--folds must be at least 2, got {args.folds}")
-    orders = parse_orders(args.order)
-    trials = load_trials(args.path)
-    for domain, order in orders.items():
-        known = {a for t in trials if t.domain == domain for facts in t.entities.values() for a in facts}
-        unknown = [a for a in order if a not in known]
-        if unknown:
-            raise UsageError(f"--order {domain}: no {domain} trial has attribute {', '.join(unknown)}")
-    results = evaluate(trials, orders, algorithms, args.folds)
-    if args.per_trial:
-        write_per_trial(args.per_trial, results)
-    rows = [r.to_json() for r in results]
-    if args.json:
-        print(json.dumps({"results": rows}, indent=2))
-        return 0
-    header = ("domain", "cond", "algorithm", "n", "dice", "masi", "acc", "min", "uniq")
-    print("{:10} {:5} {:13} {:>4} {:>6} {:>6} {:>6} {:>6} {:>6}  order".format(*header))
-    for r in rows:
-        print(
-            f"{r['domain']:10} {r['condition']:5} {r['algorithm']:13} {r['n']:>4} {r['dice']:6.3f} {r['masi']:6.3f} "
-            f"{r['accuracy']:6.3f} {r['minimality']:6.3f} {r['uniqueness']:6.3f}  {' > '.join(r['order'])}"
-            + ("  (learned, held-out scores)" if "learned" in r else "")
-        )
-    return 0
-
-
-def write_per_trial(path: Path, results: list) -> None:
-    with path.open("w", newline="", encoding="utf-8") as out:
-        writer = csv.writer(out)
-        writer.writerow(["trial", "domain", "condition", "algorithm", "order", "description", "gold", "dice", "masi",
-                         "minimal", "unique"])
-        for result in results:
-            for s in result.scores:
-                writer.writerow([
-                    s.trial, s.domain, s.condition, s.algorithm, " ".join(s.order), " ".join(s.description),
-                    " ".join(s.gold), f"{s.dice:.6f}", f"{s.masi:.6f}", int(s.minimal), int(s.unique),
-                ])
-
-
-def tangram_grids(entries: Sequence[str]) -> dict:
-    """``["capacity=1,2,3"]`` -> ``{"capacity": (1, 2, 3)}``, each value checked against the settings table."""
-    from ..core.forgetting import settings as table
-    from .tangrams import fitted_parameters, wm_models
-
-    fitted = {p for model in wm_models() for p in fitted_parameters(model.name.split("+"))}
-    grids: dict = {}
-    for entry in entries:
-        name, sep, text = entry.partition("=")
-        name = name.strip()
-        if not sep or name not in fitted:
-            known = ", ".join(sorted(fitted))
-            raise UsageError(f"--grid '{entry}': expected PARAM=V1,V2,... with PARAM one of {known}")
-        row = table.setting(name)
-        grids[name] = tuple(sorted(number_list(f"--grid {name}", text, row.kind, row.low, row.high)))
-    return grids
-
-
-def eval_tangrams(args: argparse.Namespace) -> int:
-    from .tangrams import TOKENISATIONS, evaluate, report
-
-    if args.tokens not in TOKENISATIONS:
-        raise UsageError(f"--tokens: unknown tokenisation '{args.tokens}' (known: {', '.join(TOKENISATIONS)})")
-    if not 2 <= args.folds <= 1000:
-        raise UsageError(f"--folds must be in [2, 1000], got {args.folds}")
-    if not 100 <= args.resamples <= 1_000_000:
-        raise UsageError(f"--resamples must be in [100, 1000000], got {args.resamples}")
-    if not 1 <= args.jobs <= 64:
-        raise UsageError(f"--jobs must be in [1, 64], got {args.jobs}")
-    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
-        raise UsageError(f"--plots {args.plots}: not a directory")
-    grids = tangram_grids(args.grid)
-    result = evaluate(args.path, args.tokens, args.folds, grids, args.jobs, args.resamples)
-    written = []
-    if args.plots is not None:
-        from .tangrams_plot import write_figures
-
-        written = write_figures(result, args.plots)
-    if args.json:
-        print(json.dumps(result.to_json(), indent=2))
-        return 0
-    for line in report(result):
-        print(line)
-    if written:
-        print(f"figures written to {args.plots}: {', '.join(written)}")
-    return 0
-
-
-def eval_command(args: argparse.Namespace) -> int:
-    return eval_tangrams(args) if args.corpus == "tangrams" else eval_tuna(args)
-
-
-def eval_main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of ``fsreg-eval``."""
-    return _run(eval_command, eval_parser(), argv)
 
 
 # ----------------------------------------------------------------- fsreg-sweep
-def number_list(option: str, text: str, kind: type, low: float, high: float) -> tuple:
-    """Parse a comma-separated list of numbers in [low, high] for ``option``."""
-    values = []
-    for part in text.split(","):
-        part = part.strip()
-        try:
-            value = kind(part)
-        except ValueError:
-            raise UsageError(f"{option}: '{part}' is not a{'n integer' if kind is int else ' number'}") from None
-        if not low <= value <= high or value != value:
-            raise UsageError(f"{option}: {part} is out of range [{low}, {high}]")
-        values.append(value)
-    if not values:
-        raise UsageError(f"{option}: give at least one value")
-    return tuple(dict.fromkeys(values))
-
-
 def memory_settings(entries: Sequence[str], option: str = "--memory") -> dict:
     """``["global_capacity=4"]`` -> ``{"global_capacity": 4}`` (numbers parsed, else text)."""
     out: dict = {}
@@ -684,3 +495,6 @@ def plot_command(args: argparse.Namespace) -> int:
 def plot_main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``fsreg-plot``."""
     return _run(plot_command, plot_parser(), argv)
+
+
+__all__ = ["UsageError", "number_list", "eval_main", "eval_parser", "sweep_main", "sweep_parser", "plot_main"]

@@ -1,9 +1,10 @@
 """Figures of ``fsreg-eval tangrams`` (matplotlib, Agg backend), sized for a two-column paper.
 
 * ``tangrams-reuse``: people's reuse of an earlier word against the seconds since it was last
-  said about the tangram, against the references (trials) since, and per repetition, with every
-  fitted model's held-out prediction overlaid (models whose predictions coincide with another's
-  are drawn once and named in the legend together).
+  said about the tangram, against the references (trials) since, and per repetition, with the
+  held-out prediction of every model with the in/out link in the group's WM and of the best
+  graded rule overlaid (models whose predictions coincide with another's are drawn once and
+  named in the legend together).
 * ``tangrams-data``: the corpus: distinct content words per description by repetition, the
   share of a description's words said earlier and reused, and the gaps between references.
 
@@ -19,7 +20,8 @@ import numpy as np
 
 from .plot import _pyplot
 from .stats import METHOD, ratio_bootstrap_ci
-from .tangrams import Evaluation
+from .reuse_eval import Evaluation
+from .reuse_models import family
 
 WIDTH = 7.0  # inches: a two-column paper's full text width
 FONT = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7, "ytick.labelsize": 7,
@@ -56,10 +58,18 @@ def _people(result: Evaluation, bins: np.ndarray, count: int):
     return np.asarray(out)
 
 
+def _drawn(result: Evaluation) -> list[str]:
+    """Return the models drawn: every model with the in/out link in the group's WM, and the best graded rule."""
+    graded = [n for n in result.fits if result.fits[n].graded and family(n) == "rule"]
+    best = [max(graded, key=result.heldout)] if graded else []
+    return [n for n in result.fits if "/" not in n] + best
+
+
 def _distinct_models(result: Evaluation) -> list[tuple[str, list[str]]]:
-    """Models with distinct held-out predictions, each with the names of those it coincides with."""
+    """Models drawn with distinct held-out predictions, each with the names of those it coincides with."""
     groups: list[tuple[str, list[str]]] = []
-    for name, fit in result.fits.items():
+    for name in _drawn(result):
+        fit = result.fits[name]
         for head, names in groups:
             if np.array_equal(result.fits[head].predicted, fit.predicted):
                 names.append(name)
@@ -94,7 +104,7 @@ def reuse_figure(result: Evaluation, out: Path, stem: str = "tangrams-reuse") ->
             x = np.array([np.median(values[bins == b]) if (bins == b).any() else np.nan for b in range(count)])
             for i, (name, names) in enumerate(groups):
                 fit = result.fits[name]
-                means = [fit.predicted[bins == b].mean() if (bins == b).any() else np.nan for b in range(count)]
+                means = [np.nanmean(fit.predicted[bins == b]) if (bins == b).any() else np.nan for b in range(count)]
                 ax.plot(x, means, STYLE[fit.kind], color=_colour(names, i), linewidth=1.1,
                         label=" = ".join(names))
             people = _people(result, bins, count)

@@ -79,6 +79,16 @@ def until_line(prefix: str) -> Renderer:
     return render
 
 
+def between(start: str, stop: str) -> Renderer:
+    """Render the printed output from the first line starting with ``start`` to the next starting with ``stop``."""
+    def render(figure: "Figure", output: Output) -> str:
+        lines = output.stdout.splitlines()
+        first = next((i for i, line in enumerate(lines) if line.startswith(start)), len(lines))
+        last = next((i for i in range(first, len(lines)) if lines[i].startswith(stop)), len(lines))
+        return _code("\n".join(lines[first:last]).rstrip("\n"), "")
+    return render
+
+
 def lines_with(text: str) -> Renderer:
     """Render the printed lines that contain ``text``."""
     def render(figure: "Figure", output: Output) -> str:
@@ -349,7 +359,8 @@ TANGRAM_SMALL = {"--folds": "2"}
 FIGURES += (
     Figure("tangrams", "fsreg-eval",
            ("tangrams", TANGRAMS, "--folds", "10", "--jobs", "2", "--plots", f"{OUT}/tangrams"),
-           {"tangrams": ("docs/research.md", verbatim), "tangrams-readme": ("docs/research.md", tangram_table)},
+           {"tangrams": ("docs/research.md", verbatim), "tangrams-readme": ("docs/research.md", tangram_table),
+            "tangrams-answer": ("docs/research.md", between("the paper's rules against each other", "best:"))},
            small=TANGRAM_SMALL),
     Figure("tangrams-stems", "fsreg-eval",
            ("tangrams", TANGRAMS, "--tokens", "stems", "--folds", "10", "--jobs", "2", "--plots",

@@ -41,13 +41,14 @@ DOCS = "docs"
 MOST = 3
 #: Experiment definitions that name the settings they vary (setting -> modules): exact.
 EXPERIMENTS: dict[str, set[str]] = {
-    "decay_period": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py", "fsreg_ros/tools/figures.py"},
-    "capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py"},
-    "global_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py"},
-    "seed": {"fsreg_ros/research/tangrams.py"},
-    "shared_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py"},
-    "activation_decay": {"fsreg_ros/research/tangrams.py"},
-    "activation_threshold": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/tangrams.py"},
+    "decay_period": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py"},
+    "capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "global_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "seed": {"fsreg_ros/research/reuse_models.py"},
+    "shared_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "activation_decay": {"fsreg_ros/research/reuse_models.py"},
+    "activation_threshold": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "episode_window": {"fsreg_ros/research/reuse_models.py"},
 }
 #: Another concept of the same name: a generated game's seed.
 HOMONYMS: dict[str, set[str]] = {

@@ -191,7 +191,9 @@ def test_evaluate_on_the_example_corpus_reports_every_model(tmp_path):
     result = T.evaluate(tmp_path, folds=2, grids={"decay_period": (5.0, 10.0, 20.0)}, resamples=200)
     out = result.to_json()
     assert (out["games"], out["events"], out["candidates"]) == (4, 24, 88)
-    assert set(out["models"]) == ({m.name for m in T.wm_models()} | set(T.BASELINES) | set(T.RECENCY))
+    rules = {m.name for m in T.wm_models()}
+    graded = {name + "/graded" for name in rules | {"no-forgetting"}}
+    assert set(out["models"]) == rules | graded | set(T.BASELINES) | set(T.RECENCY)
     assert out["models"]["decay"]["grid"] == {"decay_period": [5.0, 10.0, 20.0]}
     for diff in out["differences"]:
         assert diff["ci"][0] <= diff["mean"] <= diff["ci"][1]
@@ -296,3 +298,25 @@ def test_the_corpus_counts(capsys, tangrams_dir, tokens, candidates, reused):
     # every WM rule, and every WM rule beats a constant rate.
     for name in ("decay", "displacement", "decay+displacement", "global-capacity"):
         assert models["last-description"]["heldout_ll"] > models[name]["heldout_ll"] > models["constant"]["heldout_ll"]
+
+
+def test_the_corpus_read_back_from_its_rows_is_the_same_games(tangrams_dir, tmp_path):
+    from fsreg_ros.research import reference_games as RG
+
+    rows = RG.write_rows(tmp_path / "tangrams.csv", T.tangram_rows(tangrams_dir))
+    assert RG.load_games(rows) == T.load_games(tangrams_dir)
+
+
+@pytest.mark.slow  # replays the 83 games under one setting per rule
+def test_on_the_corpus_episode_strength_beats_the_last_description(capsys, tangrams_dir):
+    one = ["--grid", "decay_period=180", "--grid", "capacity=20", "--grid", "global_capacity=64",
+           "--grid", "shared_capacity=64", "--grid", "episode_window=1", "--grid", "activation_decay=0.5",
+           "--grid", "activation_threshold=-4"]
+    code, out, err = run_cli(capsys, tangrams_dir, *one, "--resamples", "100", "--json")
+    assert code == 0, err
+    models = json.loads(out)["models"]
+    # Rule episodes with k = 1 is the last description but for the matcher's words said before the director's.
+    assert abs(models["episodes"]["heldout_ll"] - models["last-description"]["heldout_ll"]) < 0.005
+    best_regression, last = models["recency-all"]["heldout_ll"], models["last-description"]["heldout_ll"]
+    for name in ("displacement/graded", "episodes/graded", "no-forgetting/graded"):
+        assert models[name]["heldout_ll"] > best_regression > last

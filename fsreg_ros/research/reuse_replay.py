@@ -1,0 +1,163 @@
+"""Replaying reference games through the core's working memory: each candidate's WM cell under a setting.
+
+Every game is played through the core's own working memory: a
+:class:`~fsreg_ros.core.memory.WMBuffer` managed by a
+:class:`~fsreg_ros.core.forgetting.wm_manager.WMManager` under a
+:class:`~fsreg_ros.core.forgetting.policies.ForgettingPolicy` (the same code the simulator and the
+node graph run; nothing here re-implements a rule).  Each content word type is a property of
+the message's referent, an entity; messages are encoded in word order (a repeated word is a
+refresh); the message time, in seconds from the game's first message, is the clock (the
+manager catches up to it before every message, as the simulator does before every turn).
+
+*Group WM* (the robot's design): one buffer per game holds what anyone said.  *Player WM*:
+one buffer per player holds only what that player said (cause ``speaker``) or heard (``rr``)
+while present; an event reads its describer's buffer.
+
+Each trial begins a reference episode of its referent (``WMBuffer.begin_episode``, at the
+trial's first message, before it is encoded), in every WM present.  The replay writes each
+candidate's *cell*: 0 if the word is not in the referent's WM queue, else 1 + its strength bin
+(:func:`strength_cells`: the entry's episode age and how many episodes it was used in, from
+``WMBuffer.strength``), which the graded link fits a rate to; the in/out link reads only cell > 0.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ..core.forgetting.policies import ForgettingPolicy
+from ..core.forgetting.wm_manager import WMManager
+from ..core.memory import WMBuffer
+from .reuse_events import Events
+from .reuse_models import ENCODING_RULES, policy_of
+
+DOMAIN = "games"
+#: Strength bins of an entry in WM by its episode age (the referent's current episode minus the
+#: last one the word was used in; at an event the trial's own episode has begun, so a word said in
+#: the referent's previous trial is 1): the upper edges; the last bin holds every larger age.
+AGE_EDGES = (1, 2, 3, 5)
+#: ... and by the episodes it was used in since it entered WM: 1, or more.
+EPISODE_BINS = 2
+#: Cells: 0 = not in WM, then one per (age bin, episodes bin).
+CELL_NAMES = ("out",) + tuple(f"age {age}, {used}" for age in ("<=1", "2", "3", "4-5", ">5")
+                              for used in ("1 episode", "2+ episodes"))
+CELLS = len(CELL_NAMES)
+_AGE_BIN = np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left")
+
+
+def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
+    """Each word's cell in Q[referent] from the strength of its entries (None when the queue is empty).
+
+    The strength's episode fields (``WMBuffer.strength``'s ``age`` and ``episodes``) are read
+    from the buffer's episode log over its entries, one read of the queue: ``WMBuffer.strength``
+    itself would also rebuild each entry's activation trace under rule ``activation``, which
+    the cells do not use (it doubled the replays' time).
+    """
+    entries = buffer.entry_stamps(referent)
+    if not entries:
+        return None
+    cell = {e.property: 1 + EPISODE_BINS * int(_AGE_BIN[min(age, 63)]) + (used > 1)
+            for e, (age, used) in zip(entries, buffer.episodes.strength(referent, entries))}
+    return [cell.get(w, 0) for w in words]
+
+
+class _Memory:
+    """A buffer with its manager (None: an unmanaged buffer, which keeps everything)."""
+
+    def __init__(self, policy: Optional[ForgettingPolicy], name: str = DOMAIN) -> None:
+        self.buffer = WMBuffer(name)
+        self.manager = None
+        if policy is not None:
+            self.manager = WMManager()
+            self.manager.manage(self.buffer, policy, 0.0)
+        # Rules the buffer enforces at each encoding need no clock: the manager is asked to catch
+        # up only for the others (decay, the shared pool, and any rule this module does not know).
+        self.clocked = policy is not None and bool(set(policy.rules) - ENCODING_RULES)
+
+    def advance(self, time: float) -> None:
+        if self.clocked:
+            self.manager.advance(time)  # type: ignore[union-attr]
+
+
+def replay(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.ndarray) -> None:
+    """Play one game's stream through one (group) WM buffer; write each candidate's cell into ``out``."""
+    memory = _Memory(policy)
+    buffer = memory.buffer
+    advance = memory.manager.advance if memory.clocked else None  # type: ignore[union-attr]
+    for turn, (kind, time, referent, words, extra, _, _) in enumerate(stream):
+        if advance is not None:
+            advance(time)
+        if kind == "ask":
+            cells = strength_cells(buffer, referent, words)
+            if cells is not None:
+                out[extra:extra + len(words)] = cells
+        elif kind == "say":
+            buffer.encode(referent, words, extra, time, turn)
+        else:
+            buffer.begin_episode(referent, time, turn)
+
+
+def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], out: np.ndarray) -> None:
+    """Play one game's stream through one WM per player (what they said or heard while present)."""
+    memories: dict[str, _Memory] = {}
+    for turn, (kind, time, referent, words, extra, player, present) in enumerate(stream):
+        for who in present:
+            if who not in memories:
+                memories[who] = _Memory(policy, f"{DOMAIN}{len(memories)}")
+            memories[who].advance(time)
+        if kind == "ask":
+            cells = strength_cells(memories[player].buffer, referent, words)
+            if cells is not None:
+                out[extra:extra + len(words)] = cells
+        elif kind == "say":
+            for who in present:
+                memories[who].buffer.encode(referent, words, "speaker" if who == player else "rr", time, turn)
+        else:
+            for who in present:
+                memories[who].buffer.begin_episode(referent, time, turn)
+
+
+_SHARED: dict = {}
+
+
+def _replay_setting(index: int) -> np.ndarray:
+    events, settings, play, games = _SHARED["events"], _SHARED["settings"], _SHARED["play"], _SHARED["games"]
+    setting = settings[index]
+    policy = None if setting is None else policy_of(setting)
+    out = np.zeros(events.candidates, dtype=np.uint8)
+    for g, stream in enumerate(events.streams):
+        if games is None or games[g]:
+            play(stream, policy, out)
+    return out
+
+
+def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False,
+             games: Optional[np.ndarray] = None) -> np.ndarray:
+    """Every candidate's cell under each setting (rows; None = no forgetting), replaying every game.
+
+    ``players``: per-player WM instead of the group's; ``games``: replay only these (the other
+    games' candidates stay 0); ``jobs`` processes (results do not depend on it).
+    """
+    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay, games=games)
+    try:
+        if jobs <= 1 or len(settings) < 2:
+            rows = [_replay_setting(i) for i in range(len(settings))]
+        else:
+            with multiprocessing.get_context("fork").Pool(jobs) as pool:
+                rows = pool.map(_replay_setting, range(len(settings)), chunksize=max(1, len(settings) // (8 * jobs)))
+    finally:
+        _SHARED.clear()
+    if not rows:
+        return np.zeros((0, events.candidates), dtype=np.uint8)
+    return np.stack(rows)
+
+
+def memberships(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1) -> np.ndarray:
+    """WM membership (group WM) of every candidate under each setting (rows)."""
+    return cells_of(events, settings, jobs) > 0
+
+
+__all__ = ["DOMAIN", "AGE_EDGES", "EPISODE_BINS", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players",
+           "cells_of", "memberships"]
