@@ -52,16 +52,17 @@ in :mod:`fsreg_ros.core.forgetting.settings` and a field of :class:`Limits`.  A
 *side log* kept per entry (for instance reference episodes: which episodes each entry
 was used in) is attached with :meth:`WMBuffer.watch` and hears, in event order, every
 encoding (:meth:`EntryWatcher.encoded`: entity, property, cause, time, turn, refresh or not;
-:meth:`QueueStore.stamp` is the stamp just given) and every forgetting, whatever the
+:attr:`QueueStore.stamp` is the stamp just given) and every forgetting, whatever the
 cause (:meth:`EntryWatcher.forgot`, decay's lazy pops included).  A watcher may be a
 forgetting rule itself, evaluated lazily as activation is: :meth:`EntryWatcher.sync`
 is called on a queue before it is read or encoded into (after decay and activation
 caught it up), :meth:`EntryWatcher.flush` before WM is read whole, and it forgets with
 :meth:`WMBuffer.forget_entry` (``test/core/test_queue_store.py`` has a 30-line one).
 While a watcher is attached the buffer takes its general paths, as with an event sink
-(the quiet fast path and the column form are off), so the log needs no column code; a per-call log
-(as the origin log: one run per encoding call) is called where
-:meth:`WMBuffer.encode_each` calls :meth:`OriginLog.log <.origins.OriginLog.log>`.  A
+(the quiet fast path and the column form are off), so the log needs no column code; a
+per-call log (as the origin log: one run per encoding call) is called where
+:meth:`WMBuffer.encode_each` and :mod:`.column_encoding` call
+:meth:`OriginLog.log <.origins.OriginLog.log>`.  A
 log that must survive a restart exports beside :meth:`WMBuffer.export_queue` (as
 :class:`~.queue.TracedItem` carries activation's traces) and is rebuilt in
 :func:`.persistence.restore`.
