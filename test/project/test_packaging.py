@@ -323,3 +323,14 @@ def test_package_xml_names_every_runtime_requirement():
     depends = {e.text for e in ET.fromstring(text).iter("exec_depend")}
     for name in sorted(required):
         assert keys.get(name) in depends or f"{name} " in text and "no rosdep key" in text, name
+
+
+def test_the_ros2_cli_check_refuses_in_one_line_without_ros2():
+    """scripts/check_ros2_cli.sh (the docs' ``ros2`` promises, end to end) needs the real CLI: without
+    ``ros2`` on PATH it says so in one line and exits 2, before anything else."""
+    script = REPO / "scripts" / "check_ros2_cli.sh"
+    run = subprocess.run(["/bin/bash", str(script)], capture_output=True, text=True, timeout=60,
+                         env={"PATH": str(REPO / "launch"), "HOME": os.environ.get("HOME", "/")})
+    assert (run.returncode, run.stdout) == (2, "")
+    assert run.stderr == ("check_ros2_cli: error: no 'ros2' on PATH: source a ROS 2 Jazzy install and this "
+                          "package's colcon workspace first (docs/testing.md)\n")
