@@ -91,8 +91,8 @@ def launch_specs(arg: Callable[[str], str]) -> tuple[list[NodeSpec], str]:
         raise _refused("domains", arg("domains"), "expected at least one domain")
     for domain in domains:
         if domain not in scenario.domains:
-            raise _refused("domains", arg("domains"), f"{kb} has no domain {domain!r} "
-                                                       f"(its domains: {', '.join(sorted(scenario.domains))})")
+            known = ", ".join(sorted(scenario.domains))
+            raise _refused("domains", arg("domains"), f"{kb} has no domain {domain!r} (its domains: {known})")
         if domains.count(domain) > 1:
             raise _refused("domains", arg("domains"), f"{domain!r} given twice")
     specs = node_specs(kb, domains, {domain: policy_settings(policy) for domain in domains}, use_sim_time=sim_time,
