@@ -14,7 +14,8 @@ starts).  The nodes come from :func:`fsreg_ros.ros.graph_spec.node_specs`, the s
 definition ``fsreg-graph`` uses: one consultant per domain (named consultant_<domain>),
 the WM Manager, the parser stub, reference resolution and REG, each domain with the
 policy given here.  Play a scripted dialogue with
-``ros2 run fsreg_ros dialogue_player --ros-args -p scenario:=...`` or talk to the
+``ros2 run fsreg_ros dialogue_player --ros-args -p scenario:=...`` (under a namespace add
+``-r __ns:=/robot1 -r /clock:=/robot1/clock``) or talk to the
 graph on dialogue/human and reg/request (under the namespace, if one is given).  Set
 use_sim_time:=true when a player (or a bag) drives /clock; under a namespace the
 nodes follow <namespace>/clock.  As ``fsreg-up`` does: ``lexicon:=FILE`` (its
