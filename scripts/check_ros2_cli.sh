@@ -84,9 +84,9 @@ stop() {
 status() {  # status [NS]: the WM Manager's status reply (JSON text) in $work/status.out
   run status ros2 service call "${1:-}/wm_manager/status" diagnostic_msgs/srv/AddDiagnostics '{load_namespace: "{}"}'
 }
-# ready NS: wait (60 s at most) until NS's WM Manager answers with ready true
+# ready NS: wait (120 s at most: node start-up on a loaded machine) until NS's WM Manager answers with ready true
 ready() {
-  local deadline=$((SECONDS + 60))
+  local deadline=$((SECONDS + 120))
   while [ $SECONDS -lt $deadline ]; do
     status "$1"
     grep -q '"ready":true' "$work/status.out" && return 0
@@ -145,7 +145,7 @@ done
 launch="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb policy:=decay decay_period:=10.0 use_sim_time:=true fresh:=true state_dir:=$work/state"
 # shellcheck disable=SC2086
 start main $launch
-if ready ""; then pass "$launch (ready)"; else fail "$launch (ready)" "no ready status within 60 s: $(tail -5 "$work/main.log" | tr '\n' ' ' | cut -c1-300)"; fi
+if ready ""; then pass "$launch (ready)"; else fail "$launch (ready)" "no ready status within 120 s: $(tail -5 "$work/main.log" | tr '\n' ' ' | cut -c1-300)"; fi
 run p1 ros2 param get /wm_manager policy
 expect "ros2 param get /wm_manager policy" "$work/p1.out" "String value is: decay$"
 run p2 ros2 param get /reg algorithm
@@ -227,7 +227,7 @@ start again $again
 if ready ""; then
   expect "$again (restores the runtime fact)" "$work/status.out" '"restored":\{"faces":\{"fresh":false,"runtime_entities":1,"runtime_facts":1'
 else
-  fail "$again (restores the runtime fact)" "no ready status within 60 s: $(tail -5 "$work/again.log" | tr '\n' ' ' | cut -c1-300)"
+  fail "$again (restores the runtime fact)" "no ready status within 120 s: $(tail -5 "$work/again.log" | tr '\n' ' ' | cut -c1-300)"
 fi
 stop again
 
@@ -235,7 +235,7 @@ stop again
 ns="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb namespace:=cli_check use_sim_time:=true lexicon:=$repo/config/lexicon.yaml algorithm:=sd-pia wm_order:=mru-first capacity:=3 state_dir:=$work/state"
 # shellcheck disable=SC2086
 start ns $ns
-if ready /cli_check; then pass "$ns (ready)"; else fail "$ns (ready)" "no ready status within 60 s"; fi
+if ready /cli_check; then pass "$ns (ready)"; else fail "$ns (ready)" "no ready status within 120 s"; fi
 run n1 ros2 param get /cli_check/reg wm_order
 run n2 ros2 param get /cli_check/reg lexicon
 run n3 ros2 param get /cli_check/wm_manager capacity
@@ -262,7 +262,7 @@ for node in consultant wm_manager parser reference_resolution reg; do
   start "run_$node" ros2 run fsreg_ros "$node" --ros-args --params-file config/guess_who.yaml "${extra[@]}" -p use_sim_time:=true
 done
 if ready ""; then pass "ros2 run fsreg_ros <node> --ros-args --params-file config/guess_who.yaml ... (every node; ready)"
-else fail "ros2 run fsreg_ros <node> --ros-args --params-file config/guess_who.yaml ... (every node; ready)" "no ready status within 60 s"; fi
+else fail "ros2 run fsreg_ros <node> --ros-args --params-file config/guess_who.yaml ... (every node; ready)" "no ready status within 120 s"; fi
 player="ros2 run fsreg_ros dialogue_player --ros-args --params-file config/dialogue_player.yaml -p scenario:=$kb"
 (cd "$repo" && timeout -s INT 120 ros2 run fsreg_ros dialogue_player --ros-args --params-file config/dialogue_player.yaml \
   -p "scenario:=$kb") > "$work/player.out" 2>&1
