@@ -12,7 +12,7 @@
 # promise holds, 1 when one is broken, 2 when it cannot check (no `ros2` on PATH, fsreg_ros not
 # installed, the ROS domain already has fsreg nodes).  Loopback only (scripts/rosenv.sh); every node it
 # starts is stopped at its end (SIGINT to the process group, as a terminal's Ctrl-C), and a ros2
-# daemon it started is stopped too.  Takes 4-6 minutes.
+# daemon it started is stopped too.  Takes about 4 minutes.
 set -u
 me=check_ros2_cli
 if ! command -v ros2 > /dev/null 2>&1; then
