@@ -10,8 +10,8 @@
 #
 # One line per check: `PASS: <command>` or `FAIL: <command> -- <what went wrong>`.  Exit 0 when every
 # promise holds, 1 when one is broken, 2 when it cannot check (no `ros2` on PATH, fsreg_ros not
-# installed, the ROS domain already has fsreg nodes).  Loopback only (scripts/rosenv.sh); every node it
-# starts is stopped at its end (SIGINT to the process group, as a terminal's Ctrl-C), and a ros2
+# installed, the ROS domain already has fsreg nodes, or another graph's nodes joined it during the
+# run).  Loopback only (scripts/rosenv.sh); every node it starts is stopped at its end (SIGINT to the process group, as a terminal's Ctrl-C), and a ros2
 # daemon it started is stopped too.  Takes about 4 minutes.
 set -u
 me=check_ros2_cli
@@ -212,6 +212,8 @@ expect "ros2 topic echo --once /diagnostics" "$work/g1.out" "name: 'fsreg: /"
 status ""
 expect "ros2 service call /wm_manager/status diagnostic_msgs/srv/AddDiagnostics '{load_namespace: \"{}\"}'" \
   "$work/status.out" "success=True" '"ready":true' '"graph":'
+# another graph joining the domain mid-run (a test run's second worker) answers in our place: say so, exit 2
+intruders="$(ros2 node list --no-daemon --spin-time 2 2> /dev/null | sort | uniq -d | tr '\n' ' ')"
 stop echo_expr; stop echo_rr
 stop main
 if [ "$rc" = 0 ] && [ "$(grep -c 'process has finished cleanly' "$work/main.log")" = 5 ] && ! grep -q Traceback "$work/main.log"; then
@@ -280,6 +282,10 @@ else
   fail "ros2 run fsreg_ros consultant ... -p kb:=none.yaml (one line, exit 2)" "exit $rc: $(tr '\n' ' ' < "$work/bad_run.out" | cut -c1-300)"
 fi
 
+if [ -n "$intruders" ]; then
+  echo "$me: error: another graph joined ROS domain $ROS_DOMAIN_ID during the run (twice: $intruders): the results above are not trustworthy; use a free domain"
+  exit 2
+fi
 if [ "$failures" -gt 0 ]; then
   echo "$me: $failures broken promise(s)"
   exit 1
