@@ -11,8 +11,9 @@
 # One line per check: `PASS: <command>` or `FAIL: <command> -- <what went wrong>`.  Exit 0 when every
 # promise holds, 1 when one is broken, 2 when it cannot check (no `ros2` on PATH, fsreg_ros not
 # installed, the ROS domain already has fsreg nodes, or another graph's nodes joined it during the
-# run).  Loopback only (scripts/rosenv.sh); every node it starts is stopped at its end (SIGINT to the process group, as a terminal's Ctrl-C), and a ros2
-# daemon it started is stopped too.  Takes about 4 minutes.
+# run).  Loopback only (scripts/rosenv.sh); every node it starts is stopped at its end (SIGINT to the
+# process group, as a terminal's Ctrl-C), and a ros2 daemon it started is stopped too.  Takes about
+# 4 minutes.
 set -u
 me=check_ros2_cli
 if ! command -v ros2 > /dev/null 2>&1; then
