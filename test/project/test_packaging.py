@@ -143,7 +143,8 @@ def test_launch_file_refuses_a_bad_argument_in_one_line_before_any_node_starts(m
         (("lexicon", str(missing)),): f"launch argument lexicon:={str(missing)!r}: {missing}: file not found",
         (("algorithm", "foo"),):
             "launch argument algorithm:='foo': expected auto, sd-pia, dist-pia, full-brevity or greedy",
-        (("wm_order", "lifo"),): "launch argument wm_order:='lifo': expected lru-first, mru-first or preference",
+        (("wm_order", "lifo"),):
+            "launch argument wm_order:='lifo': expected lru-first, mru-first, preference or strength",
         (("use_sim_time", "maybe"),): "launch argument use_sim_time:='maybe': expected true or false",
         (("decay_period", "abc"),): "launch argument decay_period:='abc': expected a number",
         (("policy", "decay"), ("decay_period", "0")): "decay_period must be > 0 seconds (at least 0.01), got 0.0",
