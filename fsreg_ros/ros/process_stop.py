@@ -15,7 +15,12 @@ is destroyed; this handler only notes the first signal and never raises:
   initialised rclpy again after a shutdown, or a signal before ``rclpy.init`` ended);
 * none can hang: the first signal arms a watchdog thread that ends the process with
   exit code 0 (and one line on stderr) if it is still running :data:`STOP_DEADLINE`
-  seconds later (a callback that never returns);
+  seconds later (a callback that never returns).  That thread needs the interpreter, which C
+  code can hold for good: a DDS deadlock inside rcl while a node is destroyed (Fast DDS 2.14's
+  discovery against a peer leaving, eProsima/Fast-DDS#6502, seen under ``ros2 run``).  So the
+  first signal also arms :mod:`faulthandler`'s watchdog, which needs no interpreter: a process
+  still running :data:`HELD_AFTER` seconds after that deadline is ended with exit code 1 and
+  every thread's stack on stderr;
 * a signal before ROS is initialised is remembered (:attr:`StopSignals.heard`): the
   runner then stops instead of starting;
 * once a signal has been heard, :meth:`StopSignals.restore` (the run is over) leaves SIGINT and SIGTERM
@@ -26,6 +31,7 @@ is destroyed; this handler only notes the first signal and never raises:
 from __future__ import annotations
 
 import atexit
+import faulthandler
 import gc
 import os
 import signal
@@ -35,6 +41,8 @@ from typing import Any, Optional
 
 #: Seconds after the first stop signal by which the process has ended (else the watchdog ends it, exit 0).
 STOP_DEADLINE = 1.5
+#: Seconds after :data:`STOP_DEADLINE` after which faulthandler ends a process whose interpreter is held (exit 1).
+HELD_AFTER = 1.5
 #: Seconds after the first stop signal after which ROS is shut down by this module if rclpy has not done it.
 SHUTDOWN_AFTER = 0.05
 #: The signals that stop a node.
@@ -65,6 +73,7 @@ class StopSignals:
         self._watchdog = threading.Timer(self.deadline, self._force_exit)
         self._watchdog.daemon = True
         self._watchdog.start()
+        faulthandler.dump_traceback_later(self.deadline + HELD_AFTER, exit=True)  # kept till the process ends
         threading.Thread(target=self._shut_down_ros, name="stop-signal", daemon=True).start()
 
     def _shut_down_ros(self) -> None:

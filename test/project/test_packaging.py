@@ -65,17 +65,31 @@ def _launch_nodes(monkeypatch, given: dict) -> list:
     return opaque[0].kwargs["function"](context)
 
 
-def test_launch_file_builds_the_graph_spec(monkeypatch):
+#: A KB with two domains, for the launch file's tests.
+TWO_DOMAINS = """\
+domains:
+  faces:
+    preference: [male, female, glasses]
+    entities: {face1: [male, glasses], face2: [female]}
+  objects:
+    preference: [large, red]
+    entities: {cup: [red], ball: [large, red]}
+"""
+
+
+def test_launch_file_builds_the_graph_spec(monkeypatch, tmp_path):
     from fsreg_ros.core.forgetting import settings
     from fsreg_ros.core.forgetting.policies import ForgettingPolicy
     from fsreg_ros.ros.graph_spec import node_specs, policy_settings
 
-    given = {"kb": "/tmp/kb.yaml", "domains": "faces, objects", "policy": "displacement", "capacity": "3",
+    kb = tmp_path / "kb.yaml"
+    kb.write_text(TWO_DOMAINS)
+    given = {"kb": str(kb), "domains": "faces, objects", "policy": "displacement", "capacity": "3",
              "namespace": "robot1", "use_sim_time": "true"}
     nodes = _launch_nodes(monkeypatch, given)
     defaults = {row.name: row.default for row in settings.TABLE}  # the launch arguments' defaults
     policy = policy_settings(ForgettingPolicy.from_settings({**defaults, "policy": "displacement", "capacity": 3}))
-    expected = node_specs("/tmp/kb.yaml", ["faces", "objects"], {"faces": policy, "objects": policy},
+    expected = node_specs(str(kb), ["faces", "objects"], {"faces": policy, "objects": policy},
                           use_sim_time=True, algorithm="auto", wm_order="lru-first")
     got = [(n.kwargs["executable"], n.kwargs["name"], n.kwargs["parameters"]) for n in nodes]
     assert got == [(s.executable, s.name, [s.parameters]) for s in expected]
@@ -93,20 +107,55 @@ def test_launch_file_takes_a_state_dir_a_fresh_start_and_a_lexicon_as_fsreg_up_d
     from fsreg_ros.ros.graph_spec import node_specs, policy_settings
 
     monkeypatch.chdir(tmp_path)
-    given = {"kb": "/tmp/kb.yaml", "policy": "decay", "state_dir": "state", "lexicon": "words.yaml", "fresh": "true"}
+    (tmp_path / "kb.yaml").write_text(TWO_DOMAINS)
+    (tmp_path / "words.yaml").write_text((REPO / "config" / "lexicon.yaml").read_text())
+    kb = str(tmp_path / "kb.yaml")
+    given = {"kb": "kb.yaml", "policy": "decay", "state_dir": "state", "lexicon": "words.yaml", "fresh": "true"}
     nodes = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, given)}
     policy = ForgettingPolicy.from_settings({**{row.name: row.default for row in settings.TABLE}, "policy": "decay"})
     expected = {s.name: s.parameters for s in node_specs(
-        "/tmp/kb.yaml", ["faces"], {"faces": policy_settings(policy)}, use_sim_time=False,
+        kb, ["faces"], {"faces": policy_settings(policy)}, use_sim_time=False,
         algorithm="auto", lexicon=str(tmp_path / "words.yaml"), state_dir=str(tmp_path / "state"))}
     expected["consultant_faces"]["reset_state"] = True  # fresh: the database moved aside, as fsreg-up --fresh
     assert nodes == expected
     assert nodes["consultant_faces"]["state_dir"] == str(tmp_path / "state")
     assert nodes["parser"]["lexicon"] == nodes["reg"]["lexicon"] == str(tmp_path / "words.yaml")
-    again = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml"})}
+    again = {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, {"kb": kb})}
     assert "reset_state" not in again["consultant_faces"] and "state_dir" not in again["consultant_faces"]
     with pytest.raises(ValueError, match=r"^launch argument fresh:='yes': expected true or false$"):
-        _launch_nodes(monkeypatch, {"kb": "/tmp/kb.yaml", "fresh": "yes"})
+        _launch_nodes(monkeypatch, {"kb": kb, "fresh": "yes"})
+
+
+def test_launch_file_refuses_a_bad_argument_in_one_line_before_any_node_starts(monkeypatch, tmp_path):
+    """``ros2 launch`` with a missing or bad KB, an unknown domain, a missing lexicon or a bad REG setting
+    started every node and left the others running when one died (checked with the real CLI: h7's
+    scripts/check_ros2_cli.sh); each is now one error naming the argument, and no node."""
+    kb = tmp_path / "kb.yaml"
+    kb.write_text(TWO_DOMAINS)
+    missing = tmp_path / "none.yaml"
+    refusals = {
+        (): "launch argument kb:='': required: the scenario/KB YAML file with every domain's LTM",
+        (("kb", str(missing)),): f"launch argument kb:={str(missing)!r}: {missing}: file not found",
+        (("domains", "faces,places"),):
+            f"launch argument domains:='faces,places': {kb} has no domain 'places' (its domains: faces, objects)",
+        (("domains", "faces,faces"),): "launch argument domains:='faces,faces': 'faces' given twice",
+        (("domains", " , "),): "launch argument domains:=' , ': expected at least one domain",
+        (("lexicon", str(missing)),): f"launch argument lexicon:={str(missing)!r}: {missing}: file not found",
+        (("algorithm", "foo"),):
+            "launch argument algorithm:='foo': expected auto, sd-pia, dist-pia, full-brevity or greedy",
+        (("wm_order", "lifo"),):
+            "launch argument wm_order:='lifo': expected lru-first, mru-first, preference or strength",
+        (("use_sim_time", "maybe"),): "launch argument use_sim_time:='maybe': expected true or false",
+        (("decay_period", "abc"),): "launch argument decay_period:='abc': expected a number",
+        (("policy", "decay"), ("decay_period", "0")): "decay_period must be > 0 seconds (at least 0.01), got 0.0",
+        (("namespace", "bad-ns!"),):
+            "namespace 'bad-ns!': each part must be ASCII letters, digits and '_', not starting with a digit",
+    }
+    for given, message in refusals.items():
+        arguments = {"kb": str(kb), **dict(given)} if given else {}
+        with pytest.raises(ValueError) as err:
+            _launch_nodes(monkeypatch, arguments)
+        assert str(err.value) == message, given
 
 
 def test_params_files_name_real_nodes():
@@ -275,3 +324,14 @@ def test_package_xml_names_every_runtime_requirement():
     depends = {e.text for e in ET.fromstring(text).iter("exec_depend")}
     for name in sorted(required):
         assert keys.get(name) in depends or f"{name} " in text and "no rosdep key" in text, name
+
+
+def test_the_ros2_cli_check_refuses_in_one_line_without_ros2():
+    """scripts/check_ros2_cli.sh (the docs' ``ros2`` promises, end to end) needs the real CLI: without
+    ``ros2`` on PATH it says so in one line and exits 2, before anything else."""
+    script = REPO / "scripts" / "check_ros2_cli.sh"
+    run = subprocess.run(["/bin/bash", str(script)], capture_output=True, text=True, timeout=60,
+                         env={"PATH": str(REPO / "launch"), "HOME": os.environ.get("HOME", "/")})
+    assert (run.returncode, run.stdout) == (2, "")
+    assert run.stderr == ("check_ros2_cli: error: no 'ros2' on PATH: source a ROS 2 Jazzy install and this "
+                          "package's colcon workspace first (docs/testing.md)\n")

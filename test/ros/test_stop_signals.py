@@ -55,3 +55,24 @@ def test_a_node_stuck_in_a_callback_still_exits_0_with_one_line():
     assert (proc.returncode, proc.stdout) == (0, "")
     assert proc.stderr == ("[stuck]: still stopping 1.5 s after SIGINT (a callback that does not return?): "
                            "exiting now\n")
+
+
+HELD_SCRIPT = r'''
+import ctypes, os, signal
+from fsreg_ros.ros.process_stop import StopSignals
+
+StopSignals("held", deadline=0.2).install()
+os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C: the handler runs at once, in this thread
+ctypes.PyDLL(None).sleep(60)  # then C code holds the interpreter (as a DDS deadlock inside rcl did)
+print("not ended")
+'''
+
+
+def test_a_node_whose_interpreter_is_held_by_c_code_still_ends():
+    """A ``ros2 run`` node stayed alive after Ctrl-C: its main thread, holding the interpreter, deadlocked in
+    Fast DDS (eProsima/Fast-DDS#6502) while destroying a publisher, so the watchdog thread never ran.
+    faulthandler's watchdog needs no interpreter: exit 1 with the stacks, 1.5 s after the deadline."""
+    proc = subprocess.run([sys.executable, "-c", HELD_SCRIPT], env=dict(os.environ), capture_output=True, text=True,
+                          timeout=20)
+    assert (proc.returncode, proc.stdout) == (1, "")
+    assert proc.stderr.startswith("Timeout (0:00:01.700000)!\n") and "most recent call first" in proc.stderr
