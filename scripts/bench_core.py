@@ -80,12 +80,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
-sys.path.insert(0, str(REPO / "test" / "support"))
+REPO = prepare("bench_core.py", support=True)  # .venv, import path
 
 from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402
 from fsreg_ros.core.consultant.local_port import LocalPort  # noqa: E402

@@ -32,12 +32,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "test" / "support")]
+from venv_python import prepare  # noqa: E402
 
-from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
-
-use_loopback_environment("fuzz.py")  # before rclpy loads
+REPO = prepare("fuzz.py", loopback=True, support=True)  # .venv, import path, loopback ROS
 
 from fuzzgraph import ENDPOINTS, Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
 
