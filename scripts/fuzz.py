@@ -36,7 +36,8 @@ from venv_python import prepare  # noqa: E402
 
 REPO = prepare("fuzz.py", loopback=True, support=True)  # .venv, import path, loopback ROS
 
-from fuzzgraph import ENDPOINTS, Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
+from fuzzgraph import Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
+from fuzzinputs import ENDPOINTS  # noqa: E402
 
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 
