@@ -44,9 +44,10 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+prepare("bench_cluster.py")  # .venv, import path
+
 
 TARGET_RATIO = 1.15  # cluster / local processes, end to end
 SUMMARY_GAMES = (30, 300)  # the summary's bootstrap is timed at these numbers of games

@@ -80,12 +80,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
-sys.path.insert(0, str(REPO / "test" / "support"))
+REPO = prepare("bench_core.py", support=True)  # .venv, import path
 
 from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402
 from fsreg_ros.core.consultant.local_port import LocalPort  # noqa: E402
@@ -93,10 +90,9 @@ from fsreg_ros.core.algorithms.port import run_sync  # noqa: E402
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.forgetting.wm_manager import WMManager  # noqa: E402
 from fsreg_ros.core.algorithms.generation import generate  # noqa: E402
-from fsreg_ros.core.memory import WMBuffer  # noqa: E402
 from fsreg_ros.research.stats import median_ratio_ci  # noqa: E402
-from naive_wm import NaiveWM  # noqa: E402
 from bench_encode import best_encode, best_vectorised  # noqa: E402
+from bench_core_decay import IDLE_TOUCHED, bench_decay, bench_eager_decay  # noqa: E402
 
 PREVALENCE = (0.1, 0.3)
 WM_POLICY = {"policy": "decay+displacement", "decay_period": 10.0, "capacity": 4}
@@ -115,7 +111,6 @@ PAIRED = (("sd-pia/displ", "displacement"), ("sd-pia/act", "activation"), ("sd-p
 PAIRED_BLOCK = 10
 RESAMPLES = 1000
 TARGET_DECAY_RATIO = 100.0  # naive / lazy, tick over 100k mostly idle queues
-IDLE_TOUCHED = 0.01
 
 
 # =================================================================== REG
@@ -332,145 +327,6 @@ def reg_ratios(rows: list[dict]) -> list[dict]:
     return out
 
 
-# ================================================================= decay
-def bench_decay(n_queues: int, ticks: int, seed: int) -> dict:
-    rng = random.Random(seed + n_queues)
-    names = [f"e{i}" for i in range(n_queues)]
-    initial = [f"p{j}" for j in range(ticks + 1)]
-    extra = [f"x{j}" for j in range(8)]
-    touched = max(1, int(n_queues * IDLE_TOUCHED))
-    plan = [(rng.sample(names, touched), rng.choice(extra)) for _ in range(ticks)]
-
-    # Lazy: the real buffer under the real WM Manager (decay every 1 s from t = 0).
-    buffer = WMBuffer("d")
-    manager = WMManager()
-    manager.manage(buffer, ForgettingPolicy.parse("decay", decay_period=1.0))
-    for prop in initial:
-        buffer.encode_each(names, prop, "rr", 0.0)
-    lazy_tick, lazy_touch = [], []
-    gc.collect()
-    for k, (sample, prop) in enumerate(plan, start=1):
-        t = float(k)
-        start = time.perf_counter()
-        manager.advance(t)
-        lazy_tick.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        for name in sample:
-            buffer.encode(name, (prop,), "rr", t + 0.5)
-        lazy_touch.append(time.perf_counter() - start)
-    start = time.perf_counter()
-    buffer.flush()
-    lazy_flush = time.perf_counter() - start
-    lazy_state = buffer.snapshot()
-    del buffer, manager
-    gc.collect()
-
-    # Naive eager reference on exactly the same plan.
-    naive = NaiveWM({"decay"}, record=False)
-    for name in names:
-        naive.encode(name, initial, "rr", 0.0)
-    naive_tick, naive_touch = [], []
-    gc.collect()
-    for k, (sample, prop) in enumerate(plan, start=1):
-        t = float(k)
-        start = time.perf_counter()
-        naive.tick(t)
-        naive_tick.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        for name in sample:
-            naive.encode(name, (prop,), "rr", t + 0.5)
-        naive_touch.append(time.perf_counter() - start)
-    same = naive.snapshot() == lazy_state
-    del naive
-    gc.collect()
-
-    def us(values):
-        return statistics.median(values) * 1e6
-
-    lazy_cycle = [a + b for a, b in zip(lazy_tick, lazy_touch)]
-    naive_cycle = [a + b for a, b in zip(naive_tick, naive_touch)]
-    lazy_total = sum(lazy_cycle) + lazy_flush
-    return {
-        "queues": n_queues,
-        "ticks": ticks,
-        "touched_per_tick": touched,
-        "lazy_tick_us": us(lazy_tick),
-        "naive_tick_us": us(naive_tick),
-        "tick_ratio": statistics.median(naive_tick) / statistics.median(lazy_tick),
-        "lazy_cycle_us": us(lazy_cycle),
-        "naive_cycle_us": us(naive_cycle),
-        "cycle_ratio": statistics.median(naive_cycle) / statistics.median(lazy_cycle),
-        "lazy_final_flush_us": lazy_flush * 1e6,
-        "lazy_total_incl_flush_us": lazy_total * 1e6,
-        "naive_total_us": sum(naive_cycle) * 1e6,
-        "total_ratio_incl_flush": sum(naive_cycle) / lazy_total,
-        "same_final_state": same,
-    }
-
-
-# ========================================================== eager decay
-def bench_eager_decay(n_entities: int, ticks: int, burst: int, seed: int) -> dict:
-    """One eager decay tick (``decay_now``, as the consultant node applies it) over a domain after rule-3 bursts.
-
-    Each cycle: two rule-3 encodings of a property into ``burst`` random members
-    (``encode_members``, as ``Consultant.narrow`` calls it), a rule-1 description of one
-    entity, then one tick timed.  Three buffers play the same plan in turn: column
-    queues with no event sink (nobody listens), column queues reporting every pop to
-    a sink, and dict queues (``column_min`` above the domain: how the buffer worked
-    before column queues, and still works for a domain under ``memory.COLUMN_MIN``).
-    The naive eager reference plays it too: every final state must be its.
-    """
-    from fsreg_ros.core.memory.bitset import from_indices
-    from fsreg_ros.core.memory.ticks import TickRun
-
-    rng = random.Random(seed + n_entities)
-    names = [f"e{i}" for i in range(n_entities)]
-    props = [f"p{j}" for j in range(12)]
-    plan = [([from_indices(sorted(rng.sample(range(n_entities), burst)), n_entities) for _ in range(2)],
-             [rng.choice(props) for _ in range(2)], rng.choice(names), rng.sample(props, 2)) for _ in range(ticks)]
-    policy = policy_of("wm")
-    results: dict = {}
-    states = {}
-    for label, columns, sink in (("columns", True, False), ("columns+sink", True, True), ("dicts", False, False)):
-        events: list = []
-        buffer = WMBuffer("d", events.append if sink else None)
-        # Column queues at any size (the default from memory.COLUMN_MIN entities on), or never.
-        buffer.column_min = min(buffer.column_min, n_entities) if columns else n_entities + 1
-        buffer.set_limits(policy.limits(), 0.0)
-        times = []
-        gc.collect()
-        for k, (bursts, burst_props, target, said) in enumerate(plan, start=1):
-            t = float(k)
-            mute, buffer.sink = buffer.sink, None  # rule-3 bursts: nobody listens (the quiet path)
-            for members, prop in zip(bursts, burst_props):
-                buffer.encode_members(members, names, prop, "reg-distractor", t - 0.5, k)
-            buffer.sink = mute
-            buffer.encode(target, said, "speaker", t - 0.5, k)
-            start = time.perf_counter()
-            buffer.decay_now(TickRun(0.0, 1.0, k, 1), names)
-            times.append(time.perf_counter() - start)
-            events.clear()
-        states[label] = buffer.snapshot()
-        results[label] = {"median_ms": statistics.median(times) * 1e3, "max_ms": max(times) * 1e3,
-                          "held": len(buffer), "in_columns": len(buffer.columns.entities)}
-        del buffer
-        gc.collect()
-    naive = NaiveWM(policy.rules, policy.value("capacity"), record=False)
-    for k, (bursts, burst_props, target, said) in enumerate(plan, start=1):
-        for members, prop in zip(bursts, burst_props):
-            for i in range(n_entities):
-                if members >> i & 1:
-                    naive.encode(names[i], [prop], "reg-distractor", k - 0.5, k)
-        naive.encode(target, said, "speaker", k - 0.5, k)
-        naive.tick(float(k))
-    return {
-        "entities": n_entities, "ticks": ticks, "burst": burst, "detail": results,
-        **{f"{label}_ms": figures["median_ms"] for label, figures in results.items()},
-        "dicts_over_columns": results["dicts"]["median_ms"] / results["columns"]["median_ms"],
-        "same_final_state": all(state == naive.snapshot() for state in states.values()),
-    }
-
-
 # ================================================================ output
 def render(result: dict) -> str:
     lines = []
@@ -675,7 +531,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             log(f"  {n} queues done")
         log("eager decay tick")
         eager = (2_000, 5, 600) if args.quick else (10_000, 20, 3_000)
-        result["eager_decay"] = bench_eager_decay(*eager, args.seed)
+        result["eager_decay"] = bench_eager_decay(*eager, args.seed, policy_of("wm"))
     result["targets"] = targets(result)
     sys.stdout.write(render(result))
     if args.json:

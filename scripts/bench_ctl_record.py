@@ -23,8 +23,10 @@ import time
 import uuid
 from pathlib import Path
 
+from venv_python import prepare  # noqa: E402
+
+REPO = prepare("bench_ctl_record.py", loopback=True)  # .venv, import path, loopback ROS
 BIN = Path(sys.executable).parent
-REPO = Path(__file__).resolve().parent.parent
 
 
 def ctl(ns: str, *args: str) -> tuple[float, subprocess.CompletedProcess]:

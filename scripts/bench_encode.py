@@ -17,11 +17,11 @@ Usage: ``scripts/bench_encode.py [--entities N] [--rounds R]``.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from venv_python import prepare  # noqa: E402
+
+prepare("bench_encode.py")  # .venv, import path
 
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy  # noqa: E402
 from fsreg_ros.core.memory import WMBuffer  # noqa: E402

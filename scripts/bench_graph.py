@@ -47,15 +47,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
-
-from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
-
-use_loopback_environment("bench_graph.py")  # before rclpy loads
+REPO = prepare("bench_graph.py", loopback=True)  # .venv, import path, loopback ROS
 
 from fsreg_ros import contract  # noqa: E402
 from fsreg_ros.core.consultant.local_port import LocalPort  # noqa: E402

@@ -25,11 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+prepare("bench_load.py")  # .venv, import path
 
 from fsreg_ros.tools.sim import sim_main  # noqa: E402
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402

@@ -43,10 +43,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from venv_python import REPO, use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
-sys.path.insert(0, str(REPO / "test" / "support"))  # the naive reference
+REPO = prepare("bench_sim.py", support=True)  # .venv, import path
 
 from make_world import PRESETS, describe, preset_shape  # noqa: E402
 

@@ -38,11 +38,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+prepare("bench_store.py")  # .venv, import path
 
 from fsreg_ros.contract.consultant_codec import apply  # noqa: E402
 from fsreg_ros.core.consultant.consultant import Consultant  # noqa: E402

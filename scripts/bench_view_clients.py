@@ -33,11 +33,10 @@ import threading
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+REPO = prepare("bench_view_clients.py")  # .venv, import path
+
 
 SCENARIO = REPO / "scenarios" / "guess_who_table1.yaml"
 

@@ -19,11 +19,11 @@ import json
 import sys
 from pathlib import Path
 
-try:
-    from fsreg_ros.core.scenario import scenario_json_schema
-except ImportError:  # run from a source checkout without installing
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from fsreg_ros.core.scenario import scenario_json_schema
+from venv_python import prepare  # noqa: E402
+
+prepare("export_schemas.py")  # .venv, import path
+
+from fsreg_ros.core.scenario import scenario_json_schema  # noqa: E402
 
 
 def write_message_schemas(scenario_output: str | None) -> None:

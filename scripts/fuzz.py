@@ -32,14 +32,12 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "test" / "support")]
+from venv_python import prepare  # noqa: E402
 
-from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
+REPO = prepare("fuzz.py", loopback=True, support=True)  # .venv, import path, loopback ROS
 
-use_loopback_environment("fuzz.py")  # before rclpy loads
-
-from fuzzgraph import ENDPOINTS, Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
+from fuzzgraph import Fuzzer, fuzz_endpoint, start_graph  # noqa: E402
+from fuzzinputs import ENDPOINTS  # noqa: E402
 
 from fsreg_ros.core.scenario import load_scenario  # noqa: E402
 

@@ -24,9 +24,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+prepare("make_world.py")  # .venv, import path
 
 from fsreg_ros.tools.worlds import WorldShape, dump_world, random_world  # noqa: E402
 

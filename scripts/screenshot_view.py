@@ -19,8 +19,9 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from venv_python import prepare  # noqa: E402
+
+REPO = prepare("screenshot_view.py")  # .venv, import path
 
 from fsreg_ros.ros.network import ros_environment  # noqa: E402 - after the path
 

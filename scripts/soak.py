@@ -72,16 +72,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
-
-from fsreg_ros.ros.network import use_loopback_environment  # noqa: E402
-
-use_loopback_environment("soak.py")  # before rclpy loads
+REPO = prepare("soak.py", loopback=True)  # .venv, import path, loopback ROS
 
 import psutil  # noqa: E402
 

@@ -23,11 +23,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-from venv_python import use_venv  # noqa: E402
+from venv_python import prepare  # noqa: E402
 
-use_venv()  # run with .venv/bin/python, however started
+REPO = prepare("stress_signals.py")  # .venv, import path
 
 from fsreg_ros.ros.network import ros_environment  # noqa: E402
 from fsreg_ros.testing.stop_signals import CASES, stop_round  # noqa: E402

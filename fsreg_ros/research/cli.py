@@ -469,7 +469,8 @@ def execution_lines(execution: dict) -> list[str]:
 
 
 def merge_command(args: argparse.Namespace, argv: Optional[Sequence[str]] = None) -> int:
-    from .sweep import merge, recommend
+    from .sweep import recommend
+    from .sweep_merge import merge
 
     rows, summary, config = merge(args.out, args.shards, plots=not args.no_plots, argv=argv)
     print(f"fsreg-sweep merge: {len(args.shards)} sweeps, {len(rows)} distinct runs ({len(summary)} settings x "

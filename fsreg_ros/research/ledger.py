@@ -2,7 +2,7 @@
 
 The first line is the header: the sweep's configuration (every parameter but the
 seeds), its seeds, the columns of runs.csv and the code that ran (commit and diff hash,
-:func:`fsreg_ros.research.sweep.git_state`).  Every further line is one finished game:
+:func:`fsreg_ros.research.provenance.git_state`).  Every further line is one finished game:
 its seed, knowledge-base hash, its rows (values in column order; floats exactly as
 JSON round-trips them, so a summary computed from the file is the one computed from
 memory) and per row the divergence flags as a string of 0 and 1.  A line is written,

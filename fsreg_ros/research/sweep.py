@@ -51,14 +51,10 @@ rate stays within a bound.
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
-import os
-import platform
 import shlex
-import subprocess
 import sys
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from itertools import product
 from pathlib import Path
@@ -66,14 +62,14 @@ from typing import Any, Mapping, Optional, Sequence
 
 from ..core.algorithms.alignment import ORIGINS, entrainment_gain, length_matched
 from ..core.forgetting.policies import RULE_PARAMETERS, parse_rules
-from ..core.io.input_file import InputFileError, read_text
 from ..core.lexicon import Lexicon
 from ..core.forgetting.settings import setting as memory_setting
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
 from .grid import BOUNDS, GRID
-from .ledger import GAMES, GameRecord, Ledger, LedgerError, code_label, difference, header
+from .ledger import GAMES, GameRecord, Ledger, LedgerError, header
 from .listener import ListenerOptions
+from .provenance import environment, git_state, package_version
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
@@ -467,94 +463,6 @@ def write_curves(path: Path, curves: dict) -> None:
                 writer.writerow((*cells, j, flag))
 
 
-def _git(*args: str, cwd: Optional[Path] = None) -> Optional[bytes]:
-    try:
-        done = subprocess.run(["git", *args], cwd=cwd or Path(__file__).parent, capture_output=True, timeout=60)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return done.stdout if done.returncode == 0 else None
-
-
-def git_state(exclude: Sequence[Path] = (), where: Optional[Path] = None) -> dict:
-    """Return the checkout's commit, whether the tree is dirty, the SHA-256 of its changes and what changed.
-
-    The changes are the whole repository's ``git diff HEAD --binary`` plus every
-    untracked, not ignored file under the repository (name and content), whatever
-    directory the package sits in; ``changed_files`` and ``untracked_files`` name them.
-    Untracked files under ``exclude`` (a sweep's own output directory) are left out.
-    ``where``: a directory of the checkout (default: this package's).  A hash that
-    cannot be taken is null with the reason in ``diff_absent``: a clean tree, no git
-    checkout, or git failing.
-    """
-    top_text = _git("rev-parse", "--show-toplevel", cwd=where)
-    if top_text is None:
-        return {"commit": None, "dirty": None, "diff_sha256": None,
-                "diff_absent": "not a git checkout (or git is not installed)"}
-    top = Path(top_text.decode().strip())
-    commit = _git("rev-parse", "HEAD", cwd=top)
-    diff = _git("diff", "HEAD", "--binary", cwd=top)
-    names = _git("diff", "HEAD", "--name-only", "-z", cwd=top)
-    others = _git("ls-files", "--others", "--exclude-standard", "-z", cwd=top)
-    if commit is None or diff is None or names is None or others is None:
-        return {"commit": commit.decode().strip() if commit else None, "dirty": None, "diff_sha256": None,
-                "diff_absent": "git failed to report the changes"}
-    skip = []
-    for path in exclude:
-        try:
-            skip.append(Path(path).resolve().relative_to(top.resolve()).as_posix().rstrip("/") + "/")
-        except ValueError:
-            pass  # outside the repository: never listed
-    untracked = sorted(n.decode(errors="surrogateescape") for n in others.split(b"\0") if n)
-    untracked = [n for n in untracked if not any((n + "/").startswith(p) or n.startswith(p) for p in skip)]
-    changed = sorted(n.decode(errors="surrogateescape") for n in names.split(b"\0") if n)
-    dirty = bool(diff) or bool(untracked)
-    state: dict[str, Any] = {"commit": commit.decode().strip(), "dirty": dirty, "diff_sha256": None,
-                             "changed_files": changed, "untracked_files": untracked}
-    if not dirty:
-        state["diff_absent"] = "clean tree: no tracked change and no untracked file"
-        return state
-    digest = hashlib.sha256(diff)
-    for name in untracked:
-        digest.update(b"\0untracked\0" + name.encode(errors="surrogateescape") + b"\0")
-        try:
-            with (top / name).open("rb") as data:
-                for chunk in iter(lambda: data.read(1 << 20), b""):
-                    digest.update(chunk)
-        except OSError as err:
-            digest.update(f"<unreadable: {err.strerror}>".encode())
-    state["diff_sha256"] = digest.hexdigest()
-    return state
-
-
-def git_commit() -> Optional[str]:
-    """Return the repository's HEAD commit, or None outside a git checkout."""
-    return git_state()["commit"]
-
-
-def package_version(name: str = "fsreg_ros") -> str:
-    """Return an installed distribution's version (or "unknown")."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version(name)
-    except PackageNotFoundError:
-        return "unknown"
-
-
-#: Libraries whose versions a manifest records.
-LIBRARIES = ("numpy", "matplotlib", "tqdm", "pyyaml", "pydantic")
-
-
-def environment() -> dict:
-    """Return the Python, platform and library versions a run used."""
-    return {
-        "python": platform.python_version(),
-        "implementation": platform.python_implementation(),
-        "platform": platform.platform(),
-        "libraries": {name: package_version(name) for name in LIBRARIES},
-    }
-
-
 def manifest(config: SweepConfig, hashes: dict, jobs: Optional[int], files: Sequence[str], runs: int,
              started: str, argv: Optional[Sequence[str]] = None, git: Optional[dict] = None,
              execution: Optional[dict] = None, command: str = "fsreg-sweep") -> dict:
@@ -671,117 +579,3 @@ def _refuse_to_discard(out: Path) -> None:
     if found.games:
         raise LedgerError(f"{out} holds an unfinished sweep ({len(found.games)} of {len(found.header['seeds'])} "
                           f"games in {GAMES}): --resume continues it; to start afresh, delete {out / GAMES}")
-
-
-# ---------------------------------------------------------------------- merge
-def _config_from(configuration: Mapping[str, Any], seeds: Sequence[int]) -> SweepConfig:
-    """Rebuild a SweepConfig from a games file's configuration (JSON lists back to tuples)."""
-    values = {}
-    for f in fields(SweepConfig):
-        if f.name == "seeds":
-            continue
-        value = configuration.get(f.name)
-        if f.name == "listener" and value is not None:  # a ListenerOptions, as a JSON object
-            value = ListenerOptions(**value)
-        values[f.name] = tuple(value) if isinstance(value, list) else value
-    return SweepConfig(seeds=tuple(seeds), **values)
-
-
-def merge(out: Path, shards: Sequence[Path], plots: bool = True,
-          argv: Optional[Sequence[str]] = None) -> tuple[list[dict], list[dict], SweepConfig]:
-    """Combine finished sweeps of one configuration and code into ``out``, as if run as one sweep.
-
-    The inputs are shards (``--shard K/N``: every K of one N) or sweeps of disjoint seeds;
-    LedgerError names the first input that is unfinished, of another configuration,
-    another code or columns, or whose seeds overlap another's.  Writes the same files
-    as :func:`run` (runs.csv, summary.csv and the intervals byte-identical to one
-    sweep's), games.jsonl and a manifest recording every shard.
-    """
-    if not shards:
-        raise LedgerError("merge: give at least one sweep directory")
-    resolved = [Path(d).resolve() for d in shards]
-    if Path(out).resolve() in resolved:
-        raise LedgerError(f"merge: the output {out} is one of the inputs")
-    if len(set(resolved)) != len(resolved):
-        raise LedgerError("merge: a directory is given twice")
-    books, manifests = [], []
-    for directory in shards:
-        written = Path(directory) / "manifest.json"
-        if not os.path.lexists(written):
-            raise LedgerError(f"merge: {directory} is not a finished sweep (no manifest.json); finish it with its "
-                              "command and --resume")
-        try:
-            done = json.loads(read_text(written))
-        except InputFileError as err:
-            raise LedgerError(f"merge: {err}") from None
-        except (json.JSONDecodeError, RecursionError):
-            raise LedgerError(f"merge: {directory}/manifest.json is not JSON") from None
-        book = Ledger.read(Path(directory))
-        if book.missing():
-            raise LedgerError(f"merge: {directory} is not finished ({len(book.missing())} of "
-                              f"{len(book.header['seeds'])} games missing); finish it with --resume")
-        books.append(book)
-        manifests.append(done)
-    first, name0 = books[0].header, shards[0]
-    owner: dict[int, Path] = {}
-    for book, directory in zip(books, shards):
-        head = book.header
-        if head["configuration"] != first["configuration"]:
-            raise LedgerError(f"merge: {directory} and {name0} are sweeps of different configurations: "
-                              f"{difference(head['configuration'], first['configuration'])}")
-        if head["code"] != first["code"]:
-            raise LedgerError(f"merge: {directory} and {name0} ran different code: {code_label(head['code'])} vs "
-                              f"{code_label(first['code'])}")
-        if head["columns"] != first["columns"]:
-            raise LedgerError(f"merge: {directory} and {name0} have different runs.csv columns")
-        overlap = sorted(s for s in head["seeds"] if s in owner)
-        if overlap:
-            shown = ", ".join(map(str, overlap[:5])) + (", ..." if len(overlap) > 5 else "")
-            raise LedgerError(f"merge: {directory} and {owner[overlap[0]]} overlap: both have seed"
-                              f"{'s' if len(overlap) > 1 else ''} {shown}")
-        owner.update({s: directory for s in head["seeds"]})
-    _check_split([m.get("execution", {}).get("shard") for m in manifests], shards)
-    seeds = sorted(owner)
-    config = _config_from(first["configuration"], seeds)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "manifest.json").unlink(missing_ok=True)
-    merged = Ledger.start(out, {**first, "seeds": seeds})
-    try:
-        for seed in seeds:
-            merged.append(next(b.games[seed] for b in books if seed in b.games))
-    finally:
-        merged.close()
-    rows, curves, hashes = assemble(merged.games, seeds)
-    summary, files = write_results(config, out, rows, curves, plots)
-    execution = {"engine": "merge", "shards": [
-        {"directory": str(directory), "shard": (m.get("execution") or {}).get("shard"),
-         "execution": {k: v for k, v in (m.get("execution") or {}).items() if k != "shard"},
-         "games": len(b.header["seeds"]), "seeds": [min(b.header["seeds"]), max(b.header["seeds"])],
-         "command": m.get("command"), "started": m.get("started"), "finished": m.get("finished"),
-         "git": m.get("git"), "environment": m.get("environment")}
-        for directory, b, m in zip(shards, books, manifests)]}
-    started = min((m.get("started") or "") for m in manifests)
-    (out / "manifest.json").write_text(json.dumps(
-        manifest(config, hashes, 0, files, len(rows), started, argv, manifests[0].get("git"), execution,
-                 command="fsreg-sweep merge"), indent=2) + "\n")
-    return rows, summary, config
-
-
-def _check_split(records: Sequence[Optional[dict]], shards: Sequence[Path]) -> None:
-    """Refuse shards of different splits, or a split with a shard missing (sweeps that are no shards pass)."""
-    split = [r for r in records if r]
-    if not split:
-        return
-    if len(split) != len(records):
-        loose = next(d for d, r in zip(shards, records) if not r)
-        raise LedgerError(f"merge: {loose} is no shard (no --shard) but other inputs are; merge shards of one "
-                          "split, or sweeps without --shard")
-    kinds = {(r["count"], tuple(r["all_seeds"])) for r in split}
-    if len(kinds) > 1:
-        raise LedgerError("merge: shards of different splits: " + ", ".join(
-            f"{d} is {r['shard']} of seeds {r['all_seeds'][0]}-{r['all_seeds'][1] - 1}" for d, r in zip(shards, split)))
-    count = split[0]["count"]
-    missing = sorted(set(range(1, count + 1)) - {r["index"] for r in split})
-    if missing:
-        raise LedgerError(f"merge: shard{'s' if len(missing) > 1 else ''} "
-                          f"{', '.join(f'{k}/{count}' for k in missing)} missing")

@@ -161,7 +161,7 @@ def test_a_holder_with_only_a_flock_is_found_in_proc_locks(tmp_path):
 
 
 @pytest.mark.parametrize("make, kind", [
-    (os.mkfifo, "a FIFO (named pipe)"),
+    (os.mkfifo, "a named pipe (FIFO)"),
     (os.mkdir, "a directory"),
     (lambda p: socket.socket(socket.AF_UNIX).bind(str(p)), "a socket"),
 ])
@@ -180,7 +180,7 @@ def test_a_lock_file_that_is_a_fifo_is_refused_as_one(tmp_path):
     path = store(tmp_path).path
     path.parent.mkdir(parents=True)
     os.mkfifo(path.with_name(path.name + ".lock"))
-    with pytest.raises(StateDamaged, match="the lock file is a FIFO \\(named pipe\\), not a regular file"):
+    with pytest.raises(StateDamaged, match="the lock file is a named pipe \\(FIFO\\), not a regular file"):
         store(tmp_path).open()
 
 

@@ -17,6 +17,7 @@ sits on ``core`` alone, and only ``tools`` (and ``research`` itself) may import 
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 from typing import Optional
@@ -96,9 +97,15 @@ def imports_of(name: str, path: Path, known: set[str]) -> set[str]:
 
 
 def import_graph() -> dict[str, set[str]]:
+    """Return every module's imports (a fresh copy of the graph read once per run)."""
+    return {name: set(targets) for name, targets in _import_graph().items()}
+
+
+@functools.lru_cache(maxsize=1)
+def _import_graph() -> dict[str, frozenset[str]]:
     known = modules()
     names = set(known)
-    return {name: imports_of(name, path, names) for name, path in known.items()}
+    return {name: frozenset(imports_of(name, path, names)) for name, path in known.items()}
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:

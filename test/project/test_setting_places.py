@@ -29,6 +29,7 @@ label of a setting in plots, legends and tables comes from the table's ``symbol`
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 from fsreg_ros.core.forgetting import settings
@@ -71,20 +72,31 @@ def _docstrings(tree: ast.AST) -> set[int]:
     return found
 
 
-def spells(source: str, row: settings.Setting) -> bool:
-    """Return True if ``source``'s code spells the setting ``row`` (see the module docstring)."""
+def constants(source: str) -> frozenset[str]:
+    """Return the string constants of ``source``'s code (its docstrings left out)."""
     tree = ast.parse(source)
     skip = _docstrings(tree)
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in skip:
-            text = node.value
-            if text in (row.name, row.option) or text.startswith(row.name + "="):
-                return True
-    return False
+    return frozenset(node.value for node in ast.walk(tree)
+                     if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in skip)
+
+
+def spells(source: str, row: settings.Setting) -> bool:
+    """Return True if ``source``'s code spells the setting ``row`` (see the module docstring)."""
+    return _spelled(constants(source), row)
+
+
+def _spelled(texts: frozenset[str], row: settings.Setting) -> bool:
+    return any(text in (row.name, row.option) or text.startswith(row.name + "=") for text in texts)
+
+
+@functools.lru_cache(maxsize=1)
+def sources() -> tuple[tuple[str, frozenset[str]], ...]:
+    """Every package module's string constants, by path: each module parsed once per run, not once per setting."""
+    return tuple((str(p.relative_to(REPO)), constants(p.read_text())) for p in sorted(PACKAGE.rglob("*.py")))
 
 
 def places(row: settings.Setting) -> set[str]:
-    found = {str(p.relative_to(REPO)) for p in PACKAGE.rglob("*.py") if spells(p.read_text(), row)}
+    found = {path for path, texts in sources() if _spelled(texts, row)}
     docs = [REPO / "README.md", *(REPO / "docs").glob("*.md")]
     if any(f"`{row.name}`" in p.read_text() for p in docs):
         found.add(DOCS)

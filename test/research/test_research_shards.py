@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from fsreg_ros.research import cli, sweep
+from fsreg_ros.research import cli, provenance, sweep
 from fsreg_ros.research.ledger import GAMES, Ledger
 
 distributed = pytest.importorskip("distributed", reason="dask[distributed] is in requirements-dev.txt")
@@ -263,28 +263,28 @@ def test_diff_hash_covers_the_whole_repository_and_names_what_changed(tmp_path):
     git(repo, "init", "-q")
     git(repo, "add", "-A")
     git(repo, "commit", "-qm", "first")
-    clean = sweep.git_state(where=package)
+    clean = provenance.git_state(where=package)
     assert clean["dirty"] is False and clean["diff_sha256"] is None
     assert clean["diff_absent"] == "clean tree: no tracked change and no untracked file" and len(clean["commit"]) == 40
     # An untracked file outside the package's directory (the bug: it was left out, and the hash was of nothing).
     (repo / "notes.txt").write_text("a\n")
     (repo / "out").mkdir()
     (repo / "out" / "runs.csv").write_text("ignored\n")
-    state = sweep.git_state(where=package)
+    state = provenance.git_state(where=package)
     empty = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
     assert state["dirty"] is True and state["diff_sha256"] not in (None, empty)
     assert state["untracked_files"] == ["notes.txt"] and state["changed_files"] == []
     (repo / "notes.txt").write_text("b\n")
-    assert sweep.git_state(where=package)["diff_sha256"] != state["diff_sha256"]  # content counts, not only names
+    assert provenance.git_state(where=package)["diff_sha256"] != state["diff_sha256"]  # content counts, not only names
     (package / "sweep.py").write_text("x = 2\n")
-    changed = sweep.git_state(where=package)
+    changed = provenance.git_state(where=package)
     assert changed["changed_files"] == ["pkg/research/sweep.py"] and changed["untracked_files"] == ["notes.txt"]
     # A sweep's own output directory inside the repository is not part of the code.
     (repo / "results").mkdir()
     (repo / "results" / "games.csv").write_text("1\n")
-    assert sweep.git_state(exclude=[repo / "results"], where=package)["untracked_files"] == ["notes.txt"]
-    assert sweep.git_state(where=package)["untracked_files"] == ["notes.txt", "results/games.csv"]
-    outside = sweep.git_state(where=tmp_path)
+    assert provenance.git_state(exclude=[repo / "results"], where=package)["untracked_files"] == ["notes.txt"]
+    assert provenance.git_state(where=package)["untracked_files"] == ["notes.txt", "results/games.csv"]
+    outside = provenance.git_state(where=tmp_path)
     assert outside == {"commit": None, "dirty": None, "diff_sha256": None,
                        "diff_absent": "not a git checkout (or git is not installed)"}
     assert os.environ.get("GIT_DIR") is None

@@ -151,17 +151,17 @@ def test_printed_summary_counts_distinct_runs(tmp_path, capsys):
 
 
 def test_dirty_tree_changes_the_manifest(tmp_path, monkeypatch):
-    from fsreg_ros.research import sweep
+    from fsreg_ros.research import provenance
 
     outputs = {("rev-parse", "--show-toplevel"): b"/x\n", ("rev-parse", "HEAD"): b"a" * 40 + b"\n",
                ("diff", "HEAD", "--binary"): b"diff --git a/games.py ...", ("diff", "HEAD", "--name-only", "-z"):
                b"games.py\0", ("ls-files", "--others", "--exclude-standard", "-z"): b""}
-    monkeypatch.setattr(sweep, "_git", lambda *args, cwd=None: outputs[args])
-    state = sweep.git_state()
+    monkeypatch.setattr(provenance, "_git", lambda *args, cwd=None: outputs[args])
+    state = provenance.git_state()
     assert state["dirty"] is True and state["commit"] == "a" * 40 and len(state["diff_sha256"]) == 64
     assert state["changed_files"] == ["games.py"] and state["untracked_files"] == []
     outputs[("diff", "HEAD", "--binary")] = outputs[("diff", "HEAD", "--name-only", "-z")] = b""
-    clean = sweep.git_state()
+    clean = provenance.git_state()
     assert clean["dirty"] is False and clean["diff_sha256"] is None and clean["diff_absent"].startswith("clean tree")
 
 

@@ -15,8 +15,8 @@ from dataclasses import replace
 
 import pytest
 
-from fuzzgraph import CONSULTANT, DEBUG, ENDPOINTS, NOT_JSON, REPLY_TOPIC, Fuzzer, Input, Outcome, \
-    fuzz_after_malformed, fuzz_catalogue, fuzz_generated, start_graph, templates
+from fuzzgraph import Fuzzer, Outcome, fuzz_after_malformed, fuzz_catalogue, fuzz_generated, start_graph
+from fuzzinputs import CONSULTANT, DEBUG, ENDPOINTS, NOT_JSON, REPLY_TOPIC, Input, templates
 
 from fuzzwire import TIME as WIRE_TIME, WireFuzz, endpoints
 

@@ -1,7 +1,7 @@
 """Restored state announced and controllable (issue 28.6) on a live in-process graph.
 
 ``wm_manager/status`` reports what each consultant restored; ``fsreg-ctl state reset``
-(its :func:`~fsreg_ros.tools.ctl.run_state`, driven here through the graph's own client)
+(its :func:`~fsreg_ros.tools.ctl_state.run_state`, driven here through the graph's own client)
 moves the state database aside, empties runtime facts and WM, and reports it.
 """
 
@@ -13,6 +13,8 @@ from pathlib import Path
 import pytest
 
 from fsreg_ros.tools import ctl
+from fsreg_ros.tools.ctl_state import check_state_args, run_state
+from fsreg_ros.tools.ctl_table import EXIT_ERROR, EXIT_OK, EXIT_USAGE, UsageError, build_parser
 from fsreg_ros.tools.up import ready_line, ready_report
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "guess_who_table1.yaml"
@@ -30,16 +32,16 @@ class Tty(io.StringIO):
 
 
 def test_state_reset_without_yes_needs_a_terminal():
-    args = ctl.build_parser().parse_args(["state", "reset"])
-    with pytest.raises(ctl.UsageError, match="no terminal to confirm on; add --yes"):
-        ctl.check_state_args(args, Tty(False))
-    ctl.check_state_args(args, Tty(True))  # asked on the terminal instead
-    ctl.check_state_args(ctl.build_parser().parse_args(["state", "reset", "--yes"]), Tty(False))
+    args = build_parser().parse_args(["state", "reset"])
+    with pytest.raises(UsageError, match="no terminal to confirm on; add --yes"):
+        check_state_args(args, Tty(False))
+    check_state_args(args, Tty(True))  # asked on the terminal instead
+    check_state_args(build_parser().parse_args(["state", "reset", "--yes"]), Tty(False))
 
 
 def test_fsreg_ctl_state_reset_refuses_without_a_terminal_exit_2(capsys, monkeypatch):
     monkeypatch.setattr("sys.stdin", Tty(False))
-    assert ctl.main(["state", "reset"]) == ctl.EXIT_USAGE
+    assert ctl.main(["state", "reset"]) == EXIT_USAGE
     err = capsys.readouterr().err
     assert err == "fsreg-ctl: error: state reset: no terminal to confirm on; add --yes to reset without asking\n"
 
@@ -68,15 +70,15 @@ def test_state_reset_on_a_live_graph_empties_runtime_facts_and_wm_and_reports_it
         assert robot.assert_facts("face2", {"no-glasses": 1.0})["retracted"] == ["glasses"]
         queues = len(robot.client.snapshot("faces"))
         incarnation = robot.status()["incarnation"]["faces"]
-        args = ctl.build_parser().parse_args(["state", "reset"])
+        args = build_parser().parse_args(["state", "reset"])
         # not confirmed: nothing is sent
-        assert ctl.run_state(robot.client, args, lambda data, text: print(text), 10.0, ask=lambda _: "n") == \
-            ctl.EXIT_ERROR
+        assert run_state(robot.client, args, lambda data, text: print(text), 10.0, ask=lambda _: "n") == \
+            EXIT_ERROR
         assert robot.wm("face1") == ["male", "lab-coat", "light-hair", "glasses"]
         asked: list[str] = []
-        code = ctl.run_state(robot.client, args, lambda data, text: print(text), 10.0,
-                             ask=lambda prompt: asked.append(prompt) or "yes")
-        assert code == ctl.EXIT_OK and "reset the stored state of faces in graph" in asked[0]
+        code = run_state(robot.client, args, lambda data, text: print(text), 10.0,
+                         ask=lambda prompt: asked.append(prompt) or "yes")
+        assert code == EXIT_OK and "reset the stored state of faces in graph" in asked[0]
         aside = next(tmp_path.rglob("faces.sqlite3.*.old"))
         out = capsys.readouterr().out
         assert out.endswith(f"faces: set aside 3 runtime facts (1 runtime entities) and {queues} WM queues, the old "

@@ -1,27 +1,59 @@
-"""Smoke tests of the benchmarks (bench_core, bench_graph, soak): they run and report (no timings asserted)."""
+"""Smoke tests of the benchmarks (bench_core, bench_graph, soak): they run and report (no timings asserted).
+
+A benchmark that starts node processes runs as a process of its own (marked slow); the
+quick ones (bench_core --quick, every refused command line) call the script's ``main``
+in this process: the same code from the argument checks on (the scripts' start-up, which
+refuses a widening environment in a process of its own, is test/ros/test_network.py's).
+"""
 
 from __future__ import annotations
 
+import importlib.util
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_core.py"
+_LOADED: dict[str, ModuleType] = {}
 
 
-def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
+def script(name: str) -> ModuleType:
+    """Return ``scripts/<name>.py`` loaded as a module in this process (once per process; the environment kept)."""
+    if name not in _LOADED:
+        env, path = dict(os.environ), list(sys.path)
+        spec = importlib.util.spec_from_file_location(f"fsreg_script_{name}", SCRIPT.parent / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # as an import would (dataclasses look their module up there)
+        try:
+            sys.path.insert(0, str(SCRIPT.parent))
+            spec.loader.exec_module(module)
+        finally:
+            os.environ.clear()
+            os.environ.update(env)
+            sys.path[:] = path
+        _LOADED[name] = module
+    return _LOADED[name]
+
+
+def run_main(name: str, args: list[str], capsys) -> tuple[int, str, str]:
+    """Run ``scripts/<name>.py``'s ``main(args)`` here; return its exit code, stdout and stderr."""
+    try:
+        code = script(name).main(list(args))
+    except SystemExit as exit_:
+        code = exit_.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_bench_core_quick_runs_and_prints_its_table(tmp_path, capsys):
     out = tmp_path / "bench.json"
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick", "--json", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 0, proc.stderr
-    text = proc.stdout
+    code, text, err = run_main("bench_core", ["--quick", "--json", str(out)], capsys)
+    assert code == 0, err
     assert "REG latency" in text and "Decay tick" in text and "Eager decay tick" in text and "Targets" in text
     for config in ("sd-pia", "dist-pia", "dist-pia/none"):
         assert f"\n{config} " in text
@@ -58,14 +90,9 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path):
     assert "Paired, 1,000 x 20 (CPU time;" in text and "sd-pia/act / sd-pia/displ: x" in text
 
 
-def test_bench_core_paired_targets_judge_the_paired_ratio(monkeypatch):
+def test_bench_core_paired_targets_judge_the_paired_ratio():
     """``targets()`` judges activation's 1.5x on the paired ratio when there is one, else on the unpaired medians."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("bench_core_module", SCRIPT)
-    bench_core = importlib.util.module_from_spec(spec)
-    monkeypatch.syspath_prepend(str(SCRIPT.parent))
-    spec.loader.exec_module(bench_core)
+    bench_core = script("bench_core")
     rows = [{"config": c, "entities": 10_000, "properties": 200, "median_ms": m}
             for c, m in (("sd-pia/displ", 1.0), ("sd-pia/act", 1.4), ("sd-pia/act1", 2.0))]
     paired = {"entities": 10_000, "properties": 200, "ratios": [
@@ -97,10 +124,10 @@ def test_bench_core_paired_targets_judge_the_paired_ratio(monkeypatch):
     (["--ticks", "0"], "--ticks must be in [1, 100000], got 0"),
     (["--resamples", "10"], "--resamples must be in [100, 1000000], got 10"),
 ])
-def test_bench_core_refuses_bad_counts(args, fragment):
-    proc = subprocess.run([sys.executable, str(SCRIPT), "--quick", *args], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
-    assert proc.stdout == ""
+def test_bench_core_refuses_bad_counts(args, fragment, capsys):
+    code, out, err = run_main("bench_core", ["--quick", *args], capsys)
+    assert code == 2 and fragment in err and "Traceback" not in err, err
+    assert out == ""
 
 
 # ------------------------------------------------------------------ the graph's benchmarks
@@ -159,9 +186,9 @@ def test_soak_with_perception_accounts_for_every_fact():
     (["--facts-rate", "nan"], "--facts-rate must be a number in [0, 1000000], got nan"),
     (["--facts-rate", "10", "--batch", "0"], "--batch must be in [1, 1000]"),
 ])
-def test_soak_refuses_bad_perception_arguments(args, fragment):
-    proc = subprocess.run([sys.executable, str(SOAK_SCRIPT), *args], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+def test_soak_refuses_bad_perception_arguments(args, fragment, capsys):
+    code, out, err = run_main("soak", args, capsys)
+    assert code == 2 and fragment in err and "Traceback" not in err, err
 
 
 BENCH_FACTS = Path(__file__).resolve().parents[2] / "scripts" / "bench_facts.py"
@@ -185,9 +212,9 @@ def test_bench_facts_answers_every_query_and_fact():
     (["--seconds", "nan"], "--seconds must be a number in [0.1, 3600], got nan"),
     (["--batch", "1001"], "--batch must be in [1, 1000]"),
 ])
-def test_bench_facts_refuses_bad_arguments(args, fragment):
-    proc = subprocess.run([sys.executable, str(BENCH_FACTS), *args], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+def test_bench_facts_refuses_bad_arguments(args, fragment, capsys):
+    code, out, err = run_main("bench_facts", args, capsys)
+    assert code == 2 and fragment in err and "Traceback" not in err, err
 
 
 BENCH_RSS = BENCH_FACTS.parent / "bench_rss.py"
@@ -199,7 +226,7 @@ BENCH_RSS = BENCH_FACTS.parent / "bench_rss.py"
                              "1,024-entry cache filled), got 2999"),
     (["--requests", "1000", "--every", "100"], "--requests must be in [1400, 10000000] with --every 100"),
 ])
-def test_bench_rss_refuses_too_few_samples(args, fragment):
+def test_bench_rss_refuses_too_few_samples(args, fragment, capsys):
     """Too few requests to fit a slope after the warm-up gave a silent 'nan bytes/request'; now one line, exit 2."""
-    proc = subprocess.run([sys.executable, str(BENCH_RSS), *args], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    code, out, err = run_main("bench_rss", args, capsys)
+    assert code == 2 and fragment in err and "Traceback" not in err, err

@@ -9,6 +9,8 @@ from __future__ import annotations
 import pytest
 
 from fsreg_ros.tools import ctl
+from fsreg_ros.tools.ctl_table import COMMANDS, UsageError, build_parser
+from fsreg_ros.tools.ctl_values import parse_assignments
 
 HUGE = "a" * 200_000
 
@@ -71,15 +73,15 @@ def test_bad_arguments_are_one_line_and_exit_2(capsys, argv, said):
 
 
 def test_every_command_is_one_entry_of_the_table():
-    parser = ctl.build_parser()
+    parser = build_parser()
     commands = next(a for a in parser._actions if a.dest == "command")
-    assert list(commands.choices) == list(ctl.COMMANDS) == [
+    assert list(commands.choices) == list(COMMANDS) == [
         "say", "describe", "assert", "status", "set", "params", "watch", "wm", "clock", "view", "record", "state"]
-    assert {spec.needs for spec in ctl.COMMANDS.values()} <= {"ready", "graph", "none"}
+    assert {spec.needs for spec in COMMANDS.values()} <= {"ready", "graph", "none"}
 
 
 def test_memory_values_are_checked_against_the_settings_table():
-    assert ctl.parse_assignments(["capacity=3", "faces.decay_period=inherit", "reg:algorithm=greedy"], ["faces"]) == {
+    assert parse_assignments(["capacity=3", "faces.decay_period=inherit", "reg:algorithm=greedy"], ["faces"]) == {
         "wm_manager": {"faces.capacity": 3, "faces.decay_period": 0.0}, "reg": {"algorithm": "greedy"}}
     for item, said in (("capacity=0", "faces.capacity: capacity must be >= 1, got 0 (allowed: a whole number in "
                                       "[1, 10000], or 'inherit' (use the node-wide capacity))"),
@@ -87,6 +89,6 @@ def test_memory_values_are_checked_against_the_settings_table():
                        ("decay_period=nan", "decay_period must be a number of seconds, got nan"),
                        ("wm_manager:capacity=inherit", "only a domain's setting (DOMAIN.capacity) inherits"),
                        ("seed=1.5", "expected a whole number in [0, 2147483647]")):
-        with pytest.raises(ctl.UsageError) as err:
-            ctl.parse_assignments([item], ["faces"])
+        with pytest.raises(UsageError) as err:
+            parse_assignments([item], ["faces"])
         assert str(err.value).startswith(f"set {item}: wm_manager: ") and said in str(err.value), str(err.value)

@@ -30,10 +30,18 @@ MAX_CORPUS_BYTES = 1024 ** 3
 
 PathLike = Union[str, os.PathLike]
 
-#: What a path that is not a regular file is, by ``stat`` test.
-_NOT_REGULAR = ((stat.S_ISDIR, "a directory, not a file"), (stat.S_ISFIFO, "a named pipe (FIFO), not a regular file"),
-                (stat.S_ISCHR, "a character device, not a regular file"),
-                (stat.S_ISBLK, "a block device, not a regular file"), (stat.S_ISSOCK, "a socket, not a regular file"))
+#: What a file is, in words, by ``stat`` test: the one wording of every message that names a file's kind
+#: (a tool refusing an input here, a consultant refusing its state database, :mod:`fsreg_ros.core.state.store`).
+FILE_KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+              (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def file_kind(mode: int) -> str:
+    """Return what a file of ``mode`` is, in words (``a named pipe (FIFO)``)."""
+    for test, words in FILE_KINDS:
+        if test(mode):
+            return words
+    return f"a special file (mode {mode:o})"
 
 
 class InputFileError(ValueError):
@@ -48,10 +56,7 @@ class InputFileError(ValueError):
 
 
 def _problem(mode: int) -> str:
-    for test, kind in _NOT_REGULAR:
-        if test(mode):
-            return f"is {kind}"
-    return "is not a regular file"
+    return "is a directory, not a file" if stat.S_ISDIR(mode) else f"is {file_kind(mode)}, not a regular file"
 
 
 def _reason(err: OSError) -> str:
@@ -137,5 +142,5 @@ def check_file(path: PathLike, limit: int = MAX_FILE_BYTES) -> None:
     os.close(_open_checked(path, limit))
 
 
-__all__ = ["MAX_CORPUS_BYTES", "MAX_FILE_BYTES", "InputFileError", "check_file", "open_binary", "open_text",
-           "read_bytes", "read_text"]
+__all__ = ["FILE_KINDS", "MAX_CORPUS_BYTES", "MAX_FILE_BYTES", "InputFileError", "check_file", "file_kind",
+           "open_binary", "open_text", "read_bytes", "read_text"]

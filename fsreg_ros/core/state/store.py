@@ -47,36 +47,32 @@ Schema (``PRAGMA user_version`` = :data:`SCHEMA_VERSION`)
 Opening checks the file (empty, not a database, damaged pages, missing tables or
 columns, malformed rows) and refuses it with one line naming the file and the way
 out (:data:`WAY_OUT`); it never starts afresh silently, and a path that is not a
-regular file (a FIFO, socket, device or directory) is refused as what it is.  A lock
-file beside the database (``<file>.lock``) keeps a second opener away while the first
-lives: an exclusive ``flock`` (which also excludes a second opener in the same process)
-plus a POSIX record lock on the same file, so a refused opener names the real holder as
-the kernel reports it (``F_GETLK``; ``/proc/locks`` for a holder that took only the
-``flock``), never a PID read from the file (which the file also holds, for people).
+regular file (a FIFO, socket, device or directory) is refused as what it is
+(:func:`fsreg_ros.core.io.input_file.file_kind`).  A lock file beside the database
+(``<file>.lock``, :mod:`fsreg_ros.core.state.lock`) keeps a second opener away while the
+first lives, and a refused opener is told who holds it.
 
 The module does I/O but imports nothing from ROS; the consultant service calls it.
 """
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import hashlib
 import json
 import math
 import os
 import sqlite3
 import stat
-import struct
-import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
+from ..io.input_file import file_kind
 from ..memory import UNKNOWN_ORIGIN
 from ..memory.trace import Trace
+from .lock import HeldLock, LockHeld, LockNotRegular, take_lock
 
 SCHEMA_VERSION = 2
 #: File name suffix of a consultant's database.
@@ -117,13 +113,6 @@ class StateInUse(StoreError):
 
 class StateDamaged(StoreError):
     """The database is not what this program wrote (the message names the file and the way out)."""
-
-
-#: Lock files held by this process, by (device, inode): a second opener here is refused without
-#: opening the file (closing any descriptor of it would drop this process's POSIX record lock).
-_HELD: dict[tuple[int, int], Path] = {}
-#: ``struct flock`` on Linux (short l_type, short l_whence, off_t l_start, off_t l_len, pid_t l_pid).
-_FLOCK = "@hhqqixxxx"
 
 
 def damaged(path: Path, problem: str) -> StateDamaged:
@@ -245,8 +234,7 @@ class DomainStore:
         self.kb = kb
         self.lock_path = self.path.with_name(self.path.name + ".lock")
         self._db: Optional[sqlite3.Connection] = None
-        self._lock: Optional[int] = None
-        self._lock_id: tuple[int, int] = (0, 0)
+        self._lock: Optional[HeldLock] = None
         #: Transactions :meth:`commit` committed since this object was made (fsynced ones in ``durable_commits``).
         self.commits = 0
         self.durable_commits = 0
@@ -297,8 +285,7 @@ class DomainStore:
                 self._db.close()
                 self._db = None
         if self._lock is not None:
-            _HELD.pop(self._lock_id, None)
-            os.close(self._lock)  # releases the flock and the record lock
+            self._lock.release()  # the flock and the record lock
             self._lock = None
 
     # ---------------------------------------------------------------- writing
@@ -387,33 +374,11 @@ class DomainStore:
     # -------------------------------------------------------------- internals
     def _take_lock(self) -> None:
         try:
-            st = os.stat(self.lock_path)
-        except FileNotFoundError:
-            st = None
-        if st is not None and (st.st_dev, st.st_ino) in _HELD:
-            raise self._in_use(f"process {os.getpid()} (this process)")
-        fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
-        try:
-            info = os.fstat(fd)
-            if not stat.S_ISREG(info.st_mode):
-                raise damaged(self.lock_path, f"the lock file is {file_kind(info.st_mode)}, not a regular file")
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError as err:
-                if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                    raise self._in_use(lock_holder(fd, info)) from None
-                raise
-            try:  # the record lock names this process to the kernel, for the next refused opener
-                fcntl.fcntl(fd, fcntl.F_SETLK, struct.pack(_FLOCK, fcntl.F_WRLCK, os.SEEK_SET, 0, 0, 0))
-            except OSError:
-                pass  # a file system without record locks: the flock still excludes
-        except BaseException:
-            os.close(fd)
-            raise
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
-        self._lock, self._lock_id = fd, (info.st_dev, info.st_ino)
-        _HELD[self._lock_id] = self.path
+            self._lock = take_lock(self.lock_path, self.path)
+        except LockHeld as err:
+            raise self._in_use(err.holder) from None
+        except LockNotRegular as err:
+            raise damaged(self.lock_path, f"the lock file is {err.kind}, not a regular file") from None
 
     def _in_use(self, holder: str) -> StateInUse:
         return StateInUse(
@@ -606,65 +571,6 @@ class DomainStore:
             except ValueError:
                 raise damaged(path, f"journal record {seq} is not JSON") from None
         return state
-
-
-def file_kind(mode: int) -> str:
-    """Return what a file of ``mode`` is, in words (``a FIFO (named pipe)``)."""
-    for test, words in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"),
-                        (stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                        (stat.S_ISBLK, "a block device"), (stat.S_ISREG, "a regular file")):
-        if test(mode):
-            return words
-    return f"a special file (mode {mode:o})"
-
-
-def lock_holder(fd: int, info: os.stat_result) -> str:
-    """Name the process holding the lock on the open lock file ``fd``, as the kernel reports it.
-
-    ``F_GETLK`` reports the holder of the record lock this module takes beside its
-    ``flock``; a holder that took only the ``flock`` (an older version) is looked up in
-    ``/proc/locks`` by the file's device and inode.
-    """
-    pid = 0
-    try:
-        reply = fcntl.fcntl(fd, fcntl.F_GETLK, struct.pack(_FLOCK, fcntl.F_WRLCK, os.SEEK_SET, 0, 0, 0))
-        kind, _, _, _, holder = struct.unpack(_FLOCK, reply)
-        if kind != fcntl.F_UNLCK and holder > 0:
-            pid = holder
-    except OSError:
-        pass
-    if not pid and sys.platform.startswith("linux"):
-        pid = _proc_locks_holder(info)
-    if not pid:
-        return "another process (the kernel does not say which)"
-    return f"process {pid}{_command_of(pid)}"
-
-
-def _proc_locks_holder(info: os.stat_result) -> int:
-    wanted = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
-    try:
-        with open("/proc/locks", encoding="ascii", errors="replace") as handle:
-            for line in handle:
-                fields = line.split()
-                if "->" in fields:
-                    continue  # a waiter, not a holder
-                if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5] == wanted and fields[4].isdigit():
-                    return int(fields[4])
-    except OSError:
-        pass
-    return 0
-
-
-def _command_of(pid: int) -> str:
-    """Return `` (<command line>)`` of a process, shortened, or nothing if it cannot be read."""
-    try:
-        with open(f"/proc/{pid}/cmdline", "rb") as handle:
-            words = handle.read(4096).split(b"\0")
-    except OSError:
-        return ""
-    text = " ".join(w.decode("utf-8", "replace") for w in words if w)
-    text = "".join(ch if ch.isprintable() else "?" for ch in text)
-    return f" ({text[:120]}{'...' if len(text) > 120 else ''})" if text else ""
 
 
 def _dumps(value: Any) -> str:
