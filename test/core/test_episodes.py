@@ -130,9 +130,7 @@ def test_the_window_setting_is_a_row_of_the_table():
     assert policy.limits().episode_window == 3 and policy.to_json() == {"policy": "episodes", "episode_window": 3}
     assert ForgettingPolicy.parse("decay+episodes+displacement", decay_period=5.0, capacity=2,
                                   episode_window=1).name == "decay+episodes+displacement"
-    with pytest.raises(PolicyError,
-                       match="^policy 'episodes' needs 'episode_window' \\(episodes\\) but it is not set$"):
-        ForgettingPolicy.parse("episodes")
+    assert ForgettingPolicy.parse("episodes").to_json() == {"policy": "episodes", "episode_window": 1}  # its fallback
     with pytest.raises(PolicyError, match="^episode_window must be >= 1, got 0$"):
         ForgettingPolicy.parse("episodes", episode_window=0)
     assert ForgettingPolicy.parse("displacement", capacity=2).limits().episode_window is None

@@ -43,7 +43,7 @@ def test_the_table_is_well_formed():
 def test_forgetting_takes_its_parameters_from_the_table():
     assert SETTINGS == settings.names() and PARAMETERS == tuple(r.name for r in settings.parameters())
     assert BOUNDS == {r.name: (r.low, r.high) for r in settings.parameters()}
-    assert DEFAULTS == {"seed": 0, "activation_decay": 0.5}
+    assert DEFAULTS == {"seed": 0, "activation_decay": 0.5, "episode_window": 1}
     assert RULE_PARAMETERS["displacement-random"] == ("capacity", "seed")
     assert RULE_PARAMETERS["similarity"] == () and RULE_PARAMETERS["decay"] == ("decay_period",)
 

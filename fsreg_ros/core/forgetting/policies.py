@@ -14,7 +14,7 @@ the one place policy names are parsed and validated):
   (:mod:`fsreg_ros.core.memory.activation`).  The clock reaches the buffer from the
   WM Manager (:meth:`WMManager.advance`) and from every encoding's own time.
   Not combined with ``decay`` (both are forgetting by time; choose one).
-* ``episodes`` (k = ``episode_window``): when an entity's reference episode begins
+* ``episodes`` (k = ``episode_window``, default 1): when an entity's reference episode begins
   (an act of referring to it: :meth:`WMBuffer.begin_episode`, which the consultant
   calls when a view closes with rule 1's encoding), before that episode's own
   encodings, every entry of its queue not used in its last k episodes is forgotten

@@ -149,7 +149,7 @@ TABLE: tuple[Setting, ...] = (
     Setting("episode_window", int, 1, 0,
             "episodes: when an entity's reference episode begins, its properties not used in its last k episodes "
             "are forgotten (k = 1 keeps what was said in the previous episode and the current one)",
-            1, 1_000_000, rules=("episodes",), metavar="K", symbol="k", word="k",
+            1, 1_000_000, rules=("episodes",), fallback=1, metavar="K", symbol="k", word="k",
             axis="episode window k (episodes)"),
 )
 
