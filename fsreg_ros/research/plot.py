@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 from ..core.forgetting import settings
-from .grid import BOUNDS, GRID
+from .grid import BOUNDS, NUMERIC
 from .stats import METHOD, bootstrap_ci
 
 #: One colour per cause; the turn lines use grey and black line styles no cause uses.  Encodings are
@@ -102,7 +102,7 @@ def _file_name(policy: str) -> str:
 
 
 def _grid_parameters(entries: Sequence[dict]) -> list[str]:
-    return [p for p in GRID if any(getattr(e["setting"], p) is not None for e in entries)]
+    return [p for p in NUMERIC if any(getattr(e["setting"], p) is not None for e in entries)]
 
 
 def _x_axis(ax, x_param: Optional[str], xs_all: Sequence[float]) -> None:
@@ -218,7 +218,7 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
     """
     panels: dict[tuple, list] = {}
     for setting in settings:
-        params = [p for p in GRID if getattr(setting, p) is not None]
+        params = [p for p in NUMERIC if getattr(setting, p) is not None]
         rest = tuple((p, getattr(setting, p)) for p in params[1:])
         panels.setdefault((setting.policy, rest), []).append(setting)
     out = []
@@ -229,7 +229,7 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
 
 
 def _line_label(setting: Any) -> str:
-    params = [p for p in GRID if getattr(setting, p) is not None]
+    params = [p for p in NUMERIC if getattr(setting, p) is not None]
     label = f"{SHORT[params[0]]} = {getattr(setting, params[0]):g}" if params else setting.policy
     return label if setting.retraction else label + " (not told)"
 
