@@ -139,7 +139,7 @@ class SweepConfig:
 
 @dataclass(frozen=True)
 class Setting:
-    """One robot setting of the grid: a policy, the parameters it reads, whether WM hears LTM changes, REG's WM order."""
+    """One robot setting of the grid: a policy, the parameters it reads, WM told of LTM changes or not, REG's order."""
 
     policy: str
     decay_period: Optional[float] = None

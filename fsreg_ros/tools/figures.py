@@ -221,7 +221,8 @@ def repetition_table(figure: "Figure", output: Output) -> str:
                      f"| {float(row['repairs']):.2f} | {lengths} | "
                      f"{float(first[0]) - float(last[0]):+.2f} (6th: {last[1]}) |")
     return "\n".join(lines) + f"\n\nMeans over {rows[0]['games']} games; length k: properties (content words) of the " \
-        f"robot's k-th description of one referent, per game over the referents described k times; intervals: {_method()}."
+        f"robot's k-th description of one referent, per game over the referents described k times; " \
+        f"intervals: {_method()}."
 
 
 def recommendation_table(figure: "Figure", output: Output) -> str:
