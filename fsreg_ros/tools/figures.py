@@ -212,7 +212,7 @@ def repetition_table(figure: "Figure", output: Output) -> str:
 
     rows = _read(output, "summary.csv")
     lines = ["| setting | entrainment [95 % CI] | success [95 % CI] | repairs | "
-             + " | ".join(f"length {k}" for k in range(1, len(METRICS) + 1)) + " | 1st - 6th [95 % CI] |",
+             + " | ".join(f"length {k}" for k in range(1, len(METRICS) + 1)) + " | 1st - 6th (6th's 95 % CI) |",
              "|---|---|---|---|" + "---|" * (len(METRICS) + 1)]
     for row in rows:
         lengths = " | ".join(f"{float(row[m]):.2f}" for m in METRICS)
