@@ -67,3 +67,11 @@ def test_bad_episode_windows_or_wm_orders_are_one_line(tmp_path, capsys, extra, 
                            "--out", str(tmp_path / "o"), *extra]) == 2
     assert capsys.readouterr().err == message
     assert not (tmp_path / "o").exists()
+
+
+def test_plots_group_a_setting_by_its_policy_and_a_wm_order_other_than_the_papers():
+    from fsreg_ros.research.plot import _group
+
+    assert [_group(s) for s in (Setting("episodes", episode_window=1),
+                                Setting("episodes", episode_window=1, wm_order="strength"), Setting("none"))] == [
+        "episodes", "episodes (strength order)", "none"]
