@@ -18,7 +18,6 @@ Tick *times* (the schedule, runs of ticks, the ledger) are arithmetic of
 
 from __future__ import annotations
 
-from itertools import islice
 from typing import Optional, Sequence
 
 import numpy as np
@@ -69,12 +68,17 @@ class LazyDecay:
             wm.store.sync(q, self.ticks.count)
             return
         wm.changes.record(entity, q)
-        if wm.quiet:  # no events to report: just drop the fronts
+        sink, watchers = wm.sink, wm.watchers
+        if sink is None and not watchers:  # no events to report: just drop the fronts
             wm.store.drop_fronts(entity, q, self.ticks.count)
             return
         victims = wm.store.take_fronts(entity, q, self.ticks.count)  # the fronts, LRU first
         for k, prop in enumerate(victims):
-            self._report(entity, prop, self.ticks.time(synced + k))
+            time = self.ticks.time(synced + k)
+            for watcher in watchers:
+                watcher.forgot(entity, prop, "decay", time)
+            if sink is not None:
+                sink(WMEvent("forget", wm.domain, entity, prop, "decay", time, None))
 
     def settle_columns(self, rows: np.ndarray) -> None:
         """Apply the ticks the column ``rows`` owe (no events: only called without a sink)."""
@@ -167,8 +171,7 @@ class LazyDecay:
             if cuts and cuts[i] > start:
                 wm.changes.mark_rows(rows[start:cuts[i]])
                 start = cuts[i]
-            store.sync(q, ticks - count)  # (flushed: up to date before these ticks)
-            store.drop_fronts(entity, q, ticks)
+            store.drop_fronts(entity, q, ticks, count)  # (flushed: up to date before these ticks)
             wm.changes.record(entity, q)
         wm.changes.mark_rows(rows[start:])
 
@@ -176,9 +179,9 @@ class LazyDecay:
                   pending: list[tuple[str, Queue]]) -> None:
         """Pop the ticks' fronts tick by tick, in ``entity_order``, reporting each (the general path).
 
-        The fronts each queue loses are listed first (a column queue's by one sort of
-        its slots); the column queues then lose theirs at once, and the events, the
-        change record and the dict queues' pops follow tick by tick in entity order.
+        The fronts each queue loses are popped first and listed (a column queue's by
+        one sort of its slots, then all of theirs at once); the change record and the
+        events follow tick by tick in entity order.
         """
         wm = self.wm
         store = wm.store
@@ -189,7 +192,7 @@ class LazyDecay:
         # (rank, tie, entity, fronts it loses LRU first, its dict queue or None for a column queue)
         plan: list[tuple[int, int, str, list[str], Optional[Queue]]] = []
         for tie, (entity, q) in enumerate(pending):
-            plan.append((rank.get(entity, last), tie, entity, list(islice(q, ticks.count)), q))
+            plan.append((rank.get(entity, last), tie, entity, store.take_fronts(entity, q, count, ticks.count), q))
         if len(rows):
             arrays, names, bound = columns.store, columns.prop_name, columns.bound
             fronts = arrays.in_order(rows, min(ticks.count, arrays.width))
@@ -199,25 +202,18 @@ class LazyDecay:
             store.pop_owed(rows, count)
             store.emptied(rows)
         plan.sort(key=lambda step: step[:2])
+        sink, watchers, domain, changes = wm.sink, wm.watchers, wm.domain, wm.changes
         for i in range(max((len(step[3]) for step in plan), default=0)):
             time = ticks.time(i)
             for _, _, entity, fronts, q in plan:
                 if i >= len(fronts):
                     continue
-                if q is None:  # popped already, with the other column queues
-                    if i == 0:
-                        wm.changes.note(entity)
-                else:
-                    store.remove(entity, q, fronts[i])
-                    wm.changes.record(entity, q)
-                self._report(entity, fronts[i], time)
-        for _, q in pending:
-            store.sync(q, count)
-
-    def _report(self, entity: str, prop: str, time: float) -> None:
-        """Tell the listeners (event sink, watchers) that decay popped ``prop`` of Q[entity] at ``time``."""
-        wm = self.wm
-        for watcher in wm.watchers:
-            watcher.forgot(entity, prop, "decay", time)
-        if wm.sink is not None:
-            wm.sink(WMEvent("forget", wm.domain, entity, prop, "decay", time, None))
+                if i == 0:
+                    if q is None:  # a column queue
+                        changes.note(entity)
+                    else:
+                        changes.record(entity, q)
+                for watcher in watchers:
+                    watcher.forgot(entity, fronts[i], "decay", time)
+                if sink is not None:
+                    sink(WMEvent("forget", domain, entity, fronts[i], "decay", time, None))

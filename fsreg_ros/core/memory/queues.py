@@ -165,17 +165,26 @@ class QueueStore:
         if not q:
             self._nonempty.pop(entity, None)
 
-    def drop_fronts(self, entity: str, q: Queue, ticks: int) -> int:
-        """Bring Q[entity] up to ``ticks`` ticks, one front dropped per owed tick; return how many went."""
-        popped = pop_quietly(q, ticks)
-        self._size -= popped
-        if not q:
-            self._nonempty.pop(entity, None)
-        return popped
+    def drop_fronts(self, entity: str, q: Queue, ticks: int, owed: int = -1) -> int:
+        """Bring Q[entity] up to ``ticks`` ticks, one front dropped per owed tick; return how many went.
 
-    def take_fronts(self, entity: str, q: Queue, ticks: int) -> list[str]:
+        ``owed``: the ticks it owes, when the caller knows (else ``ticks`` less its ``synced``).
+        """
+        n = len(q)
+        owed = min(ticks - q.synced if owed < 0 else owed, n)
+        q.synced = ticks
+        if owed == n:
+            q.clear()
+            self._nonempty.pop(entity, None)
+        else:
+            for _ in range(owed):
+                del q[next(iter(q))]
+        self._size -= owed
+        return owed
+
+    def take_fronts(self, entity: str, q: Queue, ticks: int, owed: int = -1) -> list[str]:
         """As :meth:`drop_fronts`, returning the fronts dropped, LRU first (to report them)."""
-        victims = list(islice(q, min(ticks - q.synced, len(q))))
+        victims = list(islice(q, min(ticks - q.synced if owed < 0 else owed, len(q))))
         q.synced = ticks
         for prop in victims:
             del q[prop]
