@@ -13,7 +13,7 @@ from typing import Literal, Optional
 from pydantic import model_validator
 
 from .base import Id, Message, Name, Names, Number, RequestRef, Stamp
-from .wm import Origin
+from .wm import EntryStrength, Origin
 
 
 class Request(Stamp):
@@ -81,6 +81,8 @@ class RegExpression(Message):
 
     ``origins`` is parallel to ``description``: for a property taken from WM, what had made
     it enter Q[target]; null for the others (alignment names it, core/algorithms/alignment.py).
+    ``strengths`` is parallel to it too: for a property taken from WM, how strongly its entry
+    was held when REG looked (episode age, episodes used in, activation); null for the others.
     """
 
     id: Id
@@ -95,6 +97,7 @@ class RegExpression(Message):
     wm_before: list[str]
     text: str
     origins: list[Optional[Origin]] = []
+    strengths: list[Optional[EntryStrength]] = []
     client: Optional[str] = None
     request: Optional[str] = None
 

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Optional, Sequence
 
+from ..core.algorithms.generation import WM_ORDERS
 from .cli_common import UsageError, _run, number_list
 from .eval_cli import eval_main, eval_parser
 from .execution import add_engine_arguments, engine_from_args
@@ -49,6 +50,12 @@ def sweep_parser() -> argparse.ArgumentParser:
     parser.add_argument("--activation-thresholds", default="-1.5,-1.15,-0.8",
                         help="comma-separated thresholds (tau), for activation (d: --memory activation_decay=D, "
                              "default 0.5; with it, one encoding stays exp(-tau/d) s: 20, 10, 5 by default)")
+    parser.add_argument("--episode-windows", default="1,2,3,4",
+                        help="comma-separated integers (k: the entity's last k reference episodes), for episodes")
+    parser.add_argument("--wm-orders", default="lru-first", metavar="ORDER,...",
+                        help=f"REG's order of the target's WM properties, each non-none policy run under each: "
+                             f"{', '.join(WM_ORDERS)} (default lru-first, the paper's; strength: strongest first, "
+                             "by episode age, then episodes used in); a sweep of another order adds a wm_order column")
     parser.add_argument("--seeds", type=int, default=10, help="number of games (seeds --seed-base ... +N-1)")
     parser.add_argument("--seed-base", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--turns", type=int, default=100, help="dialogue turns per game, human and robot alternating")
@@ -117,6 +124,15 @@ def parse_shard(text: str) -> tuple[int, int]:
     if not 1 <= index <= count <= 100_000:
         raise UsageError(f"--shard {text}: K must be in [1, N] and N in [1, 100000]")
     return index, count
+
+
+def wm_order_list(text: str) -> tuple:
+    """Parse ``--wm-orders``: REG's WM orders, comma-separated, each one of :data:`WM_ORDERS`."""
+    values = tuple(dict.fromkeys(v.strip() for v in text.split(",") if v.strip()))
+    wrong = [v for v in values if v not in WM_ORDERS]
+    if not values or wrong:
+        raise UsageError(f"--wm-orders: expected one or more of {', '.join(WM_ORDERS)}, got '{text}'")
+    return values
 
 
 def retraction_list(text: str) -> tuple:
@@ -211,6 +227,8 @@ def sweep_config(args: argparse.Namespace):
         global_capacities=number_list("--global-capacities", args.global_capacities, int, 1, 1_000_000),
         shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
         activation_thresholds=number_list("--activation-thresholds", args.activation_thresholds, float, -20.0, 20.0),
+        episode_windows=number_list("--episode-windows", args.episode_windows, int, 1, 1_000_000),
+        wm_orders=wm_order_list(args.wm_orders),
         seeds=seeds,
         turns=args.turns,
         memory=memory_settings(args.memory),

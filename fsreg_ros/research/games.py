@@ -298,8 +298,9 @@ def play(
     wm_belief: bool = False,
     trace: bool = False,
     listener: Optional[ListenerOptions] = None,
+    wm_order: str = "lru-first",
 ) -> Played:
-    """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``).
+    """Play ``game`` with the robot's memory settings (``{"policy": ..., ...}``) and REG's ``wm_order``.
 
     With ``human_memory`` the human speaks from a WM of its own (:class:`HumanSpeaker`),
     turn by turn, instead of the game's precomputed no-WM descriptions.  ``retract``
@@ -314,7 +315,7 @@ def play(
     the human's turns, from its own WM (``partner_memory``, else ``memory``).
     """
     scenario = scenario_of(game)
-    simulation = Simulation(scenario, Options(memory=dict(memory)), lexicon, trace=trace)
+    simulation = Simulation(scenario, Options(memory=dict(memory), wm_order=wm_order), lexicon, trace=trace)
     for consultant in simulation.consultants.values():
         consultant.retract_on_update = retract
     if wm_belief:

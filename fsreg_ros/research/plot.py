@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 from ..core.forgetting import settings
-from .grid import BOUNDS, GRID
+from .grid import BOUNDS, DEFAULT_WM_ORDER, NUMERIC
 from .stats import METHOD, bootstrap_ci
 
 #: One colour per cause; the turn lines use grey and black line styles no cause uses.  Encodings are
@@ -102,7 +102,7 @@ def _file_name(policy: str) -> str:
 
 
 def _grid_parameters(entries: Sequence[dict]) -> list[str]:
-    return [p for p in GRID if any(getattr(e["setting"], p) is not None for e in entries)]
+    return [p for p in NUMERIC if any(getattr(e["setting"], p) is not None for e in entries)]
 
 
 def _x_axis(ax, x_param: Optional[str], xs_all: Sequence[float]) -> None:
@@ -218,9 +218,9 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
     """
     panels: dict[tuple, list] = {}
     for setting in settings:
-        params = [p for p in GRID if getattr(setting, p) is not None]
+        params = [p for p in NUMERIC if getattr(setting, p) is not None]
         rest = tuple((p, getattr(setting, p)) for p in params[1:])
-        panels.setdefault((setting.policy, rest), []).append(setting)
+        panels.setdefault((_group(setting), rest), []).append(setting)
     out = []
     for (policy, rest), mine in panels.items():
         title = policy + (": " + ", ".join(f"{SHORT[p]} = {v:g}" for p, v in rest) if rest else "")
@@ -228,8 +228,14 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
     return out
 
 
+def _group(setting: Any) -> str:
+    """Return what a plot groups a setting by: its policy, and REG's WM order unless it is the paper's."""
+    order = getattr(setting, "wm_order", DEFAULT_WM_ORDER)
+    return setting.policy if order == DEFAULT_WM_ORDER else f"{setting.policy} ({order} order)"
+
+
 def _line_label(setting: Any) -> str:
-    params = [p for p in GRID if getattr(setting, p) is not None]
+    params = [p for p in NUMERIC if getattr(setting, p) is not None]
     label = f"{SHORT[params[0]]} = {getattr(setting, params[0]):g}" if params else setting.policy
     return label if setting.retraction else label + " (not told)"
 
@@ -365,10 +371,10 @@ def sweep_plots(rows: Sequence[dict], summary: Sequence[dict], curves: Mapping[t
     """Write the sweep's plots (PNG and PDF each) into ``out``; return their file names (each written once)."""
     files = []
     none = next((e for e in summary if e["setting"].policy == "none"), None)
-    for policy in dict.fromkeys(e["setting"].policy for e in summary):
+    for policy in dict.fromkeys(_group(e["setting"]) for e in summary):
         if policy == "none":
             continue
-        entries = [e for e in summary if e["setting"].policy == policy]
+        entries = [e for e in summary if _group(e["setting"]) == policy]
         files += policy_plot(policy, entries, none, out, dynamic)
     files += divergence_plot(curves, out)
     if dynamic and any(e["setting"].policy != "none" for e in summary):

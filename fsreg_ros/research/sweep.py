@@ -66,10 +66,11 @@ from ..core.lexicon import Lexicon
 from ..core.forgetting.settings import setting as memory_setting
 from .execution import Engine, TaskRun, run_tasks
 from .games import BOARD_SIZE, DOMAIN, make_game, play, scenario_of
-from .grid import BOUNDS, GRID
+from .grid import BOUNDS, DEFAULT_WM_ORDER, GRID, NUMERIC, axes
 from .ledger import GAMES, GameRecord, Ledger, LedgerError, header
 from .listener import ListenerOptions
 from .provenance import environment, git_state, package_version
+from .repetition import METRICS as REPETITION_METRICS, lengths_by_repetition
 from .stats import METHOD, Estimate, bootstrap_ci
 
 CHECKPOINTS = (10, 25, 50, 100)
@@ -89,7 +90,7 @@ METRICS = (
     "divergence",
     "outdated_rate",
     "outdated_descriptions",
-)
+) + REPETITION_METRICS
 #: Metrics of the listener (only with one; ``partner_resolved`` only in robot-robot mode).
 LISTENER_METRICS = ("success", "first_success", "turns_to_success", "final_length", "said_length", "repairs")
 PARTNER_METRICS = ("partner_resolved",)
@@ -117,6 +118,8 @@ class SweepConfig:
     global_capacities: tuple = (4, 8, 16)
     shared_capacities: tuple = (4, 8, 16)
     activation_thresholds: tuple = (-1.5, -1.15, -0.8)  # d = 0.5: one encoding stays 20, 10, 5 s
+    episode_windows: tuple = (1, 2, 3, 4)  # k, for rule episodes
+    wm_orders: tuple = (DEFAULT_WM_ORDER,)  # REG's order of the target's WM (every non-none policy runs each)
     memory: dict = field(default_factory=dict)  # extra memory settings for every non-none run
     human_memory: Optional[dict] = None  # the human's own WM settings (None: a no-WM human)
     board_size: int = BOARD_SIZE
@@ -131,12 +134,12 @@ class SweepConfig:
         """Return the grid's values of one parameter."""
         return {"decay_period": self.decay_periods, "capacity": self.capacities,
                 "global_capacity": self.global_capacities, "shared_capacity": self.shared_capacities,
-                "activation_threshold": self.activation_thresholds}[parameter]
+                "activation_threshold": self.activation_thresholds, "episode_window": self.episode_windows}[parameter]
 
 
 @dataclass(frozen=True)
 class Setting:
-    """One robot memory setting of the grid: a policy, the parameters it reads, whether WM hears LTM changes."""
+    """One robot setting of the grid: a policy, the parameters it reads, WM told of LTM changes or not, REG's order."""
 
     policy: str
     decay_period: Optional[float] = None
@@ -144,7 +147,9 @@ class Setting:
     global_capacity: Optional[int] = None
     shared_capacity: Optional[int] = None
     activation_threshold: Optional[float] = None
+    episode_window: Optional[int] = None
     retraction: bool = True
+    wm_order: str = DEFAULT_WM_ORDER
 
     @property
     def wm(self) -> str:
@@ -154,7 +159,7 @@ class Setting:
 
     def parameters(self) -> dict:
         """Return the grid parameters this setting sets (the ones its policy reads)."""
-        return {p: getattr(self, p) for p in GRID if getattr(self, p) is not None}
+        return {p: getattr(self, p) for p in NUMERIC if getattr(self, p) is not None}
 
     def memory(self, extra: dict, seed: int = 0) -> dict:
         """Return the memory settings a simulation of game ``seed`` gets for this setting.
@@ -171,9 +176,11 @@ class Setting:
         return out
 
     def label(self) -> str:
-        """Return e.g. ``decay delta=10`` or ``displacement alpha=2, not told``."""
+        """Return e.g. ``decay delta=10``, ``displacement alpha=2 (not told)`` or ``episodes k=1, strength order``."""
         params = ", ".join(f"{memory_setting(p).word}={_number(v)}" for p, v in self.parameters().items())
         text = f"{self.policy} {params}".strip()
+        if self.wm_order != DEFAULT_WM_ORDER:
+            text += f"{',' if params else ''} {self.wm_order} order"
         return text if self.retraction else f"{text} (not told)"
 
 
@@ -182,17 +189,18 @@ def _number(value: Any) -> str:
 
 
 def reads(policy: str, extra: dict) -> tuple:
-    """Return the grid parameters read by a policy, in :data:`GRID` order; ``extra`` fixes some of them."""
+    """Return the grid parameters read by a policy, in column order (:data:`~.grid.NUMERIC`); ``extra`` fixes some."""
     if policy == "none":
         return ()
     wanted = {p for rule in parse_rules(policy) for p in RULE_PARAMETERS[rule]}
-    return tuple(p for p in GRID if p in wanted and p not in extra)
+    return tuple(p for p in NUMERIC if p in wanted and p not in extra)
 
 
 def settings(config: SweepConfig) -> list[Setting]:
-    """Return the grid: each policy over the parameters it reads (``none`` once), each WM told or not.
+    """Return the grid: each policy over the parameters it reads (``none`` once), each WM told or not, each WM order.
 
-    Retraction is a dimension only when facts change (``changes`` > 0), and never for ``none``.
+    Retraction is a dimension only when facts change (``changes`` > 0), and never for
+    ``none``; nor is REG's WM order (``none`` has no WM to order).
     """
     told = config.retraction if config.changes > 0 else (True,)
     out = []
@@ -202,8 +210,8 @@ def settings(config: SweepConfig) -> list[Setting]:
             continue
         names = reads(policy, config.memory)
         for values in product(*(config.values(p) for p in names)):
-            for retraction in told:
-                out.append(Setting(policy, retraction=retraction, **dict(zip(names, values))))
+            for retraction, order in product(told, config.wm_orders):
+                out.append(Setting(policy, retraction=retraction, wm_order=order, **dict(zip(names, values))))
     return out
 
 
@@ -228,8 +236,9 @@ def metrics(config: SweepConfig) -> tuple:
 
 
 def columns(config: SweepConfig) -> tuple:
-    """Return runs.csv's columns: :data:`COLUMNS`, then the listener's metrics when it has one."""
-    return COLUMNS + metrics(config)[len(METRICS):]
+    """Return runs.csv's columns: :data:`COLUMNS` (with the sweep-only axes it uses), then the listener's metrics."""
+    grid = axes(settings(config))
+    return COLUMNS[:2] + grid + COLUMNS[2 + len(GRID):] + metrics(config)[len(METRICS):]
 
 
 def listener_metrics(played) -> dict:
@@ -270,7 +279,8 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
     for setting in settings(config):
         played = (
             baseline if setting.policy == "none"
-            else play(game, setting.memory(config.memory, seed), lexicon, retract=setting.retraction, **options)
+            else play(game, setting.memory(config.memory, seed), lexicon, retract=setting.retraction,
+                      wm_order=setting.wm_order, **options)
         )
         summary = played.alignment
         robot = [t for t in played.result["turns"] if t["speaker"] == "robot"]
@@ -282,7 +292,8 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
         row: dict[str, Any] = {
             "policy": setting.policy,
             "wm": setting.wm,
-            **{p: getattr(setting, p) for p in GRID},
+            **{p: getattr(setting, p) for p in NUMERIC},
+            "wm_order": setting.wm_order,
             "retraction": "on" if setting.retraction else "off",
             "seed": seed,
             "turns": config.turns,
@@ -304,6 +315,7 @@ def run_seed(task: tuple) -> tuple[list[dict], dict, str]:
             "divergence": _share(flags),
             "outdated_rate": outdated / summary.properties if summary.properties else 0.0,
             "outdated_descriptions": _share([int(bool(o)) for o in played.outdated]),
+            **lengths_by_repetition(played.result["turns"]),
             "from_wm_share": summary.wm_share,
             "gap": game.gap,
             "human_order": " ".join(game.human_order),
@@ -360,8 +372,9 @@ def sweep(config: SweepConfig, jobs: int = 1, progress: bool = True, ledger: Opt
 
 # ------------------------------------------------------------------ summaries
 def setting_of(row: dict) -> Setting:
-    """Return the setting a row of runs.csv was played under."""
-    return Setting(row["policy"], *(row[p] for p in GRID), retraction=row["retraction"] == "on")
+    """Return the setting a row of runs.csv was played under (a sweep-only axis it lacks: unset, lru-first)."""
+    return Setting(row["policy"], **{p: row.get(p) for p in NUMERIC}, retraction=row["retraction"] == "on",
+                   wm_order=row.get("wm_order") or DEFAULT_WM_ORDER)
 
 
 def summarise_runs(rows: Sequence[dict], metrics: Sequence[str] = METRICS) -> list[dict]:
@@ -379,13 +392,14 @@ def summarise_runs(rows: Sequence[dict], metrics: Sequence[str] = METRICS) -> li
 def write_summary(path: Path, summary: Sequence[dict]) -> None:
     """Write summary.csv: per setting, n games and each metric's mean and 95 % bootstrap interval."""
     metrics = list(summary[0]["estimates"]) if summary else []
+    grid = axes(e["setting"] for e in summary)
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(["policy", "wm", *GRID, "retraction", "games"]
+        writer.writerow(["policy", "wm", *grid, "retraction", "games"]
                         + [f"{m}{suffix}" for m in metrics for suffix in ("", "_low", "_high")])
         for entry in summary:
             s: Setting = entry["setting"]
-            cells = [s.policy, s.wm, *(_cell(getattr(s, p)) for p in GRID), "on" if s.retraction else "off",
+            cells = [s.policy, s.wm, *(_cell(getattr(s, p)) for p in grid), "on" if s.retraction else "off",
                      entry["n"]]
             for m in metrics:
                 e: Estimate = entry["estimates"][m]
@@ -418,18 +432,19 @@ def write_recommendation(path: Path, table: Sequence[dict]) -> None:
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
         metrics = ("entrainment", "entrainment_gain", "outdated_rate")
-        writer.writerow(["wm", "max_outdated_rate", "policy", *GRID]
+        grid = axes(e["best"]["setting"] for e in table if e["best"] is not None)
+        writer.writerow(["wm", "max_outdated_rate", "policy", *grid]
                         + [f"{m}{suffix}" for m in metrics for suffix in ("", "_low", "_high")]
                         + ["settings_allowed", "settings_considered"])
         for entry in table:
             best = entry["best"]
             if best is None:
-                writer.writerow([entry["wm"], entry["bound"], "", *[""] * len(GRID), *[""] * 9, 0,
+                writer.writerow([entry["wm"], entry["bound"], "", *[""] * len(grid), *[""] * 9, 0,
                                  entry["considered"]])
                 continue
             s, e = best["setting"], best["estimates"]
             cells = [_cell(x) for m in metrics for x in (e[m].mean, e[m].low, e[m].high)]
-            writer.writerow([entry["wm"], entry["bound"], s.policy, *(_cell(getattr(s, p)) for p in GRID), *cells,
+            writer.writerow([entry["wm"], entry["bound"], s.policy, *(_cell(getattr(s, p)) for p in grid), *cells,
                              entry["allowed"], entry["considered"]])
 
 
@@ -455,9 +470,10 @@ def write_curves(path: Path, curves: dict) -> None:
     """Write divergence.csv: per setting, seed and robot turn, 1 if the description differs from none's."""
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(("policy", *GRID, "retraction", "seed", "robot_turn", "diverged"))
+        grid = axes(setting for setting, _ in curves)
+        writer.writerow(("policy", *grid, "retraction", "seed", "robot_turn", "diverged"))
         for (setting, seed), flags in curves.items():
-            cells = [setting.policy, *(_cell(getattr(setting, p)) for p in GRID),
+            cells = [setting.policy, *(_cell(getattr(setting, p)) for p in grid),
                      "on" if setting.retraction else "off", seed]
             for j, flag in enumerate(flags, 1):
                 writer.writerow((*cells, j, flag))

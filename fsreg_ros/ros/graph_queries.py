@@ -18,6 +18,10 @@ from .carrier import CarrierError, ServiceCaller, subscribe
 from .client_base import ClientError, Spinning, describe_graph
 
 
+#: The client name :meth:`GraphQueries.held` opens its sessions under.
+HELD_CLIENT = "fsreg-ctl"
+
+
 class GraphQueries(Spinning):
     """Service calls and WM reads of one graph (state set up by ``GraphClient``).
 
@@ -101,6 +105,20 @@ class GraphQueries(Spinning):
         """
         domain = domain or self.domain_of(entity)
         return codec.queue_of(self.call(contract.debug_service(domain), codec.wm_request(entity)))
+
+    def held(self, entity: str, domain: str) -> dict:
+        """Return how ``entity``'s WM entries are held now: ``queue`` (LRU first), ``origins`` and ``strength``.
+
+        What a consultant's ``open`` reply carries (no debug service needed): a session is
+        opened on the entity for client ``fsreg-ctl`` and closed at once without encoding,
+        so WM does not change and no reference episode begins.  A session a lost reply
+        leaves open is the client's own, dropped when it opens more than the consultant keeps.
+        """
+        service = contract.consultant_service(domain)
+        reply = self.call(service, {"op": "open", "target": entity, "client": HELD_CLIENT})
+        self.call(service, {"op": "close", "session": reply["session"]})
+        return {"queue": list(reply.get("queue") or []), "origins": list(reply.get("origins") or []),
+                "strength": list(reply.get("strength") or [])}
 
     def snapshot(self, domain: str) -> dict[str, list[str]]:
         """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""

@@ -8,7 +8,7 @@ import sys
 from ..contract.codec import printable
 from ..core.memory.ticks import MAX_TIME
 from .arguments import number
-from .ctl_show import Screen, show_event, show_state
+from .ctl_show import Screen, held_text, show_event, show_state
 from .ctl_table import EXIT_OK, MAX_COUNT, Ctl, UsageError, command
 
 
@@ -66,10 +66,13 @@ def wm(ctl: Ctl, client) -> int:
         if err.kind != "usage":
             raise
         raise ClientError(f"wm {printable(args.entity, 80)}: {err}", "error") from None
-    state = client.state(domain, current=True)  # wm/state as of now: no debug service needed
-    queue = list((state.get("queues") or {}).get(args.entity, []))
-    ctl.emit({"entity": args.entity, "domain": domain, "queue": queue, "time": state.get("time")},
-             f"{args.entity} ({domain}): {', '.join(queue) or '(empty)'}")
+    held = client.held(args.entity, domain)  # the consultant's open reply: queue, origins, strength
+    queue = held["queue"]
+    origins = held["origins"] + [None] * len(queue)
+    strength = held["strength"] + [None] * len(queue)
+    ctl.emit({"entity": args.entity, "domain": domain, **held, "time": ctl.now(client)},
+             f"{args.entity} ({domain}): "
+             + (", ".join(p + held_text(o, s) for p, o, s in zip(queue, origins, strength)) or "(empty)"))
     return EXIT_OK
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Optional
 
 from .ctl_table import PROG
 from .up import restored_text
@@ -20,8 +21,32 @@ def show_say(answer: dict) -> str:
     return f"{status}{tail}"
 
 
+def held_text(origin: Optional[dict], strength: Optional[dict]) -> str:
+    """Return how a WM entry is held: ``[speaker turn 3; age 0, 1 episode, activation 0.52]`` ('' if nothing known).
+
+    ``origin``: the encoding that made it enter WM (cause, turn); ``strength``: its episode
+    age (0: used in the entity's current episode), the episodes it was used in and, under
+    rule activation, its activation (``inf`` at an encoding's very time).
+    """
+    parts = []
+    if origin:
+        parts.append(str(origin.get("cause")) + (f" turn {origin['turn']}" if origin.get("turn") is not None else ""))
+    if strength:
+        episodes = strength.get("episodes")
+        text = f"age {strength.get('age')}, {episodes} episode{'' if episodes == 1 else 's'}"
+        activation = strength.get("activation")
+        if activation is not None:
+            text += f", activation {activation if isinstance(activation, str) else format(activation, '.2f')}"
+        parts.append(text)
+    return f" [{'; '.join(parts)}]" if parts else ""
+
+
 def show_describe(answer: dict) -> str:
-    sources = ", ".join(f"{p}: {s}" for p, s in zip(answer.get("description") or [], answer.get("sources") or []))
+    words = answer.get("description") or []
+    origins = list(answer.get("origins") or []) + [None] * len(words)
+    strengths = list(answer.get("strengths") or []) + [None] * len(words)
+    sources = ", ".join(f"{p}: {s}" + (held_text(o, g) if s == "wm" else "")
+                        for p, s, o, g in zip(words, answer.get("sources") or [], origins, strengths))
     left = answer.get("distractors_left") or []
     note = "" if answer.get("distinguishing", True) else f"; not distinguishing from {', '.join(left)}"
     return f"\"{answer.get('text')}\" ({sources or 'nothing to say'}{note})"

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 from ..core.forgetting.settings import setting as memory_setting
-from ..research.grid import GRID
+from ..research.grid import DEFAULT_WM_ORDER, NUMERIC, WM_ORDER
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ("README.md", "docs/research.md")
@@ -216,6 +216,25 @@ def listener_table(figure: "Figure", output: Output) -> str:
     return "\n".join(lines) + f"\n\nMeans over {rows[0]['games']} games; intervals: {_method()}."
 
 
+def repetition_table(figure: "Figure", output: Output) -> str:
+    """Per setting: entrainment, success, repairs and the length of the k-th description of a referent (summary.csv)."""
+    from ..research.repetition import METRICS
+
+    rows = _read(output, "summary.csv")
+    lines = ["| setting | entrainment [95 % CI] | success [95 % CI] | repairs | "
+             + " | ".join(f"length {k}" for k in range(1, len(METRICS) + 1)) + " | 1st - 6th (6th's 95 % CI) |",
+             "|---|---|---|---|" + "---|" * (len(METRICS) + 1)]
+    for row in rows:
+        lengths = " | ".join(f"{float(row[m]):.2f}" for m in METRICS)
+        first, last = (_interval(row, m, 2).split(" ", 1) for m in (METRICS[0], METRICS[-1]))
+        lines.append(f"| {_setting_label(row)} | {_interval(row, 'entrainment', 3)} | {_interval(row, 'success', 3)} "
+                     f"| {float(row['repairs']):.2f} | {lengths} | "
+                     f"{float(first[0]) - float(last[0]):+.2f} (6th: {last[1]}) |")
+    return "\n".join(lines) + f"\n\nMeans over {rows[0]['games']} games; length k: properties (content words) of the " \
+        f"robot's k-th description of one referent, per game over the referents described k times; " \
+        f"intervals: {_method()}."
+
+
 def recommendation_table(figure: "Figure", output: Output) -> str:
     """Render the follow-up's recommendation (recommendation.csv): per WM configuration and bound, the best."""
     rows = _read(output, "recommendation.csv")
@@ -249,9 +268,11 @@ def max_outdated(figure: "Figure", output: Output) -> str:
 
 
 def _setting_label(row: dict) -> str:
-    params = ", ".join(f"{memory_setting(p).symbol} = {float(row[p]):g}" for p in GRID if row.get(p))
+    params = ", ".join(f"{memory_setting(p).symbol} = {float(row[p]):g}" for p in NUMERIC if row.get(p))
     told = "" if row.get("retraction", "on") == "on" else " (not told)"
-    return f"{row['policy']} {params}".strip() + told
+    order = row.get(WM_ORDER) or DEFAULT_WM_ORDER
+    shown = f", {order} order" if order != DEFAULT_WM_ORDER and row["policy"] != "none" else ""
+    return f"{row['policy']} {params}".strip() + shown + told
 
 
 def _code(text: str, language: str = "bash") -> str:
@@ -373,6 +394,14 @@ FIGURES += (
             "--out", f"{OUT}/sweep-human-fitted"),
            {"sweep-human-fitted": ("docs/research.md", summary_table),
             "sweep-human-fitted-readme": ("docs/research.md", summary_table)}, small=SMALL, writes=True),
+    # The robot with people's rule (reference episodes, the strength order) beside the paper's and the best
+    # rule fitted to people (activation, d = 0.99, tau = -6), with the listener that can fail.
+    Figure("people-rule", "fsreg-sweep",
+           ("--policies", "decay+displacement,activation,episodes,none", "--decay-periods", "10", "--capacities", "2",
+            "--activation-thresholds", "-6", "--memory", "activation_decay=0.99", "--episode-windows", "1,2",
+            "--wm-orders", "lru-first,strength", "--listener-missing", "0.1", "--listener-noise", "0.05",
+            "--seeds", "40", "--turns", "200", "--jobs", "2", "--no-progress", "--out", f"{OUT}/people-rule"),
+           {"people-rule": ("docs/research.md", repetition_table)}, small=SMALL, writes=True),
 )
 
 

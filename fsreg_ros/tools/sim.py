@@ -27,7 +27,8 @@ from typing import Any, Callable, Optional, Sequence
 
 from ..core.algorithms.alignment import BASELINE_COMPARED, BASELINE_RUN, BASELINE_SIMULATOR, annotate, summarise
 from ..core.consultant.consultant import KnowledgeError
-from ..core.forgetting import settings
+from ..core.forgetting import presets, settings
+from ..core.forgetting.presets import PRESETS
 from ..core.forgetting.policies import PolicyError, check_setting, parse_rules
 from ..core.algorithms.generation import ALGORITHMS, WM_ORDERS, GenerationError
 from ..core.lexicon import Lexicon
@@ -52,6 +53,10 @@ INPUT_ERRORS = (SourceError, PolicyError, KnowledgeError, ResolutionError, Gener
 def add_memory_options(parser: argparse.ArgumentParser) -> None:
     """Add one option per memory setting, from the settings table (read back by :func:`options_from_args`)."""
     memory = parser.add_argument_group("forgetting (override every domain's memory settings)")
+    named = "; ".join(f"{p.name}: {p.description}" for p in PRESETS)
+    memory.add_argument("--preset", metavar="NAME",
+                        help=f"named settings and WM order ({named}); any setting or --wm-order given beside it "
+                             "overrides the preset's")
     for row in settings.TABLE:
         memory.add_argument(row.option, type=row.kind, metavar=row.metavar, help=row.description.replace("%", "%%"))
 
@@ -62,7 +67,7 @@ def build_parser(prog: str, description: str) -> argparse.ArgumentParser:
     add_memory_options(parser)
     reg = parser.add_argument_group("generation")
     reg.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
-    reg.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
+    reg.add_argument("--wm-order", choices=WM_ORDERS, help="order SD-PIA walks WM in (default lru-first)")
     out = parser.add_argument_group("output")
     out.add_argument("--json", action="store_true", help="print the result as one JSON object")
     out.add_argument(
@@ -95,7 +100,8 @@ def options_from_args(args: argparse.Namespace, policy: Optional[str] = None) ->
     """Return the memory overrides and REG options given on the command line (each value checked).
 
     They are merged over the file's settings later, by ``Scenario.policy_for``,
-    which checks the effective setting of each domain.
+    which checks the effective setting of each domain.  ``--preset`` fills in what
+    is not given explicitly (:mod:`fsreg_ros.core.forgetting.presets`).
     """
     memory: dict[str, Any] = {}
     for name in settings.names():
@@ -103,7 +109,8 @@ def options_from_args(args: argparse.Namespace, policy: Optional[str] = None) ->
         if value is not None:
             check_setting(name, value)
             memory[name] = value
-    return Options(memory=memory, algorithm=args.algorithm, wm_order=args.wm_order)
+    memory, wm_order = presets.apply(args.preset, memory, args.wm_order)
+    return Options(memory=memory, algorithm=args.algorithm, wm_order=wm_order or "lru-first")
 
 
 def compared_policies(args: argparse.Namespace, expected: Optional[dict]) -> list[str]:

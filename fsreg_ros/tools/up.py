@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--namespace", default="", help="ROS namespace of every node (default: none)")
     add_memory_options(parser)  # one per memory setting, from the settings table
     parser.add_argument("--algorithm", choices=ALGORITHMS, help="default: sd-pia, or dist-pia under policy none")
-    parser.add_argument("--wm-order", choices=WM_ORDERS, default="lru-first", help="order SD-PIA walks WM in")
+    parser.add_argument("--wm-order", choices=WM_ORDERS, help="order SD-PIA walks WM in (default lru-first)")
     parser.add_argument("--lexicon", type=Path, help="lexicon YAML that extends the built-in config/lexicon.yaml")
     parser.add_argument("--state-dir", type=Path, metavar="DIR",
                         help="the consultants' state directory (default: theirs, under $XDG_STATE_HOME/fsreg_ros)")
@@ -276,6 +276,7 @@ class Up:
                  clock: Optional[str], env: dict, file_params: Optional[dict] = None,
                  memory: Optional[dict] = None) -> None:
         self.args = args
+        self.wm_order = options.wm_order  # --wm-order, else --preset's, else lru-first
         self.namespace = namespace
         self.clock = clock
         self.env = env
@@ -381,7 +382,7 @@ class Up:
         from ..ros.recorder import Recorder
 
         custom = {"fsreg.graph": self.graph_id, "fsreg.namespace": self.namespace or "/",
-                  "fsreg.algorithm": self.args.algorithm or "auto", "fsreg.wm_order": self.args.wm_order}
+                  "fsreg.algorithm": self.args.algorithm or "auto", "fsreg.wm_order": self.wm_order}
         attach = {"scenario": self.args.scenario, **({"lexicon": self.args.lexicon} if self.args.lexicon else {})}
         try:
             return Recorder(node, self.args.record, custom=custom, attach=attach)

@@ -113,7 +113,7 @@ class ViewModel:
             self._changed()
 
     def on_expression(self, message: Mapping[str, Any]) -> None:
-        """Take REG's expression: the robot's line, each property marked WM or LTM."""
+        """Take REG's expression: the robot's line, each property marked WM (origin, strength) or LTM."""
         with self._lock:
             if message.get("error"):
                 line = {"speaker": "robot", "text": "", "error": message.get("error"), "target": message.get("target"),
@@ -122,11 +122,13 @@ class ViewModel:
                 description = list(message.get("description") or [])
                 sources = list(message.get("sources") or [])
                 origins = list(message.get("origins") or [])
+                strengths = list(message.get("strengths") or [])
                 line = {"speaker": "robot", "text": message.get("text") or "", "target": message.get("target"),
                         "time": message.get("time"), "domain": message.get("domain"),
                         "properties": [{"property": p,
                                         "source": sources[i] if i < len(sources) else None,
-                                        "origin": origins[i] if i < len(origins) else None}
+                                        "origin": origins[i] if i < len(origins) else None,
+                                        "strength": strengths[i] if i < len(strengths) else None}
                                        for i, p in enumerate(description)]}
             self._add_line(message.get("id"), line)
             self._clock(message.get("time"))

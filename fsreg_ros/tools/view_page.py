@@ -3,7 +3,7 @@
 The page carries the snapshot it was served with (drawn at once), and the script opens
 ``/events`` (Server-Sent Events, see :mod:`fsreg_ros.tools.view`) and
 redraws on every snapshot.  Elements carry ``data-*`` attributes (entity, domain,
-property, origin, source) so a browser test can read what the page shows.
+property, origin, source, strength) so a browser test can read what the page shows.
 """
 
 #: Where the server puts the snapshot the page draws first (JSON, ``</`` escaped).
@@ -55,6 +55,12 @@ function el(tag, attrs, text) {
   return e;
 }
 function origin(o) { return o ? (o.cause + (o.turn !== null && o.turn !== undefined ? " @" + o.turn : "")) : "?"; }
+function strength(g) {
+  if (!g) return "";
+  const act = g.activation === null || g.activation === undefined ? ""
+    : ", activation " + (typeof g.activation === "number" ? g.activation.toFixed(2) : g.activation);
+  return "age " + g.age + ", " + g.episodes + (g.episodes === 1 ? " episode" : " episodes") + act;
+}
 function render(s) {
   $("clock").textContent = s.time === null ? "-" : s.time.toFixed(1);
   $("ready").textContent = s.ready ? "ready" : "not ready";
@@ -69,9 +75,11 @@ function render(s) {
       const props = el("div", {"class": "props"});
       for (const p of line.properties) {
         const src = p.source || "ltm";
+        const held = src === "wm" ? strength(p.strength) : "";
         props.append(el("span", {"class": "prop " + src, "data-property": p.property, "data-source": src,
+                                 "data-strength": held,
                                  "title": src === "wm" ? "from WM (" + origin(p.origin) + ")" : "from LTM"},
-                        p.property + " (" + src.toUpperCase() + ")"));
+                        p.property + " (" + src.toUpperCase() + (held ? "; " + held : "") + ")"));
       }
       div.append(props);
       div.append(el("div", {"class": "meta"}, "target " + line.target + ", t=" + line.time));

@@ -534,6 +534,7 @@ def test_expression_json():
         "wm_before": [],
         "text": "",
         "origins": [None, None],
+        "strengths": [None, None],
     }
     assert Expression("x", "d", "greedy").to_json()["distinguishing"] is True
     # Asked again, WM holds what the first call said (rule 1): each WM property carries the encoding that made
@@ -541,6 +542,8 @@ def test_expression_json():
     again = gen("object2", port, "sd-pia", time=5.0, turn=4).to_json()
     assert again["sources"] == ["wm", "wm"]
     assert again["origins"] == [{"cause": "speaker", "turn": None}, {"cause": "speaker", "turn": None}]
+    # ... and how strongly it was held: used in the entity's one episode so far, its current one (age 0).
+    assert again["strengths"] == [{"age": 0, "episodes": 1, "activation": None}] * 2
 
 
 # ================================================================= errors

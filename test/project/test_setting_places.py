@@ -20,7 +20,7 @@ Two kinds of place are allowed beyond that, each listed exactly (a place that st
 spelling a setting must leave its list, a new one fails): :data:`EXPERIMENTS`, the
 research modules that define experiments by the settings they vary, as a scenario file
 names them (a sweep's grid per setting, the tangram fits' grids and the paper's values,
-the figure commands' arguments); and :data:`HOMONYMS`, where ``seed`` is another concept
+the figure commands' arguments, the named presets); and :data:`HOMONYMS`, where ``seed`` is another concept
 of the same name (a generated game's seed: a ledger record's key, a CSV column).  Every
 label of a setting in plots, legends and tables comes from the table's ``symbol``,
 ``word`` and ``axis`` columns.
@@ -40,16 +40,20 @@ TABLE = "fsreg_ros/core/forgetting/settings.py"
 DOCS = "docs"
 #: At most this many places per setting: the table, the core rule that reads it, the docs.
 MOST = 3
-#: Experiment definitions that name the settings they vary (setting -> modules): exact.
+#: The named presets, settings a builder runs by name (as a scenario file names them).
+PRESETS = "fsreg_ros/core/forgetting/presets.py"
+#: Experiment definitions that name the settings they vary, and the presets (setting -> modules): exact.
 EXPERIMENTS: dict[str, set[str]] = {
-    "decay_period": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py"},
-    "capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "decay_period": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py",
+                     PRESETS},
+    "capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py", PRESETS},
     "global_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
     "seed": {"fsreg_ros/research/reuse_models.py"},
     "shared_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
-    "activation_decay": {"fsreg_ros/research/reuse_models.py"},
+    "activation_decay": {"fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py"},
     "activation_threshold": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
-    "episode_window": {"fsreg_ros/research/reuse_models.py"},
+    "episode_window": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/grid.py", "fsreg_ros/research/reuse_models.py",
+                       PRESETS},
 }
 #: Another concept of the same name: a generated game's seed.
 HOMONYMS: dict[str, set[str]] = {

@@ -70,15 +70,17 @@ def test_dialogue_lines_join_utterance_and_answer_and_mark_reg_sources():
                  "description": ["male", "glasses"]})
     model.on_expression({"id": "r1", "time": 2.0, "target": "face3", "domain": "faces", "algorithm": "sd-pia",
                          "description": ["glasses", "female"], "sources": ["wm", "ltm"],
-                         "origins": [{"cause": "human-speech", "turn": 1}, None], "text": "the woman with glasses"})
+                         "origins": [{"cause": "human-speech", "turn": 1}, None], "text": "the woman with glasses",
+                         "strengths": [{"age": 1, "episodes": 2, "activation": None}, None]})
     model.on_expression({"id": "r2", "time": 3.0, "target": "nobody", "error": "unknown entity 'nobody'",
                          "kind": "unknown-entity"})
     lines = model.snapshot()["dialogue"]
     assert [(line["speaker"], line.get("resolved"), line.get("text")) for line in lines] == [
         ("human", "face1", "the man with glasses"), ("robot", None, "the woman with glasses"), ("robot", None, "")]
     assert lines[1]["properties"] == [
-        {"property": "glasses", "source": "wm", "origin": {"cause": "human-speech", "turn": 1}},
-        {"property": "female", "source": "ltm", "origin": None}]
+        {"property": "glasses", "source": "wm", "origin": {"cause": "human-speech", "turn": 1},
+         "strength": {"age": 1, "episodes": 2, "activation": None}},
+        {"property": "female", "source": "ltm", "origin": None, "strength": None}]
     assert lines[2]["error"] == "unknown entity 'nobody'"
 
 
@@ -217,6 +219,9 @@ def test_view_in_a_browser(tmp_path):
     props = re.findall(r'<span class="prop (wm|ltm)" data-property="([^"]+)" data-source="(wm|ltm)"', dom)
     assert [p for _, p, _ in props] == list(expression["description"])
     assert [s for s, _, _ in props] == list(expression["sources"])
+    # Each word from WM with its strength when REG looked: RR's check and the human's episode used it (2 episodes).
+    held = re.findall(r'data-source="wm" data-strength="([^"]*)"', dom)
+    assert held == ["age 0, 2 episodes"] * list(expression["sources"]).count("wm") and held
     assert unescape(expression["text"]) in unescape(dom)
     assert 'id="ready" class="yes"' in dom
     assert re.search(r'data-resolved="face1"', dom)

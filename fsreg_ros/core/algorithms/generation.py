@@ -72,6 +72,9 @@ class Expression:
     #: Q[target] (``{"cause", "turn"}`` of the encoding that made it enter, as the buffer kept it);
     #: None for the others.  :mod:`fsreg_ros.core.algorithms.alignment` names it from the turns' records.
     origins: list[Optional[dict]] = field(default_factory=list)
+    #: Parallel to ``description``: for a property taken from WM, how strongly its entry was held when
+    #: the view opened (``Strength.to_json``: ``{"age", "episodes", "activation"}``); None for the others.
+    strengths: list[Optional[dict]] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {
@@ -85,6 +88,7 @@ class Expression:
             "wm_before": list(self.wm_before),
             "text": self.text,
             "origins": [None if o is None else dict(o) for o in self.origins],
+            "strengths": [None if s is None else dict(s) for s in self.strengths],
         }
 
 
@@ -144,6 +148,7 @@ async def sd_pia(
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
     entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
+    held = {p: s.to_json() for p, s in zip(view.queue, view.strength)}
     phase1 = phase1_order(view.queue, wm_order, preference, view.strength) if use_wm else []  # Phase 1: WM
     walked_wm = set(phase1)
     phase2 = [p for p in preference if p not in walked_wm]  # Phase 2: LTM, in preference order
@@ -158,6 +163,7 @@ async def sd_pia(
             expression.description.append(prop)
             expression.sources.append(source)
             expression.origins.append(entered.get(prop) if source == "wm" else None)
+            expression.strengths.append(held.get(prop) if source == "wm" else None)
     return await _finish(expression, view, port, time, turn)
 
 
@@ -238,6 +244,7 @@ async def full_brevity(
     expression.description = [p for p, _ in chosen]
     expression.sources = ["ltm"] * len(chosen)
     expression.origins = [None] * len(chosen)
+    expression.strengths = [None] * len(chosen)
     return await _finish(expression, view, port, time, turn, ruled_out=best_cover)
 
 
@@ -275,6 +282,7 @@ async def greedy(
         expression.description.append(props[best])
         expression.sources.append("ltm")
         expression.origins.append(None)
+        expression.strengths.append(None)
         used.add(attribute_of(props[best], attributes, own=True))
         remaining &= ~masks[best]
     return await _finish(expression, view, port, time, turn, ruled_out=everyone & ~remaining)

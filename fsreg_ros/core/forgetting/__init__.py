@@ -2,7 +2,8 @@
 
 ``policies`` (:class:`~.policies.ForgettingPolicy`: ``none`` or rules joined by ``+``,
 parsed and turned into buffer limits), ``settings`` (the memory settings table, every
-setting declared once), ``wm_manager`` (the I/O-free WM Manager: decay schedules, the
+setting declared once), ``presets`` (named settings and REG's WM order for a
+builder: ``human-like``, ``paper``), ``wm_manager`` (the I/O-free WM Manager: decay schedules, the
 shared pool, clocks sent to the buffers).  The buffers that enforce a policy are
 :mod:`fsreg_ros.core.memory`, below this package.
 """

@@ -203,6 +203,7 @@ async def describe_async(target: str, port: ConsultantPort, request: Request) ->
     expression.description = head + expression.description
     expression.sources = ["forced"] * len(head) + expression.sources
     expression.origins = [None] * len(head) + expression.origins
+    expression.strengths = [None] * len(head) + expression.strengths
     if request.writes and expression.description:  # rule 1: the robot's own description
         await port.encode(target, expression.description, "speaker", request.time, request.turn)
     return expression
