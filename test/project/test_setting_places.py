@@ -52,8 +52,8 @@ EXPERIMENTS: dict[str, set[str]] = {
     "shared_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
     "activation_decay": {"fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py"},
     "activation_threshold": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
-    "episode_window": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/grid.py", "fsreg_ros/research/reuse_models.py",
-                       PRESETS},
+    "episode_window": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/grid.py",
+                       "fsreg_ros/research/reuse_models.py", PRESETS},
 }
 #: Another concept of the same name: a generated game's seed.
 HOMONYMS: dict[str, set[str]] = {
