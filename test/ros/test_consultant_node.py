@@ -805,7 +805,12 @@ def test_a_stream_of_single_asserts_is_gathered_while_queries_are_answered_betwe
 
 # ------------------------------------------------------------------ the production protocol
 def test_the_debug_service_is_served_only_when_asked_for(graph: RosSession):
-    node = start(graph, debug=False)
+    # A name no other test of the module uses: the graph is shared by the module, and a node of
+    # the same name that an earlier test destroyed may still be listed by discovery, which made
+    # the lookup by node name below read the old node's (gone) services now and then.
+    node = graph.add(ConsultantNode, domain="faces", kb=KB, name="consultant_faces_no_debug", debug=False)
+    graph.wait_service(Q)
+    graph.wait_service(M)
     assert node.get_parameter("debug").value is False
 
     def names() -> set[str]:
