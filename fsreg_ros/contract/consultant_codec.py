@@ -227,7 +227,7 @@ def rule_out_of(reply: Mapping[str, Any]) -> tuple[list[str], list[int]]:
 
 
 # ----------------------------------------------------------------------- close
-def close_request(session: str, encode: Sequence[str], time: float, turn: Optional[int]) -> dict:
+def close_request(session: str, encode: Sequence[str], time: Optional[float], turn: Optional[int]) -> dict:
     """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.close` of the view named ``session``."""
     payload: dict[str, Any] = {"op": "close", "session": session, "time": time, "turn": turn}
     if encode:

@@ -115,10 +115,10 @@ class GraphQueries(Spinning):
         leaves open is the client's own, dropped when it opens more than the consultant keeps.
         """
         service = contract.consultant_service(domain)
-        reply = self.call(service, {"op": "open", "target": entity, "client": HELD_CLIENT})
-        self.call(service, {"op": "close", "session": reply["session"]})
-        return {"queue": list(reply.get("queue") or []), "origins": list(reply.get("origins") or []),
-                "strength": list(reply.get("strength") or [])}
+        view = codec.view_of(self.call(service, codec.open_request(entity, None, None, HELD_CLIENT)), first=False)
+        self.call(service, codec.close_request(view.handle, (), None, None))  # time None: the consultant's now
+        return {"queue": view.queue, "origins": [{"cause": cause, "turn": turn} for cause, turn in view.origins],
+                "strength": [entry.to_json() for entry in view.strength]}
 
     def snapshot(self, domain: str) -> dict[str, list[str]]:
         """Return every non-empty WM queue of ``domain`` now (the debug service, as :meth:`wm`)."""
