@@ -39,7 +39,7 @@ from .install import install_limits
 from .limits import UNLIMITED, Limits
 from .origins import OriginLog
 from .episodes import EntryStamps, EpisodeLog, Strength
-from .trace import Trace, activation as activation_at
+from .trace import activation as activation_at
 from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_entered, entry_stamp
 from .queues import NO_ROWS, QueueStore
 from .ticks import TickLedger, TickRun
@@ -167,12 +167,14 @@ class WMBuffer:
         (:mod:`fsreg_ros.core.memory.episodes`), and its activation at the clock under rule
         ``activation``.  Does not refresh recency.
         """
-        counted = self.episodes.strength(entity, self.entry_stamps(entity))
+        stamps = self.entry_stamps(entity)
+        counted = self.episodes.strength(entity, stamps)
         if self.activation is None or not counted:
             return [Strength(age, n) for age, n in counted]
         d, clock = self.limits.activation[0], self.activation.clock  # type: ignore[index]
-        traces = [Trace.from_json(item.trace) for item in self.export_queue(entity)]  # type: ignore[attr-defined]
-        return [Strength(age, n, activation_at(t, clock, d)) for (age, n), t in zip(counted, traces)]
+        traces = persistence.entry_traces(self, entity)  # the rule's own traces, not copies through JSON
+        return [Strength(age, n, activation_at(traces[entry.property], clock, d))
+                for (age, n), entry in zip(counted, stamps)]
 
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""

@@ -39,11 +39,18 @@ def export_queue(wm: HostBuffer, entity: str) -> list[QueueItem]:
     if not q:
         return []
     if wm.activation is not None:
-        store = wm.store
-        traces = (store.columns.traces_of(entity) if store.in_columns(entity)
-                  else wm.activation.traces_of(entity))
+        traces = entry_traces(wm, entity)
         return [TracedItem(*item, traces[item[0]].to_json()) for item in _items(wm, q)]
     return _items(wm, q)
+
+
+def entry_traces(wm: HostBuffer, entity: str) -> dict:
+    """Return each entry of Q[entity]'s encoding history (:class:`Trace`) under rule ``activation``.
+
+    The queue must be caught up (read through :meth:`WMBuffer.readable`); dict or column form alike.
+    """
+    store = wm.store
+    return store.columns.traces_of(entity) if store.in_columns(entity) else wm.activation.traces_of(entity)
 
 
 def _items(wm: HostBuffer, q: Mapping) -> list[QueueItem]:
