@@ -3,7 +3,7 @@
 The one translation of pydantic's errors for the wire: the first problem, as
 ``field 'target': expected a string, got 3`` (or the message of the project's own
 check, e.g. ``field 'time': a number too large ...``), raised as
-:class:`~fsreg_ros.contract.codec.MessageError`.  :func:`fsreg_ros.ros.carrier.serve` and
+:class:`~fsreg_ros.contract.codec.MessageError`.  :func:`fsreg_ros.ros.serving.serve` and
 :func:`~fsreg_ros.ros.carrier.subscribe` validate every request and message with it.
 """
 
