@@ -168,6 +168,17 @@ class Recorder:
         """Return each recorded topic's number of matched writers now."""
         return {t.name: s.get_publisher_count() for t, s in zip(self.topics, self.subscriptions)}
 
+    def unmatched(self) -> list[str]:
+        """Return the recorded topics with a writer in the graph that no reader of the recording has matched yet.
+
+        A latched topic's reader matched late gets only the writer's *latest* sample: a
+        recording that starts with the graph waits for this list to empty before the graph
+        is called ready, so the first samples (e.g. each consultant's initial ``wm/state``)
+        are in the bag.
+        """
+        count = self._readers.count_publishers
+        return [t.name for t, s in zip(self.topics, self.subscriptions) if s.get_publisher_count() < count(t.name)]
+
     @property
     def counts(self) -> dict[str, int]:
         """Messages written so far, per topic."""

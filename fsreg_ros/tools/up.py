@@ -327,6 +327,8 @@ class Up:
             for spec in self.specs:  # --fresh is for this start only: a respawned node takes up its state
                 spec.parameters.pop("reset_state", None)
             self._wait_ready(client)
+            if recorder is not None:
+                self._wait_recorded(client, recorder)
             restored = client.status().get("restored") or {}
             report = ready_report(self.graph_id, self.namespace, context.get_domain_id(), self.memory, self.clock,
                                   self.log_dir, node.resolve_topic_name, restored)
@@ -388,6 +390,18 @@ class Up:
             return Recorder(node, self.args.record, custom=custom, attach=attach)
         except (RecordingError, OSError) as err:
             raise UpError(f"--record: {err}") from None
+
+    def _wait_recorded(self, client, recorder) -> None:
+        """Wait until the recording's readers matched every writer of the graph (at most RECORDER_MATCH_WAIT)."""
+        from ..ros.recorders import RECORDER_MATCH_WAIT
+
+        deadline = time.monotonic() + RECORDER_MATCH_WAIT
+        while (missing := recorder.unmatched()) and time.monotonic() < deadline:
+            self._supervise(starting=True)
+            client.spin_for(0.05)
+        if missing:
+            print(f"{PROG}: warning: --record: not yet matched on {', '.join(missing)} after "
+                  f"{RECORDER_MATCH_WAIT:g} s; their first messages may be missing from the recording", file=sys.stderr)
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError
