@@ -11,6 +11,9 @@ What a queue entry shows (docs/deployment.md "The live view"):
 * ``origin``: the cause (and dialogue turn) of the encoding that made the property enter
   the queue, from the consultant's ``wm/events`` (``?`` when that encoding happened
   before the view started);
+* ``strength``: how strongly the consultant held the entry at the state's time (episode
+  age, episodes used in, activation under rule ``activation``), from ``wm/state``'s
+  ``strength`` (None for a state without it);
 * ``forget_at``: under decay, when the property leaves WM if nothing is encoded meanwhile:
   decay pops the front of every non-empty queue each tick (Alg. 2), so the k-th entry
   (0 = least recently used) leaves at the next tick plus k decay periods; ``None``
@@ -205,7 +208,7 @@ class ViewModel:
             return self.version
 
     def snapshot(self) -> dict:
-        """Return the page's data: dialogue lines, each domain's queues with origins and forget times, settings."""
+        """Return the page's data: dialogue lines, each domain's queues with origins, strengths, forget times, settings."""
         with self._lock:
             domains = {}
             for domain, state in sorted(self._states.items()):
@@ -213,12 +216,16 @@ class ViewModel:
                 period = decay_period(memory)
                 next_tick = self._next_tick(domain)
                 entities = {}
+                held = state.get("strength") or {}
                 for entity, queue in sorted(state.get("queues", {}).items()):
                     entries = []
+                    strength = list(held.get(entity) or ())
+                    strength += [None] * (len(queue) - len(strength))
                     for k, prop in enumerate(queue):
                         forget_at = (next_tick + k * period) if (next_tick is not None and period) else None
                         origin = self._origins.get((domain, entity, prop))
-                        entries.append({"property": prop, "origin": origin, "forget_at": forget_at})
+                        entries.append({"property": prop, "origin": origin, "strength": strength[k],
+                                        "forget_at": forget_at})
                     entities[entity] = entries
                 domains[domain] = {"time": state.get("time"), "incarnation": state.get("incarnation"),
                                    "wm_version": state.get("wm_version"), "memory": memory,

@@ -52,6 +52,20 @@ def test_queues_carry_origin_and_forget_time_under_decay():
     assert [e["property"] for e in model.snapshot()["domains"]["faces"]["entities"]["face1"]] == ["glasses", "hat"]
 
 
+def test_queue_entries_carry_the_strength_wm_state_reports():
+    """Each WM entry shows how strongly the consultant held it (wm/state's ``strength``, parallel to its queues);
+    the panel showed no strength before.  A state without it (an older recording) shows None."""
+    model = ViewModel()
+    held = {"face1": [{"age": 1, "episodes": 1, "activation": None}, {"age": 0, "episodes": 2, "activation": 0.5}]}
+    model.on_state({**state("faces", 3.0, {"face1": ["male", "glasses"], "face2": ["female"]}), "strength": held})
+    entities = model.snapshot()["domains"]["faces"]["entities"]
+    assert [(e["property"], e["strength"]) for e in entities["face1"]] == [
+        ("male", {"age": 1, "episodes": 1, "activation": None}), ("glasses", {"age": 0, "episodes": 2, "activation": 0.5})]
+    assert [(e["property"], e["strength"]) for e in entities["face2"]] == [("female", None)]  # none reported for it
+    model.on_state(state("faces", 4.0, {"face1": ["male"]}, version=2))
+    assert model.snapshot()["domains"]["faces"]["entities"]["face1"][0]["strength"] is None
+
+
 def test_no_forget_time_without_decay():
     assert decay_period({"policy": "displacement", "capacity": 2}) is None
     assert decay_period({"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}) == 5.0
