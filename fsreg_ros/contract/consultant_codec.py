@@ -340,14 +340,6 @@ def snapshot_of(reply: Mapping[str, Any]) -> dict[str, list[str]]:
     return dict(reply["queues"])
 
 
-def state_message(domain: str, time: float, queues: Mapping[str, Sequence[str]],
-                  strength: Mapping[str, Sequence[Strength]], events: int, incarnation: int, wm_version: int) -> dict:
-    """Encode ``wm/state``: the non-empty ``queues`` (LRU first) and, parallel to them, each entry's strength."""
-    return {"domain": domain, "time": time, "queues": queues,
-            "strength": {entity: [entry.to_json() for entry in strength[entity]] for entity in queues},
-            "events": events, "incarnation": incarnation, "wm_version": wm_version}
-
-
 # ----------------------------------------------------------------------- manage ops
 def configure_request(policy: ForgettingPolicy, time: float) -> dict:
     """Encode ``configure``: install ``policy`` as of ``time``."""

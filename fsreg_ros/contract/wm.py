@@ -26,11 +26,7 @@ class EntryStrength(Message):
 
 
 class WMState(Message):
-    """``wm/state``: one domain's non-empty WM queues (LRU first), how strongly each entry is held, its event count.
-
-    ``strength`` is parallel to ``queues``: per entity, each entry's strength at ``time``
-    (``WMBuffer.strength``: episode age, episodes used in, activation under rule
-    ``activation``).  A state without it (recorded before it was sent) reads as ``{}``.
+    """``wm/state``: one domain's non-empty WM queues (LRU first) and its event count.
 
     ``incarnation`` and ``wm_version`` say which state it is: the consultant's
     incarnation and how many of its calls had changed WM (``info`` reports the count
@@ -40,7 +36,6 @@ class WMState(Message):
     domain: str
     time: Number
     queues: dict[str, list[str]]
-    strength: dict[str, list[EntryStrength]] = {}
     events: int
     incarnation: int
     wm_version: int

@@ -15,7 +15,6 @@ from time import monotonic
 from typing import Callable, Optional
 
 from .. import contract
-from ..contract import consultant_codec as codec
 from ..core.consultant.service import ConsultantService, Outcome
 from .carrier import publish, publisher
 
@@ -85,13 +84,11 @@ class ConsultantOutbox:
         publish(self.announcers[1], self.announcement)
 
     def publish_state(self) -> None:
-        """``/wm/state``: this domain's non-empty queues, LRU first, and how strongly each entry is held."""
+        """``/wm/state``: this domain's non-empty queues, LRU first."""
         self.state_due, self.state_sent = False, monotonic()
         s = self.service()
-        queues = s.buffer.snapshot()
-        strength = {entity: s.buffer.strength(entity) for entity in queues}
-        publish(self.state, codec.state_message(self.domain, s.time, queues, strength, s.seq, s.incarnation,
-                                                s.wm_version))
+        publish(self.state, {"domain": self.domain, "time": s.time, "queues": s.buffer.snapshot(), "events": s.seq,
+                             "incarnation": s.incarnation, "wm_version": s.wm_version})
 
     def publish_due(self, waiting: bool = False) -> None:
         """Publish a due /wm/state unless one went out less than ``state_period`` ago.

@@ -127,9 +127,8 @@ def test_query_ops_round_trip(graph: RosSession):
     ]
     # states count calls that changed WM (wm_version): configure 1, affirm 2 (configure's may be merged in)
     graph.spin_until(lambda: states[-1]["wm_version"] == 2, what="state after affirm")
-    fresh = {"age": 0, "episodes": 1, "activation": None}  # held since the entity's current episode (no activation)
     assert states[-1] == {"domain": "faces", "time": 2.0, "queues": {"face1": ["male"], "face3": ["male"]}, "events": 2,
-                          "incarnation": 1, "wm_version": 2, "strength": {"face1": [fresh], "face3": [fresh]}}
+                          "incarnation": 1, "wm_version": 2}
 
     # encode (Algorithm 1: re-encoding moves to the back); displacement at capacity 3
     graph.call(D, {"op": "encode", "entity": "face1", "properties": ["glasses", "male", "lab-coat", "light-hair"],
@@ -137,7 +136,6 @@ def test_query_ops_round_trip(graph: RosSession):
     assert graph.call(D, {"op": "wm", "entity": "face1"}) == {"queue": ["male", "lab-coat", "light-hair"]}
     graph.spin_until(lambda: states[-1]["wm_version"] == 3 and len(events) == 7, what="state and events after encode")
     assert states[-1]["queues"]["face1"] == ["male", "lab-coat", "light-hair"] and states[-1]["time"] == 3.0
-    assert states[-1]["strength"] == {"face1": [fresh] * 3, "face3": [fresh]}  # parallel to the queues
     assert [e["cause"] for e in events[2:]] == ["speaker", "speaker", "speaker", "speaker", "displacement"]
     assert events[-1]["property"] == "glasses" and events[-1]["turn"] is None
     assert graph.call(D, {"op": "snapshot"}) == {
