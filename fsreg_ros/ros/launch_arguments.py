@@ -30,8 +30,8 @@ from .graph_spec import NodeSpec, node_specs, policy_settings, resolved
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM (required)"),
     "domains": ("faces", "comma-separated consultant domains"),
-    "preset": ("", "named memory settings and WM order (" + "; ".join(f"{p.name}: {p.description}"
-                                                                     for p in presets.PRESETS)
+    "preset": ("", "named memory settings and WM order ("
+               + "; ".join(f"{p.name}: {p.description}" for p in presets.PRESETS)
                + "); '' = none; a memory argument or wm_order given beside it overrides the preset's"),
     # one argument per memory setting; '' = not given: the preset's, else the WM Manager's default
     **{row.name: ("", f"{row.description} ('' = the preset's, else {row.default})") for row in settings.TABLE},
@@ -108,7 +108,8 @@ def launch_specs(arg: Callable[[str], str]) -> tuple[list[NodeSpec], str]:
         if domains.count(domain) > 1:
             raise _refused("domains", arg("domains"), f"{domain!r} given twice")
     specs = node_specs(kb, domains, {domain: policy_settings(policy) for domain in domains}, use_sim_time=sim_time,
-                       algorithm=algorithm, wm_order=wm_order or WM_ORDERS[0], lexicon=lexicon, state_dir=resolved(arg("state_dir")))
+                       algorithm=algorithm, wm_order=wm_order or WM_ORDERS[0], lexicon=lexicon,
+                       state_dir=resolved(arg("state_dir")))
     for spec in specs:
         if fresh and spec.executable == "consultant":
             spec.parameters["reset_state"] = True

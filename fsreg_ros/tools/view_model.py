@@ -249,7 +249,7 @@ class ViewModel:
             return self.version
 
     def snapshot(self) -> dict:
-        """Return the page's data: dialogue lines, each domain's queues with origins, strengths, forget times, settings."""
+        """Return the page's data: dialogue lines, each domain's queues (origins, strengths, forget times), settings."""
         with self._lock:
             domains = {}
             for domain, state in sorted(self._states.items()):
@@ -275,7 +275,7 @@ class ViewModel:
                     "graph": ready.get("graph"), "domains": domains, "dialogue": list(self._dialogue)}
 
     def sizes(self) -> dict[str, int]:
-        """Return how many lines, utterance ids, origins, domains, strengths and strengths to read it holds (bounded)."""
+        """Return how many lines, utterance ids, origins, domains, strengths, strengths to read it holds (bounded)."""
         with self._lock:
             return {"dialogue": len(self._dialogue), "ids": len(self._said), "origins": len(self._origins),
                     "domains": len(self._states), "held": len(self._held), "unread": len(self._unread)}

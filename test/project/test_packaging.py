@@ -171,7 +171,8 @@ def test_launch_file_takes_a_preset_as_fsreg_up_does(monkeypatch, tmp_path):
     defaults = {row.name: row.default for row in settings.TABLE}
 
     def graph(**given) -> dict:
-        return {n.kwargs["name"]: n.kwargs["parameters"][0] for n in _launch_nodes(monkeypatch, {"kb": str(kb), **given})}
+        nodes = _launch_nodes(monkeypatch, {"kb": str(kb), **given})
+        return {n.kwargs["name"]: n.kwargs["parameters"][0] for n in nodes}
 
     def expected(wm_order: str, **memory) -> dict:
         policy = policy_settings(ForgettingPolicy.from_settings({**defaults, **memory}))
