@@ -3,10 +3,13 @@
     ros2 launch fsreg_ros fsreg.launch.py kb:=/path/to/table1.yaml \
         domains:=faces policy:=decay decay_period:=10.0 capacity:=2 namespace:=robot1
 
-Every memory setting is an argument (policy, decay_period, capacity, global_capacity,
-seed, shared_capacity, activation_decay, activation_threshold: the settings table,
-``fsreg_ros/core/forgetting/settings.py``), defaulting to the WM Manager's own default
-(policy ``none``); ``ros2 launch fsreg_ros fsreg.launch.py --show-args`` lists them all.
+Every memory setting is an argument (policy, decay_period, capacity, ...: the settings
+table, ``fsreg_ros/core/forgetting/settings.py``); ``preset:=human-like`` (or ``paper``)
+names settings and REG's WM order at once, as ``--preset`` in fsreg-up
+(``fsreg_ros/core/forgetting/presets.py``).  An argument left empty (the default) is the
+preset's value, else the WM Manager's own default (policy ``none``, order ``lru-first``);
+one given beside a preset overrides it (``preset:=human-like episode_window:=2``).
+``ros2 launch fsreg_ros fsreg.launch.py --show-args`` lists them all.
 
 The arguments and the nodes they make are :mod:`fsreg_ros.ros.launch_arguments`'s: every
 argument is checked before any node starts (a bad one is one error line, and nothing

@@ -131,7 +131,7 @@ expect "ros2 pkg executables fsreg_ros" "$work/exes.out" \
   "fsreg_ros reg$" "fsreg_ros dialogue_player$"
 run args ros2 launch fsreg_ros fsreg.launch.py --show-args
 expect "ros2 launch fsreg_ros fsreg.launch.py --show-args" "$work/args.out" \
-  $(for a in kb domains policy decay_period capacity global_capacity seed shared_capacity activation_decay \
+  $(for a in kb domains preset policy decay_period capacity global_capacity seed shared_capacity activation_decay \
       activation_threshold algorithm wm_order use_sim_time namespace lexicon state_dir fresh; do echo "'$a':"; done)
 
 # --- bad launch arguments: one error line, no node started, a failing exit code
@@ -147,6 +147,17 @@ for bad in "" "kb:=$work/none.yaml" "kb:=$kb policy:=bogus" "kb:=$kb decay_perio
     fail "$what" "exit $rc, $errors error lines, $(grep -c 'process started' "$work/bad.out") nodes started: $(grep -v '^\[INFO\] \[launch\]' "$work/bad.out" | head -3 | tr '\n' ' ' | cut -c1-300)"
   fi
 done
+
+# an unknown preset: the one error line names the argument and the presets there are
+what="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb preset:=nonsense (refused in one line naming the presets)"
+run bad ros2 launch fsreg_ros fsreg.launch.py "kb:=$kb" preset:=nonsense
+errors=$(grep -c '^\[ERROR\]' "$work/bad.out")
+if [ "$rc" != 0 ] && [ "$rc" != 124 ] && [ "$errors" = 1 ] && ! grep -q "process started" "$work/bad.out" \
+   && grep -q "^\[ERROR\] .*launch argument preset:='nonsense': unknown preset 'nonsense' (known: paper, human-like)$" "$work/bad.out"; then
+  pass "$what"
+else
+  fail "$what" "exit $rc, $errors error lines, $(grep -c 'process started' "$work/bad.out") nodes started: $(grep -v '^\[INFO\] \[launch\]' "$work/bad.out" | head -3 | tr '\n' ' ' | cut -c1-300)"
+fi
 
 # --- the docs' example (docs/deployment.md): the launch file on sim time, driven by hand
 launch="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb policy:=decay decay_period:=10.0 use_sim_time:=true fresh:=true state_dir:=$work/state"
@@ -239,6 +250,23 @@ else
   fail "$again (restores the runtime fact)" "no ready status within 120 s: $(tail -5 "$work/again.log" | tr '\n' ' ' | cut -c1-300)"
 fi
 stop again
+
+# --- a preset (README, docs/deployment.md): people's rule, episodes k = 1 and REG's strength order
+preset="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb preset:=human-like use_sim_time:=true fresh:=true state_dir:=$work/state_preset"
+# shellcheck disable=SC2086
+start preset $preset
+if ready ""; then pass "$preset (ready)"; else fail "$preset (ready)" "no ready status within 120 s: $(tail -5 "$work/preset.log" | tr '\n' ' ' | cut -c1-300)"; fi
+run h1 ros2 param get /wm_manager policy
+run h2 ros2 param get /wm_manager episode_window
+run h3 ros2 param get /reg wm_order
+cat "$work/h1.out" "$work/h2.out" "$work/h3.out" > "$work/h.out"
+status ""
+expect "ros2 param get /wm_manager policy, episode_window; /reg wm_order (preset:=human-like)" "$work/h.out" \
+  "^String value is: episodes$" "^Integer value is: 1$" "^String value is: strength$"
+expect "ros2 service call /wm_manager/status ... (preset:=human-like: faces runs episodes, k = 1)" "$work/status.out" \
+  '"running":\{"faces":\{[^}]*"policy":"episodes"' '"running":\{"faces":\{[^}]*"episode_window":1[,}]'
+stop preset
+[ "$rc" = 0 ] && pass "Ctrl-C on $preset" || fail "Ctrl-C on $preset" "exit $rc"
 
 # --- a namespace, a lexicon, REG's settings, and a simulator's /clock (scripts/simulator_clock.py)
 ns="ros2 launch fsreg_ros fsreg.launch.py kb:=$kb namespace:=cli_check use_sim_time:=true lexicon:=$repo/config/lexicon.yaml algorithm:=sd-pia wm_order:=mru-first capacity:=3 state_dir:=$work/state"

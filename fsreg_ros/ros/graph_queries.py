@@ -106,7 +106,7 @@ class GraphQueries(Spinning):
         domain = domain or self.domain_of(entity)
         return codec.queue_of(self.call(contract.debug_service(domain), codec.wm_request(entity)))
 
-    def held(self, entity: str, domain: str) -> dict:
+    def held(self, entity: str, domain: str, timeout: Optional[float] = None) -> dict:
         """Return how ``entity``'s WM entries are held now: ``queue`` (LRU first), ``origins`` and ``strength``.
 
         What a consultant's ``open`` reply carries (no debug service needed): a session is
@@ -115,8 +115,9 @@ class GraphQueries(Spinning):
         leaves open is the client's own, dropped when it opens more than the consultant keeps.
         """
         service = contract.consultant_service(domain)
-        view = codec.view_of(self.call(service, codec.open_request(entity, None, None, HELD_CLIENT)), first=False)
-        self.call(service, codec.close_request(view.handle, (), None, None))  # time None: the consultant's now
+        view = codec.view_of(self.call(service, codec.open_request(entity, None, None, HELD_CLIENT), timeout),
+                             first=False)
+        self.call(service, codec.close_request(view.handle, (), None, None), timeout)  # time None: the consultant's now
         return {"queue": view.queue, "origins": [{"cause": cause, "turn": turn} for cause, turn in view.origins],
                 "strength": [entry.to_json() for entry in view.strength]}
 

@@ -4,8 +4,11 @@
 :data:`ARGUMENTS` and builds its nodes from :func:`launch_specs`, which reads every argument's text
 and checks all of them before a node starts, as ``fsreg-up`` checks its options: the knowledge base
 (required, read and validated with the lexicon given), the domains (each one the KB has, none
-twice), the lexicon, REG's ``algorithm`` and ``wm_order``, every memory setting (the policy they
-make), the flags and the namespace.  A bad argument is one :class:`ValueError` line naming it, so
+twice), the lexicon, REG's ``algorithm`` and ``wm_order``, the ``preset`` and every memory setting
+(the policy they make), the flags and the namespace.  A memory setting or ``wm_order`` left empty
+(their default) is not given: the preset's value (:mod:`fsreg_ros.core.forgetting.presets`), else the
+WM Manager's default (``lru-first`` for ``wm_order``); one given overrides the preset's, as beside
+``--preset`` in fsreg-up.  A bad argument is one :class:`ValueError` line naming it, so
 ``ros2 launch`` prints one error and starts nothing: no half-started graph whose one dead node
 leaves the others running.  No ROS import here (tests check it without ``launch``).
 """
@@ -16,8 +19,9 @@ from typing import Callable
 
 from ..contract import normalise_namespace
 from ..core.algorithms.generation import ALGORITHMS, AUTO, WM_ORDERS
-from ..core.forgetting import settings
+from ..core.forgetting import presets, settings
 from ..core.forgetting.policies import ForgettingPolicy
+from ..core.forgetting.settings import PolicyError
 from ..core.lexicon import Lexicon, LexiconError
 from ..core.scenario import ScenarioError, load_scenario
 from .graph_spec import NodeSpec, node_specs, policy_settings, resolved
@@ -26,10 +30,13 @@ from .graph_spec import NodeSpec, node_specs, policy_settings, resolved
 ARGUMENTS = {
     "kb": ("", "scenario/KB YAML file with every domain's LTM (required)"),
     "domains": ("faces", "comma-separated consultant domains"),
-    # one argument per memory setting, with the WM Manager's default (core/forgetting/settings.py)
-    **{row.name: (str(row.default), row.description) for row in settings.TABLE},
+    "preset": ("", "named memory settings and WM order ("
+               + "; ".join(f"{p.name}: {p.description}" for p in presets.PRESETS)
+               + "); '' = none; a memory argument or wm_order given beside it overrides the preset's"),
+    # one argument per memory setting; '' = not given: the preset's, else the WM Manager's default
+    **{row.name: ("", f"{row.description} ('' = the preset's, else {row.default})") for row in settings.TABLE},
     "algorithm": (AUTO, f"{AUTO}, {', '.join(ALGORITHMS[:-1])} or {ALGORITHMS[-1]}"),
-    "wm_order": (WM_ORDERS[0], f"{', '.join(WM_ORDERS[:-1])} or {WM_ORDERS[-1]}"),
+    "wm_order": ("", f"{', '.join(WM_ORDERS[:-1])} or {WM_ORDERS[-1]} ('' = the preset's, else {WM_ORDERS[0]})"),
     "use_sim_time": ("false", "follow /clock"),
     "namespace": ("", "ROS namespace for every node ('' = none)"),
     "lexicon": ("", "lexicon YAML that extends the built-in config/lexicon.yaml ('' = the built-in one)"),
@@ -73,8 +80,13 @@ def launch_specs(arg: Callable[[str], str]) -> tuple[list[NodeSpec], str]:
     namespace = normalise_namespace(arg("namespace"))
     sim_time, fresh = _flag("use_sim_time", arg("use_sim_time")), _flag("fresh", arg("fresh"))
     algorithm = _choice("algorithm", arg("algorithm"), (AUTO, *ALGORITHMS))
-    wm_order = _choice("wm_order", arg("wm_order"), WM_ORDERS)
-    policy = ForgettingPolicy.from_settings({row.name: _setting(row, arg(row.name)) for row in settings.TABLE})
+    wm_order = _choice("wm_order", arg("wm_order"), WM_ORDERS) if arg("wm_order") else None
+    given = {row.name: _setting(row, arg(row.name)) for row in settings.TABLE if arg(row.name)}
+    try:
+        memory, wm_order = presets.apply(arg("preset") or None, given, wm_order)
+    except PolicyError as err:
+        raise _refused("preset", arg("preset"), str(err)) from None
+    policy = ForgettingPolicy.from_settings({row.name: row.default for row in settings.TABLE} | memory)
     lexicon, kb = resolved(arg("lexicon")), resolved(arg("kb"))
     if not kb:
         raise _refused("kb", arg("kb"), "required: the scenario/KB YAML file with every domain's LTM")
@@ -96,7 +108,8 @@ def launch_specs(arg: Callable[[str], str]) -> tuple[list[NodeSpec], str]:
         if domains.count(domain) > 1:
             raise _refused("domains", arg("domains"), f"{domain!r} given twice")
     specs = node_specs(kb, domains, {domain: policy_settings(policy) for domain in domains}, use_sim_time=sim_time,
-                       algorithm=algorithm, wm_order=wm_order, lexicon=lexicon, state_dir=resolved(arg("state_dir")))
+                       algorithm=algorithm, wm_order=wm_order or WM_ORDERS[0], lexicon=lexicon,
+                       state_dir=resolved(arg("state_dir")))
     for spec in specs:
         if fresh and spec.executable == "consultant":
             spec.parameters["reset_state"] = True

@@ -40,6 +40,8 @@ DEFAULT_PORT = 8765
 #: The WM Manager's status (each domain's next decay tick) is asked for when it may have
 #: changed (:meth:`ViewModel.status_wanted`), at most once every so many seconds.
 STATUS_EVERY = 0.5
+#: Entities whose strength the view reads per step (:meth:`ViewModel.strength_wanted`; two service calls each).
+HELD_PER_STEP = 8
 #: How long the view waits for its subscriptions to match the graph's publishers before serving, seconds.
 MATCH_WAIT = 5.0
 #: An idle event stream sends a comment this often, so proxies and browsers keep it open.
@@ -235,7 +237,9 @@ class LiveView:
     ``start`` binds the address (OSError if it cannot) and subscribes; ``step`` spins the
     client's executor once and, when the model wants it (at the start, after a readiness
     message, once a decay tick is reached), asks the WM Manager's status, at most every
-    :data:`STATUS_EVERY` seconds; ``stop`` closes the server.  ``fsreg-ctl view`` loops on ``step``; so does
+    :data:`STATUS_EVERY` seconds, then reads the strength of up to :data:`HELD_PER_STEP`
+    entities whose WM changed (the consultant's ``open`` reply, :meth:`GraphClient.held`,
+    as ``fsreg-ctl wm`` reads it); ``stop`` closes the server.  ``fsreg-ctl view`` loops on ``step``; so does
     ``fsreg-up --view`` between its supervision of the nodes.
     """
 
@@ -270,6 +274,11 @@ class LiveView:
                 if not self._status_failed:
                     print(f"fsreg view: status: {err}", file=sys.stderr, flush=True)
                 self._status_failed = True
+        for domain, entity in self.model.strength_wanted(HELD_PER_STEP):
+            try:
+                self.model.on_held(domain, entity, self.client.held(entity, domain, timeout=2.0))
+            except ClientError:  # gone meanwhile, or its consultant restarting: their next change asks again
+                break
 
     def stop(self) -> None:
         self.server.stop()

@@ -11,6 +11,12 @@ What a queue entry shows (docs/deployment.md "The live view"):
 * ``origin``: the cause (and dialogue turn) of the encoding that made the property enter
   the queue, from the consultant's ``wm/events`` (``?`` when that encoding happened
   before the view started);
+* ``strength``: how strongly the consultant holds the entry (episode age, episodes used
+  in, activation under rule ``activation``), as its ``open`` reply says
+  (:meth:`~fsreg_ros.ros.client.GraphClient.held`, what ``fsreg-ctl wm`` prints).  The view
+  asks for an entity's strength (:meth:`ViewModel.strength_wanted`) once its queue or an
+  event of it changed, so a graph nobody views pays nothing; it is shown only while the
+  queue it came with is the queue ``wm/state`` shows (None meanwhile);
 * ``forget_at``: under decay, when the property leaves WM if nothing is encoded meanwhile:
   decay pops the front of every non-empty queue each tick (Alg. 2), so the k-th entry
   (0 = least recently used) leaves at the next tick plus k decay periods; ``None``
@@ -31,6 +37,8 @@ DIALOGUE_LINES = 200
 MAX_ORIGINS = 100_000
 #: How many domains' ``wm/state`` the view keeps (the one heard of longest ago goes first).
 MAX_DOMAINS = 256
+#: How many entities' strengths the view keeps (the one read longest ago goes first).
+MAX_HELD = 100_000
 
 
 def decay_period(memory: Mapping[str, Any]) -> Optional[float]:
@@ -58,6 +66,8 @@ class ViewModel:
         self.version = 0
         self._states: dict[str, dict] = {}  # domain -> latest wm/state
         self._origins: dict[tuple[str, str, str], dict] = {}  # (domain, entity, property) -> origin
+        self._held: dict[tuple[str, str], dict] = {}  # (domain, entity) -> {"queue", "strength"} as last read
+        self._unread: dict[tuple[str, str], None] = {}  # entities whose strength is to be read (in order)
         self._dialogue: deque = deque(maxlen=DIALOGUE_LINES)
         self._said: dict[str, int] = {}  # request id -> index of its line in the dialogue
         self._ready: Optional[dict] = None
@@ -77,6 +87,10 @@ class ViewModel:
             self._states.pop(domain, None)
             _bounded(self._states, MAX_DOMAINS)
             self._states[domain] = dict(state)
+            for entity, queue in (state.get("queues") or {}).items():
+                held = self._held.get((domain, entity))
+                if held is None or held["queue"] != list(queue):
+                    self._want((domain, entity))
             self._clock(state.get("time"))
             self._changed()
 
@@ -90,6 +104,7 @@ class ViewModel:
                 self._origins[key] = {"cause": event.get("cause"), "turn": event.get("turn")}
             elif event.get("op") == "forget":
                 self._origins.pop(key, None)
+            self._want(key[:2])  # an encoding may change the entity's strengths, not its queue
             self._clock(event.get("time"))
             self._changed()
 
@@ -149,6 +164,29 @@ class ViewModel:
             self._clock(status.get("time"))
             self._changed()
 
+    def strength_wanted(self, limit: int) -> list[tuple[str, str]]:
+        """Return (and take) up to ``limit`` ``(domain, entity)`` whose strength is to be read (:meth:`on_held`).
+
+        Those whose queue in the latest ``wm/state`` differs from the one their strength came
+        with, or that had an event since; only entities the latest state holds.
+        """
+        with self._lock:
+            wanted = []
+            while self._unread and len(wanted) < limit:
+                domain, entity = key = next(iter(self._unread))
+                del self._unread[key]
+                if entity in (self._states.get(domain) or {}).get("queues", {}):
+                    wanted.append(key)
+            return wanted
+
+    def on_held(self, domain: str, entity: str, held: Mapping[str, Any]) -> None:
+        """Take how the consultant holds ``entity``'s entries now: ``queue`` and ``strength`` (parallel)."""
+        with self._lock:
+            self._held.pop((domain, entity), None)
+            _bounded(self._held, MAX_HELD)
+            self._held[(domain, entity)] = {"queue": list(held["queue"]), "strength": list(held["strength"])}
+            self._changed()
+
     def status_wanted(self) -> bool:
         """Whether the WM Manager's status may have changed since the last one taken.
 
@@ -161,6 +199,12 @@ class ViewModel:
                 return True
             ticks = [t for t in (self._status.get("next_tick") or {}).values() if isinstance(t, (int, float))]
             return self._time is not None and any(self._time >= t for t in ticks)
+
+    def _want(self, key: tuple[str, str]) -> None:
+        """Note that ``key``'s strength is to be read (at most :data:`MAX_HELD` waiting: the oldest go)."""
+        self._unread.pop(key, None)
+        _bounded(self._unread, MAX_HELD)
+        self._unread[key] = None
 
     def _clock(self, t: Any) -> None:
         if isinstance(t, (int, float)) and (self._time is None or t > self._time):
@@ -205,7 +249,7 @@ class ViewModel:
             return self.version
 
     def snapshot(self) -> dict:
-        """Return the page's data: dialogue lines, each domain's queues with origins and forget times, settings."""
+        """Return the page's data: dialogue lines, each domain's queues (origins, strengths, forget times), settings."""
         with self._lock:
             domains = {}
             for domain, state in sorted(self._states.items()):
@@ -215,10 +259,13 @@ class ViewModel:
                 entities = {}
                 for entity, queue in sorted(state.get("queues", {}).items()):
                     entries = []
+                    held = self._held.get((domain, entity))
+                    strength = held["strength"] if held and held["queue"] == list(queue) else [None] * len(queue)
                     for k, prop in enumerate(queue):
                         forget_at = (next_tick + k * period) if (next_tick is not None and period) else None
                         origin = self._origins.get((domain, entity, prop))
-                        entries.append({"property": prop, "origin": origin, "forget_at": forget_at})
+                        entries.append({"property": prop, "origin": origin, "strength": strength[k],
+                                        "forget_at": forget_at})
                     entities[entity] = entries
                 domains[domain] = {"time": state.get("time"), "incarnation": state.get("incarnation"),
                                    "wm_version": state.get("wm_version"), "memory": memory,
@@ -228,10 +275,10 @@ class ViewModel:
                     "graph": ready.get("graph"), "domains": domains, "dialogue": list(self._dialogue)}
 
     def sizes(self) -> dict[str, int]:
-        """Return how many lines, utterance ids, origins and domains the model holds (all bounded)."""
+        """Return how many lines, utterance ids, origins, domains, strengths, strengths to read it holds (bounded)."""
         with self._lock:
             return {"dialogue": len(self._dialogue), "ids": len(self._said), "origins": len(self._origins),
-                    "domains": len(self._states)}
+                    "domains": len(self._states), "held": len(self._held), "unread": len(self._unread)}
 
     def _memory(self, domain: str) -> dict:
         if self._status and domain in (self._status.get("memory") or {}):

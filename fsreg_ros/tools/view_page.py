@@ -3,7 +3,10 @@
 The page carries the snapshot it was served with (drawn at once), and the script opens
 ``/events`` (Server-Sent Events, see :mod:`fsreg_ros.tools.view`) and
 redraws on every snapshot.  Elements carry ``data-*`` attributes (entity, domain,
-property, origin, source, strength) so a browser test can read what the page shows.
+property, origin, source, strength, forget-at) so a browser test can read what the page shows:
+a WM entry's ``data-strength`` is how the consultant held it at its ``wm/state``'s time
+(``age 0, 2 episodes``, plus ``, activation 1.23`` under rule ``activation``; ``""`` when
+unknown), the same words as a REG word's.
 """
 
 #: Where the server puts the snapshot the page draws first (JSON, ``</`` escaped).
@@ -32,7 +35,7 @@ PAGE = """<!DOCTYPE html>
   td, th { text-align: left; padding: 3px 6px; border-bottom: 1px solid #eee; vertical-align: top; }
   .entry { display: inline-block; margin: 1px 3px; padding: 1px 6px; border-radius: 4px; background: #fff3e0;
            border: 1px solid #ffcc80; font-size: 12px; }
-  .entry .why { color: #795548; } .entry .left { color: #b71c1c; }
+  .entry .why { color: #795548; } .entry .held { color: #33691e; } .entry .left { color: #b71c1c; }
   .settings { color: #444; font-size: 12px; margin-bottom: 6px; }
   .error { color: #b71c1c; }
 </style>
@@ -107,10 +110,12 @@ function render(s) {
       tr.append(el("th", {}, entity));
       const td = el("td");
       for (const e of entries) {
+        const held = strength(e.strength);
         const span = el("span", {"class": "entry", "data-property": e.property, "data-origin": origin(e.origin),
-                                 "data-forget-at": e.forget_at});
+                                 "data-forget-at": e.forget_at, "data-strength": held});
         span.append(el("b", {}, e.property));
         span.append(el("span", {"class": "why"}, " " + origin(e.origin)));
+        if (held) span.append(el("span", {"class": "held"}, "; " + held));
         if (e.forget_at !== null && s.time !== null) {
           const left = Math.max(0, e.forget_at - s.time).toFixed(1);
           span.append(el("span", {"class": "left"}, " forgets in " + left + " s"));

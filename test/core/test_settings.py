@@ -127,7 +127,7 @@ def test_the_graph_and_the_launch_file_pass_every_setting(monkeypatch):
     assert "capacity" not in manager.parameters and "faces.policy" not in manager.parameters
     arguments = _launch_arguments(monkeypatch)
     for row in settings.TABLE:
-        assert arguments[row.name] == (str(row.default), row.description)
+        assert arguments[row.name] == ("", f"{row.description} ('' = the preset's, else {row.default})")
 
 
 def _launch_arguments(monkeypatch) -> dict:

@@ -158,6 +158,41 @@ def test_launch_file_refuses_a_bad_argument_in_one_line_before_any_node_starts(m
         assert str(err.value) == message, given
 
 
+def test_launch_file_takes_a_preset_as_fsreg_up_does(monkeypatch, tmp_path):
+    """``preset:=NAME`` fills in the memory settings and REG's WM order it names, as ``--preset``; an
+    argument given beside it overrides the preset's; an unknown preset is one line naming the argument and
+    the known presets, before any node starts (the launch file had no ``preset:=``)."""
+    from fsreg_ros.core.forgetting import settings
+    from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+    from fsreg_ros.ros.graph_spec import node_specs, policy_settings
+
+    kb = tmp_path / "kb.yaml"
+    kb.write_text(TWO_DOMAINS)
+    defaults = {row.name: row.default for row in settings.TABLE}
+
+    def graph(**given) -> dict:
+        nodes = _launch_nodes(monkeypatch, {"kb": str(kb), **given})
+        return {n.kwargs["name"]: n.kwargs["parameters"][0] for n in nodes}
+
+    def expected(wm_order: str, **memory) -> dict:
+        policy = policy_settings(ForgettingPolicy.from_settings({**defaults, **memory}))
+        return {s.name: s.parameters for s in node_specs(str(kb), ["faces"], {"faces": policy}, use_sim_time=False,
+                                                         algorithm="auto", wm_order=wm_order)}
+
+    human = graph(preset="human-like")
+    assert human == expected("strength", policy="episodes", episode_window=1)
+    assert (human["wm_manager"]["policy"], human["wm_manager"]["episode_window"]) == ("episodes", 1)
+    assert human["reg"]["wm_order"] == "strength"
+    assert graph(preset="human-like", episode_window="2", wm_order="lru-first") == expected(
+        "lru-first", policy="episodes", episode_window=2)  # given beside the preset: theirs win
+    assert graph(preset="paper") == expected("lru-first", policy="decay+displacement", decay_period=10.0, capacity=2)
+    assert graph() == expected("lru-first")  # no preset: the WM Manager's defaults and the paper's order
+    for bad in ("nonsense", "Human-like"):
+        with pytest.raises(ValueError) as err:
+            graph(preset=bad)
+        assert str(err.value) == f"launch argument preset:={bad!r}: unknown preset {bad!r} (known: paper, human-like)"
+
+
 def test_params_files_name_real_nodes():
     import yaml
 

@@ -52,6 +52,28 @@ def test_queues_carry_origin_and_forget_time_under_decay():
     assert [e["property"] for e in model.snapshot()["domains"]["faces"]["entities"]["face1"]] == ["glasses", "hat"]
 
 
+def test_queue_entries_carry_the_strength_the_consultant_reports():
+    """Each WM entry shows how strongly the consultant holds it (its ``open`` reply, read by the view for the
+    entities whose WM changed); the panel showed no strength before.  A strength read with another queue than
+    the one wm/state shows is not shown (None) until it is read again."""
+    model = ViewModel()
+    model.on_event(event("encode", "face1", "glasses", "speaker", 3.0, turn=1))
+    model.on_state(state("faces", 3.0, {"face1": ["male", "glasses"], "face2": ["female"]}))
+    assert model.strength_wanted(1) == [("faces", "face1")]  # its event and its queue: once, in order
+    assert model.strength_wanted(8) == [("faces", "face2")] and model.strength_wanted(8) == []
+    held = [{"age": 1, "episodes": 1, "activation": None}, {"age": 0, "episodes": 2, "activation": 0.5}]
+    model.on_held("faces", "face1", {"queue": ["male", "glasses"], "strength": held})
+    entities = model.snapshot()["domains"]["faces"]["entities"]
+    assert [(e["property"], e["strength"]) for e in entities["face1"]] == [("male", held[0]), ("glasses", held[1])]
+    assert [(e["property"], e["strength"]) for e in entities["face2"]] == [("female", None)]  # not read yet
+    model.on_state(state("faces", 4.0, {"face1": ["glasses", "male"], "face2": ["female"]}, version=2))
+    assert [e["strength"] for e in model.snapshot()["domains"]["faces"]["entities"]["face1"]] == [None, None]
+    assert model.strength_wanted(8) == [("faces", "face1"), ("faces", "face2")]  # face2: never read
+    model.on_state(state("faces", 5.0, {"face2": ["female"]}, version=3))
+    model.on_event(event("forget", "face1", "male", "decay", 5.0))
+    assert model.strength_wanted(8) == [("faces", "face2")]  # face1's queue is empty now: nothing to read
+
+
 def test_no_forget_time_without_decay():
     assert decay_period({"policy": "displacement", "capacity": 2}) is None
     assert decay_period({"policy": "decay+displacement", "decay_period": 5.0, "capacity": 2}) == 5.0
@@ -167,9 +189,63 @@ def page_dom(url: str) -> str:
     return result.stdout
 
 
+def caught_up(url: str, holds, what: str, wait: float = 60.0) -> int:
+    """Poll the view's ``/snapshot`` until ``holds(snapshot)``; return that snapshot's version (fail at ``wait`` s).
+
+    A deadline, not a timing: under load the view hears the graph late, never wrongly; a view that
+    never hears it fails here, with what it holds, not later in the page.
+    """
+    deadline = time.monotonic() + wait
+    while True:
+        snap = json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())
+        if holds(snap):
+            return snap["version"]
+        assert time.monotonic() < deadline, f"the view never held {what}: {json.dumps(snap)[:3000]}"
+        time.sleep(0.1)
+
+
+def page_at(url: str, version: int, wait: float = 60.0) -> str:
+    """The page as Chromium renders it once it has applied the view's snapshot ``version`` or a later one.
+
+    The page marks what it drew (``<body data-version=N>``, set after each render); a dump taken
+    before the page drew (Chromium cut its load short under load) or of an older snapshot is taken
+    again.  Each load serves the view's state as of then, so the first dump of a loaded page holds.
+    """
+    deadline = time.monotonic() + wait
+    while True:
+        dom = page_dom(url)
+        drawn = re.search(r'<body data-version="(\d+)"', dom)
+        if drawn and int(drawn.group(1)) >= version:
+            return dom
+        assert time.monotonic() < deadline, f"the page never drew version {version}: {dom[-3000:]}"
+
+
+def hears_the_graph(url: str, robot, wait: float = 60.0) -> None:
+    """Return once the view has heard RR's ``rr/result`` and REG's ``reg/expression`` writers.
+
+    The view starts serving once *it* has matched those writers; a writer that has not matched
+    the view yet (discovery is not symmetric, and under load the gap is seconds) drops what it
+    publishes meanwhile, and the view never shows it (seen: a resolution missing after 60 s).
+    So each writer is asked something it answers without touching WM -- a property no consultant
+    knows (RR's error) and an entity nobody has (REG's) -- again until the view shows both answers.
+    """
+    deadline = time.monotonic() + wait
+    while True:
+        said = robot.say(description=["no-such-property"])["id"]
+        asked = robot.describe("nobody")["id"]
+        for _ in range(20):  # two seconds for this pair's answers, then ask again
+            lines = {line.get("id"): line for line in
+                     json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())["dialogue"]}
+            if lines.get(said, {}).get("status") == "error" and lines.get(asked, {}).get("error"):
+                return
+            time.sleep(0.1)
+        assert time.monotonic() < deadline, f"the view never heard RR's and REG's answers: {lines}"
+
+
 @contextlib.contextmanager
 def served_view(robot):
-    """``fsreg-ctl view --port 0`` of ``robot``'s graph, as a user starts it; yields the page's URL and the process."""
+    """``fsreg-ctl view --port 0`` of ``robot``'s graph, as a user starts it, hearing the graph's answers
+    (:func:`hears_the_graph`); yields the page's URL and the process."""
     view = subprocess.Popen([sys.executable, "-m", "fsreg_ros.tools.ctl", "view", "--namespace", robot.namespace,
                              "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=dict(os.environ))
@@ -177,6 +253,7 @@ def served_view(robot):
         line = view.stdout.readline()
         match = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)
         assert match, line + view.stderr.read() if view.poll() is not None else line
+        hears_the_graph(match.group(1), robot)
         yield match.group(1), view
     finally:
         view.terminate()
@@ -199,16 +276,16 @@ def test_view_in_a_browser(tmp_path):
             assert robot.say("male, lab-coat, light-hair, glasses")["resolved"] == "face1"
             robot.set_clock(2.0)
             expression = robot.describe("face1")
-            deadline = time.monotonic() + 10
-            while time.monotonic() < deadline:  # the view has heard the state the graph holds now
-                snap = json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())
-                face1 = snap["domains"].get("faces", {}).get("entities", {}).get("face1")
-                if (face1 and len(snap["dialogue"]) == 2 and snap["dialogue"][0].get("resolved")
-                        and snap["domains"]["faces"]["next_tick"] is not None):
-                    break
-                time.sleep(0.1)
             expected_wm = robot.wm("face1")
-            dom = page_dom(url)
+
+            def heard(snap) -> bool:  # the view holds what the graph did: both lines, face1's WM and strengths
+                face1 = snap["domains"].get("faces", {}).get("entities", {}).get("face1") or []
+                said, described = ([{}, {}] + snap["dialogue"])[-2:]  # after the probes' lines (hears_the_graph)
+                return (said.get("resolved") == "face1" and described.get("properties") is not None
+                        and [e["property"] for e in face1] == expected_wm and all(e["strength"] for e in face1)
+                        and snap["domains"]["faces"]["next_tick"] is not None)
+
+            dom = page_at(url, caught_up(url, heard, "the dialogue, face1's WM and its strengths"))
     row = re.search(r'<tr class="entity" data-entity="face1">(.*?)</tr>', dom)
     assert row, dom[:3000]
     entries = re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="([^"]+)" data-forget-at="([^"]+)"',
@@ -216,6 +293,12 @@ def test_view_in_a_browser(tmp_path):
     assert [prop for prop, _, _ in entries] == expected_wm and expected_wm
     assert [origin for _, origin, _ in entries] == ["speaker"] * 4  # the human's own words, encoded at turn 1
     assert [float(f) for _, _, f in entries] == [10.0, 20.0, 30.0, 40.0]  # one pop per decay tick, front first
+    strengths = re.findall(r'<span class="entry" data-property="[^"]+" data-origin="[^"]+" data-forget-at="[^"]+" '
+                           r'data-strength="([^"]*)"', row.group(1))
+    # Each entry's strength as the consultant holds it after REG's close: RR's check (episode 0), the human's
+    # description (episode 1) and REG's words (episode 2, which its close began) used lab-coat, light-hair and
+    # glasses; "male", which REG did not say, was last used in episode 1.
+    assert strengths == ["age 1, 2 episodes"] + ["age 0, 3 episodes"] * 3
     props = re.findall(r'<span class="prop (wm|ltm)" data-property="([^"]+)" data-source="(wm|ltm)"', dom)
     assert [p for _, p, _ in props] == list(expression["description"])
     assert [s for s, _, _ in props] == list(expression["sources"])
@@ -247,17 +330,16 @@ def test_the_view_follows_a_consultant_restart_and_a_clock_jump_in_a_browser(tmp
             assert robot.say("female, glasses")["resolved"] == "face2"
             expected = {entity: robot.wm(entity) for entity in ("face1", "face2")}
             assert len(expected["face1"]) == 2
-            deadline = time.monotonic() + 10
-            while True:  # the view has heard the state the graph holds now
-                snap = json.loads(urllib.request.urlopen(url + "snapshot", timeout=5).read())
+
+            def heard(snap) -> bool:  # the view holds the state the graph holds now
                 faces = snap["domains"].get("faces", {})
                 shown = {e: [p["property"] for p in faces.get("entities", {}).get(e, [])] for e in expected}
-                if faces.get("incarnation") == 2 and shown == expected:
-                    break
-                assert time.monotonic() < deadline, (snap, expected)
-                time.sleep(0.1)
+                return faces.get("incarnation") == 2 and shown == expected and snap["dialogue"] and any(
+                    line.get("resolved") == "face2" for line in snap["dialogue"])
+
+            version = caught_up(url, heard, f"incarnation 2 and {expected}")
             assert view.poll() is None  # it kept serving throughout
-            dom = page_dom(url)
+            dom = page_at(url, version)
     assert "faces (incarnation 2)" in dom
     rows = dict(re.findall(r'<tr class="entity" data-entity="(face\d)">(.*?)</tr>', dom))
     entries = {entity: re.findall(r'<span class="entry" data-property="([^"]+)" data-origin="[^"]+" '

@@ -16,7 +16,7 @@ import pytest
 
 from fsreg_ros.tools import ctl, view
 from fsreg_ros.tools.view import ViewServer, check_host
-from fsreg_ros.tools.view_model import DIALOGUE_LINES, MAX_ORIGINS, ViewModel
+from fsreg_ros.tools.view_model import DIALOGUE_LINES, MAX_HELD, MAX_ORIGINS, ViewModel
 
 WILDCARD = ("would bind every network interface: name one address (default 127.0.0.1: this machine only), or set "
             "FSREG_ALLOW_NETWORK=1 to serve the network deliberately")
@@ -130,7 +130,8 @@ def test_the_model_stays_bounded_however_many_utterances_and_encodings_pass():
     for i in range(MAX_ORIGINS + 10):
         model.on_event({"domain": "faces", "entity": f"e{i}", "property": "male", "op": "encode", "time": 1.0})
     sizes = model.sizes()
-    assert sizes == {"dialogue": DIALOGUE_LINES, "ids": DIALOGUE_LINES, "origins": MAX_ORIGINS, "domains": 0}
+    assert sizes == {"dialogue": DIALOGUE_LINES, "ids": DIALOGUE_LINES, "origins": MAX_ORIGINS, "domains": 0,
+                     "held": 0, "unread": MAX_HELD}  # every entity with an event waits to be read: bounded too
     lines = model.snapshot()["dialogue"]
     assert [line["id"] for line in lines[-2:]] == [f"u{5 * DIALOGUE_LINES - 1}", f"r{5 * DIALOGUE_LINES - 1}"]
     assert lines[-2]["resolved"] == "face1"  # an answer still joins its utterance
