@@ -20,6 +20,7 @@ from typing import Mapping, Optional, Protocol, Sequence
 import numpy as np
 
 from .columns import QueueColumns
+from .episodes import EntryStamps, EpisodeLog
 from .limits import Limits
 from .queue import Entry, EventSink, Origin, Queue
 from .queues import QueueStore
@@ -59,9 +60,22 @@ class ActivationRule(Protocol):
     """Rule ``activation`` (:class:`~fsreg_ros.core.memory.activation.LazyActivation`) as the others call it."""
 
     clock: float
+    counting: str  # the clock it counts on: seconds, episodes or words (:mod:`.entity_clock`)
 
     def advance(self, time: float) -> None:
         """Note that the clock reached ``time``."""
+
+    def now_of(self, entity: str) -> float:
+        """Return the time Q[entity]'s traces are read at (the entity's own clock, or the buffer's)."""
+
+    def begin(self, entity: str, time: float) -> None:
+        """Note that the entity's reference episode began at ``time``."""
+
+    def clocks(self) -> dict[str, int]:
+        """Return the per-entity clocks a store keeps."""
+
+    def restore_clocks(self, words: dict[str, int]) -> None:
+        """Take back :meth:`clocks`'s dict."""
 
     def sync(self, entity: str, q: Queue) -> None:
         """Forget what crossed in a dict queue."""
@@ -176,6 +190,7 @@ class HostBuffer(Protocol):
     interference: InterferenceRule
     origin_log: OriginRecord
     changes: ChangeLog
+    episodes: EpisodeLog
     watchers: tuple  # the side logs kept per entry (buffer.EntryWatcher)
 
     @property
@@ -188,6 +203,15 @@ class HostBuffer(Protocol):
 
     def __len__(self) -> int:
         """Properties held, after applying owed decay."""
+
+    def episode(self, entity: str) -> int:
+        """Return the entity's current reference episode (0 before its first)."""
+
+    def entry_stamps(self, entity: str) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as the episode log reads it, LRU first."""
+
+    def nonempty_entities(self) -> list[str]:
+        """Entities whose queues are non-empty, every queue brought up to date first."""
 
     def front_stamp(self, entity: str) -> int:
         """Stamp of Q[entity]'s front."""
