@@ -46,6 +46,7 @@ def test_on_the_episodes_clock_an_entry_ages_by_its_entitys_episodes_from_one():
     assert wm.queue("a") == ("x", "y") and wm.strength("a") == [Strength(0, 1, 0.0), Strength(0, 1, 0.0)]
     wm.begin_episode("a", 2.0)
     wm.encode("a", ["y"], "speaker", 2.0)
+    wm.encode_each(["a", "b"], "y", "reg-distractor", 2.5)  # used in an episode once, however many encodings
     assert wm.strength("a") == [Strength(1, 1, act(2)), Strength(0, 2, act(2, 1))]
     for time in (3.0, 4.0, 5.0, 6.0, 7.0):  # another entity's episodes and encodings age nothing of a's
         wm.begin_episode("b", time)
@@ -55,7 +56,7 @@ def test_on_the_episodes_clock_an_entry_ages_by_its_entitys_episodes_from_one():
     wm.begin_episode("a", 8.0)
     assert wm.strength("a") == [Strength(2, 1, act(3)), Strength(1, 2, act(3, 2))]
     wm.begin_episode("a", 9.0)  # x is of age 4 >= 3.32: forgotten as the episode begins, stamped then
-    assert forgets(events) == [("a", "x", "activation", 9.0)]
+    assert forgets(events) == [("b", "y", "activation", 5.0), ("a", "x", "activation", 9.0)]
     assert wm.queue("a") == ("y",) and wm.strength("a") == [Strength(2, 2, act(4, 3))]
     wm.advance(1e9)  # seconds age nothing
     assert wm.queue("a") == ("y",)
@@ -88,7 +89,22 @@ def test_the_seconds_clock_is_todays_rule():
     assert wm.queue("a") == ()
 
 
-def test_the_entity_clocks_take_dict_queues_in_a_large_domain():
+def test_the_episodes_clock_keeps_the_column_form_of_a_large_domain():
+    entities = [f"e{i}" for i in range(300)]
+    wm = buffer("episodes", policy="activation+displacement", capacity=3)
+    wm.column_min = 100
+    wm.encode_members((1 << 300) - 1, entities, "p", "reg-distractor", 0.0)  # episode 0 of every entity
+    assert wm.columns.entities and wm.store.in_columns("e7")
+    for time in (1.0, 2.0):
+        wm.begin_episode("e7", time)
+        wm.encode_members(1 << 7 | 1 << 8, entities, "q", "reg-distractor", time)
+    assert wm.queue("e7") == ("p", "q") and wm.strength("e7") == [Strength(2, 1, act(3)), Strength(0, 2, act(2, 1))]
+    wm.begin_episode("e7", 3.0)  # p of age 4 >= 3.32
+    assert wm.queue("e7") == ("q",) and wm.queue("e8") == ("p", "q")
+    assert wm.strength("e8") == [Strength(0, 1, act(1)), Strength(0, 1, act(1))]  # e8's episode 0 all along
+
+
+def test_the_words_clock_takes_dict_queues_in_a_large_domain():
     entities = [f"e{i}" for i in range(300)]
     wm = buffer("words", policy="activation+displacement", capacity=2)
     wm.column_min = 100
@@ -126,6 +142,7 @@ def test_the_entity_clocks_survive_a_restart_from_the_journal_and_from_a_checkpo
     again.shutdown()  # a checkpoint, the journal emptied
     stored = DomainStore(tmp_path / "restarted" / "faces.sqlite3", KB)
     assert stored.open().episodes == clocks and ("words" in clocks["face1"]) == (clock == "words")
+    assert ("activation" in clocks["face1"]) == (clock == "episodes")
     stored.close()
     third = make(tmp_path / "restarted")
     assert third.store.journal_length() == 0 and state(third) == expected

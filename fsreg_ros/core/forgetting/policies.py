@@ -205,8 +205,9 @@ class ForgettingPolicy:
             similarity="similarity" in self.rules,
             global_capacity=self.given("global_capacity") if "global-capacity" in self.rules else None,  # type: ignore
             seed=int(self.value("seed")),  # type: ignore[arg-type]
-            activation=_activation_of(self),
+            activation=_activation_of(self) if self.value("activation_clock") != "episodes" else None,
             activation_clock=str(self.value("activation_clock")) if self.activates else "seconds",
+            episode_activation=_activation_of(self) if self.value("activation_clock") == "episodes" else None,
             episode_window=int(self.value("episode_window")) if "episodes" in self.rules else None,  # type: ignore
         )
 

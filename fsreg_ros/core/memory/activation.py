@@ -68,9 +68,6 @@ class LazyActivation:
         """Return the time Q[entity]'s traces are read at: the buffer's clock (one clock for every entity)."""
         return self.clock
 
-    def begin(self, entity: str, time: float) -> None:
-        """Note that the entity's reference episode began at ``time`` (only the episodes clock reads it)."""
-
     def clocks(self) -> dict[str, int]:
         """Return the per-entity clocks a store keeps beside the episode log (none on the seconds clock)."""
         return {}

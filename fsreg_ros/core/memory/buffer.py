@@ -34,7 +34,7 @@ from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import LazyDecay
 from .displacement import Interference
-from .host import ActivationRule, ChangeLog, DecayRule, InterferenceRule, OriginRecord
+from .host import ActivationRule, ChangeLog, DecayRule, EpisodeActivationRule, InterferenceRule, OriginRecord
 from .install import install_limits
 from .limits import UNLIMITED, Limits
 from .origins import OriginLog
@@ -97,6 +97,7 @@ class WMBuffer:
         # The collaborators, typed by what the others may call on them (:mod:`.host`).
         self.lazy_decay: DecayRule = LazyDecay(self)
         self.activation: Optional[ActivationRule] = None  # a LazyActivation (:mod:`.activation`) while in force
+        self.episode_activation: Optional[EpisodeActivationRule] = None  # the same on the episodes clock
         self.interference: InterferenceRule = Interference(self)
         self.origin_log: OriginRecord = OriginLog(self)
         self.episodes = EpisodeLog(self)  # reference episodes (:mod:`.episodes`)
@@ -248,13 +249,7 @@ class WMBuffer:
         :mod:`fsreg_ros.core.memory.episodes`); under rule ``activation`` on the episodes
         clock, those whose activation it takes to the threshold (:mod:`.entity_clock`).
         """
-        window = self.limits.episode_window if self.limits.retains else None
-        if self.activation is None:
-            return self.episodes.begin(entity, window, time, turn)
-        self.activation.begin(entity, time)
-        episode = self.episodes.begin(entity, window, time, turn)
-        self._catch_up(entity, time)  # (the episodes clock moved: what crossed goes now)
-        return episode
+        return entity_clock.begin_episode(self, entity, time, turn)
 
     def encode(self, entity: str, properties: Iterable[str], cause: str, time: float,
                turn: Optional[int] = None) -> None:

@@ -68,9 +68,6 @@ class ActivationRule(Protocol):
     def now_of(self, entity: str) -> float:
         """Return the time Q[entity]'s traces are read at (the entity's own clock, or the buffer's)."""
 
-    def begin(self, entity: str, time: float) -> None:
-        """Note that the entity's reference episode began at ``time``."""
-
     def clocks(self) -> dict[str, int]:
         """Return the per-entity clocks a store keeps."""
 
@@ -115,6 +112,26 @@ class ActivationRule(Protocol):
 
     def settle_columns(self, rows: np.ndarray) -> None:
         """Bring column rows up to the clock (no events)."""
+
+
+class EpisodeActivationRule(Protocol):
+    """Rule ``activation`` on the episodes clock (:class:`~fsreg_ros.core.memory.entity_clock.EpisodeActivation`)."""
+
+    decay: float
+    threshold: float
+    traces: dict[str, dict[str, Trace]]
+
+    def install(self) -> None:
+        """Take every entry under the rule."""
+
+    def begin(self, entity: str, time: float, turn: Optional[int]) -> None:
+        """Decide the entity's entries as its next episode begins."""
+
+    def strength(self, entity: str, entries: list[EntryStamps]) -> list[float]:
+        """Return each entry's activation at the entity's clock."""
+
+    def export(self) -> dict[str, dict[str, list]]:
+        """Return the kept presentations as a store keeps them."""
 
 
 class InterferenceRule(Protocol):
@@ -187,6 +204,7 @@ class HostBuffer(Protocol):
     store: QueueStore
     lazy_decay: DecayRule
     activation: Optional[ActivationRule]
+    episode_activation: Optional[EpisodeActivationRule]
     interference: InterferenceRule
     origin_log: OriginRecord
     changes: ChangeLog
@@ -227,6 +245,9 @@ class HostBuffer(Protocol):
 
     def forget_entry(self, entity: str, q: Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         """Forget one entry of a dict queue (reported, recorded)."""
+
+    def remove(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int] = None) -> bool:
+        """Forget one property of Q[entity] (reported, recorded)."""
 
     def forget_everything(self, cause: str, time: float, turn: Optional[int]) -> None:
         """Forget every property (reported, recorded)."""

@@ -11,7 +11,7 @@ enforced by :mod:`fsreg_ros.core.memory.displacement`.
 
 from __future__ import annotations
 
-from .entity_clock import new_rule
+from .entity_clock import install_episodes, new_rule
 from .host import HostBuffer
 from .limits import Limits
 
@@ -29,6 +29,7 @@ def install_limits(wm: HostBuffer, limits: Limits, time: float) -> None:
     wm.limits = limits
     wm.interference.install(limits)
     install_activation(wm, limits, time)
+    install_episodes(wm, limits)
     for entity, q in wm.store.dict_queues():
         hits = q.hits
         if hits is not None:  # the LFU counts restart: an exported count may change

@@ -11,7 +11,7 @@ from __future__ import annotations
 from bisect import bisect_right
 from typing import Mapping, Optional, Sequence
 
-from .entity_clock import new_rule
+from .entity_clock import install_episodes, new_rule
 from .episodes import Strength
 from .host import HostBuffer
 from .limits import Limits
@@ -62,6 +62,8 @@ def strengths(wm: HostBuffer, entity: str) -> list[Strength]:
     """
     stamps = wm.entry_stamps(entity)
     counted = wm.episodes.strength(entity, stamps)
+    if wm.episode_activation is not None and counted:
+        return [Strength(age, n, a) for (age, n), a in zip(counted, wm.episode_activation.strength(entity, stamps))]
     if wm.activation is None or not counted:
         return [Strength(age, n) for age, n in counted]
     d, clock = wm.limits.activation[0], wm.activation.now_of(entity)  # type: ignore[index]
@@ -124,6 +126,7 @@ def restore(wm: HostBuffer, queues: Mapping[str, Sequence[Sequence]], stamp: int
                 counts[prop] = hits
         store.load(entity, entries, counts, ticks)
     wm.activation = store.keeper = None
+    install_episodes(wm, limits, fresh=True)
     if limits.activation is not None:
         latest = max((t.recent[-1] for t in traces.values()), default=0.0)  # (on the rule's own clock)
         act = wm.activation = store.keeper = new_rule(wm, limits, latest if limits.activation_clock == "seconds"
