@@ -69,8 +69,8 @@ def test_the_wm_manager_refuses_a_clock_that_is_not_one_and_runs_one_that_is():
     from fsreg_ros.core.forgetting import settings
     from fsreg_ros.ros.memory_parameters import check_change
 
-    values = {row.name: row.default for row in settings.TABLE} | {f"faces.{row.name}": row.inherit
-                                                                   for row in settings.TABLE}
+    values = {row.name: row.default for row in settings.TABLE}
+    values |= {f"faces.{row.name}": row.inherit for row in settings.TABLE}
     values |= {"policy": "activation", "activation_threshold": -1.0}
     with pytest.raises(ValueError) as info:
         check_change(values, {"faces.activation_clock": "hours"}, ["faces"])

@@ -223,7 +223,7 @@ class HostBuffer(Protocol):
         """Properties held, after applying owed decay."""
 
     def episode(self, entity: str) -> int:
-        """Return the entity's current reference episode (0 before its first)."""
+        """Return the entity's current reference episode number (0 before its first)."""
 
     def entry_stamps(self, entity: str) -> list[EntryStamps]:
         """Return each entry of Q[entity] as the episode log reads it, LRU first."""
