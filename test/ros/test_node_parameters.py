@@ -148,3 +148,23 @@ def test_a_run_time_change_is_applied_where_it_says_or_refused_with_the_reason(t
         assert graph.status()["memory"] == {"faces": {"policy": "none"}}
         result = manager.set_parameters([Parameter("policy", value="")])[0]  # node-wide: no policy is not 'none'
         assert not result.successful and result.reason == "policy must be a non-empty string, got ''"
+
+
+@pytest.mark.graph
+def test_the_wm_manager_node_refuses_a_clock_and_runs_activation_on_the_one_set(table1_path):
+    """``ros2 param set /wm_manager activation_clock ...``: one line why not, or the clock runs in every domain."""
+    from rclpy.parameter import Parameter
+
+    from fsreg_ros.testing import LiveGraph
+
+    with LiveGraph(table1_path, policy="activation", activation_threshold=-1.0) as graph:
+        manager = graph.nodes["wm_manager"]
+        assert graph.status()["memory"] == {"faces": {"policy": "activation", "activation_decay": 0.5,
+                                                      "activation_threshold": -1.0}}
+        result = manager.set_parameters([Parameter("activation_clock", value="hours")])[0]
+        assert not result.successful
+        assert result.reason == "activation_clock must be one of seconds, episodes, words, got 'hours'"
+        assert manager.get_parameter("activation_clock").value == "seconds"
+        assert manager.set_parameters([Parameter("activation_clock", value="episodes")])[0].successful
+        assert graph.status()["memory"] == {"faces": {"policy": "activation", "activation_decay": 0.5,
+                                                      "activation_threshold": -1.0, "activation_clock": "episodes"}}
