@@ -154,3 +154,21 @@ def test_the_entity_clocks_survive_a_restart_from_the_journal_and_from_a_checkpo
             describe(service, target, float(turn + 1), turn)
     assert state(third) == state(twin)
     assert [third.buffer.episode(e) for e in ENTITIES] == [4, 5, 1]
+
+
+def test_switching_clocks_counts_what_wm_holds_as_presented_once_now():
+    wm = buffer("seconds")
+    wm.begin_episode("a", 1.0)
+    wm.encode("a", ["x"], "speaker", 1.0)
+    wm.encode("a", ["x"], "speaker", 2.0)
+    policy = ForgettingPolicy.parse("activation", activation_decay=D, activation_threshold=TAU,
+                                    activation_clock="episodes")
+    wm.set_limits(policy.limits(), 3.0)  # on the episodes clock x counts as used once, in episode 1
+    assert wm.strength("a") == [Strength(0, 1, act(1))]
+    wm.begin_episode("a", 4.0)
+    wm.begin_episode("a", 5.0)
+    assert wm.strength("a") == [Strength(2, 1, act(3))]
+    wm.set_limits(policy.with_changes(activation_clock="words").limits(), 6.0)  # words: once, now
+    assert wm.strength("a") == [Strength(2, 1, act(1))]
+    wm.encode("a", ["y", "z", "w"], "speaker", 7.0)  # x of age 4 goes
+    assert wm.queue("a") == ("y", "z", "w")
