@@ -172,3 +172,18 @@ def test_switching_clocks_counts_what_wm_holds_as_presented_once_now():
     assert wm.strength("a") == [Strength(2, 1, act(1))]
     wm.encode("a", ["y", "z", "w"], "speaker", 7.0)  # x of age 4 goes
     assert wm.queue("a") == ("y", "z", "w")
+
+
+def test_an_entry_that_came_back_in_the_current_episode_starts_afresh_after_a_restore():
+    wm = buffer("episodes", policy="activation+displacement", capacity=1)
+    for time in (1.0, 2.0):
+        wm.begin_episode("a", time)
+        wm.encode("a", ["x"], "speaker", time)
+    wm.encode("a", ["y", "x"], "speaker", 2.5)  # x displaced by y, then back: one use, episode 2
+    assert wm.strength("a") == [Strength(0, 1, act(1))]
+    again = WMBuffer("faces")
+    again.restore({"a": wm.export_queue("a")}, *wm.counters(), wm.limits)
+    again.restore_episodes(wm.export_episodes())
+    for buf in (wm, again):
+        buf.begin_episode("a", 3.0)
+    assert again.strength("a") == wm.strength("a") == [Strength(1, 1, act(2))]

@@ -105,11 +105,18 @@ class EpisodeActivation:
         return [activation(traces[e.property], now, self.decay) for e in entries]
 
     def export(self) -> dict[str, dict[str, list]]:
-        """Return the kept presentations, ``{entity: {prop: trace as JSON}}``, of the entries held now."""
-        out = {}
+        """Return the kept presentations, ``{entity: {prop: trace as JSON}}``, of the entries held now.
+
+        An entry that entered during the current episode has none (a kept one is an earlier
+        stay's): restored, it starts afresh as it would here, whatever its entering stamp
+        (which a store does not keep).
+        """
+        out, log = {}, self.wm.episodes
         for entity, traces in self.traces.items():
-            held = {e.property for e in self.wm.entry_stamps(entity)}
-            kept = {p: t.to_json() for p, t in traces.items() if p in held}
+            now = log.current(entity)
+            kept = {e.property: traces[e.property].to_json() for e in self.wm.entry_stamps(entity)
+                    if e.property in traces
+                    and not (e.entered is not None and log.episode_of(entity, e.entered) == now)}
             if kept:
                 out[entity] = kept
         return out
