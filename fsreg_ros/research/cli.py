@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from ..core.algorithms.generation import WM_ORDERS
+from ..core.memory.entity_clock import CLOCKS
 from .cli_common import UsageError, _run, number_list
 from .eval_cli import eval_main, eval_parser
 from .execution import add_engine_arguments, engine_from_args
@@ -52,6 +53,10 @@ def sweep_parser() -> argparse.ArgumentParser:
                              "default 0.5; with it, one encoding stays exp(-tau/d) s: 20, 10, 5 by default)")
     parser.add_argument("--episode-windows", default="1,2,3,4",
                         help="comma-separated integers (k: the entity's last k reference episodes), for episodes")
+    parser.add_argument("--activation-clocks", default="", metavar="CLOCK,...",
+                        help="comma-separated clocks rule activation runs on, each a setting of its own: "
+                             f"{', '.join(CLOCKS)} (default: none given, activation on its fallback, seconds, "
+                             "and no activation_clock column)")
     parser.add_argument("--wm-orders", default="lru-first", metavar="ORDER,...",
                         help=f"REG's order of the target's WM properties, each non-none policy run under each: "
                              f"{', '.join(WM_ORDERS)} (default lru-first, the paper's; strength: strongest first, "
@@ -128,10 +133,15 @@ def parse_shard(text: str) -> tuple[int, int]:
 
 def wm_order_list(text: str) -> tuple:
     """Parse ``--wm-orders``: REG's WM orders, comma-separated, each one of :data:`WM_ORDERS`."""
+    return choice_list("--wm-orders", text, WM_ORDERS, required=True)
+
+
+def choice_list(option: str, text: str, choices: Sequence[str], required: bool = False) -> tuple:
+    """Parse a comma-separated list of ``choices`` (repeats once; none given: ``()`` unless ``required``)."""
     values = tuple(dict.fromkeys(v.strip() for v in text.split(",") if v.strip()))
-    wrong = [v for v in values if v not in WM_ORDERS]
-    if not values or wrong:
-        raise UsageError(f"--wm-orders: expected one or more of {', '.join(WM_ORDERS)}, got '{text}'")
+    wrong = [v for v in values if v not in choices]
+    if required and not values or wrong:
+        raise UsageError(f"{option}: expected one or more of {', '.join(choices)}, got '{text}'")
     return values
 
 
@@ -228,6 +238,7 @@ def sweep_config(args: argparse.Namespace):
         shared_capacities=number_list("--shared-capacities", args.shared_capacities, int, 1, 1_000_000),
         activation_thresholds=number_list("--activation-thresholds", args.activation_thresholds, float, -20.0, 20.0),
         episode_windows=number_list("--episode-windows", args.episode_windows, int, 1, 1_000_000),
+        activation_clocks=choice_list("--activation-clocks", args.activation_clocks, CLOCKS),
         wm_orders=wm_order_list(args.wm_orders),
         seeds=seeds,
         turns=args.turns,

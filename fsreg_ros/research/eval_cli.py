@@ -116,9 +116,9 @@ def write_per_trial(path: Path, results: list) -> None:
 def tangram_grids(entries: Sequence[str]) -> dict:
     """``["capacity=1,2,3"]`` -> ``{"capacity": (1, 2, 3)}``, each value checked against the settings table."""
     from ..core.forgetting import settings as table
-    from .reuse_models import fitted_parameters, wm_models
+    from .reuse_models import wm_models
 
-    fitted = {p for model in wm_models() for p in fitted_parameters(model.name.split("+"))}
+    fitted = {p for model in wm_models() for p in model.parameters}
     grids: dict = {}
     for entry in entries:
         name, sep, text = entry.partition("=")

@@ -14,9 +14,10 @@ from ..core.forgetting import settings
 #: rule needs, in the settings table's order (``seed``, which has a fallback, is drawn per game).
 GRID = tuple(row.name for row in settings.parameters() if row.fallback is None)
 #: Parameters with a fallback the sweep still runs over when a policy reads them (rule
-#: ``episodes``): their columns appear only in a sweep that has such a policy.
-FALLBACK_GRID = ("episode_window",)
-#: Every numeric axis a setting may have, in column order.
+#: ``episodes``; rule ``activation``'s clock, a text, only when ``--activation-clocks`` is
+#: given): their columns appear only in a sweep that has such a policy.
+FALLBACK_GRID = ("activation_clock", "episode_window")
+#: Every axis a setting may have, in column order (numbers, and the activation clock's text).
 NUMERIC = GRID + FALLBACK_GRID
 #: REG's order of the target's WM properties; its column appears only in a sweep that runs another one.
 WM_ORDER = "wm_order"

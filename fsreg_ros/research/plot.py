@@ -156,7 +156,7 @@ def policy_plot(policy: str, entries: Sequence[dict], none: Optional[dict], out:
                 group = sorted(group, key=lambda e: getattr(e["setting"], x_param) if x_param else 0)
                 xs = [getattr(e["setting"], x_param) if x_param else 0 for e in group]
                 est = [e["estimates"][metric] for e in group]
-                label = ", ".join(f"{SHORT[p]} = {v:g}" for p, v in zip(line_params, line_values)) or policy
+                label = ", ".join(f"{SHORT[p]} = {_value(v)}" for p, v in zip(line_params, line_values)) or policy
                 if dynamic:
                     label += "" if told else " (WM not told)"
                 ax.errorbar(xs, [e.mean for e in est],
@@ -223,9 +223,14 @@ def divergence_panels(settings: Sequence[Any]) -> list[tuple[str, list]]:
         panels.setdefault((_group(setting), rest), []).append(setting)
     out = []
     for (policy, rest), mine in panels.items():
-        title = policy + (": " + ", ".join(f"{SHORT[p]} = {v:g}" for p, v in rest) if rest else "")
+        title = policy + (": " + ", ".join(f"{SHORT[p]} = {_value(v)}" for p, v in rest) if rest else "")
         out.append((title, mine))
     return out
+
+
+def _value(value: Any) -> str:
+    """Return an axis value as a label shows it (a number as ``%g``, the activation clock as is)."""
+    return value if isinstance(value, str) else f"{value:g}"
 
 
 def _group(setting: Any) -> str:
@@ -236,7 +241,7 @@ def _group(setting: Any) -> str:
 
 def _line_label(setting: Any) -> str:
     params = [p for p in NUMERIC if getattr(setting, p) is not None]
-    label = f"{SHORT[params[0]]} = {getattr(setting, params[0]):g}" if params else setting.policy
+    label = f"{SHORT[params[0]]} = {_value(getattr(setting, params[0]))}" if params else setting.policy
     return label if setting.retraction else label + " (not told)"
 
 

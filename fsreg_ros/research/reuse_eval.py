@@ -244,7 +244,8 @@ def setting_text(fit: Fit) -> str:
     if fit.kind == "recency":
         return ", ".join(f"{k} {v:+.3f}" for k, v in s.items())
     links = ("policy", "p_in", "p_out", "p_cell")
-    params = [f"{table.setting(k).symbol} = {v:g}" for k, v in s.items() if k not in links]
+    params = [f"{table.setting(k).symbol} = {v if isinstance(v, str) else format(v, 'g')}"  # (a clock: its name)
+              for k, v in s.items() if k not in links]
     if fit.graded:
         link = "p " + "/".join(f"{p:.2f}" for p in s["p_cell"])
     elif fit.in_wm == 0.0 or fit.name in ("constant", "none"):

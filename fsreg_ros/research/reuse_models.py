@@ -6,9 +6,11 @@ grid of the parameters it reads (:data:`GRIDS`; a parameter without one gets a g
 table's bounds), ``decay+displacement`` (the paper's both) over their product, beside the
 baselines and the recency regressions.  ``similarity`` is left out (:data:`EXCLUDED`): words
 have no attributes, so it forgets nothing.  The random victim's ``seed`` is not fitted
-(:data:`NOT_FITTED`).  Every model has a *family* (``rule``, ``baseline`` or ``regression``);
-the rules whose forgetting runs on seconds (:func:`needs_clock`) are left out of the fit of a
-game without times.
+(:data:`NOT_FITTED`).  A parameter that is a choice (``activation_clock``) is not a grid axis
+either: each choice is a model of its own, named ``rule@choice`` (``activation@episodes``,
+``activation@words``; the fallback keeps the rule's name).  Every model has a *family*
+(``rule``, ``baseline`` or ``regression``); the rules whose forgetting runs on seconds
+(:func:`needs_clock`) are left out of the fit of a game without times.
 """
 
 from __future__ import annotations
@@ -74,14 +76,34 @@ def default_grid(name: str, values: int = 12) -> tuple:
     return tuple(float(f"{v:.4g}") for v in grid)
 
 
+#: The choices a rule reads (``activation_clock``): one model per choice, not a grid axis.
+CHOICES = {row.name: row.choices for row in table.parameters() if row.choices}
+#: What joins a rule's name and a choice other than its fallback in a model's name.
+VARIANT = "@"
+
+
 def fitted_parameters(rules: Sequence[str]) -> list[str]:
-    """Return the parameters a policy's rules read that are fitted (all but :data:`NOT_FITTED`)."""
+    """Return the parameters a policy's rules read that are fitted (all but :data:`NOT_FITTED` and the choices)."""
     names = []
     for rule in rules:
-        for param in RULE_PARAMETERS[rule]:
-            if param not in names and param not in NOT_FITTED:
+        for param in RULE_PARAMETERS[rule.split(VARIANT)[0]]:
+            if param not in names and param not in NOT_FITTED and param not in CHOICES:
                 names.append(param)
     return names
+
+
+def variants(rules: Sequence[str]) -> list[tuple[str, dict]]:
+    """Return ``(name, choices)`` of each model of a policy: one per value of the choices its rules read.
+
+    The fallback of every choice keeps the policy's name and sets nothing (today's model);
+    another is ``activation@episodes``, setting ``{"activation_clock": "episodes"}``.
+    """
+    name = "+".join(rules)
+    read = [p for p in CHOICES if any(p in RULE_PARAMETERS[rule] for rule in rules)]
+    out = [(name, {})]
+    for param in read:
+        out += [(f"{name}{VARIANT}{choice}", {param: choice}) for choice in CHOICES[param][1:]]
+    return out
 
 
 @dataclass(frozen=True)
@@ -109,8 +131,10 @@ def wm_models(grids: Optional[Mapping[str, Sequence]] = None) -> list[Model]:
                 keep = np.unique(np.round(np.linspace(0, len(grid) - 1, COMBINED_VALUES)).astype(int))
                 grid = tuple(grid[i] for i in keep)
             axes.append(grid)
-        settings = tuple({"policy": "+".join(rules), **dict(zip(params, values))} for values in product(*axes))
-        models.append(Model("+".join(rules), "wm", settings, tuple(params)))
+        for name, chosen in variants(rules):
+            settings = tuple({"policy": "+".join(rules), **chosen, **dict(zip(params, values))}
+                             for values in product(*axes))
+            models.append(Model(name, "wm", settings, tuple(params)))
     return models
 
 
@@ -130,8 +154,15 @@ CLOCK_PREDICTORS = frozenset(("seconds",))
 
 
 def needs_clock(policy: str) -> bool:
-    """Whether a policy's forgetting reads the wall clock (so a game without times cannot be replayed under it)."""
-    return any(rule not in COUNTING_RULES for rule in policy.split("+") if rule != "none")
+    """Whether a policy's forgetting reads the wall clock (so a game without times cannot be replayed under it).
+
+    ``policy`` is a model's name: ``activation@episodes`` and ``activation@words`` count on
+    their entity's own clock, not seconds.
+    """
+    name, _, choice = policy.partition(VARIANT)
+    if choice and choice != CHOICES["activation_clock"][0]:
+        return any(rule not in COUNTING_RULES | {"activation"} for rule in name.split("+") if rule != "none")
+    return any(rule not in COUNTING_RULES for rule in name.split("+") if rule != "none")
 
 
 #: The family of each model that is not a rule (a rule's family is ``rule``).

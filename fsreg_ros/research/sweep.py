@@ -119,6 +119,7 @@ class SweepConfig:
     shared_capacities: tuple = (4, 8, 16)
     activation_thresholds: tuple = (-1.5, -1.15, -0.8)  # d = 0.5: one encoding stays 20, 10, 5 s
     episode_windows: tuple = (1, 2, 3, 4)  # k, for rule episodes
+    activation_clocks: tuple = ()  # the clocks rule activation runs on (none given: its fallback, no column)
     wm_orders: tuple = (DEFAULT_WM_ORDER,)  # REG's order of the target's WM (every non-none policy runs each)
     memory: dict = field(default_factory=dict)  # extra memory settings for every non-none run
     human_memory: Optional[dict] = None  # the human's own WM settings (None: a no-WM human)
@@ -134,7 +135,8 @@ class SweepConfig:
         """Return the grid's values of one parameter."""
         return {"decay_period": self.decay_periods, "capacity": self.capacities,
                 "global_capacity": self.global_capacities, "shared_capacity": self.shared_capacities,
-                "activation_threshold": self.activation_thresholds, "episode_window": self.episode_windows}[parameter]
+                "activation_threshold": self.activation_thresholds, "episode_window": self.episode_windows,
+                "activation_clock": self.activation_clocks}[parameter]
 
 
 @dataclass(frozen=True)
@@ -147,6 +149,7 @@ class Setting:
     global_capacity: Optional[int] = None
     shared_capacity: Optional[int] = None
     activation_threshold: Optional[float] = None
+    activation_clock: Optional[str] = None
     episode_window: Optional[int] = None
     retraction: bool = True
     wm_order: str = DEFAULT_WM_ORDER
@@ -208,7 +211,7 @@ def settings(config: SweepConfig) -> list[Setting]:
         if policy == "none":
             out.append(Setting("none"))
             continue
-        names = reads(policy, config.memory)
+        names = tuple(p for p in reads(policy, config.memory) if config.values(p))  # (no clocks given: no axis)
         for values in product(*(config.values(p) for p in names)):
             for retraction, order in product(told, config.wm_orders):
                 out.append(Setting(policy, retraction=retraction, wm_order=order, **dict(zip(names, values))))

@@ -45,6 +45,8 @@ def setting_descriptor(key: str, domain: Optional[str] = None) -> ParameterDescr
         return out
     if domain is not None:
         out.additional_constraints = f"{row.inherit!r} (inherit) or {row.bounds_text}"
+    elif row.choices:
+        out.additional_constraints = row.bounds_text
     elif row.kind is float:
         out.floating_point_range = [FloatingPointRange(from_value=float(row.low), to_value=float(row.high), step=0.0)]
     else:

@@ -71,10 +71,10 @@ class ParamSpec:
 
     def rule(self) -> str:
         """Return the values allowed, in words: ``a whole number in [1, 10000]``."""
-        if self.setting is not None and self.low is None and self.kind == "str":
-            text = "a forgetting policy (none, or rules joined by +)"
-        elif self.choices:
+        if self.choices:
             text = "one of " + ", ".join(self.choices)
+        elif self.setting is not None and self.low is None and self.kind == "str":
+            text = "a forgetting policy (none, or rules joined by +)"
         else:
             text = KINDS[self.kind]
             if self.low is not None:
@@ -105,10 +105,10 @@ def _asking() -> list[ParamSpec]:
 def _memory(domains: Sequence[str]) -> list[ParamSpec]:
     out = []
     for row in settings.TABLE:
-        kind = "str" if not row.is_parameter else ("float" if row.kind is float else "int")
-        out.append(ParamSpec(row.name, kind, low=row.low, high=row.high, setting=row.name))
+        kind = {str: "str", float: "float", int: "int"}[row.kind]
+        out.append(ParamSpec(row.name, kind, low=row.low, high=row.high, setting=row.name, choices=row.choices))
         out += [ParamSpec(f"{d}.{row.name}", kind, low=row.low, high=row.high, setting=row.name,
-                          inherit=row.inherit) for d in domains]
+                          choices=row.choices, inherit=row.inherit) for d in domains]
     return out
 
 

@@ -95,6 +95,11 @@ def memory_value(item: str, name: str, text: str, domains: Sequence[str]) -> Any
     if not row.is_parameter:
         return text
     rule = f"{row.bounds_text}{inherit}"
+    if row.choices:
+        if text not in row.choices:
+            raise UsageError(f"{where}: expected {rule}, got {printable(repr(text), 60)}")
+        return text
+    rule = f"{row.bounds_text}{inherit}"
     try:
         value: Any = int(text) if row.kind is int else float(text)
     except (ValueError, OverflowError):

@@ -488,7 +488,7 @@ CASES = [
         FACES + "memory: {policy: decay, period: 3}\n",
         "memory.period",
         "unknown key 'period' (known: policy, decay_period, capacity, global_capacity, seed, shared_capacity, "
-        "activation_decay, activation_threshold, episode_window)",
+        "activation_decay, activation_threshold, activation_clock, episode_window)",
         8,
     ),
     (

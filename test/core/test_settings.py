@@ -31,9 +31,13 @@ def test_the_table_is_well_formed():
     assert settings.TABLE[0].name == "policy" and not settings.TABLE[0].is_parameter
     assert len(set(settings.names())) == len(settings.TABLE)
     for row in settings.parameters():
-        assert row.kind in (int, float) and row.low < row.high
-        assert row.inherit < row.low, f"{row.name}: the inherit marker must not be a real value"
-        assert row.low <= row.default <= row.high and isinstance(row.default, row.kind)
+        if row.choices:  # a choice: text, its fallback (today's behaviour) first, the marker no choice
+            assert row.kind is str and row.fallback == row.choices[0] and row.inherit not in row.choices
+            assert row.default in row.choices and row.low is None is row.high
+        else:
+            assert row.kind in (int, float) and row.low < row.high
+            assert row.inherit < row.low, f"{row.name}: the inherit marker must not be a real value"
+            assert row.low <= row.default <= row.high and isinstance(row.default, row.kind)
         assert row.rules and set(row.rules) <= set(RULES), row.name
         settings.check_value(row.name, row.default)
     for rule in RULES:  # the policy's help names every rule
@@ -43,7 +47,7 @@ def test_the_table_is_well_formed():
 def test_forgetting_takes_its_parameters_from_the_table():
     assert SETTINGS == settings.names() and PARAMETERS == tuple(r.name for r in settings.parameters())
     assert BOUNDS == {r.name: (r.low, r.high) for r in settings.parameters()}
-    assert DEFAULTS == {"seed": 0, "activation_decay": 0.5, "episode_window": 1}
+    assert DEFAULTS == {"seed": 0, "activation_decay": 0.5, "activation_clock": "seconds", "episode_window": 1}
     assert RULE_PARAMETERS["displacement-random"] == ("capacity", "seed")
     assert RULE_PARAMETERS["similarity"] == () and RULE_PARAMETERS["decay"] == ("decay_period",)
 
@@ -67,13 +71,34 @@ def test_one_check_with_one_line_messages(value, message):
         settings.check_value("speed", 1)
 
 
+def test_a_choice_setting_takes_its_choices_only():
+    assert [settings.check_value("activation_clock", c) for c in ("seconds", "episodes", "words")] == \
+        ["seconds", "episodes", "words"]
+    for bad, shown in (("hours", "'hours'"), (1, "1"), ("", "''")):
+        with pytest.raises(PolicyError) as info:
+            settings.check_value("activation_clock", bad)
+        assert str(info.value) == f"activation_clock must be one of seconds, episodes, words, got {shown}"
+    from fsreg_ros.core.forgetting.policies import ForgettingPolicy
+
+    # at its fallback a choice is not reported (today's reports stay); else it is
+    assert ForgettingPolicy.parse("activation", activation_threshold=-1.0).to_json() == \
+        {"policy": "activation", "activation_decay": 0.5, "activation_threshold": -1.0}
+    policy = ForgettingPolicy.parse("activation", activation_threshold=-1.0, activation_clock="words")
+    assert policy.to_json()["activation_clock"] == "words" and policy.limits().activation_clock == "words"
+    assert ForgettingPolicy.parse("displacement", capacity=2, activation_clock="words").limits().activation_clock \
+        == "seconds"  # kept for a switch, read only under rule activation
+
+
 def test_the_scenario_schema_is_the_table():
     from fsreg_ros.core.scenario.schema import MemoryBlock, scenario_json_schema
 
     assert tuple(MemoryBlock.model_fields) == settings.names()
     schema = scenario_json_schema()["$defs"]["MemoryBlock"]["properties"]
     for row in settings.parameters():
-        assert (schema[row.name]["minimum"], schema[row.name]["maximum"]) == (row.low, row.high)
+        if row.choices:
+            assert schema[row.name]["enum"] == list(row.choices)
+        else:
+            assert (schema[row.name]["minimum"], schema[row.name]["maximum"]) == (row.low, row.high)
         assert schema[row.name]["description"] == row.description
     assert schema["policy"]["pattern"].count("displacement-random") == 2
 
@@ -101,6 +126,11 @@ def test_the_node_parameter_descriptors_are_the_table():
     assert NODE_SETTINGS == settings.names()
     for row in settings.parameters():
         descriptor = setting_descriptor(row.name)
+        if row.choices:
+            assert descriptor.additional_constraints == "one of " + ", ".join(row.choices)
+            assert setting_descriptor(row.name, "faces").additional_constraints == \
+                f"{row.inherit!r} (inherit) or one of {', '.join(row.choices)}"
+            continue
         (bounds,) = descriptor.floating_point_range if row.kind is float else descriptor.integer_range
         assert (bounds.from_value, bounds.to_value) == (row.low, row.high)
         assert row.help in descriptor.description

@@ -159,6 +159,9 @@ def test_cli_trace_is_written_in_time_order(table1_path, tmp_path):
         (["--policy", "forgetful"], "unknown forgetting rule 'forgetful'"),
         (["--policy", "global-capacity"], "needs 'global_capacity'"),
         (["--compare-policies", "decay,bogus"], "unknown forgetting rule 'bogus'"),
+        (["--policy", "activation", "--activation-threshold", "-1", "--activation-clock", "hours"],
+         "fsreg-sim: error: activation_clock must be one of seconds, episodes, words, got 'hours'\n"),
+        (["--activation-clock", "hours"], "activation_clock must be one of seconds, episodes, words, got 'hours'"),
     ],
 )
 def test_cli_bad_options_exit_2_with_one_line(table1_path, capsys, args, fragment):

@@ -52,6 +52,8 @@ EXPERIMENTS: dict[str, set[str]] = {
     "shared_capacity": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
     "activation_decay": {"fsreg_ros/research/reuse_models.py", "fsreg_ros/tools/figures.py"},
     "activation_threshold": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/reuse_models.py"},
+    "activation_clock": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/grid.py",
+                         "fsreg_ros/research/reuse_models.py"},
     "episode_window": {"fsreg_ros/research/sweep.py", "fsreg_ros/research/grid.py",
                        "fsreg_ros/research/reuse_models.py", PRESETS},
 }

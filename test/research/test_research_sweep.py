@@ -76,7 +76,28 @@ def test_activation_runs_over_its_thresholds():
     assert settings(config)[0].memory({"activation_decay": 0.4}) == {
         "policy": "activation+displacement", "activation_decay": 0.4, "capacity": 2, "activation_threshold": -1.5}
     assert settings(config)[1].label() == "activation+displacement alpha=2, tau=-0.8"
-    assert reads("activation", {"activation_threshold": -1.0}) == ()
+    assert reads("activation", {"activation_threshold": -1.0}) == ("activation_clock",)  # (an axis when given)
+
+
+def test_activation_runs_on_each_clock_given_as_a_setting_of_its_own():
+    """--activation-clocks (issue 36): each clock a setting, beside tau; none given: today's grid, no clock column."""
+    config = SweepConfig(("activation",), (5.0,), (2,), (0,), 10, activation_thresholds=(-1.0,),
+                         activation_clocks=("seconds", "episodes", "words"))
+    assert settings(config) == [Setting("activation", activation_threshold=-1.0, activation_clock=c)
+                                for c in ("seconds", "episodes", "words")]
+    assert settings(config)[2].memory({}) == {"policy": "activation", "activation_threshold": -1.0,
+                                              "activation_clock": "words"}
+    assert settings(config)[1].label() == "activation tau=-1, clock=episodes"
+    assert "activation_clock" in cli_columns(config)
+    today = SweepConfig(("activation",), (5.0,), (2,), (0,), 10, activation_thresholds=(-1.0,))
+    assert settings(today) == [Setting("activation", activation_threshold=-1.0)]
+    assert "activation_clock" not in cli_columns(today)
+
+
+def cli_columns(config) -> tuple:
+    from fsreg_ros.research.sweep import columns
+
+    return columns(config)
 
 
 def test_setting_memory_and_labels():
@@ -180,6 +201,8 @@ def test_dirty_tree_changes_the_manifest(tmp_path, monkeypatch):
         (["--shared-capacities", "0"], "--shared-capacities: 0 is out of range"),
         (["--human-memory", "policy=bogus"], "bogus"),
         (["--human-memory", "decay"], "--human-memory 'decay': expected KEY=VALUE"),
+        (["--activation-clocks", "seconds,hours"],
+         "--activation-clocks: expected one or more of seconds, episodes, words, got 'seconds,hours'"),
     ],
 )
 def test_bad_sweep_input_is_one_line(tmp_path, capsys, extra, message):

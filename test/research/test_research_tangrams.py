@@ -170,13 +170,24 @@ def test_ratio_bootstrap_is_the_pooled_ratio_and_reproducible():
 
 
 def test_models_come_from_the_core_rule_list():
+    from fsreg_ros.research.reuse_models import needs_clock
+
     models = T.wm_models()
-    assert [m.name for m in models] == [r for r in RULES if r not in T.EXCLUDED] + ["decay+displacement"]
+    clocks = {"activation": ["activation@episodes", "activation@words"]}  # one model per clock, not a grid axis
+    assert [m.name for m in models] == [n for r in RULES if r not in T.EXCLUDED for n in [r, *clocks.get(r, [])]] \
+        + ["decay+displacement"]
     for model in models:
         assert model.parameters == tuple(T.fitted_parameters(model.name.split("+")))
         for setting in model.settings:
             ForgettingPolicy.from_settings(setting)  # every grid point is a valid policy of the core
     by_name = {m.name: m for m in models}
+    for name, clock in (("activation", None), ("activation@episodes", "episodes"), ("activation@words", "words")):
+        model = by_name[name]
+        assert model.parameters == ("activation_decay", "activation_threshold")
+        assert len(model.settings) == len(T.GRIDS["activation_decay"]) * len(T.GRIDS["activation_threshold"])
+        assert {s.get("activation_clock") for s in model.settings} == {clock}  # seconds: today's settings
+        assert needs_clock(name) == (clock is None)  # the entities' own clocks need no wall clock
+    assert needs_clock("decay+displacement") and not needs_clock("episodes+displacement")
     assert [s["decay_period"] for s in by_name["decay"].settings] == list(T.GRIDS["decay_period"])
     assert by_name["displacement-random"].parameters == ("capacity",)  # the seed keeps its fallback
     both = by_name["decay+displacement"]

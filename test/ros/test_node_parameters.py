@@ -50,11 +50,34 @@ def test_values_are_checked_as_the_node_checks_them():
     ):
         with pytest.raises(ParameterError, match=said.replace("[", r"\[").replace("+", r"\+")):
             check_parameter(manager[name], value)
+    assert check_parameter(manager["activation_clock"], "words") == "words"
+    assert check_parameter(manager["faces.activation_clock"], "") == ""  # the inherit marker
+    for name in ("activation_clock", "faces.activation_clock"):
+        with pytest.raises(ParameterError) as info:
+            check_parameter(manager[name], "hours")
+        inherit = ", or '' (inherit the node-wide 'activation_clock')" if "." in name else ""
+        assert str(info.value) == f"expected one of seconds, episodes, words{inherit}, got 'hours'"
     reg = node_parameters("reg", ["faces"])
     with pytest.raises(ParameterError, match="expected one of auto, sd-pia"):
         check_parameter(reg["algorithm"], "fastest")
     with pytest.raises(ParameterError, match="no parameters known"):
         node_parameters("dialogue_manager", ["faces"])
+
+
+def test_the_wm_manager_refuses_a_clock_that_is_not_one_and_runs_one_that_is():
+    """The node's on-set callback (check_change): the effective policy of every domain, or one line why not."""
+    from fsreg_ros.core.forgetting import settings
+    from fsreg_ros.ros.memory_parameters import check_change
+
+    values = {row.name: row.default for row in settings.TABLE}
+    values |= {f"faces.{row.name}": row.inherit for row in settings.TABLE}
+    values |= {"policy": "activation", "activation_threshold": -1.0}
+    with pytest.raises(ValueError) as info:
+        check_change(values, {"faces.activation_clock": "hours"}, ["faces"])
+    assert str(info.value) == ("faces.activation_clock: activation_clock must be one of seconds, episodes, words, "
+                               "got 'hours' ('' inherits 'activation_clock')")
+    (policy,) = check_change(values, {"activation_clock": "episodes"}, ["faces"]).values()
+    assert policy.limits().activation_clock == "episodes"
 
 
 def test_params_files_as_ros2_param_dump_writes_them(tmp_path):
@@ -125,3 +148,23 @@ def test_a_run_time_change_is_applied_where_it_says_or_refused_with_the_reason(t
         assert graph.status()["memory"] == {"faces": {"policy": "none"}}
         result = manager.set_parameters([Parameter("policy", value="")])[0]  # node-wide: no policy is not 'none'
         assert not result.successful and result.reason == "policy must be a non-empty string, got ''"
+
+
+@pytest.mark.graph
+def test_the_wm_manager_node_refuses_a_clock_and_runs_activation_on_the_one_set(table1_path):
+    """``ros2 param set /wm_manager activation_clock ...``: one line why not, or the clock runs in every domain."""
+    from rclpy.parameter import Parameter
+
+    from fsreg_ros.testing import LiveGraph
+
+    with LiveGraph(table1_path, policy="activation", activation_threshold=-1.0) as graph:
+        manager = graph.nodes["wm_manager"]
+        assert graph.status()["memory"] == {"faces": {"policy": "activation", "activation_decay": 0.5,
+                                                      "activation_threshold": -1.0}}
+        result = manager.set_parameters([Parameter("activation_clock", value="hours")])[0]
+        assert not result.successful
+        assert result.reason == "activation_clock must be one of seconds, episodes, words, got 'hours'"
+        assert manager.get_parameter("activation_clock").value == "seconds"
+        assert manager.set_parameters([Parameter("activation_clock", value="episodes")])[0].successful
+        assert graph.status()["memory"] == {"faces": {"policy": "activation", "activation_decay": 0.5,
+                                                      "activation_threshold": -1.0, "activation_clock": "episodes"}}

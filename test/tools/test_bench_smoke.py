@@ -75,14 +75,16 @@ def test_bench_core_quick_runs_and_prints_its_table(tmp_path, capsys):
     # own; ratios of the two medians with their intervals.
     paired = data["reg_paired"]
     assert (paired["entities"], paired["properties"], paired["trials"], paired["sessions"]) == (1000, 20, 15, 1)
-    assert set(paired["configs"]) == {"sd-pia/displ", "sd-pia/act", "sd-pia/act1", "sd-pia/epi"}
+    assert set(paired["configs"]) == {"sd-pia/displ", "sd-pia/act", "sd-pia/act1", "sd-pia/epi", "sd-pia/act-epi",
+                                      "sd-pia/act-words"}
     assert paired["baseline"] == "sd-pia/displ"
-    assert len(paired["configs"]["sd-pia/displ"]["medians_by_session_ms"]) == 3  # one session per pairing
+    assert len(paired["configs"]["sd-pia/displ"]["medians_by_session_ms"]) == 5  # one session per pairing
     unpaired = {r["config"]: r for r in data["reg"] if r["entities"] == 1000}
     for label, figures in paired["configs"].items():  # the same targets, so the same encodings as unpaired
         assert figures["encodings_median"] == unpaired[label]["encodings_median"] and figures["median_ms"] > 0
     assert [(r["config"], r["baseline"], r["pairs"]) for r in paired["ratios"]] == [
-        ("sd-pia/act", "sd-pia/displ", 15), ("sd-pia/act1", "sd-pia/displ", 15), ("sd-pia/epi", "sd-pia/displ", 15)]
+        ("sd-pia/act", "sd-pia/displ", 15), ("sd-pia/act1", "sd-pia/displ", 15), ("sd-pia/epi", "sd-pia/displ", 15),
+        ("sd-pia/act-epi", "sd-pia/displ", 15), ("sd-pia/act-words", "sd-pia/displ", 15)]
     for r in paired["ratios"]:
         assert r["ci"][0] <= r["ratio"] <= r["ci"][1] and r["resamples"] == 1000
         assert r["ratio"] == pytest.approx(r["median_ms"] / r["baseline_median_ms"])
@@ -109,15 +111,18 @@ def test_bench_core_paired_targets_judge_the_paired_ratio():
                 if " under " in t["name"]}
     assert unpaired["activation+displacement"]["value"] == "x1.40" and unpaired["activation+displacement"]["verdict"] \
         == "met" and unpaired["activation alone"]["verdict"] == "MISSED"
-    # issue 36: episodes+displacement is judged against activation's paired ratio
-    for epi, verdict in ((1.01, "met"), (1.70, "MISSED")):
-        pair = {"config": "sd-pia/epi", "ratio": epi, "ci": [epi - 0.05, epi + 0.05]}
-        with_epi = {**paired, "ratios": paired["ratios"] + [pair]}
-        judged = {t["name"].split(" under ")[1].split(" /")[0]: t
-                  for t in bench_core.targets({"reg": rows, "reg_ratios": [], "decay": [], "reg_paired": with_epi})
-                  if " under " in t["name"]}
-        assert judged["episodes+displacement"]["verdict"] == verdict
-        assert judged["episodes+displacement"]["value"].endswith("paired, activation x1.62")
+    # issue 36: episodes+displacement and activation on the entities' own clocks are judged against activation's
+    for config, policy in (("sd-pia/epi", "episodes+displacement"),
+                           ("sd-pia/act-epi", "activation+displacement on the episodes clock"),
+                           ("sd-pia/act-words", "activation+displacement on the words clock")):
+        for epi, verdict in ((1.01, "met"), (1.70, "MISSED")):
+            pair = {"config": config, "ratio": epi, "ci": [epi - 0.05, epi + 0.05]}
+            with_epi = {**paired, "ratios": paired["ratios"] + [pair]}
+            judged = {t["name"].split(" under ")[1].split(" /")[0]: t
+                      for t in bench_core.targets({"reg": rows, "reg_ratios": [], "decay": [], "reg_paired": with_epi})
+                      if " under " in t["name"]}
+            assert judged[policy]["verdict"] == verdict
+            assert judged[policy]["value"].endswith("paired, activation x1.62")
     # a decay benchmark not run says which option left it out
     for meta, reason in (({"quick": True, "skip_decay": False}, "n/a (--quick)"),
                          ({"quick": False, "skip_decay": True}, "n/a (--skip-decay)")):

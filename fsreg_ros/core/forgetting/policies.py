@@ -84,6 +84,8 @@ RULE_PARAMETERS: dict[str, tuple[str, ...]] = {
 }
 #: Parameters a rule may leave unset, with the value it then uses.
 DEFAULTS = {row.name: row.fallback for row in table.parameters() if row.fallback is not None}
+#: The parameters that are a choice of text (their fallback is the first choice).
+CHOICES = {row.name: row.choices for row in table.parameters() if row.choices}
 #: Bounds of every parameter (low, high), inclusive.
 BOUNDS: dict[str, tuple[Number, Number]] = {row.name: (row.low, row.high) for row in table.parameters()}
 
@@ -183,7 +185,8 @@ class ForgettingPolicy:
         out: dict = {"policy": self.name}
         for rule in self.rules:
             for param in RULE_PARAMETERS[rule]:
-                out[param] = self.value(param)
+                if param not in CHOICES or self.value(param) != DEFAULTS[param]:  # a choice at its fallback: today's
+                    out[param] = self.value(param)
         return out
 
     def settings(self) -> dict:
@@ -202,7 +205,9 @@ class ForgettingPolicy:
             similarity="similarity" in self.rules,
             global_capacity=self.given("global_capacity") if "global-capacity" in self.rules else None,  # type: ignore
             seed=int(self.value("seed")),  # type: ignore[arg-type]
-            activation=_activation_of(self),
+            activation=_activation_of(self) if self.value("activation_clock") != "episodes" else None,
+            activation_clock=str(self.value("activation_clock")) if self.activates else "seconds",
+            episode_activation=_activation_of(self) if self.value("activation_clock") == "episodes" else None,
             episode_window=int(self.value("episode_window")) if "episodes" in self.rules else None,  # type: ignore
         )
 

@@ -28,6 +28,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Optional, Union
 
+from ..memory.entity_clock import CLOCKS
+
 Number = Union[int, float]
 
 
@@ -39,8 +41,11 @@ class PolicyError(ValueError):
 class Setting:
     """One memory setting: what it is, what values it takes, who reads it.
 
-    ``kind`` is ``str`` (the policy), ``float`` (a number; whole numbers accepted) or
-    ``int`` (a whole number).  ``low``/``high`` bound a number (inclusive).
+    ``kind`` is ``str`` (the policy, or a choice among ``choices``), ``float`` (a number;
+    whole numbers accepted) or ``int`` (a whole number).  ``low``/``high`` bound a number
+    (inclusive).  A choice's ``fallback`` is its first choice, today's behaviour, and a
+    policy's report leaves a choice out while it is at its fallback
+    (:meth:`ForgettingPolicy.to_json <fsreg_ros.core.forgetting.policies.ForgettingPolicy.to_json>`).
     ``default`` is the ``wm_manager`` node's value when none is given; ``inherit`` the
     per-domain parameter value meaning "use the node-wide one" (outside the bounds, so
     it cannot be a real value).  ``rules`` are the forgetting rules that read the
@@ -57,12 +62,13 @@ class Setting:
     low: Optional[Number] = None
     high: Optional[Number] = None
     rules: tuple[str, ...] = ()
-    fallback: Optional[Number] = None
+    fallback: Optional[Union[Number, str]] = None
     unit: str = ""
     metavar: str = "N"
     symbol: str = ""
     word: str = ""
     axis: str = ""
+    choices: tuple[str, ...] = ()
 
     @property
     def option(self) -> str:
@@ -71,19 +77,21 @@ class Setting:
 
     @property
     def is_parameter(self) -> bool:
-        """True for the numbers a rule reads (every row but ``policy``)."""
-        return self.kind is not str
+        """True for the values a rule reads (every row but ``policy``): numbers and choices."""
+        return self.kind is not str or bool(self.choices)
 
     @property
     def kind_text(self) -> str:
-        """The type in words: ``a number``."""
+        """The type in words: ``a number``, ``one of seconds, episodes, words``."""
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
         return {str: "text", float: "a number", int: "a whole number"}[self.kind]
 
     @property
     def bounds_text(self) -> str:
         """The type and bounds in words: ``a number in [0.01, 1e+06] seconds`` ('' for the policy)."""
-        if not self.is_parameter:
-            return ""
+        if not self.is_parameter or self.choices:
+            return self.kind_text if self.choices else ""
         unit = f" {self.unit}" if self.unit else ""
         return f"{self.kind_text} in [{number(self.low)}, {number(self.high)}]{unit}"
 
@@ -96,6 +104,8 @@ class Setting:
         """Return the JSON Schema keywords of the setting's value: bounds, or the policy's pattern."""
         if not self.is_parameter:
             return {"pattern": policy_pattern}
+        if self.choices:
+            return {"enum": list(self.choices)}
         return {"minimum": self.low, "maximum": self.high}
 
 
@@ -146,6 +156,11 @@ TABLE: tuple[Setting, ...] = (
             "stays exp(-tau/d) seconds)", -MAX_ACTIVATION_THRESHOLD, MAX_ACTIVATION_THRESHOLD,
             rules=("activation",), metavar="TAU", symbol="τ", word="tau",
             axis="activation threshold τ (ACT-R; d = activation_decay)"),
+    Setting("activation_clock", str, CLOCKS[0], "",
+            "activation: the clock t counts on: seconds (the robot's), or each entity's own: episodes (its reference "
+            "episodes) or words (the properties encoded for it); on those, ages count from 1 and other entities "
+            "do not age it", rules=("activation",), fallback=CLOCKS[0], metavar="CLOCK", symbol="clock",
+            word="clock", axis="activation clock", choices=CLOCKS),
     Setting("episode_window", int, 1, 0,
             "episodes: when an entity's reference episode begins, its properties not used in its last k episodes "
             "are forgotten (k = 1 keeps what was said in the previous episode and the current one)",
@@ -172,11 +187,11 @@ def setting(name: str) -> Setting:
     raise PolicyError(f"unknown memory setting '{name}' (known: {', '.join(names())})")
 
 
-def check_value(name: str, value: object) -> Optional[Number]:
+def check_value(name: str, value: object) -> Optional[Union[Number, str]]:
     """Return ``value`` if it is valid for parameter ``name`` (None = unset), else raise PolicyError.
 
     A ``float`` setting takes any finite number, an ``int`` one a whole number (never
-    true/false); both within the row's bounds.  The one check of a memory parameter:
+    true/false); both within the row's bounds.  A choice takes one of its choices.  The one check of a memory parameter:
     scenario files, the command line, node parameters and configure requests use it.
     """
     row = setting(name)
@@ -184,6 +199,10 @@ def check_value(name: str, value: object) -> Optional[Number]:
         return None
     if not row.is_parameter:
         raise PolicyError(f"'{name}' is not a numeric parameter")
+    if row.choices:
+        if not isinstance(value, str) or value not in row.choices:
+            raise PolicyError(f"{name} must be {row.kind_text}, got {_show(value)}")
+        return value
     unit = f" {row.unit}" if row.unit else ""
     if row.kind is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
@@ -213,9 +232,9 @@ def _finite(value: Number) -> bool:
         return False
 
 
-def number(value: Optional[Number]) -> str:
-    """Return a bound as people write it: whole numbers in digits (``2147483647``), others as ``%g``."""
-    if isinstance(value, int):
+def number(value: Optional[Union[Number, str]]) -> str:
+    """Return a bound as people write it: whole numbers in digits (``2147483647``), others as ``%g`` (text as is)."""
+    if isinstance(value, (int, str)):
         return str(value)
     return f"{value:g}"
 

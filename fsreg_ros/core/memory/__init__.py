@@ -27,6 +27,9 @@ What lives where (one module per job; each docstring says what it owns):
 ``displacement``     interference: displacement (Algorithm 3) and its victims,
                      similarity, the global limit, the shared pool's eviction
 ``activation``       rule ``activation``: the clock, each entry's trace, lazy pops
+``entity_clock``     rule ``activation`` on each entity's own clock (its episodes,
+                     decided at its boundaries; the words encoded for it, per
+                     encoding) and those clocks' persistence
 ``trace``            one entry's ACT-R trace and its crossing time (arithmetic)
 ``trace_columns``    the traces of column queues' entries, one per slot (numpy)
 ``crossings``        deciding many column entries' crossings at once (Newton, numpy)
@@ -41,7 +44,8 @@ What lives where (one module per job; each docstring says what it owns):
 Imports run one way, bottom to top: ``queue``, ``limits``, ``ticks``, ``bitset``,
 ``trace`` -> ``crossings`` -> ``trace_columns`` -> ``columns`` -> ``queues`` ->
 ``host`` -> the rules and records (``decay``, ``activation``, ``displacement``,
-``origins``, ``episodes``, ``changes``, ``install``, ``persistence``, ``column_encoding``) ->
+``origins``, ``episodes``, ``changes``, ``entity_clock``, ``install``, ``persistence``,
+``column_encoding``) ->
 ``buffer`` -> this package.
 
 **Adding a rule or a side log.**  A forgetting rule is one module over the store's

@@ -30,7 +30,6 @@ import numpy as np
 
 from .columns import QueueColumns
 from .host import HostBuffer
-from .limits import Limits
 from .queue import Queue
 from .ticks import TIME_EPSILON
 from .trace import NEVER, Trace, crossing, lifetime
@@ -47,6 +46,9 @@ class LazyActivation:
     queues, so the other rules' hot paths carry nothing for it.
     """
 
+    #: The clock the rule counts on (:mod:`fsreg_ros.core.memory.entity_clock` has the others).
+    counting = "seconds"
+
     def __init__(self, wm: HostBuffer, decay: float, threshold: float, clock: float) -> None:
         self.wm = wm
         self.decay, self.threshold = decay, threshold
@@ -61,6 +63,17 @@ class LazyActivation:
         """Note that the clock reached ``time`` (it never goes back)."""
         if time > self.clock:
             self.clock = time
+
+    def now_of(self, entity: str) -> float:
+        """Return the time Q[entity]'s traces are read at: the buffer's clock (one clock for every entity)."""
+        return self.clock
+
+    def clocks(self) -> dict[str, int]:
+        """Return the per-entity clocks a store keeps beside the episode log (none on the seconds clock)."""
+        return {}
+
+    def restore_clocks(self, words: dict[str, int]) -> None:
+        """Take back :meth:`clocks`'s dict (nothing on the seconds clock)."""
 
     def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
         """Take Q[entity] under the rule: ``traces`` kept (e.g. restored), one encoding at ``time`` for the others."""
@@ -77,7 +90,10 @@ class LazyActivation:
         An encoding stamped before the clock (a late message) counts at the clock: an
         entry's encoding times never go back.
         """
-        time = max(time, self.clock)
+        self.note(entity, prop, max(time, self.clock), present)
+
+    def note(self, entity: str, prop: str, time: float, present: bool) -> None:
+        """Note an encoding of ``prop`` into Q[entity] at ``time`` on the rule's clock (:meth:`record`'s work)."""
         traces = self.traces.get(entity)
         if traces is None:
             traces = self.traces[entity] = {}
@@ -100,7 +116,14 @@ class LazyActivation:
 
     def sync(self, entity: str, q: Queue) -> None:
         """Forget the entries of ``q`` whose crossing is at or before the clock, in crossing order (ties: LRU first)."""
-        now = self.clock + TIME_EPSILON
+        self.forget_crossed(entity, q, self.clock + TIME_EPSILON, None)
+
+    def forget_crossed(self, entity: str, q: Queue, now: float, when: Optional[float]) -> None:
+        """Forget the entries of ``q`` whose crossing is at or before ``now`` (:meth:`sync`'s work).
+
+        Each forgetting is an event at ``when`` (None: at the entry's crossing itself, as on
+        the buffer's seconds clock).
+        """
         if self.due.get(entity, NEVER) > now:
             return
         traces = self.traces[entity]
@@ -114,7 +137,7 @@ class LazyActivation:
                     gone.append((trace.due, i, prop))
         gone.sort()
         for due, _, prop in gone:
-            self.wm.forget_entry(entity, q, prop, "activation", due, None)
+            self.wm.forget_entry(entity, q, prop, "activation", due if when is None else when, None)
         self._refresh(entity)
 
     def flush(self) -> None:
@@ -222,19 +245,3 @@ class LazyActivation:
         else:
             self.traces.pop(entity, None)
             self.due.pop(entity, None)
-
-
-def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
-    """Start, change or stop ``wm``'s activation rule per ``limits``; entries without a trace get one at ``time``."""
-    old = wm.activation
-    if limits.activation is None:
-        wm.activation = wm.store.keeper = None
-        return
-    wm.flush()
-    decay, threshold = limits.activation
-    act = LazyActivation(wm, decay, threshold, max(time, old.clock) if old is not None else time)
-    for entity in wm.store.holding():
-        q = wm.store.get(entity)
-        if q is not None:  # a column queue keeps its traces (the limits' d and tau did not change: columns.fits)
-            act.adopt(entity, q, time, old.traces_of(entity) if old is not None else None)
-    wm.activation = wm.store.keeper = act

@@ -29,19 +29,18 @@ from __future__ import annotations
 
 from typing import Callable, Iterable, Mapping, Optional, Protocol, Sequence
 
-from . import bitset, column_encoding, persistence
+from . import bitset, column_encoding, entity_clock, persistence
 from .changes import ChangeRecord
 from .columns import COLUMN_MIN, ColumnQueues
 from .decay import LazyDecay
 from .displacement import Interference
-from .host import ActivationRule, ChangeLog, DecayRule, InterferenceRule, OriginRecord
+from .host import ActivationRule, ChangeLog, DecayRule, EpisodeActivationRule, InterferenceRule, OriginRecord
 from .install import install_limits
 from .limits import UNLIMITED, Limits
 from .origins import OriginLog
 from .episodes import EntryStamps, EpisodeLog, Strength
-from .trace import activation as activation_at
 from .queue import EventSink, Origin, Queue, QueueItem, WMEvent, entry_entered, entry_stamp
-from .queues import NO_ROWS, QueueStore
+from .queues import QueueStore
 from .ticks import TickLedger, TickRun
 
 
@@ -98,6 +97,7 @@ class WMBuffer:
         # The collaborators, typed by what the others may call on them (:mod:`.host`).
         self.lazy_decay: DecayRule = LazyDecay(self)
         self.activation: Optional[ActivationRule] = None  # a LazyActivation (:mod:`.activation`) while in force
+        self.episode_activation: Optional[EpisodeActivationRule] = None  # the same on the episodes clock
         self.interference: InterferenceRule = Interference(self)
         self.origin_log: OriginRecord = OriginLog(self)
         self.episodes = EpisodeLog(self)  # reference episodes (:mod:`.episodes`)
@@ -164,17 +164,10 @@ class WMBuffer:
         """Return how strongly each entry of Q[entity] is held, parallel to :meth:`queue` (:class:`Strength`).
 
         Its episode age and the number of episodes it was used in
-        (:mod:`fsreg_ros.core.memory.episodes`), and its activation at the clock under rule
-        ``activation``.  Does not refresh recency.
+        (:mod:`fsreg_ros.core.memory.episodes`), and its activation on the rule's clock under
+        rule ``activation``.  Does not refresh recency.
         """
-        stamps = self.entry_stamps(entity)
-        counted = self.episodes.strength(entity, stamps)
-        if self.activation is None or not counted:
-            return [Strength(age, n) for age, n in counted]
-        d, clock = self.limits.activation[0], self.activation.clock  # type: ignore[index]
-        traces = persistence.entry_traces(self, entity)  # the rule's own traces, not copies through JSON
-        return [Strength(age, n, activation_at(traces[entry.property], clock, d))
-                for (age, n), entry in zip(counted, stamps)]
+        return persistence.strengths(self, entity)
 
     def length(self, entity: str) -> int:
         """len(Q[entity]) after applying owed decay."""
@@ -253,10 +246,10 @@ class WMBuffer:
         Call it before the act of referring encodes anything (docs/semantics.md section 2).
         Under rule ``episodes`` the entries of Q[entity] not used in the entity's last
         ``episode_window`` episodes are forgotten now (cause ``episodes``,
-        :mod:`fsreg_ros.core.memory.episodes`).
+        :mod:`fsreg_ros.core.memory.episodes`); under rule ``activation`` on the episodes
+        clock, those whose activation it takes to the threshold (:mod:`.entity_clock`).
         """
-        window = self.limits.episode_window if self.limits.retains else None
-        return self.episodes.begin(entity, window, time, turn)
+        return entity_clock.begin_episode(self, entity, time, turn)
 
     def encode(self, entity: str, properties: Iterable[str], cause: str, time: float,
                turn: Optional[int] = None) -> None:
@@ -400,23 +393,7 @@ class WMBuffer:
         Column queues are emptied at once; their properties are listed one by one only
         when an event sink must hear them.
         """
-        order = self.nonempty_entities()  # flushes
-        store = self.store
-        columns = store.columns
-        rows = columns.store.non_empty() if columns.entities else NO_ROWS
-        fronts: dict[int, list[int]] = {}
-        if len(rows) and self.sink is not None:
-            fronts = dict(zip(rows.tolist(), columns.store.in_order(rows, columns.store.width)))
-        for entity in order:
-            if store.get(entity) is not None:
-                while self.pop_entry(entity, cause, time, turn) is not None:
-                    pass
-                continue
-            self.changes.note(entity)  # a column queue
-            for pid in fronts.get(columns.row[entity], ()):
-                self.sink(WMEvent("forget", self.domain, entity, columns.prop_name[pid], cause, time, turn))
-        if len(rows):
-            store.pop_rows(rows, columns.store.length[rows].copy())
+        column_encoding.forget_all(self, cause, time, turn)
 
     def pop_entry(self, entity: str, cause: str, time: float, turn: Optional[int]) -> Optional[str]:
         """Forget the front of Q[entity] (a dict queue, caught up); return it, or None if it is empty."""
@@ -476,12 +453,12 @@ class WMBuffer:
         self.episodes.clear()
 
     def export_episodes(self) -> dict:
-        """Return the episode log as a store keeps it (:meth:`EpisodeLog.export <.episodes.EpisodeLog.export>`)."""
-        return self.episodes.export()
+        """Return the entities' own clocks as a store keeps them: episodes and words clocks (:mod:`.entity_clock`)."""
+        return entity_clock.export_clocks(self)
 
     def restore_episodes(self, data: Mapping, keep: Optional[Callable[[str], bool]] = None) -> list[str]:
-        """Take back :meth:`export_episodes`'s dict (after :meth:`restore`); ValueError if malformed.
+        """Take back :meth:`export_episodes`'s dict (after :meth:`restore`); ValueError (nothing changed) if malformed.
 
-        ``keep``: a predicate on entity names; the others' episodes are dropped and returned.
+        ``keep``: a predicate on entity names; the others' clocks are dropped and returned.
         """
-        return self.episodes.restore(data, keep)
+        return entity_clock.restore_clocks(self, data, keep)

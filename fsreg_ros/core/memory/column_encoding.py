@@ -19,6 +19,8 @@ import numpy as np
 
 from . import bitset
 from .host import HostBuffer
+from .queue import WMEvent
+from .queues import NO_ROWS
 from .ticks import TIME_EPSILON
 
 
@@ -110,3 +112,29 @@ def readable_row(wm: HostBuffer, entity: str) -> Optional[Mapping]:
             return wm.readable(entity)
         act.settle_columns(np.array([row]))
     return columns.row_dict(row)
+
+
+def forget_all(wm: HostBuffer, cause: str, time: float, turn: Optional[int]) -> None:
+    """Forget every property of ``wm`` (:meth:`WMBuffer.forget_everything`): queue by queue, LRU first.
+
+    In the order :meth:`WMBuffer.nonempty_entities` lists them; column queues are
+    emptied at once, their properties listed one by one only when an event sink must
+    hear them.
+    """
+    order = wm.nonempty_entities()  # flushes
+    store = wm.store
+    columns = store.columns
+    rows = columns.store.non_empty() if columns.entities else NO_ROWS
+    fronts: dict[int, list[int]] = {}
+    if len(rows) and wm.sink is not None:
+        fronts = dict(zip(rows.tolist(), columns.store.in_order(rows, columns.store.width)))
+    for entity in order:
+        if store.get(entity) is not None:
+            while wm.pop_entry(entity, cause, time, turn) is not None:
+                pass
+            continue
+        wm.changes.note(entity)  # a column queue
+        for pid in fronts.get(columns.row[entity], ()):
+            wm.sink(WMEvent("forget", wm.domain, entity, columns.prop_name[pid], cause, time, turn))
+    if len(rows):
+        store.pop_rows(rows, columns.store.length[rows].copy())

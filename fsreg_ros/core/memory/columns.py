@@ -376,8 +376,13 @@ class QueueColumns:
 
 
 def _columnar(limits: Limits) -> bool:
-    """Tell whether column queues can hold queues under ``limits``: an LRU capacity at most, and activation."""
-    return limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
+    """Tell whether column queues can hold queues under ``limits``: an LRU capacity at most, and activation.
+
+    Activation on the seconds clock only: the columns keep one clock (on an entity's own
+    clock the queues are dict queues, :mod:`fsreg_ros.core.memory.entity_clock`).
+    """
+    return (limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
+            and (limits.activation is None or limits.activation_clock == "seconds"))
 
 
 #: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.

@@ -20,6 +20,7 @@ from typing import Mapping, Optional, Protocol, Sequence
 import numpy as np
 
 from .columns import QueueColumns
+from .episodes import EntryStamps, EpisodeLog
 from .limits import Limits
 from .queue import Entry, EventSink, Origin, Queue
 from .queues import QueueStore
@@ -59,9 +60,19 @@ class ActivationRule(Protocol):
     """Rule ``activation`` (:class:`~fsreg_ros.core.memory.activation.LazyActivation`) as the others call it."""
 
     clock: float
+    counting: str  # the clock it counts on: seconds, episodes or words (:mod:`.entity_clock`)
 
     def advance(self, time: float) -> None:
         """Note that the clock reached ``time``."""
+
+    def now_of(self, entity: str) -> float:
+        """Return the time Q[entity]'s traces are read at (the entity's own clock, or the buffer's)."""
+
+    def clocks(self) -> dict[str, int]:
+        """Return the per-entity clocks a store keeps."""
+
+    def restore_clocks(self, words: dict[str, int]) -> None:
+        """Take back :meth:`clocks`'s dict."""
 
     def sync(self, entity: str, q: Queue) -> None:
         """Forget what crossed in a dict queue."""
@@ -101,6 +112,26 @@ class ActivationRule(Protocol):
 
     def settle_columns(self, rows: np.ndarray) -> None:
         """Bring column rows up to the clock (no events)."""
+
+
+class EpisodeActivationRule(Protocol):
+    """Rule ``activation`` on the episodes clock (:class:`~fsreg_ros.core.memory.entity_clock.EpisodeActivation`)."""
+
+    decay: float
+    threshold: float
+    traces: dict[str, dict[str, Trace]]
+
+    def install(self) -> None:
+        """Take every entry under the rule."""
+
+    def begin(self, entity: str, time: float, turn: Optional[int]) -> None:
+        """Decide the entity's entries as its next episode begins."""
+
+    def strength(self, entity: str, entries: list[EntryStamps]) -> list[float]:
+        """Return each entry's activation at the entity's clock."""
+
+    def export(self) -> dict[str, dict[str, list]]:
+        """Return the kept presentations as a store keeps them."""
 
 
 class InterferenceRule(Protocol):
@@ -173,9 +204,11 @@ class HostBuffer(Protocol):
     store: QueueStore
     lazy_decay: DecayRule
     activation: Optional[ActivationRule]
+    episode_activation: Optional[EpisodeActivationRule]
     interference: InterferenceRule
     origin_log: OriginRecord
     changes: ChangeLog
+    episodes: EpisodeLog
     watchers: tuple  # the side logs kept per entry (buffer.EntryWatcher)
 
     @property
@@ -188,6 +221,15 @@ class HostBuffer(Protocol):
 
     def __len__(self) -> int:
         """Properties held, after applying owed decay."""
+
+    def episode(self, entity: str) -> int:
+        """Return the entity's current reference episode number (0 before its first)."""
+
+    def entry_stamps(self, entity: str) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as the episode log reads it, LRU first."""
+
+    def nonempty_entities(self) -> list[str]:
+        """Entities whose queues are non-empty, every queue brought up to date first."""
 
     def front_stamp(self, entity: str) -> int:
         """Stamp of Q[entity]'s front."""
@@ -203,6 +245,9 @@ class HostBuffer(Protocol):
 
     def forget_entry(self, entity: str, q: Queue, prop: str, cause: str, time: float, turn: Optional[int]) -> None:
         """Forget one entry of a dict queue (reported, recorded)."""
+
+    def remove(self, entity: str, prop: str, cause: str, time: float, turn: Optional[int] = None) -> bool:
+        """Forget one property of Q[entity] (reported, recorded)."""
 
     def forget_everything(self, cause: str, time: float, turn: Optional[int]) -> None:
         """Forget every property (reported, recorded)."""

@@ -11,7 +11,7 @@ enforced by :mod:`fsreg_ros.core.memory.displacement`.
 
 from __future__ import annotations
 
-from .activation import install_activation
+from .entity_clock import install_episodes, new_rule
 from .host import HostBuffer
 from .limits import Limits
 
@@ -29,6 +29,7 @@ def install_limits(wm: HostBuffer, limits: Limits, time: float) -> None:
     wm.limits = limits
     wm.interference.install(limits)
     install_activation(wm, limits, time)
+    install_episodes(wm, limits)
     for entity, q in wm.store.dict_queues():
         hits = q.hits
         if hits is not None:  # the LFU counts restart: an exported count may change
@@ -44,3 +45,23 @@ def install_limits(wm: HostBuffer, limits: Limits, time: float) -> None:
             wm.interference.displace(entity, q, limits.capacity, "", time, None)
     if limits.global_capacity is not None:
         wm.interference.evict_global(limits.global_capacity, time, None)
+
+
+def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
+    """Start, change or stop ``wm``'s activation rule per ``limits``; entries without a trace get one at ``time``.
+
+    On another clock than the old rule's, no trace is kept (their times are another
+    clock's): each entry counts as encoded once, now (:mod:`.entity_clock`).
+    """
+    old = wm.activation
+    if limits.activation is None:
+        wm.activation = wm.store.keeper = None
+        return
+    wm.flush()
+    act = new_rule(wm, limits, max(time, old.clock) if old is not None else time)
+    same = old is not None and old.counting == act.counting
+    for entity in wm.store.holding():
+        q = wm.store.get(entity)
+        if q is not None:  # a column queue keeps its traces (the limits' d and tau did not change: columns.fits)
+            act.adopt(entity, q, time, old.traces_of(entity) if same else None)  # type: ignore[union-attr]
+    wm.activation = wm.store.keeper = act

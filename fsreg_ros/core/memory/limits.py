@@ -30,7 +30,12 @@ class Limits:
     * ``global_capacity``: at most this many properties in the domain; the victim is
       the front encoded least recently in the whole domain;
     * ``activation``: ``(d, tau)``: an entry is forgotten when its ACT-R base-level
-      activation falls below tau (:mod:`fsreg_ros.core.memory.activation`);
+      activation falls below tau (:mod:`fsreg_ros.core.memory.activation`), read on
+      ``activation_clock``: the buffer's ``seconds``, or each entity's own ``words``
+      (:mod:`fsreg_ros.core.memory.entity_clock`);
+    * ``episode_activation``: ``(d, tau)``: the same rule on each entity's own episodes
+      clock, decided when the entity's episode begins (:class:`~.entity_clock.EpisodeActivation`;
+      ``activation`` is then None: nothing is noted per encoding);
     * ``episode_window``: k: when an entity's episode begins, its entries not used in its
       last k episodes are forgotten (:mod:`fsreg_ros.core.memory.episodes`; not after
       encodings).
@@ -45,6 +50,8 @@ class Limits:
     global_capacity: Optional[int] = None
     seed: int = 0
     activation: Optional[tuple[float, float]] = None
+    activation_clock: str = "seconds"
+    episode_activation: Optional[tuple[float, float]] = None
     episode_window: Optional[int] = None
 
     def check(self) -> None:

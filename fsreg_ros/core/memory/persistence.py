@@ -11,11 +11,12 @@ from __future__ import annotations
 from bisect import bisect_right
 from typing import Mapping, Optional, Sequence
 
-from .activation import LazyActivation
+from .entity_clock import install_episodes, new_rule
+from .episodes import Strength
 from .host import HostBuffer
 from .limits import Limits
 from .queue import UNKNOWN_ORIGIN, Origin, Queue, QueueItem, TracedItem, is_origin
-from .trace import Trace
+from .trace import Trace, activation
 
 
 def snapshot(wm: HostBuffer) -> dict[str, list[str]]:
@@ -51,6 +52,23 @@ def entry_traces(wm: HostBuffer, entity: str) -> dict:
     """
     store = wm.store
     return store.columns.traces_of(entity) if store.in_columns(entity) else wm.activation.traces_of(entity)
+
+
+def strengths(wm: HostBuffer, entity: str) -> list[Strength]:
+    """Return how strongly each entry of Q[entity] is held, LRU first (:meth:`WMBuffer.strength`).
+
+    Its episode age and count (:mod:`.episodes`) and, under rule ``activation``, its
+    activation on the rule's own clock (the entity's under ``episodes`` or ``words``).
+    """
+    stamps = wm.entry_stamps(entity)
+    counted = wm.episodes.strength(entity, stamps)
+    if wm.episode_activation is not None and counted:
+        return [Strength(age, n, a) for (age, n), a in zip(counted, wm.episode_activation.strength(entity, stamps))]
+    if wm.activation is None or not counted:
+        return [Strength(age, n) for age, n in counted]
+    d, clock = wm.limits.activation[0], wm.activation.now_of(entity)  # type: ignore[index]
+    traces = entry_traces(wm, entity)  # the rule's own traces, not copies through JSON
+    return [Strength(age, n, activation(traces[entry.property], clock, d)) for (age, n), entry in zip(counted, stamps)]
 
 
 def _items(wm: HostBuffer, q: Mapping) -> list[QueueItem]:
@@ -108,8 +126,10 @@ def restore(wm: HostBuffer, queues: Mapping[str, Sequence[Sequence]], stamp: int
                 counts[prop] = hits
         store.load(entity, entries, counts, ticks)
     wm.activation = store.keeper = None
+    install_episodes(wm, limits, fresh=True)
     if limits.activation is not None:
-        latest = max((t.recent[-1] for t in traces.values()), default=0.0)
-        act = wm.activation = store.keeper = LazyActivation(wm, *limits.activation, clock=latest)
+        latest = max((t.recent[-1] for t in traces.values()), default=0.0)  # (on the rule's own clock)
+        act = wm.activation = store.keeper = new_rule(wm, limits, latest if limits.activation_clock == "seconds"
+                                                      else 0.0)
         for entity in store.holding():
             act.adopt(entity, store.get(entity), latest, {p: t for (e, p), t in traces.items() if e == entity})
