@@ -466,11 +466,13 @@ class CandidateSet:
     """The entities still in play in one RR or REG request, held by the consultant.
 
     ``members`` is a bitset over entity indices (:mod:`fsreg_ros.core.memory.bitset`);
-    ``target`` is REG's target's index (None for RR).
+    ``target`` is REG's target's index (None for RR); ``referred``: the target's reference
+    episode began when the set was opened (REG's open with a reference), so closing it begins none.
     """
 
     members: int
     target: Optional[int] = None
+    referred: bool = False
 
     @property
     def size(self) -> int:

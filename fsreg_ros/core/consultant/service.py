@@ -40,7 +40,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 from ..state import journal
 from .consultant import CandidateSet, Consultant, KnowledgeError
-from ..algorithms.port import Narrowed, Step, View, Walk, Walked, WalkStep
+from ..algorithms.port import Narrowed, Reference, Step, View, Walk, Walked, WalkStep
 from .views import close_view, open_view
 from ..memory.ticks import TickError, TickRun, check_time
 from ..forgetting.policies import NONE, ForgettingPolicy
@@ -160,6 +160,7 @@ class ConsultantService:
         self._in_flight = 0  # batches of facts prepared, neither applied nor abandoned
         self._in_flight_facts: dict[str, dict[str, float]] = {}  # entity -> its facts as those batches leave them
         self._facts_generation = 0  # a failed commit voids the batches prepared up to it
+        self._references: dict[str, Optional[str]] = {}  # entity -> the reference id its current episode began by
 
     # ================================================================ calls
     def require_ready(self) -> None:
@@ -202,14 +203,14 @@ class ConsultantService:
             if time > self.latest:
                 self.latest = time
 
-    def request_time(self, value: Any) -> float:
-        """Return a request's ``time`` checked (RequestError), or the robot clock's now when it has none."""
+    def request_time(self, value: Any, name: str = "time") -> float:
+        """Return a request's ``time`` (field ``name``) checked (RequestError), or the robot clock's now if None."""
         if value is None:
             return self.now()
         try:
             return check_time("time", value)
         except TickError as err:
-            raise RequestError(f"field 'time': {err}") from None
+            raise RequestError(f"field '{name}': {err}") from None
 
     def ltm_assert(self, entity: str, facts: Mapping[str, Any], time: Optional[float] = None,
                    listening: bool = False) -> Outcome:
@@ -382,9 +383,23 @@ class ConsultantService:
 
     # ============================================================ typed ops
     def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None,
-             first: Optional[Step] = None) -> View:
-        """Open a view (its handle is the candidate set); see :meth:`~.port.ConsultantPort.open`."""
-        view = open_view(self.consultant, target, context, first)
+             first: Optional[Step] = None, refer: Optional[Reference] = None) -> View:
+        """Open a view (its handle is the candidate set); see :meth:`~.port.ConsultantPort.open`.
+
+        With ``refer`` (REG's act of referring; RequestError without a target), the target's
+        next reference episode begins before the view reads WM, journalled as a ``refer``
+        record that encodes nothing.  An open whose reference ``id`` began the target's
+        current episode (a retried request) begins none (docs/semantics.md section 8).
+        """
+        if refer is not None and target is None:
+            raise RequestError("open: 'refer' needs a 'target' (RR's referent is known only when its view closes, "
+                               "so its episode begins there)")
+        begin = refer is not None and (refer.id is None or self._references.get(target) != refer.id)
+        view = open_view(self.consultant, target, context, first, refer, begin)
+        if begin:
+            self._references[target] = refer.id
+            self._record(journal.refer(target, [], refer.time, refer.turn))
+            self.touch(refer.time, wm=self.buffer.retains)
         if first is not None and view.first.target_holds:
             self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
         return view
@@ -413,11 +428,19 @@ class ConsultantService:
 
     def close(self, candidates: CandidateSet, encode: Sequence[str] = (), time: float = 0.0,
               turn: Optional[int] = None) -> list[str]:
-        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member), its episode first."""
+        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member).
+
+        The entity's reference episode begins first, unless the view's open began it (``refer``).
+        """
         members = close_view(self.consultant, candidates, encode, time, turn)
-        if encode and self._recording:
+        if encode:
             speaker = self.consultant.entities[candidates.target] if candidates.target is not None else members[0]
-            self._record(journal.refer(speaker, encode, time, turn))
+            if candidates.referred:
+                if self._recording and self.buffer.retains:
+                    self._record(journal.encode(speaker, encode, "speaker", time, turn))
+            else:
+                self._references.pop(speaker, None)  # its current episode is no open's any more
+                self._record(journal.refer(speaker, encode, time, turn))
         return members
 
     def rule_out(self, candidates: CandidateSet) -> tuple[list[str], list[int]]:
