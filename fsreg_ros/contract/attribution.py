@@ -48,7 +48,7 @@ def reference_id(request: Mapping[str, Any], asker: str) -> str:
 
     ``asker`` names the REG node's port (its ``client`` id at the consultant).  A resent
     request (same client, same id) gets the same reference id, so its ``open`` begins no
-    second reference episode of the target (docs/semantics.md section 8).
+    second reference episode of the target (docs/semantics.md section 2).
     """
     text = json.dumps(cache_key(request), separators=(",", ":"), ensure_ascii=True)
     return f"{asker}/{hashlib.sha256(text.encode('ascii')).hexdigest()[:FINGERPRINT_HEX]}"

@@ -114,7 +114,7 @@ class ReferRequest(Stamp):
     """REG's act of referring to the ``open``'s target: its episode begins at ``time`` (null: now) in ``turn``.
 
     ``id`` names the act (REG sends one per request id): an ``open`` whose ``id`` began the
-    target's current episode begins no other (a retried request).  docs/semantics.md section 8.
+    target's current episode begins no other (a retried request).  docs/semantics.md section 2.
     """
 
     id: Optional[Name] = None

@@ -1,4 +1,4 @@
-"""REG's reference episode begins when its view opens: the ``open`` op's ``refer`` (docs/semantics.md section 8).
+"""REG's reference episode begins when its view opens: the ``open`` op's ``refer`` (docs/semantics.md section 2).
 
 A repeated open (the same reference id), an open whose view is then abandoned or
 expires, a restart between the open and the close, and hostile ``refer`` fields, each
@@ -149,7 +149,7 @@ def test_an_episode_begun_at_open_survives_a_restart_from_the_journal_and_a_chec
     third = served(tmp_path)
     assert third.store.journal_length() == 0 and state(third) == expected
     # Its session did not survive; the reference ids are not stored, so the same id after a restart begins
-    # another episode (docs/semantics.md section 8).
+    # another episode (docs/semantics.md section 2).
     apply(third, "configure", {"op": "configure", "policy": EPISODES, "time": 2.0})
     assert opened(third, {"id": "reg/2", "time": 2.0, "turn": 2})["queue"] == []  # female: last used in episode 2
     assert third.buffer.episode("face2") == 4

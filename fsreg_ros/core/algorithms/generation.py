@@ -121,7 +121,7 @@ async def open_referring(port: ConsultantPort, target: str, context: Optional[Se
     """Open REG's view of ``target`` as an act of referring to it (``reference``: the act's id, for retries).
 
     The target's next reference episode begins at the open, before the view reads
-    Q[target] (docs/semantics.md section 8): during a description WM holds what rule
+    Q[target] (docs/semantics.md section 2): during a description WM holds what rule
     ``episodes`` keeps for that episode, as in the corpus replay the rule was fitted on.
     """
     return await port.open(target, context, refer=Reference(time, turn, reference))

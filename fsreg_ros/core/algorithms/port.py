@@ -78,7 +78,7 @@ class Step:
 
 @dataclass(frozen=True)
 class Reference:
-    """REG's act of referring to a view's target, begun when the view opens (docs/semantics.md section 8).
+    """REG's act of referring to a view's target, begun when the view opens (docs/semantics.md section 2).
 
     The target's next reference episode begins at ``time`` in ``turn``, before the view
     reads Q[target].  ``id`` names the act: an open whose ``id`` began the target's current

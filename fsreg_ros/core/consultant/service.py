@@ -389,7 +389,7 @@ class ConsultantService:
         With ``refer`` (REG's act of referring; RequestError without a target), the target's
         next reference episode begins before the view reads WM, journalled as a ``refer``
         record that encodes nothing.  An open whose reference ``id`` began the target's
-        current episode (a retried request) begins none (docs/semantics.md section 8).
+        current episode (a retried request) begins none (docs/semantics.md section 2).
         """
         if refer is not None and target is None:
             raise RequestError("open: 'refer' needs a 'target' (RR's referent is known only when its view closes, "

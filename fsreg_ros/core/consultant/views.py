@@ -145,7 +145,7 @@ def open_view(
     With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).  With
     ``refer`` (REG's act of referring; the caller checked there is a target), the set is
     marked referred and, when ``begin``, the target's next reference episode begins at
-    ``refer``'s time and turn *before* Q[target] is read (docs/semantics.md section 8):
+    ``refer``'s time and turn *before* Q[target] is read (docs/semantics.md section 2):
     what the view reports is WM as the episode found it.
     """
     candidates = consultant.open_set(target, context)
@@ -174,7 +174,7 @@ def close_view(
 
     Encoding ``encode`` (rule 1) is an act of referring to the target (REG) or to the
     resolved referent (RR): the entity's next reference episode begins just before it
-    (docs/semantics.md section 8), unless it began when the set was opened (``referred``:
+    (docs/semantics.md section 2), unless it began when the set was opened (``referred``:
     REG's open with a reference).
     """
     members = consultant.members(candidates)
