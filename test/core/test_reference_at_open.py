@@ -197,3 +197,12 @@ def test_an_open_without_refer_is_the_older_protocol_its_episode_begins_at_close
     from fsreg_ros.core.algorithms.port import Reference
     assert contract.consultant_codec.open_args(
         {"op": "open", "target": "face2", "refer": {"id": "r", "time": 1.0, "turn": 2}})[4] == Reference(1.0, 2, "r")
+
+
+def test_the_reg_node_names_each_request_as_one_act_of_referring():
+    one = contract.reference_id({"id": 7, "client": "ui", "target": "face2"}, "/reg#ab12cd")
+    assert one == contract.reference_id({"id": 7, "client": "ui", "target": "face2", "time": 3.0}, "/reg#ab12cd")
+    assert one.startswith("/reg#ab12cd/") and len(one) == len("/reg#ab12cd/") + 16
+    assert len({one, contract.reference_id({"id": "7", "client": "ui"}, "/reg#ab12cd"),
+                contract.reference_id({"id": 7}, "/reg#ab12cd"),
+                contract.reference_id({"id": 7, "client": "ui"}, "/reg#ff0000")}) == 4
