@@ -80,9 +80,9 @@ class CountingPort(LocalPort):
 
     calls = 0
 
-    async def open(self, target=None, context=None, first=None):
+    async def open(self, target=None, context=None, first=None, refer=None):
         CountingPort.calls += 1
-        return await super().open(target, context, first)
+        return await super().open(target, context, first, refer)
 
     async def narrow(self, view, prop, cause, time, turn):
         CountingPort.calls += 1

@@ -74,10 +74,12 @@ class ApplyPort:
     async def preference(self) -> list[str]:
         return list(self.service.consultant.preference)
 
-    async def open(self, target=None, context=None, first=None) -> View:
+    async def open(self, target=None, context=None, first=None, refer=None) -> View:
         request: dict = {"target": target} if target is not None else {}
         if first is not None:
             request["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
+        if refer is not None:
+            request["refer"] = {"id": refer.id, "time": refer.time, "turn": refer.turn}
         reply = self._apply("open", request)
         view = View(reply["session"], reply["size"], reply["queue"], reply["retains"],
                     frozenset(reply["holding"]) if reply["holding"] is not None else None)

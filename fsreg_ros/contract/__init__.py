@@ -35,7 +35,7 @@ hearing each other.  ``/clock`` is the one absolute name (the ROS convention): a
 namespaced *sim-time* graph is given its own clock by remapping it (:func:`clock_remap`).
 """
 
-from .attribution import attribution, cache_key, fingerprint
+from .attribution import attribution, cache_key, fingerprint, reference_id
 from .base import ErrorReply, Id, Message, Name, NameNumbers, Names, Number, RequestRef, Stamp
 from .checking import check
 from .consultant import (
@@ -153,7 +153,7 @@ __all__ = [
     "SyncReply", "SyncRequest", "Topic", "Versioned", "WMEventMessage", "WMRequest", "WMState",
     "alive_topic", "attribution", "cache_key", "check", "clock_remap", "consultant_service",
     "debug_service", "fields_of", "fingerprint", "json_schemas", "manage_service", "message_table",
-    "normalise_namespace", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",
+    "normalise_namespace", "reference_id", "version_incarnation", "WalkReply", "WalkRequest", "WalkStepRequest",
     "GRAPH_FIELD", "GRAPH_PARAMETER", "READY", "DomainReadiness", "ManagerReady",  # graph identity and readiness
     "CLOCK_TYPE", "STRING_TYPE", "GraphTopic", "graph_topics",  # every topic of a graph, as a recorder sees it
 ]

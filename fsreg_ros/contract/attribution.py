@@ -43,6 +43,17 @@ def cache_key(request: Mapping[str, Any]) -> tuple[Optional[str], str]:
     return (client if isinstance(client, str) else None, f"{type(rid).__name__}:{rid}")
 
 
+def reference_id(request: Mapping[str, Any], asker: str) -> str:
+    """Return the id of the act of referring a REG request is: ``<asker>/<16 hex digits>`` of its (client, id).
+
+    ``asker`` names the REG node's port (its ``client`` id at the consultant).  A resent
+    request (same client, same id) gets the same reference id, so its ``open`` begins no
+    second reference episode of the target (docs/semantics.md section 2).
+    """
+    text = json.dumps(cache_key(request), separators=(",", ":"), ensure_ascii=True)
+    return f"{asker}/{hashlib.sha256(text.encode('ascii')).hexdigest()[:FINGERPRINT_HEX]}"
+
+
 def attribution(request: Mapping[str, Any], fingerprint_text: Optional[str] = None) -> dict:
     """Return the fields an answer to ``request`` carries: ``id``, ``client`` (if given), ``request``."""
     out: dict[str, Any] = {"id": request["id"]}

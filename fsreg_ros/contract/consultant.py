@@ -110,11 +110,24 @@ class StepRequest(Stamp):
     cause: Optional[Cause]
 
 
+class ReferRequest(Stamp):
+    """REG's act of referring to the ``open``'s target: its episode begins at ``time`` (null: now) in ``turn``.
+
+    ``id`` names the act (REG sends one per request id): an ``open`` whose ``id`` began the
+    target's current episode begins no other (a retried request).  docs/semantics.md section 2.
+    """
+
+    id: Optional[Name] = None
+
+
 class OpenRequest(Message):
     """Op ``open``: open a session holding RR's candidates or REG's distractors.
 
     No ``target``: every entity; else every entity but ``target``, or the ``context``
     set's.  ``first``: narrow it by that step at once (RR's first property).
+    ``refer`` (needs a ``target``): the target's next reference episode begins before the
+    session reads Q[target], and closing the session begins none; without it (RR, an older
+    REG) the episode begins at ``close`` with rule 1's encoding.
     ``client`` names the caller: each client holds at most ``max_sessions_per_client``
     sessions (opening one more drops its own least recently used, never another's).
     """
@@ -123,6 +136,7 @@ class OpenRequest(Message):
     target: Optional[Name] = None
     context: Optional[Names] = None
     first: Optional[StepRequest] = None
+    refer: Optional[ReferRequest] = None
     client: Optional[Name] = None
 
 

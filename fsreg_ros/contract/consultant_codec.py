@@ -30,7 +30,7 @@ from __future__ import annotations
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from ..core.memory import Strength
-from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
+from ..core.algorithms.port import Narrowed, Reference, Step, View, Walked, WalkStep
 from ..core.consultant.ops import Configured, Info, Opened
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.memory.ticks import TickRun
@@ -106,7 +106,7 @@ def version_of(reply: Mapping[str, Any]) -> Optional[str]:
 
 # ----------------------------------------------------------------------- open
 def open_request(target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step],
-                 client: str) -> dict:
+                 client: str, refer: Optional[Reference] = None) -> dict:
     """Encode :meth:`~fsreg_ros.core.algorithms.port.ConsultantPort.open` for ``client``."""
     payload: dict[str, Any] = {"op": "open", "client": client}
     if target is not None:
@@ -115,15 +115,20 @@ def open_request(target: Optional[str], context: Optional[Sequence[str]], first:
         payload["context"] = list(context)
     if first is not None:
         payload["first"] = {"property": first.prop, "cause": first.cause, "time": first.time, "turn": first.turn}
+    if refer is not None:
+        payload["refer"] = {"id": refer.id, "time": refer.time, "turn": refer.turn}
     return payload
 
 
 def open_args(req: Mapping[str, Any]) -> tuple:
-    """Decode ``open``: target, context, the first step (its time None: now) and the client."""
+    """Decode ``open``: target, context, the first step, the client and the reference (their times None: now)."""
     step, first = req.get("first"), None
     if step is not None:
         first = Step(step["property"], step.get("cause"), step.get("time"), step.get("turn"))
-    return req.get("target"), req.get("context"), first, req.get("client") or ""
+    act, refer = req.get("refer"), None
+    if act is not None:
+        refer = Reference(act.get("time"), act.get("turn"), act.get("id"))
+    return req.get("target"), req.get("context"), first, req.get("client") or "", refer
 
 
 def open_reply(opened: Opened) -> dict:

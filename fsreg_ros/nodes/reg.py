@@ -78,14 +78,16 @@ class RegNode(AskingNode):
         try:
             await self.ensure_ready()
             domain = await self._domain_of(data["target"])
+            port = self.ports[domain]
             expression = await generate(  # "auto" is decided by the domain's policy when REG opens its view
                 data["target"],
-                self.ports[domain],
+                port,
                 self.get_parameter("algorithm").value,
                 context=data.get("context"),
                 wm_order=self.get_parameter("wm_order").value,
                 time=time,
                 turn=data.get("turn"),
+                reference=contract.reference_id(data, port.client_id),  # a resent request: no second episode
             )
         except (ValueError, CarrierError) as err:  # GenerationError, KnowledgeError, MessageError
             self.get_logger().warning(printable(f"{contract.REG_REQUEST.name} (id {data['id']!r}): {err}"))

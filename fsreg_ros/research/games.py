@@ -38,7 +38,7 @@ from ..core.simulation.describe import describe
 from ..core.algorithms.generation import algorithm_for
 from ..core.lexicon import Lexicon
 from ..core.consultant.local_port import LocalPort
-from ..core.algorithms.port import Narrowed, Step, View, run_sync
+from ..core.algorithms.port import Narrowed, Reference, Step, View, run_sync
 from ..core.algorithms.resolution import NO_MATCH, resolve
 from ..core.scenario import DomainSpec, Scenario, Turn
 from ..core.simulation.simulator import Options, Simulation, human_record
@@ -213,9 +213,10 @@ class BeliefPort(LocalPort):
     """
 
     async def open(
-        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None,
+        refer: Optional[Reference] = None,
     ) -> View:
-        view = await super().open(target, context, first)
+        view = await super().open(target, context, first, refer)
         if target is not None and view.holding is not None:
             view.holding = view.holding | frozenset(view.queue)
         return view

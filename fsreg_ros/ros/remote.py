@@ -59,7 +59,7 @@ from ..contract import consultant_codec as codec
 from .carrier import DEFAULT_TIMEOUT, CarrierError, ServiceCaller, drop_timer, subscribe, wait_until
 from ..contract.codec import MessageError
 from ..core.consultant.consultant import KnowledgeError
-from ..core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
+from ..core.algorithms.port import Narrowed, Reference, Step, View, Walked, WalkStep
 
 #: Seconds a new call waits for a consultant whose liveliness lapsed to come back.
 OUTAGE_WAIT = 0.5
@@ -314,9 +314,10 @@ class RemotePort:
         return list((await self.catalogue()).preference)
 
     async def open(
-        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None,
+        refer: Optional[Reference] = None,
     ) -> View:
-        reply = await self._call(codec.open_request(target, context, first, self.client_id))
+        reply = await self._call(codec.open_request(target, context, first, self.client_id, refer))
         return self._decoded("open", codec.view_of, reply, first is not None)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:

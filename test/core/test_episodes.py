@@ -138,7 +138,7 @@ def test_the_window_setting_is_a_row_of_the_table():
 
 
 # ------------------------------------------------------------------ the consultant's dialogue
-def test_rr_and_reg_begin_the_episode_of_their_referent_at_close():
+def test_rr_begins_its_referents_episode_at_close_and_reg_its_targets_at_open():
     consultant = Consultant("faces", ENTITIES, PREF)
     consultant.wm.set_limits(ForgettingPolicy.parse("episodes", episode_window=1).limits(), 0.0)
     port = LocalPort(consultant)
@@ -151,9 +151,10 @@ def test_rr_and_reg_begin_the_episode_of_their_referent_at_close():
     # An ambiguous description begins no episode.
     run_sync(resolve(["dark-hair"], {"faces": port}, time=2.0, turn=1))
     assert [wm.episode(e) for e in ENTITIES] == [0, 1, 0]
-    # The robot describes face3: Phase 1 reads Q[face3], then its episode 1 begins at the close.
+    # The robot describes face3: its episode 1 begins when REG's view opens, then Phase 1 reads Q[face3].
     expression = run_sync(generate("face3", port, "sd-pia", time=3.0, turn=2))
     assert expression.description == ["dark-hair", "male"] and expression.wm_before == ["dark-hair"]
+    assert expression.strengths == [{"age": 1, "episodes": 1, "activation": None}, None]  # read in episode 1
     assert [wm.episode(e) for e in ENTITIES] == [0, 1, 1]
     assert wm.queue("face3") == ("dark-hair", "male")
     assert wm.strength("face3") == [Strength(0, 2), Strength(0, 1)]  # dark-hair: rule 2 in episode 0, rule 1 in 1
@@ -166,11 +167,33 @@ def test_rr_and_reg_begin_the_episode_of_their_referent_at_close():
     events: list = []
     wm.sink = events.append
     expression = run_sync(generate("face2", port, "sd-pia", time=5.0, turn=4))
-    assert expression.description == ["dark-hair", "female"] and wm.episode("face2") == 3
-    # Episode 3 began forgetting dark-hair (last used in episode 1); the description encoded it again.
+    # Episode 3 began at the open, forgetting dark-hair (last used in episode 1) before Phase 1 read WM.
     assert forgets(events) == [("face2", "dark-hair", "episodes", 5.0, 4)]
-    assert wm.queue("face2") == ("dark-hair", "female")
-    assert wm.strength("face2") == [Strength(0, 1), Strength(0, 4)]
+    assert expression.wm_before == ["female"] and expression.description == ["female"]
+    assert wm.episode("face2") == 3 and wm.queue("face2") == ("female",)
+    assert wm.strength("face2") == [Strength(0, 4)]
+
+
+def test_reg_reads_under_k_1_only_its_targets_last_episode_across_three_descriptions():
+    """The corpus's k = 1: while describing, Q[target] holds what its last episode used (and nothing older)."""
+    consultant = Consultant("faces", ENTITIES, PREF)
+    consultant.wm.set_limits(ForgettingPolicy.parse("episodes", episode_window=1).limits(), 0.0)
+    port = LocalPort(consultant)
+    wm = consultant.wm
+    # The human: "the woman with glasses" -> face2, its episode 1 (female, glasses).
+    assert run_sync(resolve(["female", "glasses"], {"faces": port}, time=0.0, turn=0)).candidates == ["face2"]
+    assert wm.queue("face2") == ("female", "glasses") and wm.episode("face2") == 1
+    read, said = [], []
+    for turn in (1, 2, 3):
+        expression = run_sync(generate("face2", port, "sd-pia", time=float(turn), turn=turn))
+        read.append(expression.wm_before)
+        said.append(expression.description)
+        assert wm.episode("face2") == turn + 1
+    # Episode 2 reads episode 1's female and glasses; episode 3 reads episode 2's female only (glasses, last
+    # used in episode 1, went when episode 3 began); so does episode 4.
+    assert read == [["female", "glasses"], ["female"], ["female"]]
+    assert said == [["female"], ["female"], ["female"]]
+    assert wm.queue("face2") == ("female",) and wm.strength("face2") == [Strength(0, 5)]  # episodes 0-4
 
 
 def test_wm_order_strength_walks_the_strongest_entry_first():

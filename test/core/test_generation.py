@@ -542,8 +542,9 @@ def test_expression_json():
     again = gen("object2", port, "sd-pia", time=5.0, turn=4).to_json()
     assert again["sources"] == ["wm", "wm"]
     assert again["origins"] == [{"cause": "speaker", "turn": None}, {"cause": "speaker", "turn": None}]
-    # ... and how strongly it was held: used in the entity's one episode so far, its current one (age 0).
-    assert again["strengths"] == [{"age": 0, "episodes": 1, "activation": None}] * 2
+    # ... and how strongly it was held: used in the first description's episode, one before the episode this
+    # description began when its view opened (age 1).
+    assert again["strengths"] == [{"age": 1, "episodes": 1, "activation": None}] * 2
 
 
 # ================================================================= errors
@@ -576,9 +577,9 @@ class RecordingPort(LocalPort):
         super().__init__(consultant)
         self.calls: list[tuple] = []
 
-    async def open(self, target=None, context=None, first=None):
+    async def open(self, target=None, context=None, first=None, refer=None):
         self.calls.append(("open", target) + ((first.prop,) if first else ()))
-        return await super().open(target, context, first)
+        return await super().open(target, context, first, refer)
 
     async def narrow(self, view, prop, cause, time, turn):
         self.calls.append(("narrow", prop))

@@ -48,8 +48,10 @@ def test_fsreg_sim_runs_a_preset_as_its_settings_and_an_explicit_order_overrides
                     ["glasses", "male", "lab-coat"], ["hoodie", "no-glasses", "female"],
                     ["male", "lab-coat", "glasses"]]
     assert _robot(capsys, "--policy", "episodes", "--episode-window", "1", "--wm-order", "strength") == (memory, said)
-    lru = _robot(capsys, "--preset", "human-like", "--wm-order", "lru-first")
-    assert lru == _robot(capsys, "--policy", "episodes", "--episode-window", "1") and lru[1] != said
+    # Under k = 1 REG reads only its target's last episode, where LRU and strength walk this dialogue alike.
+    mru = _robot(capsys, "--preset", "human-like", "--wm-order", "mru-first")
+    assert mru == _robot(capsys, "--policy", "episodes", "--episode-window", "1", "--wm-order", "mru-first")
+    assert mru[1] != said
     memory, _ = _robot(capsys, "--preset", "human-like", "--policy", "decay", "--decay-period", "5")
     assert memory == {"faces": {"policy": "decay", "decay_period": 5.0}}  # the preset's k: unread by decay
 

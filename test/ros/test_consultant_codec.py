@@ -19,7 +19,7 @@ from fsreg_ros import contract
 from fsreg_ros.contract import check
 from fsreg_ros.contract import consultant_codec as codec
 from fsreg_ros.contract.codec import MessageError
-from fsreg_ros.core.algorithms.port import Narrowed, Step, View, Walked, WalkStep
+from fsreg_ros.core.algorithms.port import Narrowed, Reference, Step, View, Walked, WalkStep
 from fsreg_ros.core.consultant.ops import Configured, Info, Opened
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.core.memory.ticks import TickRun
@@ -33,8 +33,10 @@ REQUESTS = [
     ("info", codec.info_request(), (0,)),
     ("info", codec.info_request(3), (3,)),
     ("open", codec.open_request("face1", ["face2", "face3"], Step("male", "rr", 2.0, 4), "reg#1"),
-     ("face1", ["face2", "face3"], Step("male", "rr", 2.0, 4), "reg#1")),
-    ("open", codec.open_request(None, None, None, "rr#2"), (None, None, None, "rr#2")),
+     ("face1", ["face2", "face3"], Step("male", "rr", 2.0, 4), "reg#1", None)),
+    ("open", codec.open_request(None, None, None, "rr#2"), (None, None, None, "rr#2", None)),
+    ("open", codec.open_request("face1", None, None, "reg#1", Reference(3.0, 5, "reg#1/0123")),
+     ("face1", None, None, "reg#1", Reference(3.0, 5, "reg#1/0123"))),
     ("narrow", codec.narrow_request("s1", "male", None, 1.5, None), ("s1", "male", None, 1.5, None)),
     ("walk", codec.walk_request("s1", [WalkStep("glasses"), WalkStep("dark-hair", "hair")], "reg-distractor", 2.0, 7),
      ("s1", [WalkStep("glasses"), WalkStep("dark-hair", "hair")], "reg-distractor", 2.0, 7)),

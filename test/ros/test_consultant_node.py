@@ -424,6 +424,38 @@ def test_a_session_unused_for_session_timeout_expires(graph: RosSession):
                          "per client and 2 in all are open)")
 
 
+def test_a_reg_open_begins_its_targets_episode_once_and_a_hostile_refer_changes_nothing(graph: RosSession):
+    """REG's open carries ``refer``: the target's episode begins before the view reads WM, once per id."""
+    start(graph)
+    configure(graph, "episodes", episode_window=1)
+    graph.call(D, {"op": "encode", "entity": "face2", "properties": ["female", "glasses"], "cause": "speaker",
+                   "time": 1.0})
+    refer = {"id": "reg/1", "time": 2.0, "turn": 1}
+    first = graph.call(Q, {"op": "open", "target": "face2", "refer": refer})
+    again = graph.call(Q, {"op": "open", "target": "face2", "refer": refer})  # the message repeated
+    held = [{"age": 1, "episodes": 1, "activation": None}] * 2  # read in episode 1, which the open began
+    assert first["queue"] == again["queue"] == ["female", "glasses"] and first["strength"] == again["strength"] == held
+    before, version = graph.call(D, {"op": "snapshot"}), graph.call(Q, {"op": "info"})["wm_version"]
+    for request, kind, text in [
+        ({"op": "open", "refer": refer}, "MessageError",
+         "open: 'refer' needs a 'target' (RR's referent is known only when its view closes, so its episode begins "
+         "there)"),
+        ({"op": "open", "target": "face2", "refer": {"id": "reg/2", "time": 1e300}}, "MessageError",
+         "field 'refer.time': time is out of range: |1e+300| > "),
+        ({"op": "open", "target": "face2", "refer": {"id": "reg/2", "turn": True}}, "MessageError",
+         "field 'refer'['turn']: expected a whole number or null, got True"),
+        ({"op": "open", "target": "face9", "refer": {"id": "reg/2"}}, "KnowledgeError",
+         "domain 'faces' has no entity 'face9'"),
+    ]:
+        err = graph.call_error(Q, request)
+        assert err.kind == kind and err.error.startswith(text) and "\n" not in err.error, (request, err.error)
+    assert graph.call(D, {"op": "snapshot"}) == before
+    assert graph.call(Q, {"op": "info"})["wm_version"] == version
+    # Still episode 1 (an open without refer begins nothing); another id begins episode 2, forgetting episode 0's.
+    assert graph.call(Q, {"op": "open", "target": "face2"})["strength"] == held
+    assert graph.call(Q, {"op": "open", "target": "face2", "refer": {"id": "reg/2", "time": 3.0}})["queue"] == []
+
+
 def test_sessions_one_call_per_property_and_state_once_per_request(graph: RosSession):
     start(graph, max_sessions=2)  # sessions kept 30 s: a loaded machine's pause between two calls keeps them
     configure(graph, "displacement", capacity=3)

@@ -120,9 +120,10 @@ def test_fsreg_up_and_fsreg_ctl_as_a_user_runs_them(table1_up):
         f"face1 (faces): male {held}, lab-coat {held}, light-hair {held}, glasses {held}\n")
     assert ctl(ns, "clock", "11").returncode == 0  # one decay tick: male goes
     described = ctl(ns, "describe", "face1")
+    read = "[rr; age 1, 2 episodes]"  # REG read them in face1's episode 2, which its open began
     assert described.stdout == (
-        f'"the person with a lab coat, light hair and glasses" (lab-coat: wm {held}, light-hair: wm {held}, '
-        f'glasses: wm {held})\n'), described.stdout
+        f'"the person with a lab coat, light hair and glasses" (lab-coat: wm {read}, light-hair: wm {read}, '
+        f'glasses: wm {read})\n'), described.stdout
     asserted = ctl(ns, "assert", "face17", "male", "glasses:0.9")
     assert asserted.stdout == "face17 (faces): added male 1, glasses 0.9\n", asserted.stderr
     changed = ctl(ns, "set", "policy=displacement", "capacity=1")

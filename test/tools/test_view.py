@@ -302,9 +302,10 @@ def test_view_in_a_browser(tmp_path):
     props = re.findall(r'<span class="prop (wm|ltm)" data-property="([^"]+)" data-source="(wm|ltm)"', dom)
     assert [p for _, p, _ in props] == list(expression["description"])
     assert [s for s, _, _ in props] == list(expression["sources"])
-    # Each word from WM with its strength when REG looked: RR's check and the human's episode used it (2 episodes).
+    # Each word from WM with its strength when REG looked: RR's check and the human's episode used it (2 episodes),
+    # one episode before the one REG's open began (age 1).
     held = re.findall(r'data-source="wm" data-strength="([^"]*)"', dom)
-    assert held == ["age 0, 2 episodes"] * list(expression["sources"]).count("wm") and held
+    assert held == ["age 1, 2 episodes"] * list(expression["sources"]).count("wm") and held
     assert unescape(expression["text"]) in unescape(dom)
     assert 'id="ready" class="yes"' in dom
     assert re.search(r'data-resolved="face1"', dom)

@@ -24,7 +24,7 @@ from itertools import combinations
 from typing import Mapping, Optional, Sequence
 
 from ..memory import Strength, attribute_of
-from .port import ConsultantPort, KnowledgeError, View, WalkStep
+from .port import ConsultantPort, KnowledgeError, Reference, View, WalkStep
 
 ALGORITHMS = ("sd-pia", "dist-pia", "full-brevity", "greedy")
 #: The algorithm setting that lets the domain's memory policy choose (see :func:`algorithm_for`).
@@ -116,6 +116,17 @@ def phase1_order(wm_before: Sequence[str], wm_order: str, preference: Sequence[s
     raise GenerationError(f"unknown wm_order '{wm_order}' (known: {', '.join(WM_ORDERS)})")
 
 
+async def open_referring(port: ConsultantPort, target: str, context: Optional[Sequence[str]], time: float,
+                         turn: Optional[int], reference: Optional[str] = None) -> View:
+    """Open REG's view of ``target`` as an act of referring to it (``reference``: the act's id, for retries).
+
+    The target's next reference episode begins at the open, before the view reads
+    Q[target] (docs/semantics.md section 2): during a description WM holds what rule
+    ``episodes`` keeps for that episode, as in the corpus replay the rule was fitted on.
+    """
+    return await port.open(target, context, refer=Reference(time, turn, reference))
+
+
 async def sd_pia(
     target: str,
     port: ConsultantPort,
@@ -144,7 +155,7 @@ async def sd_pia(
     """
     algorithm = "sd-pia" if use_wm else "dist-pia"
     if view is None:
-        view = await port.open(target, context)
+        view = await open_referring(port, target, context, time, turn)
     preference = await port.preference()
     expression = Expression(target, port.domain, algorithm, wm_before=list(view.queue))
     entered = {p: {"cause": cause, "turn": turn} for p, (cause, turn) in zip(view.queue, view.origins)}
@@ -174,7 +185,8 @@ async def dist_pia(target: str, port: ConsultantPort, **options) -> Expression:
 
 
 async def _baseline_view(
-    target: str, port: ConsultantPort, context: Optional[Sequence[str]], view: Optional[View]
+    target: str, port: ConsultantPort, context: Optional[Sequence[str]], view: Optional[View], time: float,
+    turn: Optional[int]
 ) -> tuple[View, list[str], list[int]]:
     """Return what a baseline works from: the open view and each property's rule-out bitmask.
 
@@ -186,7 +198,7 @@ async def _baseline_view(
     :class:`~fsreg_ros.core.simulation.describe.ViewPort`).  Queries only, no encoding.
     """
     if view is None:
-        view = await port.open(target, context)
+        view = await open_referring(port, target, context, time, turn)
     preference = await port.preference()
     props, masks = await port.rule_out(view)
     rank = {p: i for i, p in enumerate(preference)}
@@ -210,7 +222,7 @@ async def full_brevity(
     Among equally short sets (never two values of one attribute), the one whose
     sorted preference ranks are lexicographically smallest; output in preference order.
     """
-    view, props, masks = await _baseline_view(target, port, context, view)
+    view, props, masks = await _baseline_view(target, port, context, view, time, turn)
     useful = [(p, m) for p, m in zip(props, masks) if m]
     goal = 0
     for _, mask in useful:
@@ -264,7 +276,7 @@ async def greedy(
     Ties go to the more preferred; attributes already used are skipped; it stops
     when no property rules out any remaining distractor.
     """
-    view, props, masks = await _baseline_view(target, port, context, view)
+    view, props, masks = await _baseline_view(target, port, context, view, time, turn)
     everyone = (1 << view.size) - 1
     remaining = everyone
     expression = Expression(target, port.domain, "greedy", wm_before=list(view.queue))
@@ -318,18 +330,21 @@ async def generate(
     time: float = 0.0,
     turn: Optional[int] = None,
     attributes: Optional[Mapping[str, str]] = None,
+    reference: Optional[str] = None,
 ) -> Expression:
     """Run the named REG algorithm for ``target`` in ``port``'s domain.
 
     ``algorithm`` None or ``auto`` chooses by the domain's memory policy, as read
-    when the distractor set is opened (:func:`algorithm_for`).
+    when the distractor set is opened (:func:`algorithm_for`).  The open begins the
+    target's reference episode (:func:`open_referring`; ``reference`` names the act, so a
+    retried request with the same id begins no second one).
     """
     if wm_order not in WM_ORDERS:
         raise GenerationError(f"unknown wm_order '{wm_order}' (known: {', '.join(WM_ORDERS)})")
     if algorithm and algorithm != AUTO and algorithm not in ALGORITHMS:
         raise GenerationError(f"unknown algorithm '{algorithm}' (known: {', '.join(ALGORITHMS)})")
     try:
-        view = await port.open(target, context)
+        view = await open_referring(port, target, context, time, turn, reference)
         options = dict(context=context, time=time, turn=turn, attributes=attributes, view=view)
         algorithm = algorithm_for(view.retains, algorithm)
         if algorithm == "sd-pia":

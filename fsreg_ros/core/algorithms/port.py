@@ -77,6 +77,20 @@ class Step:
 
 
 @dataclass(frozen=True)
+class Reference:
+    """REG's act of referring to a view's target, begun when the view opens (docs/semantics.md section 2).
+
+    The target's next reference episode begins at ``time`` in ``turn``, before the view
+    reads Q[target].  ``id`` names the act: an open whose ``id`` began the target's current
+    episode begins no other (a retried request); None: every such open begins one.
+    """
+
+    time: float = 0.0
+    turn: Optional[int] = None
+    id: Optional[str] = None
+
+
+@dataclass(frozen=True)
 class Narrowed:
     """What one :meth:`ConsultantPort.narrow` did: whether the target holds, members left."""
 
@@ -176,14 +190,17 @@ class ConsultantPort(Protocol):
         """Return the domain's preference order, most preferred first."""
 
     async def open(
-        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None,
+        refer: Optional[Reference] = None,
     ) -> View:
         """Open a view: every entity (RR), or the target's distractors (REG).
 
         See :meth:`~fsreg_ros.core.consultant.consultant.Consultant.open_set`.
 
         With ``first``, narrow it by that step at once (RR's first property: one call
-        opens the view and checks it); the view's ``first`` says what that did.
+        opens the view and checks it); the view's ``first`` says what that did.  With
+        ``refer`` (REG; needs a target), the target's next reference episode begins
+        before the view reads Q[target], and its close begins none (:class:`Reference`).
         """
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:

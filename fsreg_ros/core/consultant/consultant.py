@@ -24,6 +24,7 @@ import numpy as np
 from ..memory import bitset
 from ..algorithms.port import KnowledgeError
 from ..memory import EventSink, WMBuffer
+from .holders import holder_bitsets
 
 DEFAULT_THRESHOLD = 0.5
 #: The certainty types :meth:`Consultant._checked_facts` checks by distinct value.
@@ -413,33 +414,8 @@ class Consultant:
         return dict(facts)
 
     def _rebuild_holders(self) -> None:
-        """Rebuild every property's holder bitset from the facts (fact by fact, not property x entity).
-
-        An entity whose every listed fact holds (the common case: a list of
-        properties, certainty 1) contributes its properties in one C-level step; the
-        bitsets are then packed from one (property, entity) boolean block per group
-        of properties (:func:`bitset.rows_from_pairs`), not from one Python list per property.
-        """
-        threshold = self.threshold
-        size = len(self.entities)
-        if threshold <= 0.0:  # certainty 0 (unlisted) holds too
-            self._holders = {p: (1 << size) - 1 for p in self.preference}
-            return
-        held: list[str] = []
-        counts: list[int] = []
-        for entity in self.entities:
-            facts = self._certainty[entity]
-            if facts and min(facts.values()) >= threshold:
-                held.extend(facts)
-                counts.append(len(facts))
-            else:
-                holding = [p for p, c in facts.items() if c >= threshold]
-                held.extend(holding)
-                counts.append(len(holding))
-        rank = {p: k for k, p in enumerate(self.preference)}
-        props = np.fromiter(map(rank.__getitem__, held), dtype=np.intp, count=len(held))
-        owners = np.repeat(np.arange(size, dtype=np.intp), counts)
-        self._holders = dict(zip(self.preference, bitset.rows_from_pairs(props, owners, len(self.preference), size)))
+        """Rebuild every property's holder bitset from the facts (:func:`.holders.holder_bitsets`)."""
+        self._holders = holder_bitsets(self._certainty, self.entities, self.preference, self.threshold)
 
     def _names_of(self, bits: int) -> list[str]:
         """Return the entities of a bitset, in entity order.
@@ -466,11 +442,13 @@ class CandidateSet:
     """The entities still in play in one RR or REG request, held by the consultant.
 
     ``members`` is a bitset over entity indices (:mod:`fsreg_ros.core.memory.bitset`);
-    ``target`` is REG's target's index (None for RR).
+    ``target`` is REG's target's index (None for RR); ``referred``: the target's reference
+    episode began when the set was opened (REG's open with a reference), so closing it begins none.
     """
 
     members: int
     target: Optional[int] = None
+    referred: bool = False
 
     @property
     def size(self) -> int:

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from .consultant import Consultant
-from ..algorithms.port import Narrowed, Step, View, Walked, WalkStep, walk_by_narrowing
+from ..algorithms.port import Narrowed, Reference, Step, View, Walked, WalkStep, walk_by_narrowing
 from .service import ConsultantService
 
 
@@ -34,9 +34,10 @@ class LocalPort:
         return list(self.consultant.preference)
 
     async def open(
-        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None,
+        refer: Optional[Reference] = None,
     ) -> View:
-        return self.service.open(target, context, first)
+        return self.service.open(target, context, first, refer)
 
     async def narrow(self, view: View, prop: str, cause: Optional[str], time: float, turn: Optional[int]) -> Narrowed:
         return self.service.narrow(view.handle, prop, cause, time, turn)

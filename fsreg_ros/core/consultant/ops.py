@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any, Optional, Sequence
 
-from ..algorithms.port import Narrowed, Step, View, Walked, WalkStep
+from ..algorithms.port import Narrowed, Reference, Step, View, Walked, WalkStep
 from ..forgetting.policies import ForgettingPolicy
 from ..memory.ticks import TickRun
 from .service import ConsultantService
@@ -67,14 +67,17 @@ def info(s: ConsultantService, start: int) -> Info:
 
 
 def open_session(s: ConsultantService, target: Optional[str], context: Optional[Sequence[str]],
-                 first: Optional[Step], client: str) -> Opened:
-    """Open a view as a session of ``client`` (``first``: its time None means now)."""
+                 first: Optional[Step], client: str, refer: Optional[Reference] = None) -> Opened:
+    """Open a view as a session of ``client`` (``first``, ``refer``: their time None means now)."""
     if first is not None:
-        first = replace(first, time=s.request_time(first.time))
-    view = s.open(target, context, first)
+        first = replace(first, time=s.request_time(first.time, "first.time"))
+    if refer is not None:
+        refer = replace(refer, time=s.request_time(refer.time, "refer.time"))
+    view = s.open(target, context, first, refer)
     session = s.sessions.open(view.handle, s.steady(), client)
-    if first is not None:
-        s.touch(first.time, wm=False)
+    for stamp in (first, refer):
+        if stamp is not None:
+            s.touch(stamp.time, wm=False)
     holding = None if view.holding is None else [p for p in s.consultant.preference if p in view.holding]
     return Opened(session, view, holding)
 

@@ -23,6 +23,10 @@ One call, one :meth:`ConsultantService.apply` (ops as in :mod:`fsreg_ros.contrac
    queues changed since the last one, read off ``take_changes``, when the journal is long);
 4. the :class:`Outcome` carries the reply, the changes and the numbered events.
 
+LTM facts asserted at run time are checked, stored and applied in batches by
+:class:`~fsreg_ros.core.consultant.fact_batches.FactBatches` (held as
+:attr:`ConsultantService.facts`; each application is one call of the service).
+
 Persistence (restore at start, clock epochs, writing each call's changes once,
 checkpoints, retries after a failed write) is :class:`~fsreg_ros.core.consultant.persistence.Persistence`,
 held as :attr:`ConsultantService.persistence`: an LTM fact is stored before memory
@@ -40,11 +44,12 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 from ..state import journal
 from .consultant import CandidateSet, Consultant, KnowledgeError
-from ..algorithms.port import Narrowed, Step, View, Walk, Walked, WalkStep
+from ..algorithms.port import Narrowed, Reference, Step, View, Walk, Walked, WalkStep
 from .views import close_view, open_view
 from ..memory.ticks import TickError, TickRun, check_time
 from ..forgetting.policies import NONE, ForgettingPolicy
 from ..memory import WMEvent
+from .fact_batches import FactBatches, PreparedFacts
 from .persistence import Persistence, Restored
 from ..state.store import DomainStore, StoreContents
 from .views import ViewTable
@@ -78,28 +83,6 @@ class Changes:
     policy: Optional[dict] = None
     decay_until: Optional[float] = None
     facts: list[tuple[str, dict[str, float], bool]] = field(default_factory=list)
-
-
-@dataclass
-class PreparedFacts:
-    """A batch of facts validated by :meth:`ConsultantService.prepare_facts`, to be stored, then applied.
-
-    ``facts`` as given; ``refusals`` one per fact (None: accepted); ``accepted`` per
-    accepted fact (entity, properties, values to store, new entity?, properties that stop
-    holding, properties that leave WM); ``when`` the time it is applied at;
-    ``generation`` the previews it was checked against (:meth:`ConsultantService.abandon_facts`).
-    """
-
-    facts: list[tuple[str, Mapping[str, Any]]]
-    refusals: list[Optional[KnowledgeError]]
-    accepted: list[tuple[str, Mapping[str, Any], dict[str, float], bool, list[str], list[str]]]
-    when: float
-    generation: int
-
-    @property
-    def stored(self) -> list[tuple[str, dict[str, float], bool]]:
-        """Return what the state database must hold before the batch is applied: (entity, values, new) per fact."""
-        return [(entity, values, new) for entity, _, values, new, _, _ in self.accepted]
 
 
 @dataclass
@@ -157,9 +140,8 @@ class ConsultantService:
         self._records: list[list] = []
         self._events: list[WMEvent] = []
         self._touched = False  # the current call changed WM
-        self._in_flight = 0  # batches of facts prepared, neither applied nor abandoned
-        self._in_flight_facts: dict[str, dict[str, float]] = {}  # entity -> its facts as those batches leave them
-        self._facts_generation = 0  # a failed commit voids the batches prepared up to it
+        self.facts = FactBatches(self)  # LTM facts prepared, not yet applied or abandoned
+        self._references: dict[str, Optional[str]] = {}  # entity -> the reference id its current episode began by
 
     # ================================================================ calls
     def require_ready(self) -> None:
@@ -202,14 +184,14 @@ class ConsultantService:
             if time > self.latest:
                 self.latest = time
 
-    def request_time(self, value: Any) -> float:
-        """Return a request's ``time`` checked (RequestError), or the robot clock's now when it has none."""
+    def request_time(self, value: Any, name: str = "time") -> float:
+        """Return a request's ``time`` (field ``name``) checked (RequestError), or the robot clock's now if None."""
         if value is None:
             return self.now()
         try:
             return check_time("time", value)
         except TickError as err:
-            raise RequestError(f"field 'time': {err}") from None
+            raise RequestError(f"field '{name}': {err}") from None
 
     def ltm_assert(self, entity: str, facts: Mapping[str, Any], time: Optional[float] = None,
                    listening: bool = False) -> Outcome:
@@ -218,7 +200,7 @@ class ConsultantService:
         Raises KnowledgeError (invalid: nothing changes) or StoreError (not stored:
         nothing changes).  The reply is the :class:`~fsreg_ros.core.consultant.consultant.AssertResult` as JSON.
         """
-        outcome, refusals = self._assert_batch([(entity, facts)], time, listening)
+        outcome, refusals = self.facts.assert_batch([(entity, facts)], time, listening)
         if refusals[0] is not None:
             raise refusals[0]
         result = outcome.reply["results"][0]
@@ -241,122 +223,24 @@ class ConsultantService:
         :meth:`Persistence.store_facts <fsreg_ros.core.consultant.persistence.Persistence.store_facts>`
         of :attr:`PreparedFacts.stored`, :meth:`apply_facts` (:mod:`fsreg_ros.core.state.fact_writer`).
         """
-        return self._assert_batch(facts, time, listening)[0]
-
-    def _assert_batch(self, facts: Sequence[tuple[str, Mapping[str, Any]]], time: Optional[float],
-                      listening: bool) -> tuple[Outcome, list[Optional[KnowledgeError]]]:
-        """Run :meth:`ltm_assert_batch`; also return each fact's refusal (None: applied)."""
-        prepared = self.prepare_facts(facts, time)
-        try:
-            self.persistence.store_facts(prepared.stored)  # one transaction, fsynced, before memory changes
-        except BaseException:
-            self.abandon_facts(prepared)
-            raise
-        return self.apply_facts(prepared, listening), prepared.refusals
+        return self.facts.assert_batch(facts, time, listening)[0]
 
     def prepare_facts(self, facts: Sequence[tuple[str, Mapping[str, Any]]],
-                      time: Optional[float] = None) -> "PreparedFacts":
-        """Validate a batch of facts without changing anything; return what to store and then apply.
+                      time: Optional[float] = None) -> PreparedFacts:
+        """Validate a batch of facts without changing anything (:meth:`.fact_batches.FactBatches.prepare`)."""
+        return self.facts.prepare(facts, time)
 
-        Each fact is checked as LTM will be once every batch prepared before it (and not
-        yet applied or abandoned: in flight) and the accepted facts before it in this
-        batch are applied, so batches may be prepared while earlier ones are being
-        stored.  Raises RequestError (a bad ``time``).  Hand the result to
-        :meth:`apply_facts` once :attr:`PreparedFacts.stored` is durable, or to
-        :meth:`abandon_facts` if storing it failed; batches are applied in the order
-        they were prepared, and nothing else may change LTM meanwhile (the threshold
-        waits for them: :meth:`set_threshold`).
-        """
-        when = self.request_time(time)
-        pending = self._in_flight_facts  # entity -> its facts as the batches in flight leave them
-        refusals: list[Optional[KnowledgeError]] = []
-        accepted = []  # (entity, properties, values, new, stopped, retracted)
-        for entity, props in facts:
-            try:
-                values: dict[str, float] = {}  # the update with what it excludes, at 0
-                new, stopped = self.consultant.preview_assert(entity, props, pending=pending, effective=values)
-                _check_storable([entity, *props])
-            except KnowledgeError as err:
-                refusals.append(err)
-                continue
-            refusals.append(None)
-            retracted = stopped if self.consultant.retract_on_update else []  # what leaves WM
-            accepted.append((entity, props, values, new, stopped, retracted))
-        self._in_flight += 1
-        return PreparedFacts(list(facts), refusals, accepted, when, self._facts_generation)
+    def apply_facts(self, prepared: PreparedFacts, listening: bool = False) -> Outcome:
+        """Apply a prepared batch whose facts are stored (:meth:`.fact_batches.FactBatches.apply`)."""
+        return self.facts.apply(prepared, listening)
 
-    def apply_facts(self, prepared: "PreparedFacts", listening: bool = False) -> Outcome:
-        """Apply a prepared batch whose facts are stored (in preparation order); return its :class:`Outcome`.
-
-        The facts change LTM in order and their retractions leave WM (journalled as this
-        call's records, like any WM change); the reply is :meth:`ltm_assert_batch`'s.
-        """
-        if prepared.generation != self._facts_generation:
-            raise RuntimeError("a batch of facts prepared before a failed commit cannot be applied")
-        applied: list[tuple[str, dict[str, float], bool]] = []
-
-        def body() -> dict:
-            when = prepared.when
-            records = [journal.remove(entity, gone, when) for entity, gone in self._retractions(prepared)]
-            results = iter(self.consultant.assert_facts(entity, props, when, previewed=(new, stopped),
-                                                        update=values).to_json()
-                           for entity, props, values, new, stopped, _ in prepared.accepted)
-            replies = []
-            for (entity, _), refusal in zip(prepared.facts, prepared.refusals):
-                if refusal is None:
-                    result = next(results)
-                    applied.append((result["entity"], result["updated"], result["new_entity"]))
-                    replies.append({**result, "ok": True})
-                else:
-                    replies.append({"entity": entity if isinstance(entity, str) else None, "ok": False,
-                                    "error": str(refusal), "kind": refusal.kind or type(refusal).__name__})
-            for record in records:
-                self._record(record)
-            if prepared.accepted:
-                self.touch(when, wm=any(gone for *_, gone in prepared.accepted))
-            return {"results": replies, "applied": len(prepared.accepted),
-                    "refused": len(prepared.facts) - len(prepared.accepted)}
-        self._in_flight -= 1
-        if not self._in_flight:
-            self._in_flight_facts = {}  # LTM holds them all now
-        outcome = self.run(body, listening)
-        outcome.changes.facts = applied
-        return outcome
-
-    def _retractions(self, prepared: "PreparedFacts") -> list[tuple[str, list[str]]]:
-        """Return (entity, properties) per accepted fact whose retractions change WM, before they are applied.
-
-        Without rule ``activation`` (where a removal also moves its clock), a retraction
-        of nothing WM holds is a no-op and is not journalled (perception mostly
-        retracts facts of entities no one spoke about).
-        """
-        if not self._recording:
-            return []
-        out = []
-        for entity, _, _, _, _, retracted in prepared.accepted:
-            if not retracted:
-                continue
-            if self.buffer.activation is None:
-                held = self.buffer.queue(entity)
-                retracted = [p for p in retracted if p in held]  # later facts of the batch: kept if held now
-            if retracted:
-                out.append((entity, retracted))
-        return out
-
-    def abandon_facts(self, prepared: "PreparedFacts") -> None:
-        """Forget a prepared batch that could not be stored, with every batch prepared against it.
-
-        The batches in flight of its generation are void (each was checked as if it would
-        be applied); a new generation starts from LTM as it is.  A batch of an older
-        generation changes nothing.
-        """
-        if prepared.generation == self._facts_generation:
-            self._facts_generation += 1
-            self._in_flight, self._in_flight_facts = 0, {}
+    def abandon_facts(self, prepared: PreparedFacts) -> None:
+        """Forget a batch that could not be stored (:meth:`.fact_batches.FactBatches.abandon`)."""
+        self.facts.abandon(prepared)
 
     def facts_in_flight(self) -> int:
         """Return the prepared batches neither applied nor abandoned yet."""
-        return self._in_flight
+        return self.facts.in_flight
 
     def set_threshold(self, threshold: float, time: Optional[float] = None, listening: bool = False) -> Outcome:
         """Change the domain's threshold (not stored: it comes from the parameters); retractions are journalled.
@@ -364,9 +248,9 @@ class ConsultantService:
         Not while batches of facts are in flight (they were checked against the threshold
         in force): apply them first (RuntimeError).
         """
-        if self._in_flight:
-            raise RuntimeError(f"{self._in_flight} batches of facts are in flight; apply them before the threshold "
-                               "changes")
+        if self.facts.in_flight:
+            raise RuntimeError(f"{self.facts.in_flight} batches of facts are in flight; apply them before the "
+                               "threshold changes")
 
         def run() -> dict:
             when = self.request_time(time)
@@ -375,16 +259,30 @@ class ConsultantService:
             for entity, prop in retracted:
                 by_entity.setdefault(entity, []).append(prop)
             for entity, props in by_entity.items():
-                self._record(journal.remove(entity, props, when))
+                self.record(journal.remove(entity, props, when))
             self.touch(when, wm=bool(retracted))
             return {"threshold": self.consultant.threshold, "retracted": [list(pair) for pair in retracted]}
         return self.run(run, listening)
 
     # ============================================================ typed ops
     def open(self, target: Optional[str] = None, context: Optional[Sequence[str]] = None,
-             first: Optional[Step] = None) -> View:
-        """Open a view (its handle is the candidate set); see :meth:`~.port.ConsultantPort.open`."""
-        view = open_view(self.consultant, target, context, first)
+             first: Optional[Step] = None, refer: Optional[Reference] = None) -> View:
+        """Open a view (its handle is the candidate set); see :meth:`~.port.ConsultantPort.open`.
+
+        With ``refer`` (REG's act of referring; RequestError without a target), the target's
+        next reference episode begins before the view reads WM, journalled as a ``refer``
+        record that encodes nothing.  An open whose reference ``id`` began the target's
+        current episode (a retried request) begins none (docs/semantics.md section 2).
+        """
+        if refer is not None and target is None:
+            raise RequestError("open: 'refer' needs a 'target' (RR's referent is known only when its view closes, "
+                               "so its episode begins there)")
+        begin = refer is not None and (refer.id is None or self._references.get(target) != refer.id)
+        view = open_view(self.consultant, target, context, first, refer, begin)
+        if begin:
+            self._references[target] = refer.id
+            self.record(journal.refer(target, [], refer.time, refer.turn))
+            self.touch(refer.time, wm=self.buffer.retains)
         if first is not None and view.first.target_holds:
             self._narrowed(view.handle, first.prop, first.cause, first.time, first.turn)
         return view
@@ -413,11 +311,19 @@ class ConsultantService:
 
     def close(self, candidates: CandidateSet, encode: Sequence[str] = (), time: float = 0.0,
               turn: Optional[int] = None) -> list[str]:
-        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member), its episode first."""
+        """Close a view: its members; ``encode`` is rule 1 for the target (or the only member).
+
+        The entity's reference episode begins first, unless the view's open began it (``refer``).
+        """
         members = close_view(self.consultant, candidates, encode, time, turn)
-        if encode and self._recording:
+        if encode:
             speaker = self.consultant.entities[candidates.target] if candidates.target is not None else members[0]
-            self._record(journal.refer(speaker, encode, time, turn))
+            if candidates.referred:
+                if self._recording and self.buffer.retains:
+                    self.record(journal.encode(speaker, encode, "speaker", time, turn))
+            else:
+                self._references.pop(speaker, None)  # its current episode is no open's any more
+                self.record(journal.refer(speaker, encode, time, turn))
         return members
 
     def rule_out(self, candidates: CandidateSet) -> tuple[list[str], list[int]]:
@@ -428,14 +334,14 @@ class ConsultantService:
         """Encode(entity, properties) (Algorithm 1)."""
         self.consultant.encode(entity, properties, cause, time, turn)
         if self._recording and self.buffer.retains:
-            self._record(journal.encode(entity, properties, cause, time, turn))
+            self.record(journal.encode(entity, properties, cause, time, turn))
 
     def affirm(self, prop: str, entities: Sequence[str], cause: str, time: float,
                turn: Optional[int] = None) -> list[str]:
         """Check ``prop`` for each entity in order and encode it for each it holds for."""
         held = self.consultant.affirm(prop, entities, cause, time, turn)
         if held and self._recording and self.buffer.retains:
-            self._record(journal.each(prop, held, cause, time, turn))
+            self.record(journal.each(prop, held, cause, time, turn))
         return held
 
     def configure(self, policy: ForgettingPolicy, time: float) -> None:
@@ -445,7 +351,7 @@ class ConsultantService:
         if policy != self.policy:
             configure_buffer(self.buffer, policy, time)
             self.policy = policy
-            self._record(journal.limits(policy, time))
+            self.record(journal.limits(policy, time))
             self.persistence.note("policy", policy.settings())
             self.notices.append(("info", f"memory policy {policy.to_json()}"))
         if not self.ready:
@@ -463,7 +369,7 @@ class ConsultantService:
         if due is not None:
             self.buffer.decay_now(due, self.consultant.entities)
             self.decay_until = due.last
-            self._record(journal.decay(due))
+            self.record(journal.decay(due))
             self.persistence.note("decay_until", due.last)
         self.touch(ticks.last)
 
@@ -471,13 +377,13 @@ class ConsultantService:
         """Note that the clock reached ``time``: entries below the activation threshold go now (rule ``activation``)."""
         self.buffer.advance(time)
         self.buffer.flush()  # at once, as decay ticks are applied: their events are published now
-        self._record(journal.advance(time))
+        self.record(journal.advance(time))
         self.touch(time)
 
     def evict(self, count: int, time: float) -> None:
         """Forget the domain's ``count`` least recently encoded fronts (the shared pool's trim)."""
         self.buffer.evict_oldest(count, "shared-capacity", time)
-        self._record(journal.evict(count, time))
+        self.record(journal.evict(count, time))
         self.touch(time)
 
     # ============================================================ state, status
@@ -529,7 +435,8 @@ class ConsultantService:
         self.persistence.shutdown()
 
     # ============================================================ internals: a call
-    def _record(self, record: list) -> None:
+    def record(self, record: list) -> None:
+        """Add a journal record to the current call's changes (when WM changes are journalled)."""
         if self._recording:
             self._records.append(record)
 
@@ -537,14 +444,5 @@ class ConsultantService:
                   turn: Optional[int]) -> None:
         """Note (and record) the rule 2/3 encodings a narrowing (or an open's first step) just did, if any."""
         if cause is not None and candidates.members and self.buffer.retains:
-            self._record(journal.bits(prop, candidates.members, cause, time, turn))
+            self.record(journal.bits(prop, candidates.members, cause, time, turn))
             self.touch(time)
-
-
-def _check_storable(names: Sequence[str]) -> None:
-    """Raise KnowledgeError for a name the state database cannot hold (not valid UTF-8, e.g. a lone surrogate)."""
-    for name in names:
-        try:
-            name.encode("utf-8")
-        except UnicodeEncodeError:
-            raise KnowledgeError(f"name {name[:40]!r} is not valid UTF-8 (a lone surrogate?)") from None

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Generic, Optional, Sequence, TypeVar
 
 from .consultant import CandidateSet, Consultant, KnowledgeError
-from ..algorithms.port import Narrowed, Step, View
+from ..algorithms.port import Narrowed, Reference, Step, View
 
 S = TypeVar("S")
 
@@ -137,17 +137,26 @@ class ViewTable(Generic[S]):
 
 
 def open_view(
-    consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step] = None
+    consultant: Consultant, target: Optional[str], context: Optional[Sequence[str]], first: Optional[Step] = None,
+    refer: Optional[Reference] = None, begin: bool = True,
 ) -> View:
     """Open a candidate set at ``consultant`` and describe it as a :class:`View` (its handle is the set).
 
-    With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).
+    With ``first``, narrow it by that step (as :meth:`ConsultantPort.open` says).  With
+    ``refer`` (REG's act of referring; the caller checked there is a target), the set is
+    marked referred and, when ``begin``, the target's next reference episode begins at
+    ``refer``'s time and turn *before* Q[target] is read (docs/semantics.md section 2):
+    what the view reports is WM as the episode found it.
     """
     candidates = consultant.open_set(target, context)
     size = candidates.size
     if target is None:
         view = View(candidates, size, [], consultant.wm.retains)
     else:
+        if refer is not None:
+            candidates.referred = True
+            if begin:
+                consultant.wm.begin_episode(target, refer.time, refer.turn)
         holding = frozenset(consultant.properties_of(target))
         queue, origins = consultant.wm.queue_with_origins(target)  # (open_set checked the target)
         view = View(candidates, size, list(queue), consultant.wm.retains, holding, origins=origins,
@@ -165,7 +174,8 @@ def close_view(
 
     Encoding ``encode`` (rule 1) is an act of referring to the target (REG) or to the
     resolved referent (RR): the entity's next reference episode begins just before it
-    (docs/semantics.md section 8).
+    (docs/semantics.md section 2), unless it began when the set was opened (``referred``:
+    REG's open with a reference).
     """
     members = consultant.members(candidates)
     if encode:
@@ -175,5 +185,6 @@ def close_view(
             speaker = members[0]
         else:
             raise KnowledgeError(f"cannot encode for the only member: {len(members)} members remain")
-        consultant.encode(speaker, encode, "speaker", time, turn, episode=True)  # a reference episode begins first
+        # A reference episode begins first, unless REG's open began it.
+        consultant.encode(speaker, encode, "speaker", time, turn, episode=not candidates.referred)
     return members

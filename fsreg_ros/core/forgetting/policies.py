@@ -16,7 +16,8 @@ the one place policy names are parsed and validated):
   Not combined with ``decay`` (both are forgetting by time; choose one).
 * ``episodes`` (k = ``episode_window``, default 1): when an entity's reference episode begins
   (an act of referring to it: :meth:`WMBuffer.begin_episode`, which the consultant
-  calls when a view closes with rule 1's encoding), before that episode's own
+  calls when REG opens its view of the target, and when RR's view closes with rule 1's
+  encoding), before that episode's own
   encodings, every entry of its queue not used in its last k episodes is forgotten
   (cause ``episodes``): during episode n the queue holds what was used in episodes
   n - k ... n (:mod:`fsreg_ros.core.memory.episodes`).

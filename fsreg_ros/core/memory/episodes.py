@@ -1,10 +1,11 @@
 """Reference episodes: each entity's episode counter, the episodes its entries were used in, rule ``episodes``.
 
-An *episode* of an entity is one act of referring to it (docs/semantics.md section 8):
+An *episode* of an entity is one act of referring to it (docs/semantics.md section 2):
 a human utterance that reference resolution resolved to it, a robot description of it,
 or, in a corpus, one trial about its referent.  :meth:`WMBuffer.begin_episode` starts
-one; the consultant does so when a view closes with rule 1's encoding
-(:func:`fsreg_ros.core.consultant.views.close_view`), before that encoding.  Every
+one; the consultant does so when REG opens its view of a target (before the view reads
+WM) and when RR's view closes with rule 1's encoding, before that encoding
+(:mod:`fsreg_ros.core.consultant.views`).  Every
 encoding of a property for an entity is *used in* the entity's current episode (0
 before its first one), whatever its cause.
 

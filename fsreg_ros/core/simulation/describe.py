@@ -22,7 +22,7 @@ from typing import Mapping, Optional, Sequence, Union
 
 from ..consultant.consultant import Consultant, KnowledgeError
 from ..consultant.local_port import LocalPort
-from ..algorithms.port import ConsultantPort, Narrowed, Step, View, Walked, WalkStep, run_sync
+from ..algorithms.port import ConsultantPort, Narrowed, Reference, Step, View, Walked, WalkStep, run_sync
 from ..algorithms.generation import ALGORITHMS, Expression, GenerationError, generate
 from ..memory import attribute_of
 
@@ -115,9 +115,10 @@ class ViewPort:
         return list(self._preference)
 
     async def open(
-        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None
+        self, target: Optional[str] = None, context: Optional[Sequence[str]] = None, first: Optional[Step] = None,
+        refer: Optional[Reference] = None,
     ) -> View:
-        view = self._opened
+        view = self._opened  # opened by describe_async, without a reference: no episode begins
         shown = [(p, o) for p, o in zip(view.queue, view.origins) if not self._is_hidden(p)]
         view = View(view.handle, view.size, [p for p, _ in shown], view.retains, view.holding,
                     origins=[o for _, o in shown])

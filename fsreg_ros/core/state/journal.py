@@ -30,9 +30,10 @@ Records are JSON lists whose first item names the operation:
 ``["remove", entity, [property, ...], time]``
     properties retracted from Q[entity] because they stopped holding in LTM.
 ``["refer", entity, [property, ...], time, turn]``
-    an act of referring to ``entity`` (rule 1 at a view's close): ``WMBuffer.begin_episode``
-    (its next reference episode; rule ``episodes`` forgets then), then ``WMBuffer.encode``
-    of the properties with cause ``speaker``.
+    an act of referring to ``entity``: ``WMBuffer.begin_episode`` (its next reference
+    episode; rule ``episodes`` forgets then), then ``WMBuffer.encode`` of the properties
+    with cause ``speaker`` -- RR's rule 1 at a view's close, or, with no properties,
+    REG's open of a view of its target (whose close then writes an ``encode`` record).
 
 Only a policy with random displacement victims is not journalled: the generator's
 state is not part of the record, so such a consultant writes a checkpoint per call.
