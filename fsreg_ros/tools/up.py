@@ -392,16 +392,14 @@ class Up:
             raise UpError(f"--record: {err}") from None
 
     def _wait_recorded(self, client, recorder) -> None:
-        """Wait until the recording's readers matched every writer of the graph (at most RECORDER_MATCH_WAIT)."""
-        from ..ros.recorders import RECORDER_MATCH_WAIT
-
-        deadline = time.monotonic() + RECORDER_MATCH_WAIT
-        while (missing := recorder.unmatched()) and time.monotonic() < deadline:
+        """Wait until the recording's readers matched every writer of the graph (:meth:`Recorder.wait_matched`)."""
+        def between() -> None:
             self._supervise(starting=True)
             client.spin_for(0.05)
-        if missing:
-            print(f"{PROG}: warning: --record: not yet matched on {', '.join(missing)} after "
-                  f"{RECORDER_MATCH_WAIT:g} s; their first messages may be missing from the recording", file=sys.stderr)
+
+        warning = recorder.wait_matched(between=between)
+        if warning is not None:
+            print(f"{PROG}: warning: --record: {warning}", file=sys.stderr)
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError
