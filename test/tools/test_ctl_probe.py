@@ -107,6 +107,8 @@ def test_every_command_refuses_hostile_input_in_one_line(live, ctl):
     refused(ctl(ns, "assert", "face1", "male", "--domain", "planets"), 2,
             "the graph has no domain 'planets' (its domains: faces)")
     refused(ctl(ns, "say", "a" * 120_000), 2, "dialogue/human: the message is 120", "at most 65536")
+    refused(ctl(ns, "say", *(f"w{i:04d}" + "x" * 35 for i in range(1000))), 2,  # fits; its reading does not
+            "say: dialogue/human: its reading on dialogue/semantics (the text and its 1000 unknown words) would be ")
     refused(ctl(ns, "describe", "x" * 1000), 2, "reg/request: field 'target': a name of 1000 characters")
     refused(ctl(ns, "assert", "face1", *[f"p{i}" for i in range(1500)]), 2, "ltm/assert")
     refused(ctl(ns, "say", "--description", "male", "--domain", "planets"), 2, "no domain 'planets'")
