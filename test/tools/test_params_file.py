@@ -44,7 +44,7 @@ def _load(tmp_path: Path, table1_path: Path, data: dict, *argv: str):
     path = tmp_path / "params.yaml"
     path.write_text(yaml.safe_dump(data))
     specs, options = _setup(table1_path, *argv)
-    return path, params_from_file(path, specs, NS, options)
+    return path, params_from_file(path, specs, NS, options, fresh="--fresh" in argv)
 
 
 def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, table1_path):
@@ -72,6 +72,23 @@ def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_p
     message = str(caught.value)
     assert message.startswith(f"{tmp_path / 'params.yaml'}: node {NS}/{said}") and "\n" not in message
     assert message.endswith("; drop it from the file or change that")
+
+
+def test_reset_state_of_a_fresh_graphs_dump_is_taken_only_with_fresh(tmp_path, table1_path):
+    """``reset_state`` is --fresh's one-shot action: fed back without --fresh, a dump must not reset the state again."""
+    data = _dump(table1_path)
+    data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = True  # a dump of a --fresh graph
+    with pytest.raises(UsageError) as caught:
+        _load(tmp_path, table1_path, data)
+    assert str(caught.value) == (
+        f"{tmp_path / 'params.yaml'}: node {NS}/consultant_faces: reset_state: set by fsreg-up from --fresh (a "
+        "one-shot action of the first start: it moves the state database aside) to False, the file says True; drop "
+        "it from the file or change that")
+    _, (given, _) = _load(tmp_path, table1_path, data, "--fresh")  # started the same way: taken as it is
+    assert "reset_state" not in given.get("consultant_faces", {})
+    data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = False  # a dump of a graph started without
+    _, (given, _) = _load(tmp_path, table1_path, data)
+    assert "reset_state" not in given.get("consultant_faces", {})
 
 
 def test_wall_time_dump_needs_wall_time(tmp_path, table1_path):
