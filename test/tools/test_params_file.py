@@ -62,6 +62,10 @@ def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, tabl
     ("consultant_faces", "state_dir", "/var/fsreg", "consultant_faces: state_dir: set by fsreg-up from "
                                                     "--state-dir to '', the file says '/var/fsreg'"),
     ("consultant_faces", "kb", "/elsewhere.yaml", "consultant_faces: kb: set by fsreg-up from the scenario to "),
+    # a dump of a --fresh graph fed back without --fresh: not a second move of the state aside
+    ("consultant_faces", "reset_state", True, "consultant_faces: reset_state: set by fsreg-up from --fresh (a one-shot "
+                                              "action of the first start: it moves the state database aside) to "
+                                              "False, the file says True"),
 ])
 def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_path, table1_path, node, key,
                                                                            value, said):
@@ -74,16 +78,10 @@ def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_p
     assert message.endswith("; drop it from the file or change that")
 
 
-def test_reset_state_of_a_fresh_graphs_dump_is_taken_only_with_fresh(tmp_path, table1_path):
-    """``reset_state`` is --fresh's one-shot action: fed back without --fresh, a dump must not reset the state again."""
+def test_reset_state_of_a_dump_is_taken_when_fsreg_up_sets_the_same(tmp_path, table1_path):
+    """``reset_state`` is --fresh's one-shot action: a dump of a --fresh graph is taken with --fresh (refused without)."""
     data = _dump(table1_path)
     data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = True  # a dump of a --fresh graph
-    with pytest.raises(UsageError) as caught:
-        _load(tmp_path, table1_path, data)
-    assert str(caught.value) == (
-        f"{tmp_path / 'params.yaml'}: node {NS}/consultant_faces: reset_state: set by fsreg-up from --fresh (a "
-        "one-shot action of the first start: it moves the state database aside) to False, the file says True; drop "
-        "it from the file or change that")
     _, (given, _) = _load(tmp_path, table1_path, data, "--fresh")  # started the same way: taken as it is
     assert "reset_state" not in given.get("consultant_faces", {})
     data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = False  # a dump of a graph started without
