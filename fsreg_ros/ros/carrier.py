@@ -310,7 +310,7 @@ def publish(pub, obj: Mapping[str, Any]) -> None:
 
 
 def message_bytes(pub, obj: Mapping[str, Any]) -> int:
-    """Return the UTF-8 bytes :func:`publish` would send for ``obj`` through ``pub`` (what a receiver's limit counts)."""
+    """Return the UTF-8 bytes :func:`publish` would send for ``obj`` through ``pub``."""
     return len(safe_dumps(stamped(pub, obj)).encode("utf-8", "surrogatepass"))
 
 

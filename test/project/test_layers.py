@@ -149,7 +149,7 @@ def layer(module: str) -> Optional[str]:
 
 
 def arrows(graph: dict[str, set[str]], part: Callable[[str], Optional[str]]) -> Iterator[tuple[str, str, str, str]]:
-    """Yield ``(importer, target, its part, target's part)`` for every import between two parts (``part``: None, none)."""
+    """Yield ``(importer, target, its part, the target's)`` for each import between two parts (``part``: None, none)."""
     for importer, targets in sorted(graph.items()):
         mine = part(importer)
         for target in sorted(targets):

@@ -63,9 +63,9 @@ def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, tabl
                                                     "--state-dir to '', the file says '/var/fsreg'"),
     ("consultant_faces", "kb", "/elsewhere.yaml", "consultant_faces: kb: set by fsreg-up from the scenario to "),
     # a dump of a --fresh graph fed back without --fresh: not a second move of the state aside
-    ("consultant_faces", "reset_state", True, "consultant_faces: reset_state: set by fsreg-up from --fresh (a one-shot "
-                                              "action of the first start: it moves the state database aside) to "
-                                              "False, the file says True"),
+    ("consultant_faces", "reset_state", True, "consultant_faces: reset_state: set by fsreg-up from --fresh (a "
+                                              "one-shot action of the first start: it moves the state database "
+                                              "aside) to False, the file says True"),
 ])
 def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_path, table1_path, node, key,
                                                                            value, said):
@@ -79,7 +79,7 @@ def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_p
 
 
 def test_reset_state_of_a_dump_is_taken_when_fsreg_up_sets_the_same(tmp_path, table1_path):
-    """``reset_state`` is --fresh's one-shot action: a dump of a --fresh graph is taken with --fresh (refused without)."""
+    """``reset_state`` is --fresh's one-shot action: a --fresh graph's dump is taken with --fresh (refused without)."""
     data = _dump(table1_path)
     data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = True  # a dump of a --fresh graph
     _, (given, _) = _load(tmp_path, table1_path, data, "--fresh")  # started the same way: taken as it is
