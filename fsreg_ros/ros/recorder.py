@@ -175,7 +175,7 @@ class Recorder:
         recording that starts with the graph waits for this list to empty
         (:meth:`wait_matched`) before the graph is called ready, so the first samples (e.g.
         each consultant's initial ``wm/state``) are in the bag.  ``writers``: how many
-        writers some topics must have (contract names, e.g. ``{"wm/state": 2}``), for a
+        writers some topics must have (contract names, e.g. ``{contract.WM_STATE.name: 2}``), for a
         recorder that cannot know the graph has been discovered (its own participant).
         """
         count = self._readers.count_publishers
