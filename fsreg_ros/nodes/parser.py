@@ -9,7 +9,10 @@ properties of the knowledge base given as ``kb`` (every lexicon property if
 empty).  Text with no known property is forwarded with an empty description, so
 reference resolution answers ``no-match``.  A malformed message gets a warning and
 an error result on ``rr/result``, the human channel's reply topic.  Size limits: the
-``max_*`` parameters (:class:`~fsreg_ros.contract.Limits`).
+``max_*`` parameters (:class:`~fsreg_ros.contract.Limits`); an utterance whose reading
+would be over ``max_message_bytes`` on ``dialogue/semantics`` (it carries the text and its
+unknown words: up to twice the utterance) is refused as ``too-large`` here, in one line,
+not by reference resolution with a size naming no topic.
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ from rclpy.node import Node
 
 from ..ros.clock_parameter import fix_use_sim_time
 from .. import contract
-from ..ros.carrier import publish, publisher, subscribe
+from ..contract.codec import TooLarge
+from ..ros.carrier import message_bytes, publish, publisher, subscribe
 from ..contract import fingerprint
 from ..core.lexicon import Lexicon
 from ..core.scenario import load_scenario
@@ -57,7 +61,13 @@ class ParserNode(Node):
         publish(self._errors, rr_error(request_id, error, kind))
 
     def _on_human(self, data: dict) -> None:
-        publish(self._semantics, self.parse(data))
+        semantics = self.parse(data)
+        size, limit = message_bytes(self._semantics, semantics), self.limits.max_message_bytes
+        if size > limit:
+            raise TooLarge(f"{contract.HUMAN.name}: its reading on {contract.SEMANTICS.name} (the text and its "
+                           f"{len(semantics.get('unknown_words') or ())} unknown words) would be {size} bytes, over "
+                           f"the limit of {limit} (max_message_bytes); say less at once")
+        publish(self._semantics, semantics)
 
     def parse(self, data: dict) -> dict:
         """Return the semantics message for one (validated) human utterance.

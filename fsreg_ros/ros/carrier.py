@@ -309,6 +309,11 @@ def publish(pub, obj: Mapping[str, Any]) -> None:
     pub.publish(String(data=safe_dumps(stamped(pub, obj))))
 
 
+def message_bytes(pub, obj: Mapping[str, Any]) -> int:
+    """Return the UTF-8 bytes :func:`publish` would send for ``obj`` through ``pub``."""
+    return len(safe_dumps(stamped(pub, obj)).encode("utf-8", "surrogatepass"))
+
+
 def subscribe(node, topic: Topic, handler: Handler, *, reject: Optional[Reject] = None,
               callback_group: Optional[CallbackGroup] = None, max_bytes: Limit = None, limits: LimitsSource = None,
               accept: Optional[Callable[[dict], bool]] = None, event_callbacks=None):

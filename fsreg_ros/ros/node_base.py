@@ -265,6 +265,42 @@ def _run(node_cls: Callable[..., Any], args: Optional[list[str]], logger: Any,
          job: Optional[Callable[[Any], Awaitable[Any]]], on_done: Optional[Callable[[Any, Any], None]],
          job_errors: tuple[type[BaseException], ...], stop: StopSignals) -> int:
     """:func:`run_node` once the network is checked and Ctrl-C handled: initialise ROS, run, shut down."""
+    early = _init_ros(node_cls, args, stop)
+    if early is not None:
+        return early
+    node = None
+    executor = None
+    code = EXIT_OK
+    try:
+        node, failed = _start_node(node_cls, logger)
+        if node is None:
+            return failed
+        logger = node.get_logger()
+        diagnostics = Diagnostics(node)  # noqa: F841 - publishes on /diagnostics while the node runs
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        if job is None:
+            executor.spin()
+        else:
+            code = _spin_job(executor, node, job, on_done, job_errors, logger)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = EXIT_OK
+    except Exception as err:  # noqa: BLE001 - a callback outside the wrappers failed: stop, in one line
+        if not rclpy.ok():  # Ctrl-C or SIGTERM shut ROS down between the executor's check and its wait
+            return EXIT_OK
+        _log_failure(logger, f"stopped by a failing callback: {type(err).__name__}: {err}", err)
+        code = EXIT_FAILED
+    finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def _init_ros(node_cls: Callable[..., Any], args: Optional[list[str]], stop: StopSignals) -> Optional[int]:
+    """Initialise ROS; return None to go on, or the exit code (a stop heard meanwhile, or ROS refused to start)."""
     try:
         rclpy.init(args=args)
     except Exception as err:  # noqa: BLE001 - e.g. a bad --ros-args or params file
@@ -275,63 +311,52 @@ def _run(node_cls: Callable[..., Any], args: Optional[list[str]], logger: Any,
     if stop.heard is not None:  # Ctrl-C or SIGTERM before rclpy's own handler was in place
         rclpy.try_shutdown()
         return EXIT_OK
-    node = None
-    executor = None
-    code = EXIT_OK
-    try:
-        try:
-            node = node_cls()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            raise
-        except Exception as err:  # noqa: BLE001 - any start-up problem: one line, exit 2
-            if not rclpy.ok():  # Ctrl-C or SIGTERM while starting: ROS is shut down, nothing to report
-                return EXIT_OK
-            text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-            logger.error(printable(f"cannot start: {text}"))
-            logger.debug(printable("".join(traceback.format_exception(err)), 20000))
-            return EXIT_STARTUP
-        logger = node.get_logger()
-        diagnostics = Diagnostics(node)  # noqa: F841 - publishes on /diagnostics while the node runs
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        if job is None:
-            executor.spin()
-        else:
-            # The executor re-raises a failed task's exception from spin; catch it inside.
-            async def guarded() -> tuple[bool, Any]:
-                try:
-                    return True, await job(node)
-                except Exception as err:  # noqa: BLE001 - reported below
-                    return False, err
+    return None
 
-            task = executor.create_task(guarded())
-            task.add_done_callback(lambda _: executor.wake())
-            while executor.context.ok() and not task.done():
-                executor.spin_once()
-            if not task.done():  # shut down before the job finished
-                return EXIT_OK
-            ok, result = task.result()
-            if not ok:
-                if isinstance(result, job_errors):
-                    logger.error(printable(result))
-                else:  # report, without dumping a traceback on users (debug level has it)
-                    logger.error(printable(f"failed: {type(result).__name__}: {result}"))
-                    logger.debug(printable("".join(traceback.format_exception(result)), 20000))
-                return EXIT_FAILED
-            if on_done is not None:
-                on_done(node, result)
+
+def _start_node(node_cls: Callable[..., Any], logger: Any) -> tuple[Any, int]:
+    """Build the node: ``(node, EXIT_OK)``, or ``(None, exit code)`` after one line saying why it cannot start."""
+    try:
+        return node_cls(), EXIT_OK
     except (KeyboardInterrupt, ExternalShutdownException):
-        code = EXIT_OK
-    except Exception as err:  # noqa: BLE001 - a callback outside the wrappers failed: stop, in one line
-        if not rclpy.ok():  # Ctrl-C or SIGTERM shut ROS down between the executor's check and its wait
-            return EXIT_OK
-        logger.error(printable(f"stopped by a failing callback: {type(err).__name__}: {err}"))
-        logger.debug(printable("".join(traceback.format_exception(err)), 20000))
-        code = EXIT_FAILED
-    finally:
-        if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        raise
+    except Exception as err:  # noqa: BLE001 - any start-up problem: one line, exit 2
+        if not rclpy.ok():  # Ctrl-C or SIGTERM while starting: ROS is shut down, nothing to report
+            return None, EXIT_OK
+        text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        _log_failure(logger, f"cannot start: {text}", err)
+        return None, EXIT_STARTUP
+
+
+def _spin_job(executor, node, job: Callable[[Any], Awaitable[Any]], on_done: Optional[Callable[[Any, Any], None]],
+              job_errors: tuple[type[BaseException], ...], logger: Any) -> int:
+    """Spin until the node's ``job`` is done (or ROS shut down); report how it ended; return the exit code."""
+    # The executor re-raises a failed task's exception from spin; catch it inside.
+    async def guarded() -> tuple[bool, Any]:
+        try:
+            return True, await job(node)
+        except Exception as err:  # noqa: BLE001 - reported below
+            return False, err
+
+    task = executor.create_task(guarded())
+    task.add_done_callback(lambda _: executor.wake())
+    while executor.context.ok() and not task.done():
+        executor.spin_once()
+    if not task.done():  # shut down before the job finished
+        return EXIT_OK
+    ok, result = task.result()
+    if not ok:
+        if isinstance(result, job_errors):
+            logger.error(printable(result))
+        else:  # report, without dumping a traceback on users (debug level has it)
+            _log_failure(logger, f"failed: {type(result).__name__}: {result}", result)
+        return EXIT_FAILED
+    if on_done is not None:
+        on_done(node, result)
+    return EXIT_OK
+
+
+def _log_failure(logger: Any, line: str, err: BaseException) -> None:
+    """Log one error line (no traceback for users); the traceback at debug level."""
+    logger.error(printable(line))
+    logger.debug(printable("".join(traceback.format_exception(err)), 20000))

@@ -40,7 +40,8 @@ AUTO = "auto"
 #: What sets each runner-owned parameter (``ParamSpec.runner``): where to change it instead.
 RUNNER_SOURCES = {"domains": "the scenario's domains", "domain": "the scenario's domains", "kb": "the scenario",
                   "use_sim_time": "sim time, or --wall-time (one clock for the whole graph)",
-                  "state_dir": "--state-dir", "lexicon": "--lexicon", "graph": "the run (a new identity each start)"}
+                  "state_dir": "--state-dir", "lexicon": "--lexicon", "graph": "the run (a new identity each start)",
+                  "reset_state": "--fresh (a one-shot action of the first start: it moves the state database aside)"}
 
 
 class ParameterError(ValueError):
@@ -125,8 +126,8 @@ def node_parameters(executable: str, domains: Sequence[str]) -> dict[str, ParamS
                  ParamSpec("max_sessions_per_client", "int", True, 1, 100_000),
                  ParamSpec("session_timeout", "float", True, 0.01, 3600.0),
                  ParamSpec("state_period", "float", True, 0.0, 60.0),
-                 *(ParamSpec(flag, "bool", True)
-                   for flag in ("persist_wm", "reset_state", "debug", "retract_on_update"))]
+                 ParamSpec("reset_state", "bool", True, runner=True, default=False),
+                 *(ParamSpec(flag, "bool", True) for flag in ("persist_wm", "debug", "retract_on_update"))]
     elif executable == "parser":
         specs = [*_common("kb", "lexicon"), *_limits()]
     elif executable == "reference_resolution":

@@ -27,7 +27,7 @@ import os
 import threading
 import time
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Optional
+from typing import Any, Callable, Iterable, Mapping, Optional
 
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
@@ -37,7 +37,7 @@ from ..contract import QosSpec
 from ..core.io.recording import SEGMENT_SECONDS, TOPICS_KEY, BagWriter, Channel, RecordingError
 from .carrier import qos_profile
 from .rclpy_internals import take_message
-from .recorders import SUFFIX
+from .recorders import RECORDER_MATCH_WAIT, SUFFIX
 
 #: Reader depth of every recorded topic at least (the contract's writers keep 1 to 10,000): the readers hold
 #: what arrived until the drain thread takes it, so a recorder starved of CPU this long does not lose a
@@ -168,16 +168,35 @@ class Recorder:
         """Return each recorded topic's number of matched writers now."""
         return {t.name: s.get_publisher_count() for t, s in zip(self.topics, self.subscriptions)}
 
-    def unmatched(self) -> list[str]:
+    def unmatched(self, writers: Optional[Mapping[str, int]] = None) -> list[str]:
         """Return the recorded topics with a writer in the graph that no reader of the recording has matched yet.
 
         A latched topic's reader matched late gets only the writer's *latest* sample: a
-        recording that starts with the graph waits for this list to empty before the graph
-        is called ready, so the first samples (e.g. each consultant's initial ``wm/state``)
-        are in the bag.
+        recording that starts with the graph waits for this list to empty
+        (:meth:`wait_matched`) before the graph is called ready, so the first samples (e.g.
+        each consultant's initial ``wm/state``) are in the bag.  ``writers``: how many
+        writers some topics must have (contract names, e.g. ``{contract.WM_STATE.name: 2}``), for a
+        recorder that cannot know the graph has been discovered (its own participant).
         """
         count = self._readers.count_publishers
-        return [t.name for t, s in zip(self.topics, self.subscriptions) if s.get_publisher_count() < count(t.name)]
+        wanted = {t.name: (writers or {}).get(t.topic.name, 0) if t.topic is not None else 0 for t in self.topics}
+        return [t.name for t, s in zip(self.topics, self.subscriptions)
+                if s.get_publisher_count() < max(count(t.name), wanted[t.name])]
+
+    def wait_matched(self, timeout: float = RECORDER_MATCH_WAIT, writers: Optional[Mapping[str, int]] = None,
+                     between: Optional[Callable[[], None]] = None) -> Optional[str]:
+        """Wait until :meth:`unmatched` is empty, at most ``timeout`` s; return None, or one warning line.
+
+        ``between`` runs between two looks (it may raise, e.g. for a node that died), else
+        :data:`POLL` s pass.  The line names the topics still unmatched.
+        """
+        deadline = time.monotonic() + timeout
+        while (missing := self.unmatched(writers)) and time.monotonic() < deadline:
+            between() if between is not None else time.sleep(POLL)
+        if not missing:
+            return None
+        return (f"not yet matched on {', '.join(missing)} after {timeout:g} s; their first messages may be missing "
+                "from the recording")
 
     @property
     def counts(self) -> dict[str, int]:

@@ -163,9 +163,13 @@ class Ctl:
 
 
 def answer_error(ctl: Ctl, answer: dict, what: str) -> None:
-    """Raise ClientError (exit 1) with the graph's error reply in one line (``--json``: the reply on stdout too)."""
+    """Raise ClientError with the graph's error reply in one line (``--json``: the reply on stdout too).
+
+    Exit 1, or 2 (bad usage) for an input refused for its size (kind ``too-large``): what
+    was sent is at fault, not the graph's state.
+    """
     from ..ros.client import ClientError
 
     if ctl.json:
         ctl.emit(answer, "")
-    raise ClientError(f"{what}: {answer.get('error')}", "error")
+    raise ClientError(f"{what}: {answer.get('error')}", "usage" if answer.get("kind") == "too-large" else "error")

@@ -229,8 +229,9 @@ class Graph:
             self.group = proc.pid
         return proc
 
-    def start(self) -> None:
-        for spec in self.nodes:
+    def start(self, count: Optional[int] = None) -> None:
+        """Start the nodes not started yet (``count``: only up to the ``count``-th node of the graph)."""
+        for spec in self.nodes[len(self.procs):count]:
             self.procs.append((spec, self._spawn(spec, f"{spec.name}.log")))
 
     def restart(self, name: str, kill: bool = True) -> subprocess.Popen:
@@ -317,8 +318,10 @@ def run_graph(
     The run is a graph of its own: under ``namespace`` (None: a new unique one, '': the
     root namespace) and with a new graph identity that every node stamps and the
     player checks.  ``record``: record every topic to this new rosbag2 folder
-    (:mod:`fsreg_ros.ros.recorder`, subscribed before any node starts; the player waits
-    for it too), then check that it holds every answer and WM event (GraphError if not).
+    (:mod:`fsreg_ros.ros.recorder`, subscribed before any node starts; the player is started
+    only once the recorder matched every writer of the graph, :func:`wait_recorded`, and
+    waits for its readers too), then check that it holds every answer and WM event
+    (GraphError if not).
     """
     words = Lexicon.load(lexicon)
     scenario = load_scenario(scenario_path, words)  # bad input fails here, before any process
@@ -335,6 +338,9 @@ def run_graph(
             recorder = start_recorder(record, namespace, identity, scenario_path, options, lexicon)
             nodes[-1].parameters["listeners"] = 1  # the player waits for the recorder's subscriptions too
         try:
+            if recorder is not None:  # the player last: turn 1 only once the recording hears every writer
+                graph.start(len(nodes) - 1)
+                wait_recorded(graph, recorder.recorder, list(scenario.domains))
             graph.start()
             deadline = time.monotonic() + RUN_DEADLINE + TURN_ALLOWANCE * len(scenario.dialogue)
             code = graph.wait_for("dialogue_player", deadline)
@@ -367,6 +373,33 @@ def start_recorder(path: Path, namespace: str, identity: str, scenario_path: Pat
         return RecorderThread(path, namespace, custom=custom, attach=attach)
     except RecordingError as err:
         raise GraphError(f"--record: {err}") from None
+
+
+def graph_writers(domains: Sequence[str]) -> dict[str, int]:
+    """Return how many writers a scenario run's graph has (the player aside) on the topics it always writes."""
+    from .. import contract
+
+    each = len(domains)
+    return {contract.SEMANTICS.name: 1, contract.RR_RESULT.name: 2, contract.REG_EXPRESSION.name: 1,
+            contract.WM_STATE.name: each, contract.WM_EVENTS.name: each, contract.ANNOUNCE.name: each,
+            contract.READY.name: 1}
+
+
+def wait_recorded(graph: Graph, recorder, domains: Sequence[str]) -> None:
+    """Wait until ``recorder`` matched every writer of the graph but the player (:meth:`Recorder.wait_matched`).
+
+    The recorder has a participant of its own, so what it must match is counted
+    (:func:`graph_writers`), not only discovered.  A node that dies meanwhile fails the
+    run; a match still missing after the wait is one warning line.
+    """
+    def between() -> None:
+        for spec, code in graph.dead():
+            raise GraphError(f"node '{spec.name}' exited with code {code}\n{graph.tail(spec.name)}")
+        time.sleep(0.05)
+
+    warning = recorder.wait_matched(writers=graph_writers(domains), between=between)
+    if warning is not None:
+        print(f"fsreg-graph: warning: --record: {warning}", file=sys.stderr)
 
 
 def check_recording(path: Path, scenario: Scenario) -> None:

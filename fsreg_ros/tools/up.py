@@ -229,7 +229,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if args.params_file is not None:
             specs = live_nodes(scenario, args.scenario, options, lexicon=args.lexicon, state_dir=_state_dir(args),
                                use_sim_time=not args.wall_time)
-            file_params, memory = params_from_file(args.params_file, specs, namespace, options)
+            file_params, memory = params_from_file(args.params_file, specs, namespace, options, fresh=args.fresh)
     except INPUT_ERRORS as err:
         print(f"{PROG}: error: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -252,17 +252,27 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             signal.signal(sig, handler)
 
 
-def params_from_file(path: Path, specs: Sequence, namespace: str, options) -> tuple[dict, dict]:
+def params_from_file(path: Path, specs: Sequence, namespace: str, options, fresh: bool = False) -> tuple[dict, dict]:
     """Return (node -> parameters from ``--params-file``, each domain's memory with them); UsageError if invalid.
 
-    ``specs``: the graph's nodes as fsreg-up would start them (the file's runner-owned keys must agree).
+    ``specs``: the graph's nodes as fsreg-up would start them (the file's runner-owned keys must agree;
+    ``fresh``: ``--fresh`` is given, so ``reset_state`` is true).
     """
     from .params_file import check_memory, overrides
 
+    mark_fresh(specs, fresh)
     runner = {spec.name: spec.parameters for spec in specs}
     domains = list(runner["wm_manager"]["domains"])
     given = overrides(path, domains, namespace, options.memory, runner)
     return given, check_memory(path, runner["wm_manager"], given.get("wm_manager", {}), domains)
+
+
+def mark_fresh(specs: Sequence, fresh: bool) -> None:
+    """``--fresh``: start from the scenario alone, each consultant moving its database aside (``reset_state``)."""
+    if fresh:
+        for spec in specs:
+            if spec.executable == "consultant":
+                spec.parameters["reset_state"] = True
 
 
 def _state_dir(args: argparse.Namespace) -> Optional[str]:
@@ -290,10 +300,7 @@ class Up:
             spec.parameters.update((file_params or {}).get(spec.name, {}))
         if memory is not None:
             self.memory = memory
-        if args.fresh:  # start from the scenario alone: each consultant moves its database aside
-            for spec in self.specs:
-                if spec.executable == "consultant":
-                    spec.parameters["reset_state"] = True
+        mark_fresh(self.specs, args.fresh)
         self.graph: Optional[Graph] = None
         self.respawns: dict[str, int] = {}
 
@@ -392,16 +399,14 @@ class Up:
             raise UpError(f"--record: {err}") from None
 
     def _wait_recorded(self, client, recorder) -> None:
-        """Wait until the recording's readers matched every writer of the graph (at most RECORDER_MATCH_WAIT)."""
-        from ..ros.recorders import RECORDER_MATCH_WAIT
-
-        deadline = time.monotonic() + RECORDER_MATCH_WAIT
-        while (missing := recorder.unmatched()) and time.monotonic() < deadline:
+        """Wait until the recording's readers matched every writer of the graph (:meth:`Recorder.wait_matched`)."""
+        def between() -> None:
             self._supervise(starting=True)
             client.spin_for(0.05)
-        if missing:
-            print(f"{PROG}: warning: --record: not yet matched on {', '.join(missing)} after "
-                  f"{RECORDER_MATCH_WAIT:g} s; their first messages may be missing from the recording", file=sys.stderr)
+
+        warning = recorder.wait_matched(between=between)
+        if warning is not None:
+            print(f"{PROG}: warning: --record: {warning}", file=sys.stderr)
 
     def _wait_ready(self, client) -> None:
         from ..ros.client import ClientError

@@ -20,7 +20,7 @@ import ast
 import functools
 import re
 from pathlib import Path
-from typing import Optional
+from typing import Callable, Iterator, Optional
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = REPO / "fsreg_ros"
@@ -148,22 +148,27 @@ def layer(module: str) -> Optional[str]:
     return parts[1] if len(parts) > 1 else None  # None: the top package's __init__
 
 
+def arrows(graph: dict[str, set[str]], part: Callable[[str], Optional[str]]) -> Iterator[tuple[str, str, str, str]]:
+    """Yield ``(importer, target, its part, the target's)`` for each import between two parts (``part``: None, none)."""
+    for importer, targets in sorted(graph.items()):
+        mine = part(importer)
+        for target in sorted(targets):
+            theirs = part(target)
+            if mine is not None and theirs is not None and mine != theirs:
+                yield importer, target, mine, theirs
+
+
 def layer_violations(graph: dict[str, set[str]]) -> list[str]:
     bad = []
-    for importer, targets in sorted(graph.items()):
-        mine = layer(importer)
-        for target in sorted(targets):
-            theirs = layer(target)
-            if mine is None or theirs is None or mine == theirs:
-                continue
-            if mine == "research":
-                allowed = theirs in RESEARCH_MAY_IMPORT
-            elif theirs == "research":
-                allowed = mine in MAY_IMPORT_RESEARCH
-            else:
-                allowed = RANK[theirs] < RANK[mine] or (mine, theirs) == ("testing", "tools")
-            if not allowed:
-                bad.append(f"{importer} imports {target} ({mine} may not import {theirs})")
+    for importer, target, mine, theirs in arrows(graph, layer):
+        if mine == "research":
+            allowed = theirs in RESEARCH_MAY_IMPORT
+        elif theirs == "research":
+            allowed = mine in MAY_IMPORT_RESEARCH
+        else:
+            allowed = RANK[theirs] < RANK[mine] or (mine, theirs) == ("testing", "tools")
+        if not allowed:
+            bad.append(f"{importer} imports {target} ({mine} may not import {theirs})")
     return bad
 
 
@@ -208,22 +213,16 @@ CORE_RANK = {"io": 0, "memory": 0, "lexicon": 1, "forgetting": 1, "algorithms": 
              "consultant": 3, "scenario": 4, "simulation": 5}
 
 
+def core_package(name: str) -> Optional[str]:
+    """Return the core sub-package a module belongs to (None: not in one)."""
+    parts = name.split(".")
+    return parts[2] if len(parts) > 2 and parts[:2] == ["fsreg_ros", "core"] else None
+
+
 def core_violations(graph: dict[str, set[str]]) -> list[str]:
     """Return every import between two core sub-packages that points up (or sideways) a rank."""
-    def part(name: str) -> Optional[str]:
-        parts = name.split(".")
-        return parts[2] if len(parts) > 2 and parts[:2] == ["fsreg_ros", "core"] else None
-
-    found = []
-    for importer, targets in sorted(graph.items()):
-        mine = part(importer)
-        for target in sorted(targets):
-            theirs = part(target)
-            if mine is None or theirs is None or mine == theirs:
-                continue
-            if CORE_RANK[theirs] >= CORE_RANK[mine]:
-                found.append(f"{importer} imports {target} (core.{mine} may not import core.{theirs})")
-    return found
+    return [f"{importer} imports {target} (core.{mine} may not import core.{theirs})"
+            for importer, target, mine, theirs in arrows(graph, core_package) if CORE_RANK[theirs] >= CORE_RANK[mine]]
 
 
 def test_every_core_package_has_a_rank_and_says_what_it_owns():

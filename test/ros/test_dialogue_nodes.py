@@ -8,6 +8,7 @@ the consultant's snapshot); the node keeps serving afterwards.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -67,6 +68,19 @@ def test_text_is_parsed_resolved_and_encoded(pipeline):
     assert reply["description"] == ["female", "glasses"]
     assert reply["unknown_words"] == ["says", "he"]
     assert snapshot(pipeline)["face2"] == ["female", "glasses"]
+
+
+def test_an_utterance_whose_reading_would_be_too_large_is_refused_in_one_line_naming_it(pipeline):
+    """~1,000 long unknown words fit ``dialogue/human`` but not their reading (text and unknown words, twice)."""
+    words = " ".join(f"w{i:04d}" + "x" * 35 for i in range(1000))
+    before = snapshot(pipeline)
+    reply = ask(pipeline, contract.HUMAN.name, pipeline.results, {"id": "long", "time": 1.0, "text": words}, "long")
+    assert reply["status"] == "error" and reply["kind"] == "too-large", reply
+    size = re.fullmatch(r"dialogue/human: its reading on dialogue/semantics \(the text and its 1000 unknown words\) "
+                        r"would be (\d+) bytes, over the limit of 65536 \(max_message_bytes\); say less at once",
+                        reply["error"])
+    assert size and int(size.group(1)) > 80_000, reply["error"]
+    assert snapshot(pipeline) == before
 
 
 def test_ambiguous_and_no_match(pipeline):

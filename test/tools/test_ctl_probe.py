@@ -3,6 +3,13 @@ fed hostile arguments against a live graph of node processes (the public harness
 :class:`fsreg_ros.testing.LiveGraph`, as ``fsreg-up`` runs them): each refusal is one
 line on stderr with the documented exit code (1 the graph refused, 2 bad usage, 3 no
 answer or the graph left) and no traceback; what is accepted is reported as it now is.
+
+The commands run in this process (``fsreg-ctl``'s ``main``, its output captured at the
+file descriptors, as a terminal would see it): a process per command cost its start-up
+and imports each time (over 300 s for the probe at a load of ~20); each command still
+makes a ROS participant of its own that discovers the graph, as ``fsreg-ctl`` does, and
+waits for it up to :data:`WAIT` s (not the command's 10 s default: discovery on a loaded
+machine can take longer).  ``watch`` and ``fsreg-up`` stay processes of their own.
 """
 
 from __future__ import annotations
@@ -25,9 +32,26 @@ pytestmark = [pytest.mark.graph, pytest.mark.slow]
 BIN = Path(sys.executable).parent
 
 
-def ctl(ns: str, *args: str, timeout: float = 90) -> subprocess.CompletedProcess:
-    return subprocess.run([str(BIN / "fsreg-ctl"), "--namespace", ns, *args], capture_output=True, text=True,
-                          timeout=timeout)
+#: Seconds each command waits for the graph (``--timeout``) unless the test gives its own.
+WAIT = 60.0
+
+
+@pytest.fixture
+def ctl(capfd):
+    """Return ``ctl(ns, *args)``: run ``fsreg-ctl --namespace ns args`` in this process; its exit code and output."""
+    from fsreg_ros.tools.ctl import main
+
+    def run(ns: str, *args: str) -> subprocess.CompletedProcess:
+        argv = ["--namespace", ns, *(() if "--timeout" in args else ("--timeout", f"{WAIT:g}")), *args]
+        capfd.readouterr()  # what came before is not this command's
+        try:
+            code = main(argv)
+        except SystemExit as done:  # argparse's refusals
+            code = done.code
+        out, err = capfd.readouterr()
+        return subprocess.CompletedProcess(["fsreg-ctl", *argv], code, out, err)
+
+    return run
 
 
 def refused(proc: subprocess.CompletedProcess, code: int, *said: str) -> None:
@@ -38,7 +62,7 @@ def refused(proc: subprocess.CompletedProcess, code: int, *said: str) -> None:
     assert proc.stdout == "" and "Traceback" not in proc.stderr
 
 
-def test_every_command_refuses_hostile_input_in_one_line(live):
+def test_every_command_refuses_hostile_input_in_one_line(live, ctl):
     ns, graph = live
     # clock: out of range is bad usage; a clock the graph does not take is refused with its reason
     for value in ("nan", "inf", "-inf", "1e300", "-5"):
@@ -83,6 +107,8 @@ def test_every_command_refuses_hostile_input_in_one_line(live):
     refused(ctl(ns, "assert", "face1", "male", "--domain", "planets"), 2,
             "the graph has no domain 'planets' (its domains: faces)")
     refused(ctl(ns, "say", "a" * 120_000), 2, "dialogue/human: the message is 120", "at most 65536")
+    refused(ctl(ns, "say", *(f"w{i:04d}" + "x" * 35 for i in range(1000))), 2,  # fits; its reading does not
+            "say: dialogue/human: its reading on dialogue/semantics (the text and its 1000 unknown words) would be ")
     refused(ctl(ns, "describe", "x" * 1000), 2, "reg/request: field 'target': a name of 1000 characters")
     refused(ctl(ns, "assert", "face1", *[f"p{i}" for i in range(1500)]), 2, "ltm/assert")
     refused(ctl(ns, "say", "--description", "male", "--domain", "planets"), 2, "no domain 'planets'")
@@ -91,7 +117,7 @@ def test_every_command_refuses_hostile_input_in_one_line(live):
     refused(ctl(f"{ns}_none", "--timeout", "1", "say", "hi"), 3, "no fsreg graph answers")
 
 
-def test_a_request_after_clock_is_stamped_at_or_after_it(live):
+def test_a_request_after_clock_is_stamped_at_or_after_it(live, ctl):
     """Issue 28.8: ``say`` right after ``clock 30`` was stamped 25.0; each is interleaved here with a clock step."""
     ns, graph = live
     for t in (12.0, 30.0, 30.5, 47.25):
@@ -123,7 +149,7 @@ def test_watch_and_a_waiting_command_notice_the_graph_leaving(live):
     assert err.startswith(f"fsreg-ctl: error: graph '{graph.identity}' in namespace /{ns} ") and " left: " in err
 
 
-def test_fsreg_up_takes_a_params_file_checked_before_anything_starts(table1_path, tmp_path):
+def test_fsreg_up_takes_a_params_file_checked_before_anything_starts(table1_path, tmp_path, ctl):
     bad = tmp_path / "bad.yaml"
     for text, said in (("/**:\n  ros__parameters:\n    capacity: 0\n", "capacity must be >= 1, got 0"),
                        ("/**/reg:\n  ros__parameters:\n    algoritm: greedy\n", "no parameter 'algoritm'"),

@@ -44,7 +44,7 @@ def _load(tmp_path: Path, table1_path: Path, data: dict, *argv: str):
     path = tmp_path / "params.yaml"
     path.write_text(yaml.safe_dump(data))
     specs, options = _setup(table1_path, *argv)
-    return path, params_from_file(path, specs, NS, options)
+    return path, params_from_file(path, specs, NS, options, fresh="--fresh" in argv)
 
 
 def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, table1_path):
@@ -62,6 +62,10 @@ def test_a_dump_of_the_graph_is_taken_with_the_keys_fsreg_up_owns(tmp_path, tabl
     ("consultant_faces", "state_dir", "/var/fsreg", "consultant_faces: state_dir: set by fsreg-up from "
                                                     "--state-dir to '', the file says '/var/fsreg'"),
     ("consultant_faces", "kb", "/elsewhere.yaml", "consultant_faces: kb: set by fsreg-up from the scenario to "),
+    # a dump of a --fresh graph fed back without --fresh: not a second move of the state aside
+    ("consultant_faces", "reset_state", True, "consultant_faces: reset_state: set by fsreg-up from --fresh (a "
+                                              "one-shot action of the first start: it moves the state database "
+                                              "aside) to False, the file says True"),
 ])
 def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_path, table1_path, node, key,
                                                                            value, said):
@@ -72,6 +76,17 @@ def test_a_key_fsreg_up_owns_that_differs_is_one_line_saying_which_and_why(tmp_p
     message = str(caught.value)
     assert message.startswith(f"{tmp_path / 'params.yaml'}: node {NS}/{said}") and "\n" not in message
     assert message.endswith("; drop it from the file or change that")
+
+
+def test_reset_state_of_a_dump_is_taken_when_fsreg_up_sets_the_same(tmp_path, table1_path):
+    """``reset_state`` is --fresh's one-shot action: a --fresh graph's dump is taken with --fresh (refused without)."""
+    data = _dump(table1_path)
+    data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = True  # a dump of a --fresh graph
+    _, (given, _) = _load(tmp_path, table1_path, data, "--fresh")  # started the same way: taken as it is
+    assert "reset_state" not in given.get("consultant_faces", {})
+    data[f"{NS}/consultant_faces"]["ros__parameters"]["reset_state"] = False  # a dump of a graph started without
+    _, (given, _) = _load(tmp_path, table1_path, data)
+    assert "reset_state" not in given.get("consultant_faces", {})
 
 
 def test_wall_time_dump_needs_wall_time(tmp_path, table1_path):

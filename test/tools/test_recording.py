@@ -312,3 +312,66 @@ def test_a_recorder_killed_mid_write_leaves_a_recording_that_opens(tmp_path, cap
     assert recording.messages and not (out / "metadata.yaml").exists()
     assert plot_main([str(out), "-o", str(tmp_path / "killed.png")]) == 0
     assert "fsreg-plot: note: " in capsys.readouterr().err
+
+
+@pytest.mark.graph
+def test_a_recorder_waits_until_it_matched_the_writers_it_is_told_of(tmp_path):
+    from std_msgs.msg import String
+
+    from fsreg_ros import contract
+    from fsreg_ros.ros.carrier import qos_profile
+    from fsreg_ros.ros.recorder import Recorder
+    from fsreg_ros.testing.ros_session import RosSession
+
+    with RosSession("/told") as session:
+        recorder = Recorder(session.probe, tmp_path / "bag")
+        try:
+            writers = {contract.WM_STATE.name: 1}
+            assert recorder.wait_matched(0.2, writers) == (
+                "not yet matched on /told/wm/state after 0.2 s; their first messages may be missing from the recording")
+            session.probe.create_publisher(String, "/told/wm/state", qos_profile(contract.STATE_PUB_QOS))
+            assert recorder.wait_matched(10.0, writers, between=lambda: session.executor.spin_once(0.05)) is None
+            assert recorder.matched()["/told/wm/state"] == 1
+        finally:
+            recorder.close()
+
+
+def test_fsreg_graph_starts_its_player_once_the_recording_matched_the_graph(tmp_path, monkeypatch):
+    """The race of ``fsreg-graph --record``: a latched ``wm/state`` matched after turn 1 lost the first state."""
+    from fsreg_ros.tools import graph as graph_tool
+    from fsreg_ros.core.simulation.simulator import Options
+
+    spawned: list[str] = []
+    waits: list[tuple[list[str], dict]] = []
+
+    class Recorder:
+        def wait_matched(self, timeout=15.0, writers=None, between=None):
+            waits.append((list(spawned), dict(writers or {})))
+            return None
+
+    class Thread:
+        recorder = Recorder()
+
+        def close(self):
+            return tmp_path / "bag"
+
+    class Done:
+        returncode = 0
+
+        def poll(self):
+            return 0
+
+    def spawn(self, spec, log_name):
+        spawned.append(spec.name)
+        if spec.name == "dialogue_player":
+            Path(spec.parameters["output"]).write_text("{}")
+        return Done()
+
+    monkeypatch.setattr(graph_tool, "start_recorder", lambda *args: Thread())
+    monkeypatch.setattr(graph_tool, "check_recording", lambda *args: None)
+    monkeypatch.setattr(graph_tool.Graph, "_spawn", spawn)
+    monkeypatch.setattr(graph_tool.Graph, "stop", lambda self: None)
+    graph_tool.run_graph(SCENARIO, Options(), namespace="/order", record=tmp_path / "bag")
+    assert spawned[-1] == "dialogue_player" and spawned.count("dialogue_player") == 1
+    assert waits == [(spawned[:-1], {"dialogue/semantics": 1, "rr/result": 2, "reg/expression": 1, "wm/state": 1,
+                                     "wm/events": 1, "consultant/announce": 1, "wm_manager/ready": 1})]
