@@ -12,8 +12,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from fsreg_ros.core.io.recording import STRING, TOPICS_KEY, BagWriter, Channel, encode_string, open_recording
-from fsreg_ros.core.simulation.replay import session_of
+from fsreg_ros.core.simulation.replay import ReplayError, session_of
+from fsreg_ros.tools.sim import sim_main
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "scenarios" / "guess_who_table1.yaml"
@@ -54,3 +57,21 @@ def test_requests_missing_from_a_recording_are_rebuilt_from_what_the_graph_forwa
     assert session.notes == [f"{path}: 3 request(s) not in the recording were rebuilt from what the graph's nodes "
                              "forwarded (dialogue/semantics, rr/result, reg/expression, ltm/assert/result): their "
                              "sender left before the recorder heard them"]
+
+
+def test_a_recording_without_a_turn_is_refused_not_called_equal(tmp_path, capsys):
+    """A graph that failed before its first turn leaves a recording with facts at most: nothing was compared."""
+    path = tmp_path / "bag"
+    writer = BagWriter(path, [Channel(t, STRING) for t in ROLES], custom={TOPICS_KEY: json.dumps(ROLES)})
+    writer.attach("scenario", SCENARIO)
+    writer.write("/r/ltm/assert", 1, encode_string({"id": "a1", "domain": "faces", "entity": "face17",
+                                                    "properties": {"female": 1.0}}))
+    writer.write("/r/ltm/assert/result", 2, encode_string({"id": "a1", "ok": True, "domain": "faces",
+                                                           "entity": "face17", "updated": {"female": 1.0}}))
+    writer.close()
+    with pytest.raises(ReplayError) as caught:
+        session_of(open_recording(path))
+    assert str(caught.value) == (f"{path}: the recording holds no human utterance or REG request with its graph "
+                                 "(nothing to replay: did the graph fail before its first turn?)")
+    assert sim_main(["--replay", str(path)]) == 2
+    assert capsys.readouterr().err == f"fsreg-sim: error: {caught.value}\n"

@@ -21,7 +21,8 @@ canonical trace order, up to the turn's time: so several turns at one time are c
 after the last of them.
 
 A recording that cannot be replayed faithfully is refused with one line
-(:class:`ReplayError`): no knowledge base, WM not empty when the recording began, a memory
+(:class:`ReplayError`): no knowledge base, no human utterance or REG request (nothing
+would be compared), WM not empty when the recording began, a memory
 setting changed mid-session, a gap in a consultant's events, answers from two graphs.
 """
 
@@ -145,6 +146,9 @@ def session_of(recording: Recording, scenario_path: Optional[Path] = None,
             continue
         when = (answer or {}).get("time", data.get("time", clock))
         steps.append(Step(kind, data, answer, float(when if isinstance(when, (int, float)) else clock)))
+    if not any(step.kind != "assert" for step in steps):
+        raise ReplayError(f"{where}: the recording holds no human utterance or REG request with its graph "
+                          "(nothing to replay: did the graph fail before its first turn?)")
     events = [d for d in _data(recording.on("events")) if ours(d)]
     check_events(where, events)
     algorithm = recording.custom.get("fsreg.algorithm")
