@@ -184,6 +184,17 @@ def test_printed_report(capsys, corpus):
     assert out.startswith(f"reference games ({corpus.name}): 2 games, 3 describer re-references, 6 candidate words "
                           "(4 reused)")
     assert "note: 1 game without times: the rules and regressions on seconds" in out
+    # The intervals' line names the resamples used, not the default's 10,000.
+    assert "intervals: paired by game, 95 % percentile bootstrap CI over games (100 resamples, seed 0) of the ratio " \
+           "(summed difference / candidates)." in out.splitlines()
+    assert "10,000" not in out
+
+
+def test_json_intervals_name_the_resamples_used(capsys, corpus):
+    code, out, _ = run_cli(capsys, corpus, "--folds", "2", "--grid", "capacity=1,2", "--resamples", "250", "--json")
+    assert code == 0
+    assert json.loads(out)["intervals"] == "95 % percentile bootstrap CI over games of the ratio (summed difference / " \
+                                           "candidates) (250 resamples, seed 0)"
 
 
 # ------------------------------------------------------------------ bad files: one line, file, row, column
