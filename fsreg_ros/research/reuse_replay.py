@@ -18,6 +18,12 @@ trial's first message, before it is encoded), in every WM present.  The replay w
 candidate's *cell*: 0 if the word is not in the referent's WM queue, else 1 + its strength bin
 (:func:`strength_cells`: the entry's episode age and how many episodes it was used in, from
 ``WMBuffer.strength``), which the graded link fits a rate to; the in/out link reads only cell > 0.
+
+A game under a grid point that the core promises forgets nothing in it
+(:func:`fsreg_ros.core.forgetting.keeps.keeps_everything`, given the game's :class:`Span`:
+its last time, the most words held per referent and in all, the most trials per referent)
+leaves the WM of an unmanaged buffer, so its cells are the no-forgetting replay's, played once
+(:func:`cells_of`); the other games are played.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..core.forgetting.keeps import Span, keeps_everything
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..core.memory import WMBuffer
@@ -119,6 +126,24 @@ def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], 
                 memories[who].buffer.begin_episode(referent, time, turn)
 
 
+def spans(events: Events) -> list[Span]:
+    """Each game's :class:`Span`: what its stream does to a WM that forgets nothing (any player's holds less)."""
+    out = []
+    for stream in events.streams:
+        held: dict[str, set] = {}
+        episodes: dict[str, int] = {}
+        last = 0.0
+        for kind, time, referent, words, _, _, _ in stream:
+            last = max(last, time)
+            if kind == "say":
+                held.setdefault(referent, set()).update(words)
+            elif kind == "episode":
+                episodes[referent] = episodes.get(referent, 0) + 1
+        sizes = [len(words) for words in held.values()]
+        out.append(Span(last, sum(sizes), max(sizes, default=0), max(episodes.values(), default=0)))
+    return out
+
+
 _SHARED: dict = {}
 
 
@@ -127,9 +152,13 @@ def _replay_setting(index: int) -> np.ndarray:
     setting = settings[index]
     policy = None if setting is None else policy_of(setting)
     out = np.zeros(events.candidates, dtype=np.uint8)
+    kept, bounds = _SHARED["kept"], _SHARED["bounds"]
     for g, stream in enumerate(events.streams):
         if games is None or games[g]:
-            play(stream, policy, out)
+            if policy is not None and keeps_everything(policy, _SHARED["spans"][g]):
+                out[bounds[g]:bounds[g + 1]] = kept[bounds[g]:bounds[g + 1]]  # as if unmanaged (module docstring)
+            else:
+                play(stream, policy, out)
     return out
 
 
@@ -138,10 +167,17 @@ def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, 
     """Every candidate's cell under each setting (rows; None = no forgetting), replaying every game.
 
     ``players``: per-player WM instead of the group's; ``games``: replay only these (the other
-    games' candidates stay 0); ``jobs`` processes (results do not depend on it).
+    games' candidates stay 0); ``jobs`` processes (results do not depend on it).  A game the
+    setting forgets nothing in takes the no-forgetting replay's cells (module docstring).
     """
-    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay, games=games)
+    play = replay_players if players else replay
+    bounds = np.searchsorted(events.game, np.arange(len(events.streams) + 1))
+    _SHARED.update(events=events, settings=[None], play=play, games=games, spans=spans(events), bounds=bounds,
+                   kept=None)
     try:
+        if settings:
+            _SHARED["kept"] = _replay_setting(0)
+        _SHARED["settings"] = list(settings)
         if jobs <= 1 or len(settings) < 2:
             rows = [_replay_setting(i) for i in range(len(settings))]
         else:
@@ -160,4 +196,4 @@ def memberships(events: Events, settings: Sequence[Optional[dict]], jobs: int = 
 
 
 __all__ = ["DOMAIN", "AGE_EDGES", "EPISODE_BINS", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players",
-           "cells_of", "memberships"]
+           "spans", "cells_of", "memberships"]

@@ -1,0 +1,90 @@
+"""What a forgetting policy is sure to keep: the stretches of dialogue within which it forgets nothing.
+
+A replay that evaluates a policy over a grid of its settings (``fsreg-eval reference-games``)
+plays the same games through one WM buffer per grid point; a grid point under which the
+buffer cannot forget anything in a game leaves the buffer of an unmanaged one (same queues,
+stamps, episodes and strengths), so that game need not be played again under it.  Whether it
+can is a property of each rule, so it is stated here, beside the rules, never by a caller:
+:func:`keeps_everything` answers it for a :class:`Span`, what the stretch does to the buffer
+when nothing is forgotten, measured from the moment the policy was installed (clock 0).
+
+Per rule (a policy keeps everything when each of its rules does):
+
+* ``decay``: no tick falls due: ``decay_period`` is beyond the span's last time (a tick k is
+  due at ``k * decay_period``, docs/semantics.md section 7);
+* ``activation`` on the seconds clock: one encoding alone stays ``exp(-tau / d)`` seconds
+  (:func:`~fsreg_ros.core.memory.trace.lifetime`), and more encodings only raise an entry's
+  activation, so an entry outlives the span when that lifetime exceeds it; on another clock,
+  no promise;
+* ``displacement``, ``displacement-lfu``, ``displacement-random``: no queue ever holds more
+  than ``capacity``;
+* ``global-capacity``: the domain never holds more than ``global_capacity``;
+* ``shared-capacity``: the pool never holds more than ``shared_capacity`` (``entries`` then
+  counts every domain of the pool);
+* ``episodes``: no entity has more than ``episode_window`` episodes (an entry goes only when
+  episode n > k begins);
+* any other rule (``similarity``, and a rule this module does not know): no promise.
+
+Every bound is kept with a margin (:data:`MARGIN`) where a clock's arithmetic is in floating
+point, so a promise is never broken by a rounding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from ..memory.trace import lifetime
+from .policies import ForgettingPolicy
+
+#: Relative margin kept on the clock bounds (decay's tick test and activation's crossing are in floats).
+MARGIN = 1e-6
+
+
+@dataclass(frozen=True)
+class Span:
+    """What a stretch of dialogue does to one WM buffer if nothing is forgotten, from clock 0 on.
+
+    ``seconds``: the clock's last time; ``entries``: the most properties held at once in all
+    (for a shared pool: in all its domains); ``per_entity``: the most held at once by one
+    entity's queue; ``episodes``: the most reference episodes one entity has.
+    """
+
+    seconds: float
+    entries: int
+    per_entity: int
+    episodes: int
+
+
+def _beyond(bound: float, span: Span) -> bool:
+    return bound > span.seconds * (1 + MARGIN) + MARGIN
+
+
+def _activation(policy: ForgettingPolicy, span: Span) -> bool:
+    if dict(policy.parameters).get("activation_clock", "seconds") != "seconds":
+        return False  # another clock: no promise made here
+    d, tau = policy.value("activation_decay"), policy.value("activation_threshold")
+    return _beyond(lifetime(float(d), float(tau)), span)  # type: ignore[arg-type]
+
+
+#: Per rule: whether it forgets nothing within a span (the module docstring's list).
+KEEPS: dict[str, Callable[[ForgettingPolicy, Span], bool]] = {
+    "decay": lambda p, s: _beyond(float(p.value("decay_period")), s),  # type: ignore[arg-type]
+    "activation": _activation,
+    "displacement": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
+    "displacement-lfu": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
+    "displacement-random": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
+    "global-capacity": lambda p, s: s.entries <= p.value("global_capacity"),  # type: ignore[operator]
+    "shared-capacity": lambda p, s: s.entries <= p.value("shared_capacity"),  # type: ignore[operator]
+    "episodes": lambda p, s: s.episodes <= p.value("episode_window"),  # type: ignore[operator]
+}
+
+
+def keeps_everything(policy: ForgettingPolicy, span: Span) -> bool:
+    """Return True if ``policy`` is sure to forget nothing within ``span`` (False: it may; ``none`` keeps nothing)."""
+    if not policy.retains:
+        return False
+    return all(rule in KEEPS and KEEPS[rule](policy, span) for rule in policy.rules)
+
+
+__all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything"]
