@@ -12,10 +12,9 @@ Per rule (a policy keeps everything when each of its rules does):
 
 * ``decay``: no tick falls due: ``decay_period`` is beyond the span's last time (a tick k is
   due at ``k * decay_period``, docs/semantics.md section 7);
-* ``activation`` on the seconds clock: one encoding alone stays ``exp(-tau / d)`` seconds
+* ``activation`` (on the seconds clock): one encoding alone stays ``exp(-tau / d)`` seconds
   (:func:`~fsreg_ros.core.memory.trace.lifetime`), and more encodings only raise an entry's
-  activation, so an entry outlives the span when that lifetime exceeds it; on another clock,
-  no promise;
+  activation, so an entry outlives the span when that lifetime exceeds it;
 * ``displacement``, ``displacement-lfu``, ``displacement-random``: no queue ever holds more
   than ``capacity``;
 * ``global-capacity``: the domain never holds more than ``global_capacity``;
@@ -23,7 +22,8 @@ Per rule (a policy keeps everything when each of its rules does):
   counts every domain of the pool);
 * ``episodes``: no entity has more than ``episode_window`` episodes (an entry goes only when
   episode n > k begins);
-* any other rule (``similarity``, and a rule this module does not know): no promise.
+* any other rule (``similarity``, and a rule this module does not know), and a rule that reads
+  more parameters than its promise here was written for (a new clock, say): no promise.
 
 Every bound is kept with a margin (:data:`MARGIN`) where a clock's arithmetic is in floating
 point, so a promise is never broken by a rounding.
@@ -34,8 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
+from ..memory.limits import Limits
 from ..memory.trace import lifetime
-from .policies import ForgettingPolicy
+from .policies import RULE_PARAMETERS, ForgettingPolicy
 
 #: Relative margin kept on the clock bounds (decay's tick test and activation's crossing are in floats).
 MARGIN = 1e-6
@@ -60,31 +61,43 @@ def _beyond(bound: float, span: Span) -> bool:
     return bound > span.seconds * (1 + MARGIN) + MARGIN
 
 
-def _activation(policy: ForgettingPolicy, span: Span) -> bool:
-    if dict(policy.parameters).get("activation_clock", "seconds") != "seconds":
-        return False  # another clock: no promise made here
-    d, tau = policy.value("activation_decay"), policy.value("activation_threshold")
-    return _beyond(lifetime(float(d), float(tau)), span)  # type: ignore[arg-type]
+def _value(policy: ForgettingPolicy, rule: str) -> float:
+    """Return the one parameter ``rule`` reads (decay's period, the shared pool's capacity: not in :class:`Limits`)."""
+    return float(policy.value(RULE_PARAMETERS[rule][0]))  # type: ignore[arg-type]
 
 
-#: Per rule: whether it forgets nothing within a span (the module docstring's list).
-KEEPS: dict[str, Callable[[ForgettingPolicy, Span], bool]] = {
-    "decay": lambda p, s: _beyond(float(p.value("decay_period")), s),  # type: ignore[arg-type]
-    "activation": _activation,
-    "displacement": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
-    "displacement-lfu": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
-    "displacement-random": lambda p, s: s.per_entity <= p.value("capacity"),  # type: ignore[operator]
-    "global-capacity": lambda p, s: s.entries <= p.value("global_capacity"),  # type: ignore[operator]
-    "shared-capacity": lambda p, s: s.entries <= p.value("shared_capacity"),  # type: ignore[operator]
-    "episodes": lambda p, s: s.episodes <= p.value("episode_window"),  # type: ignore[operator]
+def _activation(limits: Limits, span: Span) -> bool:
+    d, tau = limits.activation  # type: ignore[misc]
+    return _beyond(lifetime(d, tau), span)
+
+
+#: Per rule: the parameters its promise was written for (a rule that reads others makes none, say a new
+#: clock) and whether it forgets nothing within a span (the module docstring's list).
+KEEPS: dict[str, tuple[int, Callable[[ForgettingPolicy, Limits, Span], bool]]] = {
+    "decay": (1, lambda p, limits, s: _beyond(_value(p, "decay"), s)),
+    "activation": (2, lambda p, limits, s: _activation(limits, s)),
+    "displacement": (1, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
+    "displacement-lfu": (1, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
+    "displacement-random": (2, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
+    "global-capacity": (1, lambda p, limits, s: s.entries <= limits.global_capacity),  # type: ignore[operator]
+    "shared-capacity": (1, lambda p, limits, s: s.entries <= _value(p, "shared-capacity")),
+    "episodes": (1, lambda p, limits, s: s.episodes <= limits.episode_window),  # type: ignore[operator]
 }
+
+
+def _keeps(rule: str, policy: ForgettingPolicy, limits: Limits, span: Span) -> bool:
+    if rule not in KEEPS:
+        return False
+    arity, keeps = KEEPS[rule]
+    return len(RULE_PARAMETERS[rule]) == arity and keeps(policy, limits, span)
 
 
 def keeps_everything(policy: ForgettingPolicy, span: Span) -> bool:
     """Return True if ``policy`` is sure to forget nothing within ``span`` (False: it may; ``none`` keeps nothing)."""
     if not policy.retains:
         return False
-    return all(rule in KEEPS and KEEPS[rule](policy, span) for rule in policy.rules)
+    limits = policy.limits()
+    return all(_keeps(rule, policy, limits, span) for rule in policy.rules)
 
 
 __all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything"]
