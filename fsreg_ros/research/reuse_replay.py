@@ -21,7 +21,8 @@ candidate's *cell*: 0 if the word is not in the referent's WM queue, else 1 + it
 
 A game under a grid point that the core promises forgets nothing in it
 (:func:`fsreg_ros.core.forgetting.keeps.keeps_everything`, given the game's :class:`Span`:
-its last time, the most words held per referent and in all, the most trials per referent)
+its last time, the most words held per referent and in all, the most trials and words said
+per referent)
 leaves the WM of an unmanaged buffer, so its cells are the no-forgetting replay's, played once
 (:func:`cells_of`); the other games are played.
 """
@@ -33,7 +34,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..core.forgetting.keeps import Span, keeps_everything
+from ..core.forgetting.keeps import Span, kept_spans
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..core.memory import WMBuffer
@@ -132,15 +133,18 @@ def spans(events: Events) -> list[Span]:
     for stream in events.streams:
         held: dict[str, set] = {}
         episodes: dict[str, int] = {}
+        said: dict[str, int] = {}
         last = 0.0
         for kind, time, referent, words, _, _, _ in stream:
             last = max(last, time)
             if kind == "say":
                 held.setdefault(referent, set()).update(words)
+                said[referent] = said.get(referent, 0) + len(words)
             elif kind == "episode":
                 episodes[referent] = episodes.get(referent, 0) + 1
         sizes = [len(words) for words in held.values()]
-        out.append(Span(last, sum(sizes), max(sizes, default=0), max(episodes.values(), default=0)))
+        out.append(Span(last, sum(sizes), max(sizes, default=0), max(episodes.values(), default=0),
+                        max(said.values(), default=0)))
     return out
 
 
@@ -153,9 +157,10 @@ def _replay_setting(index: int) -> np.ndarray:
     policy = None if setting is None else policy_of(setting)
     out = np.zeros(events.candidates, dtype=np.uint8)
     kept, bounds = _SHARED["kept"], _SHARED["bounds"]
+    keeps = kept_spans(policy, _SHARED["spans"]) if policy is not None else [False] * len(events.streams)
     for g, stream in enumerate(events.streams):
         if games is None or games[g]:
-            if policy is not None and keeps_everything(policy, _SHARED["spans"][g]):
+            if keeps[g]:
                 out[bounds[g]:bounds[g + 1]] = kept[bounds[g]:bounds[g + 1]]  # as if unmanaged (module docstring)
             else:
                 play(stream, policy, out)

@@ -80,14 +80,15 @@ def test_the_shortcut_is_taken_for_some_grid_points_and_games_and_not_for_others
 
 def test_a_games_span_is_what_an_unmanaged_wm_holds(events):
     stream = events.streams[0]
-    said = {}
+    said, words_said = {}, {}
     for kind, _, referent, words, _, _, _ in stream:
         if kind == "say":
             said.setdefault(referent, set()).update(words)
+            words_said[referent] = words_said.get(referent, 0) + len(words)
     span = spans(events)[0]
     assert span.seconds == max(step[1] for step in stream)
-    assert (span.entries, span.per_entity, span.episodes) == (sum(map(len, said.values())),
-                                                              max(map(len, said.values())), 6)
+    assert (span.entries, span.per_entity, span.episodes, span.words) == \
+        (sum(map(len, said.values())), max(map(len, said.values())), 6, max(words_said.values()))
 
 
 @pytest.mark.parametrize("policy, kept, not_kept", [

@@ -32,7 +32,7 @@ point, so a promise is never broken by a rounding.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 from ..memory.limits import Limits
 from ..memory.trace import lifetime
@@ -48,13 +48,15 @@ class Span:
 
     ``seconds``: the clock's last time; ``entries``: the most properties held at once in all
     (for a shared pool: in all its domains); ``per_entity``: the most held at once by one
-    entity's queue; ``episodes``: the most reference episodes one entity has.
+    entity's queue; ``episodes``: the most reference episodes one entity has; ``words``: the
+    most encoding events into one entity's queue (refreshes included; a clock of words counts them).
     """
 
     seconds: float
     entries: int
     per_entity: int
     episodes: int
+    words: int = 0
 
 
 def _beyond(bound: float, span: Span) -> bool:
@@ -94,10 +96,15 @@ def _keeps(rule: str, policy: ForgettingPolicy, limits: Limits, span: Span) -> b
 
 def keeps_everything(policy: ForgettingPolicy, span: Span) -> bool:
     """Return True if ``policy`` is sure to forget nothing within ``span`` (False: it may; ``none`` keeps nothing)."""
+    return kept_spans(policy, (span,))[0]
+
+
+def kept_spans(policy: ForgettingPolicy, spans: Sequence[Span]) -> list[bool]:
+    """Return :func:`keeps_everything` of ``policy`` for each span (its limits built once)."""
     if not policy.retains:
-        return False
+        return [False] * len(spans)
     limits = policy.limits()
-    return all(_keeps(rule, policy, limits, span) for rule in policy.rules)
+    return [all(_keeps(rule, policy, limits, span) for rule in policy.rules) for span in spans]
 
 
-__all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything"]
+__all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything", "kept_spans"]
