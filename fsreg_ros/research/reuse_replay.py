@@ -52,7 +52,8 @@ EPISODE_BINS = 2
 CELL_NAMES = ("out",) + tuple(f"age {age}, {used}" for age in ("<=1", "2", "3", "4-5", ">5")
                               for used in ("1 episode", "2+ episodes"))
 CELLS = len(CELL_NAMES)
-_AGE_BIN = np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left")
+#: An entry's cell by its episode age (ages over 63 as 63), for one episode used in (add 1 for more).
+_AGE_CELL = tuple(1 + EPISODE_BINS * int(b) for b in np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left"))
 
 
 def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
@@ -66,9 +67,10 @@ def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Opt
     entries = buffer.entry_stamps(referent)
     if not entries:
         return None
-    cell = {e.property: 1 + EPISODE_BINS * int(_AGE_BIN[min(age, 63)]) + (used > 1)
+    cell = {e.property: _AGE_CELL[age if age < 63 else 63] + (used > 1)
             for e, (age, used) in zip(entries, buffer.episodes.strength(referent, entries))}
-    return [cell.get(w, 0) for w in words]
+    get = cell.get
+    return [get(w, 0) for w in words]
 
 
 class _Memory:
