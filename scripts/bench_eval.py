@@ -12,10 +12,12 @@ The split -- the imports, reading and tokenising the games, the events, the WM r
 model's grid (every grid point through the core's ``WMBuffer``,
 :func:`fsreg_ros.research.reuse_replay.cells_of`) -- is measured in-process in another fresh
 process (CPU time of each step); the rest of the command's CPU time is the per-player replays,
-the fits, the bootstrapped differences and the JSON.  ``--more-grids N`` adds to the figure what N more grids of rule
-``activation``'s size would cost (its replay time per grid point x its grid's size x N), for
-models still to come; ``--profile`` runs the command once under cProfile and prints the top
-functions.  No timing is asserted anywhere.
+the fits, the bootstrapped differences and the JSON.  ``--more-grids N`` adds to the figure
+what N more grids of rule ``activation``'s size would cost (its replay time per grid point x
+its grid's size x N), an estimate for models still to come (a grid point's cost depends on
+how many games it may forget something in, so run the models themselves once they exist);
+``--profile`` runs the command once under cProfile and prints the top functions.  No timing
+is asserted anywhere.
 
 Usage: ``scripts/bench_eval.py DIR [--resamples 1000] [--repeat N] [--more-grids N] [--profile]
 [--json FILE]`` (DIR: the directory holding tangramsSequential.csv, or the file; default
@@ -129,7 +131,7 @@ def main(argv=None) -> int:
         print(f"split (CPU s, in-process): imports {parts['imports']:.2f}, read {parts['read']:.2f}, "
               f"events {parts['events']:.2f}, group WM replays {total:.2f} "
               f"({sum(n for n, _ in replays.values())} grid points); the rest (player replays, fits, "
-              f"differences, JSON) {rest:.2f}")
+              f"differences, JSON; by difference with the command's, so noisy under load) {rest:.2f}")
         for name, (points, seconds) in replays.items():
             print(f"  {name:22} {points:4} grid points {seconds:6.2f} s ({1000 * seconds / points:5.1f} ms a point)")
         if args.more_grids:
