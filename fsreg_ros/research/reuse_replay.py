@@ -24,7 +24,10 @@ A game under a grid point that the core promises forgets nothing in it
 its last time, the most words held per referent and in all, the most trials and words said
 per referent)
 leaves the WM of an unmanaged buffer, so its cells are the no-forgetting replay's, played once
-(:func:`cells_of`); the other games are played.
+(:func:`cells_of`); a grid point of two rules one of which keeps everything in a game forgets
+what the other rule alone does (:func:`~fsreg_ros.core.forgetting.keeps.within`), so the game
+takes that rule's cells when its grid point was played already (in this process); the other
+games are played.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ..core.forgetting.keeps import Span, kept_spans
+from ..core.forgetting.keeps import Span, within
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..core.memory import WMBuffer
@@ -158,15 +161,24 @@ def _replay_setting(index: int) -> np.ndarray:
     setting = settings[index]
     policy = None if setting is None else policy_of(setting)
     out = np.zeros(events.candidates, dtype=np.uint8)
-    kept, bounds = _SHARED["kept"], _SHARED["bounds"]
-    keeps = kept_spans(policy, _SHARED["spans"]) if policy is not None else [False] * len(events.streams)
+    kept, bounds, done = _SHARED["kept"], _SHARED["bounds"], _SHARED["done"]
+    rests = within(policy, _SHARED["spans"]) if policy is not None else [policy] * len(events.streams)
     for g, stream in enumerate(events.streams):
         if games is None or games[g]:
-            if keeps[g]:
-                out[bounds[g]:bounds[g + 1]] = kept[bounds[g]:bounds[g + 1]]  # as if unmanaged (module docstring)
+            rest, span = rests[g], slice(bounds[g], bounds[g + 1])
+            if policy is not None and rest is None:
+                out[span] = kept[span]  # as if unmanaged (module docstring)
+            elif rest is not policy and _key(rest) in done:
+                out[span] = done[_key(rest)][span]  # the policy of its other rules, played already
             else:
                 play(stream, policy, out)
+    if policy is not None:
+        done[_key(policy)] = out
     return out
+
+
+def _key(policy: ForgettingPolicy) -> tuple:
+    return tuple(sorted(policy.settings().items()))
 
 
 def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False,
@@ -180,7 +192,7 @@ def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, 
     play = replay_players if players else replay
     bounds = np.searchsorted(events.game, np.arange(len(events.streams) + 1))
     _SHARED.update(events=events, settings=[None], play=play, games=games, spans=spans(events), bounds=bounds,
-                   kept=None)
+                   kept=None, done={})
     try:
         if settings:
             _SHARED["kept"] = _replay_setting(0)

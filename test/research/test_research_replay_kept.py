@@ -13,7 +13,7 @@ import random
 import numpy as np
 import pytest
 
-from fsreg_ros.core.forgetting.keeps import Span, keeps_everything
+from fsreg_ros.core.forgetting.keeps import Span, keeps_everything, within
 from fsreg_ros.core.forgetting.policies import ForgettingPolicy
 from fsreg_ros.research.reference_games import Row, games_from_rows
 from fsreg_ros.research.reuse_events import build_events
@@ -114,3 +114,13 @@ def test_no_promise_from_none_similarity_or_a_rule_that_forgets_in_the_span():
     assert not keeps_everything(ForgettingPolicy(("similarity",)), span)
     both = ForgettingPolicy(("decay", "displacement"), decay_period=100.0, capacity=1)
     assert keeps_everything(both, span) and not keeps_everything(both, Span(1.0, 2, 2, 1))
+
+
+def test_a_combination_whose_rule_keeps_everything_forgets_what_its_other_rule_does(events):
+    game_spans = spans(events)
+    both = ForgettingPolicy(("decay", "displacement"), decay_period=5.0, capacity=30)
+    assert {rest.settings() == {"policy": "decay", "decay_period": 5.0} for rest in within(both, game_spans)} == {True}
+    neither = ForgettingPolicy(("decay", "displacement"), decay_period=1e6, capacity=30)
+    assert within(neither, game_spans) == [None] * len(game_spans)
+    assert within(ForgettingPolicy(("decay", "displacement"), decay_period=5.0, capacity=1), game_spans) == \
+        [ForgettingPolicy(("decay", "displacement"), decay_period=5.0, capacity=1)] * len(game_spans)

@@ -32,7 +32,7 @@ point, so a promise is never broken by a rounding.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Optional, Sequence
 
 from ..memory.limits import Limits
 from ..memory.trace import lifetime
@@ -101,10 +101,31 @@ def keeps_everything(policy: ForgettingPolicy, span: Span) -> bool:
 
 def kept_spans(policy: ForgettingPolicy, spans: Sequence[Span]) -> list[bool]:
     """Return :func:`keeps_everything` of ``policy`` for each span (its limits built once)."""
+    return [rest is None for rest in within(policy, spans)]
+
+
+def within(policy: ForgettingPolicy, spans: Sequence[Span]) -> list[Optional[ForgettingPolicy]]:
+    """Return, per span, the policy that forgets what ``policy`` does within it: None if it forgets nothing.
+
+    Rules act on one buffer only by forgetting, so a rule that keeps everything within a span
+    leaves the others' WM as if it were not there: the policy of the other rules alone (their
+    own parameters) then forgets the same (``decay+displacement`` with a capacity no queue
+    reaches is ``decay``); otherwise the policy itself.  ``none`` is itself (it keeps nothing).
+    """
     if not policy.retains:
-        return [False] * len(spans)
+        return [policy] * len(spans)
     limits = policy.limits()
-    return [all(_keeps(rule, policy, limits, span) for rule in policy.rules) for span in spans]
+    out: list[Optional[ForgettingPolicy]] = []
+    for span in spans:
+        rest = tuple(rule for rule in policy.rules if not _keeps(rule, policy, limits, span))
+        if not rest:
+            out.append(None)
+        elif len(rest) == len(policy.rules):
+            out.append(policy)
+        else:
+            read = {param for rule in rest for param in RULE_PARAMETERS[rule]}
+            out.append(ForgettingPolicy(rest, **{k: v for k, v in policy.parameters if k in read}))
+    return out
 
 
-__all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything", "kept_spans"]
+__all__ = ["MARGIN", "Span", "KEEPS", "keeps_everything", "kept_spans", "within"]
