@@ -8,16 +8,16 @@ wall time, and its CPU time (user + system, from the kernel's accounting of the 
 suffers less from other load on the shared machine; the load average before each run is printed.
 The target is judged on the CPU time.
 
-The split -- the imports, reading and tokenising the games, the events, the WM replays of each
-model's grid (every grid point through the core's ``WMBuffer``,
-:func:`fsreg_ros.research.reuse_replay.cells_of`) -- is measured in-process in another fresh
-process (CPU time of each step); the rest of the command's CPU time is the per-player replays,
-the fits, the bootstrapped differences and the JSON.  ``--more-grids N`` adds to the figure
-what N more grids of rule ``activation``'s size would cost (its replay time per grid point x
-its grid's size x N), an estimate for models still to come (a grid point's cost depends on
-how many games it may forget something in, so run the models themselves once they exist);
-``--profile`` runs the command once under cProfile and prints the top functions.  No timing
-is asserted anywhere.
+The split -- the imports, reading and tokenising the games, the events, the group WM replays of
+every model's grid at once as the command plays them (every grid point through the core's
+``WMBuffer``, :func:`fsreg_ros.research.reuse_replay.cells_of`), then each model's grid alone --
+is measured in-process in another fresh process (CPU time of each step); the rest of the
+command's CPU time is the per-player replays, the fits, the bootstrapped differences and the
+JSON. ``--more-grids N`` adds to the figure what N more grids of rule ``activation``'s size
+would cost (its replay time per grid point x its grid's size x N), an estimate for models still
+to come (a grid point's cost depends on how many games it may forget something in, so run the
+models themselves once they exist); ``--profile`` runs the command once under cProfile and
+prints the top functions. No timing is asserted anywhere.
 
 Usage: ``scripts/bench_eval.py DIR [--resamples 1000] [--repeat N] [--more-grids N] [--profile]
 [--json FILE]`` (DIR: the directory holding tangramsSequential.csv, or the file; default
@@ -53,6 +53,8 @@ from fsreg_ros.research.reuse_replay import cells_of
 out = {"imports": clock() - t}
 t = clock(); games = tangrams.load_games(sys.argv[1]); out["read"] = clock() - t
 t = clock(); events = build_events(games); out["events"] = clock() - t
+settings = [None] + [s for model in wm_models() for s in model.settings]
+t = clock(); cells_of(events, settings); out["group_replays"] = clock() - t
 replays = {}
 for model in wm_models():
     t = clock(); cells_of(events, model.settings); replays[model.name] = [len(model.settings), clock() - t]
@@ -126,12 +128,13 @@ def main(argv=None) -> int:
         parts = split(args.corpus)
         report["split"] = parts
         replays = parts["replays"]
-        total = sum(s for _, s in replays.values())
+        total = parts["group_replays"]
         rest = cpu - parts["imports"] - parts["read"] - parts["events"] - total
         print(f"split (CPU s, in-process): imports {parts['imports']:.2f}, read {parts['read']:.2f}, "
               f"events {parts['events']:.2f}, group WM replays {total:.2f} "
               f"({sum(n for n, _ in replays.values())} grid points); the rest (player replays, fits, "
               f"differences, JSON; by difference with the command's, so noisy under load) {rest:.2f}")
+        print("each model's grid replayed alone (a combination then reuses none of its rules' grid points):")
         for name, (points, seconds) in replays.items():
             print(f"  {name:22} {points:4} grid points {seconds:6.2f} s ({1000 * seconds / points:5.1f} ms a point)")
         if args.more_grids:
