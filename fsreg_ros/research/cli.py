@@ -433,30 +433,20 @@ def read_trace(path: Path) -> list[dict]:
     Objects without ``op`` (``fsreg-ctl watch --events --json`` prints each ``wm/state`` too)
     are not events and are skipped; anything else must be an encode/forget event.
     """
-    from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+    from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, json_lines
 
     events = []
     try:
-        lines = open_text(path, MAX_CORPUS_BYTES)
-    except InputFileError as err:
-        raise UsageError(str(err)) from None
-    with lines:
-        for number, line in enumerate(lines, 1):
-            if not line.strip():
-                continue
-            try:
-                event = json.loads(line)
-            except json.JSONDecodeError as err:
-                raise UsageError(f"{path}:{number}: not JSON ({err.msg})") from None
-            except RecursionError:
-                raise UsageError(f"{path}:{number}: not a WM event (JSON nested too deeply)") from None
+        for number, event in json_lines(path, MAX_CORPUS_BYTES):
             if isinstance(event, dict) and "op" not in event:
                 continue  # a WM state (or another record of a watch): not an event
             if not isinstance(event, dict) or event.get("op") not in ("encode", "forget"):
-                raise UsageError(f"{path}:{number}: not a WM event (an object with op encode|forget)")
+                raise UsageError(f"{path}: line {number}: not a WM event (an object with op encode|forget)")
             if not isinstance(event.get("time", 0), (int, float)) or isinstance(event.get("time"), bool):
-                raise UsageError(f"{path}:{number}: 'time' must be a number")
+                raise UsageError(f"{path}: line {number}: 'time' must be a number")
             events.append(event)
+    except InputFileError as err:
+        raise UsageError(str(err)) from None
     return events
 
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Optional, Sequence, TextIO, Union
 
-from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, open_text
+from ..core.io.input_file import MAX_CORPUS_BYTES, InputFileError, json_lines, open_text
 
 COLUMNS = ("game", "trial", "referent", "player", "role", "time", "text", "repetition")
 REQUIRED = ("game", "trial", "referent", "player", "role", "text")
@@ -169,23 +169,33 @@ def load_games(path: Union[str, Path], tokeniser: Union[str, Tokeniser] = "conte
 def read_rows(path: Union[str, Path]) -> list[Row]:
     """Read and check every row of a reference-game file, each cell by itself (see :func:`games_from_rows`)."""
     source = Path(path)
-    with corpus_text(source) as handle:
-        records = _json_records(handle, source) if source.suffix.lower() in JSON_SUFFIXES else \
-            _csv_records(handle, source)
-        rows = [_row(record, line, source) for line, record in records]
+    if source.suffix.lower() in JSON_SUFFIXES:
+        with corpus_errors(source):
+            rows = [_row(_message(record, line, source), line, source)
+                    for line, record in json_lines(source, MAX_CORPUS_BYTES)]
+    else:
+        with corpus_text(source) as handle:
+            rows = [_row(record, line, source) for line, record in _csv_records(handle, source)]
     if not rows:
         raise ReferenceGamesError(f"{source}: no messages")
     return rows
 
 
 @contextmanager
+def corpus_errors(source: Path, error: type = ReferenceGamesError) -> Iterator[None]:
+    """Turn a fault of reading a corpus file (:mod:`fsreg_ros.core.io.input_file`) into one ``error``."""
+    try:
+        yield
+    except InputFileError as err:
+        raise error(str(err)) from None
+
+
+@contextmanager
 def corpus_text(source: Path, error: type = ReferenceGamesError) -> Iterator[TextIO]:
     """Open a corpus file as text (:mod:`fsreg_ros.core.io.input_file`); any reading fault is one ``error``."""
     try:
-        with open_text(source, MAX_CORPUS_BYTES) as handle:
+        with corpus_errors(source, error), open_text(source, MAX_CORPUS_BYTES) as handle:
             yield handle
-    except InputFileError as err:
-        raise error(str(err)) from None
     except UnicodeDecodeError as err:
         raise error(f"{source}: not UTF-8 text ({err.reason})") from None
     except csv.Error as err:
@@ -203,20 +213,12 @@ def _csv_records(handle, source: Path) -> Iterator[tuple[int, Mapping]]:
         yield reader.line_num, record
 
 
-def _json_records(handle, source: Path) -> Iterator[tuple[int, Mapping]]:
-    for line, text in enumerate(handle, 1):
-        if not text.strip():
-            continue
-        try:
-            record = json.loads(text)
-        except json.JSONDecodeError as err:
-            raise ReferenceGamesError(f"{source}: row {line}: not JSON ({err.msg})") from None
-        except RecursionError:
-            raise ReferenceGamesError(f"{source}: row {line}: not a message (JSON nested too deeply)") from None
-        if not isinstance(record, dict):
-            raise ReferenceGamesError(f"{source}: row {line}: not a message (a JSON object with the keys "
-                                      f"{', '.join(REQUIRED)})")
-        yield line, record
+def _message(record: object, line: int, source: Path) -> Mapping:
+    """Return a JSON Lines record if it is a message (an object), else refuse it naming its row."""
+    if not isinstance(record, dict):
+        raise ReferenceGamesError(f"{source}: row {line}: not a message (a JSON object with the keys "
+                                  f"{', '.join(REQUIRED)})")
+    return record
 
 
 def _row(record: Mapping, line: int, source: Path) -> Row:

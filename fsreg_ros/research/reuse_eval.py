@@ -25,7 +25,7 @@ from .reuse_events import Events, build_events
 from .reuse_fit import Fit, fit_cells, fit_membership, fit_recency, folds_of
 from .reuse_models import FOLDS, GRADED, PAIRS, PLAYER, RECENCY, family, needs_clock, wm_models
 from .reuse_replay import CELL_NAMES, CELLS, cells_of
-from .stats import METHOD, RESAMPLES, ratio_bootstrap_ci
+from .stats import RESAMPLES, method, ratio_bootstrap_ci
 
 #: What the printed report calls the corpus and its describers, by default.
 TITLE, DESCRIBER = "reference games", "describer"
@@ -44,6 +44,7 @@ class Evaluation:
     notes: list = field(default_factory=list)
     title: str = TITLE
     describer: str = DESCRIBER
+    resamples: int = RESAMPLES  # of every interval's bootstrap
 
     @property
     def games(self) -> int:
@@ -77,7 +78,8 @@ class Evaluation:
             "models": models, "best": self.best, "best_rule": self.best_of("rule"),
             "best_regression": self.best_of("regression"), "differences": self.differences,
             "strength_cells": list(CELL_NAMES), "notes": self.notes,
-            "intervals": METHOD.replace("CI over games", "CI over games of the ratio (summed difference / candidates)"),
+            "intervals": method(self.resamples).replace("CI over games",
+                                                        "CI over games of the ratio (summed difference / candidates)"),
         }
 
 
@@ -136,7 +138,7 @@ def evaluate_games(games: Sequence[Game], tokeniser: str = "content", folds: int
     fits["constant"] = fit_membership("constant", "baseline", np.zeros(events.candidates, bool), events, fold)
     for name in RECENCY:
         fits[name] = fit_recency(name, events, fold)
-    result = Evaluation(tokenisation(tokeniser).name, folds, events, fits, [], "", notes, title, describer)
+    result = Evaluation(tokenisation(tokeniser).name, folds, events, fits, [], "", notes, title, describer, resamples)
     result.best = max(fits, key=result.heldout)
     result.differences = differences(result, resamples)
     return result
@@ -222,7 +224,7 @@ def report(result: Evaluation) -> list[str]:
               "(settings and link chosen on the training folds); WM models: p_in if the word is in the referent's WM "
               "queue, else p_out; /graded: one rate per cell (out of WM, or in it by episode age, <=1, 2, 3, 4-5, >5, "
               "x episodes used in, 1 or 2+); /player: each player's own WM.",
-              f"intervals: paired by game, {METHOD} of the ratio (summed difference / candidates).",
+              f"intervals: paired by game, {method(result.resamples)} of the ratio (summed difference / candidates).",
               "chosen value at a grid edge: " + (", ".join(f"{n} ({', '.join(result.fits[n].edge)})" for n in edges)
                                                  if edges else "none (every fitted value lies inside its grid)")]
     lines += [f"note: {note}" for note in result.notes]

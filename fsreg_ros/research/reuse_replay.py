@@ -18,6 +18,16 @@ trial's first message, before it is encoded), in every WM present.  The replay w
 candidate's *cell*: 0 if the word is not in the referent's WM queue, else 1 + its strength bin
 (:func:`strength_cells`: the entry's episode age and how many episodes it was used in, from
 ``WMBuffer.strength``), which the graded link fits a rate to; the in/out link reads only cell > 0.
+
+A game under a grid point that the core promises forgets nothing in it
+(:func:`fsreg_ros.core.forgetting.keeps.keeps_everything`, given the game's :class:`Span`:
+its last time, the most words held per referent and in all, the most trials and words said
+per referent)
+leaves the WM of an unmanaged buffer, so its cells are the no-forgetting replay's, played once
+(:func:`cells_of`); a grid point of two rules one of which keeps everything in a game forgets
+what the other rule alone does (:func:`~fsreg_ros.core.forgetting.keeps.within`), so the game
+takes that rule's cells when its grid point was played already (in this process); the other
+games are played.
 """
 
 from __future__ import annotations
@@ -27,6 +37,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..core.forgetting.keeps import Span, within
 from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..core.memory import WMBuffer
@@ -44,7 +55,8 @@ EPISODE_BINS = 2
 CELL_NAMES = ("out",) + tuple(f"age {age}, {used}" for age in ("<=1", "2", "3", "4-5", ">5")
                               for used in ("1 episode", "2+ episodes"))
 CELLS = len(CELL_NAMES)
-_AGE_BIN = np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left")
+#: An entry's cell by its episode age (ages over 63 as 63), for one episode used in (add 1 for more).
+_AGE_CELL = tuple(1 + EPISODE_BINS * int(b) for b in np.searchsorted(np.asarray(AGE_EDGES), np.arange(64), side="left"))
 
 
 def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Optional[list[int]]:
@@ -58,9 +70,10 @@ def strength_cells(buffer: WMBuffer, referent: str, words: Sequence[str]) -> Opt
     entries = buffer.entry_stamps(referent)
     if not entries:
         return None
-    cell = {e.property: 1 + EPISODE_BINS * int(_AGE_BIN[min(age, 63)]) + (used > 1)
+    cell = {e.property: _AGE_CELL[age if age < 63 else 63] + (used > 1)
             for e, (age, used) in zip(entries, buffer.episodes.strength(referent, entries))}
-    return [cell.get(w, 0) for w in words]
+    get = cell.get
+    return [get(w, 0) for w in words]
 
 
 class _Memory:
@@ -119,6 +132,27 @@ def replay_players(stream: Sequence[tuple], policy: Optional[ForgettingPolicy], 
                 memories[who].buffer.begin_episode(referent, time, turn)
 
 
+def spans(events: Events) -> list[Span]:
+    """Each game's :class:`Span`: what its stream does to a WM that forgets nothing (any player's holds less)."""
+    out = []
+    for stream in events.streams:
+        held: dict[str, set] = {}
+        episodes: dict[str, int] = {}
+        said: dict[str, int] = {}
+        last = 0.0
+        for kind, time, referent, words, _, _, _ in stream:
+            last = max(last, time)
+            if kind == "say":
+                held.setdefault(referent, set()).update(words)
+                said[referent] = said.get(referent, 0) + len(words)
+            elif kind == "episode":
+                episodes[referent] = episodes.get(referent, 0) + 1
+        sizes = [len(words) for words in held.values()]
+        out.append(Span(last, sum(sizes), max(sizes, default=0), max(episodes.values(), default=0),
+                        max(said.values(), default=0)))
+    return out
+
+
 _SHARED: dict = {}
 
 
@@ -127,10 +161,24 @@ def _replay_setting(index: int) -> np.ndarray:
     setting = settings[index]
     policy = None if setting is None else policy_of(setting)
     out = np.zeros(events.candidates, dtype=np.uint8)
+    kept, bounds, done = _SHARED["kept"], _SHARED["bounds"], _SHARED["done"]
+    rests = within(policy, _SHARED["spans"]) if policy is not None else [policy] * len(events.streams)
     for g, stream in enumerate(events.streams):
         if games is None or games[g]:
-            play(stream, policy, out)
+            rest, span = rests[g], slice(bounds[g], bounds[g + 1])
+            if policy is not None and rest is None:
+                out[span] = kept[span]  # as if unmanaged (module docstring)
+            elif rest is not policy and _key(rest) in done:
+                out[span] = done[_key(rest)][span]  # the policy of its other rules, played already
+            else:
+                play(stream, policy, out)
+    if policy is not None:
+        done[_key(policy)] = out
     return out
+
+
+def _key(policy: ForgettingPolicy) -> tuple:
+    return tuple(sorted(policy.settings().items()))
 
 
 def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, players: bool = False,
@@ -138,10 +186,17 @@ def cells_of(events: Events, settings: Sequence[Optional[dict]], jobs: int = 1, 
     """Every candidate's cell under each setting (rows; None = no forgetting), replaying every game.
 
     ``players``: per-player WM instead of the group's; ``games``: replay only these (the other
-    games' candidates stay 0); ``jobs`` processes (results do not depend on it).
+    games' candidates stay 0); ``jobs`` processes (results do not depend on it).  A game the
+    setting forgets nothing in takes the no-forgetting replay's cells (module docstring).
     """
-    _SHARED.update(events=events, settings=list(settings), play=replay_players if players else replay, games=games)
+    play = replay_players if players else replay
+    bounds = np.searchsorted(events.game, np.arange(len(events.streams) + 1))
+    _SHARED.update(events=events, settings=[None], play=play, games=games, spans=spans(events), bounds=bounds,
+                   kept=None, done={})
     try:
+        if settings:
+            _SHARED["kept"] = _replay_setting(0)
+        _SHARED["settings"] = list(settings)
         if jobs <= 1 or len(settings) < 2:
             rows = [_replay_setting(i) for i in range(len(settings))]
         else:
@@ -160,4 +215,4 @@ def memberships(events: Events, settings: Sequence[Optional[dict]], jobs: int = 
 
 
 __all__ = ["DOMAIN", "AGE_EDGES", "EPISODE_BINS", "CELLS", "CELL_NAMES", "strength_cells", "replay", "replay_players",
-           "cells_of", "memberships"]
+           "spans", "cells_of", "memberships"]

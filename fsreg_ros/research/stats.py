@@ -17,8 +17,15 @@ from typing import Sequence
 RESAMPLES = 10_000
 SEED = 0
 LEVEL = 0.95
-#: How every band and interval of the workbench is computed, for captions.
-METHOD = f"95 % percentile bootstrap CI over games ({RESAMPLES:,} resamples, seed {SEED})"
+
+
+def method(resamples: int = RESAMPLES) -> str:
+    """Return how a band or interval is computed, for captions, with the number of resamples used."""
+    return f"95 % percentile bootstrap CI over games ({resamples:,} resamples, seed {SEED})"
+
+
+#: How every band and interval of the workbench is computed at the default number of resamples.
+METHOD = method()
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .plot import _pyplot
-from .stats import METHOD, ratio_bootstrap_ci
+from .stats import method, ratio_bootstrap_ci
 from .reuse_eval import Evaluation
 from .reuse_models import family
 
@@ -53,7 +53,7 @@ def _people(result: Evaluation, bins: np.ndarray, count: int):
             continue
         used = np.bincount(e.game[mask], weights=e.used[mask], minlength=games)
         total = np.bincount(e.game[mask], minlength=games).astype(float)
-        est = ratio_bootstrap_ci(used, total)
+        est = ratio_bootstrap_ci(used, total, result.resamples)
         out.append((est.mean, est.low, est.high))
     return np.asarray(out)
 
@@ -126,8 +126,8 @@ def reuse_figure(result: Evaluation, out: Path, stem: str = "tangrams-reuse") ->
         fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="lower center", ncol=4,
                    frameon=False, bbox_to_anchor=(0.5, 0.0))
         fig.text(0.5, 0.995, f"{result.games} games, {e.candidates:,} candidate words, tokenisation "
-                             f"'{result.tokenisation}'. Points: people (bars: {METHOD}); lines: each model's "
-                             f"held-out prediction ({result.folds}-fold CV by game).", ha="center", va="top",
+                             f"'{result.tokenisation}'. Points: people (bars: {method(result.resamples)}); lines: each "
+                             f"model's held-out prediction ({result.folds}-fold CV by game).", ha="center", va="top",
                  fontsize=6.5, wrap=True)
         rows = (len(groups) + 1 + 3) // 4
         fig.tight_layout(rect=(0, 0.045 * rows + 0.02, 1, 0.95))
@@ -139,7 +139,7 @@ def data_figure(result: Evaluation, out: Path, stem: str = "tangrams-data") -> l
     plt = _pyplot()
     e, d = result.events, result.events.descriptives
     rows = d["_descriptions"]  # (game, repetition, word types, of them said earlier)
-    games = len(e.games)
+    games, n = len(e.games), result.resamples
     reps = sorted(set(rows[:, 1].tolist()))
     with plt.rc_context(FONT):
         fig, axes = plt.subplots(1, 3, figsize=(WIDTH, 2.8))
@@ -147,12 +147,12 @@ def data_figure(result: Evaluation, out: Path, stem: str = "tangrams-data") -> l
         for rep in reps:
             mine = rows[rows[:, 1] == rep]
             per_game = np.bincount(mine[:, 0], minlength=games).astype(float)
-            words.append(ratio_bootstrap_ci(np.bincount(mine[:, 0], weights=mine[:, 2], minlength=games), per_game))
+            words.append(ratio_bootstrap_ci(np.bincount(mine[:, 0], weights=mine[:, 2], minlength=games), per_game, n))
             types = np.bincount(mine[:, 0], weights=mine[:, 2], minlength=games)
-            earlier.append(ratio_bootstrap_ci(np.bincount(mine[:, 0], weights=mine[:, 3], minlength=games), types))
+            earlier.append(ratio_bootstrap_ci(np.bincount(mine[:, 0], weights=mine[:, 3], minlength=games), types, n))
             cand = e.repetition == rep
             reuse.append(ratio_bootstrap_ci(np.bincount(e.game[cand], weights=e.used[cand], minlength=games),
-                                            np.bincount(e.game[cand], minlength=games).astype(float)))
+                                            np.bincount(e.game[cand], minlength=games).astype(float), n))
         _bars(axes[0], reps, words, "tab:blue", "")
         axes[0].set_ylabel("distinct content words\nper description (words)")
         axes[0].set_ylim(0, None)
@@ -176,7 +176,7 @@ def data_figure(result: Evaluation, out: Path, stem: str = "tangrams-data") -> l
         axes[2].set_xlabel("gap between two references\nto a tangram (s, log scale)")
         axes[2].set_ylabel("references")
         axes[2].grid(alpha=0.3, linewidth=0.5)
-        fig.text(0.5, 0.995, f"{result.games} games, tokenisation '{result.tokenisation}'; bars: {METHOD}.",
+        fig.text(0.5, 0.995, f"{result.games} games, tokenisation '{result.tokenisation}'; bars: {method(n)}.",
                  ha="center", va="top", fontsize=6.5)
         fig.tight_layout(rect=(0, 0.07, 1, 0.94))
         return _save(fig, plt, out, stem)

@@ -25,6 +25,7 @@ from fsreg_ros.core.io.recording import (
 from fsreg_ros.core.scenario import load_scenario
 from fsreg_ros.core.io.yaml_source import MAX_FILE_BYTES
 from fsreg_ros.research.cli import read_trace
+from fsreg_ros.research.reference_games import read_rows
 from fsreg_ros.research.tangrams import load_games
 from fsreg_ros.research.tuna import load_trials
 from fsreg_ros.ros.node_parameters import PARAMS_MAX_BYTES, read_params_file
@@ -137,7 +138,32 @@ def test_a_tuna_trial_that_is_no_file_or_too_big_is_one_line(tmp_path, case, sai
 def test_a_trace_line_nested_too_deeply_is_one_line(tmp_path):
     path = tmp_path / "trace.jsonl"
     path.write_text("[" * 100_000 + "]" * 100_000 + "\n")
-    assert refusal(read_trace, path) == f"{path}:1: not a WM event (JSON nested too deeply)"
+    assert refusal(read_trace, path) == f"{path}: line 1: not JSON (nested too deeply)"
+
+
+#: The JSON Lines readers (an event trace, a reference-game corpus): one reader, one wording.
+JSON_LINES = {"trace": read_trace, "reference-games": read_rows}
+
+
+@pytest.mark.parametrize("kind", sorted(JSON_LINES))
+@pytest.mark.parametrize("line, said", [
+    (b'{"op": "encode", "time": 1', "line 2, column 27: not JSON (Expecting ',' delimiter)"),
+    (b'{"time": NaN}', "line 2: not JSON (NaN is not a JSON number)"),
+    (b'{"time": -Infinity}', "line 2: not JSON (-Infinity is not a JSON number)"),
+    (b'{"time": ' + b"9" * 5000 + b"}",
+     "line 2: not JSON (Exceeds the limit (4300 digits) for integer string conversion)"),
+    (b'{"text": "caf\xe9"}', "line 2, column 14: not UTF-8 text (invalid continuation byte)"),
+])
+def test_a_bad_json_line_is_one_line_naming_file_line_and_column(tmp_path, kind, line, said):
+    path = tmp_path / "file.jsonl"
+    path.write_bytes(b"\n" + line + b"\n{}\n")
+    assert refusal(JSON_LINES[kind], path) == f"{path}: {said}"
+
+
+def test_json_lines_yields_each_value_with_its_line(tmp_path):
+    path = tmp_path / "file.jsonl"
+    path.write_bytes(b'{"a": 1}\r\n\n  \n[2, "\xc3\xa9"]\n3')
+    assert list(input_file.json_lines(path)) == [(1, {"a": 1}), (4, [2, "\u00e9"]), (5, 3)]
 
 
 def test_ordinary_yaml_is_parsed_once_and_a_deep_one_is_refused_before_any_tree():

@@ -86,7 +86,8 @@ def test_plot_command_writes_png(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     "text, message",
-    [("{not json\n", "trace.jsonl:1: not JSON"), ('{"op": "paint"}\n', "trace.jsonl:1: not a WM event"),
+    [("{not json\n", "trace.jsonl: line 1, column 2: not JSON"),
+     ('{"op": "paint"}\n', "trace.jsonl: line 1: not a WM event"),
      ('{"op": "encode", "time": "late"}\n', "'time' must be a number")],
 )
 def test_bad_trace_is_named(tmp_path, capsys, text, message):

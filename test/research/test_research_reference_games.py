@@ -184,6 +184,17 @@ def test_printed_report(capsys, corpus):
     assert out.startswith(f"reference games ({corpus.name}): 2 games, 3 describer re-references, 6 candidate words "
                           "(4 reused)")
     assert "note: 1 game without times: the rules and regressions on seconds" in out
+    # The intervals' line names the resamples used, not the default's 10,000.
+    assert "intervals: paired by game, 95 % percentile bootstrap CI over games (100 resamples, seed 0) of the ratio " \
+           "(summed difference / candidates)." in out.splitlines()
+    assert "10,000" not in out
+
+
+def test_json_intervals_name_the_resamples_used(capsys, corpus):
+    code, out, _ = run_cli(capsys, corpus, "--folds", "2", "--grid", "capacity=1,2", "--resamples", "250", "--json")
+    assert code == 0
+    assert json.loads(out)["intervals"] == \
+        "95 % percentile bootstrap CI over games of the ratio (summed difference / candidates) (250 resamples, seed 0)"
 
 
 # ------------------------------------------------------------------ bad files: one line, file, row, column
@@ -220,7 +231,7 @@ def bad(name, rows, header=HEADER):
     ("f.csv", [("g", 1, "A", "p", "describer", 0, "hi", 1), ("g", 1, "A", "q", "matcher", 1, "ok", 2)],
      HEADER + ("repetition",), "f.csv: row 3, column repetition: trial 1 of game g is repetition 1, this row says 2"),
     ("f.csv", [], HEADER, "f.csv: no messages"),
-    ("f.jsonl", ['{"game": "g"'], None, "f.jsonl: row 1: not JSON ("),
+    ("f.jsonl", ['{"game": "g"'], None, "f.jsonl: line 1, column 13: not JSON (Expecting ',' delimiter)"),
     ("f.jsonl", ["[1, 2]"], None, "f.jsonl: row 1: not a message (a JSON object with the keys game, trial"),
     ("f.jsonl", ['{"game": "g", "trial": 1, "referent": "A", "player": "p", "role": "describer"}'], None,
      "f.jsonl: row 1, column text: missing"),

@@ -11,17 +11,20 @@ recording's ``metadata.yaml`` and ``.mcap``, a corpus) goes through here:
 
 A refusal is one :class:`InputFileError` whose text is ``"{path}: {what is wrong}"``.
 :func:`read_bytes` reads a whole file; :func:`open_binary` hands a checked, blocking
-file object to a reader that streams (CSV, a bag); :func:`check_file` checks a file that
-a third-party library opens by name itself.  YAML's own limits (depth, aliases) are
+file object to a reader that streams (CSV, a bag); :func:`json_lines` reads a JSON
+Lines file (a corpus, an event trace) value by value, a bad line named by its line
+and column; :func:`check_file` checks a file that a third-party library opens by name
+itself.  YAML's own limits (depth, aliases) are
 :mod:`fsreg_ros.core.io.yaml_source`'s, which reads its text here.
 """
 
 from __future__ import annotations
 
 import io
+import json
 import os
 import stat
-from typing import BinaryIO, TextIO, Union
+from typing import Any, BinaryIO, Iterator, TextIO, Union
 
 #: The default limit: files larger than this are refused before reading (a world of 10,000 entities is ~2 MB).
 MAX_FILE_BYTES = 64 * 1024 * 1024
@@ -137,10 +140,52 @@ def open_text(path: PathLike, limit: int = MAX_FILE_BYTES) -> TextIO:
     return io.TextIOWrapper(open_binary(path, limit), encoding="utf-8", newline="")
 
 
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+#: JSON as written (RFC 8259): ``NaN`` and ``Infinity``, which Python's json module reads, are refused.
+_DECODER = json.JSONDecoder(parse_constant=_no_constant)
+
+
+def json_lines(path: PathLike, limit: int = MAX_CORPUS_BYTES) -> Iterator[tuple[int, Any]]:
+    """Yield ``(line number, value)`` of each non-blank line of the JSON Lines file ``path`` (from 1).
+
+    The file is checked and bounded as :func:`open_binary` does (and refused if it grows past
+    ``limit`` while read).  A line that is not one JSON value in UTF-8 is one
+    :class:`InputFileError` naming the line and, where the decoder gives one, the column:
+    ``"{path}: line 3, column 12: not JSON (Expecting ',' delimiter)"``.  What a value must be
+    is the caller's to check.
+    """
+    source = os.fspath(path)
+    read = 0
+    with open_binary(path, limit) as handle:
+        for number, raw in enumerate(handle, 1):
+            read += len(raw)
+            if read > limit:
+                raise InputFileError(source, _too_large(limit))
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError as err:
+                raise InputFileError(source, f"line {number}, column {err.start + 1}: not UTF-8 text "
+                                             f"({err.reason})") from None
+            if not text.strip():
+                continue
+            try:
+                value = _DECODER.decode(text.rstrip("\r\n"))  # an error at the end is on this line
+            except json.JSONDecodeError as err:
+                raise InputFileError(source, f"line {number}, column {err.colno}: not JSON ({err.msg})") from None
+            except RecursionError:
+                raise InputFileError(source, f"line {number}: not JSON (nested too deeply)") from None
+            except ValueError as err:  # a constant refused above, or an integer over Python's digit limit
+                raise InputFileError(source, f"line {number}: not JSON ({str(err).split(':')[0]})") from None
+            yield number, value
+
+
 def check_file(path: PathLike, limit: int = MAX_FILE_BYTES) -> None:
     """Refuse ``path`` unless it is a regular file within ``limit`` bytes (for a library that opens it by name)."""
     os.close(_open_checked(path, limit))
 
 
 __all__ = ["FILE_KINDS", "MAX_CORPUS_BYTES", "MAX_FILE_BYTES", "InputFileError", "check_file", "file_kind",
-           "open_binary", "open_text", "read_bytes", "read_text"]
+           "json_lines", "open_binary", "open_text", "read_bytes", "read_text"]
