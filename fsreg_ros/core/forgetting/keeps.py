@@ -12,9 +12,10 @@ Per rule (a policy keeps everything when each of its rules does):
 
 * ``decay``: no tick falls due: ``decay_period`` is beyond the span's last time (a tick k is
   due at ``k * decay_period``, docs/semantics.md section 7);
-* ``activation`` (on the seconds clock): one encoding alone stays ``exp(-tau / d)`` seconds
-  (:func:`~fsreg_ros.core.memory.trace.lifetime`), and more encodings only raise an entry's
-  activation, so an entry outlives the span when that lifetime exceeds it;
+* ``activation``: one presentation alone stays ``exp(-tau / d)`` on the rule's clock
+  (:func:`~fsreg_ros.core.memory.trace.lifetime`), and more presentations only raise an
+  entry's activation, so an entry outlives the span when that lifetime exceeds it: its
+  seconds, or (ages counting from 1 on an entity's own clock) its episodes + 1 or words + 1;
 * ``displacement``, ``displacement-lfu``, ``displacement-random``: no queue ever holds more
   than ``capacity``;
 * ``global-capacity``: the domain never holds more than ``global_capacity``;
@@ -69,15 +70,21 @@ def _value(policy: ForgettingPolicy, rule: str) -> float:
 
 
 def _activation(limits: Limits, span: Span) -> bool:
+    """One presentation alone stays ``lifetime(d, tau)`` on the rule's clock; ages count from 1 on an entity's own."""
+    if limits.episode_activation is not None:  # the episodes clock: at most episodes + 1 old within the span
+        d, tau = limits.episode_activation
+        return lifetime(d, tau) > (span.episodes + 1) * (1 + MARGIN)
     d, tau = limits.activation  # type: ignore[misc]
-    return _beyond(lifetime(d, tau), span)
+    if limits.activation_clock == "words":  # at most words + 1 old
+        return lifetime(d, tau) > (span.words + 1) * (1 + MARGIN)
+    return limits.activation_clock == "seconds" and _beyond(lifetime(d, tau), span)
 
 
 #: Per rule: the parameters its promise was written for (a rule that reads others makes none, say a new
 #: clock) and whether it forgets nothing within a span (the module docstring's list).
 KEEPS: dict[str, tuple[int, Callable[[ForgettingPolicy, Limits, Span], bool]]] = {
     "decay": (1, lambda p, limits, s: _beyond(_value(p, "decay"), s)),
-    "activation": (2, lambda p, limits, s: _activation(limits, s)),
+    "activation": (3, lambda p, limits, s: _activation(limits, s)),
     "displacement": (1, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
     "displacement-lfu": (1, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
     "displacement-random": (2, lambda p, limits, s: s.per_entity <= limits.capacity),  # type: ignore[operator]
