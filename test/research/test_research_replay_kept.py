@@ -99,6 +99,11 @@ def test_a_games_span_is_what_an_unmanaged_wm_holds(events):
     (dict(episode_window=2), Span(1e9, 99, 99, 2), Span(0.0, 1, 1, 3)),
     # one encoding stays exp(-tau / d) = exp(2) = 7.389 s
     (dict(activation_decay=0.5, activation_threshold=-1.0), Span(7.38, 99, 99, 99), Span(7.39, 1, 1, 1)),
+    # on an entity's own clock, ages count from 1: at most episodes + 1 (words + 1) old within the span
+    (dict(activation_decay=0.5, activation_threshold=-1.0, activation_clock="episodes"),
+     Span(1e9, 99, 99, 6, 99), Span(0.0, 1, 1, 7, 0)),
+    (dict(activation_decay=0.5, activation_threshold=-1.0, activation_clock="words"),
+     Span(1e9, 99, 99, 99, 6), Span(0.0, 1, 1, 0, 7)),
 ])
 def test_each_rules_promise_at_its_bound(policy, kept, not_kept):
     rule = {"decay_period": "decay", "capacity": "displacement", "global_capacity": "global-capacity",
