@@ -104,13 +104,13 @@ def test_the_episodes_clock_keeps_the_column_form_of_a_large_domain():
     assert wm.strength("e8") == [Strength(0, 1, act(1)), Strength(0, 1, act(1))]  # e8's episode 0 all along
 
 
-def test_the_words_clock_takes_dict_queues_in_a_large_domain():
+def test_the_words_clock_keeps_the_column_form_of_a_large_domain():
     entities = [f"e{i}" for i in range(300)]
     wm = buffer("words", policy="activation+displacement", capacity=2)
     wm.column_min = 100
     for k, prop in enumerate(("p", "q", "r", "s")):
         wm.encode_members((1 << 300) - 1, entities, prop, "reg-distractor", float(k))
-    assert not wm.columns.entities and wm.queue("e7") == ("r", "s")
+    assert len(wm.columns.entities) == 300 and wm.queue("e7") == ("r", "s")
     assert wm.strength("e7") == [Strength(0, 1, act(2)), Strength(0, 1, act(1))]
 
 

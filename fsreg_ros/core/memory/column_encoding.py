@@ -79,11 +79,12 @@ def encode_in_row(wm: HostBuffer, entity: str, props: Sequence[str], cause: str,
         store.pop_owed(np.array([row]), ticks)
     act = wm.activation
     traced = None
-    if act is not None:  # what crossed goes first, as queue by queue
+    if act is not None:
         act.advance(time)
-        act.forget_row(row)
         traced = act.noting()
     for prop in props:
+        if act is not None:  # what crossed goes first, as queue by queue (an own clock moved since the last)
+            act.forget_row(row)
         wm.origin_log.log(store.stamp + 1, cause, turn)
         store.encode_row(entity, prop, traced)
     wm.changes.note(entity)
@@ -106,7 +107,7 @@ def readable_row(wm: HostBuffer, entity: str) -> Optional[Mapping]:
             return wm.readable(entity)
         wm.lazy_decay.settle_columns(np.array([row]))
     act = wm.activation
-    if act is not None and arrays.length[row] and arrays.traces.row_due[row] <= act.clock + TIME_EPSILON:
+    if act is not None and arrays.length[row] and arrays.traces.row_due[row] <= act.now_of(entity) + TIME_EPSILON:
         if not quiet:  # what went must be reported: as a dict queue
             store.to_dict(entity)
             return wm.readable(entity)

@@ -6,7 +6,10 @@ The queues of a large domain's rule 2 and 3 encodings are column queues
 (a REG call's rule-3 encodings) update the traces in one batch, when the traces are
 next read or the clock moves on (:meth:`TraceColumns.settle`), and each row keeps a
 lower bound of its slots' crossings (so a row with nothing due costs one number to
-check).  Which entries passed their crossing is decided by :meth:`TraceColumns.passed`
+check).  On an entity's own clock (``activation_clock`` = ``words``,
+:mod:`fsreg_ros.core.memory.entity_clock`) each row keeps its entity's clock too
+(``own_clocks``): an encoding is noted at its row's clock, which it moves by one, and a
+row's crossings are decided at its own clock (every time in its traces is in its units).  Which entries passed their crossing is decided by :meth:`TraceColumns.passed`
 (with :mod:`fsreg_ros.core.memory.crossings`).
 """
 
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Optional
+from typing import Optional, Sequence, Union
 
 import numpy as np
 
@@ -49,13 +52,14 @@ class TraceColumns:
     dict queue (see :meth:`passed`).
     """
 
-    def __init__(self, width: int, rows: int) -> None:
+    def __init__(self, width: int, rows: int, own_clocks: bool = False) -> None:
         self._n = np.zeros((width, rows), dtype=np.int64)
         self._first = np.zeros((width, rows))
         self._recent = _lines((width, rows))  # a slot's ring in one cache line
         self._due = np.full((width, rows), NEVER)
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
+        self._clock = np.zeros(rows) if own_clocks else None  # per row: its entity's own clock
         self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put_row`)
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
@@ -92,6 +96,8 @@ class TraceColumns:
         self._due = np.concatenate([self._due, np.full((width, extra), NEVER)], axis=1)
         self._exact = np.concatenate([self._exact, np.zeros((width, extra), dtype=bool)], axis=1)
         self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
+        if self._clock is not None:
+            self._clock = np.concatenate([self._clock, np.zeros(extra)])
         self._flatten()
 
     def widen(self, extra: int) -> None:
@@ -104,6 +110,19 @@ class TraceColumns:
         self._due = np.concatenate([self._due, np.full((extra, rows), NEVER)])
         self._exact = np.concatenate([self._exact, np.zeros((extra, rows), dtype=bool)])
         self._flatten()
+
+    @property
+    def own_clocks(self) -> bool:
+        """Tell whether each row keeps its entity's own clock (else every row reads the rule's one clock)."""
+        return self._clock is not None
+
+    def clock_of(self, row: int) -> int:
+        """Return row ``row``'s own clock (``own_clocks``): the encodings made into it, as the rule counts them."""
+        return int(self._clock[row])
+
+    def set_clocks(self, rows: np.ndarray, clocks: Sequence[int]) -> None:
+        """Set the own clocks of ``rows`` (queues moving in: their entities' clocks; ``own_clocks``)."""
+        self._clock[rows] = clocks
 
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
@@ -167,7 +186,17 @@ class TraceColumns:
         refreshed at most once in it, before any displacement, and its entry at the end is
         new exactly when its origin is a stamp of the batch (:meth:`settle`).  Without
         them, each call is a batch of its own.
+
+        ``time`` None (``own_clocks``): each row's encoding is noted at once, at the row's
+        own clock, which it moves by one (``rows`` distinct).
         """
+        if time is None:
+            self.settle()
+            rows = flat % self._n.shape[1] if rows is None else rows
+            times = self._clock.take(rows)
+            self._clock[rows] = times + 1.0
+            self._note(flat, present, rows, times, span, d)
+            return
         self._join(time, span, d, clock, origins, stamp, prop, False)
         self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
 
@@ -219,8 +248,8 @@ class TraceColumns:
         present = np.take(self._origins.reshape(-1), flat) < self._first_stamp
         self._note(flat, present, np.concatenate([p[2] for p in pending]), time, span, d)
 
-    def _note(self, flat: np.ndarray, present: np.ndarray, rows: np.ndarray, time: float, span: float,
-              d: float) -> None:
+    def _note(self, flat: np.ndarray, present: np.ndarray, rows: np.ndarray, time: Union[float, np.ndarray],
+              span: float, d: float) -> None:
         """Note one encoding at ``time`` in each slot ``flat`` (``rows`` may recur; a slot only as a new entry).
 
         A slot recurs (:meth:`settle`) only where each place notes a new entry: the same
@@ -234,7 +263,7 @@ class TraceColumns:
         Petrov term of older presentations only adds to them.  Leaving that term out,
         the bound needs no look at how well :func:`crossing` rounds it, and costs the
         same few array operations for every slot (in a long session most are past
-        HISTORY encodings).
+        HISTORY encodings).  ``time`` may be one per slot (rows on their own clocks).
         """
         n, recent = self._flat_n, self._flat_recent
         old = n[flat]
@@ -255,7 +284,10 @@ class TraceColumns:
         begin = np.take(recent, oldest)  # (k = min(n, HISTORY))
         k = np.minimum(counts, HISTORY)
         begin *= _KEEP.take(k)
-        begin += self._bounds(d, span, time).take(k)  # m + reach[k], m = t_o + (time - t_o) / k
+        if isinstance(time, np.ndarray):  # per slot: the table at time 0, shifted slot by slot
+            begin += self._bounds(d, span, 0.0).take(k) + time * _SHARE.take(k) - MARGIN * np.abs(time)
+        else:
+            begin += self._bounds(d, span, time).take(k)  # m + reach[k], m = t_o + (time - t_o) / k
         due = np.maximum(begin, time + span)  # (reach[1] < span)
         self._flat_due[flat] = due
         self._flat_exact[flat] = ~present
@@ -303,17 +335,22 @@ class TraceColumns:
         first = np.where(n > HISTORY, np.take(self._flat_first, flat), np.take(recent, at))
         return n, first, times
 
-    def row_due_by(self, row: int, clock: float) -> bool:
-        """Tell whether something of row ``row`` may be due at ``clock`` (its bound: one number).
+    def row_due_by(self, row: int, clock: Optional[float]) -> bool:
+        """Tell whether something of row ``row`` may be due at ``clock`` (its bound: one number; None: its own clock).
 
         At the clock they were made at, encodings not noted yet are not due (so they stay pending).
         """
+        if clock is None:
+            clock = self._clock[row]
         if clock != self.pending_clock:
             self.settle()
         return bool(self._row_due[row] <= clock + TIME_EPSILON)
 
-    def passed(self, rows: np.ndarray, used: int, clock: float, d: float, tau: float, span: float) -> np.ndarray:
+    def passed(self, rows: np.ndarray, used: int, clock: Optional[float], d: float, tau: float,
+               span: float) -> np.ndarray:
         """Return the slots (flat indices) of ``rows`` whose entry's crossing is at or before ``clock``.
+
+        ``clock`` None (``own_clocks``): each row's own clock.
 
         ``used``: the slots ever written in any row (slots beyond are never due); ``d``,
         ``tau`` and ``span`` the rule's decay, threshold and one encoding's lifetime.
@@ -328,16 +365,21 @@ class TraceColumns:
         :func:`~fsreg_ros.core.memory.trace.crossing` itself.  A slot that stays keeps a
         new lower bound.
         """
-        now = clock + TIME_EPSILON
         if not len(rows):
             return NO_SLOTS
-        if clock != self.pending_clock:
-            self.settle()  # (at the clock they were made at, encodings not noted yet are not due)
+        if clock is None:
+            now = self._clock.take(rows) + TIME_EPSILON  # (nothing pending: own clocks note at once)
+        else:
+            now = clock + TIME_EPSILON
+            if clock != self.pending_clock:
+                self.settle()  # (at the clock they were made at, encodings not noted yet are not due)
         soon = self._row_due.take(rows)
         due_rows = soon <= now
         if not due_rows.any():  # one number per row: most calls end here
             return NO_SLOTS
         rows = rows.compress(due_rows)
+        if clock is None:
+            now = now.compress(due_rows)
         width = max(used, 1)  # (slots never used are never due)
         all_rows = self._n.shape[1]
         due = self._due[:width].take(rows, axis=1)
@@ -347,10 +389,11 @@ class TraceColumns:
         vague = ~self._flat_exact.take(flat)
         if vague.any():
             unsure = flat[vague]
-            self._solve(unsure, now, d, tau, span)
+            now_unsure = now if clock is not None else now.take(at[vague] % len(rows))  # (each slot's row's)
+            self._solve(unsure, now_unsure, d, tau, span)
             renewed = self._flat_due.take(unsure)
             due.reshape(-1)[at[vague]] = renewed
-            staying = renewed > now
+            staying = renewed > now_unsure
             at = np.concatenate((at[~vague], at[vague][~staying]))
             flat = np.concatenate((flat[~vague], unsure[~staying]))
         # The rows' bounds anew, the slots passed left out (they go, or their queue becomes a dict queue).
@@ -358,8 +401,11 @@ class TraceColumns:
         self._row_due[rows] = due.min(axis=0)
         return flat
 
-    def _solve(self, flat: np.ndarray, now: float, d: float, tau: float, span: float) -> None:
-        """Decide the slots ``flat`` whose lower bound passed ``now``: a new bound or the crossing (:meth:`passed`)."""
+    def _solve(self, flat: np.ndarray, now: Union[float, np.ndarray], d: float, tau: float, span: float) -> None:
+        """Decide the slots ``flat`` whose lower bound passed ``now``: a new bound or the crossing (:meth:`passed`).
+
+        ``now``: one clock, or one per slot (rows on their own clocks).
+        """
         self.settle()
         due, exact = self._flat_due, self._flat_exact
         if span > LONGEST:
@@ -368,12 +414,13 @@ class TraceColumns:
         width_rows = self._n.shape[1]
         if len(flat) <= crossings.FEW:  # one by one is cheaper for a few (read as Python numbers at once)
             rings = self._recent.reshape(-1, HISTORY).take(flat, axis=0).tolist()
-            for f, n, first, ring in zip(flat.tolist(), self._flat_n.take(flat).tolist(),
-                                         self._flat_first.take(flat).tolist(), rings):
+            nows = now.tolist() if isinstance(now, np.ndarray) else [now] * len(flat)
+            for f, n, first, ring, at in zip(flat.tolist(), self._flat_n.take(flat).tolist(),
+                                             self._flat_first.take(flat).tolist(), rings, nows):
                 trace = _ring_trace(n, first, ring)
-                found = bracket(n, trace.recent, now, d, span)
+                found = bracket(n, trace.recent, at, d, span)
                 if found is None:
-                    gone, bound = gone_by(trace, now, d, tau)
+                    gone, bound = gone_by(trace, at, d, tau)
                     if gone:  # (its bound stays: at most the clock)
                         continue
                     found = (bound, False) if bound is not None else (crossing(trace, d, tau), True)
