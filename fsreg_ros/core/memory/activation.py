@@ -174,12 +174,15 @@ class LazyActivation:
                     store.to_dict(moved[-1])
         return moved
 
-    def release_clocks(self, entities: list[str]) -> Optional[list[int]]:
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
         """Return None: the seconds clock is one for all entities (no clock moves with a queue)."""
         return None
 
-    def take_clock(self, entity: str, clock: int) -> None:
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
         """Keep nothing (the seconds clock is one for all entities)."""
+
+    def carry_clocks(self, old: "LazyActivation") -> None:
+        """Take over the per-entity clocks of ``old``, the rule this one replaces on the same clock (none here)."""
 
     def column_clock(self) -> Optional[float]:
         """Return the clock column rows are read and noted at (None: each row's own, :mod:`.entity_clock`)."""
@@ -237,10 +240,10 @@ class LazyActivation:
 
         An encoding counts at the clock at the earliest (:meth:`record`), and the clock
         has reached the encoding's time (:meth:`advance`).  None, None: at each row's own
-        clock, which the encoding moves (:meth:`column_clock`).
+        clock, which the encoding moves, at the seconds clock (:meth:`column_clock`).
         """
         clock = self.column_clock()
-        return clock, self.span, self.decay, clock
+        return clock, self.span, self.decay, self.clock if clock is None else clock
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.

@@ -353,9 +353,8 @@ class QueueColumns:
         if traced is not None:
             time, span, d, clock = traced
             traces = self.traces
-            if time is None:  # on the row's own clock: noted at once, a refresh as it is now
-                traces.encoded(np.array([slot * self.rows + row]), np.array([present]), None, span, d,
-                               np.array([row]))
+            if time is None:  # on the row's own clock (a refresh as it is now)
+                traces.encoded_own(slot * self.rows + row, row, present, span, d, clock)
             else:
                 traces.encoded_one(slot * self.rows + row, row, time, span, d, clock, self.entry, stamp, prop,
                                    not (present and traces.pending_since(before)))

@@ -165,15 +165,26 @@ class EntityClockActivation(LazyActivation):
         """
         self.forget_rows(rows)
 
-    def release_clocks(self, entities: list[str]) -> Optional[list[int]]:
-        """Hand over the entities' clocks (their queues moving to column rows); this rule keeps them no longer."""
-        pop = self.words.pop
-        return [pop(entity, 0) for entity in entities]
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
+        """Hand over the entities' clocks and when each moved (queues moving to column rows); kept here no longer."""
+        pop, moved = self.words.pop, self.moved.pop
+        return [pop(entity, 0) for entity in entities], [moved(entity, None) for entity in entities]
 
-    def take_clock(self, entity: str, clock: int) -> None:
-        """Keep the entity's clock (its queue back from its column row)."""
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
+        """Keep the entity's clock and when it moved (its queue back from its column row)."""
         if clock:
             self.words[entity] = clock
+        if moved is not None:
+            self.moved[entity] = moved
+
+    def carry_clocks(self, old: LazyActivation) -> None:
+        """Take over the words clocks of ``old``, the rule this one replaces (new limits on the same clock).
+
+        Its traces' times are on those clocks: they go on from where they were (a column
+        queue's row keeps its own).
+        """
+        if isinstance(old, EntityClockActivation):
+            self.words, self.moved = dict(old.words), dict(old.moved)
 
     def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
         """Take Q[entity] under the rule: ``traces`` kept, one encoding now (age 1) for the others."""

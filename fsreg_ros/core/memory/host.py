@@ -98,6 +98,9 @@ class ActivationRule(Protocol):
     def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
         """Take a queue under the rule."""
 
+    def carry_clocks(self, old: "ActivationRule") -> None:
+        """Take over the per-entity clocks of the rule this one replaces."""
+
     def passed(self, store: QueueColumns, rows: np.ndarray) -> np.ndarray:
         """Return the column slots whose crossing passed."""
 

@@ -54,11 +54,11 @@ class TraceKeeper(Protocol):
     def take(self, entity: str, traces: dict[str, Trace]) -> None:
         """Keep ``traces``, those of Q[entity] (back from the column form)."""
 
-    def release_clocks(self, entities: list[str]) -> Optional[list[int]]:
-        """Hand over the entities' own clocks (their queues moving to the column form); None: one clock for all."""
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
+        """Hand over the entities' own clocks and when each moved (queues moving to the column form); None: one clock."""
 
-    def take_clock(self, entity: str, clock: int) -> None:
-        """Keep the entity's own clock (its queue back from the column form)."""
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
+        """Keep the entity's own clock and when it moved (its queue back from the column form)."""
 
 
 class EncodeWatcher(Protocol):
@@ -326,7 +326,7 @@ class QueueStore:
         store.start_empty(fresh, ticks)  # ticks before a queue existed are not owed
         keeper = self.keeper
         if keeper is not None and store.traces is not None and store.traces.own_clocks:
-            store.traces.set_clocks(fresh, keeper.release_clocks(names))  # (names: fresh's, in order)
+            store.traces.set_clocks(fresh, *keeper.release_clocks(names))  # (names: fresh's, in order)
         for name in moving:
             q = queues.pop(name)
             row = columns.row[name]
@@ -348,7 +348,7 @@ class QueueStore:
         if self.keeper is not None and store.traces is not None:
             self.keeper.take(entity, columns.traces_of(entity))
             if store.traces.own_clocks:
-                self.keeper.take_clock(entity, store.traces.clock_of(row))
+                self.keeper.take_clock(entity, store.traces.clock_of(row), store.traces.moved_of(row))
         store.release(row)
         columns.entities.discard(entity)
         return q

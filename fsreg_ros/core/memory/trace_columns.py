@@ -60,10 +60,13 @@ class TraceColumns:
         self._exact = np.zeros((width, rows), dtype=bool)
         self._row_due = np.full(rows, NEVER)  # per row: at most its slots' earliest due
         self._clock = np.zeros(rows) if own_clocks else None  # per row: its entity's own clock
+        self._moved = np.full(rows, np.nan) if own_clocks else None  # and the time (seconds) it last moved
         self.edit = next(_EDITS)  # renewed whenever a trace comes in from outside (:meth:`put_row`)
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
         self._ones: list[tuple[int, int]] = []  # and those given one slot at a time (encoded_one): slot, row
+        self._own: list[tuple[int, int, bool, float]] = []  # one at a time on own clocks: slot, row, present, time
+        self._own_of: tuple[float, float] = (0.0, 0.0)  # their (span, d)
         self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
         self.pending_clock = -math.inf  # the clock when they were made
         self._origins: Optional[np.ndarray] = None  # their store's origin references
@@ -98,6 +101,7 @@ class TraceColumns:
         self._row_due = np.concatenate([self._row_due, np.full(extra, NEVER)])
         if self._clock is not None:
             self._clock = np.concatenate([self._clock, np.zeros(extra)])
+            self._moved = np.concatenate([self._moved, np.full(extra, np.nan)])
         self._flatten()
 
     def widen(self, extra: int) -> None:
@@ -120,9 +124,15 @@ class TraceColumns:
         """Return row ``row``'s own clock (``own_clocks``): the encodings made into it, as the rule counts them."""
         return int(self._clock[row])
 
-    def set_clocks(self, rows: np.ndarray, clocks: Sequence[int]) -> None:
-        """Set the own clocks of ``rows`` (queues moving in: their entities' clocks; ``own_clocks``)."""
+    def moved_of(self, row: int) -> Optional[float]:
+        """Return the time (seconds) row ``row``'s own clock last moved (None: not known)."""
+        moved = float(self._moved[row])
+        return None if math.isnan(moved) else moved
+
+    def set_clocks(self, rows: np.ndarray, clocks: Sequence[int], moved: Sequence[Optional[float]]) -> None:
+        """Set the own clocks of ``rows`` and when each last moved (queues moving in; ``own_clocks``)."""
         self._clock[rows] = clocks
+        self._moved[rows] = [math.nan if m is None else m for m in moved]
 
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
@@ -188,13 +198,14 @@ class TraceColumns:
         them, each call is a batch of its own.
 
         ``time`` None (``own_clocks``): each row's encoding is noted at once, at the row's
-        own clock, which it moves by one (``rows`` distinct).
+        own clock, which it moves by one (``rows`` distinct), at ``clock`` (seconds).
         """
         if time is None:
             self.settle()
             rows = flat % self._n.shape[1] if rows is None else rows
             times = self._clock.take(rows)
             self._clock[rows] = times + 1.0
+            self._moved[rows] = clock
             self._note(flat, present, rows, times, span, d)
             return
         self._join(time, span, d, clock, origins, stamp, prop, False)
@@ -225,12 +236,32 @@ class TraceColumns:
             self._origins, self._first_stamp, self._props = origins, stamp, set()
         self._props.add(prop)
 
+    def encoded_own(self, flat: int, row: int, present: bool, span: float, d: float, clock: float) -> None:
+        """As :meth:`encoded` with ``time`` None for one slot given as Python numbers (:meth:`QueueColumns.encode_one`).
+
+        The row's clock moves now; the encoding is noted with the others given so (a
+        description's, into one row) when the traces are next read from outside
+        (:meth:`settle`), or when one of them might be due (:meth:`row_due_by`).
+        """
+        if self._own and (self._own_of != (span, d) or any(f == flat for f, _, _, _ in self._own)):
+            self.settle()  # (a slot written twice: noted in order)
+        self._own_of = (span, d)
+        time = float(self._clock[row])
+        self._clock[row] = time + 1.0
+        self._moved[row] = clock
+        self._own.append((flat, row, present, time))
+
     def pending_since(self, stamp: int) -> bool:
         """Tell whether an entry stamped ``stamp`` may have been encoded in the pending batch (stamps only grow)."""
         return bool(self._pending or self._ones) and stamp >= self._first_stamp
 
     def settle(self) -> None:
         """Note the pending encodings (:meth:`encoded`, :meth:`encoded_one`) as one batch."""
+        if self._own:
+            flats, rows, present, times = zip(*self._own)
+            self._own = []
+            self._note(np.array(flats, dtype=np.intp), np.array(present), np.array(rows, dtype=np.intp),
+                       np.array(times), *self._own_of)
         pending, ones = self._pending, self._ones
         if not (pending or ones):
             return
@@ -340,9 +371,11 @@ class TraceColumns:
 
         At the clock they were made at, encodings not noted yet are not due (so they stay pending).
         """
-        if clock is None:
+        if clock is None:  # the encodings given one at a time (:meth:`encoded_own`) may be due: noted first
             clock = self._clock[row]
-        if clock != self.pending_clock:
+            if self._own and self._own_of[0] <= len(self._own) + TIME_EPSILON:
+                self.settle()
+        elif clock != self.pending_clock:
             self.settle()
         return bool(self._row_due[row] <= clock + TIME_EPSILON)
 
@@ -368,7 +401,8 @@ class TraceColumns:
         if not len(rows):
             return NO_SLOTS
         if clock is None:
-            now = self._clock.take(rows) + TIME_EPSILON  # (nothing pending: own clocks note at once)
+            self.settle()
+            now = self._clock.take(rows) + TIME_EPSILON
         else:
             now = clock + TIME_EPSILON
             if clock != self.pending_clock:
