@@ -21,7 +21,6 @@ from . import bitset
 from .host import HostBuffer
 from .queue import WMEvent
 from .queues import NO_ROWS
-from .ticks import TIME_EPSILON
 
 
 def encode_rows(wm: HostBuffer, members: int, entities: Sequence[str], prop: str, cause: str, time: float,
@@ -107,7 +106,7 @@ def readable_row(wm: HostBuffer, entity: str) -> Optional[Mapping]:
             return wm.readable(entity)
         wm.lazy_decay.settle_columns(np.array([row]))
     act = wm.activation
-    if act is not None and arrays.length[row] and arrays.traces.row_due[row] <= act.now_of(entity) + TIME_EPSILON:
+    if act is not None and arrays.length[row] and arrays.traces.row_due_by(row, act.column_clock()):
         if not quiet:  # what went must be reported: as a dict queue
             store.to_dict(entity)
             return wm.readable(entity)

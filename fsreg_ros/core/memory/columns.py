@@ -163,7 +163,7 @@ class QueueColumns:
         self._unmap_slots(flat)
         self.prop.reshape(-1)[flat] = -1
         if self.traces is not None:
-            self.traces.due.reshape(-1)[flat] = NEVER
+            self.traces.forget_slots(flat)
 
     def clear_rows(self, rows: np.ndarray) -> None:
         """Empty every slot of ``rows`` as :meth:`clear_slots` does (lengths: the caller's)."""

@@ -65,8 +65,13 @@ class TraceColumns:
         self.reach_of: Optional[tuple[float, float]] = None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # encodings not noted yet
         self._ones: list[tuple[int, int]] = []  # and those given one slot at a time (encoded_one): slot, row
-        self._own: list[tuple[int, int, bool, float]] = []  # one at a time on own clocks: slot, row, present, time
-        self._own_of: tuple[float, float] = (0.0, 0.0)  # their (span, d)
+        # Encodings on the rows' own clocks not noted yet (:meth:`_own_later`): arrays (slots, present, rows,
+        # times), those given one at a time as numbers, how many calls they are, their (span, d), their slots
+        self._own: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._own_ones: list[tuple[int, bool, int, float]] = []
+        self._own_calls = 0
+        self._own_of: tuple[float, float] = (0.0, 0.0)
+        self._own_slots = np.zeros(0, dtype=bool)
         self._pending_of: tuple[float, float, float] = (0.0, 0.0, 0.0)  # their (time, span, d)
         self.pending_clock = -math.inf  # the clock when they were made
         self._origins: Optional[np.ndarray] = None  # their store's origin references
@@ -137,6 +142,10 @@ class TraceColumns:
     def get(self, slot: int, row: int) -> Trace:
         """Return slot ``(slot, row)``'s trace as a :class:`Trace`."""
         self.settle()
+        return self._trace(slot, row)
+
+    def _trace(self, slot: int, row: int) -> Trace:
+        """:meth:`get` of a slot no pending encoding wrote."""
         trace = _ring_trace(int(self._n[slot, row]), float(self._first[slot, row]), self._recent[slot, row].tolist())
         trace.due, trace.exact = float(self._due[slot, row]), bool(self._exact[slot, row])
         return trace
@@ -197,16 +206,17 @@ class TraceColumns:
         new exactly when its origin is a stamp of the batch (:meth:`settle`).  Without
         them, each call is a batch of its own.
 
-        ``time`` None (``own_clocks``): each row's encoding is noted at once, at the row's
-        own clock, which it moves by one (``rows`` distinct), at ``clock`` (seconds).
+        ``time`` None (``own_clocks``): each row's encoding is at the row's own clock,
+        which it moves by one now (``rows`` distinct), at ``clock`` (seconds); noted later
+        (:meth:`_own_later`).
         """
         if time is None:
-            self.settle()
             rows = flat % self._n.shape[1] if rows is None else rows
+            self._own_later(flat, span, d)
             times = self._clock.take(rows)
             self._clock[rows] = times + 1.0
             self._moved[rows] = clock
-            self._note(flat, present, rows, times, span, d)
+            self._own.append((flat, present, rows, times))
             return
         self._join(time, span, d, clock, origins, stamp, prop, False)
         self._pending.append((flat, present, flat % self._n.shape[1] if rows is None else rows))
@@ -237,31 +247,74 @@ class TraceColumns:
         self._props.add(prop)
 
     def encoded_own(self, flat: int, row: int, present: bool, span: float, d: float, clock: float) -> None:
-        """As :meth:`encoded` with ``time`` None for one slot given as Python numbers (:meth:`QueueColumns.encode_one`).
-
-        The row's clock moves now; the encoding is noted with the others given so (a
-        description's, into one row) when the traces are next read from outside
-        (:meth:`settle`), or when one of them might be due (:meth:`row_due_by`).
-        """
-        if self._own and (self._own_of != (span, d) or any(f == flat for f, _, _, _ in self._own)):
-            self.settle()  # (a slot written twice: noted in order)
-        self._own_of = (span, d)
+        """As :meth:`encoded` with ``time`` None for one slot given as Python numbers (:meth:`QueueColumns.encode_one`)."""
+        self._own_later(flat, span, d)
         time = float(self._clock[row])
         self._clock[row] = time + 1.0
         self._moved[row] = clock
-        self._own.append((flat, row, present, time))
+        self._own_ones.append((flat, present, row, time))
+
+    def _own_later(self, flat, span: float, d: float) -> None:
+        """Make room for one more call's encodings on the rows' own clocks in the pending ones (slots ``flat``).
+
+        They are noted together (one :meth:`_note`) by the next read or write of the
+        traces from outside (:meth:`settle`), by :meth:`passed` when a row may have
+        something due, or first if a slot of theirs was written already (noted in order)
+        or (span, d) changed.  Until then each slot keeps its previous ``due``, and the
+        rows their bound, which :meth:`passed` and :meth:`row_due_by` may still read alone:
+        a refreshed entry's crossing only comes later for the new presentation (its old
+        one was after the clock: the queue lost what was due first); a displaced entry's
+        bound is one more slot that may be due (read, the batch is noted first); and a new
+        entry noted at time m is due at m + span, its row's clock at most m plus the calls
+        pending, so none is due while span passes their number (else they are noted first:
+        :meth:`_own_soon`).
+        """
+        slots = self._own_slots
+        if slots.size != self._flat_n.size:
+            slots = self._own_slots = np.zeros(self._flat_n.size, dtype=bool)  # (after a settle: none marked)
+        if self._own_calls and (self._own_of != (span, d) or slots[flat].any()):
+            self.settle()
+        slots[flat] = True
+        self._own_of = (span, d)
+        self._own_calls += 1
+
+    def _own_soon(self) -> bool:
+        """Tell whether an encoding on the rows' own clocks not noted yet may be due (:meth:`_own_later`)."""
+        return bool(self._own_calls) and self._own_of[0] <= self._own_calls + TIME_EPSILON
 
     def pending_since(self, stamp: int) -> bool:
         """Tell whether an entry stamped ``stamp`` may have been encoded in the pending batch (stamps only grow)."""
         return bool(self._pending or self._ones) and stamp >= self._first_stamp
 
+    def forget_slots(self, flat: np.ndarray) -> None:
+        """Make slots ``flat`` (flat indices) never due: their entries left.
+
+        The pending encodings are noted first unless none of them is on the rows' own
+        clocks in these slots (the slots a crossing emptied are never pending ones: :meth:`passed`).
+        """
+        if self._pending or self._ones or self._own_calls and self._own_slots[flat].any():
+            self.settle()
+        self._flat_due[flat] = NEVER
+
     def settle(self) -> None:
-        """Note the pending encodings (:meth:`encoded`, :meth:`encoded_one`) as one batch."""
-        if self._own:
-            flats, rows, present, times = zip(*self._own)
-            self._own = []
-            self._note(np.array(flats, dtype=np.intp), np.array(present), np.array(rows, dtype=np.intp),
-                       np.array(times), *self._own_of)
+        """Note the pending encodings (:meth:`encoded`, :meth:`encoded_one`, on own clocks) as one batch."""
+        if self._own_calls:
+            own = self._own
+            if self._own_ones:
+                flats, present, rows, times = zip(*self._own_ones)
+                own.append((np.array(flats, dtype=np.intp), np.array(present), np.array(rows, dtype=np.intp),
+                            np.array(times)))
+            self._own, self._own_ones, self._own_calls = [], [], 0
+            flat = np.concatenate([o[0] for o in own]) if len(own) > 1 else own[0][0]
+            self._own_slots[flat] = False
+            if len(own) == 1:
+                self._note(*own[0], *self._own_of)
+            else:
+                self._note(flat, *(np.concatenate([o[k] for o in own]) for k in (1, 2, 3)), *self._own_of)
+        self._settle_shared()
+
+    def _settle_shared(self) -> None:
+        """Note the pending encodings made at one clock (:meth:`encoded`, :meth:`encoded_one`) as one batch."""
         pending, ones = self._pending, self._ones
         if not (pending or ones):
             return
@@ -353,6 +406,10 @@ class TraceColumns:
         unused places hold -inf.
         """
         self.settle()
+        return self._ordered(flat)
+
+    def _ordered(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`ordered` of slots no pending encoding wrote."""
         n = np.take(self._flat_n, flat)
         kept = np.minimum(n, HISTORY)
         start = n - kept  # index of the oldest encoding kept
@@ -371,9 +428,9 @@ class TraceColumns:
 
         At the clock they were made at, encodings not noted yet are not due (so they stay pending).
         """
-        if clock is None:  # the encodings given one at a time (:meth:`encoded_own`) may be due: noted first
+        if clock is None:  # (own clocks: what is pending is noted first only if it may be due)
             clock = self._clock[row]
-            if self._own and self._own_of[0] <= len(self._own) + TIME_EPSILON:
+            if self._own_soon():
                 self.settle()
         elif clock != self.pending_clock:
             self.settle()
@@ -400,8 +457,9 @@ class TraceColumns:
         """
         if not len(rows):
             return NO_SLOTS
-        if clock is None:
-            self.settle()
+        if clock is None:  # (own clocks: what is pending is noted first only if it may be due, or once read)
+            if self._own_soon():
+                self.settle()
             now = self._clock.take(rows) + TIME_EPSILON
         else:
             now = clock + TIME_EPSILON
@@ -412,11 +470,13 @@ class TraceColumns:
         if not due_rows.any():  # one number per row: most calls end here
             return NO_SLOTS
         rows = rows.compress(due_rows)
-        if clock is None:
-            now = now.compress(due_rows)
         width = max(used, 1)  # (slots never used are never due)
         all_rows = self._n.shape[1]
         due = self._due[:width].take(rows, axis=1)
+        if clock is None:
+            now = now.compress(due_rows)
+            if self._own_calls:  # pending ones are not due (:meth:`_own_later`); settle adds them to the bounds
+                due[self._own_slots.reshape(-1, all_rows)[:width].take(rows, axis=1)] = NEVER
         at = np.flatnonzero(due <= now)  # places in ``due`` (an empty slot's due is NEVER)
         starts = np.arange(0, width * all_rows, all_rows)[:, None]  # each slot's flat index in row 0
         flat = (starts + rows).reshape(-1).take(at)  # (a 2-D nonzero would cost four times more)
@@ -438,9 +498,9 @@ class TraceColumns:
     def _solve(self, flat: np.ndarray, now: Union[float, np.ndarray], d: float, tau: float, span: float) -> None:
         """Decide the slots ``flat`` whose lower bound passed ``now``: a new bound or the crossing (:meth:`passed`).
 
-        ``now``: one clock, or one per slot (rows on their own clocks).
+        ``now``: one clock, or one per slot (rows on their own clocks; none of ``flat`` pending).
         """
-        self.settle()
+        self._settle_shared()
         due, exact = self._flat_due, self._flat_exact
         if span > LONGEST:
             due[flat], exact[flat] = NEVER, True
@@ -460,14 +520,14 @@ class TraceColumns:
                     found = (bound, False) if bound is not None else (crossing(trace, d, tau), True)
                 due[f], exact[f] = found
             return
-        n, first, times = self.ordered(flat)
+        n, first, times = self._ordered(flat)
         gone, bound = passages(n, first, times, d, tau, now)
         staying = bound > -np.inf
         later = bound[staying]
         due[flat[staying]] = later - MARGIN * np.maximum(1.0, np.abs(later))  # a lower bound of crossing()'s root
         # (what went keeps its bound, at most the clock; too close to call: crossing() itself)
         for f in flat[~(gone | staying)].tolist():
-            trace = self.get(f // width_rows, f % width_rows)
+            trace = self._trace(f // width_rows, f % width_rows)
             due[f], exact[f] = crossing(trace, d, tau), True
 
 
