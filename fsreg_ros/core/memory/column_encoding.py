@@ -81,9 +81,9 @@ def encode_in_row(wm: HostBuffer, entity: str, props: Sequence[str], cause: str,
     if act is not None:
         act.advance(time)
         traced = act.noting()
-    for prop in props:
-        if act is not None:  # what crossed goes first, as queue by queue (an own clock moved since the last)
-            act.forget_row(row)
+    for k, prop in enumerate(props):
+        if act is not None and (k == 0 or traced[0] is None):  # what crossed goes first, as queue by queue
+            act.forget_row(row)  # (again before each property when the row's own clock moved)
         wm.origin_log.log(store.stamp + 1, cause, turn)
         store.encode_row(entity, prop, traced)
     wm.changes.note(entity)

@@ -167,8 +167,8 @@ def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau:
     newton = _Newton(n, first, times, d, tau)
     gone = np.zeros(len(n), dtype=bool)
     bound = np.full(len(n), -np.inf)
-    now = np.broadcast_to(np.asarray(now, dtype=float), (len(n),))
-    start = now - MARGIN * np.maximum(1.0, np.abs(now))
+    each = isinstance(now, np.ndarray)
+    start = now - MARGIN * (np.maximum(1.0, np.abs(now)) if each else max(1.0, abs(now)))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         t = np.maximum(start, newton.floor)
         active = np.flatnonzero(~newton.other)
@@ -178,11 +178,11 @@ def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau:
                 break
             value, step = newton.step(ta, active)
             if i == 0:  # F(now - margin) > 0: crossed before
-                over = (value > 0.0) & (ta == start[active])
+                over = (value > 0.0) & (ta == (start[active] if each else start))
                 gone[active[over]] = True
                 active, ta, step = active[~over], ta[~over], step[~over]
             ta = np.maximum(ta + step, newton.floor[active])  # from the left: at most the crossing
-            later = ta - MARGIN * np.maximum(1.0, np.abs(ta)) > now[active]
+            later = ta - MARGIN * np.maximum(1.0, np.abs(ta)) > (now[active] if each else now)
             bound[active[later]] = ta[later]
             going = ~later & (np.abs(step) > _SOLVED * np.maximum(1.0, np.abs(ta)))  # (converged near now: too close)
             active, ta = active[going], ta[going]

@@ -55,7 +55,7 @@ class TraceKeeper(Protocol):
         """Keep ``traces``, those of Q[entity] (back from the column form)."""
 
     def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
-        """Hand over the entities' own clocks and when each moved (queues moving to the column form); None: one clock."""
+        """Hand over the entities' own clocks and when each moved (queues moving to the column form); None: one."""
 
     def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
         """Keep the entity's own clock and when it moved (its queue back from the column form)."""

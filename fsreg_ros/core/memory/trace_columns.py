@@ -9,7 +9,8 @@ lower bound of its slots' crossings (so a row with nothing due costs one number 
 check).  On an entity's own clock (``activation_clock`` = ``words``,
 :mod:`fsreg_ros.core.memory.entity_clock`) each row keeps its entity's clock too
 (``own_clocks``): an encoding is noted at its row's clock, which it moves by one, and a
-row's crossings are decided at its own clock (every time in its traces is in its units).  Which entries passed their crossing is decided by :meth:`TraceColumns.passed`
+row's crossings are decided at its own clock (every time in its traces is in its units).
+Which entries passed their crossing is decided by :meth:`TraceColumns.passed`
 (with :mod:`fsreg_ros.core.memory.crossings`).
 """
 
@@ -247,7 +248,7 @@ class TraceColumns:
         self._props.add(prop)
 
     def encoded_own(self, flat: int, row: int, present: bool, span: float, d: float, clock: float) -> None:
-        """As :meth:`encoded` with ``time`` None for one slot given as Python numbers (:meth:`QueueColumns.encode_one`)."""
+        """As :meth:`encoded` with ``time`` None for one slot given as numbers (:meth:`QueueColumns.encode_one`)."""
         self._own_later(flat, span, d)
         time = float(self._clock[row])
         self._clock[row] = time + 1.0
