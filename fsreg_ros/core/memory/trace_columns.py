@@ -152,8 +152,14 @@ class TraceColumns:
         return trace
 
     def row(self, row: int, slots: list[int]) -> list[Trace]:
-        """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once)."""
-        self.settle()
+        """Return the traces of ``slots`` of row ``row`` (as :meth:`get`, reading the row once).
+
+        Encodings on the rows' own clocks pending in other rows stay pending.
+        """
+        if self._own_calls and not self._own_slots.reshape(-1, self._n.shape[1])[:, row].any():
+            self._settle_shared()
+        else:
+            self.settle()
         ns, firsts = self._n[:, row].tolist(), self._first[:, row].tolist()
         rings, dues, exacts = self._recent[:, row].tolist(), self._due[:, row].tolist(), self._exact[:, row].tolist()
         out = []
