@@ -30,9 +30,10 @@
                         more than activation's;
    * ``sd-pia/act-epi``, ``sd-pia/act-words``  policy activation+displacement as
                         ``sd-pia/act`` (same d, tau, capacity) on each entity's own
-                        episodes or words clock (their queues are dict queues); largest
-                        size only.  Target (issue 36): paired ratio to ``sd-pia/displ`` no
-                        more than activation's.
+                        episodes or words clock (column queues: on the words clock each
+                        row keeps its entity's clock); largest size only.  Target
+                        (issue 36): paired ratio to ``sd-pia/displ`` no more than
+                        activation's.
 
    Reported: median and p95 latency, median encodings per call, and the ratio of
    medians 10k/1k entities (10.0 would be linear in the number of entities).  Next

@@ -104,13 +104,13 @@ def test_the_episodes_clock_keeps_the_column_form_of_a_large_domain():
     assert wm.strength("e8") == [Strength(0, 1, act(1)), Strength(0, 1, act(1))]  # e8's episode 0 all along
 
 
-def test_the_words_clock_takes_dict_queues_in_a_large_domain():
+def test_the_words_clock_keeps_the_column_form_of_a_large_domain():
     entities = [f"e{i}" for i in range(300)]
     wm = buffer("words", policy="activation+displacement", capacity=2)
     wm.column_min = 100
     for k, prop in enumerate(("p", "q", "r", "s")):
         wm.encode_members((1 << 300) - 1, entities, prop, "reg-distractor", float(k))
-    assert not wm.columns.entities and wm.queue("e7") == ("r", "s")
+    assert len(wm.columns.entities) == 300 and wm.queue("e7") == ("r", "s")
     assert wm.strength("e7") == [Strength(0, 1, act(2)), Strength(0, 1, act(1))]
 
 
@@ -187,3 +187,25 @@ def test_an_entry_that_came_back_in_the_current_episode_starts_afresh_after_a_re
     for buf in (wm, again):
         buf.begin_episode("a", 3.0)
     assert again.strength("a") == wm.strength("a") == [Strength(1, 1, act(2))]
+
+
+@pytest.mark.parametrize("column_min", [10**9, 1])
+def test_new_limits_on_the_words_clock_keep_each_entitys_clock(column_min):
+    """New limits on the same clock keep the clocks: the entries' presentations stay in their units."""
+    entities = ["a", "b"]
+    wm = buffer("words", policy="activation+displacement", capacity=3)
+    wm.column_min = column_min  # dict queues, or column queues (each row keeps its entity's clock)
+    wm.encode_members(0b11, entities, "x", "reg-distractor", 1.0)
+    wm.encode_members(0b01, entities, "y", "reg-distractor", 2.0)  # a's clock at 2: x of age 2, y 1
+    assert bool(wm.columns.entities) == (column_min == 1)
+    wm.set_limits(ForgettingPolicy.parse("activation+displacement", activation_decay=D, activation_threshold=TAU,
+                                         activation_clock="words", capacity=2).limits(), 3.0)
+    assert wm.strength("a") == [Strength(0, 1, act(2)), Strength(0, 1, act(1))]
+    assert wm.export_episodes() == {"a": {"starts": [], "counts": {}, "words": 2},
+                                    "b": {"starts": [], "counts": {}, "words": 1}}
+    wm.encode("a", ["z"], "speaker", 4.0)  # a's clock at 3: x of age 3, y 2, z 1 (capacity 2: x displaced)
+    assert wm.queue("a") == ("y", "z") and wm.strength("a") == [Strength(0, 1, act(2)), Strength(0, 1, act(1))]
+    wm.encode("a", ["z"], "speaker", 5.0)  # at 4: y of age 3, below; z of ages 2 and 1
+    assert wm.queue("a") == ("y", "z") and wm.strength("a") == [Strength(0, 1, act(3)), Strength(0, 1, act(2, 1))]
+    wm.encode("a", ["z"], "speaker", 6.0)  # at 5: y of age 4 >= 3.32 goes
+    assert wm.queue("a") == ("z",)

@@ -173,8 +173,9 @@ def _state(b) -> tuple:
 
 
 def _state_with_exports(b) -> tuple:
-    """:func:`_state` and each queue as persistence exports it (activation's traces included)."""
-    return (*_state(b)[:2], {e: b.export_queue(e) for e in WM_ENTITIES}, len(b))
+    """:func:`_state`, each queue as persistence exports it (activation's traces included), strengths, own clocks."""
+    return (*_state(b)[:2], {e: b.export_queue(e) for e in WM_ENTITIES}, len(b),
+            {e: b.strength(e) for e in WM_ENTITIES}, b.export_episodes())
 
 
 def _agree(op, buffers, heard_events, plain_events, seen: int, trimmed: bool, state) -> tuple[int, bool]:
@@ -291,6 +292,7 @@ ACT_OPS = st.lists(
                   st.sampled_from([None, (0.5, -0.9), (0.3, -0.4)])),
         st.tuples(st.just("remove"), st.integers(0, 7), st.sampled_from(WM_PROPS)),
         st.tuples(st.just("take")),
+        st.tuples(st.just("restart")),  # each buffer restored from its own export (the column form's included)
     ),
     max_size=50,
 )
@@ -342,8 +344,49 @@ def test_column_queues_under_activation_as_dict_queues(capacity, params, widths,
          column_queues.SLOT_MAP_MAX) = kept
 
 
-def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
-    """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing."""
+@settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)
+@given(st.sampled_from([1, 2, 3, None, None]),
+       st.sampled_from([(0.5, -0.9), (0.3, -0.4), (0.8, -1.3), (0.5, 0.2), (0.5, -0.6), (0.5, 0.0)]),
+       st.sampled_from([(1, 64), (2, 64), (4, 64), (1, 2)]), st.booleans(), ACT_OPS)
+def test_column_queues_on_the_words_clock_as_dict_queues(capacity, params, widths, in_numpy, ops):
+    """Rule ``activation`` on the words clock: column queues (each row on its entity's clock) are the dict queues' own.
+
+    As :func:`test_column_queues_under_activation_as_dict_queues`, every limits on the
+    words clock: WM contents, events, exported traces, strengths and the entities' clocks
+    (:meth:`WMBuffer.export_episodes`) equal, a restart from each buffer's own export
+    included.  Lifetimes from under one word (tau 0.2: an entry goes at its entity's next
+    encoding) to several.
+    """
+    from fsreg_ros.core.memory import Limits, WMBuffer, crossings
+    from fsreg_ros.core.memory import columns as column_queues
+
+    heard_events: list = []
+    plain_events: list = []
+    plain = WMBuffer("d", plain_events.append)
+    plain.column_min = 10**9
+    heard, quiet = WMBuffer("d", heard_events.append), WMBuffer("d")
+    for b in (heard, quiet):
+        b.column_min = 1
+    for b in (plain, heard, quiet):
+        b.set_limits(Limits(capacity=capacity, activation=params, activation_clock="words"), 0.0)
+    kept = column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, crossings.FEW
+    column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH = widths
+    if in_numpy:
+        crossings.FEW = 0
+    try:
+        in_rows = _activation_ops(ops, plain, heard, quiet, plain_events, heard_events, "words")
+    finally:
+        column_queues._FIRST_WIDTH, column_queues.COLUMN_MAX_WIDTH, crossings.FEW = kept
+    if ops and ops[0][0] in ("members", "burst") and (capacity or 0) <= widths[1]:
+        assert in_rows[0]  # the quiet buffer's queues went to the column form
+
+
+def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events, clock="seconds"):
+    """Run ``ops`` on the three buffers of :func:`test_column_queues_under_activation_as_dict_queues`, comparing.
+
+    ``clock``: the activation clock of every limits set.  Returns, per op, whether ``quiet``
+    held column queues after it.
+    """
     from fsreg_ros.core.memory.ticks import TickRun
     from fsreg_ros.core.memory import Limits, trace as trace_math
 
@@ -351,6 +394,7 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
     ticks = seen = 0
     now = 0.0
     trimmed = False
+    in_rows = []
     for op in ops:
         kind = op[0]
         if kind == "members":
@@ -412,10 +456,15 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                 b.clear("reset", now, 3)
         elif kind == "limits":
             for b in buffers:
-                b.set_limits(Limits(capacity=op[1], activation=op[2]), now)
+                b.set_limits(Limits(capacity=op[1], activation=op[2], activation_clock=clock), now)
         elif kind == "remove":
             for b in buffers:
                 b.remove(WM_ENTITIES[op[1]], op[2], "retract", now)
+        elif kind == "restart":
+            for b in buffers:
+                queues, clocks = {e: b.export_queue(e) for e in WM_ENTITIES}, b.export_episodes()
+                b.restore(queues, *b.counters(), b.limits)
+                b.restore_episodes(clocks)
         seen, trimmed = _agree(op, buffers, heard_events, plain_events, seen, trimmed, _state_with_exports)
         assert heard_events[seen:] == plain_events[seen:], op  # what the reads caught up
         for b in buffers[1:]:  # slots past those ever used are empty in every row, and never due
@@ -433,8 +482,10 @@ def _activation_ops(ops, plain, heard, quiet, plain_events, heard_events):
                         truth[store.prop[k, held], held] = k
                     assert (store.slot_of == truth).all(), op
         seen = len(plain_events)
+        in_rows.append(bool(quiet.columns.entities))
     changes = [b.take_changes() for b in buffers]
     assert all(set(c) == set(changes[0]) for c in changes)
+    return in_rows
 
 
 @settings(max_examples=int(os.environ.get("FSREG_HYPOTHESIS_EXAMPLES", "300")), deadline=None)

@@ -31,7 +31,8 @@ What lives where (one module per job; each docstring says what it owns):
                      decided at its boundaries; the words encoded for it, per
                      encoding) and those clocks' persistence
 ``trace``            one entry's ACT-R trace and its crossing time (arithmetic)
-``trace_columns``    the traces of column queues' entries, one per slot (numpy)
+``trace_columns``    the traces of column queues' entries, one per slot (numpy), and
+                     each row's own clock (words)
 ``crossings``        deciding many column entries' crossings at once (Newton, numpy)
 ``origins``          the origin log: which encoding made each entry enter its queue
 ``episodes``         reference episodes: each entity's episode counter, the episodes

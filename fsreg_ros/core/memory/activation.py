@@ -146,15 +146,7 @@ class LazyActivation:
             return
         now = self.clock + TIME_EPSILON
         store = self.wm.store
-        columns = store.columns
-        if columns.entities and columns.store.traces is not None:
-            rows = columns.store.non_empty()
-            if self.wm.quiet:
-                self.settle_columns(rows)
-            else:  # what went must be reported: those queues become dict queues, brought up below
-                arrays = columns.store
-                for row in np.unique(self.passed(arrays, rows) % arrays.rows).tolist():  # (in row order)
-                    store.to_dict(columns.bound[row])
+        self.flush_columns()
         for entity in [e for e, due in self.due.items() if due <= now]:
             q = store.get(entity)
             if q is not None:
@@ -162,6 +154,40 @@ class LazyActivation:
         self.settled = self.clock
 
     # ------------------------------------------------------------ column queues
+    def flush_columns(self) -> list[str]:
+        """Bring the column queues up to their clock (:meth:`flush`'s part for them).
+
+        Without a listener what crossed goes at once; with one (it must hear what went)
+        the rows that lost something become dict queues, returned (the caller brings them up).
+        """
+        store = self.wm.store
+        columns = store.columns
+        moved: list[str] = []
+        if columns.entities and columns.store.traces is not None:
+            rows = columns.store.non_empty()
+            if self.wm.quiet:
+                self.settle_columns(rows)
+            else:
+                arrays = columns.store
+                for row in np.unique(self.passed(arrays, rows) % arrays.rows).tolist():  # (in row order)
+                    moved.append(columns.bound[row])
+                    store.to_dict(moved[-1])
+        return moved
+
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
+        """Return None: the seconds clock is one for all entities (no clock moves with a queue)."""
+        return None
+
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
+        """Keep nothing (the seconds clock is one for all entities)."""
+
+    def carry_clocks(self, old: "LazyActivation") -> None:
+        """Take over the per-entity clocks of ``old``, the rule this one replaces on the same clock (none here)."""
+
+    def column_clock(self) -> Optional[float]:
+        """Return the clock column rows are read and noted at (None: each row's own, :mod:`.entity_clock`)."""
+        return self.clock
+
     def release(self, entity: str) -> dict[str, Trace]:
         """Hand over the traces of Q[entity] (moving to the column queues); this rule keeps them no longer."""
         self.due.pop(entity, None)
@@ -182,7 +208,7 @@ class LazyActivation:
         Decided exactly as :meth:`sync` decides for a dict queue
         (:meth:`~fsreg_ros.core.memory.trace_columns.TraceColumns.passed`).
         """
-        return store.traces.passed(rows, store.used, self.clock, self.decay, self.threshold, self.span)
+        return store.traces.passed(rows, store.used, self.column_clock(), self.decay, self.threshold, self.span)
 
     def forget_members(self, rows: np.ndarray, members: int) -> None:
         """Before encoding into the column rows ``rows`` (bitset ``members``), forget what is due there.
@@ -206,16 +232,18 @@ class LazyActivation:
 
     def forget_row(self, row: int) -> None:
         """As :meth:`forget_rows` for one column row, its bound checked first as one number (most rows: nothing due)."""
-        if self.wm.store.columns.store.traces.row_due_by(row, self.clock):
+        if self.wm.store.columns.store.traces.row_due_by(row, self.column_clock()):
             self.forget_rows(np.array([row]))
 
-    def noting(self) -> tuple[float, float, float, float]:
+    def noting(self) -> tuple[Optional[float], float, float, Optional[float]]:
         """Return ``(time, lifetime, d, clock)`` of an encoding made now, as column queues note it.
 
         An encoding counts at the clock at the earliest (:meth:`record`), and the clock
-        has reached the encoding's time (:meth:`advance`).
+        has reached the encoding's time (:meth:`advance`).  None, None: at each row's own
+        clock, which the encoding moves, at the seconds clock (:meth:`column_clock`).
         """
-        return self.clock, self.span, self.decay, self.clock
+        clock = self.column_clock()
+        return clock, self.span, self.decay, self.clock if clock is None else clock
 
     def forget_rows(self, rows: np.ndarray) -> np.ndarray:
         """Forget (no events) the entries of column ``rows`` whose crossing passed; return the rows that lost some.

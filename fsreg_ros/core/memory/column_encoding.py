@@ -21,7 +21,6 @@ from . import bitset
 from .host import HostBuffer
 from .queue import WMEvent
 from .queues import NO_ROWS
-from .ticks import TIME_EPSILON
 
 
 def encode_rows(wm: HostBuffer, members: int, entities: Sequence[str], prop: str, cause: str, time: float,
@@ -79,11 +78,12 @@ def encode_in_row(wm: HostBuffer, entity: str, props: Sequence[str], cause: str,
         store.pop_owed(np.array([row]), ticks)
     act = wm.activation
     traced = None
-    if act is not None:  # what crossed goes first, as queue by queue
+    if act is not None:
         act.advance(time)
-        act.forget_row(row)
         traced = act.noting()
-    for prop in props:
+    for k, prop in enumerate(props):
+        if act is not None and (k == 0 or traced[0] is None):  # what crossed goes first, as queue by queue
+            act.forget_row(row)  # (again before each property when the row's own clock moved)
         wm.origin_log.log(store.stamp + 1, cause, turn)
         store.encode_row(entity, prop, traced)
     wm.changes.note(entity)
@@ -106,7 +106,7 @@ def readable_row(wm: HostBuffer, entity: str) -> Optional[Mapping]:
             return wm.readable(entity)
         wm.lazy_decay.settle_columns(np.array([row]))
     act = wm.activation
-    if act is not None and arrays.length[row] and arrays.traces.row_due[row] <= act.clock + TIME_EPSILON:
+    if act is not None and arrays.length[row] and arrays.traces.row_due_by(row, act.column_clock()):
         if not quiet:  # what went must be reported: as a dict queue
             store.to_dict(entity)
             return wm.readable(entity)

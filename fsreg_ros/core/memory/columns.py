@@ -77,15 +77,17 @@ class QueueColumns:
     ``bounded``: the width is the displacement capacity (a full row loses its front);
     otherwise (rule ``activation`` without a capacity) no queue is ever full, the
     caller widening the rows first (:meth:`widen`).  ``traces`` (rule ``activation``): each slot's entry's trace
-    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`), else None.  ``slot_of``
+    (:class:`~fsreg_ros.core.memory.activation.TraceColumns`; ``own_clocks``: and each row's
+    own clock, the words clock's), else None.  ``slot_of``
     (rows that widen, within :data:`SLOT_MAP_MAX`): ``slot_of[p, r]`` is the slot of row r
     holding property id p, -1 if none; kept by every write and clear of a slot.
     """
 
-    def __init__(self, width: int, rows: int, traced: bool = False, bounded: bool = True) -> None:
+    def __init__(self, width: int, rows: int, traced: bool = False, bounded: bool = True,
+                 own_clocks: bool = False) -> None:
         self.width = width
         self.bounded = bounded  # width is the displacement capacity (else it grows: widen)
-        self.traces = TraceColumns(width, rows) if traced else None
+        self.traces = TraceColumns(width, rows, own_clocks) if traced else None
         self.prop = np.full((width, rows), -1, dtype=np.int32)
         self.stamp = np.zeros((width, rows), dtype=np.int64)
         self.entry = np.zeros((width, rows), dtype=np.int64)
@@ -161,7 +163,7 @@ class QueueColumns:
         self._unmap_slots(flat)
         self.prop.reshape(-1)[flat] = -1
         if self.traces is not None:
-            self.traces.due.reshape(-1)[flat] = NEVER
+            self.traces.forget_slots(flat)
 
     def clear_rows(self, rows: np.ndarray) -> None:
         """Empty every slot of ``rows`` as :meth:`clear_slots` does (lengths: the caller's)."""
@@ -351,8 +353,11 @@ class QueueColumns:
         if traced is not None:
             time, span, d, clock = traced
             traces = self.traces
-            traces.encoded_one(slot * self.rows + row, row, time, span, d, clock, self.entry, stamp, prop,
-                               not (present and traces.pending_since(before)))
+            if time is None:  # on the row's own clock (a refresh as it is now)
+                traces.encoded_own(slot * self.rows + row, row, present, span, d, clock)
+            else:
+                traces.encoded_one(slot * self.rows + row, row, time, span, d, clock, self.entry, stamp, prop,
+                                   not (present and traces.pending_since(before)))
         self.length[row] += grew
         return grew
 
@@ -378,11 +383,11 @@ class QueueColumns:
 def _columnar(limits: Limits) -> bool:
     """Tell whether column queues can hold queues under ``limits``: an LRU capacity at most, and activation.
 
-    Activation on the seconds clock only: the columns keep one clock (on an entity's own
-    clock the queues are dict queues, :mod:`fsreg_ros.core.memory.entity_clock`).
+    Activation on the seconds clock or the words clock (each row keeps its entity's:
+    :class:`~fsreg_ros.core.memory.trace_columns.TraceColumns`); the episodes clock
+    notes nothing in the queues (:mod:`fsreg_ros.core.memory.entity_clock`).
     """
-    return (limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
-            and (limits.activation is None or limits.activation_clock == "seconds"))
+    return limits.victim == "lru" and not limits.similarity and limits.global_capacity is None
 
 
 #: Up to this many slots per row, :func:`_first_minimum` finds the slot by one comparison per slot.
@@ -465,7 +470,8 @@ class ColumnQueues:
             return True
         store = self.store
         return (_columnar(limits) and limits.capacity == (store.width if store.bounded else None)
-                and limits.activation == current.activation)
+                and limits.activation == current.activation
+                and (limits.activation is None or limits.activation_clock == current.activation_clock))
 
     def eligible(self, entities: Sequence[str], limits: Limits, column_min: int, quiet: bool) -> bool:
         """Tell whether members of ``entities`` may be encoded as a column operation under ``limits``, by size.
@@ -486,19 +492,20 @@ class ColumnQueues:
             and width * len(entities) <= self._max_slots(limits.activation is not None)
         )
 
-    def reshape(self, entities: Sequence[str], capacity: Optional[int], traced: bool) -> bool:
+    def reshape(self, entities: Sequence[str], capacity: Optional[int], traced: bool, own_clocks: bool = False) -> bool:
         """Tell whether binding ``entities`` needs arrays of another shape (the column queues must go first)."""
         store = self.store
         return (store is not None and (self.bound is None or entities is self.bound)
                 and (store.bounded != (capacity is not None) or (store.traces is not None) != traced
-                     or store.bounded and store.width != capacity))
+                     or store.bounded and store.width != capacity
+                     or traced and store.traces.own_clocks != own_clocks))
 
-    def bind(self, entities: Sequence[str], capacity: Optional[int], traced: bool) -> bool:
+    def bind(self, entities: Sequence[str], capacity: Optional[int], traced: bool, own_clocks: bool = False) -> bool:
         """Bind rows to ``entities`` (the first list given) and size the arrays; False for another list.
 
         ``capacity`` is the rows' width, or None for rows that widen (:meth:`room`);
-        ``traced``: each slot keeps a trace (rule ``activation``).  Arrays of another
-        shape must have been given up first (:meth:`reshape`).
+        ``traced``: each slot keeps a trace (rule ``activation``; ``own_clocks``: each row
+        its entity's clock too).  Arrays of another shape must have been given up first (:meth:`reshape`).
         """
         if self.bound is None:
             self.bound = entities  # type: ignore[assignment]
@@ -509,7 +516,7 @@ class ColumnQueues:
                 self.row[entities[i]] = i
         if self.store is None:
             self.store = QueueColumns(capacity if capacity is not None else _FIRST_WIDTH, len(entities), traced,
-                                      capacity is not None)
+                                      capacity is not None, own_clocks)
         self.store.grow(len(entities))
         return True
 

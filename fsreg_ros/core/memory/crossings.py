@@ -14,7 +14,7 @@ when it would from a dict queue (:meth:`TraceColumns.passed
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Optional, Union
 
 import numpy as np
 
@@ -145,7 +145,7 @@ class _Newton:
 
 
 def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau: float,
-             now: float) -> tuple[np.ndarray, np.ndarray]:
+             now: Union[float, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Decide for many traces of at least two encodings whether each crossed the threshold by ``now``.
 
     ``n``, ``first`` and ``times`` as :meth:`TraceColumns.ordered` returns them.  Only the
@@ -162,11 +162,13 @@ def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau:
     the rest); a trace neither gone nor staying is :func:`crossing`'s to decide (too
     close to ``now`` to call, or one :class:`_Newton` leaves out).  Most traces are
     decided by one evaluation, where solving for the crossing would take several.
+    ``now`` is one time for all, or one per trace (rows on their own clocks).
     """
     newton = _Newton(n, first, times, d, tau)
     gone = np.zeros(len(n), dtype=bool)
     bound = np.full(len(n), -np.inf)
-    start = now - MARGIN * max(1.0, abs(now))
+    each = isinstance(now, np.ndarray)
+    start = now - MARGIN * (np.maximum(1.0, np.abs(now)) if each else max(1.0, abs(now)))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         t = np.maximum(start, newton.floor)
         active = np.flatnonzero(~newton.other)
@@ -176,11 +178,11 @@ def passages(n: np.ndarray, first: np.ndarray, times: np.ndarray, d: float, tau:
                 break
             value, step = newton.step(ta, active)
             if i == 0:  # F(now - margin) > 0: crossed before
-                over = (value > 0.0) & (ta == start)
+                over = (value > 0.0) & (ta == (start[active] if each else start))
                 gone[active[over]] = True
                 active, ta, step = active[~over], ta[~over], step[~over]
             ta = np.maximum(ta + step, newton.floor[active])  # from the left: at most the crossing
-            later = ta - MARGIN * np.maximum(1.0, np.abs(ta)) > now
+            later = ta - MARGIN * np.maximum(1.0, np.abs(ta)) > (now[active] if each else now)
             bound[active[later]] = ta[later]
             going = ~later & (np.abs(step) > _SOLVED * np.maximum(1.0, np.abs(ta)))  # (converged near now: too close)
             active, ta = active[going], ta[going]

@@ -14,8 +14,10 @@ read on a clock of each entity's own instead of the buffer's seconds
 * ``words`` (:class:`EntityClockActivation`): how many properties were encoded for the
   entity since the rule was installed: every encoding event of a property into Q[entity]
   (Algorithm 1's push, a refresh included, whatever its cause) moves it by one, and is a
-  presentation.  Its counters are kept here (:attr:`EntityClockActivation.words`); its
-  queues are dict queues (the column form keeps one clock).
+  presentation.  Its counters are kept here (:attr:`EntityClockActivation.words`) for
+  dict queues, and in their rows for column queues (each row keeps its entity's clock,
+  :class:`~fsreg_ros.core.memory.trace_columns.TraceColumns`; the clock moves with the
+  queue, as its traces do).
 
 Ages count from 1, so t^-d is finite: a presentation made while the entity's clock reads
 m (during episode m; or as its m-th encoding, that encoding moving the clock to m) is
@@ -30,6 +32,8 @@ log (:func:`export_clocks`).
 from __future__ import annotations
 
 from typing import Callable, Mapping, Optional, Union
+
+import numpy as np
 
 from .activation import LazyActivation
 from .episodes import EntryStamps
@@ -125,8 +129,10 @@ class EpisodeActivation:
 class EntityClockActivation(LazyActivation):
     """Rule ``activation`` on each entity's words clock (module docstring): traces in that clock's units.
 
-    ``words[entity]`` is the entity's clock; ``moved[entity]`` the time (seconds) it last
-    moved, which the forgettings it causes are stamped with; ``pending`` the entities
+    ``words[entity]`` is the entity's clock while its queue is a dict queue (a column
+    queue's row keeps it: :meth:`release_clocks`, :meth:`take_clock`); ``moved[entity]``
+    the time (seconds) it last moved, which the forgettings it causes are stamped with
+    (column queues are encoded into only while nobody listens); ``pending`` the entities
     encoded into since the last :meth:`flush`.  ``clock`` stays the buffer's seconds.
     """
 
@@ -140,7 +146,45 @@ class EntityClockActivation(LazyActivation):
 
     def now_of(self, entity: str) -> float:
         """Return the entity's own clock: how many encodings were made for it."""
-        return self.words.get(entity, 0)
+        words = self.words.get(entity)
+        if words is not None:
+            return words
+        store = self.wm.store
+        if store.in_columns(entity):
+            return store.columns.store.traces.clock_of(store.columns.row[entity])
+        return 0
+
+    def column_clock(self) -> Optional[float]:
+        """Return None: column rows are read and noted at each row's own clock."""
+        return None
+
+    def forget_members(self, rows: np.ndarray, members: int) -> None:
+        """Before encoding into the column rows ``rows``, forget what is due there at each row's clock.
+
+        Never skipped (:meth:`LazyActivation.forget_members`): every encoding moves its row's clock.
+        """
+        self.forget_rows(rows)
+
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
+        """Hand over the entities' clocks and when each moved (queues moving to column rows); kept here no longer."""
+        pop, moved = self.words.pop, self.moved.pop
+        return [pop(entity, 0) for entity in entities], [moved(entity, None) for entity in entities]
+
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
+        """Keep the entity's clock and when it moved (its queue back from its column row)."""
+        if clock:
+            self.words[entity] = clock
+        if moved is not None:
+            self.moved[entity] = moved
+
+    def carry_clocks(self, old: LazyActivation) -> None:
+        """Take over the words clocks of ``old``, the rule this one replaces (new limits on the same clock).
+
+        Its traces' times are on those clocks: they go on from where they were (a column
+        queue's row keeps its own).
+        """
+        if isinstance(old, EntityClockActivation):
+            self.words, self.moved = dict(old.words), dict(old.moved)
 
     def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
         """Take Q[entity] under the rule: ``traces`` kept, one encoding now (age 1) for the others."""
@@ -159,8 +203,9 @@ class EntityClockActivation(LazyActivation):
         self.forget_crossed(entity, q, self.now_of(entity) + TIME_EPSILON, self.moved.get(entity, self.clock))
 
     def flush(self) -> None:
-        """Bring the queues encoded into since the last flush up to their entity's clock."""
+        """Bring the queues encoded into since the last flush, and the column queues, up to their entity's clock."""
         pending, self.pending = self.pending, set()
+        pending.update(self.flush_columns())
         get = self.wm.store.get
         for entity in pending:
             q = get(entity)
@@ -168,8 +213,16 @@ class EntityClockActivation(LazyActivation):
                 self.sync(entity, q)
 
     def clocks(self) -> dict[str, int]:
-        """Return the words clocks a store keeps."""
-        return dict(self.words)
+        """Return the words clocks a store keeps (a column queue's from its row)."""
+        out = dict(self.words)
+        columns = self.wm.store.columns
+        if columns.entities:
+            row, traces = columns.row, columns.store.traces
+            for entity in columns.entities:
+                words = traces.clock_of(row[entity])
+                if words:
+                    out[entity] = words
+        return out
 
     def restore_clocks(self, words: dict[str, int]) -> None:
         """Take back :meth:`clocks`'s dict (checked by the caller)."""

@@ -98,6 +98,9 @@ class ActivationRule(Protocol):
     def adopt(self, entity: str, q: Queue, time: float, traces: Optional[dict[str, Trace]] = None) -> None:
         """Take a queue under the rule."""
 
+    def carry_clocks(self, old: "ActivationRule") -> None:
+        """Take over the per-entity clocks of the rule this one replaces."""
+
     def passed(self, store: QueueColumns, rows: np.ndarray) -> np.ndarray:
         """Return the column slots whose crossing passed."""
 
@@ -107,8 +110,11 @@ class ActivationRule(Protocol):
     def forget_row(self, row: int) -> None:
         """Forget what is due in one column row."""
 
-    def noting(self) -> tuple[float, float, float, float]:
+    def noting(self) -> tuple[Optional[float], float, float, Optional[float]]:
         """Return how column queues note an encoding made now."""
+
+    def column_clock(self) -> Optional[float]:
+        """Return the clock column rows are read at (None: each row's own)."""
 
     def settle_columns(self, rows: np.ndarray) -> None:
         """Bring column rows up to the clock (no events)."""

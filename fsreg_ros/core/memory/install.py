@@ -60,6 +60,8 @@ def install_activation(wm: HostBuffer, limits: Limits, time: float) -> None:
     wm.flush()
     act = new_rule(wm, limits, max(time, old.clock) if old is not None else time)
     same = old is not None and old.counting == act.counting
+    if same:
+        act.carry_clocks(old)  # type: ignore[arg-type]
     for entity in wm.store.holding():
         q = wm.store.get(entity)
         if q is not None:  # a column queue keeps its traces (the limits' d and tau did not change: columns.fits)

@@ -54,6 +54,12 @@ class TraceKeeper(Protocol):
     def take(self, entity: str, traces: dict[str, Trace]) -> None:
         """Keep ``traces``, those of Q[entity] (back from the column form)."""
 
+    def release_clocks(self, entities: list[str]) -> Optional[tuple[list[int], list[Optional[float]]]]:
+        """Hand over the entities' own clocks and when each moved (queues moving to the column form); None: one."""
+
+    def take_clock(self, entity: str, clock: int, moved: Optional[float]) -> None:
+        """Keep the entity's own clock and when it moved (its queue back from the column form)."""
+
 
 class EncodeWatcher(Protocol):
     """What the quiet fast path (:meth:`QueueStore.encode_quiet`) tells of each encoding and displacement."""
@@ -290,13 +296,15 @@ class QueueStore:
         """Tell whether members of ``entities`` may be encoded as a column operation (:meth:`ColumnQueues.usable`).
 
         Binding the rows may give up a column form of another shape first (:meth:`drop`).
+        Traced rows keep their entities' own clocks on any clock but the buffer's seconds.
         """
         columns = self.columns
         if not columns.eligible(entities, limits, column_min, quiet):
             return False
-        if columns.reshape(entities, limits.capacity, traced):
+        own = traced and limits.activation_clock != "seconds"
+        if columns.reshape(entities, limits.capacity, traced, own):
             self.drop()
-        return columns.bind(entities, limits.capacity, traced)
+        return columns.bind(entities, limits.capacity, traced, own)
 
     def adopt(self, rows: np.ndarray, ticks: int) -> bool:
         """Move the queues of ``rows`` into the column form (those not there yet); False, moving none, if one is longer.
@@ -317,6 +325,8 @@ class QueueStore:
             return False
         store.start_empty(fresh, ticks)  # ticks before a queue existed are not owed
         keeper = self.keeper
+        if keeper is not None and store.traces is not None and store.traces.own_clocks:
+            store.traces.set_clocks(fresh, *keeper.release_clocks(names))  # (names: fresh's, in order)
         for name in moving:
             q = queues.pop(name)
             row = columns.row[name]
@@ -337,6 +347,8 @@ class QueueStore:
         q.marked = False  # if it changed since the last take, a column mark says so
         if self.keeper is not None and store.traces is not None:
             self.keeper.take(entity, columns.traces_of(entity))
+            if store.traces.own_clocks:
+                self.keeper.take_clock(entity, store.traces.clock_of(row), store.traces.moved_of(row))
         store.release(row)
         columns.entities.discard(entity)
         return q
