@@ -427,6 +427,10 @@ def plot_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: The fields of a WM event that name what changed and why (``WMEvent``; docs/semantics.md section 2).
+EVENT_NAMES = ("domain", "entity", "property", "cause")
+
+
 def read_trace(path: Path) -> list[dict]:
     """Read a JSON-lines event trace; a bad line is named by number.
 
@@ -444,6 +448,10 @@ def read_trace(path: Path) -> list[dict]:
                 raise UsageError(f"{path}: line {number}: not a WM event (an object with op encode|forget)")
             if not isinstance(event.get("time", 0), (int, float)) or isinstance(event.get("time"), bool):
                 raise UsageError(f"{path}: line {number}: 'time' must be a number")
+            for name in EVENT_NAMES:
+                if not isinstance(event.get(name), str):
+                    raise UsageError(f"{path}: line {number}: {name!r} must be a string (a WM event names its "
+                                     f"{', '.join(EVENT_NAMES)})")
             events.append(event)
     except InputFileError as err:
         raise UsageError(str(err)) from None

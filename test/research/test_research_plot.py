@@ -88,7 +88,11 @@ def test_plot_command_writes_png(tmp_path, capsys):
     "text, message",
     [("{not json\n", "trace.jsonl: line 1, column 2: not JSON"),
      ('{"op": "paint"}\n', "trace.jsonl: line 1: not a WM event"),
-     ('{"op": "encode", "time": "late"}\n', "'time' must be a number")],
+     ('{"op": "encode", "time": "late"}\n', "'time' must be a number"),
+     ('{"op": "encode", "time": 1}\n', "trace.jsonl: line 1: 'domain' must be a string (a WM event names its "
+      "domain, entity, property, cause)"),
+     ('{"op": "forget", "time": 1, "domain": "faces", "entity": ["face1"], "property": "male", "cause": "decay"}\n',
+      "trace.jsonl: line 1: 'entity' must be a string")],
 )
 def test_bad_trace_is_named(tmp_path, capsys, text, message):
     trace = tmp_path / "trace.jsonl"
