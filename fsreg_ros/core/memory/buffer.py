@@ -155,10 +155,26 @@ class WMBuffer:
         """Return the entity's current episode: how many have begun (:meth:`begin_episode`; 0 before the first)."""
         return self.episodes.current(entity)
 
-    def entry_stamps(self, entity: str) -> list[EntryStamps]:
-        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first."""
+    def entry_stamps(self, entity: str, since: int = 0) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first.
+
+        ``since``: only the entries encoded after that stamp (their latest stamp is larger):
+        the back of the queue, read from the back without building the rest.
+        """
         q = self.readable(entity)
-        return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()] if q else []
+        if not q:
+            return []
+        if since <= 0:
+            return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()]
+        out = []
+        for p in reversed(q):  # stamps increase from front to back
+            v = q[p]
+            stamp = entry_stamp(v)
+            if stamp <= since:
+                break
+            out.append(EntryStamps(p, stamp, entry_entered(v)))
+        out.reverse()
+        return out
 
     def strength(self, entity: str) -> list[Strength]:
         """Return how strongly each entry of Q[entity] is held, parallel to :meth:`queue` (:class:`Strength`).
