@@ -113,12 +113,12 @@ class EpisodeLog:
         counts = self.counts.get(entity)
         if window is not None or counts is None or len(counts) > 2 * self.held.get(entity, 0) + 8:
             entries = self.wm.entry_stamps(entity)  # every entry: the counts of those gone are dropped
-            self.counts[entity] = {e.property: self._count(entity, e) for e in entries}
+            self.counts[entity] = {e.property: n for e, n in zip(entries, self._counts(entity, entries))}
             self.held[entity] = len(entries)
         else:  # only the entries used in the closing episode change; an entry gone keeps a count no one reads
             starts = self.starts.get(entity)
-            for e in self.wm.entry_stamps(entity, starts[-1] if starts else 0):
-                counts[e.property] = self._count(entity, e)
+            used = self.wm.entry_stamps(entity, starts[-1] if starts else 0)
+            counts.update(zip([e.property for e in used], self._counts(entity, used)))
         starts = self.starts.setdefault(entity, [])
         starts.append(self.wm.counters()[0])
         episode = len(starts)
@@ -132,16 +132,19 @@ class EpisodeLog:
 
     def strength(self, entity: str, entries: Iterable[EntryStamps]) -> list[tuple[int, int]]:
         """Return ``(age, episodes)`` of each entry (:class:`Strength`'s first two fields)."""
-        current = self.current(entity)
-        return [(current - self.episode_of(entity, e.stamp), self._count(entity, e)) for e in entries]
+        if not isinstance(entries, (list, tuple)):
+            entries = list(entries)
+        starts = self.starts.get(entity, ())
+        current = len(starts)
+        return [(current - bisect_left(starts, e.stamp), n) for e, n in zip(entries, self._counts(entity, entries))]
 
-    def _count(self, entity: str, entry: EntryStamps) -> int:
-        """Return the distinct episodes ``entry`` was used in, the current one included."""
+    def _counts(self, entity: str, entries: list[EntryStamps]) -> list[int]:
+        """Return the distinct episodes each entry was used in, the current one included."""
         starts = self.starts.get(entity)
         begun = starts[-1] if starts else 0  # stamps start at 1
-        if entry.entered is not None and entry.entered > begun:
-            return 1  # it entered during the current episode
-        return self.counts.get(entity, {}).get(entry.property, 0) + (entry.stamp > begun)
+        known = self.counts.get(entity, {}).get
+        return [1 if e.entered is not None and e.entered > begun  # it entered during the current episode
+                else known(e.property, 0) + (e.stamp > begun) for e in entries]
 
     # ------------------------------------------------------------ persistence
     def export(self) -> dict:
