@@ -223,9 +223,7 @@ class WMManager:
         ``activation`` forgets only when that clock moves; the seconds it is told only
         stamp those forgettings, and every encoding tells its own), so a caller may skip it.
         """
-        return any(state.policy.decays or "shared-capacity" in state.policy.rules
-                   or (state.policy.activates and state.policy.value("activation_clock") == "seconds")
-                   for state in self.domains.values())
+        return any(state.policy.clock_driven for state in self.domains.values())
 
     def sharing(self) -> list[str]:
         """Return the domains in the shared pool (policy ``shared-capacity``), in domain order."""
