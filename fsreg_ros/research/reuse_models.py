@@ -146,7 +146,7 @@ def policy_of(setting: Mapping[str, object]) -> ForgettingPolicy:
 #: Rules enforced by the buffer after each encoding event (:class:`~fsreg_ros.core.memory.Limits`),
 #: which the WM Manager's clock never triggers.
 ENCODING_RULES = frozenset(("displacement", "displacement-lfu", "displacement-random", "similarity", "global-capacity"))
-#: Rules that count something other than seconds (the manager still catches them up at each message).
+#: Rules that count something other than seconds (episodes, encodings; the shared pool: sizes).
 #: Any other rule -- decay, activation, and a rule this module does not know -- needs a wall clock.
 COUNTING_RULES = ENCODING_RULES | {"shared-capacity", "episodes"}
 #: Predictors that read seconds: their regressions are left out of a game without times.

@@ -42,7 +42,7 @@ from ..core.forgetting.policies import ForgettingPolicy
 from ..core.forgetting.wm_manager import WMManager
 from ..core.memory import WMBuffer
 from .reuse_events import Events
-from .reuse_models import ENCODING_RULES, policy_of
+from .reuse_models import policy_of
 
 DOMAIN = "games"
 #: Strength bins of an entry in WM by its episode age (the referent's current episode minus the
@@ -85,9 +85,10 @@ class _Memory:
         if policy is not None:
             self.manager = WMManager()
             self.manager.manage(self.buffer, policy, 0.0)
-        # Rules the buffer enforces at each encoding need no clock: the manager is asked to catch
-        # up only for the others (decay, the shared pool, and any rule this module does not know).
-        self.clocked = policy is not None and bool(set(policy.rules) - ENCODING_RULES)
+        # The manager is asked to catch up only when that can forget something (decay, activation
+        # on seconds, the shared pool: WMManager.clock_driven); the other rules act at encodings
+        # and episode boundaries.
+        self.clocked = self.manager is not None and self.manager.clock_driven
 
     def advance(self, time: float) -> None:
         if self.clocked:

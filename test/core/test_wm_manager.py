@@ -111,3 +111,37 @@ def test_lazy_decay_memory_does_not_grow_with_ticks():
         manager.advance(i * 0.05)
     assert buffer.ticks.count == 10_000
     assert len(buffer.ticks._runs) == 1
+
+
+@pytest.mark.parametrize("settings, driven", [
+    ({"policy": "decay", "decay_period": 10.0}, True),
+    ({"policy": "activation", "activation_threshold": -1.0}, True),
+    ({"policy": "shared-capacity", "shared_capacity": 4}, True),
+    ({"policy": "activation", "activation_threshold": -1.0, "activation_clock": "episodes"}, False),
+    ({"policy": "activation", "activation_threshold": -1.0, "activation_clock": "words"}, False),
+    ({"policy": "episodes"}, False),
+    ({"policy": "displacement", "capacity": 2}, False),
+])
+def test_clock_driven_tells_whether_catching_up_can_forget(settings, driven):
+    manager = WMManager()
+    manager.manage(WMBuffer("d"), ForgettingPolicy.from_settings(settings), 0.0)
+    assert manager.clock_driven is driven
+    manager.manage(WMBuffer("e"), ForgettingPolicy.from_settings({"policy": "decay", "decay_period": 5.0}), 0.0)
+    assert manager.clock_driven is True
+
+
+def test_an_episode_boundary_keeps_the_count_of_an_entry_not_used_since_and_restarts_one_that_came_back():
+    wm = WMBuffer("d")
+    wm.begin_episode("r")
+    wm.encode("r", ["a", "b"], "speaker", 0.0)
+    wm.begin_episode("r")
+    wm.encode("r", ["a"], "speaker", 1.0)
+    wm.begin_episode("r")
+    wm.begin_episode("r")  # a used in episodes 1 and 2, b in 1; neither since
+    assert [(s.age, s.episodes) for s in wm.strength("r")] == [(3, 1), (2, 2)]
+    wm.remove("r", "a", "retract", 2.0)
+    wm.encode("r", ["a"], "speaker", 2.0)  # back: a new entry, used in episode 4 only
+    wm.begin_episode("r")
+    assert wm.queue("r") == ("b", "a")
+    assert [(s.age, s.episodes) for s in wm.strength("r")] == [(4, 1), (1, 1)]
+    assert wm.export_episodes()["r"]["counts"] == {"b": 1, "a": 1}

@@ -134,6 +134,15 @@ class ForgettingPolicy:
         """True when forgetting by ACT-R activation is in force (the WM Manager then sends its clock)."""
         return "activation" in self.rules
 
+    @property
+    def clock_driven(self) -> bool:
+        """True when the WM Manager's catching up can forget something (``WMManager.clock_driven``).
+
+        Decay, rule ``activation`` on the seconds clock, or the shared pool.
+        """
+        return self.decays or "shared-capacity" in self.rules or (
+            self.activates and self.value("activation_clock") == "seconds")
+
     @classmethod
     def parse(cls, policy: str, **parameters: Optional[Number]) -> "ForgettingPolicy":
         """Build and validate a policy from its name and parameters (None = unset)."""

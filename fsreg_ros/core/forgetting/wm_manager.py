@@ -213,6 +213,18 @@ class WMManager:
                 self.share(sizes, now)
         return applied
 
+    @property
+    def clock_driven(self) -> bool:
+        """Tell whether :meth:`advance` can forget anything in a managed domain.
+
+        True when one decays (its ticks), forgets by rule ``activation`` on the seconds
+        clock, or is in the shared pool (trimmed when the manager catches up).  Otherwise
+        catching up changes nothing a read of WM sees (on an entity's own clock, rule
+        ``activation`` forgets only when that clock moves; the seconds it is told only
+        stamp those forgettings, and every encoding tells its own), so a caller may skip it.
+        """
+        return any(state.policy.clock_driven for state in self.domains.values())
+
     def sharing(self) -> list[str]:
         """Return the domains in the shared pool (policy ``shared-capacity``), in domain order."""
         return [d for d, state in self.domains.items() if "shared-capacity" in state.policy.rules]

@@ -155,10 +155,26 @@ class WMBuffer:
         """Return the entity's current episode: how many have begun (:meth:`begin_episode`; 0 before the first)."""
         return self.episodes.current(entity)
 
-    def entry_stamps(self, entity: str) -> list[EntryStamps]:
-        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first."""
+    def entry_stamps(self, entity: str, since: int = 0) -> list[EntryStamps]:
+        """Return each entry of Q[entity] as (property, latest stamp, stamp it entered with or None), LRU first.
+
+        ``since``: only the entries encoded after that stamp (their latest stamp is larger):
+        the back of the queue, read from the back without building the rest.
+        """
         q = self.readable(entity)
-        return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()] if q else []
+        if not q:
+            return []
+        if since <= 0:
+            return [EntryStamps(p, entry_stamp(v), entry_entered(v)) for p, v in q.items()]
+        out = []
+        for p in reversed(q):  # stamps increase from front to back
+            v = q[p]
+            stamp = entry_stamp(v)
+            if stamp <= since:
+                break
+            out.append(EntryStamps(p, stamp, entry_entered(v)))
+        out.reverse()
+        return out
 
     def strength(self, entity: str) -> list[Strength]:
         """Return how strongly each entry of Q[entity] is held, parallel to :meth:`queue` (:class:`Strength`).
@@ -261,11 +277,15 @@ class WMBuffer:
         """
         if not self.retains:
             return
-        if self.quiet and self.limits.lru_only and self.store.in_columns(entity):
+        if self.quiet and self.limits.lru_only:
             if not isinstance(properties, (list, tuple)):
                 properties = list(properties)
-            if column_encoding.encode_in_row(self, entity, properties, cause, time, turn):
+            if self.store.in_columns(entity) and column_encoding.encode_in_row(
+                    self, entity, properties, cause, time, turn):
                 return  # (a column queue with room: encoded in its row, as the loop below would)
+            if properties:
+                self._encode_quiet((entity,), properties, cause, time, turn)
+            return
         for prop in properties:
             self.encode_each((entity,), prop, cause, time, turn)
 
@@ -285,15 +305,14 @@ class WMBuffer:
         limits = self.limits
         if not limits.retains:
             return
+        if self.quiet and limits.lru_only:
+            self._encode_quiet(entities, (prop,), cause, time, turn)
+            return
         store = self.store
         self.origin_log.log(store.stamp + 1, cause, turn)
         act = self.activation
         if act is not None:
             act.advance(time)
-        if self.quiet and limits.lru_only:
-            store.encode_quiet(entities, prop, limits.capacity, time, self.lazy_decay.ticks.count,
-                               self.changes.entries, act)
-            return
         lfu = limits.victim == "lfu"
         ticks, decay_sync, record, enforce = self.lazy_decay.ticks.count, self.lazy_decay.sync, \
             self.changes.record, self.interference.enforce
@@ -325,6 +344,22 @@ class WMBuffer:
             if self.sink is not None:
                 self.sink(WMEvent("encode", self.domain, entity, prop, cause, time, turn))
             enforce(entity, q, prop, time, turn)
+
+    def _encode_quiet(self, entities: Iterable[str], props: Sequence[str], cause: str, time: float,
+                      turn: Optional[int]) -> None:
+        """Encode each of ``props`` (at least one), in order, for each entity: no listener, at most an LRU capacity.
+
+        :meth:`QueueStore.encode_quiet` per property; the origin run (one cause and turn)
+        and the activation clock (one time) are noted once for them all.  ``entities`` is
+        iterated once per property (a single property for a generator).
+        """
+        store, act = self.store, self.activation
+        self.origin_log.log(store.stamp + 1, cause, turn)
+        if act is not None:
+            act.advance(time)
+        capacity, ticks, changes = self.limits.capacity, self.lazy_decay.ticks.count, self.changes
+        for prop in props:  # (the change record's list is read each time: a column drop may replace it)
+            store.encode_quiet(entities, prop, capacity, time, ticks, changes.entries, act)
 
     def encode_members(self, members: int, entities: Sequence[str], prop: str, cause: str, time: float,
                        turn: Optional[int] = None) -> None:

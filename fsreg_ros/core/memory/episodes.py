@@ -15,6 +15,11 @@ later one) and, per entry present at the entity's last episode boundary, how man
 closed episodes it was used in since it entered the queue.  Nothing is noted per
 encoding: an entry's last episode follows from its latest stamp, and the count is
 brought up to date at each boundary, so the encoding paths carry nothing for it.
+Only the entries used in the closing episode (the back of the queue, read alone:
+:meth:`WMBuffer.entry_stamps` ``since``) change count at a boundary; the count of an
+entry gone from the queue is never read (one entering again starts afresh) and is
+dropped when the counts are rebuilt from the whole queue (under rule ``episodes``, or
+once they hold more than twice the queue's length then, plus 8).
 It reads the buffer only through its public interface (:class:`EpisodeHost`).
 
 Rule ``episodes`` (``episode_window`` k): when episode n of an entity begins, before
@@ -73,8 +78,8 @@ class EntryStamps(NamedTuple):
 class EpisodeHost(Protocol):
     """What :class:`EpisodeLog` uses of a buffer (all public)."""
 
-    def entry_stamps(self, entity: str) -> list[EntryStamps]:
-        """Q[entity]'s entries, LRU first."""
+    def entry_stamps(self, entity: str, since: int = 0) -> list[EntryStamps]:
+        """Q[entity]'s entries (those encoded after stamp ``since``), LRU first."""
 
     def counters(self) -> tuple[int, int]:
         """``(stamp counter, decay ticks)``."""
@@ -90,9 +95,10 @@ class EpisodeLog:
         self.wm = wm
         self.starts: dict[str, list[int]] = {}  # entity -> stamp counter when each of its episodes began
         self.counts: dict[str, dict[str, int]] = {}  # entity -> prop -> closed episodes used (at the last boundary)
+        self.held: dict[str, int] = {}  # entity -> its queue's length when its counts were last rebuilt
 
     def clear(self) -> None:
-        self.starts, self.counts = {}, {}
+        self.starts, self.counts, self.held = {}, {}, {}
 
     def current(self, entity: str) -> int:
         """Return the entity's current episode (0 before its first)."""
@@ -104,8 +110,15 @@ class EpisodeLog:
 
     def begin(self, entity: str, window: Optional[int], time: float, turn: Optional[int]) -> int:
         """Begin the entity's next episode; under rule ``episodes`` (``window`` k) forget what left it.  Return it."""
-        entries = self.wm.entry_stamps(entity)
-        self.counts[entity] = {e.property: self._count(entity, e) for e in entries}
+        counts = self.counts.get(entity)
+        if window is not None or counts is None or len(counts) > 2 * self.held.get(entity, 0) + 8:
+            entries = self.wm.entry_stamps(entity)  # every entry: the counts of those gone are dropped
+            self.counts[entity] = {e.property: n for e, n in zip(entries, self._counts(entity, entries))}
+            self.held[entity] = len(entries)
+        else:  # only the entries used in the closing episode change; an entry gone keeps a count no one reads
+            starts = self.starts.get(entity)
+            used = self.wm.entry_stamps(entity, starts[-1] if starts else 0)
+            counts.update(zip([e.property for e in used], self._counts(entity, used)))
         starts = self.starts.setdefault(entity, [])
         starts.append(self.wm.counters()[0])
         episode = len(starts)
@@ -119,16 +132,19 @@ class EpisodeLog:
 
     def strength(self, entity: str, entries: Iterable[EntryStamps]) -> list[tuple[int, int]]:
         """Return ``(age, episodes)`` of each entry (:class:`Strength`'s first two fields)."""
-        current = self.current(entity)
-        return [(current - self.episode_of(entity, e.stamp), self._count(entity, e)) for e in entries]
+        if not isinstance(entries, (list, tuple)):
+            entries = list(entries)
+        starts = self.starts.get(entity, ())
+        current = len(starts)
+        return [(current - bisect_left(starts, e.stamp), n) for e, n in zip(entries, self._counts(entity, entries))]
 
-    def _count(self, entity: str, entry: EntryStamps) -> int:
-        """Return the distinct episodes ``entry`` was used in, the current one included."""
+    def _counts(self, entity: str, entries: list[EntryStamps]) -> list[int]:
+        """Return the distinct episodes each entry was used in, the current one included."""
         starts = self.starts.get(entity)
         begun = starts[-1] if starts else 0  # stamps start at 1
-        if entry.entered is not None and entry.entered > begun:
-            return 1  # it entered during the current episode
-        return self.counts.get(entity, {}).get(entry.property, 0) + (entry.stamp > begun)
+        known = self.counts.get(entity, {}).get
+        return [1 if e.entered is not None and e.entered > begun  # it entered during the current episode
+                else known(e.property, 0) + (e.stamp > begun) for e in entries]
 
     # ------------------------------------------------------------ persistence
     def export(self) -> dict:
@@ -172,7 +188,7 @@ class EpisodeLog:
             if begun:
                 starts[entity] = list(begun)
                 counts[entity] = dict(value.get("counts", {}))
-        self.starts, self.counts = starts, counts
+        self.starts, self.counts, self.held = starts, counts, {}
         return dropped
 
 

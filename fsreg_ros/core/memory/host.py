@@ -231,8 +231,8 @@ class HostBuffer(Protocol):
     def episode(self, entity: str) -> int:
         """Return the entity's current reference episode number (0 before its first)."""
 
-    def entry_stamps(self, entity: str) -> list[EntryStamps]:
-        """Return each entry of Q[entity] as the episode log reads it, LRU first."""
+    def entry_stamps(self, entity: str, since: int = 0) -> list[EntryStamps]:
+        """Return each entry of Q[entity] (encoded after stamp ``since``) as the episode log reads it, LRU first."""
 
     def nonempty_entities(self) -> list[str]:
         """Entities whose queues are non-empty, every queue brought up to date first."""
