@@ -182,7 +182,8 @@ def test_a_plot_result_or_a_sweep_ledger_that_is_a_fifo_is_one_line(tmp_path, ca
     from fsreg_ros.research.ledger import GAMES, Ledger, LedgerError
 
     trace = tmp_path / "trace.jsonl"
-    trace.write_text('{"op": "encode", "domain": "faces", "entity": "face1", "property": "male", "time": 1.0}\n')
+    trace.write_text('{"op": "encode", "domain": "faces", "entity": "face1", "property": "male", "cause": "speaker", '
+                     '"time": 1.0}\n')
     result = make(tmp_path / "result.json", "fifo")
     assert plot_main([str(trace), "--result", str(result), "-o", str(tmp_path / "wm.png")]) == 2
     assert capsys.readouterr().err == f"fsreg-plot: error: {result}: {FIFO}\n"
