@@ -127,7 +127,7 @@ def test_plot_accepts_watch_output_with_states_between_the_events(tmp_path, caps
     assert capsys.readouterr().out.strip() == f"fsreg-plot: 1 WM stays from 2 events drawn to {tmp_path / 'f.png'}"
     trace.write_text(json.dumps({"op": "refresh"}) + "\n")
     assert plot_main([str(trace), "-o", str(tmp_path / "g.png")]) == 2
-    assert "f.jsonl:1: not a WM event" in capsys.readouterr().err
+    assert "f.jsonl: line 1: not a WM event (an object with op encode|forget)" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ a live session
