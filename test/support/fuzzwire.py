@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import struct
+import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Union
 
@@ -43,6 +44,8 @@ from fsreg_ros.testing.ros_session import Inbox, RosSession, Timeout
 
 TIME = 1.0  # the sim time of the real requests (the graph must stand at it)
 REPLY_TIMEOUT = 10.0
+#: The id prefix of the markers sent until an endpoint's answers are heard (:meth:`WireFuzz._hears_the_answers`).
+HELLO = "fz-wire-hello-"
 DEEP = 5_000
 #: The message of issue 38.1 (it killed the consultant and the WM Manager through the oversized path).
 ISSUE_38 = '{"id":' + "[" * 3000 + "]" * 3000 + ',"pad":"' + "x" * 70_000 + '"}'
@@ -178,6 +181,8 @@ class WireFuzz:
         try:
             self.g.spin_until(lambda: pub.get_subscription_count() >= self.g.probe.count_subscribers(endpoint.name),
                               REPLY_TIMEOUT, what=f"the readers of {endpoint.name}")
+            if topic.answered_on is not None:
+                self._hears_the_answers(endpoint, pub)
             for envelope in ENVELOPES:
                 rid = f"fz-wire-{next(self._ids)}"
                 text = envelope.make(rid)
@@ -195,6 +200,27 @@ class WireFuzz:
         finally:
             self.g.probe.destroy_publisher(pub)  # a latched topic keeps no junk for later readers
 
+    def _hears_the_answers(self, endpoint: Endpoint, pub) -> None:
+        """Send a marker again (every second) until its answer arrives: the answering writer matched this reader.
+
+        A reader's own match count says only that it sees the writer; the writer may not yet see
+        the reader, and a volatile answer published before it does is lost.  A marker is refused
+        by the endpoint (it carries no request) and changes nothing.
+        """
+        inbox = self.inboxes[endpoint.entry.answered_on]
+        hello = f"{HELLO}{next(self._ids)}"
+        message = {"id": hello, **({"domain": self.domains[0]} if endpoint.entry is contract.LTM_ASSERT else {})}
+        deadline = time.monotonic() + REPLY_TIMEOUT
+        while not any(r.get("id") == hello for r in inbox):
+            if time.monotonic() > deadline:
+                raise Timeout(f"timed out after {REPLY_TIMEOUT} s waiting for the answer to {hello} on "
+                              f"{endpoint.entry.answered_on}")
+            pub.publish(String(data=dumps(message)))
+            try:
+                self.g.spin_until(lambda: any(r.get("id") == hello for r in inbox), 1.0, what=hello)
+            except Timeout:
+                pass
+
     def _answered(self, endpoint: Endpoint, pub, inbox, before: int, envelope: Envelope, rid: str,
                   tally: Tally) -> None:
         """Send a marker after the input; the replies before the marker's are the input's."""
@@ -207,7 +233,8 @@ class WireFuzz:
         except Timeout as err:
             tally.failures.append(f"{envelope.name}: {err}")
             return
-        replies = list(itertools.takewhile(lambda r: r.get("id") != marker, inbox[before:]))
+        replies = [r for r in itertools.takewhile(lambda r: r.get("id") != marker, inbox[before:])
+                   if not str(r.get("id")).startswith(HELLO)]  # a late answer to _hears_the_answers
         if not replies:
             tally.failures.append(f"{envelope.name}: unanswered (the marker after it was answered)")
         for reply in replies:
